@@ -1,0 +1,12 @@
+# DexLite pipeline: this file only wires the stages together (see workflow/rules/).
+configfile: "config.yaml"
+
+
+include: "workflow/rules/common.smk"
+include: "workflow/rules/prepare_objects.smk"
+
+
+rule all:
+    input:
+        final_outputs(),
+    default_target: True

@@ -1,0 +1,73 @@
+"""The ``dexlite`` command: one subcommand per pipeline stage plus user tools.
+
+Each subcommand lives in ``dexlite_pipeline.stages.<module>`` and exposes
+``add_arguments(parser)`` and ``run(args) -> int``; modules are imported only when
+their command runs, so ``dexlite --help`` is fast and one stage's heavy dependencies
+never slow another.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import logging
+import sys
+
+from dexlite_pipeline import __version__
+
+COMMANDS: dict[str, tuple[str, str]] = {
+    "prepare-objects": ("prepare_objects", "normalize meshes, decompose, build SDF grids and point clouds"),
+    "stability-filter": ("stability_filter", "PyBullet table-stability test of prepared objects"),
+    "seed-grasps": ("seed_grasps", "synthesize seed grasps by energy optimization (one shard)"),
+    "import-dexgraspnet": ("import_dexgraspnet", "import a DexGraspNet download as a grasp store plus object assets"),
+    "export-dexgraspnet": ("export_dexgraspnet", "write a grasp store back in the DexGraspNet layout"),
+    "curate": ("curate", "filter seed/imported grasps by stability, energy thresholds and duplicates"),
+    "energy": ("energy", "per-grasp energy terms and penetration depth of a grasp store"),
+    "lift-test": ("lift_test", "MuJoCo lift test (and optional six-direction test) of every grasp in a store"),
+    "lift-validate": ("lift_validate", "pipeline stage: lift-test one shard of curated grasps"),
+    "train-cvae": ("train_cvae", "train the PointNet + CVAE grasp model"),
+    "sample-grasps": ("sample_grasps", "sample grasps from the trained CVAE"),
+    "post-optimize": ("post_optimize", "refine sampled grasps by annealed energy optimization"),
+    "evaluate": ("evaluate", "simulate and measure every method on held-out objects"),
+    "report": ("report", "build results/eval/report.html from the evaluation outputs"),
+    "render": ("render", "render one grasp (hand and object) to a PNG"),
+}
+
+
+class CliError(Exception):
+    """An error to print as one line and exit with status 2."""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="dexlite", description=__doc__.splitlines()[0])
+    parser.add_argument("--version", action="version", version=f"dexlite {__version__}")
+    parser.add_argument("--log-level", default="INFO", choices=["DEBUG", "INFO", "WARNING", "ERROR"])
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    for name, (_, help_text) in COMMANDS.items():
+        sub.add_parser(name, help=help_text, add_help=False)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    parser = build_parser()
+    top, rest = parser.parse_known_args(argv)
+    module_name, help_text = COMMANDS[top.command]
+    module = importlib.import_module(f"dexlite_pipeline.stages.{module_name}")
+    stage_parser = argparse.ArgumentParser(prog=f"dexlite {top.command}", description=help_text)
+    stage_parser.add_argument("--threads", type=int, default=None, help="torch/worker threads (Snakemake passes the rule's threads)")
+    module.add_arguments(stage_parser)
+    args = stage_parser.parse_args(rest)
+    logging.basicConfig(level=top.log_level, format="%(asctime)s %(levelname)s %(name)s: %(message)s", stream=sys.stderr)
+    from dexlite_pipeline.device import set_threads
+
+    set_threads(args.threads)
+    try:
+        return int(module.run(args) or 0)
+    except (CliError, ValueError, FileNotFoundError, NotADirectoryError) as exc:
+        print(f"dexlite {top.command}: error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

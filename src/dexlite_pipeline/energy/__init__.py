@@ -1,0 +1,1 @@
+"""Grasp energies (force closure, contact distance, penetration, self-penetration, joint limits)."""

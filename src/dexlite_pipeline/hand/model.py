@@ -1,0 +1,349 @@
+"""Batched, differentiable Shadow Hand kinematics and collision geometry (torch).
+
+The kinematic tree is read once from the palm-rooted MuJoCo model (``hand.mjcf``) into
+flat tensors; forward kinematics then runs over a batch of 28-vectors with no Python
+work per grasp. pytorch-kinematics 0.10 cannot parse MJCF under mujoco 4 (its joint-type
+table is keyed by enum members), so the chain is built here from the compiled MjModel,
+and ``tests/hand`` checks it against MuJoCo's own forward kinematics.
+
+Frames: ``hand_pose`` = [t (3, m), static-xyz Euler (3, rad), 22 joints (rad)] is the pose
+of ``robot0:palm`` in the object frame. Every point set below is returned in the object frame.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+from dexlite_pipeline.hand.mjcf import hand_mjcf_string
+from dexlite_pipeline.hand.rotation import axis_angle_to_matrix, euler_xyz_to_matrix, quat_wxyz_to_matrix
+
+JOINT_NAMES: tuple[str, ...] = tuple(
+    f"robot0:{name}"
+    for name in (
+        "FFJ3 FFJ2 FFJ1 FFJ0 MFJ3 MFJ2 MFJ1 MFJ0 RFJ3 RFJ2 RFJ1 RFJ0 "
+        "LFJ4 LFJ3 LFJ2 LFJ1 LFJ0 THJ4 THJ3 THJ2 THJ1 THJ0"
+    ).split()
+)
+POSE_DIM = 28
+TRANSLATION = slice(0, 3)
+ROTATION = slice(3, 6)
+JOINTS = slice(6, 28)
+
+FINGER_CONTACT_LINKS = tuple(
+    f"robot0:{finger}{segment}" for finger in ("ff", "mf", "rf", "lf") for segment in ("proximal", "middle", "distal")
+) + ("robot0:thmiddle", "robot0:thdistal")
+DISTAL_LINKS = ("robot0:ffdistal", "robot0:mfdistal", "robot0:rfdistal", "robot0:lfdistal", "robot0:thdistal")
+
+CAPSULE, BOX = 0, 1
+
+
+@dataclass(frozen=True)
+class HandFrames:
+    """Link frames in the object frame: rotation (B, L, 3, 3), translation (B, L, 3)."""
+
+    rotation: torch.Tensor
+    translation: torch.Tensor
+
+    def transform(self, local_points: torch.Tensor, link_index: torch.Tensor) -> torch.Tensor:
+        """Map points given in their link's frame, (P, 3) with link ids (P,), to (B, P, 3)."""
+        rot = self.rotation[:, link_index]  # (B, P, 3, 3)
+        return (rot * local_points[None, :, None, :]).sum(-1) + self.translation[:, link_index]
+
+
+def _mul33(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
+    """Batched 3x3 product by broadcasting (much faster than bmm for tiny matrices on CPU)."""
+    return (a[..., :, :, None] * b[..., None, :, :]).sum(-2)
+
+
+def _mul33v(a: torch.Tensor, v: torch.Tensor) -> torch.Tensor:
+    return (a * v[..., None, :]).sum(-1)
+
+
+class ShadowHand:
+    """The Shadow Hand rooted at the palm: kinematics, point sets and collision shapes."""
+
+    def __init__(
+        self,
+        device: torch.device | str = "cpu",
+        dtype: torch.dtype = torch.float32,
+        contacts_per_link: int = 10,
+        surface_points_per_shape: int = 64,
+    ) -> None:
+        import mujoco
+
+        self.device = torch.device(device)
+        self.dtype = dtype
+        model = mujoco.MjModel.from_xml_string(hand_mjcf_string())
+        self._mj_model = model
+        names = [model.body(b).name for b in range(1, model.nbody)]
+        self.link_names: tuple[str, ...] = tuple(names)
+        self.link_index = {name: i for i, name in enumerate(names)}
+        self.joint_names = JOINT_NAMES
+        mj_joint_names = [model.joint(j).name for j in range(model.njnt)]
+        if tuple(mj_joint_names) != JOINT_NAMES:
+            raise RuntimeError(f"unexpected Shadow Hand joint order in the gym model: {mj_joint_names}")
+        self.joint_limits = torch.tensor(model.jnt_range, dtype=dtype, device=self.device)  # (22, 2)
+
+        body_joint = np.full(len(names), -1)
+        for j in range(model.njnt):
+            body_joint[model.jnt_bodyid[j] - 1] = j
+        self._parent = [int(model.body_parentid[b]) - 1 for b in range(1, model.nbody)]
+        self._body_joint = body_joint.tolist()
+        as_t = functools.partial(torch.as_tensor, dtype=dtype, device=self.device)
+        self._offset_pos = as_t(model.body_pos[1:].copy())
+        self._offset_rot = quat_wxyz_to_matrix(as_t(model.body_quat[1:].copy()))
+        self._offset_is_identity = [bool(np.allclose(q, [1, 0, 0, 0])) for q in model.body_quat[1:]]
+        self._joint_axis = as_t(model.jnt_axis.copy())
+        self._joint_pos = as_t(model.jnt_pos.copy())
+        if np.abs(model.jnt_pos).max() > 0:
+            raise RuntimeError("joint anchors off the body origin are not supported")
+
+        self._build_shapes(model, as_t)
+        self._build_point_sets(as_t, contacts_per_link, surface_points_per_shape)
+
+    # ----------------------------------------------------------------- geometry
+    def _build_shapes(self, model, as_t) -> None:
+        kinds, links, pos, rot, size = [], [], [], [], []
+        for g in range(model.ngeom):
+            if model.geom_group[g] != 4 or model.geom_contype[g] == 0:
+                continue
+            gtype = int(model.geom_type[g])
+            if gtype == int(mujoco_geom("capsule")):
+                kinds.append(CAPSULE)
+                r, half = model.geom_size[g][:2]
+                size.append([r, half, 0.0])
+            elif gtype == int(mujoco_geom("box")):
+                kinds.append(BOX)
+                size.append(list(model.geom_size[g]))
+            else:
+                raise RuntimeError(f"unexpected collision geom type {gtype} in the hand model")
+            links.append(int(model.geom_bodyid[g]) - 1)
+            pos.append(model.geom_pos[g].copy())
+            rot.append(model.geom_quat[g].copy())
+        self.shape_kind = torch.tensor(kinds, device=self.device)
+        self.shape_link = torch.tensor(links, device=self.device)
+        self.shape_pos = as_t(np.array(pos))
+        self.shape_rot = quat_wxyz_to_matrix(as_t(np.array(rot)))
+        self.shape_size = as_t(np.array(size))
+        self.capsule_ids = torch.nonzero(self.shape_kind == CAPSULE).flatten()
+        self.box_ids = torch.nonzero(self.shape_kind == BOX).flatten()
+        # Bounding radius of each shape about its centre, for exact culling by callers.
+        cap_r = self.shape_size[:, 0] + self.shape_size[:, 1]
+        box_r = self.shape_size.norm(dim=-1)
+        self.shape_bounding_radius = torch.where(self.shape_kind == CAPSULE, cap_r, box_r)
+
+    def _capsule_of_link(self, link: str) -> int:
+        link_id = self.link_index[link]
+        for s in self.capsule_ids.tolist():
+            if int(self.shape_link[s]) == link_id:
+                return s
+        raise KeyError(link)
+
+    def _build_point_sets(self, as_t, contacts_per_link: int, surface_per_shape: int) -> None:
+        # Contact candidates: on the palmar side of each finger capsule (-y; -x for the thumb).
+        heights = max(contacts_per_link // 2, 1)
+        pts, ids = [], []
+        for link in FINGER_CONTACT_LINKS:
+            s = self._capsule_of_link(link)
+            r, half = float(self.shape_size[s, 0]), float(self.shape_size[s, 1])
+            palmar = math.pi if link.startswith("robot0:th") else -math.pi / 2  # palmar normal angle in x-y
+            zc = float(self.shape_pos[s, 2])
+            for k in range(contacts_per_link):
+                h = k % heights
+                side = (k // heights) * 2 - 1 if contacts_per_link > 1 else 0
+                angle = palmar + side * math.radians(25.0)
+                z = zc - half * 0.8 + 1.6 * half * (h + 0.5) / heights
+                pts.append([r * math.cos(angle), r * math.sin(angle), z])
+                ids.append(self.link_index[link])
+        self.contact_points_local = as_t(np.array(pts))
+        self.contact_link = torch.tensor(ids, device=self.device)
+
+        # Penetration keypoints on capsule axes, 1 cm in from the ends, ~1.2 cm apart.
+        pts, ids = [], []
+        for s in self.capsule_ids.tolist():
+            zc, half = float(self.shape_pos[s, 2]), float(self.shape_size[s, 1])
+            lo, hi = zc - half + 0.01, zc + half - 0.01
+            count = max(1, int(round((hi - lo) / 0.012)) + 1) if hi > lo else 1
+            zs = [zc] if hi <= lo else np.linspace(lo, hi, count).tolist()
+            for z in zs:
+                pts.append([0.0, 0.0, z])
+                ids.append(int(self.shape_link[s]))
+        for s in self.box_ids.tolist():
+            hx, _, hz = self.shape_size[s].tolist()
+            cx, cy, cz = self.shape_pos[s].tolist()
+            for fx in (-0.5, 0.5):
+                for fz in (-0.5, 0.5):
+                    pts.append([cx + fx * hx, cy, cz + fz * hz])
+                    ids.append(int(self.shape_link[s]))
+        self.keypoints_local = as_t(np.array(pts))
+        self.keypoint_link = torch.tensor(ids, device=self.device)
+        self.keypoint_pair_mask = self._keypoint_pair_mask()
+
+        # Surface points on every collision shape, evenly spread (deterministic).
+        pts, ids = [], []
+        for s in range(len(self.shape_kind)):
+            local = _shape_surface_samples(int(self.shape_kind[s]), self.shape_size[s].tolist(), surface_per_shape)
+            world = local @ self.shape_rot[s].cpu().numpy().T + self.shape_pos[s].cpu().numpy()
+            pts.append(world)
+            ids.extend([int(self.shape_link[s])] * len(world))
+        self.surface_points_local = as_t(np.concatenate(pts))
+        self.surface_link = torch.tensor(ids, device=self.device)
+
+    def _keypoint_pair_mask(self) -> torch.Tensor:
+        """Pairs counted by E_spen: keypoints on different links that are not parent and child."""
+        link = self.keypoint_link.tolist()
+        parent = self._parent
+        n = len(link)
+        mask = torch.zeros(n, n, dtype=torch.bool, device=self.device)
+        for i in range(n):
+            for j in range(i + 1, n):
+                a, b = link[i], link[j]
+                adjacent = a == b or parent[a] == b or parent[b] == a or (parent[a] == parent[b] and parent[a] >= 0 and _is_zero_length(self, a, b))
+                mask[i, j] = mask[j, i] = not adjacent
+        return mask
+
+    # --------------------------------------------------------------- kinematics
+    def palm_frame(self, hand_pose: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """Rotation (B, 3, 3) and translation (B, 3) of the palm in the object frame."""
+        return euler_xyz_to_matrix(hand_pose[..., ROTATION]), hand_pose[..., TRANSLATION]
+
+    def forward(self, hand_pose: torch.Tensor) -> HandFrames:
+        """All link frames in the object frame for a (B, 28) batch of hand poses."""
+        palm_rot, palm_t = self.palm_frame(hand_pose)
+        return self.forward_parts(palm_rot, palm_t, hand_pose[..., JOINTS])
+
+    def forward_parts(self, palm_rot: torch.Tensor, palm_t: torch.Tensor, joints: torch.Tensor) -> HandFrames:
+        """Like ``forward`` with the palm rotation given as a matrix (for 6D optimizers)."""
+        joint_rot = axis_angle_to_matrix(self._joint_axis, joints)  # (B, 22, 3, 3)
+        rots: list[torch.Tensor] = []
+        trans: list[torch.Tensor] = []
+        for b, parent in enumerate(self._parent):
+            if parent < 0:
+                rot, t = palm_rot, palm_t
+                if not self._offset_is_identity[b]:
+                    rot = _mul33(rot, self._offset_rot[b])
+                t = t + _mul33v(palm_rot, self._offset_pos[b])
+            else:
+                parent_rot, parent_t = rots[parent], trans[parent]
+                t = parent_t + _mul33v(parent_rot, self._offset_pos[b])
+                rot = parent_rot if self._offset_is_identity[b] else _mul33(parent_rot, self._offset_rot[b])
+            j = self._body_joint[b]
+            if j >= 0:
+                rot = _mul33(rot, joint_rot[:, j])
+            rots.append(rot)
+            trans.append(t)
+        return HandFrames(torch.stack(rots, dim=1), torch.stack(trans, dim=1))
+
+    def link_poses(self, hand_pose: torch.Tensor) -> dict[str, torch.Tensor]:
+        """Link name -> (B, 4, 4) homogeneous pose of each body frame in the object frame."""
+        frames = self.forward(hand_pose)
+        batch = hand_pose.shape[0]
+        out = {}
+        for i, name in enumerate(self.link_names):
+            m = torch.zeros(batch, 4, 4, dtype=hand_pose.dtype, device=hand_pose.device)
+            m[:, :3, :3] = frames.rotation[:, i]
+            m[:, :3, 3] = frames.translation[:, i]
+            m[:, 3, 3] = 1.0
+            out[name] = m
+        return out
+
+    # ---------------------------------------------------------------- point sets
+    def contact_candidates(self, frames: HandFrames) -> torch.Tensor:
+        """(B, 140, 3) contact candidate points on the palmar side of the finger links."""
+        return frames.transform(self.contact_points_local, self.contact_link)
+
+    def penetration_keypoints(self, frames: HandFrames) -> torch.Tensor:
+        """(B, K, 3) self-collision keypoints; pair them with ``keypoint_pair_mask``."""
+        return frames.transform(self.keypoints_local, self.keypoint_link)
+
+    def surface_points(self, frames: HandFrames) -> torch.Tensor:
+        """(B, S, 3) points on the surface of the collision shapes."""
+        return frames.transform(self.surface_points_local, self.surface_link)
+
+    def shape_frames(self, frames: HandFrames) -> tuple[torch.Tensor, torch.Tensor]:
+        """Rotation (B, S, 3, 3) and centre (B, S, 3) of every collision shape."""
+        link_rot = frames.rotation[:, self.shape_link]
+        rot = _mul33(link_rot, self.shape_rot)
+        centre = (link_rot * self.shape_pos[None, :, None, :]).sum(-1) + frames.translation[:, self.shape_link]
+        return rot, centre
+
+    def collision_signed_distance(self, frames: HandFrames, points: torch.Tensor, shape_ids: torch.Tensor | None = None) -> torch.Tensor:
+        """Signed distance of (B, P, 3) object-frame points to the hand, positive inside.
+
+        The maximum over the collision shapes (capsules: r - |x - clamp-to-segment(x)|;
+        boxes: the negated box SDF). ``shape_ids`` restricts it to a subset of shapes.
+        """
+        rot, centre = self.shape_frames(frames)
+        ids = torch.arange(len(self.shape_kind), device=self.device) if shape_ids is None else shape_ids
+        rot, centre = rot[:, ids], centre[:, ids]
+        rel = points[:, None, :, :] - centre[:, :, None, :]  # (B, S, P, 3)
+        local = (rel[..., :, None] * rot[:, :, None, :, :]).sum(-2)  # R^T rel
+        size = self.shape_size[ids][None, :, None, :]
+        kind = self.shape_kind[ids][None, :, None]
+        half = size[..., 1]
+        z_clamped = local[..., 2].clamp(min=-half, max=half)
+        closest = torch.stack([torch.zeros_like(z_clamped), torch.zeros_like(z_clamped), z_clamped], dim=-1)
+        capsule_sd = size[..., 0] - (local - closest).norm(dim=-1)
+        q = local.abs() - size
+        outside = q.clamp(min=0).norm(dim=-1)
+        inside = q.max(dim=-1).values.clamp(max=0)
+        box_sd = -(outside + inside)
+        sd = torch.where(kind == CAPSULE, capsule_sd, box_sd)
+        return sd.max(dim=1).values
+
+    def to(self, device: torch.device | str) -> "ShadowHand":
+        """A copy of this hand on another device."""
+        return ShadowHand(device=device, dtype=self.dtype, contacts_per_link=len(self.contact_link) // len(FINGER_CONTACT_LINKS))
+
+
+def mujoco_geom(name: str):
+    import mujoco
+
+    return getattr(mujoco.mjtGeom, f"mjGEOM_{name.upper()}")
+
+
+def _is_zero_length(hand: ShadowHand, a: int, b: int) -> bool:
+    """Siblings hung at the same point (e.g. thumb base bodies) count as adjacent."""
+    return bool(torch.allclose(hand._offset_pos[a], hand._offset_pos[b]))
+
+
+def _shape_surface_samples(kind: int, size: list[float], count: int) -> np.ndarray:
+    """Deterministic, roughly even points on a capsule (along z) or box surface, shape frame."""
+    golden = math.pi * (3.0 - math.sqrt(5.0))
+    if kind == CAPSULE:
+        r, half = size[0], size[1]
+        cyl_area, cap_area = 2 * math.pi * r * 2 * half, 4 * math.pi * r * r
+        n_cyl = max(4, int(round(count * cyl_area / (cyl_area + cap_area))))
+        n_cap = max(2, count - n_cyl)
+        k = np.arange(n_cyl)
+        z = -half + 2 * half * (k + 0.5) / n_cyl
+        theta = k * golden
+        cyl = np.stack([r * np.cos(theta), r * np.sin(theta), z], axis=1)
+        k = np.arange(n_cap)
+        cz = 1 - 2 * (k + 0.5) / n_cap
+        rho = np.sqrt(1 - cz**2)
+        sph = np.stack([r * rho * np.cos(k * golden), r * rho * np.sin(k * golden), r * cz], axis=1)
+        sph[:, 2] += np.where(sph[:, 2] >= 0, half, -half)
+        return np.concatenate([cyl, sph])
+    half_extent = np.asarray(size[:3])
+    areas = np.array([half_extent[1] * half_extent[2], half_extent[0] * half_extent[2], half_extent[0] * half_extent[1]]) * 2
+    per_axis = np.maximum(1, np.round(count * areas / areas.sum() / 2)).astype(int)
+    pts = []
+    for axis in range(3):
+        u, v = [a for a in range(3) if a != axis]
+        n = per_axis[axis]
+        side = int(math.ceil(math.sqrt(n)))
+        grid = (np.arange(side) + 0.5) / side * 2 - 1
+        gu, gv = np.meshgrid(grid, grid, indexing="ij")
+        for sign in (-1.0, 1.0):
+            face = np.zeros((side * side, 3))
+            face[:, axis] = sign * half_extent[axis]
+            face[:, u] = gu.ravel() * half_extent[u]
+            face[:, v] = gv.ravel() * half_extent[v]
+            pts.append(face)
+    return np.concatenate(pts)

@@ -1,0 +1,183 @@
+"""Grasp stores: one Zarr v3 group per shard (schema in DESIGN.md).
+
+Arrays: ``hand_pose`` float32 (N, 28), ``object_id`` (N,) strings, ``scale`` float32 (N,),
+and any further per-grasp arrays with first dimension N. Root attributes:
+``joint_names`` and ``schema_version``, plus whatever the writing stage records
+(its config, provenance).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from dexlite_pipeline.hand.model import JOINT_NAMES, POSE_DIM
+from dexlite_pipeline.io.atomic import atomic_path
+
+SCHEMA_VERSION = 1
+REQUIRED_ARRAYS = ("hand_pose", "object_id", "scale")
+
+
+class GraspStoreError(ValueError):
+    """A grasp store that cannot be read or written as the schema requires."""
+
+
+@dataclass
+class GraspSet:
+    """Per-grasp arrays (all with first dimension N) and the store's root attributes."""
+
+    arrays: dict[str, np.ndarray]
+    attrs: dict = field(default_factory=dict)
+
+    def __len__(self) -> int:
+        return int(self.arrays["hand_pose"].shape[0])
+
+    @property
+    def hand_pose(self) -> np.ndarray:
+        return self.arrays["hand_pose"]
+
+    @property
+    def object_id(self) -> np.ndarray:
+        return self.arrays["object_id"]
+
+    @property
+    def scale(self) -> np.ndarray:
+        return self.arrays["scale"]
+
+    def select(self, mask_or_index: np.ndarray) -> "GraspSet":
+        """A new set holding the chosen grasps (boolean mask or integer index)."""
+        return GraspSet({k: v[mask_or_index] for k, v in self.arrays.items()}, dict(self.attrs))
+
+    @staticmethod
+    def concatenate(sets: list["GraspSet"], attrs: dict | None = None) -> "GraspSet":
+        """Concatenate sets that hold the same arrays (empty list gives an empty set)."""
+        if not sets:
+            return empty_grasp_set(attrs)
+        keys = set(sets[0].arrays)
+        for s in sets[1:]:
+            if set(s.arrays) != keys:
+                raise GraspStoreError(f"cannot concatenate grasp sets with different arrays: {sorted(keys)} vs {sorted(s.arrays)}")
+        arrays = {k: np.concatenate([s.arrays[k] for s in sets]) for k in sets[0].arrays}
+        return GraspSet(arrays, dict(attrs if attrs is not None else sets[0].attrs))
+
+
+def empty_grasp_set(attrs: dict | None = None) -> GraspSet:
+    return GraspSet(
+        {
+            "hand_pose": np.zeros((0, POSE_DIM), np.float32),
+            "object_id": np.zeros((0,), dtype=object),
+            "scale": np.zeros((0,), np.float32),
+        },
+        dict(attrs or {}),
+    )
+
+
+def _normalize(arrays: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    missing = [k for k in REQUIRED_ARRAYS if k not in arrays]
+    if missing:
+        raise GraspStoreError(f"missing required arrays: {', '.join(missing)}")
+    hand_pose = np.asarray(arrays["hand_pose"], dtype=np.float32)
+    if hand_pose.ndim != 2 or hand_pose.shape[1] != POSE_DIM:
+        raise GraspStoreError(f"hand_pose has shape {hand_pose.shape}, expected (N, {POSE_DIM})")
+    n = hand_pose.shape[0]
+    out = {"hand_pose": hand_pose}
+    for key, value in arrays.items():
+        if key == "hand_pose":
+            continue
+        value = np.asarray(value)
+        if value.ndim == 0 or value.shape[0] != n:
+            raise GraspStoreError(f"array {key!r} has shape {value.shape}, expected first dimension {n}")
+        if key == "object_id" or value.dtype.kind in "UOT":
+            value = np.asarray([str(v) for v in value], dtype=object)
+        elif key == "scale":
+            value = value.astype(np.float32)
+        out[key] = value
+    return out
+
+
+def write_grasp_store(path: str | os.PathLike, grasps: GraspSet, attrs: dict | None = None) -> Path:
+    """Write ``grasps`` to a Zarr v3 store at ``path`` atomically; returns the path.
+
+    ``attrs`` are merged over ``grasps.attrs``; they must be JSON-serializable.
+    """
+    import zarr
+
+    arrays = _normalize(grasps.arrays)
+    root_attrs = {**grasps.attrs, **(attrs or {})}
+    root_attrs["joint_names"] = list(JOINT_NAMES)
+    root_attrs["schema_version"] = SCHEMA_VERSION
+    try:
+        json.dumps(root_attrs)
+    except TypeError as exc:
+        raise GraspStoreError(f"{path}: attributes are not JSON-serializable: {exc}") from exc
+    final = Path(path)
+    with atomic_path(final) as tmp:
+        group = zarr.open_group(str(tmp), mode="w", zarr_format=3)
+        n = arrays["hand_pose"].shape[0]
+        chunk_rows = max(1, min(n, 65536))
+        for key, value in arrays.items():
+            if value.dtype == object:
+                arr = group.create_array(key, shape=value.shape, dtype=str, chunks=(chunk_rows,))
+                if n:
+                    arr[:] = value
+            else:
+                arr = group.create_array(key, shape=value.shape, dtype=value.dtype, chunks=(chunk_rows, *value.shape[1:]))
+                if n:
+                    arr[:] = value
+        group.attrs.update(root_attrs)
+    return final
+
+
+def read_grasp_store(path: str | os.PathLike) -> GraspSet:
+    """Read a whole grasp store into memory, checking the schema."""
+    import zarr
+
+    p = Path(path)
+    if not p.exists():
+        raise GraspStoreError(f"{p}: no such grasp store")
+    try:
+        group = zarr.open_group(str(p), mode="r")
+    except Exception as exc:  # zarr raises several types for a non-store folder
+        raise GraspStoreError(f"{p}: not a Zarr grasp store ({exc})") from exc
+    arrays = {}
+    for key in group.array_keys():
+        value = group[key][...]
+        if value.dtype.kind in "UOT":
+            value = np.asarray([str(v) for v in value.tolist()], dtype=object).reshape(value.shape)
+        arrays[key] = value
+    missing = [k for k in REQUIRED_ARRAYS if k not in arrays]
+    if missing:
+        raise GraspStoreError(f"{p}: missing required arrays: {', '.join(missing)}")
+    hand_pose = arrays["hand_pose"]
+    if hand_pose.ndim != 2 or hand_pose.shape[1] != POSE_DIM:
+        raise GraspStoreError(f"{p}: hand_pose has shape {hand_pose.shape}, expected (N, {POSE_DIM})")
+    n = hand_pose.shape[0]
+    for key, value in arrays.items():
+        if value.shape[:1] != (n,):
+            raise GraspStoreError(f"{p}: array {key!r} has shape {value.shape}, expected first dimension {n}")
+    attrs = dict(group.attrs)
+    if attrs.get("joint_names") not in (None, list(JOINT_NAMES)):
+        raise GraspStoreError(f"{p}: joint_names differ from the Shadow Hand's 22 joints")
+    return GraspSet(arrays, attrs)
+
+
+def invalid_grasp_reasons(grasps: GraspSet, known_object_ids: set[str] | None = None) -> np.ndarray:
+    """Per grasp, '' if usable, else a short reason (non-finite pose/scale, unknown object).
+
+    Stages keep the valid grasps and carry the reasons forward instead of dropping rows.
+    """
+    n = len(grasps)
+    reasons = np.full(n, "", dtype=object)
+    finite_pose = np.isfinite(grasps.hand_pose).all(axis=1)
+    reasons[~finite_pose] = "non-finite hand_pose"
+    scale = grasps.scale.astype(np.float64)
+    bad_scale = ~np.isfinite(scale) | (scale <= 0)
+    reasons[(reasons == "") & bad_scale] = "non-positive or non-finite scale"
+    if known_object_ids is not None:
+        unknown = np.array([oid not in known_object_ids for oid in grasps.object_id], dtype=bool)
+        reasons[(reasons == "") & unknown] = "object id not in the object assets"
+    return reasons

@@ -1,0 +1,1 @@
+"""PointNet + CVAE grasp model: network, training, sampling."""

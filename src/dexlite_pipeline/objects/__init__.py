@@ -1,0 +1,1 @@
+"""Objects: sources, normalization, convex decomposition, SDF grids, point clouds, stability."""

@@ -1,0 +1,182 @@
+"""Prepared object assets: the on-disk layout every stage reads, and a differentiable SDF.
+
+One folder per object under ``<objects_dir>/assets/<object_id>/``:
+
+- ``mesh.obj``        the normalized, watertight mesh (max vertex radius 1/1.03, DexGraspNet's
+                      normalization; imported DexGraspNet meshes keep their own frame);
+- ``convex/NNN.obj``  convex pieces (CoACD) in the same frame, for simulation;
+- ``arrays.zarr``     ``sdf`` float32 (G, G, G), signed distance on a regular grid in
+                      normalized units, *positive inside*, indexed [x, y, z]; attributes
+                      ``grid_min`` (3,) and ``voxel_size``; ``surface_points`` (P, 3) and
+                      ``surface_normals`` (P, 3, outward);
+- ``meta.json``       id, source, file, normalization, volume, piece count.
+
+A grasp carries a ``scale`` s: the object in metres is s times the normalized mesh, so
+its signed distance is d_s(x) = s * d_1(x / s). One grid per object serves every scale.
+``<objects_dir>/catalog.parquet`` lists every object (ok or rejected, with the reason).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+
+CATALOG_NAME = "catalog.parquet"
+ASSETS_DIR = "assets"
+
+
+class ObjectAssetError(ValueError):
+    """An object asset that is missing or malformed."""
+
+
+@dataclass
+class ObjectAsset:
+    """One prepared object, in its normalized frame (multiply by ``scale`` for metres)."""
+
+    object_id: str
+    directory: Path
+    sdf: np.ndarray  # (G, G, G) float32, positive inside
+    grid_min: np.ndarray  # (3,)
+    voxel_size: float
+    surface_points: np.ndarray  # (P, 3)
+    surface_normals: np.ndarray  # (P, 3)
+    meta: dict
+
+    @property
+    def mesh_path(self) -> Path:
+        return self.directory / "mesh.obj"
+
+    @property
+    def convex_paths(self) -> list[Path]:
+        return sorted((self.directory / "convex").glob("*.obj"))
+
+    def load_mesh(self):
+        """The normalized mesh as a trimesh.Trimesh."""
+        import trimesh
+
+        return trimesh.load(self.mesh_path, force="mesh", process=False)
+
+
+def asset_dir(objects_dir: str | os.PathLike, object_id: str) -> Path:
+    return Path(objects_dir) / ASSETS_DIR / object_id
+
+
+def load_asset(objects_dir: str | os.PathLike, object_id: str) -> ObjectAsset:
+    """Load one object's arrays and metadata (raises ObjectAssetError naming the path)."""
+    import zarr
+
+    directory = asset_dir(objects_dir, object_id)
+    arrays_path = directory / "arrays.zarr"
+    if not arrays_path.exists():
+        raise ObjectAssetError(f"{directory}: no prepared asset for object {object_id!r}")
+    group = zarr.open_group(str(arrays_path), mode="r")
+    meta_path = directory / "meta.json"
+    meta = json.loads(meta_path.read_text()) if meta_path.exists() else {}
+    return ObjectAsset(
+        object_id=object_id,
+        directory=directory,
+        sdf=np.asarray(group["sdf"][...], dtype=np.float32),
+        grid_min=np.asarray(group.attrs["grid_min"], dtype=np.float32),
+        voxel_size=float(group.attrs["voxel_size"]),
+        surface_points=np.asarray(group["surface_points"][...], dtype=np.float32),
+        surface_normals=np.asarray(group["surface_normals"][...], dtype=np.float32),
+        meta=meta,
+    )
+
+
+def read_catalog(objects_dir: str | os.PathLike):
+    """The object catalog as a pandas DataFrame."""
+    import pandas as pd
+
+    path = Path(objects_dir) / CATALOG_NAME
+    if not path.exists():
+        raise ObjectAssetError(f"{path}: object catalog not found (run prepare_objects first)")
+    return pd.read_parquet(path)
+
+
+def available_object_ids(objects_dir: str | os.PathLike) -> set[str]:
+    """Ids of objects whose asset folder holds arrays (prepared or imported)."""
+    root = Path(objects_dir) / ASSETS_DIR
+    if not root.is_dir():
+        return set()
+    return {p.name for p in root.iterdir() if (p / "arrays.zarr").exists()}
+
+
+class SdfBank:
+    """Signed distance grids of several objects on one device, sampled in a batch.
+
+    ``signed_distance(points, object_index, scale)`` takes points (B, P, 3) in metres in
+    each grasp's object frame, the object of each grasp (B,) as an index into this bank,
+    and each grasp's scale (B,), and returns the distance in metres (B, P), positive
+    inside, with the outward unit normal (B, P, 3). Trilinear interpolation written with
+    gathers, so gradients flow to the points. Outside the grid the value at the nearest
+    grid point minus the distance to the grid box is used (a continuous lower bound).
+    """
+
+    def __init__(self, assets: list[ObjectAsset], device: torch.device | str = "cpu", dtype: torch.dtype = torch.float32) -> None:
+        if not assets:
+            raise ObjectAssetError("SdfBank needs at least one object")
+        shapes = {a.sdf.shape for a in assets}
+        if len(shapes) != 1:
+            raise ObjectAssetError(f"objects have SDF grids of different sizes {sorted(shapes)}; prepare them with one resolution")
+        self.object_ids = [a.object_id for a in assets]
+        self.index_of = {oid: i for i, oid in enumerate(self.object_ids)}
+        self.device = torch.device(device)
+        self.resolution = assets[0].sdf.shape[0]
+        self.volumes = torch.as_tensor(np.stack([a.sdf for a in assets]), dtype=dtype, device=self.device).reshape(len(assets), -1)
+        self.grid_min = torch.as_tensor(np.stack([a.grid_min for a in assets]), dtype=dtype, device=self.device)
+        self.voxel_size = torch.as_tensor([a.voxel_size for a in assets], dtype=dtype, device=self.device)
+
+    def indices(self, object_ids) -> torch.Tensor:
+        """Bank indices (B,) for a sequence of object ids."""
+        try:
+            return torch.as_tensor([self.index_of[str(o)] for o in object_ids], device=self.device)
+        except KeyError as exc:
+            raise ObjectAssetError(f"object {exc.args[0]!r} is not in the SDF bank") from None
+
+    def signed_distance(
+        self, points_m: torch.Tensor, object_index: torch.Tensor, scale: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor]:
+        g = self.resolution
+        s = scale.to(points_m.dtype)[:, None, None]
+        local = points_m / s  # normalized frame
+        gmin = self.grid_min[object_index][:, None, :]
+        h = self.voxel_size[object_index][:, None, None]
+        u = (local - gmin) / h  # continuous grid coordinates
+        u_clamped = u.clamp(0.0, g - 1 - 1e-4)
+        outside = ((u - u_clamped) * h).norm(dim=-1)
+        base = u_clamped.detach().floor().long()
+        frac = u_clamped - base
+        flat = self.volumes[object_index]  # (B, G^3)
+        i, j, k = base.unbind(-1)
+        fx, fy, fz = frac.unbind(-1)
+
+        def corner(di: int, dj: int, dk: int) -> torch.Tensor:
+            idx = ((i + di) * g + (j + dj)) * g + (k + dk)
+            return torch.gather(flat, 1, idx.reshape(idx.shape[0], -1)).reshape(idx.shape)
+
+        c000, c100, c010, c110 = corner(0, 0, 0), corner(1, 0, 0), corner(0, 1, 0), corner(1, 1, 0)
+        c001, c101, c011, c111 = corner(0, 0, 1), corner(1, 0, 1), corner(0, 1, 1), corner(1, 1, 1)
+        c00 = c000 + (c100 - c000) * fx
+        c10 = c010 + (c110 - c010) * fx
+        c01 = c001 + (c101 - c001) * fx
+        c11 = c011 + (c111 - c011) * fx
+        c0 = c00 + (c10 - c00) * fy
+        c1 = c01 + (c11 - c01) * fy
+        value = c0 + (c1 - c0) * fz
+        # Analytic gradient of the trilinear interpolant (per unit of grid coordinate).
+        gx = ((c100 - c000) * (1 - fy) + (c110 - c010) * fy) * (1 - fz) + ((c101 - c001) * (1 - fy) + (c111 - c011) * fy) * fz
+        gy = (c10 - c00) * (1 - fz) + (c11 - c01) * fz
+        gz = c1 - c0
+        inward = torch.stack([gx, gy, gz], dim=-1)
+        away = local - (gmin + u_clamped * h)
+        is_out = (outside > 0)[..., None]
+        direction = torch.where(is_out, away, -inward)
+        normal = torch.nn.functional.normalize(direction, dim=-1)
+        distance_m = (value - outside) * s[..., 0]
+        return distance_m, normal

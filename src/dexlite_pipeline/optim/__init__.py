@@ -1,0 +1,1 @@
+"""The annealed RMSProp-style grasp optimizer (seed synthesis and post-optimization)."""

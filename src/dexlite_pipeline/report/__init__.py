@@ -1,0 +1,1 @@
+"""Evaluation metrics, plots, rendering and the HTML report."""

@@ -1,0 +1,1 @@
+"""Physics simulation: MuJoCo lift and six-direction tests."""

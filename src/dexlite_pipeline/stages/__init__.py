@@ -1,0 +1,1 @@
+"""Command-line stages: thin argument parsing around library calls (see ``cli.COMMANDS``)."""

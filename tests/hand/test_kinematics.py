@@ -1,0 +1,86 @@
+"""Hand kinematics against MuJoCo's own forward kinematics, and the point sets."""
+
+import mujoco
+import numpy as np
+import pytest
+import torch
+
+from dexlite_pipeline.hand import JOINT_NAMES
+from dexlite_pipeline.hand.mjcf import hand_mjcf_string
+from dexlite_pipeline.hand.rotation import euler_xyz_to_matrix
+
+
+def _random_poses(hand, count, seed):
+    rng = np.random.default_rng(seed)
+    limits = hand.joint_limits.numpy().astype(np.float64)
+    pose = np.zeros((count, 28))
+    pose[:, :3] = rng.normal(scale=0.2, size=(count, 3))
+    pose[:, 3:6] = rng.uniform(-np.pi, np.pi, size=(count, 3))
+    pose[:, 6:] = rng.uniform(limits[:, 0], limits[:, 1], size=(count, 22))
+    return pose
+
+
+def test_joint_order_and_limits(hand):
+    assert hand.joint_names == JOINT_NAMES
+    assert len(JOINT_NAMES) == 22
+    limits = dict(zip(JOINT_NAMES, hand.joint_limits.tolist()))
+    assert limits["robot0:FFJ3"] == pytest.approx([-0.349, 0.349])
+    assert limits["robot0:LFJ4"] == pytest.approx([0.0, 0.785])
+    assert limits["robot0:THJ4"] == pytest.approx([-1.047, 1.047])
+    assert limits["robot0:THJ0"] == pytest.approx([-1.571, 0.0])
+
+
+def test_forward_kinematics_matches_mujoco(hand):
+    model = mujoco.MjModel.from_xml_string(hand_mjcf_string(free_root=True))
+    data = mujoco.MjData(model)
+    poses = _random_poses(hand, 32, seed=1)
+    frames = hand.forward(torch.tensor(poses, dtype=torch.float32))
+    rot = euler_xyz_to_matrix(torch.tensor(poses[:, 3:6])).numpy()
+    for i, pose in enumerate(poses):
+        quat = np.zeros(4)
+        mujoco.mju_mat2Quat(quat, rot[i].reshape(-1))
+        data.qpos[:3] = pose[:3]
+        data.qpos[3:7] = quat
+        data.qpos[7:] = pose[6:]
+        mujoco.mj_kinematics(model, data)
+        body_names = [model.body(b).name for b in range(1, model.nbody)]
+        assert tuple(body_names) == hand.link_names
+        np.testing.assert_allclose(frames.translation[i].numpy(), data.xpos[1:], atol=1e-5)
+        np.testing.assert_allclose(frames.rotation[i].numpy(), data.xmat[1:].reshape(-1, 3, 3), atol=1e-5)
+
+
+def test_link_poses_dict_and_gradients(hand):
+    pose = torch.tensor(_random_poses(hand, 4, seed=2), dtype=torch.float32, requires_grad=True)
+    poses = hand.link_poses(pose)
+    assert set(poses) == set(hand.link_names)
+    assert poses["robot0:ffdistal"].shape == (4, 4, 4)
+    poses["robot0:thdistal"][:, :3, 3].sum().backward()
+    assert pose.grad is not None and pose.grad[:, 6:].abs().sum() > 0
+
+
+def test_point_sets_sizes(hand):
+    frames = hand.forward(torch.zeros(2, 28))
+    assert hand.contact_candidates(frames).shape == (2, 140, 3)
+    assert hand.penetration_keypoints(frames).shape[-1] == 3
+    assert hand.surface_points(frames).shape[1] > 500
+
+
+def test_contact_candidates_lie_on_palmar_side(hand):
+    # Open flat hand at the origin: finger pads face -y, so every finger candidate has y < 0.
+    frames = hand.forward(torch.zeros(1, 28))
+    points = hand.contact_candidates(frames)[0]
+    finger = hand.contact_link < hand.link_index["robot0:thbase"]
+    assert (points[finger, 1] < 0).all()
+
+
+def test_collision_signed_distance(hand):
+    frames = hand.forward(torch.zeros(1, 28))
+    # Centre of the ffproximal capsule axis is inside by its radius (1 cm).
+    centre = frames.translation[0, hand.link_index["robot0:ffproximal"]] + torch.tensor([0.0, 0.0, 0.0225])
+    far = torch.tensor([0.0, -0.5, 0.0])
+    sd = hand.collision_signed_distance(frames, torch.stack([centre, far])[None])
+    assert sd[0, 0].item() == pytest.approx(0.01, abs=1e-6)
+    assert sd[0, 1].item() < -0.4
+    # Hand surface samples are on the boundary of the union (sd <= 0 up to float error).
+    surface = hand.surface_points(frames)
+    assert (hand.collision_signed_distance(frames, surface) > -1e-6).all()

@@ -1,0 +1,12 @@
+rule prepare_objects:
+    output:
+        catalog=f"{RESULTS}/objects/catalog.parquet",
+    params:
+        cfg=stage_params("seed", "objects"),
+    threads: workflow.cores
+    log:
+        f"{LOGS}/prepare_objects.log",
+    benchmark:
+        f"{LOGS}/benchmarks/prepare_objects.tsv"
+    shell:
+        "dexlite prepare-objects --config-json {params.cfg:q} --out-dir {RESULTS}/objects --threads {threads} > {log} 2>&1"
