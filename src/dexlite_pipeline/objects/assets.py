@@ -66,14 +66,22 @@ def asset_dir(objects_dir: str | os.PathLike, object_id: str) -> Path:
     return Path(objects_dir) / ASSETS_DIR / object_id
 
 
-def load_asset(objects_dir: str | os.PathLike, object_id: str) -> ObjectAsset:
-    """Load one object's arrays and metadata (raises ObjectAssetError naming the path)."""
+def find_asset_dir(objects_dirs, object_id: str) -> Path:
+    """The asset folder of ``object_id`` in the first of ``objects_dirs`` (one or several) that has it."""
+    dirs = [objects_dirs] if isinstance(objects_dirs, (str, os.PathLike)) else list(objects_dirs)
+    for d in dirs:
+        candidate = asset_dir(d, object_id)
+        if (candidate / "arrays.zarr").exists():
+            return candidate
+    raise ObjectAssetError(f"object {object_id!r} has no prepared asset in {', '.join(str(d) for d in dirs)}")
+
+
+def load_asset(objects_dirs, object_id: str) -> ObjectAsset:
+    """Load one object's arrays and metadata from one objects dir or a list of them."""
     import zarr
 
-    directory = asset_dir(objects_dir, object_id)
+    directory = find_asset_dir(objects_dirs, object_id)
     arrays_path = directory / "arrays.zarr"
-    if not arrays_path.exists():
-        raise ObjectAssetError(f"{directory}: no prepared asset for object {object_id!r}")
     group = zarr.open_group(str(arrays_path), mode="r")
     meta_path = directory / "meta.json"
     meta = json.loads(meta_path.read_text()) if meta_path.exists() else {}
@@ -99,12 +107,15 @@ def read_catalog(objects_dir: str | os.PathLike):
     return pd.read_parquet(path)
 
 
-def available_object_ids(objects_dir: str | os.PathLike) -> set[str]:
-    """Ids of objects whose asset folder holds arrays (prepared or imported)."""
-    root = Path(objects_dir) / ASSETS_DIR
-    if not root.is_dir():
-        return set()
-    return {p.name for p in root.iterdir() if (p / "arrays.zarr").exists()}
+def available_object_ids(objects_dirs) -> set[str]:
+    """Ids of objects whose asset folder holds arrays, over one objects dir or several."""
+    dirs = [objects_dirs] if isinstance(objects_dirs, (str, os.PathLike)) else list(objects_dirs)
+    ids: set[str] = set()
+    for d in dirs:
+        root = Path(d) / ASSETS_DIR
+        if root.is_dir():
+            ids |= {p.name for p in root.iterdir() if (p / "arrays.zarr").exists()}
+    return ids
 
 
 class SdfBank:

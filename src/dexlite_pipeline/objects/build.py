@@ -1,0 +1,120 @@
+"""Build one object asset (layout in ``objects.assets``) from a mesh already in its final frame.
+
+Used by ``prepare_objects`` (after normalization) and by the DexGraspNet import (whose
+meshes are already normalized and come with their own convex pieces).
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from dexlite_pipeline.io.atomic import atomic_path
+from dexlite_pipeline.objects.assets import asset_dir
+
+
+@dataclass(frozen=True)
+class AssetBuildSettings:
+    """How an asset's arrays are made (the relevant part of the ``objects`` config)."""
+
+    sdf_resolution: int = 96
+    sdf_padding: float = 0.25
+    surface_points: int = 4096
+    coacd_threshold: float = 0.08
+    coacd_max_convex_hull: int = 16
+    seed: int = 0
+
+
+def signed_distance_grid(mesh, resolution: int, padding: float) -> tuple[np.ndarray, np.ndarray, float]:
+    """Exact signed distance (positive inside) on a cubic grid around the mesh.
+
+    The grid spans the mesh's bounding box grown by ``padding`` on every side (normalized
+    units), cubic so one voxel size serves all axes. Returns (sdf[x, y, z], grid_min, voxel).
+    """
+    import igl
+
+    lo = mesh.bounds[0] - padding
+    hi = mesh.bounds[1] + padding
+    extent = float((hi - lo).max())
+    centre = (lo + hi) / 2
+    grid_min = centre - extent / 2
+    voxel = extent / (resolution - 1)
+    axis = np.arange(resolution) * voxel
+    gx, gy, gz = np.meshgrid(axis + grid_min[0], axis + grid_min[1], axis + grid_min[2], indexing="ij")
+    points = np.stack([gx.ravel(), gy.ravel(), gz.ravel()], axis=1)
+    distance = igl.signed_distance(points, np.asarray(mesh.vertices, np.float64), np.asarray(mesh.faces, np.int64))[0]
+    # igl's convention is negative inside; ours is positive inside.
+    sdf = (-distance).reshape(resolution, resolution, resolution).astype(np.float32)
+    return sdf, grid_min.astype(np.float32), float(voxel)
+
+
+def surface_samples(mesh, count: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """Evenly spread surface points with outward face normals (deterministic for a seed)."""
+    import trimesh
+
+    points, face_index = trimesh.sample.sample_surface_even(mesh, count, seed=seed)
+    if len(points) < count:  # sample_surface_even may return fewer; top up uniformly
+        extra, extra_faces = trimesh.sample.sample_surface(mesh, count - len(points), seed=seed + 1)
+        points = np.concatenate([points, extra])
+        face_index = np.concatenate([face_index, extra_faces])
+    normals = mesh.face_normals[face_index]
+    return points.astype(np.float32), normals.astype(np.float32)
+
+
+def convex_decomposition(mesh, threshold: float, max_convex_hull: int, seed: int) -> list:
+    """CoACD convex pieces of ``mesh`` as trimesh objects."""
+    import coacd
+    import trimesh
+
+    coacd.set_log_level("error")
+    parts = coacd.run_coacd(
+        coacd.Mesh(np.asarray(mesh.vertices), np.asarray(mesh.faces)),
+        threshold=threshold,
+        max_convex_hull=max_convex_hull,
+        seed=seed,
+    )
+    return [trimesh.Trimesh(vertices=v, faces=f, process=True) for v, f in parts]
+
+
+def write_asset(
+    mesh,
+    object_id: str,
+    objects_dir: str | Path,
+    settings: AssetBuildSettings,
+    meta: dict,
+    convex_pieces: list | None = None,
+) -> dict:
+    """Write the full asset folder for ``mesh`` atomically; returns a summary for the catalog.
+
+    ``convex_pieces`` (trimesh list) skips CoACD when the source ships its own decomposition.
+    """
+    import zarr
+
+    pieces = convex_pieces if convex_pieces is not None else convex_decomposition(
+        mesh, settings.coacd_threshold, settings.coacd_max_convex_hull, settings.seed
+    )
+    sdf, grid_min, voxel = signed_distance_grid(mesh, settings.sdf_resolution, settings.sdf_padding)
+    points, normals = surface_samples(mesh, settings.surface_points, settings.seed)
+    final = asset_dir(objects_dir, object_id)
+    summary = {
+        "object_id": object_id,
+        "volume": float(mesh.volume),
+        "watertight": bool(mesh.is_watertight),
+        "n_convex_pieces": len(pieces),
+        "sdf_resolution": settings.sdf_resolution,
+    }
+    with atomic_path(final) as tmp:
+        (tmp / "convex").mkdir(parents=True)
+        mesh.export(tmp / "mesh.obj")
+        for i, piece in enumerate(pieces):
+            piece.export(tmp / "convex" / f"{i:03d}.obj")
+        group = zarr.open_group(str(tmp / "arrays.zarr"), mode="w", zarr_format=3)
+        group.create_array("sdf", data=sdf, chunks=sdf.shape)
+        group.create_array("surface_points", data=points)
+        group.create_array("surface_normals", data=normals)
+        group.attrs.update({"grid_min": grid_min.tolist(), "voxel_size": voxel, "sign": "positive_inside"})
+        (tmp / "meta.json").write_text(json.dumps({**meta, **summary}, indent=2, sort_keys=True))
+    return summary
