@@ -1,0 +1,218 @@
+"""Evaluation metrics for a set of grasps: success, contact quality, diversity, cost, convergence.
+
+Every function takes plain numpy arrays so it can be tested on known answers and reused
+outside the pipeline. Conventions (stated once, used in the CSV column names):
+
+- rates are fractions in [0, 1]; NaN when there is nothing to measure (never 0 by default);
+- lengths are reported in millimetres (``_mm``), energies in the energy module's units;
+- diversity follows the two papers whose numbers a reader compares against:
+
+  * **joint-angle entropy** (DexGraspNet, "H mean"): for each of the 22 joints, the
+    angles of all grasps are binned into ``bins`` equal bins spanning that joint's limit
+    range (angles outside are clipped into the end bins); the Shannon entropy of the bin
+    frequencies is taken in bits, H_j = -sum_b p_b log2 p_b, and the 22 values are
+    averaged. Identical poses give 0; a joint spread evenly over its range gives
+    log2(bins) (6.64 bits for 100 bins). The value grows with the number of grasps until
+    the histogram fills, so compare sets of similar size.
+  * **cumulative PCA explained variance** (DexGraspBench): principal components of the
+    joint-angle vectors (N, 22) of a grasp set; the fraction of total variance carried
+    by the first k components. Lower means the variation is spread over more directions
+    (more diverse); data on a line gives 1.0 at k = 1.
+
+- **convergence**: the DexGraspNet success thresholds (E_fc < 0.3, E_dis < 5 mm,
+  E_pen < 1 mm, energies in metres) are checked per grasp per iteration of a post-
+  optimization trace; a grasp "converges" at the first iteration where all hold.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+
+DEXGRASPNET_THRESHOLDS: dict[str, float] = {"E_fc": 0.3, "E_dis": 0.005, "E_pen": 0.001}
+JOINT_ENTROPY_BINS = 100
+PCA_COMPONENTS = (1, 2, 3, 5)
+
+
+def rate(flags: np.ndarray) -> float:
+    """Fraction of true values; NaN for an empty array."""
+    flags = np.asarray(flags, dtype=bool).reshape(-1)
+    return float(flags.mean()) if flags.size else math.nan
+
+
+def object_success_rate(object_ids: np.ndarray, success: np.ndarray) -> float:
+    """Fraction of objects with at least one successful grasp; NaN with no grasps."""
+    object_ids = np.asarray(object_ids).astype(str)
+    success = np.asarray(success, dtype=bool)
+    if object_ids.size == 0:
+        return math.nan
+    unique, inverse = np.unique(object_ids, return_inverse=True)
+    any_success = np.zeros(len(unique), dtype=bool)
+    np.logical_or.at(any_success, inverse, success)
+    return float(any_success.mean())
+
+
+def mean_and_p95(values: np.ndarray) -> tuple[float, float]:
+    """Mean and 95th percentile over the finite values (NaN, NaN when none)."""
+    values = np.asarray(values, dtype=np.float64).reshape(-1)
+    values = values[np.isfinite(values)]
+    if values.size == 0:
+        return math.nan, math.nan
+    return float(values.mean()), float(np.percentile(values, 95))
+
+
+def finite_mean(values: np.ndarray) -> float:
+    values = np.asarray(values, dtype=np.float64).reshape(-1)
+    values = values[np.isfinite(values)]
+    return float(values.mean()) if values.size else math.nan
+
+
+def joint_entropy_bits(joints_rad: np.ndarray, joint_limits_rad: np.ndarray, bins: int = JOINT_ENTROPY_BINS) -> np.ndarray:
+    """Per-joint histogram entropy in bits (22,) over each joint's limit range (DexGraspNet's H).
+
+    NaN per joint when there are no grasps.
+    """
+    joints = np.asarray(joints_rad, dtype=np.float64)
+    limits = np.asarray(joint_limits_rad, dtype=np.float64)
+    if joints.ndim != 2 or limits.shape != (joints.shape[1], 2):
+        raise ValueError(f"joints {joints.shape} and limits {limits.shape} do not match")
+    if joints.shape[0] == 0:
+        return np.full(joints.shape[1], math.nan)
+    lo, hi = limits[:, 0], limits[:, 1]
+    width = np.where(hi > lo, hi - lo, 1.0)
+    bin_index = np.floor((joints - lo) / width * bins).astype(np.int64).clip(0, bins - 1)  # (N, J)
+    counts = np.zeros((joints.shape[1], bins))
+    np.add.at(counts, (np.broadcast_to(np.arange(joints.shape[1]), bin_index.shape), bin_index), 1.0)
+    p = counts / joints.shape[0]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        terms = np.where(p > 0, -p * np.log2(p), 0.0)
+    return terms.sum(axis=1)
+
+
+def pca_cumulative_explained_variance(features: np.ndarray, components: Sequence[int] = PCA_COMPONENTS) -> dict[int, float]:
+    """Cumulative explained-variance ratio of the first k principal components, for each k.
+
+    NaN when fewer than two samples or zero total variance (nothing to explain).
+    """
+    x = np.asarray(features, dtype=np.float64)
+    if x.ndim != 2:
+        raise ValueError(f"features must be (N, D), got {x.shape}")
+    if x.shape[0] < 2:
+        return {k: math.nan for k in components}
+    centred = x - x.mean(axis=0)
+    singular = np.linalg.svd(centred, compute_uv=False)
+    variance = singular**2
+    total = variance.sum()
+    if total <= 1e-24:
+        return {k: math.nan for k in components}
+    cumulative = np.cumsum(variance) / total
+    return {k: float(cumulative[min(k, len(cumulative)) - 1]) for k in components}
+
+
+def first_iteration_meeting(traces: Mapping[str, np.ndarray], thresholds: Mapping[str, float] = DEXGRASPNET_THRESHOLDS) -> np.ndarray:
+    """Per grasp, the first iteration at which every traced energy is below its threshold; -1 if never.
+
+    ``traces`` maps energy names to (N, T) arrays, one column per recorded iteration.
+    """
+    missing = [name for name in thresholds if name not in traces]
+    if missing:
+        raise ValueError(f"energy traces missing: {', '.join(missing)}")
+    meets = None
+    for name, limit in thresholds.items():
+        below = np.asarray(traces[name], dtype=np.float64) < limit
+        meets = below if meets is None else meets & below
+    reached = meets.any(axis=1)
+    return np.where(reached, meets.argmax(axis=1), -1)
+
+
+def trace_quartiles(trace: np.ndarray) -> np.ndarray:
+    """(3, T) 25th, 50th and 75th percentiles over grasps of an (N, T) per-iteration trace."""
+    trace = np.asarray(trace, dtype=np.float64)
+    if trace.shape[0] == 0:
+        return np.full((3, trace.shape[1] if trace.ndim == 2 else 0), math.nan)
+    return np.nanpercentile(trace, [25, 50, 75], axis=0)
+
+
+def convergence_summary(first_iterations: np.ndarray, iteration_of_column: np.ndarray | None = None) -> dict[str, float]:
+    """Fraction of grasps that ever meet the thresholds and the median iteration at which they do."""
+    first = np.asarray(first_iterations)
+    reached = first >= 0
+    if iteration_of_column is not None:
+        iterations = np.asarray(iteration_of_column)[first[reached]]
+    else:
+        iterations = first[reached]
+    return {
+        "threshold_reached_fraction": rate(reached),
+        "threshold_iteration_median": float(np.median(iterations)) if iterations.size else math.nan,
+    }
+
+
+def summarize_grasps(
+    arrays: Mapping[str, np.ndarray],
+    joint_limits_rad: np.ndarray,
+    entropy_bins: int = JOINT_ENTROPY_BINS,
+    pca_components: Sequence[int] = PCA_COMPONENTS,
+) -> dict[str, float]:
+    """All per-set metrics of one (method, split) from its per-grasp arrays.
+
+    Uses whichever of these arrays are present (absent ones give NaN columns, never a
+    made-up number): lift_success, six_dir_success, penetration_mm, contact_distance_mm,
+    E_fc, E_dis, E_pen, hand_pose, object_id.
+    """
+    n = int(np.asarray(arrays["hand_pose"]).shape[0])
+    object_ids = np.asarray(arrays["object_id"]).astype(str)
+
+    def column(name: str) -> np.ndarray | None:
+        return np.asarray(arrays[name]) if name in arrays else None
+
+    lift = column("lift_success")
+    six = column("six_dir_success")
+    pen_mean, pen_p95 = mean_and_p95(column("penetration_mm")) if "penetration_mm" in arrays else (math.nan, math.nan)
+    contact = column("contact_distance_mm")
+    e_fc = column("E_fc")
+    joints = np.asarray(arrays["hand_pose"], dtype=np.float64)[:, 6:]
+    entropy = joint_entropy_bits(joints, joint_limits_rad, entropy_bins)
+    pca = pca_cumulative_explained_variance(joints, pca_components)
+    out = {
+        "n_grasps": n,
+        "n_objects": int(len(np.unique(object_ids))),
+        "lift_success_rate": rate(lift) if lift is not None else math.nan,
+        "object_success_rate": object_success_rate(object_ids, lift) if lift is not None else math.nan,
+        "six_dir_success_rate": rate(six) if six is not None else math.nan,
+        "penetration_mean_mm": pen_mean,
+        "penetration_p95_mm": pen_p95,
+        "contact_distance_mean_mm": finite_mean(contact) if contact is not None else math.nan,
+        "E_fc_mean": finite_mean(e_fc) if e_fc is not None else math.nan,
+        "E_fc_median": float(np.nanmedian(e_fc)) if e_fc is not None and np.isfinite(e_fc).any() else math.nan,
+        "energy_threshold_pass_rate": _threshold_pass_rate(arrays),
+        "joint_entropy_bits": float(np.mean(entropy)) if n else math.nan,
+        "joint_entropy_std_bits": float(np.std(entropy)) if n else math.nan,
+    }
+    for k, value in pca.items():
+        out[f"pca_explained_variance_k{k}"] = value
+    return out
+
+
+def _threshold_pass_rate(arrays: Mapping[str, np.ndarray]) -> float:
+    """Fraction of grasps meeting all DexGraspNet thresholds on their final energies (NaN if not computed)."""
+    if not all(name in arrays for name in DEXGRASPNET_THRESHOLDS):
+        return math.nan
+    final = {name: np.asarray(arrays[name], dtype=np.float64)[:, None] for name in DEXGRASPNET_THRESHOLDS}
+    return rate(first_iteration_meeting(final) >= 0)
+
+
+def per_object_rows(arrays: Mapping[str, np.ndarray]) -> list[dict]:
+    """One row per object: grasp count, lift and six-direction success rates, mean penetration."""
+    object_ids = np.asarray(arrays["object_id"]).astype(str)
+    rows = []
+    for object_id in np.unique(object_ids):
+        mask = object_ids == object_id
+        row = {"object_id": str(object_id), "n_grasps": int(mask.sum())}
+        for name, key in (("lift_success", "lift_success_rate"), ("six_dir_success", "six_dir_success_rate")):
+            row[key] = rate(np.asarray(arrays[name])[mask]) if name in arrays else math.nan
+        row["any_lift_success"] = bool(np.asarray(arrays["lift_success"])[mask].any()) if "lift_success" in arrays else False
+        row["penetration_mean_mm"] = finite_mean(np.asarray(arrays["penetration_mm"])[mask]) if "penetration_mm" in arrays else math.nan
+        rows.append(row)
+    return rows

@@ -1,0 +1,183 @@
+"""Headless pictures of grasps: hand and object together, drawn with plain matplotlib.
+
+Runs on any CPU machine without a display or GL library (matplotlib's Agg backend).
+The hand is the gym model's own visual meshes (read from the compiled MjModel, so no
+STL parsing here), each placed by ``ShadowHand.forward``; the object is its normalized
+mesh times the grasp's scale. Both go into ONE Poly3DCollection, so matplotlib's
+painter's sort orders hand and object faces together; faces are shaded by a fixed
+headlight (Lambert) so shape reads without a GL renderer.
+"""
+
+from __future__ import annotations
+
+import functools
+import io
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from dexlite_pipeline.hand.model import POSE_DIM, ShadowHand, mujoco_geom
+from dexlite_pipeline.objects.assets import find_asset_dir
+
+HAND_RGB = (0.85, 0.55, 0.35)
+OBJECT_RGB = (0.35, 0.55, 0.85)
+DEFAULT_VIEWS_DEG = ((25.0, -60.0), (-20.0, 120.0))  # (elevation, azimuth) pairs, roughly opposite sides
+VISUAL_GROUP = 1  # the gym hand's visual geoms (collision geoms are group 4)
+
+
+class RenderError(ValueError):
+    """A grasp that cannot be rendered (bad index, missing mesh)."""
+
+
+@dataclass(frozen=True)
+class HandVisual:
+    """The hand's visual meshes in their link frames: vertices (V, 3), faces (F, 3), link of each vertex (V,)."""
+
+    vertices: np.ndarray
+    faces: np.ndarray
+    vertex_link: np.ndarray
+
+
+@functools.cache
+def hand_visual() -> HandVisual:
+    """Visual mesh and box geoms of the palm-rooted hand, in the frame of the link that carries them."""
+    import mujoco
+    import trimesh
+
+    from dexlite_pipeline.hand.mjcf import hand_mjcf_string
+    from dexlite_pipeline.hand.rotation import quat_wxyz_to_matrix
+
+    model = mujoco.MjModel.from_xml_string(hand_mjcf_string())
+    vertices, faces, links = [], [], []
+    offset = 0
+    for g in range(model.ngeom):
+        if int(model.geom_group[g]) != VISUAL_GROUP:
+            continue
+        kind = int(model.geom_type[g])
+        if kind == int(mujoco_geom("mesh")):
+            mesh_id = int(model.geom_dataid[g])
+            v0, nv = int(model.mesh_vertadr[mesh_id]), int(model.mesh_vertnum[mesh_id])
+            f0, nf = int(model.mesh_faceadr[mesh_id]), int(model.mesh_facenum[mesh_id])
+            local_v = np.asarray(model.mesh_vert[v0 : v0 + nv], dtype=np.float64)
+            local_f = np.asarray(model.mesh_face[f0 : f0 + nf], dtype=np.int64)
+        elif kind == int(mujoco_geom("box")):
+            box = trimesh.creation.box(extents=2 * np.asarray(model.geom_size[g]))
+            local_v, local_f = np.asarray(box.vertices), np.asarray(box.faces)
+        else:
+            continue
+        rot = quat_wxyz_to_matrix(torch.as_tensor(model.geom_quat[g], dtype=torch.float64)).numpy()
+        vertices.append(local_v @ rot.T + model.geom_pos[g])
+        faces.append(local_f + offset)
+        links.append(np.full(len(local_v), int(model.geom_bodyid[g]) - 1))
+        offset += len(local_v)
+    return HandVisual(np.concatenate(vertices), np.concatenate(faces), np.concatenate(links))
+
+
+def hand_mesh_world(hand: ShadowHand, hand_pose: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The hand's visual mesh (vertices in metres in the object frame, faces) for one 28-vector pose."""
+    pose = np.asarray(hand_pose, dtype=np.float64).reshape(-1)
+    if pose.shape != (POSE_DIM,) or not np.isfinite(pose).all():
+        raise RenderError(f"hand_pose must be {POSE_DIM} finite numbers, got shape {pose.shape}")
+    visual = hand_visual()
+    with torch.no_grad():
+        frames = hand.forward(torch.as_tensor(pose[None], dtype=hand.dtype, device=hand.device))
+        rot = frames.rotation[0].double().cpu().numpy()[visual.vertex_link]  # (V, 3, 3)
+        trans = frames.translation[0].double().cpu().numpy()[visual.vertex_link]
+    world = np.einsum("vij,vj->vi", rot, visual.vertices) + trans
+    return world, visual.faces
+
+
+def object_mesh_world(objects_dirs, object_id: str, scale: float) -> tuple[np.ndarray, np.ndarray]:
+    """The object's mesh in metres (normalized mesh x scale), vertices and faces."""
+    import trimesh
+
+    mesh_path = find_asset_dir(objects_dirs, object_id) / "mesh.obj"
+    if not mesh_path.is_file():
+        raise RenderError(f"{mesh_path}: object mesh not found")
+    mesh = trimesh.load(mesh_path, force="mesh", process=False)
+    return np.asarray(mesh.vertices, dtype=np.float64) * float(scale), np.asarray(mesh.faces, dtype=np.int64)
+
+
+def _shaded_colors(triangles: np.ndarray, rgb: tuple[float, float, float], view_dir: np.ndarray) -> np.ndarray:
+    """Per-face RGBA: ambient + Lambert term for a light at the camera (two-sided)."""
+    normals = np.cross(triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0])
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True).clip(min=1e-12)
+    lambert = np.abs(normals @ view_dir)
+    shade = 0.35 + 0.65 * lambert
+    colors = np.empty((len(triangles), 4))
+    colors[:, :3] = np.clip(np.asarray(rgb)[None, :] * shade[:, None], 0, 1)
+    colors[:, 3] = 1.0
+    return colors
+
+
+def _view_direction(elev_deg: float, azim_deg: float) -> np.ndarray:
+    """Unit vector from the scene toward a matplotlib 3D camera."""
+    e, a = np.radians(elev_deg), np.radians(azim_deg)
+    return np.array([np.cos(e) * np.cos(a), np.cos(e) * np.sin(a), np.sin(e)])
+
+
+def draw_grasp(ax, hand_mesh: tuple[np.ndarray, np.ndarray], object_mesh: tuple[np.ndarray, np.ndarray], elev_deg: float, azim_deg: float) -> None:
+    """Draw hand and object into a 3D axes from one viewpoint, equal aspect, axes hidden."""
+    from mpl_toolkits.mplot3d.art3d import Poly3DCollection
+
+    view = _view_direction(elev_deg, azim_deg)
+    hand_tris = hand_mesh[0][hand_mesh[1]]
+    object_tris = object_mesh[0][object_mesh[1]]
+    triangles = np.concatenate([object_tris, hand_tris])
+    colors = np.concatenate([_shaded_colors(object_tris, OBJECT_RGB, view), _shaded_colors(hand_tris, HAND_RGB, view)])
+    ax.add_collection3d(Poly3DCollection(triangles, facecolors=colors, edgecolors="none", linewidths=0))
+    # Frame the object and the hand; a hand far from the object (>25 cm) is left out of the frame.
+    obj_v = object_mesh[0]
+    centre = (obj_v.max(0) + obj_v.min(0)) / 2
+    radius = float(np.linalg.norm(obj_v - centre, axis=1).max())
+    near_hand = hand_mesh[0][np.linalg.norm(hand_mesh[0] - centre, axis=1) < radius + 0.25]
+    pts = np.concatenate([obj_v, near_hand])
+    lo, hi = pts.min(0), pts.max(0)
+    mid, half = (lo + hi) / 2, max(float((hi - lo).max()) / 2, 1e-3)
+    ax.set_xlim(mid[0] - half, mid[0] + half)
+    ax.set_ylim(mid[1] - half, mid[1] + half)
+    ax.set_zlim(mid[2] - half, mid[2] + half)
+    ax.set_box_aspect((1, 1, 1), zoom=1.2)
+    ax.view_init(elev=elev_deg, azim=azim_deg)
+    ax.set_axis_off()
+
+
+def render_grasp_png(
+    hand: ShadowHand,
+    hand_pose: np.ndarray,
+    object_id: str,
+    scale: float,
+    objects_dirs,
+    out: str | Path | None = None,
+    title: str = "",
+    views_deg=DEFAULT_VIEWS_DEG,
+    size_px: int = 360,
+) -> bytes:
+    """Render one grasp from each viewpoint side by side; return PNG bytes (and write ``out`` if given)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    hand_mesh = hand_mesh_world(hand, hand_pose)
+    object_mesh = object_mesh_world(objects_dirs, object_id, scale)
+    dpi = 100
+    fig = plt.figure(figsize=(size_px * len(views_deg) / dpi, size_px / dpi), dpi=dpi)
+    for k, (elev, azim) in enumerate(views_deg):
+        ax = fig.add_subplot(1, len(views_deg), k + 1, projection="3d")
+        draw_grasp(ax, hand_mesh, object_mesh, elev, azim)
+    if title:
+        fig.suptitle(title, fontsize=9)
+    fig.subplots_adjust(left=0, right=1, bottom=0, top=0.92 if title else 1, wspace=0)
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="png", dpi=dpi)
+    plt.close(fig)
+    data = buffer.getvalue()
+    if out is not None:
+        from dexlite_pipeline.io.atomic import atomic_path
+
+        with atomic_path(out) as tmp:
+            Path(tmp).write_bytes(data)
+    return data
