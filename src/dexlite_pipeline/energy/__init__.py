@@ -1,1 +1,21 @@
 """Grasp energies (force closure, contact distance, penetration, self-penetration, joint limits)."""
+
+from dexlite_pipeline.energy.evaluate import evaluate_grasp_energies
+from dexlite_pipeline.energy.grasp_energy import (
+    CONTACT_COUNT,
+    TERM_NAMES,
+    EnergyConfig,
+    EnergyResult,
+    EnergyWeights,
+    GraspEnergy,
+)
+
+__all__ = [
+    "CONTACT_COUNT",
+    "TERM_NAMES",
+    "EnergyConfig",
+    "EnergyResult",
+    "EnergyWeights",
+    "GraspEnergy",
+    "evaluate_grasp_energies",
+]

@@ -1,0 +1,171 @@
+"""All grasp energy terms of a batch of grasps at once, and their weighted sum.
+
+``GraspEnergy`` holds the hand, the objects' SDF grids and surface points on one device
+and evaluates every term for grasps given as stored 28-vectors or as (palm rotation
+matrix, palm translation, joints), so 6D-rotation optimizers use it directly. Weights
+live apart in ``EnergyWeights`` (config section ``energy.weights``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import torch
+
+from dexlite_pipeline.energy.terms import (
+    ContactDistanceTerm,
+    ForceClosureTerm,
+    JointLimitTerm,
+    PenetrationTerm,
+    SelfPenetrationTerm,
+)
+from dexlite_pipeline.hand.model import JOINTS, HandFrames, ShadowHand
+from dexlite_pipeline.objects.assets import ObjectAsset, SdfBank
+
+TERM_NAMES = ("E_fc", "E_dis", "E_pen", "E_spen", "E_joints")
+CONTACT_COUNT = 4
+
+
+@dataclass(frozen=True)
+class EnergyWeights:
+    """Weights of the terms in the total energy (defaults: DexGraspNet's and E_post's)."""
+
+    fc: float = 1.0
+    dis: float = 100.0
+    pen: float = 100.0
+    spen: float = 10.0
+    joints: float = 1.0
+
+    def combine(self, terms: dict[str, torch.Tensor]) -> torch.Tensor:
+        """Σ w_k E_k over the five terms, (B,)."""
+        return (
+            self.fc * terms["E_fc"]
+            + self.dis * terms["E_dis"]
+            + self.pen * terms["E_pen"]
+            + self.spen * terms["E_spen"]
+            + self.joints * terms["E_joints"]
+        )
+
+
+@dataclass(frozen=True)
+class EnergyConfig:
+    """Config section ``energy``: term weights and how the terms are sampled."""
+
+    weights: EnergyWeights = field(default_factory=EnergyWeights)
+    object_points: int = 2000  # object surface points for E_pen (DexGraspNet: 2000)
+    self_penetration_margin_m: float = 0.02  # E_spen distance below which keypoint pairs are penalized
+
+
+@dataclass
+class EnergyResult:
+    """Per-grasp terms (B,) in SI units, the weighted total, and detached diagnostics."""
+
+    terms: dict[str, torch.Tensor]
+    total: torch.Tensor
+    contact_index: torch.Tensor  # (B, 4)
+    penetration_mm: torch.Tensor  # deepest of: object point inside hand, hand point inside object
+    contact_distance_mm: torch.Tensor  # mean |d| of the four contacts on the finger pads
+
+
+class GraspEnergy:
+    """Batched, differentiable E_fc, E_dis, E_pen, E_spen, E_joints for grasps on bank objects."""
+
+    def __init__(
+        self,
+        hand: ShadowHand,
+        sdf_bank: SdfBank,
+        object_points: torch.Tensor,
+        weights: EnergyWeights = EnergyWeights(),
+        self_penetration_margin_m: float = 0.02,
+    ) -> None:
+        self.hand = hand
+        self.bank = sdf_bank
+        self.weights = weights
+        self.device = hand.device
+        self.force_closure = ForceClosureTerm()
+        self.contact_distance = ContactDistanceTerm()
+        self.joint_limits = JointLimitTerm(hand.joint_limits)
+        self.self_penetration = SelfPenetrationTerm(hand, self_penetration_margin_m)
+        self.penetration = PenetrationTerm(hand, sdf_bank, object_points.to(self.device, hand.dtype))
+
+    @classmethod
+    def from_assets(cls, hand: ShadowHand, assets: list[ObjectAsset], config: EnergyConfig = EnergyConfig()) -> "GraspEnergy":
+        """Build the SDF bank and E_pen point sets (first ``config.object_points`` surface samples)."""
+        bank = SdfBank(assets, device=hand.device, dtype=hand.dtype)
+        count = min(config.object_points, min(len(a.surface_points) for a in assets))
+        points = torch.as_tensor(np.stack([a.surface_points[:count] for a in assets]), dtype=hand.dtype)
+        return cls(hand, bank, points, config.weights, config.self_penetration_margin_m)
+
+    @property
+    def object_ids(self) -> list[str]:
+        return self.bank.object_ids
+
+    def object_index(self, object_ids) -> torch.Tensor:
+        """Bank indices (B,) of a sequence of object ids."""
+        return self.bank.indices(object_ids)
+
+    # ------------------------------------------------------------------ contacts
+    def contact_points(self, frames: HandFrames, contact_index: torch.Tensor) -> torch.Tensor:
+        """(B, 4, 3) object-frame positions of the chosen contact candidates."""
+        local = self.hand.contact_points_local[contact_index]
+        link = self.hand.contact_link[contact_index]
+        rows = torch.arange(contact_index.shape[0], device=contact_index.device)[:, None]
+        rot = frames.rotation[rows, link]
+        return (rot * local[..., None, :]).sum(-1) + frames.translation[rows, link]
+
+    def nearest_contacts(self, frames: HandFrames, object_index: torch.Tensor, scale: torch.Tensor) -> torch.Tensor:
+        """(B, 4) indices of the four candidates closest to the object surface (smallest |d|).
+
+        Used when a grasp comes without contact indices (imported or sampled grasps):
+        the contacts a grasp actually makes are the pad points lying on the surface.
+        """
+        with torch.no_grad():
+            candidates = self.hand.contact_candidates(frames)
+            distance, _ = self.bank.signed_distance(candidates, object_index, scale)
+            return distance.abs().topk(CONTACT_COUNT, dim=1, largest=False).indices
+
+    # -------------------------------------------------------------------- energy
+    def __call__(
+        self,
+        hand_pose: torch.Tensor | None = None,
+        *,
+        object_index: torch.Tensor,
+        scale: torch.Tensor,
+        contact_index: torch.Tensor | None = None,
+        palm_rot: torch.Tensor | None = None,
+        palm_t: torch.Tensor | None = None,
+        joints: torch.Tensor | None = None,
+    ) -> EnergyResult:
+        """Evaluate every term for a batch; pass ``hand_pose`` (B, 28) or ``palm_rot``/``palm_t``/``joints``.
+
+        ``contact_index`` None chooses the four candidates nearest the surface.
+        """
+        if hand_pose is not None:
+            frames = self.hand.forward(hand_pose)
+            joints = hand_pose[:, JOINTS]
+        else:
+            if palm_rot is None or palm_t is None or joints is None:
+                raise ValueError("GraspEnergy needs hand_pose or all of palm_rot, palm_t, joints")
+            frames = self.hand.forward_parts(palm_rot, palm_t, joints)
+        scale = scale.to(self.hand.dtype)
+        if contact_index is None:
+            contact_index = self.nearest_contacts(frames, object_index, scale)
+        points = self.contact_points(frames, contact_index)
+        distance, normal = self.bank.signed_distance(points, object_index, scale)
+        penetration = self.penetration(frames, object_index, scale)
+        terms = {
+            "E_fc": self.force_closure(points, normal),
+            "E_dis": self.contact_distance(distance),
+            "E_pen": penetration.energy,
+            "E_spen": self.self_penetration(frames),
+            "E_joints": self.joint_limits(joints),
+        }
+        deepest = torch.maximum(penetration.object_in_hand_max_m, penetration.hand_in_object_max_m)
+        return EnergyResult(
+            terms=terms,
+            total=self.weights.combine(terms),
+            contact_index=contact_index,
+            penetration_mm=deepest * 1000.0,
+            contact_distance_mm=distance.detach().abs().mean(dim=1) * 1000.0,
+        )
