@@ -6,6 +6,10 @@ include: "workflow/rules/common.smk"
 include: "workflow/rules/prepare_objects.smk"
 
 
+localrules:
+    all,
+
+
 rule all:
     input:
         final_outputs(),

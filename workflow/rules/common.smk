@@ -1,8 +1,17 @@
-# Shared helpers for the rules: config validation, per-stage params, shard lists.
+# Shared helpers for the rules: config validation, per-stage params, code hashes, shard lists.
+#
+# Rerun contract: a rule's params hold (1) the config sections it uses, as canonical JSON
+# (stage_params), and (2) a hash of its stage code and everything that code imports from
+# the package (code_hash). Snakemake's default rerun triggers (mtime, params, input, code,
+# software-env) then rerun exactly the stage whose settings or code changed, and what
+# depends on its outputs. Resources (threads, memory, runtime, GPUs) are NOT set here or
+# in the rules: they live in the profiles (profiles/local, profiles/slurm).
 import json
+from pathlib import Path
 
 from snakemake.utils import validate
 
+from dexlite_pipeline.codehash import code_hash as _package_code_hash
 from dexlite_pipeline.config import SCHEMA_PATH, section_json
 
 validate(config, str(SCHEMA_PATH))
@@ -10,6 +19,12 @@ validate(config, str(SCHEMA_PATH))
 RESULTS = "results"
 LOGS = "logs"
 SHARDS = [f"{i:03d}" for i in range(int(config["shards"]))]
+# The conda environment every rule declares; used only with `--sdm conda` (see README).
+CONDA_ENV = str(Path(workflow.basedir) / "envs" / "dexlite.yaml")
+
+
+wildcard_constraints:
+    shard=r"\d{3}",
 
 
 def stage_params(*sections):
@@ -17,6 +32,33 @@ def stage_params(*sections):
     return section_json(config, *sections)
 
 
+def code_hash(*modules):
+    """Hash of the code a stage runs: rerun the stage when it (or anything it imports) changes.
+
+    Names are stage modules ("prepare_objects" means dexlite_pipeline.stages.prepare_objects)
+    or full dotted module names.
+    """
+    return _package_code_hash(*(m if "." in m else f"dexlite_pipeline.stages.{m}" for m in modules))
+
+
 def final_outputs():
     """The final products of the stages that exist."""
     return [f"{RESULTS}/objects/catalog.parquet"]
+
+
+def stale_temporaries(root):
+    """Temporary siblings (`.NAME.tmp-XXXXXXXX`) that a killed job left behind under ``root``."""
+    root = Path(root)
+    return sorted(root.rglob(".*.tmp-*")) if root.is_dir() else []
+
+
+onstart:
+    # A job killed hard (SIGKILL, node failure) cannot remove its temporary output; such
+    # leftovers are never outputs (outputs are renamed into place whole), so drop them.
+    import shutil
+
+    for leftover in stale_temporaries(RESULTS):
+        if leftover.is_dir():
+            shutil.rmtree(leftover, ignore_errors=True)
+        else:
+            leftover.unlink(missing_ok=True)

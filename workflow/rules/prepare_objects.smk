@@ -4,6 +4,8 @@ rule prepare_objects:
     params:
         cfg=stage_params("seed", "objects"),
     threads: workflow.cores
+    conda:
+        CONDA_ENV
     log:
         f"{LOGS}/prepare_objects.log",
     benchmark:

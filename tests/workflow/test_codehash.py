@@ -1,0 +1,69 @@
+"""code_hash: a stage's hash follows exactly the package code it imports."""
+
+from pathlib import Path
+
+import pytest
+
+from dexlite_pipeline.codehash import code_hash, module_closure
+
+FAKE_PACKAGE = {
+    "__init__.py": '"""pkg"""\n',
+    "util.py": "def helper():\n    return 1\n",
+    "unrelated.py": "VALUE = 3\n",
+    "sim/__init__.py": "from .engine import step\n",
+    "sim/engine.py": "import numpy\nfrom dexlite_pipeline.util import helper\n\ndef step():\n    return helper()\n",
+    "sim/extra.py": "EXTRA = 1\n",
+    "stages/__init__.py": "",
+    "stages/lift.py": "def run(args):\n    from ..sim import extra\n    from dexlite_pipeline import sim\n    return sim.step() + extra.EXTRA\n",
+    "stages/prepare.py": "import dexlite_pipeline.util as u\n\ndef run(args):\n    return u.helper()\n",
+}
+
+
+@pytest.fixture()
+def fake_root(tmp_path) -> Path:
+    root = tmp_path / "dexlite_pipeline"
+    for rel, text in FAKE_PACKAGE.items():
+        (root / rel).parent.mkdir(parents=True, exist_ok=True)
+        (root / rel).write_text(text)
+    return root
+
+
+def test_closure_follows_absolute_relative_and_lazy_imports(fake_root):
+    closure = module_closure("dexlite_pipeline.stages.lift", root=fake_root)
+    assert set(closure) == {
+        "dexlite_pipeline",
+        "dexlite_pipeline.stages",
+        "dexlite_pipeline.stages.lift",
+        "dexlite_pipeline.sim",
+        "dexlite_pipeline.sim.engine",
+        "dexlite_pipeline.sim.extra",
+        "dexlite_pipeline.util",
+    }
+    prepare = module_closure("dexlite_pipeline.stages.prepare", root=fake_root)
+    assert "dexlite_pipeline.sim.engine" not in prepare and "dexlite_pipeline.util" in prepare
+
+
+def test_hash_changes_with_imported_code_only(fake_root):
+    lift_before = code_hash("dexlite_pipeline.stages.lift", root=fake_root)
+    prepare_before = code_hash("dexlite_pipeline.stages.prepare", root=fake_root)
+
+    engine = fake_root / "sim" / "engine.py"
+    engine.write_text(engine.read_text() + "# a comment and blank lines change nothing\n\n")
+    assert code_hash("dexlite_pipeline.stages.lift", root=fake_root) == lift_before
+
+    engine.write_text(engine.read_text().replace("return helper()", "return helper() + 1"))
+    assert code_hash("dexlite_pipeline.stages.lift", root=fake_root) != lift_before
+    assert code_hash("dexlite_pipeline.stages.prepare", root=fake_root) == prepare_before
+
+    (fake_root / "unrelated.py").write_text("VALUE = 4\n")
+    assert code_hash("dexlite_pipeline.stages.prepare", root=fake_root) == prepare_before
+
+
+def test_unknown_module_is_an_error(fake_root):
+    with pytest.raises(ModuleNotFoundError, match="no_such_stage"):
+        code_hash("dexlite_pipeline.stages.no_such_stage", root=fake_root)
+
+
+def test_real_stage_code_hash_is_stable():
+    assert code_hash("dexlite_pipeline.codehash") == code_hash("dexlite_pipeline.codehash")
+    assert len(code_hash("dexlite_pipeline.codehash")) == 16
