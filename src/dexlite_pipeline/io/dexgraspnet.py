@@ -1,0 +1,366 @@
+"""DexGraspNet import and export: its dataset layout <-> grasp store plus object assets.
+
+Layout (a DexGraspNet download)::
+
+    ROOT/dataset/<object_code>.npy                pickled object array of {'qpos': {...}, 'scale': s}
+    ROOT/meshdata/<object_code>/coacd/decomposed.obj   convex pieces of the normalized mesh
+
+The grasp files are pickles; they are read with ``io.safe_pickle`` (nothing in them is
+executed). ``qpos`` maps one-to-one to ``hand_pose`` (``hand.qpos``: same translation,
+same static-axis xyz Euler angles, same joints), so the conversion is exact; the store
+keeps float32 as its schema says (relative error below 6e-8). The meshes keep their
+frame, in which the grasps are expressed. ``decomposed.obj`` is a set of convex pieces
+(its connected components) that touch or overlap; their boolean union (manifold3d) is
+the watertight surface the SDF grid and the surface samples are made from: an SDF of
+the raw piece soup would measure depth to internal faces, and surface samples would
+fall inside the object.
+
+Problems never stop the import: each is a row of the import report (file-level rows
+have ``grasp_index`` -1) and everything else is imported.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import logging
+import math
+import os
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from dexlite_pipeline.hand.model import JOINT_NAMES
+from dexlite_pipeline.hand.qpos import QPOS_KEYS, ROTATION_KEYS, TRANSLATION_KEYS, QposError, hand_pose_from_qpos, qpos_from_hand_pose
+from dexlite_pipeline.io.atomic import atomic_path
+from dexlite_pipeline.io.grasp_store import GraspSet, empty_grasp_set
+from dexlite_pipeline.io.safe_pickle import NpyReadError, RefusedPickleError, load_npy_restricted
+
+log = logging.getLogger(__name__)
+
+SOURCE = "dexgraspnet"
+DATASET_DIR = "dataset"
+MESHDATA_DIR = "meshdata"
+MESH_RELATIVE_PATH = Path("coacd") / "decomposed.obj"
+CATALOG_COLUMNS = ("object_id", "source", "file", "watertight", "volume", "n_convex_pieces", "status", "reason", "split")
+REPORT_COLUMNS = ("file", "object_id", "grasp_index", "grasps_affected", "kind", "reason")
+# DexGraspNet writes the joints first, then the palm rotation and translation.
+EXPORT_KEY_ORDER = (*JOINT_NAMES, *ROTATION_KEYS, *TRANSLATION_KEYS)
+
+
+@dataclass(frozen=True)
+class DexGraspNetConfig:
+    """Config section ``dexgraspnet``: where the download is and how its objects are split."""
+
+    root: str = ""  # a DexGraspNet download (dataset/, meshdata/); empty = not used
+    heldout_fraction: float = 0.0  # share of imported objects held out for evaluation (seeded, per object code)
+    heldout_object_codes: tuple[str, ...] = ()  # object codes always held out
+
+
+@dataclass
+class ImportProblem:
+    """One row of the import report: a whole file (grasp_index -1) or one grasp."""
+
+    file: str
+    object_id: str
+    grasp_index: int
+    grasps_affected: int
+    kind: str  # refused_pickle, unreadable_file, wrong_type, missing_mesh, bad_mesh, unknown_joint_names, ...
+    reason: str
+
+
+@dataclass
+class GraspFileResult:
+    """The grasps of one dataset file that converted, with the problems of the rest."""
+
+    object_id: str
+    file: str
+    hand_pose: np.ndarray  # (n, 28) float64
+    scale: np.ndarray  # (n,) float64
+    source_index: np.ndarray  # (n,) int64, position in the file
+    problems: list[ImportProblem] = field(default_factory=list)
+
+
+@dataclass
+class ImportResult:
+    grasps: GraspSet
+    catalog: list[dict]
+    problems: list[ImportProblem]
+
+
+def object_split(object_code: str, config: DexGraspNetConfig, seed: int) -> str:
+    """'heldout' or 'train': listed codes are held out, others by a seeded hash of the code.
+
+    Hashing each code on its own keeps an object's split when others are added or removed.
+    """
+    if object_code in config.heldout_object_codes:
+        return "heldout"
+    digest = hashlib.sha256(f"{seed}:{object_code}".encode()).digest()
+    draw = int.from_bytes(digest[:8], "big") / 2.0**64
+    return "heldout" if draw < config.heldout_fraction else "train"
+
+
+def _is_real_number(value) -> bool:
+    return not isinstance(value, (bool, np.bool_)) and isinstance(value, (int, float, np.integer, np.floating))
+
+
+class GraspEntryError(ValueError):
+    """One grasp of a dataset file that cannot be used; ``kind`` groups the report rows."""
+
+    def __init__(self, kind: str, reason: str) -> None:
+        super().__init__(reason)
+        self.kind = kind
+
+
+def convert_grasp_entry(entry) -> tuple[np.ndarray, float]:
+    """One DexGraspNet grasp dict -> (hand_pose float64 (28,), scale); GraspEntryError if unusable."""
+    if not isinstance(entry, Mapping):
+        raise GraspEntryError("wrong_type", f"grasp is a {type(entry).__name__}, expected a dict with 'qpos' and 'scale'")
+    for key in ("qpos", "scale"):
+        if key not in entry:
+            raise GraspEntryError("wrong_type", f"grasp has no {key!r}")
+    qpos, scale = entry["qpos"], entry["scale"]
+    if not isinstance(qpos, Mapping):
+        raise GraspEntryError("wrong_type", f"qpos is a {type(qpos).__name__}, expected a dict")
+    unknown = sorted(str(k) for k in qpos if k not in QPOS_KEYS)
+    missing = [k for k in QPOS_KEYS if k not in qpos]
+    if unknown:
+        also_missing = f"; missing: {', '.join(missing)}" if missing else ""
+        raise GraspEntryError("unknown_joint_names", f"unknown qpos keys: {', '.join(unknown)}{also_missing}")
+    if missing:
+        raise GraspEntryError("missing_joint_names", f"missing qpos keys: {', '.join(missing)}")
+    try:
+        pose = hand_pose_from_qpos(qpos)
+    except QposError as exc:
+        kind = "wrong_type" if not all(_is_real_number(v) for v in qpos.values()) else "non_finite"
+        raise GraspEntryError(kind, str(exc)) from None
+    if not _is_real_number(scale):
+        raise GraspEntryError("wrong_type", f"scale is a {type(scale).__name__}, not a number")
+    if not math.isfinite(float(scale)) or float(scale) <= 0:
+        raise GraspEntryError("bad_scale", f"scale {float(scale)!r} is not a positive finite number")
+    return pose, float(scale)
+
+
+def read_grasp_file(path: Path, root: Path) -> GraspFileResult:
+    """Read one ``dataset/<code>.npy`` and convert every grasp it holds that can be used."""
+    object_id = path.stem
+    label = path.relative_to(root).as_posix()
+    result = GraspFileResult(object_id, label, np.zeros((0, 28)), np.zeros(0), np.zeros(0, np.int64))
+
+    def file_problem(kind: str, reason: str, affected: int = 0) -> GraspFileResult:
+        result.problems.append(ImportProblem(label, object_id, -1, affected, kind, reason))
+        return result
+
+    try:
+        entries = load_npy_restricted(path)
+    except RefusedPickleError as exc:
+        return file_problem("refused_pickle", f"refused pickle global {exc.global_name!r}; nothing was executed")
+    except (NpyReadError, OSError) as exc:
+        return file_problem("unreadable_file", str(exc))
+    if entries.dtype != object or entries.ndim != 1:
+        return file_problem("wrong_type", f"file holds a {entries.dtype} array of shape {entries.shape}, expected a list of grasp dicts")
+    if len(entries) == 0:
+        return file_problem("no_grasps", "file holds no grasps")
+    poses, scales, indices = [], [], []
+    for index, entry in enumerate(entries):
+        try:
+            pose, scale = convert_grasp_entry(entry)
+        except GraspEntryError as exc:
+            result.problems.append(ImportProblem(label, object_id, index, 1, exc.kind, str(exc)))
+            continue
+        poses.append(pose)
+        scales.append(scale)
+        indices.append(index)
+    if poses:
+        result.hand_pose = np.stack(poses)
+        result.scale = np.asarray(scales)
+        result.source_index = np.asarray(indices, np.int64)
+    return result
+
+
+class MeshImportError(ValueError):
+    """A DexGraspNet mesh that cannot be turned into an object asset."""
+
+
+def load_decomposed_mesh(mesh_path: Path):
+    """(watertight union mesh, convex pieces) from a CoACD ``decomposed.obj``.
+
+    Pieces are the connected components of the file's faces (vertices are not merged, so
+    pieces that touch stay apart). A piece that is not closed is replaced by the convex
+    hull of its vertices: CoACD pieces are convex, so this only closes numerical gaps.
+    """
+    import trimesh
+
+    try:
+        soup = trimesh.load(mesh_path, force="mesh", process=False)
+    except Exception as exc:  # trimesh raises many types for unreadable files
+        raise MeshImportError(f"cannot read mesh: {type(exc).__name__}: {exc}") from None
+    if not isinstance(soup, trimesh.Trimesh) or len(soup.faces) == 0:
+        raise MeshImportError("mesh has no faces")
+    if not np.isfinite(soup.vertices).all():
+        raise MeshImportError("mesh has non-finite vertices")
+    pieces = []
+    for component in soup.split(only_watertight=False):
+        piece = trimesh.Trimesh(component.vertices, component.faces, process=True)
+        if not piece.is_watertight or piece.volume <= 0:
+            piece = trimesh.convex.convex_hull(component.vertices)
+        if piece.volume > 0:
+            pieces.append(piece)
+    if not pieces:
+        raise MeshImportError("no convex piece has a positive volume")
+    union = pieces[0].copy() if len(pieces) == 1 else trimesh.boolean.union(pieces, engine="manifold")
+    if not union.is_watertight or union.volume <= 0:
+        raise MeshImportError(f"union of {len(pieces)} convex pieces is not a closed solid")
+    return union, pieces
+
+
+def _catalog_row(object_id: str, mesh_path: Path, split: str, status: str, reason: str = "", summary: dict | None = None) -> dict:
+    summary = summary or {}
+    return {
+        "object_id": object_id,
+        "source": SOURCE,
+        "file": str(mesh_path),
+        "watertight": bool(summary.get("watertight", False)),
+        "volume": float(summary.get("volume", float("nan"))),
+        "n_convex_pieces": int(summary.get("n_convex_pieces", 0)),
+        "status": status,
+        "reason": reason,
+        "split": split,
+    }
+
+
+def import_dexgraspnet(root: str | os.PathLike, objects_out: str | os.PathLike, settings, config: DexGraspNetConfig, seed: int) -> ImportResult:
+    """Read a DexGraspNet download; write object assets under ``objects_out``; return grasps, catalog, problems.
+
+    ``settings`` is an ``objects.build.AssetBuildSettings`` (use the pipeline's, so SDF grids
+    match the other objects'). Only objects with at least one usable grasp get an asset.
+    """
+    from dexlite_pipeline.objects.build import write_asset
+
+    root = Path(root)
+    dataset = root / DATASET_DIR
+    if not dataset.is_dir():
+        raise FileNotFoundError(f"{dataset}: no such folder (expected a DexGraspNet download with dataset/ and meshdata/)")
+    files = sorted(dataset.glob("*.npy"))
+    if not files:
+        raise FileNotFoundError(f"{dataset}: no .npy grasp files")
+    problems: list[ImportProblem] = []
+    catalog: list[dict] = []
+    kept: list[GraspFileResult] = []
+    for number, path in enumerate(files, 1):
+        result = read_grasp_file(path, root)
+        problems.extend(result.problems)
+        object_id = result.object_id
+        mesh_path = root / MESHDATA_DIR / object_id / MESH_RELATIVE_PATH
+        split = object_split(object_id, config, seed)
+        count = len(result.source_index)
+        if count == 0:
+            catalog.append(_catalog_row(object_id, mesh_path, split, "rejected", "no usable grasps"))
+            continue
+        if not mesh_path.is_file():
+            reason = f"missing mesh {mesh_path.relative_to(root).as_posix()}"
+            problems.append(ImportProblem(result.file, object_id, -1, count, "missing_mesh", reason))
+            catalog.append(_catalog_row(object_id, mesh_path, split, "rejected", reason))
+            continue
+        try:
+            mesh, pieces = load_decomposed_mesh(mesh_path)
+            meta = {"source": SOURCE, "file": str(mesh_path), "normalization": "dexgraspnet frame kept", "split": split}
+            summary = write_asset(mesh, object_id, objects_out, settings, meta, convex_pieces=pieces)
+        except Exception as exc:  # one bad object never stops the import; the report names it
+            reason = f"mesh unusable: {exc}" if isinstance(exc, MeshImportError) else f"asset build failed: {type(exc).__name__}: {exc}"
+            problems.append(ImportProblem(result.file, object_id, -1, count, "bad_mesh", reason))
+            catalog.append(_catalog_row(object_id, mesh_path, split, "rejected", reason))
+            continue
+        catalog.append(_catalog_row(object_id, mesh_path, split, "ok", summary=summary))
+        kept.append(result)
+        log.info("[%d/%d] %s: %d grasps, %d problems", number, len(files), object_id, count, len(result.problems))
+    return ImportResult(_grasp_set(kept), catalog, problems)
+
+
+def _grasp_set(results: list[GraspFileResult]) -> GraspSet:
+    if not results:
+        grasps = empty_grasp_set()
+        grasps.arrays["source_file"] = np.zeros(0, dtype=object)
+        grasps.arrays["source_index"] = np.zeros(0, np.int64)
+        return grasps
+    counts = [len(r.source_index) for r in results]
+    return GraspSet(
+        {
+            "hand_pose": np.concatenate([r.hand_pose for r in results]).astype(np.float32),
+            "object_id": np.repeat(np.asarray([r.object_id for r in results], dtype=object), counts),
+            "scale": np.concatenate([r.scale for r in results]).astype(np.float32),
+            "source_file": np.repeat(np.asarray([r.file for r in results], dtype=object), counts),
+            "source_index": np.concatenate([r.source_index for r in results]),
+        }
+    )
+
+
+def write_table_atomic(rows: list[dict], columns: tuple[str, ...], path: str | os.PathLike) -> None:
+    """Write rows as CSV or Parquet (by suffix) atomically, with the given columns even when empty."""
+    import pandas as pd
+
+    frame = pd.DataFrame(rows, columns=list(columns))
+    with atomic_path(path) as tmp:
+        if Path(path).suffix == ".parquet":
+            frame.to_parquet(tmp, index=False)
+        else:
+            frame.to_csv(tmp, index=False)
+
+
+def problem_rows(problems: list[ImportProblem]) -> list[dict]:
+    return [dataclasses.asdict(p) for p in problems]
+
+
+def _check_file_name(object_id: str) -> None:
+    if not object_id or "/" in object_id or "\\" in object_id or object_id.startswith("."):
+        raise ValueError(f"object id {object_id!r} cannot be used as a DexGraspNet file name")
+
+
+def _write_decomposed_obj(pieces_paths: list[Path], path: Path) -> None:
+    """Concatenate convex piece OBJ files into one OBJ with an ``o convex_i`` group each (CoACD's layout)."""
+    import trimesh
+
+    lines, offset = [], 1
+    for i, piece_path in enumerate(pieces_paths):
+        piece = trimesh.load(piece_path, force="mesh", process=False)
+        lines.append(f"o convex_{i}")
+        lines.extend(f"v {x:.9g} {y:.9g} {z:.9g}" for x, y, z in piece.vertices)
+        lines.extend(f"f {a + offset} {b + offset} {c + offset}" for a, b, c in piece.faces)
+        offset += len(piece.vertices)
+    with atomic_path(path) as tmp:
+        tmp.write_text("\n".join(lines) + "\n")
+
+
+def export_dexgraspnet(grasps: GraspSet, out_dir: str | os.PathLike, objects_dirs=None) -> dict:
+    """Write ``OUT_DIR/dataset/<object_id>.npy`` (DexGraspNet's list of {'qpos', 'scale'} dicts).
+
+    With ``objects_dirs``, also ``OUT_DIR/meshdata/<object_id>/coacd/decomposed.obj`` from each
+    object's convex pieces, so the output is a complete DexGraspNet layout. Returns counts
+    and the ids whose asset was not found.
+    """
+    from dexlite_pipeline.objects.assets import ObjectAssetError, find_asset_dir
+
+    out_dir = Path(out_dir)
+    object_ids = np.asarray([str(o) for o in grasps.object_id])
+    missing_assets = []
+    for object_id in sorted(set(object_ids)):
+        _check_file_name(object_id)
+        rows = np.nonzero(object_ids == object_id)[0]
+        entries = np.empty(len(rows), dtype=object)
+        for k, row in enumerate(rows):
+            qpos = qpos_from_hand_pose(grasps.hand_pose[row])
+            entries[k] = {"qpos": {key: qpos[key] for key in EXPORT_KEY_ORDER}, "scale": np.float64(grasps.scale[row])}
+        with atomic_path(out_dir / DATASET_DIR / f"{object_id}.npy") as tmp:
+            with open(tmp, "wb") as fp:
+                np.save(fp, entries, allow_pickle=True)
+        if objects_dirs:
+            try:
+                directory = find_asset_dir(objects_dirs, object_id)
+            except ObjectAssetError:
+                missing_assets.append(object_id)
+                continue
+            pieces = sorted((directory / "convex").glob("*.obj")) or [directory / "mesh.obj"]
+            _write_decomposed_obj(pieces, out_dir / MESHDATA_DIR / object_id / MESH_RELATIVE_PATH)
+    return {"objects": len(set(object_ids)), "grasps": len(object_ids), "missing_assets": missing_assets}

@@ -1,0 +1,28 @@
+"""``dexlite export-dexgraspnet GRASPS.zarr OUT_DIR``: write a grasp store in DexGraspNet's layout.
+
+``OUT_DIR/dataset/<object_id>.npy`` holds, per object, DexGraspNet's list of
+``{'qpos': {...}, 'scale': s}`` dicts; with ``--objects DIR`` the convex pieces of each
+object are written as ``OUT_DIR/meshdata/<object_id>/coacd/decomposed.obj`` too, so
+DexGraspNet-based tools (and ``dexlite import-dexgraspnet``) can read the result whole.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("grasps", help="grasp store (.zarr)")
+    parser.add_argument("out_dir", help="output folder (dataset/ and, with --objects, meshdata/)")
+    parser.add_argument("--objects", action="append", default=[], help="prepared objects dir (repeatable): also export the meshes")
+
+
+def run(args: argparse.Namespace) -> int:
+    from dexlite_pipeline.io.dexgraspnet import export_dexgraspnet
+    from dexlite_pipeline.io.grasp_store import read_grasp_store
+
+    summary = export_dexgraspnet(read_grasp_store(args.grasps), args.out_dir, args.objects or None)
+    print(f"wrote {summary['grasps']} grasps of {summary['objects']} objects to {args.out_dir}/dataset")
+    if summary["missing_assets"]:
+        print(f"no prepared asset (mesh not exported) for: {', '.join(summary['missing_assets'])}")
+    return 0

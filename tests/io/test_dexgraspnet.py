@@ -1,0 +1,212 @@
+"""DexGraspNet import/export on small fixtures written here in DexGraspNet's layout."""
+
+import os
+import pickle
+
+import numpy as np
+import pandas as pd
+import pytest
+from numpy.lib import format as npy_format
+
+from dexlite_pipeline.cli import main as dexlite
+from dexlite_pipeline.hand.qpos import qpos_from_hand_pose
+from dexlite_pipeline.io.dexgraspnet import DexGraspNetConfig, import_dexgraspnet, load_decomposed_mesh, object_split
+from dexlite_pipeline.io.grasp_store import read_grasp_store
+from dexlite_pipeline.objects.assets import load_asset, read_catalog
+from dexlite_pipeline.objects.build import AssetBuildSettings
+
+SMALL_ASSETS = AssetBuildSettings(sdf_resolution=24, sdf_padding=0.2, surface_points=256)
+# Two overlapping convex boxes whose union is the box [-0.5, 0.5] x [-0.3, 0.3] x [-0.2, 0.2].
+BOX_PIECES = (((-0.5, -0.3, -0.2), (0.2, 0.3, 0.2)), ((-0.1, -0.3, -0.2), (0.5, 0.3, 0.2)))
+UNION_HALF_EXTENTS = np.array([0.5, 0.3, 0.2])
+
+
+def _box_sdf_positive_inside(points):
+    """Exact signed distance of the union box, positive inside."""
+    q = np.abs(points) - UNION_HALF_EXTENTS
+    outside = np.linalg.norm(np.maximum(q, 0), axis=-1)
+    inside = np.minimum(q.max(axis=-1), 0)
+    return -(outside + inside)
+
+
+def write_decomposed_boxes(path, pieces=BOX_PIECES):
+    """A CoACD-style decomposed.obj: one ``o convex_i`` group of vertices and faces per box."""
+    import trimesh
+
+    lines, offset = [], 1
+    for i, (lo, hi) in enumerate(pieces):
+        box = trimesh.creation.box(bounds=np.array([lo, hi]))
+        lines.append(f"o convex_{i}")
+        lines += [f"v {x} {y} {z}" for x, y, z in box.vertices]
+        lines += [f"f {a + offset} {b + offset} {c + offset}" for a, b, c in box.faces]
+        offset += len(box.vertices)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text("\n".join(lines) + "\n")
+
+
+def random_poses(n, seed=0):
+    rng = np.random.default_rng(seed)
+    poses = rng.uniform(-1.0, 1.0, size=(n, 28))
+    poses[:, :3] *= 0.2
+    return poses
+
+
+def write_grasps(root, code, entries):
+    (root / "dataset").mkdir(parents=True, exist_ok=True)
+    np.save(root / "dataset" / f"{code}.npy", np.array(entries, dtype=object), allow_pickle=True)
+
+
+def good_entries(poses, scales):
+    return [{"qpos": qpos_from_hand_pose(p), "scale": np.float64(s)} for p, s in zip(poses, scales)]
+
+
+class _Malicious:
+    def __init__(self, marker):
+        self.marker = marker
+
+    def __reduce__(self):
+        return (os.system, (f"touch {self.marker}",))
+
+
+@pytest.fixture()
+def layout(tmp_path):
+    """A DexGraspNet download with one good object, grasp-level faults, and bad files."""
+    root = tmp_path / "dgn"
+    poses = random_poses(6)
+    scales = [0.06, 0.08, 0.1, 0.12, 0.15, 0.1]
+    entries = good_entries(poses, scales)
+    entries[1]["qpos"]["robot0:FFJ2"] = float("nan")
+    entries[2]["qpos"]["robot0:XXJ9"] = entries[2]["qpos"].pop("robot0:LFJ4")
+    entries[3]["scale"] = "0.1"
+    entries.append(["not", "a", "dict"])
+    entries.append({"qpos": entries[0]["qpos"], "scale": -0.1})
+    write_grasps(root, "box", entries)
+    write_decomposed_boxes(root / "meshdata" / "box" / "coacd" / "decomposed.obj")
+    write_grasps(root, "nomesh", good_entries(random_poses(3, seed=1), [0.1] * 3))
+    np.save(root / "dataset" / "numbers.npy", np.zeros((4, 28)))
+    marker = tmp_path / "marker"
+    with open(root / "dataset" / "evil.npy", "wb") as fp:
+        npy_format.write_array_header_1_0(fp, {"descr": "|O", "fortran_order": False, "shape": (1,)})
+        pickle.dump([_Malicious(marker)], fp)
+    for code in ("numbers", "evil"):
+        write_decomposed_boxes(root / "meshdata" / code / "coacd" / "decomposed.obj")
+    return {"root": root, "poses": poses, "scales": np.array(scales), "marker": marker}
+
+
+def test_import_keeps_good_grasps_and_reports_every_problem(layout, tmp_path):
+    result = import_dexgraspnet(layout["root"], tmp_path / "objects", SMALL_ASSETS, DexGraspNetConfig(), seed=0)
+    grasps = result.grasps
+    assert not layout["marker"].exists()
+    # grasps 0, 4 and 5 of box are usable
+    np.testing.assert_array_equal(grasps.arrays["source_index"], [0, 4, 5])
+    assert set(grasps.object_id) == {"box"} and set(grasps.arrays["source_file"]) == {"dataset/box.npy"}
+    np.testing.assert_allclose(grasps.hand_pose, layout["poses"][[0, 4, 5]], rtol=1e-7, atol=1e-8)
+    np.testing.assert_allclose(grasps.scale, layout["scales"][[0, 4, 5]], rtol=1e-7)
+
+    report = {(p.file, p.grasp_index): p for p in result.problems}
+    assert report[("dataset/box.npy", 1)].kind == "non_finite"
+    assert report[("dataset/box.npy", 2)].kind == "unknown_joint_names" and "XXJ9" in report[("dataset/box.npy", 2)].reason
+    assert report[("dataset/box.npy", 3)].kind == "wrong_type" and "scale" in report[("dataset/box.npy", 3)].reason
+    assert report[("dataset/box.npy", 6)].kind == "wrong_type"
+    assert report[("dataset/box.npy", 7)].kind == "bad_scale"
+    assert report[("dataset/nomesh.npy", -1)].kind == "missing_mesh"
+    assert report[("dataset/nomesh.npy", -1)].grasps_affected == 3
+    assert report[("dataset/numbers.npy", -1)].kind == "wrong_type"
+    evil = report[("dataset/evil.npy", -1)]
+    assert evil.kind == "refused_pickle" and "system" in evil.reason
+    assert len(result.problems) == 8
+
+    catalog = {row["object_id"]: row for row in result.catalog}
+    assert catalog["box"]["status"] == "ok" and catalog["box"]["n_convex_pieces"] == 2 and catalog["box"]["watertight"]
+    assert catalog["box"]["volume"] == pytest.approx(np.prod(2 * UNION_HALF_EXTENTS), rel=1e-6)
+    assert {catalog[c]["status"] for c in ("nomesh", "numbers", "evil")} == {"rejected"}
+    assert sorted(p.name for p in (tmp_path / "objects" / "assets").iterdir()) == ["box"]
+
+
+def test_union_of_pieces_gives_the_solids_sdf_and_outer_surface(layout, tmp_path):
+    mesh, pieces = load_decomposed_mesh(layout["root"] / "meshdata" / "box" / "coacd" / "decomposed.obj")
+    assert len(pieces) == 2 and mesh.is_watertight
+    import_dexgraspnet(layout["root"], tmp_path / "objects", SMALL_ASSETS, DexGraspNetConfig(), seed=0)
+    asset = load_asset(tmp_path / "objects", "box")
+    g = asset.sdf.shape[0]
+    axis = np.arange(g) * asset.voxel_size
+    grid = np.stack(np.meshgrid(*(axis + asset.grid_min[i] for i in range(3)), indexing="ij"), axis=-1)
+    expected = _box_sdf_positive_inside(grid)
+    # exact at grid points, including the pieces' internal faces at x = -0.1 and x = 0.2
+    np.testing.assert_allclose(asset.sdf, expected, atol=1e-5)
+    assert asset.sdf[np.abs(grid[..., 0] - 0.2) < asset.voxel_size].max() > 0.15
+    # surface samples lie on the outer boundary only, with outward normals
+    np.testing.assert_allclose(_box_sdf_positive_inside(asset.surface_points), 0.0, atol=1e-6)
+    assert (np.einsum("ij,ij->i", asset.surface_points, asset.surface_normals) > 0).all()
+
+
+def test_export_then_import_round_trip(layout, tmp_path):
+    first = import_dexgraspnet(layout["root"], tmp_path / "objects", SMALL_ASSETS, DexGraspNetConfig(), seed=0).grasps
+    from dexlite_pipeline.io.grasp_store import write_grasp_store
+
+    write_grasp_store(tmp_path / "first.zarr", first)
+    assert dexlite(["export-dexgraspnet", str(tmp_path / "first.zarr"), str(tmp_path / "out"), "--objects", str(tmp_path / "objects")]) == 0
+    exported = np.load(tmp_path / "out" / "dataset" / "box.npy", allow_pickle=True)  # our own file
+    assert set(exported[0]) == {"qpos", "scale"}
+    original = np.load(layout["root"] / "dataset" / "box.npy", allow_pickle=True)
+    for entry, index in zip(exported, [0, 4, 5]):
+        for key, value in original[index]["qpos"].items():
+            assert entry["qpos"][key] == pytest.approx(value, rel=1e-7, abs=1e-8)
+        assert entry["scale"] == pytest.approx(float(original[index]["scale"]), rel=1e-7)
+    second = import_dexgraspnet(tmp_path / "out", tmp_path / "objects2", SMALL_ASSETS, DexGraspNetConfig(), seed=0)
+    assert second.problems == []
+    np.testing.assert_array_equal(second.grasps.hand_pose, first.hand_pose)
+    np.testing.assert_array_equal(second.grasps.scale, first.scale)
+    assert list(second.grasps.object_id) == list(first.object_id)
+    np.testing.assert_allclose(load_asset(tmp_path / "objects2", "box").sdf, load_asset(tmp_path / "objects", "box").sdf, atol=1e-5)
+
+
+def test_cli_writes_store_catalog_and_report(layout, tmp_path):
+    config = '{"seed": 3, "objects": {"sdf_resolution": 24, "surface_points": 256}, "dexgraspnet": {"heldout_object_codes": ["box"]}}'
+    out = tmp_path / "res" / "grasps.zarr"
+    code = dexlite(["import-dexgraspnet", str(layout["root"]), "--out", str(out), "--objects-out", str(tmp_path / "res" / "objects"), "--config-json", config])
+    assert code == 0
+    grasps = read_grasp_store(out)
+    assert len(grasps) == 3 and grasps.attrs["grasps_imported"] == 3 and grasps.attrs["config"]["seed"] == 3
+    assert grasps.attrs["grasps_not_imported"] == 5 + 3
+    report = pd.read_csv(tmp_path / "res" / "grasps.import_report.csv")
+    assert len(report) == 8 and set(report["kind"]) >= {"refused_pickle", "missing_mesh", "unknown_joint_names", "non_finite", "wrong_type"}
+    catalog = read_catalog(tmp_path / "res" / "objects")
+    assert list(catalog.columns) == ["object_id", "source", "file", "watertight", "volume", "n_convex_pieces", "status", "reason", "split"]
+    assert catalog.set_index("object_id").loc["box", "split"] == "heldout"
+    assert load_asset(tmp_path / "res" / "objects", "box").sdf.shape == (24, 24, 24)
+
+
+def test_missing_dataset_folder_is_a_clear_error(tmp_path, capsys):
+    code = dexlite(["import-dexgraspnet", str(tmp_path), "--out", str(tmp_path / "g.zarr"), "--objects-out", str(tmp_path / "o")])
+    assert code == 2 and "dataset: no such folder" in capsys.readouterr().err
+
+
+def test_split_is_seeded_per_object_and_honours_the_heldout_list():
+    codes = [f"obj{i}" for i in range(400)]
+    config = DexGraspNetConfig(heldout_fraction=0.25, heldout_object_codes=("obj7",))
+    splits = [object_split(c, config, seed=1) for c in codes]
+    assert splits == [object_split(c, config, seed=1) for c in codes]
+    assert 0.18 < splits.count("heldout") / len(codes) < 0.32 and splits[7] == "heldout"
+    assert splits != [object_split(c, config, seed=2) for c in codes]
+    assert {object_split(c, DexGraspNetConfig(), seed=1) for c in codes} == {"train"}
+
+
+def test_real_sample_imports_whole_with_correct_sdf_sign(dexgraspnet_sample, tmp_path):
+    import igl
+    import trimesh
+
+    settings = AssetBuildSettings(sdf_resolution=40, sdf_padding=0.2, surface_points=512)
+    result = import_dexgraspnet(dexgraspnet_sample, tmp_path / "objects", settings, DexGraspNetConfig(), seed=0)
+    assert len(result.grasps) == 494 and result.problems == []
+    rng = np.random.default_rng(0)
+    for object_id in sorted(set(result.grasps.object_id)):
+        asset = load_asset(tmp_path / "objects", object_id)
+        soup = trimesh.load(dexgraspnet_sample / "meshdata" / object_id / "coacd" / "decomposed.obj", force="mesh", process=False)
+        idx = rng.integers(0, asset.sdf.shape[0], size=(2000, 3))
+        points = asset.grid_min + idx * asset.voxel_size
+        values = asset.sdf[idx[:, 0], idx[:, 1], idx[:, 2]]
+        inside_some_piece = igl.winding_number(np.asarray(soup.vertices), np.asarray(soup.faces), points) > 0.5
+        clear = np.abs(values) > 1e-3  # away from the surface
+        assert inside_some_piece.any() and (~inside_some_piece).any()
+        np.testing.assert_array_equal(values[clear] > 0, inside_some_piece[clear])
