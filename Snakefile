@@ -4,6 +4,7 @@ configfile: "config.yaml"
 
 include: "workflow/rules/common.smk"
 include: "workflow/rules/prepare_objects.smk"
+include: "workflow/rules/evaluate.smk"
 
 
 localrules:

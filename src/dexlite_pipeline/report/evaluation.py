@@ -1,0 +1,236 @@
+"""The evaluation: gather each method's grasps on the evaluated objects, simulate them, tabulate.
+
+Methods (rows of ``metrics.csv``), each read from the pipeline's own outputs:
+
+- ``seed``         seed optimization from scratch (the reference), ``results/seed/shard_*.zarr``;
+- ``cvae_raw``     raw CVAE samples, ``results/sample/shard_*.zarr`` rows with method ``cvae_raw``;
+- ``cvae_post``    CVAE samples after post-optimization, ``results/post/shard_*.zarr``;
+- ``random_post``  random initialization + the same post-optimization budget,
+                   ``results/post/random_shard_*.zarr``;
+- ``dexgraspnet``  imported DexGraspNet grasps (when configured).
+
+Every method goes through the same measurement: energies recomputed by one code path
+(contacts = the four candidates nearest the surface, so no method is judged by its own
+optimizer's bookkeeping), then the MuJoCo lift and six-direction tests with one set of
+physical constants. At most ``grasps_per_object`` grasps per (method, object) are
+simulated, chosen by a seeded permutation, so every method is weighted alike per object.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import logging
+import math
+import time
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from dexlite_pipeline.config import from_section
+from dexlite_pipeline.io.grasp_store import GraspSet, invalid_grasp_reasons
+from dexlite_pipeline.report import metrics
+
+log = logging.getLogger(__name__)
+
+METHODS = ("seed", "cvae_raw", "cvae_post", "random_post", "dexgraspnet")
+SELECTED_ARRAYS = ("hand_pose", "object_id", "scale")
+
+
+@dataclass(frozen=True)
+class EvaluateConfig:
+    """Config section ``evaluate``."""
+
+    methods: tuple[str, ...] = METHODS  # methods to evaluate (missing inputs are reported, not invented)
+    splits: tuple[str, ...] = ("heldout",)  # object splits to evaluate (catalog column ``split``)
+    grasps_per_object: int = 12  # cap per (method, object) on simulated grasps
+    six_directions: bool = True  # also run the six-direction disturbance test
+    entropy_bins: int = metrics.JOINT_ENTROPY_BINS  # bins per joint of the joint-angle entropy
+    pca_components: tuple[int, ...] = metrics.PCA_COMPONENTS  # k of the cumulative PCA explained variance columns
+    energy_batch_size: int = 256  # grasps per energy evaluation batch
+    rendered_per_method: int = 2  # successes and failures pictured per method in the report
+
+    def __post_init__(self) -> None:
+        unknown = sorted(set(self.methods) - set(METHODS))
+        if unknown:
+            raise ValueError(f"config.evaluate.methods: unknown method(s) {', '.join(unknown)} (known: {', '.join(METHODS)})")
+        if self.grasps_per_object < 1 or self.entropy_bins < 2 or self.energy_batch_size < 1 or self.rendered_per_method < 0:
+            raise ValueError("config.evaluate: grasps_per_object, energy_batch_size >= 1, entropy_bins >= 2, rendered_per_method >= 0")
+
+
+def evaluate_config_from(config: Mapping | None) -> EvaluateConfig:
+    return from_section(EvaluateConfig, (config or {}).get("evaluate"), "config.evaluate")
+
+
+def method_seed(seed: int, method: str) -> int:
+    """A per-method seed that does not depend on Python's hash randomization."""
+    digest = hashlib.sha256(f"{seed}:{method}".encode()).digest()
+    return int.from_bytes(digest[:8], "little")
+
+
+def select_grasps(grasps: GraspSet, method: str, split_of: Mapping[str, str], cfg: EvaluateConfig, seed: int) -> GraspSet:
+    """The grasps of one method on objects of the evaluated splits, capped per object.
+
+    Adds ``method``, ``split`` and ``source_row`` (row in the source store) arrays.
+    Grasps with an unusable pose or scale are kept out of simulation but counted in the
+    selection's attrs (``invalid_reasons``), never silently dropped.
+    """
+    object_ids = np.asarray([str(o) for o in grasps.object_id])
+    splits = np.asarray([split_of.get(o, "unknown") for o in object_ids])
+    reasons = invalid_grasp_reasons(grasps)
+    candidate = np.isin(splits, list(cfg.splits))
+    invalid = candidate & (reasons != "")
+    rng = np.random.default_rng(method_seed(seed, method))
+    chosen: list[int] = []
+    for object_id in sorted(set(object_ids[candidate & ~invalid])):
+        rows = np.nonzero((object_ids == object_id) & candidate & ~invalid)[0]
+        chosen.extend(sorted(rng.permutation(rows)[: cfg.grasps_per_object].tolist()))
+    rows = np.asarray(chosen, dtype=np.int64)
+    arrays = {name: grasps.arrays[name][rows] for name in SELECTED_ARRAYS}
+    arrays["method"] = np.full(len(rows), method, dtype=object)
+    arrays["split"] = splits[rows].astype(object)
+    arrays["source_row"] = rows
+    invalid_reasons = {str(r): int((reasons[invalid] == r).sum()) for r in sorted(set(reasons[invalid]))}
+    return GraspSet(arrays, {"invalid_reasons": invalid_reasons})
+
+
+def method_grasps(method: str, sources: Sequence[GraspSet]) -> GraspSet:
+    """Concatenate one method's source stores, keeping only the rows that belong to it.
+
+    The sample stores hold both pure syntheses on held-out objects (``method == cvae_raw``)
+    and dataset expansion on train objects; only the former are the ``cvae_raw`` method.
+    """
+    parts = []
+    for source in sources:
+        subset = source
+        if method == "cvae_raw" and "method" in source.arrays:
+            subset = source.select(np.asarray([str(m) for m in source.arrays["method"]]) == "cvae_raw")
+        parts.append(GraspSet({k: subset.arrays[k] for k in SELECTED_ARRAYS}, subset.attrs))
+    return GraspSet.concatenate(parts, attrs={})
+
+
+def stage_seconds_per_grasp(method: str, sources: Mapping[str, Sequence[GraspSet]]) -> dict[str, float]:
+    """Seconds per grasp of each stage that made a method's grasps (grasp-weighted over shards)."""
+    stages = {"seed": ("seed",), "cvae_raw": ("sample",), "cvae_post": ("sample", "post"), "random_post": ("random_post",), "dexgraspnet": ()}
+    out = {}
+    for stage in stages[method]:
+        sets = sources.get(stage, [])
+        weighted = [(float(s.attrs["seconds_per_grasp"]), len(s)) for s in sets if "seconds_per_grasp" in s.attrs and len(s)]
+        if weighted:
+            total = sum(n for _, n in weighted)
+            out[stage] = sum(t * n for t, n in weighted) / total
+    return out
+
+
+def simulate(
+    selected: GraspSet,
+    objects_dirs,
+    lift_cfg,
+    energy_cfg,
+    device: str,
+    threads: int,
+    energy_batch_size: int,
+) -> GraspSet:
+    """Energies and lift (+ six-direction) results for every selected grasp, as one grasp set."""
+    from dexlite_pipeline.energy import evaluate_grasp_energies
+    from dexlite_pipeline.sim.lift import run_lift_tests
+
+    arrays = dict(selected.arrays)
+    if len(selected) == 0:
+        return GraspSet(arrays, dict(selected.attrs))
+    start = time.perf_counter()
+    energies = evaluate_grasp_energies(selected, objects_dirs, device=device, batch_size=energy_batch_size, config=energy_cfg)
+    energy_s = time.perf_counter() - start
+    arrays.update(energies)
+    start = time.perf_counter()
+    lift = run_lift_tests(selected, objects_dirs, lift_cfg, threads)
+    lift_s = time.perf_counter() - start
+    lift_arrays = lift.arrays if isinstance(lift, GraspSet) else lift
+    for name, value in lift_arrays.items():
+        if name not in SELECTED_ARRAYS:
+            arrays[name] = value
+    attrs = dict(selected.attrs)
+    attrs["energy_seconds_per_grasp"] = energy_s / len(selected)
+    attrs["simulation_seconds_per_grasp"] = lift_s / len(selected)
+    if isinstance(lift, GraspSet):
+        attrs["lift_attrs"] = lift.attrs
+    return GraspSet(arrays, attrs)
+
+
+def convergence_traces(post: GraspSet) -> tuple[dict[str, np.ndarray], np.ndarray] | None:
+    """Per-iteration energy traces of a post-optimization store: {name: (N, T)} and the iteration of each column.
+
+    Reads arrays named ``trace_<energy>`` (e.g. ``trace_E_post``, ``trace_E_fc``) and the
+    attribute ``trace_iterations``; None when the store carries no trace.
+    """
+    traces = {name[len("trace_") :]: np.asarray(v, dtype=np.float64) for name, v in post.arrays.items() if name.startswith("trace_") and np.ndim(v) == 2}
+    if not traces:
+        return None
+    width = next(iter(traces.values())).shape[1]
+    iterations = np.asarray(post.attrs.get("trace_iterations", list(range(width))), dtype=np.int64)
+    if iterations.shape != (width,):
+        iterations = np.arange(width)
+    return traces, iterations
+
+
+def convergence_rows(method: str, post_sets: Sequence[GraspSet], split_of: Mapping[str, str], splits: Sequence[str]) -> tuple[list[dict], dict[str, float]]:
+    """Quartiles of E_post per recorded iteration (rows of convergence.csv) and threshold-iteration stats."""
+    traces: dict[str, list[np.ndarray]] = {}
+    iterations = None
+    for post in post_sets:
+        found = convergence_traces(post)
+        if found is None:
+            continue
+        keep = np.isin([split_of.get(str(o), "unknown") for o in post.object_id], list(splits))
+        for name, trace in found[0].items():
+            traces.setdefault(name, []).append(trace[keep])
+        iterations = found[1]
+    if iterations is None:
+        return [], {"threshold_reached_fraction": math.nan, "threshold_iteration_median": math.nan}
+    stacked = {name: np.concatenate(parts) for name, parts in traces.items() if all(p.shape[1] == len(iterations) for p in parts)}
+    rows = []
+    for name, trace in sorted(stacked.items()):
+        q = metrics.trace_quartiles(trace)
+        rows += [{"method": method, "energy": name, "iteration": int(it), "q25": q[0, j], "median": q[1, j], "q75": q[2, j]} for j, it in enumerate(iterations)]
+    if all(name in stacked for name in metrics.DEXGRASPNET_THRESHOLDS):
+        summary = metrics.convergence_summary(metrics.first_iteration_meeting(stacked), iterations)
+    else:
+        summary = {"threshold_reached_fraction": math.nan, "threshold_iteration_median": math.nan}
+    return rows, summary
+
+
+def metrics_tables(
+    simulated: GraspSet,
+    joint_limits_rad: np.ndarray,
+    cfg: EvaluateConfig,
+    seconds: Mapping[str, Mapping[str, float]],
+    convergence: Mapping[str, Mapping[str, float]],
+    sim_seconds_per_grasp: float = math.nan,
+):
+    """(metrics DataFrame: one row per (method, split); per-object DataFrame)."""
+    import pandas as pd
+
+    methods = np.asarray([str(m) for m in simulated.arrays.get("method", [])])
+    splits = np.asarray([str(s) for s in simulated.arrays.get("split", [])])
+    rows, object_rows = [], []
+    for method in cfg.methods:
+        for split in cfg.splits:
+            mask = (methods == method) & (splits == split)
+            subset = {k: v[mask] for k, v in simulated.arrays.items()}
+            row = {"method": method, "split": split}
+            row.update(metrics.summarize_grasps(subset, joint_limits_rad, cfg.entropy_bins, cfg.pca_components))
+            stage_times = seconds.get(method, {})
+            row["seconds_per_grasp"] = sum(stage_times.values()) if stage_times else math.nan
+            row["seconds_per_grasp_by_stage"] = ";".join(f"{k}={v:.4g}" for k, v in stage_times.items())
+            row["simulation_seconds_per_grasp"] = sim_seconds_per_grasp
+            row.update(convergence.get(method, {"threshold_reached_fraction": math.nan, "threshold_iteration_median": math.nan}))
+            rows.append(row)
+            for object_row in metrics.per_object_rows(subset) if mask.any() else []:
+                object_rows.append({"method": method, "split": split, **object_row})
+    per_object_columns = ["method", "split", "object_id", "n_grasps", "lift_success_rate", "six_dir_success_rate", "any_lift_success", "penetration_mean_mm"]
+    return pd.DataFrame(rows), pd.DataFrame(object_rows, columns=per_object_columns)
+
+
+def config_attrs(cfg: EvaluateConfig) -> dict:
+    return dataclasses.asdict(cfg)

@@ -1,0 +1,280 @@
+"""The evaluation report: one self-contained HTML page (every image base64-embedded).
+
+Sections: the metrics table beside the published reference numbers, success rates per
+method, energy and penetration histograms, post-optimization convergence curves, CVAE
+training curves, the physical constants of the simulation, and pictures of successful
+and failed grasps of every method from two viewpoints. It opens from disk, no server.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import io
+import logging
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from dexlite_pipeline.io.grasp_store import GraspSet
+
+log = logging.getLogger(__name__)
+
+# Published numbers a reader compares against (DESIGN.md, "Reference results to beat").
+REFERENCE_ROWS = (
+    ("DexLite seed paper, raw CVAE samples", "lift success ≈ 55%", "RTX 4050 laptop GPU"),
+    ("DexLite seed paper, CVAE + 200 post-optimization steps", "lift success ≈ 79%; ≈ 2 s per grasp", "RTX 4050 laptop GPU"),
+    ("DexLite seed paper, CVAE init vs random init", "≈ 3× faster convergence", ""),
+    ("DexLite seed paper, curated DexGraspNet grasps", "≈ 90% pass lift", ""),
+    ("BODex", "> 49 grasps/s; > 75% simulated success", "one RTX 3090"),
+)
+TABLE_COLUMNS = (
+    "method", "split", "n_grasps", "n_objects", "lift_success_rate", "object_success_rate", "six_dir_success_rate",
+    "penetration_mean_mm", "penetration_p95_mm", "contact_distance_mean_mm", "E_fc_mean", "energy_threshold_pass_rate",
+    "joint_entropy_bits", "pca_explained_variance_k1", "pca_explained_variance_k3", "seconds_per_grasp",
+    "threshold_reached_fraction", "threshold_iteration_median",
+)  # fmt: skip
+HISTOGRAMS = (("E_fc", "E_fc", False), ("penetration_mm", "penetration (mm)", False), ("contact_distance_mm", "contact distance (mm)", False))
+
+
+@dataclass
+class ReportInputs:
+    """Everything the page shows; frames are pandas DataFrames (may be empty)."""
+
+    metrics: object
+    per_object: object
+    convergence: object
+    history: object | None
+    simulated: GraspSet | None
+    lift_config: Mapping = field(default_factory=dict)
+    objects_dirs: Sequence[str] = ()
+    rendered_per_method: int = 2
+    title: str = "DexLite evaluation"
+
+
+def figure_png_base64(fig) -> str:
+    import matplotlib.pyplot as plt
+
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="png", dpi=100, bbox_inches="tight")
+    plt.close(fig)
+    return base64.b64encode(buffer.getvalue()).decode("ascii")
+
+
+def _img(data_b64: str, alt: str) -> str:
+    return f'<img alt="{html.escape(alt)}" src="data:image/png;base64,{data_b64}">'
+
+
+def _plt():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def success_plot(metrics_df) -> str | None:
+    """Grouped bars: lift, object and six-direction success per method (first split)."""
+    columns = [("lift_success_rate", "lift (per grasp)"), ("object_success_rate", "lift (per object)"), ("six_dir_success_rate", "six directions")]
+    frame = metrics_df.dropna(subset=["lift_success_rate"]) if len(metrics_df) else metrics_df
+    if not len(frame):
+        return None
+    plt = _plt()
+    labels = [f"{m}\n({s})" for m, s in zip(frame["method"], frame["split"])]
+    x = np.arange(len(frame))
+    fig, ax = plt.subplots(figsize=(max(5, 1.3 * len(frame)), 3.2))
+    width = 0.8 / len(columns)
+    for k, (column, name) in enumerate(columns):
+        values = frame[column].astype(float).fillna(0).to_numpy() * 100
+        ax.bar(x + (k - 1) * width, values, width, label=name)
+    ax.axhline(79, color="grey", ls="--", lw=0.8)
+    ax.text(x[-1] + 0.45, 79, "seed paper post-opt 79%", fontsize=7, va="bottom", ha="right", color="grey")
+    ax.set_xticks(x, labels, fontsize=8)
+    ax.set_ylabel("success (%)")
+    ax.set_ylim(0, 100)
+    ax.legend(fontsize=7, loc="upper left")
+    return figure_png_base64(fig)
+
+
+def histogram_plot(simulated: GraspSet | None) -> str | None:
+    """Per-method histograms of E_fc, penetration and contact distance."""
+    if simulated is None or len(simulated) == 0 or "method" not in simulated.arrays:
+        return None
+    present = [(k, label, logx) for k, label, logx in HISTOGRAMS if k in simulated.arrays]
+    if not present:
+        return None
+    plt = _plt()
+    methods = np.asarray([str(m) for m in simulated.arrays["method"]])
+    fig, axes = plt.subplots(1, len(present), figsize=(4.2 * len(present), 3.0))
+    axes = np.atleast_1d(axes)
+    for ax, (key, label, _) in zip(axes, present):
+        values = np.asarray(simulated.arrays[key], dtype=np.float64)
+        finite = values[np.isfinite(values)]
+        if finite.size == 0:
+            ax.set_title(f"{label}: not computed", fontsize=9)
+            continue
+        hi = float(np.percentile(finite, 99)) or 1.0
+        bins = np.linspace(float(finite.min()), hi, 30)
+        for method in dict.fromkeys(methods):
+            v = values[(methods == method) & np.isfinite(values)]
+            if v.size:
+                ax.hist(np.clip(v, bins[0], bins[-1]), bins=bins, histtype="step", lw=1.4, label=method, density=True)
+        ax.set_xlabel(label)
+        ax.set_ylabel("density")
+    axes[0].legend(fontsize=7)
+    fig.tight_layout()
+    return figure_png_base64(fig)
+
+
+def convergence_plot(curves) -> str | None:
+    """Median and interquartile band of E_post per iteration for each post-optimized method."""
+    if curves is None or not len(curves):
+        return None
+    energy = "E_post" if (curves["energy"] == "E_post").any() else str(curves["energy"].iloc[0])
+    frame = curves[curves["energy"] == energy]
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(5.5, 3.2))
+    for method, group in frame.groupby("method"):
+        group = group.sort_values("iteration")
+        line = ax.plot(group["iteration"], group["median"], label=f"{method} (median)")[0]
+        ax.fill_between(group["iteration"], group["q25"], group["q75"], color=line.get_color(), alpha=0.2)
+    if (frame[["q25", "median", "q75"]].to_numpy() > 0).all():
+        ax.set_yscale("log")
+    ax.set_xlabel("post-optimization iteration")
+    ax.set_ylabel(energy)
+    ax.legend(fontsize=7)
+    return figure_png_base64(fig)
+
+
+def training_plot(history) -> str | None:
+    """Every numeric column of the CVAE training history against its step (or epoch) column."""
+    if history is None or not len(history):
+        return None
+    x_name = next((c for c in ("step", "epoch", "iteration") if c in history.columns), None)
+    x = history[x_name] if x_name else np.arange(len(history))
+    series = [c for c in history.columns if c != x_name and np.issubdtype(history[c].dtype, np.number)]
+    if not series:
+        return None
+    plt = _plt()
+    cols = min(4, len(series))
+    rows = math.ceil(len(series) / cols)
+    fig, axes = plt.subplots(rows, cols, figsize=(3.2 * cols, 2.4 * rows), squeeze=False)
+    for ax, name in zip(axes.ravel(), series):
+        values = history[name].astype(float)
+        ax.plot(x, values, lw=1)
+        if (values.dropna() > 0).all() and values.max() / max(values.min(), 1e-12) > 50:
+            ax.set_yscale("log")
+        ax.set_title(name, fontsize=8)
+        ax.tick_params(labelsize=7)
+    for ax in axes.ravel()[len(series) :]:
+        ax.set_axis_off()
+    fig.tight_layout()
+    return figure_png_base64(fig)
+
+
+def pick_examples(simulated: GraspSet, method: str, count: int) -> list[tuple[int, bool]]:
+    """Up to ``count`` lift successes and ``count`` failures of a method (rows, success flag), spread over objects."""
+    methods = np.asarray([str(m) for m in simulated.arrays["method"]])
+    success = np.asarray(simulated.arrays.get("lift_success", np.zeros(len(simulated), bool)), dtype=bool)
+    object_ids = np.asarray([str(o) for o in simulated.object_id])
+    picks = []
+    for outcome in (True, False):
+        rows = np.nonzero((methods == method) & (success == outcome))[0]
+        # one per object first (sorted objects), then the rest in row order
+        firsts = [int(rows[object_ids[rows] == o][0]) for o in sorted(set(object_ids[rows]))]
+        ordered = firsts + [int(r) for r in rows if int(r) not in set(firsts)]
+        picks += [(r, outcome) for r in ordered[:count]]
+    return picks
+
+
+def grasp_gallery(inputs: ReportInputs) -> str:
+    """HTML of rendered successes and failures for each method."""
+    simulated = inputs.simulated
+    if simulated is None or len(simulated) == 0 or inputs.rendered_per_method == 0:
+        return "<p>No simulated grasps to picture.</p>"
+    from dexlite_pipeline.hand import ShadowHand
+    from dexlite_pipeline.report.render import render_grasp_png
+
+    hand = ShadowHand()
+    methods = list(dict.fromkeys(str(m) for m in simulated.arrays["method"]))
+    parts = []
+    for method in methods:
+        cells = []
+        for row, success in pick_examples(simulated, method, inputs.rendered_per_method):
+            object_id, scale = str(simulated.object_id[row]), float(simulated.scale[row])
+            caption = f"{'success' if success else 'failure'} · {object_id} · scale {scale:.3f}"
+            reason = str(simulated.arrays["failure_reason"][row]) if "failure_reason" in simulated.arrays else ""
+            if reason and not success:
+                caption += f" · {reason}"
+            if "penetration_mm" in simulated.arrays and np.isfinite(simulated.arrays["penetration_mm"][row]):
+                caption += f" · pen {float(simulated.arrays['penetration_mm'][row]):.1f} mm"
+            try:
+                png = render_grasp_png(hand, simulated.hand_pose[row], object_id, scale, inputs.objects_dirs, size_px=260)
+            except (ValueError, OSError) as exc:
+                log.warning("report: cannot render %s row %d: %s", method, row, exc)
+                cells.append(f"<figure><figcaption>{html.escape(caption)} — not rendered: {html.escape(str(exc))}</figcaption></figure>")
+                continue
+            cells.append(f"<figure>{_img(base64.b64encode(png).decode('ascii'), caption)}<figcaption>{html.escape(caption)}</figcaption></figure>")
+        parts.append(f"<h3>{html.escape(method)}</h3><div class='gallery'>{''.join(cells) or '<p>none</p>'}</div>")
+    return "".join(parts)
+
+
+def _format(value) -> str:
+    if isinstance(value, (float, np.floating)):
+        if not np.isfinite(value):
+            return "—"
+        return f"{value:.3g}" if abs(value) < 1e4 else f"{value:.0f}"
+    return html.escape(str(value))
+
+
+def metrics_table_html(metrics_df) -> str:
+    columns = [c for c in TABLE_COLUMNS if c in metrics_df.columns]
+    head = "".join(f"<th>{html.escape(c)}</th>" for c in columns)
+    body = "".join("<tr>" + "".join(f"<td>{_format(row[c])}</td>" for c in columns) + "</tr>" for _, row in metrics_df.iterrows())
+    return f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
+
+
+def constants_table_html(lift_config: Mapping) -> str:
+    if not lift_config:
+        return "<p>The simulated shards carry no lift configuration.</p>"
+    rows = "".join(f"<tr><td>{html.escape(str(k))}</td><td>{_format(v)}</td></tr>" for k, v in sorted(lift_config.items()))
+    return f"<table><thead><tr><th>constant</th><th>value</th></tr></thead><tbody>{rows}</tbody></table>"
+
+
+STYLE = """
+body{font-family:system-ui,sans-serif;margin:2em;max-width:1400px;color:#222}
+table{border-collapse:collapse;font-size:12px;margin:1em 0}th,td{border:1px solid #ccc;padding:3px 6px;text-align:right}
+th{background:#f0f0f0}td:first-child,th:first-child{text-align:left}
+.gallery{display:flex;flex-wrap:wrap;gap:8px}figure{margin:0;border:1px solid #ddd;padding:4px;max-width:540px}
+figcaption{font-size:11px;color:#444}img{max-width:100%}.note{font-size:12px;color:#555}
+"""
+
+
+def build_report_html(inputs: ReportInputs) -> str:
+    """The whole page as a string."""
+    sections = [f"<h1>{html.escape(inputs.title)}</h1>"]
+    sections.append(
+        "<p class='note'>Rates are fractions of simulated grasps (lift: object rises with the hand, ratio &gt; "
+        f"{_format(inputs.lift_config.get('success_lift_ratio', math.nan))}); per-object success = at least one successful grasp. "
+        "Joint entropy: DexGraspNet's mean per-joint histogram entropy in bits (bins over each joint's range); "
+        "PCA: cumulative explained variance of the 22 joint angles (DexGraspBench; lower = more diverse). "
+        "seconds_per_grasp sums the stages that made the method's grasps on this machine.</p>"
+    )
+    sections.append("<h2>Metrics</h2>" + metrics_table_html(inputs.metrics))
+    ref_rows = "".join(f"<tr><td>{html.escape(a)}</td><td>{html.escape(b)}</td><td>{html.escape(c)}</td></tr>" for a, b, c in REFERENCE_ROWS)
+    sections.append(f"<h2>Reference numbers</h2><table><thead><tr><th>source</th><th>result</th><th>hardware</th></tr></thead><tbody>{ref_rows}</tbody></table>")
+    for title, image in (
+        ("Success per method", success_plot(inputs.metrics)),
+        ("Energies and penetration", histogram_plot(inputs.simulated)),
+        ("Post-optimization convergence (median, interquartile band)", convergence_plot(inputs.convergence)),
+        ("CVAE training curves", training_plot(inputs.history)),
+    ):
+        sections.append(f"<h2>{html.escape(title)}</h2>" + (_img(image, title) if image else "<p>Not available in this run.</p>"))
+    sections.append("<h2>Physical constants of the lift and six-direction tests</h2>" + constants_table_html(inputs.lift_config))
+    if inputs.per_object is not None and len(inputs.per_object):
+        sections.append("<h2>Per object</h2>" + inputs.per_object.to_html(index=False, float_format=lambda v: f"{v:.3g}", na_rep="—"))
+    sections.append("<h2>Grasps (two viewpoints each)</h2>" + grasp_gallery(inputs))
+    return f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{html.escape(inputs.title)}</title><style>{STYLE}</style></head><body>{''.join(sections)}</body></html>"

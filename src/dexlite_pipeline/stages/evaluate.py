@@ -1,0 +1,196 @@
+"""``dexlite evaluate``: simulate every method's grasps on held-out objects and tabulate the metrics.
+
+Two steps, so that the heavy simulation is sharded like the other grasp-heavy stages:
+
+- ``--step simulate --shard K``: reads the K-th shard of every method's grasp stores,
+  keeps the evaluated objects, recomputes energies, runs the lift (+ six-direction) test,
+  writes ``results/eval/sim/shard_K.zarr`` (with ``method`` and ``split`` columns);
+- ``--step aggregate``: reads all simulated shards plus the post-optimization traces and
+  writes ``metrics.csv`` (one row per method and split), ``per_object.csv`` and
+  ``convergence.csv`` (E_post quartiles per iteration) into ``--out-dir``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import logging
+import math
+from pathlib import Path
+
+import numpy as np
+
+log = logging.getLogger(__name__)
+
+SOURCE_OPTIONS = {
+    "seed": "seed",
+    "sample": "sample",
+    "post": "post",
+    "random_post": "random-post",
+    "dexgraspnet": "dexgraspnet",
+}
+METHOD_SOURCES = {"seed": "seed", "cvae_raw": "sample", "cvae_post": "post", "random_post": "random_post", "dexgraspnet": "dexgraspnet"}
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--step", choices=("simulate", "aggregate"), required=True)
+    parser.add_argument("--config-json", default="{}", help="config sections (seed, device, shards, evaluate, lift, energy) as JSON")
+    parser.add_argument("--objects", action="append", default=[], help="prepared objects dir (repeatable); their catalogs give the splits")
+    for key, option in SOURCE_OPTIONS.items():
+        parser.add_argument(f"--{option}", dest=key, action="append", default=[], help=f"{key} grasp store(s) (repeatable)")
+    parser.add_argument("--shard", type=int, default=None, help="simulate: shard index (selects the DexGraspNet objects of this shard)")
+    parser.add_argument("--sim", action="append", default=[], help="aggregate: simulated shard store(s)")
+    parser.add_argument("--out", help="simulate: output grasp store")
+    parser.add_argument("--out-dir", help="aggregate: folder for metrics.csv, per_object.csv, convergence.csv")
+
+
+def split_map(objects_dirs) -> dict[str, str]:
+    """Object id -> split ('train' / 'heldout') from the catalogs of the objects dirs (first wins)."""
+    from dexlite_pipeline.objects.assets import CATALOG_NAME, read_catalog
+
+    out: dict[str, str] = {}
+    for directory in objects_dirs:
+        if not (Path(directory) / CATALOG_NAME).exists():
+            log.warning("%s: no object catalog; its objects have split 'unknown'", directory)
+            continue
+        catalog = read_catalog(directory)
+        if "split" not in catalog.columns:
+            continue
+        for object_id, split in zip(catalog["object_id"].astype(str), catalog["split"].astype(str)):
+            out.setdefault(object_id, split)
+    return out
+
+
+def _read_sources(args) -> dict[str, list]:
+    from dexlite_pipeline.io.grasp_store import read_grasp_store
+
+    return {key: [read_grasp_store(p) for p in getattr(args, key)] for key in SOURCE_OPTIONS}
+
+
+def _simulate(args, config: dict) -> int:
+    from dexlite_pipeline.energy.grasp_energy import EnergyConfig
+    from dexlite_pipeline.io.grasp_store import GraspSet, write_grasp_store
+    from dexlite_pipeline.config import from_section
+    from dexlite_pipeline.report.evaluation import evaluate_config_from, method_grasps, select_grasps, simulate, stage_seconds_per_grasp
+    from dexlite_pipeline.sharding import shard_objects
+    from dexlite_pipeline.sim.config import lift_config_from
+
+    if not args.out or args.shard is None:
+        raise ValueError("evaluate --step simulate needs --out and --shard")
+    cfg = evaluate_config_from(config)
+    lift_cfg = lift_config_from(config, six_directions=cfg.six_directions)
+    energy_cfg = from_section(EnergyConfig, config.get("energy"), "config.energy")
+    seed = int(config.get("seed") or 0)
+    split_of = split_map(args.objects)
+    sources = _read_sources(args)
+    if sources["dexgraspnet"]:  # one store for all shards: take this shard's objects
+        shard_count = int(config.get("shards") or 1)
+        mine = set()
+        for store in sources["dexgraspnet"]:
+            mine |= set(shard_objects([str(o) for o in store.object_id], args.shard, shard_count))
+        sources["dexgraspnet"] = [s.select(np.isin([str(o) for o in s.object_id], sorted(mine))) for s in sources["dexgraspnet"]]
+
+    parts, seconds, invalid, missing = [], {}, {}, []
+    for method in cfg.methods:
+        method_sources = sources[METHOD_SOURCES[method]]
+        if not method_sources:
+            missing.append(method)
+            continue
+        selected = select_grasps(method_grasps(method, method_sources), method, split_of, cfg, seed)
+        parts.append(GraspSet(selected.arrays, {}))
+        invalid[method] = selected.attrs["invalid_reasons"]
+        seconds[method] = stage_seconds_per_grasp(method, sources)
+        log.info("evaluate shard %s: %s: %d grasps on %d objects", args.shard, method, len(selected), len(set(selected.object_id)))
+    selected_all = GraspSet.concatenate(parts, attrs={})
+    if "method" not in selected_all.arrays:
+        selected_all.arrays.update({"method": np.zeros(0, dtype=object), "split": np.zeros(0, dtype=object), "source_row": np.zeros(0, np.int64)})
+    result = simulate(selected_all, args.objects, lift_cfg, energy_cfg, config.get("device") or "auto", args.threads or 1, cfg.energy_batch_size)
+    attrs = {
+        "stage": "evaluate",
+        "shard": args.shard,
+        "config": config,
+        "lift_config": lift_cfg.as_dict(),
+        "method_seconds_per_grasp": seconds,
+        "invalid_reasons": invalid,
+        "methods_without_input": missing,
+        **{k: v for k, v in result.attrs.items() if k not in ("invalid_reasons",)},
+    }
+    write_grasp_store(args.out, result, _json_safe(attrs))
+    summary = {m: int((np.asarray(result.arrays["method"]) == m).sum()) for m in cfg.methods}
+    print(f"evaluate shard {args.shard}: simulated {len(result)} grasps {summary} -> {args.out}")
+    return 0
+
+
+def _json_safe(value):
+    """Attributes as JSON (NaN -> None)."""
+    return json.loads(json.dumps(value, default=lambda o: o.item() if hasattr(o, "item") else str(o)).replace("NaN", "null"))
+
+
+def _aggregate(args, config: dict) -> int:
+    from dexlite_pipeline.hand import ShadowHand
+    from dexlite_pipeline.io.atomic import atomic_path
+    from dexlite_pipeline.io.grasp_store import GraspSet, read_grasp_store
+    from dexlite_pipeline.report.evaluation import convergence_rows, evaluate_config_from, metrics_tables
+
+    import pandas as pd
+
+    if not args.out_dir or not args.sim:
+        raise ValueError("evaluate --step aggregate needs --sim and --out-dir")
+    cfg = evaluate_config_from(config)
+    shards = [read_grasp_store(p) for p in args.sim]
+    # A method with no input in any shard (e.g. dexgraspnet when not configured) gets no row.
+    absent = set.intersection(*(set(s.attrs.get("methods_without_input") or []) for s in shards))
+    cfg = dataclasses.replace(cfg, methods=tuple(m for m in cfg.methods if m not in absent))
+    common = set.intersection(*(set(s.arrays) for s in shards if len(s))) if any(len(s) for s in shards) else set()
+    nonempty = [GraspSet({k: s.arrays[k] for k in common}, s.attrs) for s in shards if len(s)]
+    simulated = GraspSet.concatenate(nonempty, attrs={}) if nonempty else GraspSet({"hand_pose": np.zeros((0, 28)), "object_id": np.zeros(0, object), "scale": np.zeros(0)})
+    seconds = _weighted_method_seconds(shards)
+    sim_counts = [(s.attrs.get("simulation_seconds_per_grasp"), len(s)) for s in shards if len(s)]
+    sim_total = sum(n for t, n in sim_counts if t is not None)
+    sim_seconds = sum(t * n for t, n in sim_counts if t is not None) / sim_total if sim_total else math.nan
+
+    split_of = split_map(args.objects)
+    convergence, curve_rows = {}, []
+    for method, paths in (("cvae_post", args.post), ("random_post", args.random_post)):
+        if method in cfg.methods and paths:
+            rows, summary = convergence_rows(method, [read_grasp_store(p) for p in paths], split_of, cfg.splits)
+            curve_rows += rows
+            convergence[method] = summary
+    joint_limits = ShadowHand().joint_limits.cpu().numpy()
+    metrics_df, per_object_df = metrics_tables(simulated, joint_limits, cfg, seconds, convergence, sim_seconds)
+    out_dir = Path(args.out_dir)
+    curves = pd.DataFrame(curve_rows, columns=["method", "energy", "iteration", "q25", "median", "q75"])
+    for name, frame in (("metrics.csv", metrics_df), ("per_object.csv", per_object_df), ("convergence.csv", curves)):
+        with atomic_path(out_dir / name) as tmp:
+            frame.to_csv(tmp, index=False, float_format="%.6g")
+    lift_attrs = next((s.attrs.get("lift_config") for s in shards if s.attrs.get("lift_config")), {})
+    with atomic_path(out_dir / "evaluation.json") as tmp:
+        tmp.write_text(json.dumps(_json_safe({"config": config, "lift_config": lift_attrs, "shards": [str(p) for p in args.sim]}), indent=2, sort_keys=True))
+    with_columns = ["method", "split", "n_grasps", "lift_success_rate", "six_dir_success_rate", "penetration_mean_mm", "seconds_per_grasp"]
+    print(metrics_df[with_columns].to_string(index=False))
+    return 0
+
+
+def _weighted_method_seconds(shards) -> dict[str, dict[str, float]]:
+    """Stage seconds per grasp of each method, averaged over shards weighted by their grasp counts."""
+    totals: dict[str, dict[str, list[float]]] = {}
+    for shard in shards:
+        methods = np.asarray([str(m) for m in shard.arrays.get("method", [])])
+        for method, stages in (shard.attrs.get("method_seconds_per_grasp") or {}).items():
+            weight = max(int((methods == method).sum()), 1)
+            for stage, value in stages.items():
+                if value is not None:
+                    acc = totals.setdefault(method, {}).setdefault(stage, [0.0, 0.0])
+                    acc[0] += float(value) * weight
+                    acc[1] += weight
+    return {m: {s: v[0] / v[1] for s, v in stages.items()} for m, stages in totals.items()}
+
+
+def run(args: argparse.Namespace) -> int:
+    from dexlite_pipeline.config import parse_config_json
+
+    config = parse_config_json(args.config_json)
+    if args.step == "simulate":
+        return _simulate(args, config)
+    return _aggregate(args, config)

@@ -1,0 +1,100 @@
+"""Evaluation stage pieces: grasp selection, aggregation to CSV, and the HTML report from a tiny run."""
+
+import base64
+import json
+import re
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from dexlite_pipeline.cli import main
+from dexlite_pipeline.io.grasp_store import GraspSet
+from dexlite_pipeline.report.evaluation import EvaluateConfig, method_grasps, select_grasps
+
+from report_synthetic import OBJECT_ID, post_store, simulated_shard
+
+
+def _set(object_ids, extra=None):
+    n = len(object_ids)
+    arrays = {"hand_pose": np.zeros((n, 28), np.float32), "object_id": np.asarray(object_ids, dtype=object), "scale": np.full(n, 0.1, np.float32)}
+    arrays.update(extra or {})
+    return GraspSet(arrays)
+
+
+def test_select_grasps_caps_per_object_keeps_split_and_counts_invalid():
+    ids = ["a"] * 10 + ["b"] * 3 + ["t"] * 5
+    grasps = _set(ids)
+    grasps.arrays["scale"][0] = np.nan
+    split_of = {"a": "heldout", "b": "heldout", "t": "train"}
+    cfg = EvaluateConfig(grasps_per_object=4)
+    chosen = select_grasps(grasps, "seed", split_of, cfg, seed=0)
+    assert sorted(chosen.object_id.tolist()) == ["a"] * 4 + ["b"] * 3
+    assert 0 not in chosen.arrays["source_row"]
+    assert chosen.attrs["invalid_reasons"] == {"non-positive or non-finite scale": 1}
+    assert set(chosen.arrays["split"]) == {"heldout"} and set(chosen.arrays["method"]) == {"seed"}
+    again = select_grasps(grasps, "seed", split_of, cfg, seed=0)
+    assert np.array_equal(again.arrays["source_row"], chosen.arrays["source_row"])
+
+
+def test_method_grasps_takes_only_pure_cvae_samples():
+    sample = _set(["a", "a", "t"], {"method": np.asarray(["cvae_raw", "expansion", "cvae_raw"], dtype=object)})
+    raw = method_grasps("cvae_raw", [sample])
+    assert len(raw) == 2 and set(raw.arrays) == {"hand_pose", "object_id", "scale"}
+    assert len(method_grasps("seed", [sample])) == 3
+
+
+@pytest.fixture(scope="module")
+def tiny_run(tmp_path_factory, tiny_objects):
+    rng = np.random.default_rng(0)
+    root = tmp_path_factory.mktemp("eval_run")
+    lift_config = {"friction": 0.6, "object_mass_kg": 0.1, "finger_kp": 5.0, "timestep_s": 0.002, "success_lift_ratio": 0.9}
+    shard0 = simulated_shard(
+        root / "sim_000.zarr",
+        {"seed": [True, False, False, False], "cvae_post": [True, True, False]},
+        rng,
+        {"lift_config": lift_config, "method_seconds_per_grasp": {"seed": {"seed": 3.0}, "cvae_post": {"sample": 0.01, "post": 0.5}},
+         "methods_without_input": ["dexgraspnet"], "simulation_seconds_per_grasp": 0.2},
+    )  # fmt: skip
+    shard1 = simulated_shard(root / "sim_001.zarr", {"cvae_post": [True]}, rng, {"methods_without_input": ["dexgraspnet", "random_post"]})
+    post = post_store(root / "post.zarr", 6, 21, rng, decay=0.2)  # E_fc < 0.3 from t = 7 (iteration 70)
+    random_post = post_store(root / "random.zarr", 6, 21, rng, decay=0.05)  # from t = 25: never within 21
+    eval_dir = root / "eval"
+    cfg = json.dumps({"evaluate": {"methods": ["seed", "cvae_post", "random_post", "dexgraspnet"], "rendered_per_method": 1}})
+    common = ["--objects", str(tiny_objects), "--config-json", cfg]
+    assert main(["evaluate", "--step", "aggregate", "--sim", str(shard0), "--sim", str(shard1), "--post", str(post), "--random-post", str(random_post), "--out-dir", str(eval_dir), *common]) == 0
+    history = root / "history.csv"
+    pd.DataFrame({"step": np.arange(20), "loss": np.linspace(2, 1, 20), "kl": np.linspace(0, 1, 20)}).to_csv(history, index=False)
+    report = root / "report.html"
+    assert main(["report", "--eval-dir", str(eval_dir), "--sim", str(shard0), "--sim", str(shard1), "--history", str(history), "--out", str(report), *common]) == 0
+    return eval_dir, report
+
+
+def test_metrics_csv_from_tiny_run(tiny_run):
+    eval_dir, _ = tiny_run
+    table = pd.read_csv(eval_dir / "metrics.csv").set_index("method")
+    assert list(table.index) == ["seed", "cvae_post", "random_post"]  # dexgraspnet had no input anywhere
+    assert table.loc["seed", "lift_success_rate"] == 0.25
+    assert table.loc["cvae_post", "lift_success_rate"] == 0.75
+    assert table.loc["seed", "object_success_rate"] == 1.0
+    assert table.loc["cvae_post", "seconds_per_grasp"] == pytest.approx(0.51)
+    assert table.loc["random_post", "n_grasps"] == 0 and np.isnan(table.loc["random_post", "lift_success_rate"])
+    assert table.loc["cvae_post", "threshold_reached_fraction"] == 1.0
+    assert table.loc["cvae_post", "threshold_iteration_median"] == 70
+    assert table.loc["random_post", "threshold_reached_fraction"] == 0.0
+    per_object = pd.read_csv(eval_dir / "per_object.csv")
+    assert per_object[["method", "object_id", "n_grasps"]].values.tolist() == [["seed", OBJECT_ID, 4], ["cvae_post", OBJECT_ID, 4]]
+    curves = pd.read_csv(eval_dir / "convergence.csv")
+    assert set(curves["method"]) == {"cvae_post", "random_post"} and (curves["q25"] <= curves["median"]).all()
+
+
+def test_report_is_self_contained_with_pictures(tiny_run):
+    _, report = tiny_run
+    text = report.read_text()
+    assert "http://" not in text and "https://" not in text  # opens from disk, nothing fetched
+    images = re.findall(r'src="data:image/png;base64,([^"]+)"', text)
+    # success bars, histograms, convergence, training curves, then a success and a failure per method
+    assert len(images) == 4 + 2 * 2
+    assert all(base64.b64decode(b)[:8] == b"\x89PNG\r\n\x1a\n" for b in images)
+    for needle in ("seed", "cvae_post", "friction", "object_mass_kg", "lift success ≈ 55%", "failure"):
+        assert needle in text
