@@ -1,0 +1,43 @@
+"""The grasp's associated point: where on the object the local feature is read.
+
+Dex1B: the object point nearest the ray from the palm centre toward the midpoint of
+the thumb tip and the middle fingertip, i.e. roughly the point the grasp closes on.
+For a known grasp (training, dataset expansion) it is computed from the hand's forward
+kinematics; for pure synthesis there is no grasp yet, so ``random_points`` picks a
+uniformly random point of the object's cloud (documented rule, seeded): the decoder
+then proposes a grasp closing on that point.
+"""
+
+from __future__ import annotations
+
+import torch
+
+from dexlite_pipeline.hand.model import ShadowHand
+
+
+def grasp_rays(hand: ShadowHand, hand_pose: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """Ray origin (B, 3) at the palm box centre and unit direction (B, 3) toward the mid-fingertip point."""
+    frames = hand.forward(hand_pose)
+    rot, centre = hand.shape_frames(frames)
+    palm_shape = int(hand.box_ids[0])
+    tips = []
+    for link in ("robot0:thdistal", "robot0:mfdistal"):
+        s = int(torch.nonzero(hand.shape_link == hand.link_index[link]).flatten()[0])
+        reach = hand.shape_size[s, 0] + hand.shape_size[s, 1]
+        tips.append(centre[:, s] + rot[:, s, :, 2] * reach)
+    origin = centre[:, palm_shape]
+    direction = torch.nn.functional.normalize((tips[0] + tips[1]) / 2 - origin, dim=-1)
+    return origin, direction
+
+
+def nearest_to_ray(points: torch.Tensor, origin: torch.Tensor, direction: torch.Tensor) -> torch.Tensor:
+    """Index (B,) of the point in (B, N, 3) nearest the ray origin + s * direction, s >= 0."""
+    rel = points - origin[:, None, :]
+    along = (rel * direction[:, None, :]).sum(-1).clamp(min=0.0)
+    off_ray = rel - along[..., None] * direction[:, None, :]
+    return off_ray.norm(dim=-1).argmin(dim=1)
+
+
+def random_points(count: int, points_per_cloud: int, generator: torch.Generator) -> torch.Tensor:
+    """Associated points for pure synthesis: uniform random indices into each cloud."""
+    return torch.randint(points_per_cloud, (count,), generator=generator)

@@ -1,0 +1,161 @@
+"""Training data for the CVAE: lift-validated grasps of training objects, their clouds and batches.
+
+A *cloud* is one object at one scale (the object in metres is ``scale`` times its
+normalized surface samples). A batch holds the grasps of a few clouds, so PointNet runs
+once per cloud per step; the points of each cloud are re-drawn every step from the
+asset's surface samples, and each grasp's associated point is found in the drawn
+points from the grasp's ray (``association``), computed once.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+from dexlite_pipeline.io.grasp_store import GraspSet, invalid_grasp_reasons
+from dexlite_pipeline.model.association import grasp_rays
+from dexlite_pipeline.model.pose import pose_to_features
+from dexlite_pipeline.objects.assets import ObjectAsset
+
+log = logging.getLogger(__name__)
+
+
+class TrainingDataError(ValueError):
+    """Not enough usable grasps to train on."""
+
+
+def select_training_grasps(lifted: GraspSet, train_object_ids: set[str], known_object_ids: set[str]) -> tuple[GraspSet, dict[str, int]]:
+    """Lift-successful, valid grasps of training objects; also the count excluded per reason."""
+    n = len(lifted)
+    if "lift_success" not in lifted.arrays:
+        raise TrainingDataError("the lift-validated grasps have no lift_success array")
+    reasons = invalid_grasp_reasons(lifted, known_object_ids)
+    is_train = np.array([oid in train_object_ids for oid in lifted.object_id], dtype=bool)
+    reasons[(reasons == "") & ~is_train] = "object not in the training split"
+    success = np.asarray(lifted.arrays["lift_success"], dtype=bool)
+    reasons[(reasons == "") & ~success] = "failed the lift test"
+    keep = reasons == ""
+    excluded = {str(r): int((reasons == r).sum()) for r in sorted(set(reasons[~keep].tolist()))}
+    log.info("training grasps: %d of %d kept; excluded %s", int(keep.sum()), n, excluded or "none")
+    return lifted.select(keep), excluded
+
+
+def split_validation(count: int, fraction: float, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """Seeded split of grasp indices into (train, validation); validation gets at least one grasp when count > 1."""
+    order = np.random.default_rng(seed).permutation(count)
+    n_val = int(round(count * fraction))
+    if fraction > 0 and count > 1:
+        n_val = min(max(n_val, 1), count - 1)
+    return np.sort(order[n_val:]), np.sort(order[:n_val])
+
+
+class ObjectClouds:
+    """Normalized surface samples of a set of objects, drawn into metre-scale clouds."""
+
+    def __init__(self, assets: list[ObjectAsset], device: torch.device | str = "cpu") -> None:
+        self.device = torch.device(device)
+        self.object_ids = [a.object_id for a in assets]
+        self.index_of = {oid: i for i, oid in enumerate(self.object_ids)}
+        sizes = {len(a.surface_points) for a in assets}
+        if len(sizes) != 1:
+            raise TrainingDataError(f"objects have different numbers of surface samples {sorted(sizes)}")
+        self.surface = torch.as_tensor(np.stack([a.surface_points for a in assets]), dtype=torch.float32, device=self.device)
+
+    @property
+    def samples_per_object(self) -> int:
+        return int(self.surface.shape[1])
+
+    def draw(self, object_index: torch.Tensor, scale: torch.Tensor, points: int, generator: torch.Generator | None) -> torch.Tensor:
+        """(C, points, 3) clouds in metres: a random subset (or the first ``points`` when no generator) per cloud."""
+        total = self.samples_per_object
+        if points > total:
+            raise TrainingDataError(f"asked for {points} points per cloud, the assets hold {total}")
+        if generator is None:
+            choice = torch.arange(points, device=self.device).expand(len(object_index), points)
+        else:
+            choice = torch.rand(len(object_index), total, generator=generator).argsort(dim=1)[:, :points].to(self.device)
+        return self.surface[object_index[:, None], choice] * scale[:, None, None]
+
+
+@dataclass
+class Batch:
+    """Grasps (B,) of a few clouds (C,): ``cloud_index`` maps grasps to clouds."""
+
+    grasp_index: np.ndarray
+    cloud_object: torch.Tensor  # (C,) index into ObjectClouds
+    cloud_scale: torch.Tensor  # (C,)
+    cloud_index: torch.Tensor  # (B,)
+
+
+def cloud_batches(
+    cloud_key: np.ndarray, indices: np.ndarray, batch_size: int, clouds_per_batch: int, rng: np.random.Generator | None
+) -> list[list[np.ndarray]]:
+    """Split grasp ``indices`` into batches of at most ``clouds_per_batch`` chunks of one cloud each.
+
+    Each grasp appears once. Grasps of one cloud are cut into chunks of
+    ``batch_size // clouds_per_batch``; chunks are shuffled (when ``rng`` is given) and
+    dealt into batches, so a batch mixes clouds and PointNet runs once per chunk's cloud.
+    """
+    per_chunk = max(1, batch_size // max(1, clouds_per_batch))
+    chunks: list[np.ndarray] = []
+    for key in np.unique(cloud_key[indices]):
+        members = indices[cloud_key[indices] == key]
+        if rng is not None:
+            members = rng.permutation(members)
+        chunks += [members[i : i + per_chunk] for i in range(0, len(members), per_chunk)]
+    order = rng.permutation(len(chunks)) if rng is not None else np.arange(len(chunks))
+    chunks = [chunks[i] for i in order]
+    return [chunks[i : i + clouds_per_batch] for i in range(0, len(chunks), clouds_per_batch)]
+
+
+def make_batch(chunks: list[np.ndarray], cloud_key: np.ndarray, object_index: np.ndarray, scale: np.ndarray, device) -> Batch:
+    """Assemble one batch, with one cloud per distinct (object, scale) among its chunks."""
+    grasp_index = np.concatenate(chunks)
+    keys, inverse = np.unique(cloud_key[grasp_index], return_inverse=True)
+    first = np.array([grasp_index[np.flatnonzero(inverse == k)[0]] for k in range(len(keys))])
+    return Batch(
+        grasp_index=grasp_index,
+        cloud_object=torch.as_tensor(object_index[first], device=device),
+        cloud_scale=torch.as_tensor(scale[first], dtype=torch.float32, device=device),
+        cloud_index=torch.as_tensor(inverse, device=device),
+    )
+
+
+def cloud_keys(object_id: np.ndarray, scale: np.ndarray) -> np.ndarray:
+    """One integer per distinct (object, scale) pair."""
+    pairs = [f"{o}@{float(s):.6g}" for o, s in zip(object_id, scale)]
+    return np.unique(pairs, return_inverse=True)[1]
+
+
+@dataclass
+class TrainingData:
+    """Everything the loop needs about the training grasps (already filtered)."""
+
+    pose_features: torch.Tensor  # (G, 31)
+    ray_origin: torch.Tensor  # (G, 3)
+    ray_direction: torch.Tensor  # (G, 3)
+    object_index: np.ndarray  # (G,) into ``clouds`` and the energy's SDF bank (same object order)
+    scale: np.ndarray  # (G,)
+    cloud_key: np.ndarray  # (G,)
+    clouds: ObjectClouds
+
+
+def build_training_data(grasps: GraspSet, assets: list[ObjectAsset], hand, device: torch.device | str = "cpu") -> TrainingData:
+    """Pose features, grasp rays and cloud bookkeeping of ``grasps`` on ``assets`` (their order is the bank order)."""
+    clouds = ObjectClouds(assets, device)
+    pose = torch.as_tensor(grasps.hand_pose, dtype=torch.float32, device=device)
+    with torch.no_grad():
+        origin, direction = grasp_rays(hand, pose)
+    scale = np.asarray(grasps.scale, dtype=np.float32)
+    return TrainingData(
+        pose_features=pose_to_features(pose),
+        ray_origin=origin,
+        ray_direction=direction,
+        object_index=np.array([clouds.index_of[str(o)] for o in grasps.object_id], dtype=np.int64),
+        scale=scale,
+        cloud_key=cloud_keys(grasps.object_id, scale),
+        clouds=clouds,
+    )

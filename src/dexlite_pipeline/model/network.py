@@ -1,0 +1,135 @@
+"""PointNet object encoder and the conditional VAE over hand poses (Dex1B / DexLite appendix).
+
+- PointNet: shared 1-D convolutions 3 -> 64 -> 128 -> 1024 -> 256, each followed by a
+  normalization and ReLU except the last; max-pooling over points gives the global
+  feature, and the last layer's per-point features give the *local* feature of the
+  grasp's associated point. Condition c = [global, local] (512 in the reference sizes).
+- Encoder: [pose features, c] -> hidden layers -> (mu, log sigma^2) of the latent.
+  Decoder: [z, c] -> hidden layers -> pose features (``model.pose``: 31-d, 6D rotation).
+
+Normalization: BatchNorm over the points of one cloud standardizes each cloud on its
+own when a batch holds a single object, which erases the object's size and position
+(the features become invariant to them) and makes training statistics differ from
+the running ones used at sampling time. GroupNorm does the same per cloud in every
+mode. The default is therefore BatchNorm with several clouds per batch (``train.
+clouds_per_batch`` >= 2, see ``training``), whose running statistics are used at
+sampling; ``"none"`` (no normalization) is the alternative for one cloud per batch.
+Point coordinates enter in tenths of a metre (``pose.TRANSLATION_UNIT_M``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import torch
+from torch import nn
+
+from dexlite_pipeline.model.pose import POSE_FEATURE_DIM, TRANSLATION_UNIT_M
+
+NORMALIZATIONS = ("batch", "none")
+
+
+@dataclass(frozen=True)
+class ModelConfig:
+    """Network sizes (the reference values are the seed's)."""
+
+    pointnet_widths: tuple[int, ...] = (64, 128, 1024, 256)
+    encoder_hidden: tuple[int, ...] = (256, 512, 256)
+    decoder_hidden: tuple[int, ...] = (256, 512, 256)
+    latent_dim: int = 256
+    normalization: str = "batch"
+
+    def __post_init__(self) -> None:
+        if self.normalization not in NORMALIZATIONS:
+            raise ValueError(f"model normalization {self.normalization!r} is not one of {', '.join(NORMALIZATIONS)}")
+        if not self.pointnet_widths or min(self.pointnet_widths) < 1 or self.latent_dim < 1:
+            raise ValueError("model sizes must be positive")
+
+    @property
+    def condition_dim(self) -> int:
+        return 2 * self.pointnet_widths[-1]
+
+    def to_dict(self) -> dict:
+        return {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(self).items()}
+
+    @staticmethod
+    def from_dict(values: dict) -> "ModelConfig":
+        return ModelConfig(**{k: tuple(v) if isinstance(v, list) else v for k, v in values.items()})
+
+
+class PointNet(nn.Module):
+    """Per-point shared MLP with max-pooling: (C, N, 3) clouds -> global (C, F), per-point (C, N, F)."""
+
+    def __init__(self, widths: tuple[int, ...], normalization: str = "batch") -> None:
+        super().__init__()
+        layers: list[nn.Module] = []
+        channels = 3
+        for i, width in enumerate(widths):
+            layers.append(nn.Conv1d(channels, width, kernel_size=1))
+            if i < len(widths) - 1:
+                if normalization == "batch":
+                    layers.append(nn.BatchNorm1d(width))
+                layers.append(nn.ReLU())
+            channels = width
+        self.layers = nn.Sequential(*layers)
+
+    def forward(self, points_m: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        per_point = self.layers((points_m / TRANSLATION_UNIT_M).transpose(1, 2))  # (C, F, N)
+        return per_point.max(dim=2).values, per_point.transpose(1, 2)
+
+
+def _mlp(in_dim: int, hidden: tuple[int, ...], out_dim: int) -> nn.Sequential:
+    layers: list[nn.Module] = []
+    for width in hidden:
+        layers += [nn.Linear(in_dim, width), nn.ReLU()]
+        in_dim = width
+    layers.append(nn.Linear(in_dim, out_dim))
+    return nn.Sequential(*layers)
+
+
+class GraspCVAE(nn.Module):
+    """PointNet-conditioned VAE over hand poses.
+
+    Point clouds come once per object (and scale) in a batch; each grasp names its
+    cloud (``cloud_index``) and its associated point in that cloud (``point_index``),
+    so the PointNet runs once per cloud, not once per grasp.
+    """
+
+    def __init__(self, config: ModelConfig) -> None:
+        super().__init__()
+        self.config = config
+        self.pointnet = PointNet(config.pointnet_widths, config.normalization)
+        self.encoder = _mlp(POSE_FEATURE_DIM + config.condition_dim, config.encoder_hidden, 2 * config.latent_dim)
+        self.decoder = _mlp(config.latent_dim + config.condition_dim, config.decoder_hidden, POSE_FEATURE_DIM)
+
+    def condition(self, clouds_m: torch.Tensor, cloud_index: torch.Tensor, point_index: torch.Tensor) -> torch.Tensor:
+        """Condition vectors (B, 2F) from clouds (C, N, 3) and each grasp's cloud and associated point."""
+        return condition_at(self.pointnet(clouds_m), cloud_index, point_index)
+
+    def encode(self, pose_features: torch.Tensor, condition: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """(mu, log sigma^2), each (B, latent)."""
+        mu, log_var = self.encoder(torch.cat([pose_features, condition], dim=1)).chunk(2, dim=1)
+        return mu, log_var.clamp(-20.0, 10.0)
+
+    def decode(self, latent: torch.Tensor, condition: torch.Tensor) -> torch.Tensor:
+        """Pose features (B, 31) for latents (B, latent) under their conditions."""
+        return self.decoder(torch.cat([latent, condition], dim=1))
+
+    def forward(
+        self, pose_features: torch.Tensor, condition: torch.Tensor, noise: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """Reparameterized pass: (reconstructed features, mu, log sigma^2); ``noise`` ~ N(0, I) given by the caller."""
+        mu, log_var = self.encode(pose_features, condition)
+        latent = mu + torch.exp(0.5 * log_var) * noise
+        return self.decode(latent, condition), mu, log_var
+
+
+def condition_at(cloud_features: tuple[torch.Tensor, torch.Tensor], cloud_index: torch.Tensor, point_index: torch.Tensor) -> torch.Tensor:
+    """[global feature of the grasp's cloud, per-point feature of its associated point] from PointNet's output."""
+    global_feature, per_point = cloud_features
+    return torch.cat([global_feature[cloud_index], per_point[cloud_index, point_index]], dim=1)
+
+
+def kl_divergence(mu: torch.Tensor, log_var: torch.Tensor) -> torch.Tensor:
+    """KL(N(mu, sigma^2) || N(0, I)) per grasp (B,), summed over latent dimensions."""
+    return -0.5 * (1.0 + log_var - mu.pow(2) - log_var.exp()).sum(dim=1)

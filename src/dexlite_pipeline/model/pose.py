@@ -1,0 +1,49 @@
+"""The network's pose representation: translation, 6D rotation and joints, free of wrap-around.
+
+The stored 28-vector carries the palm rotation as static-xyz Euler angles, whose
+±pi wrap-around would turn two nearly identical grasps into a huge reconstruction
+error (and whose gimbal lock makes them a poor regression target). The networks
+therefore read and write a 31-vector ``[t / TRANSLATION_UNIT_M (3), rot6d (6),
+joints (22)]``; the reconstruction loss compares translations, full rotation matrices
+and joints, and poses are converted back to the stored Euler form only at the end.
+"""
+
+from __future__ import annotations
+
+import torch
+
+from dexlite_pipeline.hand.model import JOINTS, ROTATION, TRANSLATION
+from dexlite_pipeline.hand.rotation import euler_xyz_to_matrix, matrix_to_euler_xyz, matrix_to_rot6d, rot6d_to_matrix
+
+POSE_FEATURE_DIM = 31
+TRANSLATION_UNIT_M = 0.1  # palm translations are tenths of a metre: this brings them to O(1)
+
+
+def pose_to_features(hand_pose: torch.Tensor) -> torch.Tensor:
+    """(B, 28) stored poses -> (B, 31) network features."""
+    rotation = euler_xyz_to_matrix(hand_pose[:, ROTATION])
+    return torch.cat([hand_pose[:, TRANSLATION] / TRANSLATION_UNIT_M, matrix_to_rot6d(rotation), hand_pose[:, JOINTS]], dim=1)
+
+
+def features_to_parts(features: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """(B, 31) features -> palm rotation (B, 3, 3), palm translation (B, 3) in metres, joints (B, 22)."""
+    return rot6d_to_matrix(features[:, 3:9]), features[:, :3] * TRANSLATION_UNIT_M, features[:, 9:]
+
+
+def features_to_pose(features: torch.Tensor) -> torch.Tensor:
+    """(B, 31) features -> (B, 28) stored poses (static-xyz Euler)."""
+    rotation, translation, joints = features_to_parts(features)
+    return torch.cat([translation, matrix_to_euler_xyz(rotation), joints], dim=1)
+
+
+def reconstruction_error(predicted: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
+    """Mean squared error per grasp (B,) over translation (tenths of a metre), rotation matrix and joints.
+
+    Rotations are compared as matrices, so the loss is continuous across Euler wrap-around.
+    """
+    rot_p, t_p, q_p = features_to_parts(predicted)
+    rot_t, t_t, q_t = features_to_parts(target)
+    squared = torch.cat(
+        [((t_p - t_t) / TRANSLATION_UNIT_M) ** 2, (rot_p - rot_t).flatten(1) ** 2, (q_p - q_t) ** 2], dim=1
+    )
+    return squared.mean(dim=1)

@@ -1,0 +1,185 @@
+"""CVAE training: reconstruction + KL + grasp energies of the decoded pose.
+
+Loss per batch = w_recon MSE + w_KL KL + w_fc E_fc + w_dis E_dis + w_pen E_pen +
+w_spen E_spen + w_joints E_joints, each term the mean over the batch's grasps; the
+energies are evaluated through differentiable forward kinematics of the *decoded*
+pose (``energy_terms``), so the model learns poses that touch the object without
+penetrating it, not only poses that are close to the data in joint space.
+
+Deterministic for a seed: the weights are initialized from it, and batches, point
+draws and latent noise come from seeded generators.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+import torch
+
+from dexlite_pipeline.energy.grasp_energy import GraspEnergy
+from dexlite_pipeline.model.data import Batch, TrainingData, cloud_batches, make_batch
+from dexlite_pipeline.model.association import nearest_to_ray
+from dexlite_pipeline.model.network import GraspCVAE, ModelConfig, kl_divergence
+from dexlite_pipeline.model.pose import features_to_parts, reconstruction_error
+
+log = logging.getLogger(__name__)
+
+ENERGY_TERMS = ("fc", "dis", "pen", "spen", "joints")
+LOSS_TERMS = ("recon", "kl", *ENERGY_TERMS)
+
+# (palm_rot (B,3,3), palm_t (B,3), joints (B,22), object_index (B,), scale (B,)) -> {term: (B,)}
+EnergyTerms = Callable[[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor], dict[str, torch.Tensor]]
+
+
+def grasp_energy_terms(energy: GraspEnergy) -> EnergyTerms:
+    """The loss's energy terms from ``GraspEnergy`` (contacts: the four pad points nearest the surface)."""
+
+    def terms(palm_rot, palm_t, joints, object_index, scale):
+        result = energy(palm_rot=palm_rot, palm_t=palm_t, joints=joints, object_index=object_index, scale=scale)
+        return {name: result.terms[f"E_{name}"] for name in ENERGY_TERMS}
+
+    return terms
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """Config section ``train`` (two documented profiles: the default and ``config/profiles/seed_gpu.yaml``)."""
+
+    profile: str = "default"
+    epochs: int = 100
+    max_steps: int = 4000
+    batch_size: int = 64
+    clouds_per_batch: int = 1
+    points_per_cloud: int = 512
+    learning_rate: float = 1e-3
+    validation_fraction: float = 0.1
+    min_grasps: int = 8
+    energy_object_points: int = 512
+    weight_recon: float = 1.0
+    weight_kl: float = 0.001
+    weight_fc: float = 1.0
+    weight_dis: float = 100.0
+    weight_pen: float = 100.0
+    weight_spen: float = 10.0
+    weight_joints: float = 1.0
+    model: ModelConfig = field(default_factory=lambda: ModelConfig(normalization="none"))
+
+    def __post_init__(self) -> None:
+        if self.batch_size < 1 or self.clouds_per_batch < 1 or self.points_per_cloud < 1 or self.epochs < 1:
+            raise ValueError("train: batch_size, clouds_per_batch, points_per_cloud and epochs must be positive")
+        if self.model.normalization == "batch" and self.clouds_per_batch < 2:
+            raise ValueError("train: BatchNorm needs clouds_per_batch >= 2 (one cloud per batch erases object size); use model.normalization: none")
+
+    def weights(self) -> dict[str, float]:
+        return {term: getattr(self, f"weight_{term}") for term in LOSS_TERMS}
+
+
+@dataclass
+class TrainingResult:
+    model: GraspCVAE
+    history: list[dict]
+    steps: int
+
+
+def batch_loss(
+    model: GraspCVAE,
+    data: TrainingData,
+    batch: Batch,
+    points: int,
+    energy_terms: EnergyTerms,
+    weights: dict[str, float],
+    generator: torch.Generator,
+) -> tuple[torch.Tensor, dict[str, float]]:
+    """Weighted loss of one batch and each term's batch mean."""
+    device = data.pose_features.device
+    clouds = data.clouds.draw(batch.cloud_object, batch.cloud_scale, points, generator)
+    index = torch.as_tensor(batch.grasp_index, device=device)
+    grasp_points = clouds[batch.cloud_index]
+    point_index = nearest_to_ray(grasp_points, data.ray_origin[index], data.ray_direction[index])
+    condition = model.condition(clouds, batch.cloud_index, point_index)
+    target = data.pose_features[index]
+    noise = torch.randn(len(index), model.config.latent_dim, generator=generator).to(device)
+    decoded, mu, log_var = model(target, condition, noise)
+    palm_rot, palm_t, joints = features_to_parts(decoded)
+    object_index = torch.as_tensor(data.object_index[batch.grasp_index], device=device)
+    scale = torch.as_tensor(data.scale[batch.grasp_index], dtype=torch.float32, device=device)
+    terms = {"recon": reconstruction_error(decoded, target), "kl": kl_divergence(mu, log_var)}
+    terms.update(energy_terms(palm_rot, palm_t, joints, object_index, scale))
+    means = {name: terms[name].mean() for name in LOSS_TERMS}
+    total = sum(weights[name] * means[name] for name in LOSS_TERMS)
+    return total, {"total": float(total.detach()), **{name: float(v.detach()) for name, v in means.items()}}
+
+
+def _average(rows: list[tuple[int, dict[str, float]]]) -> dict[str, float]:
+    count = sum(n for n, _ in rows)
+    return {key: sum(n * r[key] for n, r in rows) / max(count, 1) for key in rows[0][1]} if rows else {}
+
+
+def train_cvae(
+    data: TrainingData,
+    train_index: np.ndarray,
+    val_index: np.ndarray,
+    config: TrainConfig,
+    energy_terms: EnergyTerms,
+    seed: int,
+    on_epoch: Callable[[dict], None] | None = None,
+) -> TrainingResult:
+    """Train a fresh model; returns it with one history row per epoch (train and validation means)."""
+    device = data.pose_features.device
+    torch.manual_seed(seed)
+    model = GraspCVAE(config.model).to(device)
+    optimizer = torch.optim.Adam(model.parameters(), lr=config.learning_rate)
+    weights = config.weights()
+    batch_rng = np.random.default_rng(seed)
+    generator = torch.Generator().manual_seed(seed + 1)
+    val_generator_seed = seed + 2
+    steps_per_epoch = len(cloud_batches(data.cloud_key, train_index, config.batch_size, config.clouds_per_batch, None))
+    epochs = config.epochs
+    if config.max_steps > 0:
+        epochs = max(1, min(epochs, math.ceil(config.max_steps / max(steps_per_epoch, 1))))
+    log.info(
+        "training on %d grasps (%d validation), %d steps per epoch, %d epochs, profile %s",
+        len(train_index), len(val_index), steps_per_epoch, epochs, config.profile,
+    )
+    history: list[dict] = []
+    step = 0
+    start = time.perf_counter()
+    for epoch in range(1, epochs + 1):
+        model.train()
+        rows = []
+        for chunks in cloud_batches(data.cloud_key, train_index, config.batch_size, config.clouds_per_batch, batch_rng):
+            batch = make_batch(chunks, data.cloud_key, data.object_index, data.scale, device)
+            loss, terms = batch_loss(model, data, batch, config.points_per_cloud, energy_terms, weights, generator)
+            optimizer.zero_grad(set_to_none=True)
+            loss.backward()
+            optimizer.step()
+            rows.append((len(batch.grasp_index), terms))
+            step += 1
+        row = {"epoch": epoch, "step": step, "seconds": round(time.perf_counter() - start, 3)}
+        row.update({f"train_{k}": v for k, v in _average(rows).items()})
+        if len(val_index):
+            row.update({f"val_{k}": v for k, v in evaluate_loss(model, data, val_index, config, energy_terms, val_generator_seed).items()})
+        history.append(row)
+        if on_epoch is not None:
+            on_epoch(row)
+    return TrainingResult(model=model, history=history, steps=step)
+
+
+@torch.no_grad()
+def evaluate_loss(
+    model: GraspCVAE, data: TrainingData, index: np.ndarray, config: TrainConfig, energy_terms: EnergyTerms, seed: int
+) -> dict[str, float]:
+    """Mean loss terms over ``index`` in eval mode, with the same point draws and noise every time."""
+    model.eval()
+    generator = torch.Generator().manual_seed(seed)
+    rows = []
+    for chunks in cloud_batches(data.cloud_key, index, config.batch_size, config.clouds_per_batch, None):
+        batch = make_batch(chunks, data.cloud_key, data.object_index, data.scale, data.pose_features.device)
+        _, terms = batch_loss(model, data, batch, config.points_per_cloud, energy_terms, config.weights(), generator)
+        rows.append((len(batch.grasp_index), terms))
+    return _average(rows)
