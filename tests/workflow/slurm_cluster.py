@@ -3,8 +3,12 @@
 Starts its own munged, slurmctld and slurmd (foreground children, own config, sockets,
 spool and state directories under a temporary folder, free ports), waits until the node
 is idle, and stops all three on exit, also when the test fails. Nothing under /etc is
-touched: clients find the cluster through ``SLURM_CONF``. No accounting database; job
-states come from ``squeue`` (jobs stay visible for ``MinJobAge`` seconds after the end).
+touched: clients find the cluster through ``SLURM_CONF``. Inside a job, the executor
+plugin starts each rule with ``srun`` after dropping every ``SLURM_*`` variable (so a
+real site's /etc/slurm/slurm.conf or configless DNS lookup is what srun uses there); the
+test puts an ``srun`` first on PATH that points the real one at the test's config, which
+stands in for that site-wide config file. No accounting database; job states come from
+``squeue`` (jobs stay visible for ``MinJobAge`` seconds after they end).
 """
 
 from __future__ import annotations
@@ -123,6 +127,16 @@ def _write_munge_key(path: Path) -> None:
     path.chmod(0o400)
 
 
+def _srun_with_config(root: Path, conf: Path) -> Path:
+    """A bin folder holding an ``srun`` that runs the real one with this cluster's config."""
+    bin_dir = root / "bin"
+    bin_dir.mkdir(exist_ok=True)
+    wrapper = bin_dir / "srun"
+    wrapper.write_text(f'#!/bin/sh\nSLURM_CONF="{conf}" exec "{shutil.which("srun")}" "$@"\n')
+    wrapper.chmod(0o755)
+    return bin_dir
+
+
 def _stop(process: subprocess.Popen) -> None:
     """Stop one daemon we started (its own process group), escalating to SIGKILL."""
     if process.poll() is not None:
@@ -170,6 +184,7 @@ def local_slurm_cluster(root: Path, start_timeout_s: float = 60) -> Iterator[Loc
     conf = write_slurm_conf(root, munge_socket, ctld_port, slurmd_port, memory_mb)
     env = {k: v for k, v in os.environ.items() if not k.startswith("SLURM_")}
     env["SLURM_CONF"] = str(conf)
+    env["PATH"] = f"{_srun_with_config(root, conf)}{os.pathsep}{env.get('PATH', '')}"
     commands = {
         "munged": [
             "munged", "--foreground", "--force", f"--socket={munge_socket}", f"--key-file={key}",

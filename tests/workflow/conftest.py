@@ -1,0 +1,30 @@
+"""One complete run of the workflow on the tiny config, shared by the workflow tests."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+from workflow_harness import local_run_args, rule_graph, run_snakemake, tiny_config, write_config
+
+
+@dataclass(frozen=True)
+class CompletedRun:
+    workdir: Path
+    config: dict
+    graph: dict[str, set[str]]
+    seconds: float
+
+
+@pytest.fixture(scope="session")
+def complete_run(tmp_path_factory) -> CompletedRun:
+    """The tiny config run to the end with `--cores 2` (read-only for tests: copy it to change it)."""
+    workdir = tmp_path_factory.mktemp("complete_run")
+    config = tiny_config()
+    write_config(workdir, config)
+    start = time.monotonic()
+    run_snakemake(workdir, *local_run_args(), "all")
+    seconds = time.monotonic() - start
+    return CompletedRun(workdir=workdir, config=config, graph=rule_graph(workdir), seconds=seconds)

@@ -1,0 +1,168 @@
+"""Exact reruns: after a complete run, `snakemake -n` plans exactly the stages a change affects.
+
+Expected plans come from two places that must agree: the rule graph (the changed stage and
+everything that consumes its outputs, transitively) and the pipeline's design (which named
+stages must and must not rerun). Stages that are not in the workflow are left out of the
+named sets; a change whose config section does not exist yet is skipped with a reason.
+"""
+
+from __future__ import annotations
+
+import shutil
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import pytest
+from workflow_harness import REPO, downstream, planned_rules, write_config
+
+from dexlite_pipeline.codehash import module_closure
+from dexlite_pipeline.config import ConfigError, validate_config
+
+pytestmark = pytest.mark.slow
+
+UPSTREAM_OF_LIFT = {"prepare_objects", "stability_filter", "seed_grasps", "import_dexgraspnet", "curate"}
+UPSTREAM_OF_TRAINING = UPSTREAM_OF_LIFT | {"lift_validate"}
+UPSTREAM_OF_POST = UPSTREAM_OF_TRAINING | {"train_cvae", "sample_grasps"}
+
+
+@dataclass(frozen=True)
+class ConfigChange:
+    what: str
+    sections: tuple[str, ...]  # candidate config section names (the first present is used)
+    stage: str  # the rule that reads the section
+    must_rerun: frozenset[str]
+    must_not_rerun: frozenset[str]
+    skip_keys: tuple[str, ...] = field(default=())
+
+
+CHANGES = [
+    ConfigChange(
+        "post-optimization setting", ("post_optimize", "postopt", "post"), "post_optimize",
+        frozenset({"post_optimize", "evaluate"}), frozenset(UPSTREAM_OF_POST),
+    ),
+    ConfigChange(
+        "lift-test constant", ("lift", "lift_test"), "lift_validate",
+        frozenset({"lift_validate", "train_cvae", "evaluate"}), frozenset(UPSTREAM_OF_LIFT),
+    ),
+    ConfigChange(
+        "training setting", ("train", "training", "train_cvae", "cvae"), "train_cvae",
+        frozenset({"train_cvae", "sample_grasps", "post_optimize", "evaluate"}), frozenset(UPSTREAM_OF_TRAINING),
+    ),
+]
+
+
+def _numeric_variants(value):
+    if isinstance(value, bool):
+        return []
+    if isinstance(value, int):
+        return [value + 1, value - 1]
+    if isinstance(value, float):
+        return [value * 1.5, value * 0.5, value + 0.1]
+    return []
+
+
+def changed_config(config: dict, section: str) -> tuple[str, dict]:
+    """``config`` with one numeric key of ``section`` changed to another valid value."""
+    for key in sorted(config[section]):
+        for variant in _numeric_variants(config[section][key]):
+            candidate = {**config, section: {**config[section], key: variant}}
+            try:
+                validate_config(candidate)
+            except ConfigError:
+                continue
+            return f"{section}.{key}: {config[section][key]!r} -> {variant!r}", candidate
+    raise AssertionError(f"config section {section!r} has no numeric key to change")
+
+
+@pytest.fixture()
+def scratch_copy(complete_run, tmp_path) -> Path:
+    """A copy of the complete run (outputs, metadata, mtimes) that a test may change."""
+    workdir = tmp_path / "run"
+    shutil.copytree(complete_run.workdir, workdir, symlinks=True)
+    return workdir
+
+
+def existing(rules: frozenset[str], graph: dict) -> set[str]:
+    return {r for r in rules if r in graph}
+
+
+def test_unchanged_config_plans_nothing(complete_run):
+    assert planned_rules(complete_run.workdir) == set()
+
+
+@pytest.mark.parametrize("change", CHANGES, ids=lambda c: c.stage)
+def test_config_change_reruns_exactly_the_affected_stages(complete_run, scratch_copy, change):
+    graph = complete_run.graph
+    section = next((s for s in change.sections if s in complete_run.config), None)
+    if section is None or change.stage not in graph:
+        pytest.skip(f"{change.stage} or its config section {change.sections} is not in the workflow yet")
+    description, config = changed_config(complete_run.config, section)
+    write_config(scratch_copy, config)
+
+    planned = planned_rules(scratch_copy)
+
+    assert planned == downstream(graph, {change.stage}), description
+    assert existing(change.must_rerun, graph) <= planned, description
+    assert not (planned & change.must_not_rerun), description
+
+
+def _source_copy(tmp_path: Path) -> Path:
+    """A copy of the package source that a test may edit (put first on PYTHONPATH)."""
+    import dexlite_pipeline
+
+    source = Path(dexlite_pipeline.__file__).parent
+    target = tmp_path / "src" / "dexlite_pipeline"
+    shutil.copytree(source, target, ignore=shutil.ignore_patterns("__pycache__"))
+    return target.parent
+
+
+def _stage_modules(graph: dict) -> dict[str, str]:
+    stages = REPO / "src" / "dexlite_pipeline" / "stages"
+    return {rule: f"dexlite_pipeline.stages.{rule}" for rule in graph if (stages / f"{rule}.py").is_file()}
+
+
+def _append_statement(module_file: Path) -> None:
+    module_file.write_text(module_file.read_text() + "\nCODE_CHANGE_PROBE = 1\n")
+
+
+@pytest.mark.parametrize("stage", ["prepare_objects", "lift_validate", "train_cvae", "post_optimize"])
+def test_stage_code_change_reruns_that_stage_and_downstream(complete_run, tmp_path, stage):
+    graph = complete_run.graph
+    if stage not in _stage_modules(graph):
+        pytest.skip(f"stage {stage} is not in the workflow yet")
+    source = _source_copy(tmp_path)
+    _append_statement(source / "dexlite_pipeline" / "stages" / f"{stage}.py")
+
+    planned = planned_rules(complete_run.workdir, env={"PYTHONPATH": str(source)})
+
+    assert planned == downstream(graph, {stage})
+
+
+def test_comment_only_change_reruns_nothing(complete_run, tmp_path):
+    source = _source_copy(tmp_path)
+    stage_file = source / "dexlite_pipeline" / "stages" / "prepare_objects.py"
+    stage_file.write_text(stage_file.read_text() + "\n# a comment is not a change of behaviour\n")
+
+    assert planned_rules(complete_run.workdir, env={"PYTHONPATH": str(source)}) == set()
+
+
+def test_library_change_reruns_the_stages_that_import_it(complete_run, tmp_path):
+    """A module that only some stages import: exactly those stages (and downstream) rerun."""
+    graph = complete_run.graph
+    closures = {rule: set(module_closure(module)) for rule, module in _stage_modules(graph).items()}
+    library = {m for closure in closures.values() for m in closure if ".stages" not in m}
+    users_of = {m: {rule for rule, closure in closures.items() if m in closure} for m in library}
+    module = min(sorted(library), key=lambda m: len(downstream(graph, users_of[m])))
+    users = users_of[module]
+    if downstream(graph, users) == downstream(graph, set(closures)):
+        pytest.skip("every library module reaches every stage")
+    source = _source_copy(tmp_path)
+    relative = module.split(".")[1:]
+    module_file = source.joinpath("dexlite_pipeline", *relative).with_suffix(".py")
+    if not module_file.is_file():
+        module_file = source.joinpath("dexlite_pipeline", *relative, "__init__.py")
+    _append_statement(module_file)
+
+    planned = planned_rules(complete_run.workdir, env={"PYTHONPATH": str(source)})
+
+    assert planned == downstream(graph, users), module

@@ -1,0 +1,217 @@
+"""Run the real Snakefile on a tiny config in a scratch directory, and read what it plans.
+
+Shared by the rerun, resume and SLURM tests. A run uses the repository's Snakefile and
+rules with ``--directory`` pointing at a scratch folder that holds only ``config.yaml``;
+results, logs and Snakemake's metadata all stay in that folder.
+"""
+
+from __future__ import annotations
+
+import copy
+import os
+import re
+import subprocess
+import sys
+from collections import Counter
+from pathlib import Path
+
+import yaml
+
+REPO = Path(__file__).resolve().parents[2]
+SNAKEFILE = REPO / "Snakefile"
+BIN_DIR = Path(sys.executable).parent
+
+# The smallest settings that still exercise every stage. Keys of sections that are not in
+# config.yaml yet are ignored (stages land one by one); keys that are, must be valid.
+TINY_OVERRIDES: dict = {
+    "shards": 2,
+    "objects": {
+        "builtin_count": 3,
+        "heldout_fraction": 0.34,
+        "sdf_resolution": 32,
+        "surface_points": 256,
+        "coacd_max_convex_hull": 4,
+    },
+}
+
+# Every rule gets one thread in the tests: two shards run side by side on two cores, and a
+# local run and a SLURM run of the same config compute with the same thread counts.
+TEST_THREADS = 1
+
+
+def _merge(base: dict, override: dict) -> dict:
+    merged = copy.deepcopy(base)
+    for key, value in override.items():
+        if isinstance(value, dict) and isinstance(merged.get(key), dict):
+            merged[key] = _merge(merged[key], value)
+        else:
+            merged[key] = copy.deepcopy(value)
+    return merged
+
+
+def repo_config() -> dict:
+    return yaml.safe_load((REPO / "config.yaml").read_text())
+
+
+def tiny_config(**section_overrides: dict) -> dict:
+    """config.yaml with TINY_OVERRIDES (for the sections it has) and then ``section_overrides``."""
+    config = repo_config()
+    applicable = {k: v for k, v in TINY_OVERRIDES.items() if k in config}
+    return _merge(_merge(config, applicable), section_overrides)
+
+
+def write_config(workdir: Path, config: dict) -> Path:
+    workdir.mkdir(parents=True, exist_ok=True)
+    path = workdir / "config.yaml"
+    path.write_text(yaml.safe_dump(config, sort_keys=True))
+    return path
+
+
+def snakemake_env(extra: dict[str, str] | None = None) -> dict[str, str]:
+    env = dict(os.environ)
+    env["PATH"] = f"{BIN_DIR}{os.pathsep}{env.get('PATH', '')}"
+    env.pop("SNAKEMAKE_PROFILE", None)
+    env.update(extra or {})
+    return env
+
+
+def snakemake_command(workdir: Path, *args: str) -> list[str]:
+    return [
+        str(BIN_DIR / "snakemake"),
+        "--snakefile", str(SNAKEFILE),
+        "--directory", str(workdir),
+        "--configfile", str(workdir / "config.yaml"),
+        *args,
+    ]
+
+
+def run_snakemake(workdir: Path, *args: str, env: dict | None = None, timeout_s: float = 600) -> str:
+    """Run snakemake to completion; raise with the tail of its output if it fails."""
+    done = subprocess.run(
+        snakemake_command(workdir, *args), env=snakemake_env(env), capture_output=True, text=True, timeout=timeout_s
+    )
+    output = done.stdout + done.stderr
+    if done.returncode != 0:
+        logs = "".join(
+            f"\n--- {log.relative_to(workdir)}:\n{log.read_text()[-2000:]}"
+            for log in sorted((workdir / "logs").glob("*.log")) if log.is_file()
+        ) if (workdir / "logs").is_dir() else ""
+        raise AssertionError(f"snakemake {' '.join(args)} failed ({done.returncode}):\n{output[-6000:]}{logs}")
+    return output
+
+
+def local_run_args(cores: int = 2) -> list[str]:
+    return ["--cores", str(cores), "--set-threads", *(f"{rule}={TEST_THREADS}" for rule in rule_names())]
+
+
+_JOB_TABLE_ROW = re.compile(r"^(\S+)\s+(\d+)$")
+_JOB_HEADER = re.compile(r"^(?:local)?(?:rule|checkpoint) (\w+):$")
+_JOB_FIELD = re.compile(r"^\s+(\w+): (.*)$")
+
+
+def job_blocks(output: str) -> list[dict[str, str]]:
+    """The per-job blocks of Snakemake's output ("rule NAME:" then indented "key: value" lines).
+
+    Each block is a dict with "rule" plus its fields (output, wildcards, reason, ...).
+    """
+    blocks: list[dict[str, str]] = []
+    current: dict[str, str] | None = None
+    for line in output.splitlines():
+        if header := _JOB_HEADER.match(line.strip()):
+            current = {"rule": header.group(1)}
+            blocks.append(current)
+        elif current is not None and (field := _JOB_FIELD.match(line)):
+            current.setdefault(field.group(1), field.group(2).strip())
+        else:
+            current = None
+    return blocks
+
+
+def wildcard(block: dict[str, str], name: str) -> str | None:
+    """Value of wildcard ``name`` in a job block, or None."""
+    for item in block.get("wildcards", "").split(","):
+        key, _, value = item.strip().partition("=")
+        if key == name:
+            return value
+    return None
+
+
+def parse_dry_run(output: str) -> Counter:
+    """Jobs per rule that a ``snakemake -n`` output plans (empty when nothing is to be done).
+
+    Reads the "Job stats" table and cross-checks it against the per-job blocks
+    ("rule NAME:" headers), so a change of Snakemake's layout fails loudly instead of
+    silently reading as "nothing planned".
+    """
+    lines = [line.rstrip() for line in output.splitlines()]
+    blocks = Counter(block["rule"] for block in job_blocks(output))
+    if "Job stats:" not in lines:
+        if blocks or "Nothing to be done" not in output:
+            raise ValueError(f"cannot read the dry-run output:\n{output[-3000:]}")
+        return Counter()
+    table: Counter = Counter()
+    start = lines.index("Job stats:")
+    for line in lines[start + 1:]:
+        match = _JOB_TABLE_ROW.match(line.strip())
+        if match is None:
+            continue
+        name, count = match.group(1), int(match.group(2))
+        if name == "total":
+            if count != sum(table.values()):
+                raise ValueError(f"job table total {count} != sum of rows {sum(table.values())}")
+            break
+        table[name] = count
+    else:
+        raise ValueError(f"job table without a total line:\n{output[-3000:]}")
+    if table != blocks:
+        raise ValueError(f"job table {dict(table)} disagrees with job blocks {dict(blocks)}")
+    return table
+
+
+def planned_rules(workdir: Path, *args: str, env: dict | None = None) -> set[str]:
+    """Rules that ``snakemake -n`` would run in ``workdir`` (the 'all' target rule excluded)."""
+    output = run_snakemake(workdir, "--dry-run", "--cores", "2", *args, env=env)
+    return set(parse_dry_run(output)) - {"all"}
+
+
+def rule_names() -> list[str]:
+    """Every rule the workflow defines (from ``snakemake --list-rules``)."""
+    done = subprocess.run(
+        [str(BIN_DIR / "snakemake"), "--snakefile", str(SNAKEFILE), "--directory", str(REPO), "--cores", "2", "--list-rules"],
+        env=snakemake_env(), capture_output=True, text=True, timeout=120, cwd=REPO,
+    )
+    if done.returncode != 0:
+        raise AssertionError(f"snakemake --list-rules failed: {done.stderr[-3000:]}")
+    return [line.strip() for line in done.stdout.splitlines() if re.fullmatch(r"\s*\w+\s*", line)]
+
+
+_DOT_NODE = re.compile(r'^\s*(\d+)\[label = "(\w+)"')
+_DOT_EDGE = re.compile(r"^\s*(\d+) -> (\d+)")
+
+
+def rule_graph(workdir: Path) -> dict[str, set[str]]:
+    """Rule -> rules that consume its outputs, from ``snakemake --rulegraph`` (DOT)."""
+    output = run_snakemake(workdir, "--rulegraph", "--forceall", "--cores", "2")
+    names: dict[str, str] = {}
+    consumers: dict[str, set[str]] = {}
+    for line in output.splitlines():
+        if match := _DOT_NODE.match(line):
+            names[match.group(1)] = match.group(2)
+            consumers.setdefault(match.group(2), set())
+    for line in output.splitlines():
+        if match := _DOT_EDGE.match(line):
+            consumers[names[match.group(1)]].add(names[match.group(2)])
+    if not names:
+        raise ValueError(f"no rules in the rule graph output:\n{output[-2000:]}")
+    return consumers
+
+
+def downstream(graph: dict[str, set[str]], rules: set[str]) -> set[str]:
+    """``rules`` and every rule that (transitively) consumes their outputs."""
+    found, pending = set(), list(rules)
+    while pending:
+        rule = pending.pop()
+        if rule not in found:
+            found.add(rule)
+            pending.extend(graph.get(rule, ()))
+    return found
