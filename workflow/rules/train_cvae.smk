@@ -1,0 +1,37 @@
+# Learning: train the PointNet + CVAE on the lift-validated grasps of training objects.
+
+
+def learning_objects_dirs():
+    """Prepared-object folders the learning stages read (plus the DexGraspNet import when configured)."""
+    dirs = [f"{RESULTS}/objects"]
+    if config["dexgraspnet"]["root"]:
+        dirs.append(f"{RESULTS}/dexgraspnet/objects")
+    return dirs
+
+
+def learning_cli_options(option, paths):
+    return " ".join(f"--{option} {p}" for p in paths)
+
+
+rule train_cvae:
+    input:
+        lift=expand(f"{RESULTS}/lift/shard_{{shard}}.zarr", shard=SHARDS),
+        catalog=f"{RESULTS}/objects/catalog.parquet",
+    output:
+        model=f"{RESULTS}/model/cvae.pt",
+        history=f"{RESULTS}/model/history.csv",
+        curves=f"{RESULTS}/model/training_curves.png",
+    params:
+        cfg=stage_params("seed", "device", "train"),
+        code=code_hash("train_cvae"),
+        lift=lambda wc, input: learning_cli_options("lift", input.lift),
+        objects=learning_cli_options("objects", learning_objects_dirs()),
+    conda:
+        CONDA_ENV
+    log:
+        f"{LOGS}/train_cvae.log",
+    benchmark:
+        f"{LOGS}/benchmarks/train_cvae.tsv"
+    shell:
+        "dexlite train-cvae --config-json {params.cfg:q} {params.lift} {params.objects} "
+        "--out-dir {RESULTS}/model --threads {threads} > {log} 2>&1"
