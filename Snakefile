@@ -4,6 +4,8 @@ configfile: "config.yaml"
 
 include: "workflow/rules/common.smk"
 include: "workflow/rules/prepare_objects.smk"
+include: "workflow/rules/import_dexgraspnet.smk"
+include: "workflow/rules/curate.smk"
 include: "workflow/rules/train_cvae.smk"
 include: "workflow/rules/sample_grasps.smk"
 include: "workflow/rules/post_optimize.smk"

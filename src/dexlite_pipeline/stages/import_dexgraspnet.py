@@ -17,6 +17,9 @@ from pathlib import Path
 
 log = logging.getLogger(__name__)
 
+# The keys of config section ``objects`` the import uses (its meshes bring their own pieces).
+ASSET_CONFIG_KEYS = ("sdf_resolution", "sdf_padding", "surface_points")
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("root", help="DexGraspNet download (with dataset/ and meshdata/)")
@@ -27,12 +30,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def asset_settings(config: dict):
-    """The asset build settings from the ``objects`` section (only the keys the builder uses) and ``seed``."""
+    """Asset build settings from ``ASSET_CONFIG_KEYS`` of the ``objects`` section and ``seed``."""
     from dexlite_pipeline.objects.build import AssetBuildSettings
 
     objects = config.get("objects") or {}
-    names = {f.name for f in dataclasses.fields(AssetBuildSettings)} - {"seed"}
-    return AssetBuildSettings(**{k: v for k, v in objects.items() if k in names}, seed=int(config.get("seed", 0)))
+    return AssetBuildSettings(**{k: objects[k] for k in ASSET_CONFIG_KEYS if k in objects}, seed=int(config.get("seed", 0)))
 
 
 def run(args: argparse.Namespace) -> int:

@@ -1,0 +1,218 @@
+"""Curation: which seed / imported grasps become training data for the lift test and the CVAE.
+
+A grasp is kept when its object is prepared (status ok), in the train split and stable on
+a table; its pose is finite and its energies exist; it meets the energy thresholds
+(DexGraspNet's E_fc < 0.3, E_dis < 5 mm, E_pen < 1 mm by default); it is not a
+near-duplicate of a better grasp; and its object's cap is not yet full. Every other grasp
+gets the first reason that applies, in ``DROP_REASONS`` order, so the per-object counts
+of the summary add up to the grasps read.
+
+Near-duplicates: two grasps of the same object at the same scale whose palm positions
+differ by less than ``duplicate_translation_m``, palm orientations by less than
+``duplicate_rotation_deg`` (geodesic angle) and every joint by less than
+``duplicate_joint_rad``. All three must hold: grasps with the same palm pose but other
+finger configurations (or the reverse) are different grasps. Grasps are ranked by
+``quality_score`` (the three thresholded energies as fractions of their thresholds,
+summed; lower is better); walking down the ranking, a grasp is dropped when it is a
+near-duplicate of one already kept, and the cap keeps the best-ranked survivors.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+import torch
+
+from dexlite_pipeline.hand.model import JOINTS, ROTATION, TRANSLATION
+from dexlite_pipeline.hand.rotation import euler_xyz_to_matrix
+from dexlite_pipeline.io.grasp_store import GraspSet, invalid_grasp_reasons
+
+DROP_REASONS = (
+    "object_not_ok",  # not in any object catalog, or rejected there
+    "not_train",  # held out for evaluation
+    "no_stability_result",  # the stability filter did not test the object
+    "unstable",  # the object does not stand stably on a table
+    "invalid_grasp",  # non-finite pose or scale, or energies could not be computed
+    "e_fc",  # E_fc >= max_e_fc
+    "e_dis",  # E_dis >= max_e_dis_m
+    "e_pen",  # E_pen >= max_e_pen_m
+    "duplicate",  # near-duplicate of a better grasp of the same object and scale
+    "cap",  # beyond max_grasps_per_object
+)
+THRESHOLDED_TERMS = ("E_fc", "E_dis", "E_pen")
+
+
+@dataclass(frozen=True)
+class CurateConfig:
+    """Config section ``curate``."""
+
+    max_e_fc: float = 0.3  # force-closure threshold (DexGraspNet: 0.3)
+    max_e_dis_m: float = 0.005  # contact-distance threshold Σ|d| in metres (DexGraspNet: 5 mm)
+    max_e_pen_m: float = 0.001  # penetration threshold in metres (DexGraspNet: 1 mm)
+    duplicate_translation_m: float = 0.005  # palm positions closer than this ...
+    duplicate_rotation_deg: float = 10.0  # ... and palm orientations closer than this ...
+    duplicate_joint_rad: float = 0.1  # ... and every joint closer than this: near-duplicates
+    max_grasps_per_object: int = 200  # cap per object after deduplication (0 = no cap)
+    energy_batch_size: int = 256  # grasps per batch when computing energies of imported grasps
+
+    def __post_init__(self) -> None:
+        for name in ("max_e_fc", "max_e_dis_m", "max_e_pen_m"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"config.curate.{name} must be positive, got {getattr(self, name)}")
+        if self.max_grasps_per_object < 0:
+            raise ValueError(f"config.curate.max_grasps_per_object must be >= 0, got {self.max_grasps_per_object}")
+
+
+@dataclass(frozen=True)
+class ObjectFacts:
+    """Per object: catalog status and split, stability verdict (None: not tested)."""
+
+    status: dict[str, str]
+    split: dict[str, str]
+    stable: dict[str, bool]
+
+    @staticmethod
+    def from_tables(catalogs: list[pd.DataFrame], stability: list[pd.DataFrame]) -> "ObjectFacts":
+        """Merge object catalogs and stability tables (the first table that names an object wins)."""
+        status, split, stable = {}, {}, {}
+        for catalog in catalogs:
+            for row in catalog.itertuples(index=False):
+                oid = str(row.object_id)
+                status.setdefault(oid, str(row.status))
+                split.setdefault(oid, str(getattr(row, "split", "")))
+        for table in stability:
+            for oid, verdict in zip(table["object_id"].astype(str), table["stable"].astype(bool)):
+                stable.setdefault(oid, bool(verdict))
+        return ObjectFacts(status, split, stable)
+
+
+def object_reasons(grasps: GraspSet, facts: ObjectFacts) -> np.ndarray:
+    """Per grasp, the first object-level and validity reason that drops it ('' if none)."""
+    ids = [str(o) for o in grasps.object_id]
+    reasons = np.full(len(ids), "", dtype=object)
+    checks = (
+        ("object_not_ok", lambda oid: facts.status.get(oid) != "ok"),
+        ("not_train", lambda oid: facts.split.get(oid) != "train"),
+        ("no_stability_result", lambda oid: oid not in facts.stable),
+        ("unstable", lambda oid: not facts.stable.get(oid, False)),
+    )
+    for reason, fails in checks:
+        failing_ids = {oid for oid in set(ids) if fails(oid)}
+        hit = (reasons == "") & np.fromiter((oid in failing_ids for oid in ids), bool, len(ids))
+        reasons[hit] = reason
+    reasons[(reasons == "") & (invalid_grasp_reasons(grasps) != "")] = "invalid_grasp"
+    return reasons
+
+
+def threshold_reasons(grasps: GraspSet, config: CurateConfig) -> np.ndarray:
+    """Per grasp, 'invalid_grasp' for missing/NaN energies, else the first threshold it fails ('' if none)."""
+    n = len(grasps)
+    reasons = np.full(n, "", dtype=object)
+    missing = [t for t in THRESHOLDED_TERMS if t not in grasps.arrays]
+    if missing:
+        raise ValueError(f"grasps lack the energy arrays {', '.join(missing)} needed for curation")
+    values = {t: np.asarray(grasps.arrays[t], np.float64) for t in THRESHOLDED_TERMS}
+    reasons[~np.all([np.isfinite(v) for v in values.values()], axis=0)] = "invalid_grasp"
+    limits = {"E_fc": ("e_fc", config.max_e_fc), "E_dis": ("e_dis", config.max_e_dis_m), "E_pen": ("e_pen", config.max_e_pen_m)}
+    for term, (reason, limit) in limits.items():
+        reasons[(reasons == "") & ~(values[term] < limit)] = reason
+    return reasons
+
+
+def quality_score(grasps: GraspSet, config: CurateConfig) -> np.ndarray:
+    """E_fc/max_e_fc + E_dis/max_e_dis_m + E_pen/max_e_pen_m (lower is better); < 3 for every kept grasp."""
+    a = grasps.arrays
+    return (
+        np.asarray(a["E_fc"], np.float64) / config.max_e_fc
+        + np.asarray(a["E_dis"], np.float64) / config.max_e_dis_m
+        + np.asarray(a["E_pen"], np.float64) / config.max_e_pen_m
+    )
+
+
+def near_duplicates(hand_pose: np.ndarray, order: np.ndarray, config: CurateConfig) -> np.ndarray:
+    """Boolean (N,): grasps (of one object and scale) that near-duplicate a better one kept before them.
+
+    ``order`` ranks the grasps best first. O(N²) time in vectorized rows, O(N) memory.
+    """
+    pose = torch.as_tensor(np.asarray(hand_pose, np.float64)[order])
+    translation = pose[:, TRANSLATION]
+    rotation = euler_xyz_to_matrix(pose[:, ROTATION]).reshape(-1, 9)
+    joints = pose[:, JOINTS]
+    # trace(Ri^T Rj) = vec(Ri)·vec(Rj); angle < a  <=>  trace > 1 + 2 cos a
+    min_trace = 1.0 + 2.0 * math.cos(math.radians(config.duplicate_rotation_deg))
+    n = pose.shape[0]
+    removed = torch.zeros(n, dtype=torch.bool)
+    for i in range(n):
+        if removed[i]:
+            continue
+        rest = slice(i + 1, n)
+        close = (
+            ((translation[rest] - translation[i]).norm(dim=1) < config.duplicate_translation_m)
+            & ((rotation[rest] @ rotation[i]) > min_trace)
+            & ((joints[rest] - joints[i]).abs().amax(dim=1) < config.duplicate_joint_rad)
+        )
+        removed[rest] |= close
+    duplicate = np.zeros(n, bool)
+    duplicate[order] = removed.numpy()
+    return duplicate
+
+
+def curate_grasps(grasps: GraspSet, facts: ObjectFacts, config: CurateConfig) -> np.ndarray:
+    """Per grasp, '' if kept, else its drop reason (one of ``DROP_REASONS``)."""
+    reasons = object_reasons(grasps, facts)
+    open_rows = reasons == ""
+    reasons[open_rows] = threshold_reasons(grasps.select(open_rows), config)
+    passing = np.nonzero(reasons == "")[0]
+    if len(passing) == 0:
+        return reasons
+    score = quality_score(grasps.select(passing), config)
+    object_ids = np.asarray([str(o) for o in grasps.object_id[passing]])
+    scales = np.asarray(grasps.scale[passing], np.float32)
+    for object_id in np.unique(object_ids):
+        in_object = object_ids == object_id
+        for scale in np.unique(scales[in_object]):
+            group = np.nonzero(in_object & (scales == scale))[0]
+            order = np.argsort(score[group], kind="stable")
+            duplicate = near_duplicates(grasps.hand_pose[passing[group]], order, config)
+            reasons[passing[group[duplicate]]] = "duplicate"
+        if config.max_grasps_per_object:
+            survivors = passing[in_object][reasons[passing[in_object]] == ""]
+            ranked = survivors[np.argsort(score[np.searchsorted(passing, survivors)], kind="stable")]
+            reasons[ranked[config.max_grasps_per_object :]] = "cap"
+    return reasons
+
+
+def summarize(grasps: GraspSet, reasons: np.ndarray, facts: ObjectFacts) -> pd.DataFrame:
+    """Per object and origin: split, stability, grasps read, kept, and dropped per reason."""
+    origin = grasps.arrays.get("origin", np.full(len(grasps), "", dtype=object))
+    frame = pd.DataFrame({"object_id": [str(o) for o in grasps.object_id], "origin": list(origin), "reason": list(reasons)})
+    columns = ["object_id", "origin", "split", "stable", "n_input", "n_kept", *(f"dropped_{r}" for r in DROP_REASONS)]
+    if frame.empty:
+        return pd.DataFrame(columns=columns)
+    counts = pd.crosstab([frame["object_id"], frame["origin"]], frame["reason"])
+    counts = counts.reindex(columns=["", *DROP_REASONS], fill_value=0)
+    table = pd.DataFrame(
+        {
+            "n_input": counts.sum(axis=1),
+            "n_kept": counts[""],
+            **{f"dropped_{r}": counts[r] for r in DROP_REASONS},
+        }
+    ).reset_index()
+    table["split"] = [facts.split.get(o, "") for o in table["object_id"]]
+    table["stable"] = [facts.stable.get(o) for o in table["object_id"]]
+    return table[columns].sort_values(["object_id", "origin"], ignore_index=True)
+
+
+def merge_summaries(tables: list[pd.DataFrame]) -> pd.DataFrame:
+    """Concatenate per-shard summaries (shards hold disjoint objects) into one table."""
+    if not tables:
+        raise ValueError("no curation summaries to merge")
+    merged = pd.concat(tables, ignore_index=True)
+    duplicated = merged.duplicated(["object_id", "origin"])
+    if duplicated.any():
+        first = merged.loc[duplicated, "object_id"].iloc[0]
+        raise ValueError(f"object {first!r} appears in more than one curation summary; shards must be disjoint")
+    return merged.sort_values(["object_id", "origin"], ignore_index=True)

@@ -1,0 +1,198 @@
+"""Curation: drop reasons, near-duplicates, the per-object cap, the summary and the CLI steps."""
+
+import json
+import math
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from dexlite_pipeline.cli import main as dexlite
+from dexlite_pipeline.curate import DROP_REASONS, CurateConfig, ObjectFacts, curate_grasps, near_duplicates, summarize
+from dexlite_pipeline.hand.qpos import ROTATION_KEYS
+from dexlite_pipeline.io.grasp_store import GraspSet, read_grasp_store, write_grasp_store
+
+GOOD = {"E_fc": 0.05, "E_dis": 0.001, "E_pen": 0.0002}
+
+
+def _pose(t=(0.0, 0.0, 0.1), euler=(0.0, 0.0, 0.0), joint=0.3):
+    pose = np.full(28, joint)
+    pose[:3], pose[3:6] = t, euler
+    return pose
+
+
+def _grasp_set(rows):
+    """rows: (object_id, pose, scale, energies dict)."""
+    return GraspSet(
+        {
+            "hand_pose": np.stack([r[1] for r in rows]).astype(np.float32),
+            "object_id": np.array([r[0] for r in rows], dtype=object),
+            "scale": np.array([r[2] for r in rows], np.float32),
+            **{t: np.array([r[3][t] for r in rows], np.float32) for t in ("E_fc", "E_dis", "E_pen")},
+        }
+    )
+
+
+FACTS = ObjectFacts(
+    status={"a": "ok", "held": "ok", "wobbly": "ok", "bad": "rejected", "untested": "ok"},
+    split={"a": "train", "held": "heldout", "wobbly": "train", "bad": "train", "untested": "train"},
+    stable={"a": True, "held": True, "wobbly": False, "bad": True},
+)
+
+
+def test_each_grasp_gets_the_first_reason_that_applies():
+    nan_pose = _pose()
+    nan_pose[7] = np.nan
+    rows = [
+        ("a", _pose(), 0.1, GOOD),  # kept
+        ("a", _pose(t=(0.05, 0, 0.1)), 0.1, {**GOOD, "E_fc": 0.5}),
+        ("a", _pose(t=(0.10, 0, 0.1)), 0.1, {**GOOD, "E_dis": 0.006}),
+        ("a", _pose(t=(0.15, 0, 0.1)), 0.1, {**GOOD, "E_pen": 0.002}),
+        ("a", _pose(t=(0.20, 0, 0.1)), 0.1, {"E_fc": 0.5, "E_dis": 0.006, "E_pen": 0.002}),
+        ("a", _pose(t=(0.25, 0, 0.1)), 0.1, {**GOOD, "E_fc": np.nan}),
+        ("a", nan_pose, 0.1, GOOD),
+        ("held", _pose(), 0.1, GOOD),
+        ("wobbly", _pose(), 0.1, GOOD),
+        ("bad", _pose(), 0.1, GOOD),
+        ("untested", _pose(), 0.1, GOOD),
+        ("nowhere", _pose(), 0.1, GOOD),
+        ("held", _pose(), 0.1, {**GOOD, "E_fc": 0.9}),  # object reasons come before energies
+    ]
+    reasons = curate_grasps(_grasp_set(rows), FACTS, CurateConfig())
+    assert list(reasons) == [
+        "", "e_fc", "e_dis", "e_pen", "e_fc", "invalid_grasp", "invalid_grasp",
+        "not_train", "unstable", "object_not_ok", "no_stability_result", "object_not_ok", "not_train",
+    ]
+
+
+def test_thresholds_are_strict_and_configurable():
+    rows = [("a", _pose(t=(0.05 * i, 0, 0.1)), 0.1, {**GOOD, "E_fc": fc}) for i, fc in enumerate([0.29, 0.3, 0.31])]
+    assert list(curate_grasps(_grasp_set(rows), FACTS, CurateConfig())) == ["", "e_fc", "e_fc"]
+    assert list(curate_grasps(_grasp_set(rows), FACTS, CurateConfig(max_e_fc=0.305))) == ["", "", "e_fc"]
+
+
+def test_near_duplicate_needs_all_three_tolerances():
+    config = CurateConfig(duplicate_translation_m=0.005, duplicate_rotation_deg=10.0, duplicate_joint_rad=0.1)
+    best = _pose()
+    close_joint = _pose(joint=0.39)
+    poses = [
+        best,
+        _pose(t=(0.003, 0.002, 0.1), euler=(math.radians(6), 0, 0), joint=0.35),  # duplicate of best
+        _pose(t=(0.006, 0.0, 0.1)),  # 6 mm away
+        _pose(euler=(0, 0, math.radians(11))),  # 11 degrees about z
+        _pose(euler=(math.radians(8), math.radians(8), 0)),  # ~11.3 degrees in all
+        _pose(joint=0.41),  # every joint 0.11 rad away
+        close_joint,  # 0.09 rad: duplicate of best
+    ]
+    single_joint = _pose()
+    single_joint[6 + 21] += 0.2  # one joint differs: THJ0
+    poses.append(single_joint)
+    order = np.arange(len(poses))
+    assert list(near_duplicates(np.stack(poses), order, config)) == [False, True, False, False, False, False, True, False]
+    # ranking decides which of two duplicates survives
+    assert list(near_duplicates(np.stack([best, close_joint]), np.array([1, 0]), config)) == [True, False]
+
+
+def test_deduplication_keeps_the_better_grasp_and_only_within_one_scale():
+    worse = {"E_fc": 0.2, "E_dis": 0.003, "E_pen": 0.0005}
+    rows = [
+        ("a", _pose(t=(0.001, 0, 0.1)), 0.1, worse),
+        ("a", _pose(), 0.1, GOOD),
+        ("a", _pose(), 0.12, worse),  # same pose, other object size: not a duplicate
+    ]
+    assert list(curate_grasps(_grasp_set(rows), FACTS, CurateConfig())) == ["duplicate", "", ""]
+
+
+def test_cap_keeps_the_best_grasps_of_each_object():
+    rows = [("a", _pose(t=(0.02 * i, 0, 0.1)), 0.06 + 0.02 * (i % 2), {**GOOD, "E_fc": 0.25 - 0.05 * i}) for i in range(5)]
+    rows.append(("untested", _pose(), 0.1, GOOD))
+    reasons = curate_grasps(_grasp_set(rows), FACTS, CurateConfig(max_grasps_per_object=2))
+    assert list(reasons) == ["cap", "cap", "cap", "", "", "no_stability_result"]
+    assert list(curate_grasps(_grasp_set(rows), FACTS, CurateConfig(max_grasps_per_object=0)))[:5] == [""] * 5
+
+
+def test_summary_counts_add_up_per_object_and_origin():
+    rows = [("a", _pose(t=(0.05 * i, 0, 0.1)), 0.1, {**GOOD, "E_pen": 0.0004 * i}) for i in range(4)] + [("held", _pose(), 0.1, GOOD)]
+    grasps = _grasp_set(rows)
+    grasps.arrays["origin"] = np.array(["seed", "seed", "dexgraspnet", "dexgraspnet", "seed"], dtype=object)
+    table = summarize(grasps, curate_grasps(grasps, FACTS, CurateConfig()), FACTS).set_index(["object_id", "origin"])
+    assert table.loc[("a", "seed"), "n_kept"] == 2 and table.loc[("a", "dexgraspnet"), "n_kept"] == 1
+    assert table.loc[("a", "dexgraspnet"), "dropped_e_pen"] == 1
+    assert table.loc[("held", "seed"), "dropped_not_train"] == 1 and table.loc[("held", "seed"), "split"] == "heldout"
+    dropped = table[[f"dropped_{r}" for r in DROP_REASONS]].sum(axis=1)
+    assert ((table["n_kept"] + dropped) == table["n_input"]).all()
+
+
+def test_config_rejects_nonsense():
+    with pytest.raises(ValueError, match="max_e_fc"):
+        CurateConfig(max_e_fc=0)
+
+
+@pytest.fixture(scope="module")
+def workspace(tmp_path_factory):
+    """Two prepared box objects (catalog, stability), a seed shard, and imported grasps."""
+    import trimesh
+
+    from dexlite_pipeline.objects.build import AssetBuildSettings, write_asset
+
+    root = tmp_path_factory.mktemp("curate")
+    settings = AssetBuildSettings(sdf_resolution=24, sdf_padding=0.3, surface_points=256)
+    box = trimesh.creation.box(extents=(1.2, 0.8, 0.6))
+    for object_id in ("box0", "box1"):
+        write_asset(box, object_id, root / "objects", settings, {"source": "test"}, convex_pieces=[box])
+    catalog = pd.DataFrame(
+        {"object_id": ["box0", "box1"], "source": "test", "file": "", "watertight": True, "volume": 0.576,
+         "n_convex_pieces": 1, "status": "ok", "reason": "", "split": ["train", "heldout"]}
+    )
+    catalog.to_parquet(root / "objects" / "catalog.parquet")
+    pd.DataFrame({"object_id": ["box0", "box1"], "lateral_displacement_m": 0.0, "rotation_deg": 0.0, "stable": True, "reason": ""}).to_parquet(
+        root / "stability.parquet"
+    )
+    seed = _grasp_set([("box0", _pose(), 0.1, GOOD), ("box0", _pose(t=(0.05, 0, 0.1)), 0.1, {**GOOD, "E_dis": 0.01})])
+    write_grasp_store(root / "seed_000.zarr", seed)
+    far = _pose(t=(0.0, 0.0, 0.5))  # 40 cm above the box: no contact
+    imported = GraspSet(
+        {
+            "hand_pose": np.stack([far, far, far]).astype(np.float32),
+            "object_id": np.array(["box0", "box1", "box0"], dtype=object),
+            "scale": np.full(3, 0.1, np.float32),
+            "source_file": np.array(["dataset/box0.npy", "dataset/box1.npy", "dataset/box0.npy"], dtype=object),
+            "source_index": np.arange(3),
+        }
+    )
+    write_grasp_store(root / "imported.zarr", imported)
+    return root
+
+
+def test_cli_curates_a_shard_with_imported_grasps_and_aggregates(workspace):
+    root = workspace
+    config = json.dumps({"shards": 2, "device": "cpu", "curate": {"max_e_fc": 100.0}})  # E_fc never binds: far hands fail on E_dis
+    summaries = []
+    for shard in (0, 1):
+        args = ["curate", "--step", "curate", "--shard", str(shard), "--config-json", config, "--stability", str(root / "stability.parquet"),
+                "--objects", str(root / "objects"), "--imported", str(root / "imported.zarr"),
+                "--out", str(root / f"curate_{shard}.zarr"), "--summary-out", str(root / f"summary_{shard}.csv")]
+        if shard == 0:
+            args += ["--seed-grasps", str(root / "seed_000.zarr")]
+        assert dexlite(args) == 0
+        summaries.append(str(root / f"summary_{shard}.csv"))
+    kept = read_grasp_store(root / "curate_0.zarr")
+    assert len(kept) == 1 and kept.arrays["origin"][0] == "seed" and kept.arrays["origin_index"][0] == 0
+    assert kept.attrs["dropped"]["e_dis"] == 3 and kept.attrs["n_input"] == 4
+    assert "source_file" not in kept.arrays  # only arrays every input has
+    assert len(read_grasp_store(root / "curate_1.zarr")) == 0
+
+    assert dexlite(["curate", "--step", "aggregate", "--summary", summaries[0], "--summary", summaries[1], "--out", str(root / "summary.csv")]) == 0
+    table = pd.read_csv(root / "summary.csv", keep_default_na=False).set_index(["object_id", "origin"])
+    assert table.loc[("box0", "seed"), "n_kept"] == 1 and table.loc[("box0", "seed"), "dropped_e_dis"] == 1
+    assert table.loc[("box0", "dexgraspnet"), "dropped_e_dis"] == 2
+    assert table.loc[("box1", "dexgraspnet"), "dropped_not_train"] == 1
+    assert table["n_input"].sum() == 5
+
+
+def test_aggregate_refuses_overlapping_shards(tmp_path):
+    row = pd.DataFrame([{"object_id": "a", "origin": "seed", "n_input": 1, "n_kept": 1}])
+    row.to_csv(tmp_path / "s0.csv", index=False)
+    row.to_csv(tmp_path / "s1.csv", index=False)
+    code = dexlite(["curate", "--step", "aggregate", "--summary", str(tmp_path / "s0.csv"), "--summary", str(tmp_path / "s1.csv"), "--out", str(tmp_path / "m.csv")])
+    assert code == 2 and not (tmp_path / "m.csv").exists()

@@ -1,0 +1,33 @@
+# DexGraspNet import: grasps plus object assets in the dataset's own frame. Requested by
+# curate and evaluate only when config dexgraspnet.root is set.
+from dexlite_pipeline.stages.import_dexgraspnet import ASSET_CONFIG_KEYS
+
+DEXGRASPNET_ROOT = config["dexgraspnet"]["root"]
+DEXGRASPNET_OBJECTS = f"{RESULTS}/dexgraspnet/objects"
+
+
+def import_params():
+    """Like stage_params, with only the asset keys of `objects` (others never rerun the import)."""
+    objects = {k: v for k, v in config["objects"].items() if k in ASSET_CONFIG_KEYS}
+    sections = {"seed": config["seed"], "objects": objects, "dexgraspnet": config["dexgraspnet"]}
+    return json.dumps(sections, sort_keys=True, separators=(",", ":"))
+
+
+rule import_dexgraspnet:
+    output:
+        grasps=directory(f"{RESULTS}/dexgraspnet/grasps.zarr"),
+        catalog=f"{DEXGRASPNET_OBJECTS}/catalog.parquet",
+        report=f"{RESULTS}/dexgraspnet/import_report.csv",
+    params:
+        cfg=import_params(),
+        code=code_hash("import_dexgraspnet"),
+        root=DEXGRASPNET_ROOT,
+    conda:
+        CONDA_ENV
+    log:
+        f"{LOGS}/import_dexgraspnet.log",
+    benchmark:
+        f"{LOGS}/benchmarks/import_dexgraspnet.tsv"
+    shell:
+        "dexlite import-dexgraspnet {params.root:q} --config-json {params.cfg:q} --out {output.grasps} "
+        "--objects-out {DEXGRASPNET_OBJECTS} --report {output.report} --threads {threads} > {log} 2>&1"
