@@ -32,6 +32,23 @@ TINY_OVERRIDES: dict = {
         "surface_points": 256,
         "coacd_max_convex_hull": 4,
     },
+    "energy": {"object_points": 256},
+    "train": {
+        "max_steps": 6,
+        "batch_size": 8,
+        "points_per_cloud": 64,
+        "energy_object_points": 64,
+        "min_grasps": 1,
+        "model": {
+            "pointnet_widths": [16, 32, 64, 32],
+            "encoder_hidden": [32, 32],
+            "decoder_hidden": [32, 32],
+            "latent_dim": 8,
+        },
+    },
+    "sample": {"synthesis_grasps_per_object": 4, "expansion_grasps_per_object": 2},
+    "post_optimize": {"iterations": 8, "batch_size": 64, "energy_object_points": 64},
+    "evaluate": {"grasps_per_object": 2, "rendered_per_method": 1, "pca_components": [1, 2]},
 }
 
 # Every rule gets one thread in the tests: two shards run side by side on two cores, and a
@@ -68,10 +85,10 @@ def write_config(workdir: Path, config: dict) -> Path:
 
 
 def snakemake_env(extra: dict[str, str] | None = None) -> dict[str, str]:
-    env = dict(os.environ)
+    """The environment of a snakemake run: this venv's commands (snakemake, dexlite) first on PATH."""
+    env = {**os.environ, **(extra or {})}
     env["PATH"] = f"{BIN_DIR}{os.pathsep}{env.get('PATH', '')}"
     env.pop("SNAKEMAKE_PROFILE", None)
-    env.update(extra or {})
     return env
 
 
@@ -105,20 +122,21 @@ def local_run_args(cores: int = 2) -> list[str]:
 
 
 _JOB_TABLE_ROW = re.compile(r"^(\S+)\s+(\d+)$")
-_JOB_HEADER = re.compile(r"^(?:local)?(?:rule|checkpoint) (\w+):$")
+_JOB_HEADER = re.compile(r"^(local)?(?:rule|checkpoint) (\w+):$")
 _JOB_FIELD = re.compile(r"^\s+(\w+): (.*)$")
 
 
 def job_blocks(output: str) -> list[dict[str, str]]:
     """The per-job blocks of Snakemake's output ("rule NAME:" then indented "key: value" lines).
 
-    Each block is a dict with "rule" plus its fields (output, wildcards, reason, ...).
+    Each block is a dict with "rule", "local" ("yes" for a job run by the main process,
+    e.g. a localrule under a cluster executor) plus its fields (output, wildcards, reason, ...).
     """
     blocks: list[dict[str, str]] = []
     current: dict[str, str] | None = None
     for line in output.splitlines():
         if header := _JOB_HEADER.match(line.strip()):
-            current = {"rule": header.group(1)}
+            current = {"rule": header.group(2), "local": "yes" if header.group(1) else "no"}
             blocks.append(current)
         elif current is not None and (field := _JOB_FIELD.match(line)):
             current.setdefault(field.group(1), field.group(2).strip())
