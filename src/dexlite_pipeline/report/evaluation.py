@@ -44,7 +44,7 @@ class EvaluateConfig:
 
     methods: tuple[str, ...] = METHODS  # methods to evaluate (missing inputs are reported, not invented)
     splits: tuple[str, ...] = ("heldout",)  # object splits to evaluate (catalog column ``split``)
-    grasps_per_object: int = 12  # cap per (method, object) on simulated grasps
+    grasps_per_object: int = 8  # cap per (method, object) on simulated grasps
     six_directions: bool = True  # also run the six-direction disturbance test
     entropy_bins: int = metrics.JOINT_ENTROPY_BINS  # bins per joint of the joint-angle entropy
     pca_components: tuple[int, ...] = metrics.PCA_COMPONENTS  # k of the cumulative PCA explained variance columns
@@ -144,27 +144,28 @@ def simulate(
     energy_s = time.perf_counter() - start
     arrays.update(energies)
     start = time.perf_counter()
-    lift = run_lift_tests(selected, objects_dirs, lift_cfg, threads)
+    arrays.update(run_lift_tests(selected, objects_dirs, lift_cfg, threads))
     lift_s = time.perf_counter() - start
-    lift_arrays = lift.arrays if isinstance(lift, GraspSet) else lift
-    for name, value in lift_arrays.items():
-        if name not in SELECTED_ARRAYS:
-            arrays[name] = value
     attrs = dict(selected.attrs)
     attrs["energy_seconds_per_grasp"] = energy_s / len(selected)
     attrs["simulation_seconds_per_grasp"] = lift_s / len(selected)
-    if isinstance(lift, GraspSet):
-        attrs["lift_attrs"] = lift.attrs
     return GraspSet(arrays, attrs)
 
 
 def convergence_traces(post: GraspSet) -> tuple[dict[str, np.ndarray], np.ndarray] | None:
     """Per-iteration energy traces of a post-optimization store: {name: (N, T)} and the iteration of each column.
 
-    Reads arrays named ``trace_<energy>`` (e.g. ``trace_E_post``, ``trace_E_fc``) and the
-    attribute ``trace_iterations``; None when the store carries no trace.
+    Reads ``energy_trace`` (the total E_post) and any ``trace_<energy>`` arrays (e.g.
+    ``trace_E_fc``) with the attribute ``trace_iterations``; None when the store has no trace.
     """
-    traces = {name[len("trace_") :]: np.asarray(v, dtype=np.float64) for name, v in post.arrays.items() if name.startswith("trace_") and np.ndim(v) == 2}
+    traces = {}
+    for name, value in post.arrays.items():
+        if np.ndim(value) != 2:
+            continue
+        if name == "energy_trace":
+            traces["E_post"] = np.asarray(value, dtype=np.float64)
+        elif name.startswith("trace_"):
+            traces[name[len("trace_") :]] = np.asarray(value, dtype=np.float64)
     if not traces:
         return None
     width = next(iter(traces.values())).shape[1]

@@ -69,6 +69,7 @@ def _read_sources(args) -> dict[str, list]:
 
 
 def _simulate(args, config: dict) -> int:
+    from dexlite_pipeline.device import resolve_device
     from dexlite_pipeline.energy.grasp_energy import EnergyConfig
     from dexlite_pipeline.io.grasp_store import GraspSet, write_grasp_store
     from dexlite_pipeline.config import from_section
@@ -105,7 +106,8 @@ def _simulate(args, config: dict) -> int:
     selected_all = GraspSet.concatenate(parts, attrs={})
     if "method" not in selected_all.arrays:
         selected_all.arrays.update({"method": np.zeros(0, dtype=object), "split": np.zeros(0, dtype=object), "source_row": np.zeros(0, np.int64)})
-    result = simulate(selected_all, args.objects, lift_cfg, energy_cfg, config.get("device") or "auto", args.threads or 1, cfg.energy_batch_size)
+    device = resolve_device(config.get("device") or "auto")
+    result = simulate(selected_all, args.objects, lift_cfg, energy_cfg, device, args.threads or 1, cfg.energy_batch_size)
     attrs = {
         "stage": "evaluate",
         "shard": args.shard,
