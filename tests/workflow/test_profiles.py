@@ -81,6 +81,22 @@ def test_slurm_profile_site_settings_and_gpu_option(monkeypatch):
     assert not any("gpu" in res for res in others.values())
 
 
+class _UniqueKeyLoader(yaml.SafeLoader):
+    """A YAML loader that refuses a key given twice in one mapping (YAML keeps the last silently)."""
+
+    def construct_mapping(self, node, deep=False):
+        keys = [self.construct_object(key, deep=deep) for key, _ in node.value]
+        repeated = sorted({k for k in keys if keys.count(k) > 1})
+        if repeated:
+            raise yaml.constructor.ConstructorError(None, None, f"repeated keys {repeated}", node.start_mark)
+        return super().construct_mapping(node, deep=deep)
+
+
+def test_profiles_and_env_have_no_repeated_keys():
+    for path in [*(REPO / "profiles").glob("*/config.yaml"), REPO / "envs" / "dexlite.yaml", REPO / "config.yaml"]:
+        yaml.load(path.read_text(), Loader=_UniqueKeyLoader)
+
+
 def _requirement_name(spec: str) -> str:
     return re.split(r"[<>=!~\[ ;]", spec.strip(), maxsplit=1)[0].lower().replace("_", "-")
 
