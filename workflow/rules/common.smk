@@ -43,7 +43,12 @@ def code_hash(*modules):
 
 def final_outputs():
     """The final products of the stages that exist."""
-    return [f"{RESULTS}/objects/catalog.parquet"]
+    outputs = [f"{RESULTS}/objects/catalog.parquet"]
+    # The evaluation needs every grasp-producing stage; it joins `all` once their rules are in.
+    defined = {rule.name for rule in workflow.rules}
+    if defined >= {"seed_grasps", "sample_grasps", "post_optimize", "evaluate", "report"}:
+        outputs += [f"{RESULTS}/eval/metrics.csv", f"{RESULTS}/eval/per_object.csv", f"{RESULTS}/eval/report.html"]
+    return outputs
 
 
 def stale_temporaries(root):
