@@ -115,7 +115,8 @@ def test_summary_counts_add_up_per_object_and_origin():
     rows = [("a", _pose(t=(0.05 * i, 0, 0.1)), 0.1, {**GOOD, "E_pen": 0.0004 * i}) for i in range(4)] + [("held", _pose(), 0.1, GOOD)]
     grasps = _grasp_set(rows)
     grasps.arrays["origin"] = np.array(["seed", "seed", "dexgraspnet", "dexgraspnet", "seed"], dtype=object)
-    table = summarize(grasps, curate_grasps(grasps, FACTS, CurateConfig()), FACTS).set_index(["object_id", "origin"])
+    config = CurateConfig(imported_thresholded_terms=("E_fc", "E_dis", "E_pen"))
+    table = summarize(grasps, curate_grasps(grasps, FACTS, config), FACTS).set_index(["object_id", "origin"])
     assert table.loc[("a", "seed"), "n_kept"] == 2 and table.loc[("a", "dexgraspnet"), "n_kept"] == 1
     assert table.loc[("a", "dexgraspnet"), "dropped_e_pen"] == 1
     assert table.loc[("held", "seed"), "dropped_not_train"] == 1 and table.loc[("held", "seed"), "split"] == "heldout"
@@ -123,9 +124,21 @@ def test_summary_counts_add_up_per_object_and_origin():
     assert ((table["n_kept"] + dropped) == table["n_input"]).all()
 
 
+def test_imported_grasps_are_held_to_the_configured_terms_only():
+    failing = [{**GOOD, "E_fc": 0.5}, {**GOOD, "E_dis": 0.006}, {**GOOD, "E_pen": 0.002}]
+    rows = [("a", _pose(t=(0.05 * i, 0, 0.1)), 0.1, e) for i, e in enumerate(failing * 2)]
+    grasps = _grasp_set(rows)
+    grasps.arrays["origin"] = np.array(["seed"] * 3 + ["dexgraspnet"] * 3, dtype=object)
+    assert list(curate_grasps(grasps, FACTS, CurateConfig())) == ["e_fc", "e_dis", "e_pen", "", "e_dis", ""]
+    only_pen = CurateConfig(imported_thresholded_terms=("E_pen",))
+    assert list(curate_grasps(grasps, FACTS, only_pen)) == ["e_fc", "e_dis", "e_pen", "", "", "e_pen"]
+
+
 def test_config_rejects_nonsense():
     with pytest.raises(ValueError, match="max_e_fc"):
         CurateConfig(max_e_fc=0)
+    with pytest.raises(ValueError, match="E_foo"):
+        CurateConfig(imported_thresholded_terms=("E_foo",))
 
 
 @pytest.fixture(scope="module")

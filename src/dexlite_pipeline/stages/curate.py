@@ -47,13 +47,13 @@ def _tag(grasps, origin: str):
 def _imported_with_energies(args, config: dict, curate_config, facts):
     """This shard's imported grasps, with energies for those that pass the object checks."""
     from dexlite_pipeline.config import from_section
-    from dexlite_pipeline.curate import object_reasons
+    from dexlite_pipeline.curate import IMPORTED_ORIGIN, object_reasons
     from dexlite_pipeline.device import resolve_device
     from dexlite_pipeline.energy import EnergyConfig, evaluate_grasp_energies
     from dexlite_pipeline.io.grasp_store import read_grasp_store
     from dexlite_pipeline.sharding import shard_objects
 
-    imported = _tag(read_grasp_store(args.imported), "dexgraspnet")
+    imported = _tag(read_grasp_store(args.imported), IMPORTED_ORIGIN)
     ids = np.asarray([str(o) for o in imported.object_id])
     mine = shard_objects(ids, args.shard, int(config.get("shards", 1)))
     imported = imported.select(np.isin(ids, mine))
