@@ -1,0 +1,106 @@
+"""The network, pose features, associated point and batching: shapes, gradients, invariants."""
+
+import math
+
+import numpy as np
+import pytest
+import torch
+
+from dexlite_pipeline.hand.rotation import euler_xyz_to_matrix
+from dexlite_pipeline.model.association import grasp_rays, nearest_to_ray
+from dexlite_pipeline.model.data import cloud_batches, cloud_keys, make_batch, split_validation
+from dexlite_pipeline.model.network import GraspCVAE, ModelConfig, kl_divergence
+from dexlite_pipeline.model.pose import POSE_FEATURE_DIM, features_to_pose, pose_to_features, reconstruction_error
+from dexlite_pipeline.model.training import TrainConfig
+
+
+def test_reference_sizes_give_the_seed_shapes():
+    model = GraspCVAE(ModelConfig(normalization="batch"))
+    clouds = torch.randn(3, 128, 3) * 0.1
+    global_feature, per_point = model.pointnet(clouds)
+    assert global_feature.shape == (3, 256) and per_point.shape == (3, 128, 256)
+    condition = model.condition(clouds, torch.tensor([0, 2, 2, 1]), torch.tensor([0, 5, 127, 64]))
+    assert condition.shape == (4, 512)
+    mu, log_var = model.encode(torch.randn(4, POSE_FEATURE_DIM), condition)
+    assert mu.shape == log_var.shape == (4, 256)
+    assert model.decode(mu, condition).shape == (4, POSE_FEATURE_DIM)
+    assert model.encoder[0].in_features == 28 + 3 + 512  # [q (31 with 6D rotation), c 512]
+    assert [m.out_channels for m in model.pointnet.layers if isinstance(m, torch.nn.Conv1d)] == [64, 128, 1024, 256]
+
+
+def test_gradients_reach_every_part(small_model_config):
+    torch.manual_seed(0)
+    model = GraspCVAE(small_model_config)
+    clouds = torch.randn(2, 64, 3) * 0.1
+    condition = model.condition(clouds, torch.tensor([0, 1, 1]), torch.tensor([3, 4, 5]))
+    target = torch.randn(3, POSE_FEATURE_DIM)
+    decoded, mu, log_var = model(target, condition, torch.randn(3, small_model_config.latent_dim))
+    (reconstruction_error(decoded, target).mean() + kl_divergence(mu, log_var).mean()).backward()
+    for name, part in (("pointnet", model.pointnet), ("encoder", model.encoder), ("decoder", model.decoder)):
+        grads = [p.grad for p in part.parameters()]
+        assert all(g is not None and torch.isfinite(g).all() for g in grads), name
+        assert sum(float(g.abs().sum()) for g in grads) > 0, name
+
+
+def test_pose_features_round_trip_and_wrap_free_loss():
+    pose = torch.zeros(2, 28)
+    pose[:, :3] = torch.tensor([[0.1, -0.2, 0.05], [0.0, 0.3, -0.1]])
+    pose[:, 3:6] = torch.tensor([[3.1, 0.4, -3.1], [0.2, -1.0, 2.0]])
+    pose[:, 6:] = torch.linspace(0, 1, 22)
+    back = features_to_pose(pose_to_features(pose))
+    assert torch.allclose(back[:, :3], pose[:, :3], atol=1e-6) and torch.allclose(back[:, 6:], pose[:, 6:])
+    assert torch.allclose(euler_xyz_to_matrix(back[:, 3:6]), euler_xyz_to_matrix(pose[:, 3:6]), atol=1e-5)
+    wrapped = pose.clone()
+    wrapped[:, 3] -= 2 * math.pi  # the same rotation, Euler angle wrapped
+    assert float(reconstruction_error(pose_to_features(wrapped), pose_to_features(pose)).max()) < 1e-10
+    turned = pose.clone()
+    turned[:, 5] += 0.5
+    assert float(reconstruction_error(pose_to_features(turned), pose_to_features(pose)).min()) > 1e-3
+
+
+def test_kl_is_zero_at_the_prior_only():
+    assert float(kl_divergence(torch.zeros(1, 4), torch.zeros(1, 4))) == 0.0
+    assert float(kl_divergence(torch.ones(1, 4), torch.zeros(1, 4))) == pytest.approx(2.0)
+
+
+def test_batchnorm_needs_several_clouds_per_batch():
+    with pytest.raises(ValueError, match="clouds_per_batch"):
+        TrainConfig(clouds_per_batch=1, model=ModelConfig(normalization="batch"))
+    TrainConfig(clouds_per_batch=2, model=ModelConfig(normalization="batch"))
+
+
+def test_associated_point_is_the_point_nearest_the_ray():
+    points = torch.tensor([[[0.0, 0.0, -1.0], [1.0, 0.5, 0.0], [2.0, 0.1, 0.0], [0.5, 2.0, 0.0]]])
+    origin, direction = torch.zeros(1, 3), torch.tensor([[1.0, 0.0, 0.0]])
+    assert int(nearest_to_ray(points, origin, direction)) == 2  # point behind the origin does not count
+
+
+def test_grasp_ray_points_from_the_palm_toward_the_fingertips(hand, make_grasps):
+    grasps = make_grasps(hand, 8, seed=0)
+    origin, direction = grasp_rays(hand, torch.as_tensor(grasps.hand_pose))
+    # For poses built with the object in front of the palm, the ray passes near the object centre.
+    along = (-origin * direction).sum(-1)
+    off_ray = (-origin - along[:, None] * direction).norm(dim=-1)
+    assert bool((along > 0).all()) and bool((off_ray < torch.as_tensor(grasps.scale)).all())
+    assert torch.allclose(direction.norm(dim=-1), torch.ones(8))
+
+
+def test_cloud_batches_cover_each_grasp_once_with_few_clouds_each():
+    object_id = np.array(["a"] * 10 + ["b"] * 7 + ["c"] * 3, dtype=object)
+    scale = np.array([0.1] * 5 + [0.08] * 5 + [0.1] * 10, dtype=np.float32)
+    keys = cloud_keys(object_id, scale)
+    assert len(set(keys.tolist())) == 4
+    batches = cloud_batches(keys, np.arange(20), batch_size=8, clouds_per_batch=2, rng=np.random.default_rng(0))
+    seen = np.concatenate([np.concatenate(chunks) for chunks in batches])
+    assert sorted(seen.tolist()) == list(range(20))
+    for chunks in batches:
+        assert len(chunks) <= 2 and all(len(set(keys[c].tolist())) == 1 and len(c) <= 4 for c in chunks)
+        batch = make_batch(chunks, keys, np.zeros(20, np.int64), scale, "cpu")
+        assert len(batch.cloud_object) == len(set(keys[batch.grasp_index].tolist()))
+        assert torch.equal(torch.as_tensor(keys[batch.grasp_index]), torch.as_tensor(np.unique(keys[batch.grasp_index]))[batch.cloud_index])
+
+
+def test_validation_split_is_seeded_and_disjoint():
+    train, val = split_validation(50, 0.2, seed=3)
+    assert len(val) == 10 and not set(train) & set(val) and len(train) + len(val) == 50
+    assert np.array_equal(split_validation(50, 0.2, seed=3)[1], val)
