@@ -51,7 +51,7 @@ def post_store(path, n: int, iterations: int, rng, decay: float):
         "hand_pose": grasp_poses(n, rng),
         "object_id": np.full(n, OBJECT_ID, dtype=object),
         "scale": np.full(n, 0.06, np.float32),
-        "energy_trace": e_fc + 0.1,
+        "trace_E_post": e_fc + 0.1,
         "trace_E_fc": e_fc,
         "trace_E_dis": np.full((n, iterations), 0.001),
         "trace_E_pen": np.zeros((n, iterations)),

@@ -58,7 +58,7 @@ def tiny_run(tmp_path_factory, tiny_objects):
     )  # fmt: skip
     shard1 = simulated_shard(root / "sim_001.zarr", {"cvae_post": [True]}, rng, {"methods_without_input": ["dexgraspnet", "random_post"]})
     post = post_store(root / "post.zarr", 6, 21, rng, decay=0.2)  # E_fc < 0.3 from t = 7 (iteration 70)
-    random_post = post_store(root / "random.zarr", 6, 21, rng, decay=0.05)  # from t = 25: never within 21
+    random_post = post_store(root / "random.zarr", 6, 21, rng, decay=0.045)  # from t = 27: never within 21
     eval_dir = root / "eval"
     cfg = json.dumps({"evaluate": {"methods": ["seed", "cvae_post", "random_post", "dexgraspnet"], "rendered_per_method": 1}})
     common = ["--objects", str(tiny_objects), "--config-json", cfg]
@@ -82,6 +82,11 @@ def test_metrics_csv_from_tiny_run(tiny_run):
     assert table.loc["cvae_post", "threshold_reached_fraction"] == 1.0
     assert table.loc["cvae_post", "threshold_iteration_median"] == 70
     assert table.loc["random_post", "threshold_reached_fraction"] == 0.0
+    # random init ends at median E_post exp(-0.9) + 0.1; the CVAE start gets there at t = 5 (iteration 50)
+    assert table.loc["random_post", "E_post_median_final"] == pytest.approx(np.exp(-0.9) + 0.1, rel=1e-5)  # CSV keeps 6 digits
+    assert table.loc["cvae_post", "iterations_to_random_final_E_post"] == 50
+    assert table.loc["random_post", "iterations_to_random_final_E_post"] == 200
+    assert np.isnan(table.loc["seed", "iterations_to_random_final_E_post"])
     per_object = pd.read_csv(eval_dir / "per_object.csv")
     assert per_object[["method", "object_id", "n_grasps"]].values.tolist() == [["seed", OBJECT_ID, 4], ["cvae_post", OBJECT_ID, 4]]
     curves = pd.read_csv(eval_dir / "convergence.csv")

@@ -36,6 +36,10 @@ log = logging.getLogger(__name__)
 
 METHODS = ("seed", "cvae_raw", "cvae_post", "random_post", "dexgraspnet")
 SELECTED_ARRAYS = ("hand_pose", "object_id", "scale")
+CONVERGENCE_COLUMNS = (
+    "threshold_reached_fraction", "threshold_iteration_median", "E_post_median_initial", "E_post_median_final",
+    "iterations_to_random_final_E_post",
+)  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -98,13 +102,14 @@ def select_grasps(grasps: GraspSet, method: str, split_of: Mapping[str, str], cf
 def method_grasps(method: str, sources: Sequence[GraspSet]) -> GraspSet:
     """Concatenate one method's source stores, keeping only the rows that belong to it.
 
-    The sample stores hold both pure syntheses on held-out objects (``method == cvae_raw``)
-    and dataset expansion on train objects; only the former are the ``cvae_raw`` method.
+    The sample (and post) stores hold both pure syntheses on held-out objects (``method ==
+    cvae_raw``) and dataset expansion on train objects; only the former are the
+    ``cvae_raw`` method, and their refined versions the ``cvae_post`` method.
     """
     parts = []
     for source in sources:
         subset = source
-        if method == "cvae_raw" and "method" in source.arrays:
+        if method in ("cvae_raw", "cvae_post") and "method" in source.arrays:
             subset = source.select(np.asarray([str(m) for m in source.arrays["method"]]) == "cvae_raw")
         parts.append(GraspSet({k: subset.arrays[k] for k in SELECTED_ARRAYS}, subset.attrs))
     return GraspSet.concatenate(parts, attrs={})
@@ -198,7 +203,21 @@ def convergence_rows(method: str, post_sets: Sequence[GraspSet], split_of: Mappi
         summary = metrics.convergence_summary(metrics.first_iteration_meeting(stacked), iterations)
     else:
         summary = {"threshold_reached_fraction": math.nan, "threshold_iteration_median": math.nan}
+    if "E_post" in stacked and len(stacked["E_post"]):
+        median = np.nanmedian(stacked["E_post"], axis=0)
+        summary.update({"E_post_median_initial": float(median[0]), "E_post_median_final": float(median[-1])})
     return rows, summary
+
+
+def iterations_to_reach(curves, method: str, level: float) -> float:
+    """First recorded iteration at which a method's median E_post is at or below ``level`` (NaN if never).
+
+    With ``level`` = the random-init baseline's final median, this compares convergence
+    speed: random init needs its whole budget to get there, a better init fewer steps.
+    """
+    frame = curves[(curves["method"] == method) & (curves["energy"] == "E_post")].sort_values("iteration")
+    below = frame[frame["median"] <= level]
+    return float(below["iteration"].iloc[0]) if len(below) and math.isfinite(level) else math.nan
 
 
 def metrics_tables(
@@ -225,7 +244,7 @@ def metrics_tables(
             row["seconds_per_grasp"] = sum(stage_times.values()) if stage_times else math.nan
             row["seconds_per_grasp_by_stage"] = ";".join(f"{k}={v:.4g}" for k, v in stage_times.items())
             row["simulation_seconds_per_grasp"] = sim_seconds_per_grasp
-            row.update(convergence.get(method, {"threshold_reached_fraction": math.nan, "threshold_iteration_median": math.nan}))
+            row.update({name: convergence.get(method, {}).get(name, math.nan) for name in CONVERGENCE_COLUMNS})
             rows.append(row)
             for object_row in metrics.per_object_rows(subset) if mask.any() else []:
                 object_rows.append({"method": method, "split": split, **object_row})

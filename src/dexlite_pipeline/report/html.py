@@ -34,7 +34,7 @@ TABLE_COLUMNS = (
     "method", "split", "n_grasps", "n_objects", "lift_success_rate", "object_success_rate", "six_dir_success_rate",
     "penetration_mean_mm", "penetration_p95_mm", "contact_distance_mean_mm", "E_fc_mean", "energy_threshold_pass_rate",
     "joint_entropy_bits", "pca_explained_variance_k1", "pca_explained_variance_k3", "seconds_per_grasp",
-    "threshold_reached_fraction", "threshold_iteration_median",
+    "E_post_median_final", "iterations_to_random_final_E_post", "threshold_reached_fraction",
 )  # fmt: skip
 HISTOGRAMS = (("E_fc", "E_fc", False), ("penetration_mm", "penetration (mm)", False), ("contact_distance_mm", "contact distance (mm)", False))
 

@@ -133,7 +133,7 @@ def _aggregate(args, config: dict) -> int:
     from dexlite_pipeline.hand import ShadowHand
     from dexlite_pipeline.io.atomic import atomic_path
     from dexlite_pipeline.io.grasp_store import GraspSet, read_grasp_store
-    from dexlite_pipeline.report.evaluation import convergence_rows, evaluate_config_from, metrics_tables
+    from dexlite_pipeline.report.evaluation import convergence_rows, evaluate_config_from, iterations_to_reach, metrics_tables
 
     import pandas as pd
 
@@ -159,10 +159,13 @@ def _aggregate(args, config: dict) -> int:
             rows, summary = convergence_rows(method, [read_grasp_store(p) for p in paths], split_of, cfg.splits)
             curve_rows += rows
             convergence[method] = summary
+    curves = pd.DataFrame(curve_rows, columns=["method", "energy", "iteration", "q25", "median", "q75"])
+    baseline_final = convergence.get("random_post", {}).get("E_post_median_final", math.nan)
+    for method, summary in convergence.items():
+        summary["iterations_to_random_final_E_post"] = iterations_to_reach(curves, method, baseline_final)
     joint_limits = ShadowHand().joint_limits.cpu().numpy()
     metrics_df, per_object_df = metrics_tables(simulated, joint_limits, cfg, seconds, convergence, sim_seconds)
     out_dir = Path(args.out_dir)
-    curves = pd.DataFrame(curve_rows, columns=["method", "energy", "iteration", "q25", "median", "q75"])
     for name, frame in (("metrics.csv", metrics_df), ("per_object.csv", per_object_df), ("convergence.csv", curves)):
         with atomic_path(out_dir / name) as tmp:
             frame.to_csv(tmp, index=False, float_format="%.6g")
