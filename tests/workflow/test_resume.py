@@ -97,6 +97,13 @@ def test_killed_run_resumes_without_recomputing_finished_shards(complete_run, tm
     for path in unfinished.values():
         assert not path.exists() or path.stat().st_mtime < started, f"{path} was written by a killed job"
 
+    # What a job killed while writing leaves: a temporary sibling (planted here too, so the
+    # check does not depend on when the kill landed). It must never count as the output.
+    unfinished_path = sorted(unfinished.values())[0]
+    planted = unfinished_path.with_name(f".{unfinished_path.name}.tmp-0000dead")
+    planted.mkdir(parents=True, exist_ok=True)
+    (planted / "zarr.json").write_text("{}")
+
     run_snakemake(workdir, "--unlock")
     resumed = run_snakemake(workdir, *local_run_args(), "--rerun-incomplete", "all")
 
