@@ -7,6 +7,7 @@
 # depends on its outputs. Resources (threads, memory, runtime, GPUs) are NOT set here or
 # in the rules: they live in the profiles (profiles/local, profiles/slurm).
 import json
+import os
 from pathlib import Path
 
 from snakemake.utils import validate
@@ -20,7 +21,9 @@ RESULTS = "results"
 LOGS = "logs"
 SHARDS = [f"{i:03d}" for i in range(int(config["shards"]))]
 # The conda environment every rule declares; used only with `--sdm conda` (see README).
+# Its post-deploy script installs the checkout named by DEXLITE_SOURCE: this one.
 CONDA_ENV = str(Path(workflow.basedir) / "envs" / "dexlite.yaml")
+os.environ.setdefault("DEXLITE_SOURCE", str(workflow.basedir))
 
 
 wildcard_constraints:
