@@ -9,6 +9,7 @@ import pytest
 from numpy.lib import format as npy_format
 
 from dexlite_pipeline.cli import main as dexlite
+from dexlite_pipeline.hand import JOINT_NAMES
 from dexlite_pipeline.hand.qpos import qpos_from_hand_pose
 from dexlite_pipeline.io.dexgraspnet import DexGraspNetConfig, import_dexgraspnet, load_decomposed_mesh, object_split
 from dexlite_pipeline.io.grasp_store import read_grasp_store
@@ -192,16 +193,23 @@ def test_split_is_seeded_per_object_and_honours_the_heldout_list():
     assert {object_split(c, DexGraspNetConfig(), seed=1) for c in codes} == {"train"}
 
 
-def test_real_sample_imports_whole_with_correct_sdf_sign(dexgraspnet_sample, tmp_path):
+@pytest.fixture(scope="module")
+def imported_sample(dexgraspnet_sample, tmp_path_factory):
+    """The real sample imported once at a coarse grid (the result, and its objects dir)."""
+    objects = tmp_path_factory.mktemp("sample_objects")
+    settings = AssetBuildSettings(sdf_resolution=40, sdf_padding=0.2, surface_points=2000)
+    return import_dexgraspnet(dexgraspnet_sample, objects, settings, DexGraspNetConfig(), seed=0), objects
+
+
+def test_real_sample_imports_whole_with_correct_sdf_sign(dexgraspnet_sample, imported_sample):
     import igl
     import trimesh
 
-    settings = AssetBuildSettings(sdf_resolution=40, sdf_padding=0.2, surface_points=512)
-    result = import_dexgraspnet(dexgraspnet_sample, tmp_path / "objects", settings, DexGraspNetConfig(), seed=0)
+    result, objects = imported_sample
     assert len(result.grasps) == 494 and result.problems == []
     rng = np.random.default_rng(0)
     for object_id in sorted(set(result.grasps.object_id)):
-        asset = load_asset(tmp_path / "objects", object_id)
+        asset = load_asset(objects, object_id)
         soup = trimesh.load(dexgraspnet_sample / "meshdata" / object_id / "coacd" / "decomposed.obj", force="mesh", process=False)
         idx = rng.integers(0, asset.sdf.shape[0], size=(2000, 3))
         points = asset.grid_min + idx * asset.voxel_size
@@ -210,3 +218,19 @@ def test_real_sample_imports_whole_with_correct_sdf_sign(dexgraspnet_sample, tmp
         clear = np.abs(values) > 1e-3  # away from the surface
         assert inside_some_piece.any() and (~inside_some_piece).any()
         np.testing.assert_array_equal(values[clear] > 0, inside_some_piece[clear])
+
+
+def test_real_sample_grasps_barely_penetrate(imported_sample):
+    """The makers filtered these grasps at 1 mm: a frame or conversion error shows up as deep penetration."""
+    from dexlite_pipeline.energy import evaluate_grasp_energies
+
+    result, objects = imported_sample
+    penetration_mm = evaluate_grasp_energies(result.grasps, [objects])["penetration_mm"]
+    assert np.median(penetration_mm) <= 1.5
+    # control: the same grasps with the four fingers closed through the object
+    closed = result.grasps.select(np.arange(0, 494, 8))
+    finger_flexion = [6 + i for i, name in enumerate(JOINT_NAMES) if name[-2:] in ("J2", "J1", "J0") and "TH" not in name]
+    assert len(finger_flexion) == 12
+    closed.arrays["hand_pose"] = closed.hand_pose.copy()
+    closed.hand_pose[:, finger_flexion] = 1.571
+    assert np.median(evaluate_grasp_energies(closed, [objects])["penetration_mm"]) > 3.0
