@@ -13,6 +13,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import torch
 
+from dexlite_pipeline.energy.link_map import LinkFrameMap
+from dexlite_pipeline.energy.sdf import sample_signed_distance
 from dexlite_pipeline.energy.terms import (
     ContactDistanceTerm,
     ForceClosureTerm,
@@ -87,6 +89,7 @@ class GraspEnergy:
         self.contact_distance = ContactDistanceTerm()
         self.joint_limits = JointLimitTerm(hand.joint_limits)
         self.self_penetration = SelfPenetrationTerm(hand, self_penetration_margin_m)
+        self.candidate_map = LinkFrameMap.for_points(hand.contact_points_local, hand.contact_link, len(hand.link_names))
         self.penetration = PenetrationTerm(hand, sdf_bank, object_points.to(self.device, hand.dtype))
 
     @classmethod
@@ -108,11 +111,8 @@ class GraspEnergy:
     # ------------------------------------------------------------------ contacts
     def contact_points(self, frames: HandFrames, contact_index: torch.Tensor) -> torch.Tensor:
         """(B, 4, 3) object-frame positions of the chosen contact candidates."""
-        local = self.hand.contact_points_local[contact_index]
-        link = self.hand.contact_link[contact_index]
-        rows = torch.arange(contact_index.shape[0], device=contact_index.device)[:, None]
-        rot = frames.rotation[rows, link]
-        return (rot * local[..., None, :]).sum(-1) + frames.translation[rows, link]
+        candidates = self.candidate_map(frames)
+        return torch.gather(candidates, 1, contact_index[..., None].expand(-1, -1, 3))
 
     def nearest_contacts(self, frames: HandFrames, object_index: torch.Tensor, scale: torch.Tensor) -> torch.Tensor:
         """(B, 4) indices of the four candidates closest to the object surface (smallest |d|).
@@ -121,8 +121,8 @@ class GraspEnergy:
         the contacts a grasp actually makes are the pad points lying on the surface.
         """
         with torch.no_grad():
-            candidates = self.hand.contact_candidates(frames)
-            distance, _ = self.bank.signed_distance(candidates, object_index, scale)
+            candidates = self.candidate_map(frames)
+            distance, _ = sample_signed_distance(self.bank, candidates, object_index[:, None], scale[:, None])
             return distance.abs().topk(CONTACT_COUNT, dim=1, largest=False).indices
 
     # -------------------------------------------------------------------- energy
@@ -152,7 +152,7 @@ class GraspEnergy:
         if contact_index is None:
             contact_index = self.nearest_contacts(frames, object_index, scale)
         points = self.contact_points(frames, contact_index)
-        distance, normal = self.bank.signed_distance(points, object_index, scale)
+        distance, normal = sample_signed_distance(self.bank, points, object_index[:, None], scale[:, None])
         penetration = self.penetration(frames, object_index, scale)
         terms = {
             "E_fc": self.force_closure(points, normal),

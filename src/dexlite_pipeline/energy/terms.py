@@ -13,6 +13,9 @@ from dataclasses import dataclass
 import torch
 
 from dexlite_pipeline.hand.model import CAPSULE, HandFrames, ShadowHand
+from dexlite_pipeline.energy.sdf import sample_signed_distance
+from dexlite_pipeline.energy.link_map import LinkFrameMap
+from dexlite_pipeline.energy.spheres import build_hand_spheres
 from dexlite_pipeline.objects.assets import SdfBank
 
 
@@ -53,12 +56,17 @@ class SelfPenetrationTerm:
         self.hand = hand
         self.margin_m = margin_m
         self.pairs = torch.triu(hand.keypoint_pair_mask, diagonal=1).nonzero(as_tuple=True)
+        self.keypoint_map = LinkFrameMap.for_points(hand.keypoints_local, hand.keypoint_link, len(hand.link_names))
 
     def __call__(self, frames: HandFrames) -> torch.Tensor:
-        keypoints = self.hand.penetration_keypoints(frames)
-        diff = keypoints[:, self.pairs[0]] - keypoints[:, self.pairs[1]]
-        distance = (diff.square().sum(-1) + 1e-12).sqrt()
-        return torch.relu(self.margin_m - distance).sum(dim=-1)
+        return self.penalty(self.keypoint_map(frames), self.pairs, self.margin_m)
+
+    @staticmethod
+    def penalty(keypoints: torch.Tensor, pairs: tuple[torch.Tensor, torch.Tensor], margin_m: float) -> torch.Tensor:
+        """Σ over the listed pairs (i, j) of max(0, margin − ‖p_i − p_j‖) for keypoints (B, K, 3)."""
+        diff = keypoints[:, pairs[0]] - keypoints[:, pairs[1]]
+        distance = (diff.square().sum(-1) + 1e-18).sqrt()
+        return torch.relu(margin_m - distance).sum(dim=-1)
 
 
 @dataclass
@@ -78,66 +86,79 @@ def shape_signed_distance(local: torch.Tensor, kind: torch.Tensor, size: torch.T
     half = size[..., 1]
     z_clamped = torch.maximum(torch.minimum(local[..., 2], half), -half)
     axis_offset = torch.stack([local[..., 0], local[..., 1], local[..., 2] - z_clamped], dim=-1)
-    capsule_sd = size[..., 0] - (axis_offset.square().sum(-1) + 1e-12).sqrt()
+    capsule_sd = size[..., 0] - (axis_offset.square().sum(-1) + 1e-18).sqrt()
     q = local.abs() - size
-    outside = (q.clamp(min=0).square().sum(-1) + 1e-12).sqrt()
+    outside = (q.clamp(min=0).square().sum(-1) + 1e-18).sqrt()
     inside = q.max(dim=-1).values.clamp(max=0)
     box_sd = -(outside + inside)
     return torch.where(kind == CAPSULE, capsule_sd, box_sd)
 
 
 class PenetrationTerm:
-    """E_pen: depth of object surface points inside the hand plus depth of hand surface points inside the object.
+    """E_pen: depth of object surface points inside the hand plus depth of hand spheres inside the object.
 
     Object points in the hand's capsules and boxes is DexGraspNet's E_pen; it is capped by
     a link's radius and blind to a link buried wholly inside the object, so the hand's
-    surface points against the object's SDF are added (DESIGN.md, "penetration").
+    sphere model against the object's SDF is added (Σ max(0, d(c) + r), DESIGN.md).
 
-    Exact culling keeps it cheap: a shape whose centre is farther from the object than
-    its bounding radius (plus one voxel diagonal for the grid's interpolation error)
-    cannot touch it and is skipped; an object point farther from a shape's centre than
-    that radius cannot be inside it. Depths are found without autograd, and only the
-    points actually inside are re-evaluated with gradients, so backward stays small.
+    Exact culling keeps it cheap. Every sphere's depth is found first without autograd; a
+    shape can hold object points only if one of its spheres reaches the object within the
+    shape's covering gap plus one voxel diagonal (the bound on the trilinear grid's error),
+    so all other shapes are skipped, and an object point farther from a shape's centre
+    than its bounding radius is never tested. Only the spheres and points actually inside
+    are re-evaluated with gradients, so backward stays small.
     """
 
     def __init__(self, hand: ShadowHand, sdf_bank: SdfBank, object_points: torch.Tensor) -> None:
         self.hand = hand
         self.bank = sdf_bank
         self.object_points = object_points  # (n_objects, P, 3), normalized frame
+        # [p, |p|²] per point: squared distances to centres c are then one product with [−2c, 1].
+        self.object_points_aug = torch.cat([object_points, object_points.square().sum(-1, keepdim=True)], dim=-1)
         self.radius = hand.shape_bounding_radius
         self.voxel_diagonal = sdf_bank.voxel_size * 3**0.5  # normalized units, per object
+        self.spheres = build_hand_spheres(hand)
         link_count = len(hand.link_names)
-        self.shape_to_link = torch.nn.functional.one_hot(hand.shape_link, link_count).to(hand.dtype)  # (S, L)
-
-    def active_shapes(self, shape_centre: torch.Tensor, object_index: torch.Tensor, scale: torch.Tensor) -> torch.Tensor:
-        """(B, S) bool: shapes that may touch the object (exact test, see class doc)."""
-        with torch.no_grad():
-            centre_depth, _ = self.bank.signed_distance(shape_centre, object_index, scale)
-            margin = (self.voxel_diagonal[object_index] * scale)[:, None]
-            return -centre_depth < self.radius[None, :] + margin
+        self.sphere_map = LinkFrameMap.for_points(self.spheres.centre_local, self.spheres.link, link_count)
+        self.shape_map = LinkFrameMap.for_frames(hand.shape_rot, hand.shape_pos, hand.shape_link, link_count)
 
     def __call__(self, frames: HandFrames, object_index: torch.Tensor, scale: torch.Tensor) -> PenetrationResult:
-        shape_rot, shape_centre = self.hand.shape_frames(frames)
-        active = self.active_shapes(shape_centre.detach(), object_index, scale)
-        obj_energy, obj_max = self._object_in_hand(shape_rot, shape_centre, active, object_index, scale)
-        hand_energy, hand_max = self._hand_in_object(frames, active, object_index, scale)
+        batch = object_index.shape[0]
+        radius = self.spheres.radius
+        centre = self.sphere_map(frames)  # (B, K, 3)
+        with torch.no_grad():
+            distance, _ = sample_signed_distance(self.bank, centre.detach(), object_index[:, None], scale[:, None], with_normal=False)
+            sphere_depth = distance + radius
+            shape_reach = sphere_depth.new_full((batch, len(self.radius)), -torch.inf)
+            shape_reach = shape_reach.scatter_reduce(1, self.spheres.shape.expand(batch, -1), sphere_depth, "amax")
+            margin = (self.voxel_diagonal[object_index] * scale)[:, None] + self.spheres.shape_gap[None, :]
+            active = shape_reach > -margin
+        b, k = (sphere_depth > 0).nonzero(as_tuple=True)
+        distance, _ = sample_signed_distance(self.bank, centre[b, k], object_index[b], scale[b], with_normal=False)
+        hand_energy = distance.new_zeros(batch).index_add(0, b, distance + radius[k])
+        hand_max = sphere_depth.max(dim=1).values.clamp(min=0)
+        obj_energy, obj_max = self._object_in_hand(self.shape_map(frames), active, object_index, scale)
         return PenetrationResult(obj_energy + hand_energy, obj_max, hand_max)
 
-    def _object_in_hand(self, shape_rot, shape_centre, active, object_index, scale):
-        batch = shape_centre.shape[0]
+    def _object_in_hand(self, shape_frames, active, object_index, scale):
+        """Σ over object points of their depth inside the active shapes (deepest shape per point)."""
+        batch = shape_frames.shape[0]
         point_count = self.object_points.shape[1]
         pair_b, pair_s = active.nonzero(as_tuple=True)
-        cand_pair, cand_point = self._candidates_near_shapes(shape_centre.detach(), pair_b, pair_s, object_index, scale)
-        b, s = pair_b[cand_pair], pair_s[cand_pair]
-        points = self.object_points[object_index[b], cand_point] * scale[b, None]
+        frame = shape_frames[pair_b, pair_s]  # (A, 3, 4): [R | c]
+        rot_t = frame[:, :, :3].transpose(1, 2)
+        # Affine map from the normalized object frame to each pair's shape frame: Rᵀ (s·p − c).
+        to_local = torch.cat([rot_t * scale[pair_b, None, None], -(rot_t @ frame[:, :, 3:])], dim=2)
+        cand_pair, cand_point = self._candidates_near_shapes(frame[:, :, 3].detach(), pair_b, pair_s, object_index, scale)
+        points = self.object_points[object_index[pair_b[cand_pair]], cand_point]
         with torch.no_grad():
-            depth = self._depth_in_shape(points, shape_rot.detach()[b, s], shape_centre.detach()[b, s], s)
+            depth = self._depth_in_shape(to_local.detach()[cand_pair], points, pair_s[cand_pair])
             inside = depth > 0
-        b, s, points, cand_point = b[inside], s[inside], points[inside], cand_point[inside]
-        depth = self._depth_in_shape(points, shape_rot[b, s], shape_centre[b, s], s)
+        cand_pair, cand_point, points = cand_pair[inside], cand_point[inside], points[inside]
+        depth = self._depth_in_shape(to_local[cand_pair], points, pair_s[cand_pair])
         # A point inside several shapes counts once, at its deepest.
-        per_point = depth.new_zeros(batch * point_count).scatter_reduce(0, b * point_count + cand_point, depth, "amax")
-        per_point = per_point.reshape(batch, point_count)
+        key = pair_b[cand_pair] * point_count + cand_point
+        per_point = depth.new_zeros(batch * point_count).scatter_reduce(0, key, depth, "amax").reshape(batch, point_count)
         return per_point.sum(-1), per_point.detach().max(-1).values
 
     def _candidates_near_shapes(self, centre, pair_b, pair_s, object_index, scale):
@@ -147,9 +168,10 @@ class PenetrationTerm:
         for obj in torch.unique(pair_object).tolist():
             sel = (pair_object == obj).nonzero(as_tuple=True)[0]
             pair_scale = scale[pair_b[sel]]
-            centre_normalized = centre[pair_b[sel], pair_s[sel]] / pair_scale[:, None]
-            reach = (self.radius[pair_s[sel]] / pair_scale)[:, None]
-            near = torch.cdist(centre_normalized, self.object_points[obj]) < reach
+            c = centre[sel] / pair_scale[:, None]
+            reach = self.radius[pair_s[sel]] / pair_scale
+            c_aug = torch.cat([-2 * c, torch.ones_like(c[:, :1])], dim=1)
+            near = (c_aug @ self.object_points_aug[obj].T) < (reach.square() - c.square().sum(-1))[:, None]
             local_pair, point = near.nonzero(as_tuple=True)
             pairs.append(sel[local_pair])
             points.append(point)
@@ -158,25 +180,6 @@ class PenetrationTerm:
             return empty, empty
         return torch.cat(pairs), torch.cat(points)
 
-    def _depth_in_shape(self, points, rot, centre, shape):
-        local = ((points - centre)[..., :, None] * rot).sum(-2)  # Rᵀ (x − c)
+    def _depth_in_shape(self, to_local, points, shape):
+        local = (to_local[:, :, :3] * points[:, None, :]).sum(-1) + to_local[:, :, 3]
         return shape_signed_distance(local, self.hand.shape_kind[shape], self.hand.shape_size[shape])
-
-    def _hand_in_object(self, frames, active, object_index, scale):
-        batch = active.shape[0]
-        link_active = (active.to(self.shape_to_link.dtype) @ self.shape_to_link) > 0
-        b, i = link_active[:, self.hand.surface_link].nonzero(as_tuple=True)
-        with torch.no_grad():
-            depth = self._surface_point_depth(frames.rotation.detach(), frames.translation.detach(), b, i, object_index, scale)
-            inside = depth > 0
-        max_depth = depth.new_zeros(batch).scatter_reduce(0, b[inside], depth[inside], "amax")
-        b, i = b[inside], i[inside]
-        depth = self._surface_point_depth(frames.rotation, frames.translation, b, i, object_index, scale)
-        energy = depth.new_zeros(batch).index_add(0, b, depth)
-        return energy, max_depth
-
-    def _surface_point_depth(self, rotation, translation, b, i, object_index, scale):
-        link = self.hand.surface_link[i]
-        points = (rotation[b, link] * self.hand.surface_points_local[i][:, None, :]).sum(-1) + translation[b, link]
-        depth, _ = self.bank.signed_distance(points[:, None, :], object_index[b], scale[b])
-        return depth[:, 0]
