@@ -103,3 +103,24 @@ def test_report_is_self_contained_with_pictures(tiny_run):
     assert all(base64.b64decode(b)[:8] == b"\x89PNG\r\n\x1a\n" for b in images)
     for needle in ("seed", "cvae_post", "friction", "object_mass_kg", "lift success ≈ 55%", "failure"):
         assert needle in text
+
+
+def test_simulate_step_on_tiny_object(tmp_path, tiny_objects):
+    """The per-shard step: selection, energies and the MuJoCo lift test, one store out."""
+    from dexlite_pipeline.io.grasp_store import read_grasp_store, write_grasp_store
+    from report_synthetic import grasp_poses
+
+    rng = np.random.default_rng(1)
+    seed_store = tmp_path / "seed.zarr"
+    ids = [OBJECT_ID] * 3 + ["train_obj"] * 2
+    write_grasp_store(seed_store, GraspSet({"hand_pose": grasp_poses(5, rng), "object_id": np.asarray(ids, dtype=object), "scale": np.full(5, 0.06, np.float32)}), {"seconds_per_grasp": 2.0})
+    out = tmp_path / "sim.zarr"
+    cfg = json.dumps({"seed": 0, "shards": 1, "device": "cpu", "evaluate": {"grasps_per_object": 2, "six_directions": False}})
+    assert main(["evaluate", "--step", "simulate", "--shard", "0", "--config-json", cfg, "--seed", str(seed_store), "--objects", str(tiny_objects), "--out", str(out)]) == 0
+    result = read_grasp_store(out)
+    assert len(result) == 2 and set(result.object_id) == {OBJECT_ID}
+    for name in ("lift_success", "failure_reason", "E_fc", "penetration_mm", "contact_distance_mm"):
+        assert name in result.arrays
+    assert result.attrs["lift_config"]["six_directions"] is False
+    assert result.attrs["method_seconds_per_grasp"] == {"seed": {"seed": 2.0}}
+    assert set(result.attrs["methods_without_input"]) == {"cvae_raw", "cvae_post", "random_post", "dexgraspnet"}
