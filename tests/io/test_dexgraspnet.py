@@ -178,6 +178,22 @@ def test_cli_writes_store_catalog_and_report(layout, tmp_path):
     assert load_asset(tmp_path / "res" / "objects", "box").sdf.shape == (24, 24, 24)
 
 
+def test_export_reports_missing_assets_and_refuses_unsafe_ids(tmp_path, capsys):
+    from dexlite_pipeline.io.grasp_store import GraspSet, write_grasp_store
+
+    poses = random_poses(2).astype(np.float32)
+    ok = GraspSet({"hand_pose": poses, "object_id": np.array(["mug", "mug"], dtype=object), "scale": np.full(2, 0.1, np.float32)})
+    write_grasp_store(tmp_path / "ok.zarr", ok)
+    assert dexlite(["export-dexgraspnet", str(tmp_path / "ok.zarr"), str(tmp_path / "out"), "--objects", str(tmp_path / "none")]) == 0
+    assert "no prepared asset (mesh not exported) for: mug" in capsys.readouterr().out
+    assert (tmp_path / "out" / "dataset" / "mug.npy").is_file() and not (tmp_path / "out" / "meshdata").exists()
+    unsafe = GraspSet({**ok.arrays, "object_id": np.array(["mug", "../mug"], dtype=object)})
+    write_grasp_store(tmp_path / "unsafe.zarr", unsafe)
+    assert dexlite(["export-dexgraspnet", str(tmp_path / "unsafe.zarr"), str(tmp_path / "out2")]) == 2
+    assert "cannot be used as a DexGraspNet file name" in capsys.readouterr().err
+    assert not (tmp_path / "out2").exists()
+
+
 def test_missing_dataset_folder_is_a_clear_error(tmp_path, capsys):
     code = dexlite(["import-dexgraspnet", str(tmp_path), "--out", str(tmp_path / "g.zarr"), "--objects-out", str(tmp_path / "o")])
     assert code == 2 and "dataset: no such folder" in capsys.readouterr().err

@@ -345,8 +345,9 @@ def export_dexgraspnet(grasps: GraspSet, out_dir: str | os.PathLike, objects_dir
     out_dir = Path(out_dir)
     object_ids = np.asarray([str(o) for o in grasps.object_id])
     missing_assets = []
+    for object_id in set(object_ids):
+        _check_file_name(object_id)  # all before writing anything
     for object_id in sorted(set(object_ids)):
-        _check_file_name(object_id)
         rows = np.nonzero(object_ids == object_id)[0]
         entries = np.empty(len(rows), dtype=object)
         for k, row in enumerate(rows):
