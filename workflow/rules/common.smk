@@ -51,6 +51,9 @@ def final_outputs():
     defined = {rule.name for rule in workflow.rules}
     if defined >= {"seed_grasps", "sample_grasps", "post_optimize", "evaluate", "report"}:
         outputs += [f"{RESULTS}/eval/metrics.csv", f"{RESULTS}/eval/per_object.csv", f"{RESULTS}/eval/report.html"]
+    # The curation summary (per object: kept and dropped per reason) once its inputs have rules.
+    if defined >= {"stability_filter", "seed_grasps", "curate_summary"}:
+        outputs.append(f"{RESULTS}/curate/summary.csv")
     return outputs
 
 
