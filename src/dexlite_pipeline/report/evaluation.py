@@ -18,7 +18,6 @@ simulated, chosen by a seeded permutation, so every method is weighted alike per
 
 from __future__ import annotations
 
-import dataclasses
 import hashlib
 import logging
 import math
@@ -251,6 +250,3 @@ def metrics_tables(
     per_object_columns = ["method", "split", "object_id", "n_grasps", "lift_success_rate", "six_dir_success_rate", "any_lift_success", "penetration_mean_mm"]
     return pd.DataFrame(rows), pd.DataFrame(object_rows, columns=per_object_columns)
 
-
-def config_attrs(cfg: EvaluateConfig) -> dict:
-    return dataclasses.asdict(cfg)

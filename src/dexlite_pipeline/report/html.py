@@ -36,7 +36,7 @@ TABLE_COLUMNS = (
     "joint_entropy_bits", "pca_explained_variance_k1", "pca_explained_variance_k3", "seconds_per_grasp",
     "E_post_median_final", "iterations_to_random_final_E_post", "threshold_reached_fraction",
 )  # fmt: skip
-HISTOGRAMS = (("E_fc", "E_fc", False), ("penetration_mm", "penetration (mm)", False), ("contact_distance_mm", "contact distance (mm)", False))
+HISTOGRAMS = (("E_fc", "E_fc"), ("penetration_mm", "penetration (mm)"), ("contact_distance_mm", "contact distance (mm)"))
 
 
 @dataclass
@@ -51,6 +51,7 @@ class ReportInputs:
     lift_config: Mapping = field(default_factory=dict)
     objects_dirs: Sequence[str] = ()
     rendered_per_method: int = 2
+    evaluate_settings: Mapping = field(default_factory=dict)
     title: str = "DexLite evaluation"
 
 
@@ -103,14 +104,14 @@ def histogram_plot(simulated: GraspSet | None) -> str | None:
     """Per-method histograms of E_fc, penetration and contact distance."""
     if simulated is None or len(simulated) == 0 or "method" not in simulated.arrays:
         return None
-    present = [(k, label, logx) for k, label, logx in HISTOGRAMS if k in simulated.arrays]
+    present = [(k, label) for k, label in HISTOGRAMS if k in simulated.arrays]
     if not present:
         return None
     plt = _plt()
     methods = np.asarray([str(m) for m in simulated.arrays["method"]])
     fig, axes = plt.subplots(1, len(present), figsize=(4.2 * len(present), 3.0))
     axes = np.atleast_1d(axes)
-    for ax, (key, label, _) in zip(axes, present):
+    for ax, (key, label) in zip(axes, present):
         values = np.asarray(simulated.arrays[key], dtype=np.float64)
         finite = values[np.isfinite(values)]
         if finite.size == 0:
@@ -263,6 +264,13 @@ def build_report_html(inputs: ReportInputs) -> str:
         "PCA: cumulative explained variance of the 22 joint angles (DexGraspBench; lower = more diverse). "
         "seconds_per_grasp sums the stages that made the method's grasps on this machine.</p>"
     )
+    settings = inputs.evaluate_settings
+    if settings:
+        sections.append(
+            f"<p class='note'>Evaluated object splits: {html.escape(', '.join(map(str, settings.get('splits', []))))}; "
+            f"at most {_format(settings.get('grasps_per_object', math.nan))} grasps per method and object (seeded choice); "
+            f"six-direction test: {'on' if settings.get('six_directions', True) else 'off'}.</p>"
+        )
     sections.append("<h2>Metrics</h2>" + metrics_table_html(inputs.metrics))
     ref_rows = "".join(f"<tr><td>{html.escape(a)}</td><td>{html.escape(b)}</td><td>{html.escape(c)}</td></tr>" for a, b, c in REFERENCE_ROWS)
     sections.append(f"<h2>Reference numbers</h2><table><thead><tr><th>source</th><th>result</th><th>hardware</th></tr></thead><tbody>{ref_rows}</tbody></table>")

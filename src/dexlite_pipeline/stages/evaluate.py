@@ -171,7 +171,7 @@ def _aggregate(args, config: dict) -> int:
             frame.to_csv(tmp, index=False, float_format="%.6g")
     lift_attrs = next((s.attrs.get("lift_config") for s in shards if s.attrs.get("lift_config")), {})
     with atomic_path(out_dir / "evaluation.json") as tmp:
-        tmp.write_text(json.dumps(_json_safe({"config": config, "lift_config": lift_attrs, "shards": [str(p) for p in args.sim]}), indent=2, sort_keys=True))
+        tmp.write_text(json.dumps(_json_safe({"config": config, "evaluate": dataclasses.asdict(cfg), "lift_config": lift_attrs, "shards": [str(p) for p in args.sim]}), indent=2, sort_keys=True))
     with_columns = ["method", "split", "n_grasps", "lift_success_rate", "six_dir_success_rate", "penetration_mean_mm", "seconds_per_grasp"]
     print(metrics_df[with_columns].to_string(index=False))
     return 0

@@ -50,6 +50,7 @@ def run(args: argparse.Namespace) -> int:
         lift_config=summary.get("lift_config") or {},
         objects_dirs=args.objects,
         rendered_per_method=cfg.rendered_per_method,
+        evaluate_settings=summary.get("evaluate") or {},
     )
     write_text_atomic(args.out, build_report_html(inputs))
     n_rendered = 0 if simulated is None else len(set(np.asarray(simulated.arrays.get("method", [])).tolist()))
