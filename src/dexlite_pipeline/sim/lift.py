@@ -1,0 +1,460 @@
+"""MuJoCo lift test (and DexGraspBench's six-direction test) of grasps, parallel over cores.
+
+Per grasp (DESIGN.md, "Physics tests"):
+
+1. Initial penetration, both ways (object surface points inside the hand's capsules and
+   boxes; hand surface points inside the object's SDF); deeper than
+   ``max_initial_penetration_m`` fails at once with reason ``initial_penetration``.
+2. Squeeze target (geometric): every finger with a link within
+   ``squeeze_contact_distance_m`` of the object moves its joints along the gradient that
+   pushes those links into the object, the largest joint change being ``squeeze_rad``;
+   other fingers keep their pose. The fingers start AT the grasp pose and their targets
+   ramp to the squeeze target (never start at the target: DexGraspNet's false positive).
+3. Close, hold, lift the hand ``lift_height_m`` in ``lift_s`` (smooth cosine profile, as a
+   robot arm would move, so no velocity step hits the grasp), hold; gravity along the
+   object frame's -z throughout. Lift ratio r = dz_object / dz_hand at the end; success
+   if r > ``success_lift_ratio``.
+
+An object that has provably left the hand (entirely below a sphere that holds the hand
+in any joint configuration, falling away from it, no contacts) can never touch the hand
+again, so the rest of its fall is ballistic: it is extrapolated with MuJoCo's own
+semi-implicit Euler update instead of simulated. The reported ratio equals that of a
+full simulation; dropped objects keep falling (there is no table), so their ratios are
+strongly negative.
+
+Six-direction test (optional): gravity off, fingers closed as above, then a force of
+``six_dir_force_per_kg_n`` x mass along +x, -x, +y, -y, +z, -z in turn, each from the same
+closed state (MuJoCo is deterministic, so restoring the saved state equals re-simulating
+the close), for ``six_dir_duration_s``; a direction passes if the object stays within
+``six_dir_max_translation_m`` and ``six_dir_max_rotation_deg`` (angle from |q_w|) of its
+initial pose throughout.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import os
+from collections import OrderedDict
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+from dexlite_pipeline.hand.model import JOINT_NAMES, JOINTS, ShadowHand
+from dexlite_pipeline.hand.rotation import euler_xyz_to_matrix
+from dexlite_pipeline.io.grasp_store import GraspSet, invalid_grasp_reasons
+from dexlite_pipeline.objects.assets import ObjectAsset, SdfBank, available_object_ids, load_asset
+from dexlite_pipeline.sim.config import LiftConfig
+from dexlite_pipeline.sim.scene import GRAVITY_MPS2, LiftScene
+
+log = logging.getLogger(__name__)
+
+DIRECTIONS = ("+x", "-x", "+y", "-y", "+z", "-z")
+DIRECTION_VECTORS = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], dtype=np.float64)
+FINGERS = ("ff", "mf", "rf", "lf", "th")
+TASK_GRASPS = 16  # grasps per worker task: small enough to balance cores, large enough to batch torch work
+PREP_BATCH = 8  # grasps per torch batch in the penetration / squeeze computations
+SCENE_CACHE = 8  # compiled scenes kept per worker
+# Radius (m) of a sphere about the palm origin that holds every hand collision shape in any joint configuration.
+HAND_REACH_M = 0.26
+
+
+@dataclass
+class LiftOutcome:
+    """Per-grasp results of one batch (arrays aligned with the batch)."""
+
+    lift_ratio: np.ndarray  # float32, NaN where not simulated
+    lift_success: np.ndarray  # bool
+    failure_reason: np.ndarray  # object (str), '' on success
+    initial_penetration_mm: np.ndarray  # float32
+    six_dir_translation_m: np.ndarray  # float32 (B, 6)
+    six_dir_rotation_deg: np.ndarray  # float32 (B, 6)
+
+    @classmethod
+    def empty(cls, count: int) -> "LiftOutcome":
+        return cls(
+            lift_ratio=np.full(count, np.nan, np.float32),
+            lift_success=np.zeros(count, bool),
+            failure_reason=np.full(count, "", dtype=object),
+            initial_penetration_mm=np.full(count, np.nan, np.float32),
+            six_dir_translation_m=np.full((count, 6), np.nan, np.float32),
+            six_dir_rotation_deg=np.full((count, 6), np.nan, np.float32),
+        )
+
+
+# --------------------------------------------------------------------------- geometry (torch)
+def _finger_masks(hand: ShadowHand) -> tuple[torch.Tensor, torch.Tensor]:
+    """(5, 22) joint membership and (5, L) link membership of the five fingers."""
+    joints = torch.tensor([[name.split(":")[1].lower().startswith(f) for name in JOINT_NAMES] for f in FINGERS])
+    links = torch.tensor([[name.split(":")[1].startswith(f) for name in hand.link_names] for f in FINGERS])
+    return joints.to(hand.device), links.to(hand.device)
+
+
+def initial_penetration_m(hand: ShadowHand, bank: SdfBank, asset: ObjectAsset, hand_pose: torch.Tensor, scale: torch.Tensor) -> torch.Tensor:
+    """(B,) deepest penetration between hand and object, the larger of both directions (metres, >= 0).
+
+    Object surface points inside the hand's collision shapes are capped by a link's radius
+    and blind to a link buried in the object; hand surface points inside the object's SDF
+    see that case. DESIGN.md: the larger of the two is the penetration.
+    """
+    index = bank.indices([asset.object_id] * hand_pose.shape[0])
+    frames = hand.forward(hand_pose)
+    object_points = torch.as_tensor(asset.surface_points, dtype=hand_pose.dtype, device=hand_pose.device)
+    object_points = object_points[None] * scale[:, None, None]
+    object_in_hand = hand.collision_signed_distance(frames, object_points).amax(dim=1)
+    hand_in_object, _ = bank.signed_distance(hand.surface_points(frames), index, scale)
+    return torch.maximum(object_in_hand, hand_in_object.amax(dim=1)).clamp(min=0.0)
+
+
+def squeeze_targets(hand: ShadowHand, bank: SdfBank, asset: ObjectAsset, hand_pose: torch.Tensor, scale: torch.Tensor, config: LiftConfig) -> torch.Tensor:
+    """(B, 22) joint targets a little past the grasp pose, pushing touching links into the object.
+
+    A link touches if its deepest surface point is within ``squeeze_contact_distance_m`` of
+    the object. Per finger with a touching link, the joints move along the gradient of the
+    summed depth of its touching links, scaled so the largest change is ``squeeze_rad``.
+    Targets are clamped to the joint limits.
+    """
+    finger_joints, finger_links = _finger_masks(hand)
+    joints = hand_pose[:, JOINTS].detach().clone().requires_grad_(True)
+    pose = torch.cat([hand_pose[:, :6].detach(), joints], dim=1)
+    index = bank.indices([asset.object_id] * hand_pose.shape[0])
+    depth, _ = bank.signed_distance(hand.surface_points(hand.forward(pose)), index, scale)
+    link_ids = hand.surface_link.expand_as(depth)
+    link_depth = torch.full((depth.shape[0], len(hand.link_names)), -math.inf, dtype=depth.dtype, device=depth.device)
+    link_depth = link_depth.scatter_reduce(1, link_ids, depth, reduce="amax", include_self=True)
+    touching = link_depth > -config.squeeze_contact_distance_m  # (B, L); links without points stay -inf
+    objective = torch.where(touching, link_depth, torch.zeros_like(link_depth)).sum()
+    (grad,) = torch.autograd.grad(objective, joints)
+    delta = torch.zeros_like(grad)
+    for f in range(len(FINGERS)):
+        active = (touching & finger_links[f]).any(dim=1)  # (B,)
+        g = grad * finger_joints[f]
+        largest = g.abs().amax(dim=1, keepdim=True)
+        step = torch.where(largest > 0, g / largest.clamp(min=1e-12), torch.zeros_like(g)) * config.squeeze_rad
+        delta = delta + step * active[:, None]
+    limits = hand.joint_limits.to(delta.dtype)
+    return (hand_pose[:, JOINTS].detach() + delta).clamp(limits[:, 0], limits[:, 1])
+
+
+# --------------------------------------------------------------------------- simulation (MuJoCo)
+def _palm_quaternions(hand_pose: np.ndarray) -> np.ndarray:
+    """(B, 4) wxyz quaternions of the palm rotations (static-axis xyz Euler)."""
+    import mujoco
+
+    rot = euler_xyz_to_matrix(torch.as_tensor(hand_pose[:, 3:6], dtype=torch.float64)).numpy()
+    quats = np.zeros((len(hand_pose), 4))
+    for i, r in enumerate(rot):
+        mujoco.mju_mat2Quat(quats[i], r.reshape(-1))
+    return quats
+
+
+
+class GraspSimulator:
+    """Runs the lift and six-direction tests of single grasps in one compiled scene."""
+
+    def __init__(self, scene: LiftScene, config: LiftConfig) -> None:
+        scene.configure(config)
+        self.scene = scene
+        self.config = config
+        self.chunk = config.control_substeps
+        self.close_chunks = max(1, config.steps(config.close_s) // self.chunk)
+        self.hold_steps = config.steps(config.hold_s)
+        self.lift_chunks = max(1, config.steps(config.lift_s) // self.chunk)
+        self.final_steps = config.steps(config.final_hold_s)
+        self.six_dir_chunks = max(1, config.steps(config.six_dir_duration_s) // self.chunk)
+        self.total_steps = (self.close_chunks + self.lift_chunks) * self.chunk + self.hold_steps + self.final_steps
+
+    def _reset(self, pose: np.ndarray, quat: np.ndarray) -> None:
+        import mujoco
+
+        s, m, d = self.scene, self.scene.model, self.scene.data
+        mujoco.mj_resetData(m, d)
+        d.qpos[s.palm_qpos] = np.concatenate([pose[:3], quat])
+        d.qpos[s.joint_qpos] = pose[6:]
+        d.qpos[s.object_qpos] = (0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0)
+        d.mocap_pos[0] = pose[:3]
+        d.mocap_quat[0] = quat
+        d.ctrl[:] = pose[6:]
+        mujoco.mj_forward(m, d)
+
+    def _close(self, start: np.ndarray, target: np.ndarray) -> None:
+        """Ramp the finger targets from ``start`` to ``target`` over the close phase."""
+        import mujoco
+
+        m, d = self.scene.model, self.scene.data
+        for c in range(self.close_chunks):
+            d.ctrl[:] = start + (target - start) * ((c + 1) / self.close_chunks)
+            mujoco.mj_step(m, d, nstep=self.chunk)
+
+    def _unstable(self) -> bool:
+        import mujoco
+
+        d = self.scene.data
+        return bool(d.warning[mujoco.mjtWarning.mjWARN_BADQACC].number > 0 or not np.isfinite(d.qpos).all())
+
+    def _object_lost(self) -> bool:
+        """True if the object can never touch the hand again.
+
+        It lies wholly below a sphere about the palm that holds the hand in any joint
+        configuration and falls faster than the palm rises; it then free-falls at g while
+        the palm never accelerates downward faster than the smooth lift profile allows
+        (far below g), so the gap only grows.
+        """
+        s, d = self.scene, self.scene.data
+        object_top = d.xipos[s.object_body, 2] + s.object_radius_m
+        hand_bottom = d.xpos[s.palm_body, 2] - s.hand_reach_m
+        return bool(object_top < hand_bottom and d.qvel[s.object_qvel][2] < d.qvel[s.palm_qvel][2])
+
+    def _ballistic_z(self, remaining_steps: int) -> float:
+        """Object COM height after ``remaining_steps`` of free fall, by MuJoCo's semi-implicit Euler update."""
+        s, d = self.scene, self.scene.data
+        h, n = self.config.timestep_s, remaining_steps
+        vz = float(d.qvel[s.object_qvel][2])
+        return float(d.xipos[s.object_body, 2] + h * n * vz - GRAVITY_MPS2 * h * h * n * (n + 1) / 2)
+
+    def lift(self, pose: np.ndarray, quat: np.ndarray, target: np.ndarray) -> tuple[float, str]:
+        """Lift ratio dz_object / dz_hand and failure reason ('' on success) of one grasp.
+
+        dz_hand is the commanded rise of the kinematically driven palm (``lift_height_m``);
+        the welded palm tracks it to within a millimetre.
+        """
+        import mujoco
+
+        cfg, s, m, d = self.config, self.scene, self.scene.model, self.scene.data
+        self._reset(pose, quat)
+        object_z0 = float(d.xipos[s.object_body, 2])
+        palm_z0 = float(d.mocap_pos[0, 2])
+        self._close(d.ctrl.copy(), target)
+        if self.hold_steps:
+            mujoco.mj_step(m, d, nstep=self.hold_steps)
+        steps_done = self.close_chunks * self.chunk + self.hold_steps
+        object_z = None
+        for c in range(self.lift_chunks):
+            if self._object_lost():
+                object_z = self._ballistic_z(self.total_steps - steps_done)
+                break
+            progress = (c + 1) / self.lift_chunks
+            d.mocap_pos[0, 2] = palm_z0 + cfg.lift_height_m * 0.5 * (1.0 - math.cos(math.pi * progress))
+            mujoco.mj_step(m, d, nstep=self.chunk)
+            steps_done += self.chunk
+        if object_z is None:
+            if self.final_steps:
+                mujoco.mj_step(m, d, nstep=self.final_steps)
+            object_z = float(d.xipos[s.object_body, 2])
+        if self._unstable():
+            return float("nan"), "simulation_unstable"
+        ratio = (object_z - object_z0) / cfg.lift_height_m
+        return ratio, ("" if ratio > cfg.success_lift_ratio else "dropped")
+
+    def six_directions(self, pose: np.ndarray, quat: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Per direction (6,), the object's largest translation (m) and rotation (deg) under the force.
+
+        A direction stops early once either limit is exceeded (it has failed); the values
+        are then those at that moment.
+        """
+        import mujoco
+
+        cfg, s, m, d = self.config, self.scene, self.scene.model, self.scene.data
+        translation = np.full(6, np.nan)
+        rotation = np.full(6, np.nan)
+        gravity = m.opt.gravity.copy()
+        m.opt.gravity[:] = 0.0
+        try:
+            self._reset(pose, quat)
+            com0 = d.xipos[s.object_body].copy()
+            self._close(d.ctrl.copy(), target)
+            spec = mujoco.mjtState.mjSTATE_INTEGRATION
+            closed = np.empty(mujoco.mj_stateSize(m, spec))
+            mujoco.mj_getState(m, d, closed, spec)
+            force = cfg.six_dir_force_per_kg_n * cfg.object_mass_kg
+            for k, direction in enumerate(DIRECTION_VECTORS):
+                mujoco.mj_setState(m, d, closed, spec)
+                d.xfrc_applied[:] = 0.0
+                d.xfrc_applied[s.object_body, :3] = force * direction
+                worst_t = worst_r = 0.0
+                for _ in range(self.six_dir_chunks):
+                    mujoco.mj_step(m, d, nstep=self.chunk)
+                    worst_t = max(worst_t, float(np.linalg.norm(d.xipos[s.object_body] - com0)))
+                    qw = min(1.0, abs(float(d.qpos[s.object_qpos][3])))
+                    worst_r = max(worst_r, math.degrees(2.0 * math.acos(qw)))
+                    if worst_t >= cfg.six_dir_max_translation_m or worst_r >= cfg.six_dir_max_rotation_deg:
+                        break
+                translation[k], rotation[k] = worst_t, worst_r
+            d.xfrc_applied[:] = 0.0
+        finally:
+            m.opt.gravity[:] = gravity
+        return translation, rotation
+
+
+# --------------------------------------------------------------------------- batches and workers
+@dataclass
+class LiftTask:
+    """Grasps of one object for one worker call."""
+
+    object_id: str
+    objects_dirs: list[str]
+    indices: np.ndarray  # positions in the caller's grasp set
+    hand_pose: np.ndarray  # (B, 28) float64
+    scale: np.ndarray  # (B,) float64
+    config: LiftConfig
+
+
+class _WorkerState:
+    """Per-process caches: the hand model, assets and compiled scenes (one per object and scale)."""
+
+    def __init__(self) -> None:
+        self.hand: ShadowHand | None = None
+        self.assets: OrderedDict[tuple, ObjectAsset] = OrderedDict()
+        self.scenes: OrderedDict[tuple, LiftScene] = OrderedDict()
+
+    def get_hand(self) -> ShadowHand:
+        if self.hand is None:
+            self.hand = ShadowHand()
+        return self.hand
+
+    def get_asset(self, dirs: list[str], object_id: str) -> ObjectAsset:
+        key = (tuple(dirs), object_id)
+        if key not in self.assets:
+            self.assets[key] = load_asset(dirs, object_id)
+            while len(self.assets) > SCENE_CACHE:
+                self.assets.popitem(last=False)
+        return self.assets[key]
+
+    def get_scene(self, asset: ObjectAsset, scale: float, config: LiftConfig) -> LiftScene:
+        key = (str(asset.directory), float(scale))
+        if key not in self.scenes:
+            self.scenes[key] = LiftScene.build(asset.convex_paths, float(scale), config)
+            while len(self.scenes) > SCENE_CACHE:
+                self.scenes.popitem(last=False)
+        self.scenes.move_to_end(key)
+        return self.scenes[key]
+
+
+_STATE = _WorkerState()
+
+
+def _init_worker() -> None:
+    torch.set_num_threads(1)
+
+
+def _prepare(hand: ShadowHand, asset: ObjectAsset, hand_pose: np.ndarray, scale: np.ndarray, config: LiftConfig) -> tuple[np.ndarray, np.ndarray]:
+    """Initial penetration (m) and squeeze targets (B, 22) of one object's grasps, in torch batches."""
+    bank = SdfBank([asset], device=hand.device)
+    penetration, targets = [], []
+    for start in range(0, len(hand_pose), PREP_BATCH):
+        pose = torch.as_tensor(hand_pose[start : start + PREP_BATCH], dtype=hand.dtype, device=hand.device)
+        s = torch.as_tensor(scale[start : start + PREP_BATCH], dtype=hand.dtype, device=hand.device)
+        with torch.no_grad():
+            penetration.append(initial_penetration_m(hand, bank, asset, pose, s).cpu().numpy())
+        targets.append(squeeze_targets(hand, bank, asset, pose, s, config).detach().cpu().numpy())
+    return np.concatenate(penetration).astype(np.float64), np.concatenate(targets).astype(np.float64)
+
+
+def run_task(task: LiftTask) -> tuple[np.ndarray, LiftOutcome]:
+    """Lift-test one object's grasps (in a worker or in-process); never raises for a bad object."""
+    cfg = task.config
+    out = LiftOutcome.empty(len(task.indices))
+    try:
+        asset = _STATE.get_asset(task.objects_dirs, task.object_id)
+        penetration, targets = _prepare(_STATE.get_hand(), asset, task.hand_pose, task.scale, cfg)
+    except Exception as exc:  # one bad object must not stop the others: record it per grasp
+        log.warning("object %s: %s", task.object_id, exc)
+        out.failure_reason[:] = f"object_error: {str(exc).splitlines()[0] if str(exc) else type(exc).__name__}"
+        return task.indices, out
+    out.initial_penetration_mm[:] = penetration * 1000.0
+    quats = _palm_quaternions(task.hand_pose)
+    for i in np.argsort(task.scale, kind="stable"):
+        if penetration[i] > cfg.max_initial_penetration_m:
+            out.failure_reason[i] = "initial_penetration"
+            continue
+        try:
+            sim = GraspSimulator(_STATE.get_scene(asset, task.scale[i], cfg), cfg)
+        except Exception as exc:
+            out.failure_reason[i] = f"object_error: {str(exc).splitlines()[0] if str(exc) else type(exc).__name__}"
+            continue
+        ratio, reason = sim.lift(task.hand_pose[i], quats[i], targets[i])
+        out.lift_ratio[i] = ratio
+        out.lift_success[i] = reason == ""
+        out.failure_reason[i] = reason
+        if cfg.six_directions:
+            out.six_dir_translation_m[i], out.six_dir_rotation_deg[i] = sim.six_directions(task.hand_pose[i], quats[i], targets[i])
+    return task.indices, out
+
+
+def make_tasks(grasps: GraspSet, indices: np.ndarray, objects_dirs: list[str], config: LiftConfig) -> list[LiftTask]:
+    """Split the chosen grasps into per-object tasks of at most TASK_GRASPS, ordered by scale within an object."""
+    tasks = []
+    object_ids = grasps.object_id[indices]
+    for object_id in sorted(set(object_ids.tolist())):
+        rows = indices[object_ids == object_id]
+        rows = rows[np.argsort(grasps.scale[rows], kind="stable")]
+        for start in range(0, len(rows), TASK_GRASPS):
+            part = rows[start : start + TASK_GRASPS]
+            tasks.append(
+                LiftTask(
+                    object_id=str(object_id),
+                    objects_dirs=list(objects_dirs),
+                    indices=part,
+                    hand_pose=grasps.hand_pose[part].astype(np.float64),
+                    scale=grasps.scale[part].astype(np.float64),
+                    config=config,
+                )
+            )
+    return tasks
+
+
+def run_lift_tests(grasps: GraspSet, objects_dirs, config: LiftConfig, threads: int = 1) -> dict[str, np.ndarray]:
+    """Lift-test every grasp; per-grasp arrays aligned with ``grasps``.
+
+    Invalid grasps (non-finite pose or scale, object missing from the assets) are kept,
+    flagged with ``failure_reason = 'invalid_grasp: <reason>'`` and not simulated. Work
+    runs in ``threads`` processes (spawned: torch and MuJoCo are not fork-safe once used).
+    Returns ``lift_ratio``, ``lift_success``, ``failure_reason``, ``initial_penetration_mm``
+    and, with ``config.six_directions``, ``six_dir_success``, ``six_dir_passed`` (N, 6),
+    ``six_dir_translation_m`` (N, 6) and ``six_dir_rotation_deg`` (N, 6) in ``DIRECTIONS`` order.
+    """
+    dirs = [str(objects_dirs)] if isinstance(objects_dirs, (str, os.PathLike)) else [str(d) for d in objects_dirs]
+    n = len(grasps)
+    reasons = invalid_grasp_reasons(grasps, available_object_ids(dirs))
+    out = LiftOutcome.empty(n)
+    invalid = reasons != ""
+    out.failure_reason[invalid] = np.asarray([f"invalid_grasp: {r}" for r in reasons[invalid]], dtype=object)
+    tasks = make_tasks(grasps, np.flatnonzero(~invalid), dirs, config)
+    workers = max(1, min(int(threads or 1), len(tasks)))
+    if workers == 1:
+        results = map(run_task, tasks)
+        _collect(out, results)
+    else:
+        import multiprocessing
+
+        context = multiprocessing.get_context("spawn")
+        with ProcessPoolExecutor(max_workers=workers, mp_context=context, initializer=_init_worker) as pool:
+            _collect(out, pool.map(run_task, tasks))
+    return _as_arrays(out, config)
+
+
+def _collect(out: LiftOutcome, results) -> None:
+    for indices, part in results:
+        for name in vars(out):
+            getattr(out, name)[indices] = getattr(part, name)
+
+
+def _as_arrays(out: LiftOutcome, config: LiftConfig) -> dict[str, np.ndarray]:
+    arrays = {
+        "lift_ratio": out.lift_ratio,
+        "lift_success": out.lift_success,
+        "failure_reason": out.failure_reason,
+        "initial_penetration_mm": out.initial_penetration_mm,
+    }
+    if config.six_directions:
+        with np.errstate(invalid="ignore"):
+            passed = (out.six_dir_translation_m < config.six_dir_max_translation_m) & (out.six_dir_rotation_deg < config.six_dir_max_rotation_deg)
+        arrays.update(
+            six_dir_success=passed.all(axis=1),
+            six_dir_passed=passed,
+            six_dir_translation_m=out.six_dir_translation_m,
+            six_dir_rotation_deg=out.six_dir_rotation_deg,
+        )
+    return arrays
