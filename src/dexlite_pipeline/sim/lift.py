@@ -209,10 +209,13 @@ class GraspSimulator:
 
     def _ballistic_z(self, remaining_steps: int) -> float:
         """Object COM height after ``remaining_steps`` of free fall, by MuJoCo's semi-implicit Euler update."""
+        import mujoco
+
         s, d = self.scene, self.scene.data
         h, n = self.config.timestep_s, remaining_steps
-        vz = float(d.qvel[s.object_qvel][2])
-        return float(d.xipos[s.object_body, 2] + h * n * vz - GRAVITY_MPS2 * h * h * n * (n + 1) / 2)
+        velocity = np.zeros(6)  # [angular, linear] at the centre of mass, world axes
+        mujoco.mj_objectVelocity(s.model, d, mujoco.mjtObj.mjOBJ_BODY, s.object_body, velocity, 0)
+        return float(d.xipos[s.object_body, 2] + h * n * velocity[5] - GRAVITY_MPS2 * h * h * n * (n + 1) / 2)
 
     def lift(self, pose: np.ndarray, quat: np.ndarray, target: np.ndarray) -> tuple[float, str]:
         """Lift ratio dz_object / dz_hand and failure reason ('' on success) of one grasp.
