@@ -1,0 +1,346 @@
+"""Prepare objects: load, validate, repair, normalize, build assets, split, write the catalog.
+
+Each mesh goes through ``load_source_mesh`` -> ``repair_mesh`` -> ``check_mesh`` ->
+``normalize_mesh`` -> ``objects.build.write_asset``. A mesh that cannot be used is
+*rejected* with a one-line reason (``MeshRejected``) and stays in the catalog; one bad
+object never stops the others (objects run in a crash-tolerant process pool).
+An asset whose inputs (file contents, placement, build settings) are unchanged since it
+was last written is reused, so adding a mesh folder rebuilds only the new objects.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import hashlib
+import json
+import logging
+import shutil
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from dexlite_pipeline.objects.assets import ASSETS_DIR, CATALOG_NAME, asset_dir
+from dexlite_pipeline.objects.build import AssetBuildSettings, write_asset
+from dexlite_pipeline.objects.sources import MeshSource, pybullet_data_dir
+
+log = logging.getLogger(__name__)
+
+CATALOG_COLUMNS = ["object_id", "source", "file", "watertight", "volume", "n_convex_pieces", "status", "reason", "split"]
+CONFIG_RECORD_NAME = "prepare_config.json"
+# DexGraspNet's normalization: the max vertex radius becomes 1 / 1.03.
+RADIUS_MARGIN = 1.03
+MIN_FACES = 4
+# Thinnest / largest bounding-box extent below this: a flat sheet, not a solid.
+MIN_EXTENT_RATIO = 1e-3
+# Volume of the normalized mesh (unit ball: 4.19) below this: no solid to grasp.
+MIN_NORMALIZED_VOLUME = 1e-4
+
+
+@dataclass(frozen=True)
+class ObjectsConfig:
+    """Config section ``objects`` (see config.yaml for the meaning of each key)."""
+
+    builtin_count: int = 40
+    mesh_dirs: tuple[str, ...] = ()
+    heldout_mesh_dirs: tuple[str, ...] = ()
+    heldout_fraction: float = 0.2
+    sdf_resolution: int = 96
+    sdf_padding: float = 0.25
+    sdf_exact_band: float = 0.2
+    surface_points: int = 4096
+    coacd_threshold: float = 0.08
+    coacd_max_convex_hull: int = 16
+    coacd_mcts_iterations: int = 60
+    coacd_mcts_nodes: int = 10
+    coacd_mcts_max_depth: int = 2
+    coacd_resolution: int = 1000
+
+    def build_settings(self, seed: int) -> AssetBuildSettings:
+        """The asset build settings this section implies (same-named fields)."""
+        names = {f.name for f in dataclasses.fields(AssetBuildSettings)} - {"seed"}
+        return AssetBuildSettings(**{n: getattr(self, n) for n in names}, seed=seed)
+
+
+class MeshRejected(Exception):
+    """A mesh that cannot become an object; the message is the catalog's one-line reason."""
+
+
+def _as_trimesh(loaded):
+    import trimesh
+
+    if isinstance(loaded, trimesh.Trimesh):
+        return loaded
+    return trimesh.Trimesh()
+
+
+def load_source_mesh(source: MeshSource):
+    """Read the mesh file and apply the source's placement (URDF scale, then rotation)."""
+    import trimesh
+
+    path = Path(source.file)
+    try:
+        mesh = _as_trimesh(trimesh.load(path, force="mesh", process=False))
+        vertices = np.asarray(mesh.vertices, dtype=np.float64)
+        faces = np.asarray(mesh.faces, dtype=np.int64)
+    except Exception as exc:  # noqa: BLE001 - any parser failure is "unreadable"
+        raise MeshRejected(f"unreadable: {type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}".rstrip(": ")) from None
+    if len(faces) == 0:
+        if len(vertices) == 0 and path.stat().st_size > 0:
+            raise MeshRejected(f"unreadable: no mesh data could be parsed from {path.name}")
+        raise MeshRejected("empty mesh: no faces")
+    bad = ~np.isfinite(vertices).all(axis=1)
+    if bad.any():
+        raise MeshRejected(f"non-finite vertices: {int(bad.sum())} of {len(vertices)} have NaN/inf coordinates")
+    if faces.min() < 0 or faces.max() >= len(vertices):
+        raise MeshRejected("unreadable: face indices out of range")
+    vertices = vertices * np.asarray(source.scale_xyz)
+    rotation = trimesh.transformations.euler_matrix(*source.rotation_rpy, axes="sxyz")[:3, :3]
+    return trimesh.Trimesh(vertices @ rotation.T, faces, process=False)
+
+
+def _fill_boundary_loops(mesh):
+    """Close each hole whose boundary is one simple loop with a fan around its centroid."""
+    import trimesh
+    from trimesh.grouping import group_rows
+
+    boundary = mesh.edges[group_rows(mesh.edges_sorted, require_count=1)]
+    if len(boundary) == 0:
+        return mesh
+    successor: dict[int, int] = {}
+    for a, b in boundary:  # boundary edges keep the face winding: a -> b
+        if a in successor:
+            return mesh  # a vertex on two holes: not a simple loop, leave it
+        successor[int(a)] = int(b)
+    vertices = [np.asarray(mesh.vertices)]
+    faces = [np.asarray(mesh.faces)]
+    next_index = len(mesh.vertices)
+    unvisited = set(successor)
+    while unvisited:
+        start = unvisited.pop()
+        loop = [start]
+        while successor.get(loop[-1]) not in (start, None) and len(loop) <= len(successor):
+            loop.append(successor[loop[-1]])
+            unvisited.discard(loop[-1])
+        if successor.get(loop[-1]) != start:
+            return mesh  # open chain: not a closed loop
+        centre = mesh.vertices[loop].mean(axis=0)
+        vertices.append(centre[None])
+        # The hole's faces run opposite to its boundary edges to keep the winding consistent.
+        faces.append(np.array([[b, a, next_index] for a, b in zip(loop, loop[1:] + loop[:1])]))
+        next_index += 1
+    return trimesh.Trimesh(np.concatenate(vertices), np.concatenate(faces), process=False)
+
+
+def _union_overlapping_bodies(mesh):
+    """Several closed shells (e.g. overlapping convex hulls) as one solid, when a boolean engine is present."""
+    import trimesh
+
+    bodies = mesh.split(only_watertight=False)
+    if len(bodies) < 2:
+        return mesh
+    try:
+        union = trimesh.boolean.union(bodies)
+    except Exception:  # noqa: BLE001 - no engine, or it failed: keep the shells
+        return mesh
+    return union if union.is_watertight and union.volume > 0 else mesh
+
+
+def repair_mesh(mesh):
+    """Merge duplicate vertices, drop degenerate/duplicate faces, fill holes, fix winding and normals."""
+    import trimesh
+
+    mesh = trimesh.Trimesh(mesh.vertices, mesh.faces, process=True)
+    mesh.merge_vertices(merge_tex=True, merge_norm=True)
+    mesh.update_faces(mesh.nondegenerate_faces())
+    mesh.update_faces(mesh.unique_faces())
+    mesh.remove_unreferenced_vertices()
+    if len(mesh.faces) == 0:
+        return mesh
+    if not mesh.is_watertight:
+        trimesh.repair.fill_holes(mesh)
+    if not mesh.is_watertight:
+        mesh = _fill_boundary_loops(mesh)
+    trimesh.repair.fix_winding(mesh)
+    trimesh.repair.fix_normals(mesh, multibody=True)
+    if mesh.is_watertight:
+        mesh = _union_overlapping_bodies(mesh)
+    return mesh
+
+
+def check_extent(mesh) -> None:
+    """Reject a mesh that is flat (all points on a plane or a line)."""
+    extents = np.asarray(mesh.extents, dtype=np.float64)
+    if extents.max() <= 0 or extents.min() / extents.max() < MIN_EXTENT_RATIO:
+        raise MeshRejected(f"degenerate: flat (extents {np.array2string(extents, precision=4)})")
+
+
+def check_mesh(mesh) -> None:
+    """Reject a repaired mesh that is not a usable solid."""
+    if len(mesh.faces) < MIN_FACES:
+        raise MeshRejected(f"degenerate: only {len(mesh.faces)} non-degenerate faces")
+    check_extent(mesh)
+    if not mesh.is_watertight:
+        _, uses = np.unique(mesh.edges_sorted, axis=0, return_counts=True)
+        raise MeshRejected(
+            f"not watertight after repair: {int((uses == 1).sum())} boundary edges, {int((uses > 2).sum())} non-manifold edges"
+        )
+    if not mesh.is_winding_consistent:
+        raise MeshRejected("not watertight after repair: inconsistent face winding")
+
+
+def normalize_mesh(mesh):
+    """Centre on the bounding box and scale the max vertex radius to 1/1.03 (DexGraspNet).
+
+    Returns (normalized mesh, centre in the source frame, scale factor applied).
+    """
+    centre = (mesh.bounds[0] + mesh.bounds[1]) / 2
+    radius = float(np.linalg.norm(mesh.vertices - centre, axis=1).max())
+    factor = 1.0 / (radius * RADIUS_MARGIN)
+    normalized = mesh.copy()
+    normalized.apply_translation(-centre)
+    normalized.apply_scale(factor)
+    return normalized, centre, factor
+
+
+def file_label(path: str) -> str:
+    """The file as shown in the catalog: relative to pybullet_data for embedded meshes."""
+    try:
+        return f"pybullet_data/{Path(path).resolve().relative_to(pybullet_data_dir().resolve())}"
+    except ValueError:
+        return str(path)
+
+
+def _build_key(source: MeshSource, settings: AssetBuildSettings) -> str:
+    """Hash of everything an asset depends on: file bytes, placement, build settings."""
+    digest = hashlib.sha256()
+    digest.update(Path(source.file).read_bytes())
+    digest.update(json.dumps([source.scale_xyz, source.rotation_rpy, dataclasses.asdict(settings)], sort_keys=True).encode())
+    return digest.hexdigest()
+
+
+def _reusable_asset(objects_dir: Path, object_id: str, key: str) -> dict | None:
+    meta_path = asset_dir(objects_dir, object_id) / "meta.json"
+    if not meta_path.exists() or not (meta_path.parent / "arrays.zarr").exists():
+        return None
+    try:
+        meta = json.loads(meta_path.read_text())
+    except (OSError, json.JSONDecodeError):
+        return None
+    return meta if meta.get("build_key") == key else None
+
+
+def _row(source: MeshSource, **values) -> dict:
+    row = {
+        "object_id": source.object_id,
+        "source": source.source,
+        "file": file_label(source.file),
+        "watertight": None,
+        "volume": float("nan"),
+        "n_convex_pieces": 0,
+        "status": "rejected",
+        "reason": "",
+    }
+    row.update(values)
+    return row
+
+
+def prepare_object(source: MeshSource, objects_dir: str, settings: AssetBuildSettings) -> dict:
+    """Prepare one object; returns its catalog row (status ok, or rejected with the reason)."""
+    objects_dir = Path(objects_dir)
+    try:
+        key = _build_key(source, settings)
+        previous = _reusable_asset(objects_dir, source.object_id, key)
+        if previous is not None:
+            return _row(source, watertight=bool(previous["watertight"]), volume=float(previous["volume"]),
+                        n_convex_pieces=int(previous["n_convex_pieces"]), status="ok")
+        raw = load_source_mesh(source)
+        check_extent(raw)
+        mesh = repair_mesh(raw)
+        check_mesh(mesh)
+        mesh, centre, factor = normalize_mesh(mesh)
+        if mesh.volume < MIN_NORMALIZED_VOLUME:
+            raise MeshRejected(f"degenerate: zero volume ({mesh.volume:.2e} after normalization)")
+        meta = {
+            "source": source.source,
+            "file": file_label(source.file),
+            "placement_scale_xyz": list(source.scale_xyz),
+            "placement_rotation_rpy": list(source.rotation_rpy),
+            "normalization_centre": centre.tolist(),
+            "normalization_factor": factor,
+            "center_mass": np.asarray(mesh.center_mass).tolist(),
+            "build_key": key,
+        }
+        summary = write_asset(mesh, source.object_id, objects_dir, settings, meta)
+    except MeshRejected as exc:
+        return _row(source, watertight=False if str(exc).startswith("not watertight") else None, reason=str(exc))
+    return _row(source, watertight=summary["watertight"], volume=summary["volume"],
+                n_convex_pieces=summary["n_convex_pieces"], status="ok")
+
+
+def _crashed_row(source: MeshSource, message: str) -> dict:
+    return _row(source, reason=f"preparation failed: {message.splitlines()[0] if message else 'unknown error'}")
+
+
+def assign_split(catalog, heldout_fraction: float, seed: int, always_heldout: set[str]):
+    """Seeded train/heldout split of the ok objects: a fixed fraction of the rest plus ``always_heldout``.
+
+    Rejected objects get an empty split (they are used nowhere).
+    """
+    ok = catalog["status"] == "ok"
+    candidates = sorted(oid for oid in catalog.loc[ok, "object_id"] if oid not in always_heldout)
+    n_heldout = int(round(heldout_fraction * len(candidates)))
+    rng = np.random.default_rng([seed, 0x5B117])
+    heldout = {candidates[i] for i in rng.choice(len(candidates), size=n_heldout, replace=False)} | set(always_heldout)
+    split = np.where(catalog["object_id"].isin(heldout), "heldout", "train")
+    catalog["split"] = np.where(ok, split, "")
+    return catalog
+
+
+def remove_stale_assets(objects_dir: Path, keep: set[str]) -> None:
+    """Delete asset folders of objects not prepared ok in this run (stale or rejected)."""
+    root = objects_dir / ASSETS_DIR
+    if not root.is_dir():
+        return
+    for folder in root.iterdir():
+        if folder.is_dir() and folder.name not in keep:
+            shutil.rmtree(folder)
+
+
+def prepare_objects(
+    sources: list[MeshSource],
+    objects_dir: str | Path,
+    config: ObjectsConfig,
+    seed: int,
+    workers: int,
+):
+    """Prepare every source in parallel, split, write the catalog atomically; returns it."""
+    import pandas as pd
+
+    from dexlite_pipeline.io.atomic import atomic_path
+    from dexlite_pipeline.parallel import resilient_map
+
+    objects_dir = Path(objects_dir)
+    ids = [s.object_id for s in sources]
+    if len(set(ids)) != len(ids):
+        raise ValueError(f"duplicate object ids among sources: {sorted({i for i in ids if ids.count(i) > 1})}")
+    settings = config.build_settings(seed)
+    objects_dir.mkdir(parents=True, exist_ok=True)
+    task = functools.partial(prepare_object, objects_dir=str(objects_dir), settings=settings)
+
+    def progress(done: int, total: int) -> None:
+        log.info("prepared %d/%d objects", done, total)
+
+    rows = resilient_map(task, sources, workers, _crashed_row, progress)
+    catalog = pd.DataFrame(rows, columns=CATALOG_COLUMNS[:-1])
+    catalog["watertight"] = catalog["watertight"].astype("boolean")
+    catalog["n_convex_pieces"] = catalog["n_convex_pieces"].astype("int64")
+    catalog = assign_split(catalog, config.heldout_fraction, seed, {s.object_id for s in sources if s.always_heldout})
+    catalog = catalog[CATALOG_COLUMNS].sort_values("object_id", kind="stable").reset_index(drop=True)
+    remove_stale_assets(objects_dir, set(catalog.loc[catalog["status"] == "ok", "object_id"]))
+    with atomic_path(objects_dir / CONFIG_RECORD_NAME) as tmp:
+        tmp.write_text(json.dumps({"seed": seed, "objects": dataclasses.asdict(config)}, indent=2, sort_keys=True))
+    with atomic_path(objects_dir / CATALOG_NAME) as tmp:
+        catalog.to_parquet(tmp, index=False)
+    return catalog

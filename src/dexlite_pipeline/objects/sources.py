@@ -1,0 +1,176 @@
+"""Where objects come from: the embedded ``pybullet_data`` meshes and the user's folders.
+
+A ``MeshSource`` names one mesh file plus the placement its URDF gives it (scale and
+rotation), so that an object stands in the orientation its author intended (the stability
+test keeps the file orientation). Object ids are stable, filesystem-safe and unique:
+``pb-<name>`` for named pybullet meshes, ``pb-random-NNN`` for the procedural
+``random_urdfs``, ``user-<stem>`` for the user's meshes (with a short path hash appended
+only when two user files share a stem).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import re
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+MESH_SUFFIXES = (".obj", ".stl")
+
+# Named pybullet_data objects: id suffix -> URDF (placement read from it) or bare mesh file.
+NAMED_PYBULLET_OBJECTS: dict[str, str] = {
+    "duck": "duck_vhacd.urdf",
+    "teddy": "teddy_large.urdf",
+    "bunny": "bunny.obj",
+    "torus": "torus/torus_textured.obj",
+    "mug": "objects/mug.urdf",
+    "soccerball": "soccerball.urdf",
+    "lego": "lego/lego.urdf",
+    "jenga": "jenga/jenga.urdf",
+    "domino": "domino/domino.urdf",
+    "sphere": "sphere_smooth.obj",
+    "stone": "stone.obj",
+    "cube": "cube.urdf",
+    "toy-cube": "toys/cube.obj",
+    "toy-cylinder": "toys/cylinder.obj",
+    "toy-prism": "toys/prism.obj",
+    "toy-shape-sorter": "toys/shape_sorter.obj",
+    "toy-concave-box": "toys/concave_box.urdf",
+}
+RANDOM_URDF_DIR = "random_urdfs"
+# Share of ``objects.builtin_count`` taken from the named meshes (the rest are procedural).
+NAMED_SHARE = 0.25
+
+
+class ObjectSourceError(ValueError):
+    """A configured object source that cannot be used (e.g. a folder that does not exist)."""
+
+
+@dataclass(frozen=True)
+class MeshSource:
+    """One mesh to prepare, with the placement (scale per axis, then rotation) to apply first."""
+
+    object_id: str
+    source: str  # pybullet_named, pybullet_random, user, user_heldout
+    file: str
+    scale_xyz: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    rotation_rpy: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    always_heldout: bool = False
+
+
+def pybullet_data_dir() -> Path:
+    import pybullet_data
+
+    return Path(pybullet_data.getDataPath())
+
+
+def _floats(text: str | None, default: tuple[float, ...]) -> tuple[float, ...]:
+    return tuple(float(v) for v in text.split()) if text else default
+
+
+def urdf_visual_mesh(urdf_path: Path) -> tuple[Path, tuple[float, float, float], tuple[float, float, float]]:
+    """The first visual mesh of a URDF: (mesh file, scale xyz, origin rpy).
+
+    The visual mesh is the detailed one (collision meshes in pybullet_data are often coarse
+    V-HACD hulls or primitives). The origin's translation is irrelevant after normalization.
+    """
+    try:
+        root = ET.parse(urdf_path).getroot()
+    except (OSError, ET.ParseError) as exc:
+        raise ObjectSourceError(f"{urdf_path}: cannot read URDF: {exc}") from exc
+    for visual in root.iter("visual"):
+        mesh = visual.find("geometry/mesh")
+        if mesh is None or not mesh.get("filename"):
+            continue
+        origin = visual.find("origin")
+        rpy = _floats(origin.get("rpy") if origin is not None else None, (0.0, 0.0, 0.0))
+        scale = _floats(mesh.get("scale"), (1.0, 1.0, 1.0))
+        if len(scale) == 1:
+            scale = scale * 3
+        return urdf_path.parent / mesh.get("filename"), scale, rpy
+    raise ObjectSourceError(f"{urdf_path}: URDF has no visual mesh")
+
+
+def _pybullet_source(object_id: str, source: str, path: Path) -> MeshSource:
+    if path.suffix == ".urdf":
+        mesh, scale, rpy = urdf_visual_mesh(path)
+        return MeshSource(object_id, source, str(mesh), tuple(scale), tuple(rpy))
+    return MeshSource(object_id, source, str(path))
+
+
+def named_pybullet_sources() -> list[MeshSource]:
+    """The named pybullet_data objects that ship in the installed package, in id order."""
+    root = pybullet_data_dir()
+    found = []
+    for name, rel in sorted(NAMED_PYBULLET_OBJECTS.items()):
+        if (root / rel).is_file():
+            found.append(_pybullet_source(f"pb-{name}", "pybullet_named", root / rel))
+    return found
+
+
+def random_pybullet_paths() -> list[Path]:
+    """URDFs of the procedural ``random_urdfs/NNN/NNN.urdf`` objects, sorted."""
+    root = pybullet_data_dir() / RANDOM_URDF_DIR
+    return sorted(p for p in root.glob("*/*.urdf") if p.stem == p.parent.name)
+
+
+def builtin_sources(count: int, seed: int) -> list[MeshSource]:
+    """``count`` embedded objects chosen by a seeded draw: about a quarter named, the rest procedural."""
+    if count <= 0:
+        return []
+    rng = np.random.default_rng([seed, 0x0B1EC7])
+    named = named_pybullet_sources()
+    n_named = min(len(named), int(round(count * NAMED_SHARE)))
+    chosen = [named[i] for i in sorted(rng.choice(len(named), size=n_named, replace=False))]
+    randoms = random_pybullet_paths()
+    n_random = min(len(randoms), count - n_named)
+    for i in sorted(rng.choice(len(randoms), size=n_random, replace=False)):
+        path = randoms[i]
+        chosen.append(_pybullet_source(f"pb-random-{path.stem}", "pybullet_random", path))
+    return chosen
+
+
+def _safe_name(text: str) -> str:
+    return re.sub(r"[^A-Za-z0-9_.-]+", "_", text).strip("._") or "mesh"
+
+
+def folder_sources(folders, heldout: bool) -> list[MeshSource]:
+    """The .obj/.stl files directly inside each folder (sorted); a missing folder is an error."""
+    found = []
+    for folder in folders:
+        path = Path(folder)
+        if not path.exists():
+            key = "objects.heldout_mesh_dirs" if heldout else "objects.mesh_dirs"
+            raise ObjectSourceError(f"{key}: folder {str(folder)!r} does not exist")
+        if not path.is_dir():
+            raise ObjectSourceError(f"{folder}: not a folder (objects mesh dirs must be folders of .obj/.stl files)")
+        files = sorted(p for p in path.iterdir() if p.is_file() and p.suffix.lower() in MESH_SUFFIXES)
+        source = "user_heldout" if heldout else "user"
+        found += [MeshSource(f"user-{_safe_name(p.stem)}", source, str(p), always_heldout=heldout) for p in files]
+    return found
+
+
+def _make_ids_unique(sources: list[MeshSource]) -> list[MeshSource]:
+    """Give sources sharing an id a suffix from a hash of their file path (stable, order-free)."""
+    counts: dict[str, int] = {}
+    for s in sources:
+        counts[s.object_id] = counts.get(s.object_id, 0) + 1
+    unique = []
+    for s in sources:
+        if counts[s.object_id] > 1:
+            digest = hashlib.sha1(os.path.abspath(s.file).encode()).hexdigest()[:6]
+            s = MeshSource(f"{s.object_id}-{digest}", s.source, s.file, s.scale_xyz, s.rotation_rpy, s.always_heldout)
+        unique.append(s)
+    return unique
+
+
+def collect_sources(builtin_count: int, mesh_dirs, heldout_mesh_dirs, seed: int) -> list[MeshSource]:
+    """Every object to prepare: embedded default, user folders, always-held-out folders."""
+    sources = builtin_sources(builtin_count, seed)
+    sources += folder_sources(mesh_dirs, heldout=False)
+    sources += folder_sources(heldout_mesh_dirs, heldout=True)
+    return _make_ids_unique(sources)

@@ -1,0 +1,90 @@
+"""Process-pool map that survives bad inputs: one item's failure never stops the others.
+
+Python exceptions become per-item error results. A worker that dies outright (a segfault in
+a native library, an out-of-memory kill) breaks a ``ProcessPoolExecutor`` and fails every
+pending future; the items left unfinished are then re-run one per fresh single-worker
+process, so the item that kills its worker is identified and reported, and the rest finish.
+"""
+
+from __future__ import annotations
+
+import logging
+import multiprocessing
+import os
+from collections.abc import Callable, Sequence
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures.process import BrokenProcessPool
+from typing import TypeVar
+
+log = logging.getLogger(__name__)
+
+T = TypeVar("T")
+R = TypeVar("R")
+
+
+def _single_threaded_worker() -> None:
+    """Each worker owns one core: keep native libraries from spawning their own threads."""
+    for name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "IGL_NUM_THREADS"):
+        os.environ[name] = "1"
+
+
+def _run_isolated(func: Callable[[T], R], item: T, on_error: Callable[[T, str], R]) -> R:
+    context = multiprocessing.get_context("spawn")
+    with ProcessPoolExecutor(1, mp_context=context, initializer=_single_threaded_worker) as pool:
+        try:
+            return pool.submit(func, item).result()
+        except BrokenProcessPool:
+            return on_error(item, "worker process crashed (native library failure or out of memory)")
+        except Exception as exc:  # noqa: BLE001 - any failure of one item is that item's result
+            return on_error(item, f"{type(exc).__name__}: {exc}")
+
+
+def resilient_map(
+    func: Callable[[T], R],
+    items: Sequence[T],
+    workers: int,
+    on_error: Callable[[T, str], R],
+    progress: Callable[[int, int], None] | None = None,
+) -> list[R]:
+    """``[func(item) for item in items]`` over ``workers`` processes, in item order.
+
+    ``func`` must be picklable (a module-level function or a ``functools.partial`` of one).
+    ``on_error(item, message)`` builds the result of an item whose call raised or crashed.
+    ``workers <= 0`` runs in this process (no crash isolation; for tests and debugging).
+    """
+    results: list[R | None] = [None] * len(items)
+    done = [False] * len(items)
+    if workers <= 0:
+        for i, item in enumerate(items):
+            try:
+                results[i] = func(item)
+            except Exception as exc:  # noqa: BLE001
+                results[i] = on_error(item, f"{type(exc).__name__}: {exc}")
+            if progress:
+                progress(i + 1, len(items))
+        return results  # type: ignore[return-value]
+    context = multiprocessing.get_context("spawn")
+    finished = 0
+    with ProcessPoolExecutor(min(workers, max(1, len(items))), mp_context=context, initializer=_single_threaded_worker) as pool:
+        futures = {pool.submit(func, item): i for i, item in enumerate(items)}
+        for future in as_completed(futures):
+            i = futures[future]
+            try:
+                results[i] = future.result()
+            except BrokenProcessPool:
+                continue
+            except Exception as exc:  # noqa: BLE001
+                results[i] = on_error(items[i], f"{type(exc).__name__}: {exc}")
+            done[i] = True
+            finished += 1
+            if progress:
+                progress(finished, len(items))
+    leftover = [i for i, ok in enumerate(done) if not ok]
+    if leftover:
+        log.warning("a worker process crashed; re-running %d unfinished item(s) one per process", len(leftover))
+    for i in leftover:
+        results[i] = _run_isolated(func, items[i], on_error)
+        finished += 1
+        if progress:
+            progress(finished, len(items))
+    return results  # type: ignore[return-value]
