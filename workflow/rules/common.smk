@@ -54,6 +54,9 @@ def final_outputs():
     # The curation summary (per object: kept and dropped per reason) once its inputs have rules.
     if defined >= {"stability_filter", "seed_grasps", "curate_summary"}:
         outputs.append(f"{RESULTS}/curate/summary.csv")
+    # The lift-validated shards (MuJoCo lift test of the curated grasps) once their inputs have rules.
+    if defined >= {"stability_filter", "seed_grasps", "curate", "lift_validate"}:
+        outputs += [f"{RESULTS}/lift/shard_{shard}.zarr" for shard in SHARDS]
     return outputs
 
 

@@ -1,0 +1,42 @@
+"""Stage ``lift_validate`` (one shard): lift-test the curated grasps of a shard.
+
+Reads ``results/curate/shard_{shard}.zarr`` and writes ``results/lift/shard_{shard}.zarr``:
+every curated grasp with ``lift_ratio``, ``lift_success``, ``failure_reason`` (and the
+six-direction arrays when ``lift.six_directions`` is on); the constants and a summary
+are stored in the attributes. Later stages train only on ``lift_success``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+
+log = logging.getLogger("dexlite.lift_validate")
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--config-json", required=True, help="config sections seed, device, lift (canonical JSON)")
+    parser.add_argument("--grasps", required=True, help="curated grasp shard (curate output)")
+    parser.add_argument("--objects", action="append", required=True, help="prepared objects dir (repeatable)")
+    parser.add_argument("--shard", required=True, help="shard id, e.g. 000")
+    parser.add_argument("--out", required=True, help="lift-validated grasp store (.zarr)")
+
+
+def run(args: argparse.Namespace) -> int:
+    from dexlite_pipeline.config import parse_config_json
+    from dexlite_pipeline.io.grasp_store import read_grasp_store, write_grasp_store
+    from dexlite_pipeline.sim.config import lift_config_from
+    from dexlite_pipeline.sim.results import format_summary, lift_grasp_set
+    from dexlite_pipeline.stages.lift_test import check_objects_dirs, report_invalid
+
+    sections = parse_config_json(args.config_json)
+    config = lift_config_from(sections)
+    check_objects_dirs(args.objects)
+    grasps = read_grasp_store(args.grasps)
+    result, summary = lift_grasp_set(grasps, args.objects, config, args.threads or 1)
+    report_invalid(args.grasps, result.arrays["failure_reason"])
+    attrs = {"stage": "lift_validate", "shard": args.shard, "source": str(args.grasps), "config": {"seed": sections.get("seed"), "lift": config.as_dict()}}
+    write_grasp_store(args.out, result, attrs)
+    for line in format_summary(summary, config).splitlines():
+        log.info("shard %s: %s", args.shard, line)
+    return 0
