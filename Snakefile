@@ -4,6 +4,7 @@ configfile: "config.yaml"
 
 include: "workflow/rules/common.smk"
 include: "workflow/rules/prepare_objects.smk"
+include: "workflow/rules/stability_filter.smk"
 include: "workflow/rules/import_dexgraspnet.smk"
 include: "workflow/rules/curate.smk"
 include: "workflow/rules/train_cvae.smk"

@@ -46,7 +46,7 @@ def code_hash(*modules):
 
 def final_outputs():
     """The final products of the stages that exist."""
-    outputs = [f"{RESULTS}/objects/catalog.parquet"]
+    outputs = [f"{RESULTS}/objects/catalog.parquet", f"{RESULTS}/stability/stability.parquet"]
     # The evaluation needs every grasp-producing stage; it joins `all` once their rules are in.
     defined = {rule.name for rule in workflow.rules}
     if defined >= {"seed_grasps", "sample_grasps", "post_optimize", "evaluate", "report"}:

@@ -1,6 +1,7 @@
 rule prepare_objects:
     output:
         catalog=f"{RESULTS}/objects/catalog.parquet",
+        config=f"{RESULTS}/objects/prepare_config.json",
     params:
         cfg=stage_params("seed", "objects"),
     threads: workflow.cores
