@@ -4,6 +4,7 @@ rule prepare_objects:
         config=f"{RESULTS}/objects/prepare_config.json",
     params:
         cfg=stage_params("seed", "objects"),
+        code=code_hash("prepare_objects"),
     threads: workflow.cores
     conda:
         CONDA_ENV
