@@ -169,18 +169,19 @@ def repair_mesh(mesh):
     return mesh
 
 
-def check_extent(mesh) -> None:
-    """Reject a mesh that is flat (all points on a plane or a line)."""
+def check_shape(mesh) -> None:
+    """Reject a mesh that cannot bound a solid: flat (all on a plane or line) or under 4 real faces."""
     extents = np.asarray(mesh.extents, dtype=np.float64)
     if extents.max() <= 0 or extents.min() / extents.max() < MIN_EXTENT_RATIO:
         raise MeshRejected(f"degenerate: flat (extents {np.array2string(extents, precision=4)})")
+    n_faces = int(mesh.nondegenerate_faces().sum())
+    if n_faces < MIN_FACES:
+        raise MeshRejected(f"degenerate: only {n_faces} non-degenerate faces")
 
 
 def check_mesh(mesh) -> None:
     """Reject a repaired mesh that is not a usable solid."""
-    if len(mesh.faces) < MIN_FACES:
-        raise MeshRejected(f"degenerate: only {len(mesh.faces)} non-degenerate faces")
-    check_extent(mesh)
+    check_shape(mesh)
     if not mesh.is_watertight:
         _, uses = np.unique(mesh.edges_sorted, axis=0, return_counts=True)
         raise MeshRejected(
@@ -256,7 +257,7 @@ def prepare_object(source: MeshSource, objects_dir: str, settings: AssetBuildSet
             return _row(source, watertight=bool(previous["watertight"]), volume=float(previous["volume"]),
                         n_convex_pieces=int(previous["n_convex_pieces"]), status="ok")
         raw = load_source_mesh(source)
-        check_extent(raw)
+        check_shape(raw)  # before repair, which could close a few stray triangles into a "solid"
         mesh = repair_mesh(raw)
         check_mesh(mesh)
         mesh, centre, factor = normalize_mesh(mesh)

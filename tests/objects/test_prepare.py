@@ -1,0 +1,168 @@
+"""Object preparation: rejection reasons, repair, normalization, catalog, split, reuse."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+import trimesh
+
+from dexlite_pipeline.objects.prepare import (
+    CATALOG_COLUMNS,
+    ObjectsConfig,
+    MeshRejected,
+    assign_split,
+    check_mesh,
+    normalize_mesh,
+    prepare_object,
+    prepare_objects,
+    repair_mesh,
+)
+from dexlite_pipeline.objects.sources import MeshSource, collect_sources
+
+# Small grids, few samples and a light CoACD search keep these tests at a second or two.
+TINY = ObjectsConfig(
+    builtin_count=0, sdf_resolution=20, sdf_exact_band=0.2, surface_points=128,
+    coacd_mcts_iterations=10, coacd_mcts_nodes=5, coacd_mcts_max_depth=1, coacd_resolution=300,
+)
+
+
+def _obj_text(vertices, faces) -> str:
+    lines = [f"v {x} {y} {z}" for x, y, z in vertices]
+    lines += [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in faces]
+    return "\n".join(lines) + "\n"
+
+
+TET_VERTICES = [(0, 0, 0), (1, 0, 0), (0, 1, 0), (0, 0, 1)]
+TET_FACES = [(0, 2, 1), (0, 1, 3), (0, 3, 2), (1, 2, 3)]
+
+BAD_MESHES = {
+    "unreadable": ("bad_index.obj", "v 0 0 0\nv 1 0 0\nf 1 2 9\n"),
+    "unreadable: no mesh data": ("noise.obj", "\x00\x01binary noise that is not a mesh\x02"),
+    "empty mesh": ("empty.obj", ""),
+    "non-finite vertices": ("nan.obj", _obj_text([(0, 0, 0), (1, 0, 0), (0, 1, 0), ("nan", 0, 1)], TET_FACES)),
+    "degenerate: flat": ("flat.obj", _obj_text([(0, 0, 0), (1, 0, 0), (0, 1, 0), (1, 1, 0)], [(0, 1, 2), (1, 3, 2)])),
+    "degenerate: only 2": ("folded.obj", _obj_text([(0, 0, 0), (1, 0, 0), (0, 1, 0), (1, 0, 1)], [(0, 1, 2), (0, 3, 1)])),
+    # Two closed tetrahedra sharing one edge: that edge has four faces, no hole to fill.
+    "not watertight after repair": (
+        "bowtie.obj",
+        _obj_text(TET_VERTICES + [(0, -1, 0), (0, 0, -1)], TET_FACES + [(0, 1, 4), (0, 5, 1), (0, 4, 5), (1, 5, 4)]),
+    ),
+}
+
+
+@pytest.mark.parametrize("reason", sorted(BAD_MESHES))
+def test_each_bad_mesh_is_rejected_with_its_reason(tmp_path, reason):
+    name, text = BAD_MESHES[reason]
+    path = tmp_path / name
+    path.write_text(text)
+    row = prepare_object(MeshSource("user-bad", "user", str(path)), str(tmp_path / "out"), TINY.build_settings(0))
+    assert row["status"] == "rejected"
+    assert row["reason"].startswith(reason), row["reason"]
+    assert "\n" not in row["reason"]
+    assert not (tmp_path / "out" / "assets" / "user-bad").exists()
+
+
+def test_hole_is_filled_and_inverted_winding_fixed():
+    cylinder = trimesh.creation.cylinder(radius=0.5, height=1.0, sections=24)
+    top_cap = cylinder.triangles_center[:, 2] > 0.49
+    assert top_cap.sum() >= 20  # a 24-gon hole: too large for trimesh's own fill_holes
+    open_cylinder = trimesh.Trimesh(cylinder.vertices, cylinder.faces[~top_cap][:, ::-1], process=False)
+    assert not open_cylinder.is_watertight
+    repaired = repair_mesh(open_cylinder)
+    check_mesh(repaired)
+    assert repaired.is_watertight and repaired.volume > 0
+    assert repaired.volume == pytest.approx(cylinder.volume, rel=0.02)
+
+
+def test_overlapping_shells_become_one_solid():
+    a = trimesh.creation.box((1.0, 1.0, 1.0))
+    b = trimesh.creation.box((1.0, 1.0, 1.0))
+    b.apply_translation((0.5, 0, 0))
+    repaired = repair_mesh(trimesh.util.concatenate([a, b]))
+    assert repaired.body_count == 1
+    assert repaired.volume == pytest.approx(1.5, rel=1e-6)
+
+
+def test_normalization_centres_bounding_box_and_sets_radius():
+    box = trimesh.creation.box((3.0, 1.0, 0.5))
+    box.apply_translation((10.0, -4.0, 2.0))
+    normalized, centre, factor = normalize_mesh(box)
+    np.testing.assert_allclose(centre, (10.0, -4.0, 2.0), atol=1e-12)
+    np.testing.assert_allclose(normalized.bounds.mean(axis=0), 0.0, atol=1e-12)
+    assert np.linalg.norm(normalized.vertices, axis=1).max() == pytest.approx(1 / 1.03)
+    with pytest.raises(MeshRejected, match="degenerate"):
+        check_mesh(trimesh.Trimesh(box.vertices[:3], [[0, 1, 2]]))
+
+
+def _write_user_meshes(folder):
+    folder.mkdir()
+    trimesh.creation.box((1.0, 0.6, 0.4)).export(folder / "box.obj")
+    trimesh.creation.icosphere(subdivisions=2).export(folder / "ball.stl")
+    (folder / "broken.obj").write_text("v 0 0 0\nf 1 2 3\n")
+
+
+def test_prepare_objects_writes_catalog_assets_and_config(tmp_path):
+    _write_user_meshes(tmp_path / "mine")
+    (tmp_path / "eval").mkdir()
+    trimesh.creation.cylinder(radius=0.3, height=1.0).export(tmp_path / "eval" / "can.obj")
+    config = ObjectsConfig(**{**TINY.__dict__, "mesh_dirs": (str(tmp_path / "mine"),), "heldout_mesh_dirs": (str(tmp_path / "eval"),)})
+    sources = collect_sources(0, config.mesh_dirs, config.heldout_mesh_dirs, seed=0)
+    out = tmp_path / "objects"
+    catalog = prepare_objects(sources, out, config, seed=0, workers=0)
+
+    stored = pd.read_parquet(out / "catalog.parquet")
+    assert list(stored.columns) == CATALOG_COLUMNS
+    pd.testing.assert_frame_equal(stored, catalog)
+    rows = stored.set_index("object_id")
+    assert set(rows.index) == {"user-box", "user-ball", "user-broken", "user-can"}
+    assert rows.loc["user-broken", "status"] == "rejected" and rows.loc["user-broken", "split"] == ""
+    for oid in ("user-box", "user-ball", "user-can"):
+        assert rows.loc[oid, "status"] == "ok" and rows.loc[oid, "reason"] == ""
+        assert bool(rows.loc[oid, "watertight"]) and rows.loc[oid, "n_convex_pieces"] >= 1
+        assert (out / "assets" / oid / "arrays.zarr").exists()
+    assert rows.loc["user-can", "split"] == "heldout" and rows.loc["user-can", "source"] == "user_heldout"
+    assert rows.loc["user-box", "volume"] == pytest.approx(1.0 * 0.6 * 0.4 / (np.linalg.norm([0.5, 0.3, 0.2]) * 1.03) ** 3)
+    recorded = json.loads((out / "prepare_config.json").read_text())
+    assert recorded["seed"] == 0 and recorded["objects"]["sdf_resolution"] == TINY.sdf_resolution
+
+
+def test_unchanged_assets_are_reused_and_stale_ones_removed(tmp_path):
+    _write_user_meshes(tmp_path / "mine")
+    config = ObjectsConfig(**{**TINY.__dict__, "mesh_dirs": (str(tmp_path / "mine"),)})
+    out = tmp_path / "objects"
+    prepare_objects(collect_sources(0, config.mesh_dirs, (), 0), out, config, seed=0, workers=0)
+    arrays = out / "assets" / "user-box" / "arrays.zarr"
+    before = arrays.stat().st_mtime_ns
+    (tmp_path / "mine" / "ball.stl").unlink()
+    again = prepare_objects(collect_sources(0, config.mesh_dirs, (), 0), out, config, seed=0, workers=0)
+    assert arrays.stat().st_mtime_ns == before
+    assert not (out / "assets" / "user-ball").exists()
+    assert set(again["object_id"]) == {"user-box", "user-broken"}
+    changed = ObjectsConfig(**{**config.__dict__, "surface_points": 64})
+    prepare_objects(collect_sources(0, config.mesh_dirs, (), 0), out, changed, seed=0, workers=0)
+    assert arrays.stat().st_mtime_ns != before
+
+
+def test_split_is_seeded_exact_and_respects_always_heldout():
+    ids = [f"obj-{i:02d}" for i in range(20)]
+    catalog = pd.DataFrame({"object_id": ids + ["bad"], "status": ["ok"] * 20 + ["rejected"]})
+    first = assign_split(catalog.copy(), 0.25, seed=3, always_heldout={"obj-00"})
+    again = assign_split(catalog.copy(), 0.25, seed=3, always_heldout={"obj-00"})
+    other = assign_split(catalog.copy(), 0.25, seed=4, always_heldout={"obj-00"})
+    assert list(first["split"]) == list(again["split"])
+    assert list(first["split"]) != list(other["split"])
+    heldout = set(first.loc[first["split"] == "heldout", "object_id"])
+    assert "obj-00" in heldout and len(heldout) == 1 + round(0.25 * 19)
+    assert first.loc[first["object_id"] == "bad", "split"].item() == ""
+
+
+def test_cli_stops_at_once_on_a_missing_folder(tmp_path, capsys):
+    from dexlite_pipeline.cli import main
+
+    cfg = json.dumps({"seed": 0, "objects": {"builtin_count": 0, "mesh_dirs": [str(tmp_path / "gone")], "heldout_mesh_dirs": []}})
+    assert main(["prepare-objects", "--config-json", cfg, "--out-dir", str(tmp_path / "out")]) == 2
+    assert "gone" in capsys.readouterr().err
+    assert not (tmp_path / "out" / "catalog.parquet").exists()

@@ -1,0 +1,67 @@
+"""Object sources: embedded pybullet_data selection, user folders, ids, folder errors."""
+
+from __future__ import annotations
+
+import pytest
+
+from dexlite_pipeline.objects.sources import (
+    ObjectSourceError,
+    builtin_sources,
+    collect_sources,
+    folder_sources,
+    named_pybullet_sources,
+    pybullet_data_dir,
+    urdf_visual_mesh,
+)
+
+
+def test_missing_folder_is_an_immediate_error_naming_it(tmp_path):
+    missing = tmp_path / "no_such_meshes"
+    with pytest.raises(ValueError, match="no_such_meshes"):
+        collect_sources(0, [str(missing)], [], seed=0)
+    with pytest.raises(ObjectSourceError, match="heldout_mesh_dirs"):
+        collect_sources(0, [], [str(missing)], seed=0)
+
+
+def test_user_folder_meshes_are_picked_up(tmp_path):
+    (tmp_path / "cup.obj").write_text("v 0 0 0\n")
+    (tmp_path / "Block A.STL").write_bytes(b"solid x\nendsolid x\n")
+    (tmp_path / "notes.txt").write_text("not a mesh")
+    (tmp_path / "sub").mkdir()
+    (tmp_path / "sub" / "inner.obj").write_text("v 0 0 0\n")
+    sources = folder_sources([str(tmp_path)], heldout=False)
+    assert [s.object_id for s in sources] == ["user-Block_A", "user-cup"]
+    assert {s.source for s in sources} == {"user"} and not any(s.always_heldout for s in sources)
+    held = folder_sources([str(tmp_path)], heldout=True)
+    assert all(s.always_heldout and s.source == "user_heldout" for s in held)
+
+
+def test_same_stem_in_two_folders_gets_distinct_stable_ids(tmp_path):
+    for name in ("a", "b"):
+        (tmp_path / name).mkdir()
+        (tmp_path / name / "cup.obj").write_text("v 0 0 0\n")
+    first = collect_sources(0, [str(tmp_path / "a"), str(tmp_path / "b")], [], seed=0)
+    again = collect_sources(0, [str(tmp_path / "b"), str(tmp_path / "a")], [], seed=0)
+    ids = [s.object_id for s in first]
+    assert len(set(ids)) == 2 and all(i.startswith("user-cup-") for i in ids)
+    assert {s.file: s.object_id for s in first} == {s.file: s.object_id for s in again}
+
+
+def test_builtin_selection_is_seeded_and_mixes_named_and_procedural():
+    chosen = builtin_sources(40, seed=0)
+    assert len(chosen) == 40 and len({s.object_id for s in chosen}) == 40
+    kinds = {s.source for s in chosen}
+    assert kinds == {"pybullet_named", "pybullet_random"}
+    assert [s.object_id for s in builtin_sources(40, seed=0)] == [s.object_id for s in chosen]
+    assert [s.object_id for s in builtin_sources(40, seed=1)] != [s.object_id for s in chosen]
+    assert builtin_sources(0, seed=0) == []
+    for s in chosen:
+        assert s.file.endswith((".obj", ".stl")), s.file
+
+
+def test_named_objects_ship_and_urdf_placement_is_read():
+    named = {s.object_id: s for s in named_pybullet_sources()}
+    assert {"pb-duck", "pb-bunny", "pb-torus", "pb-jenga"} <= set(named)
+    mesh, scale, rpy = urdf_visual_mesh(pybullet_data_dir() / "jenga" / "jenga.urdf")
+    assert mesh.name == "jenga.obj" and scale == (0.15, 0.05, 0.03) and rpy == (0.0, 0.0, 0.0)
+    assert named["pb-jenga"].scale_xyz == (0.15, 0.05, 0.03)
