@@ -1,0 +1,68 @@
+"""The seed_grasps stage end to end on two tiny objects: output schema, thresholds flag, determinism."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from dexlite_pipeline.cli import main
+from dexlite_pipeline.io.grasp_store import read_grasp_store
+from dexlite_pipeline.optim.seed import EnergyThresholds
+
+CONFIG = {
+    "seed": 3,
+    "device": "cpu",
+    "shards": 1,
+    "energy": {"object_points": 300},
+    "seed_grasps": {
+        "grasps_per_object": 3,
+        "scales": [0.08, 0.1],
+        "batch_size": 8,
+        "progress_every": 5,
+        "init": {"distance_m": [0.05, 0.08]},
+        "annealing": {"iterations": 10, "trace_every": 5},
+    },
+}
+
+
+@pytest.fixture(scope="module")
+def stability(optim_objects, tmp_path_factory):
+    path = tmp_path_factory.mktemp("stability") / "stability.parquet"
+    pd.DataFrame({"object_id": ["sphere", "box"], "stable": [False, True], "reason": ["rolls", ""]}).to_parquet(path)
+    return path
+
+
+def _run(objects, stability, out, config=CONFIG) -> int:
+    return main(["seed-grasps", "--config-json", json.dumps(config), "--shard", "000", "--stability", str(stability),
+                 "--objects", str(objects), "--out", str(out), "--threads", "1"])
+
+
+def test_seed_stage_writes_every_term_and_is_deterministic(optim_objects, stability, tmp_path, caplog):
+    caplog.set_level("INFO")
+    assert _run(optim_objects, stability, tmp_path / "a.zarr") == 0
+    grasps = read_grasp_store(tmp_path / "a.zarr")
+    assert len(grasps) == 6  # only the stable box: 3 grasps x 2 scales
+    assert set(grasps.object_id) == {"box"}
+    assert sorted(set(grasps.scale.tolist())) == pytest.approx([0.08, 0.1])
+    for name in ("E_fc", "E_dis", "E_pen", "E_spen", "E_joints", "E_total", "penetration_mm", "contact_distance_mm"):
+        assert grasps.arrays[name].shape == (6,) and np.isfinite(grasps.arrays[name]).all()
+    flag = grasps.arrays["passes_energy_thresholds"]
+    assert np.array_equal(flag, EnergyThresholds().passes(grasps.arrays))
+    attrs = grasps.attrs
+    assert attrs["seconds_per_grasp"] > 0 and attrs["objects"] == ["box"]
+    assert attrs["config"]["seed_grasps"]["annealing"]["iterations"] == 10
+    assert any("iteration 5/10" in r.getMessage() for r in caplog.records)
+
+    assert _run(optim_objects, stability, tmp_path / "b.zarr") == 0
+    again = read_grasp_store(tmp_path / "b.zarr")
+    assert np.array_equal(again.hand_pose, grasps.hand_pose)
+    assert np.array_equal(again.arrays["contact_index"], grasps.arrays["contact_index"])
+
+
+def test_seed_stage_missing_stability_table_is_a_clear_error(optim_objects, tmp_path, capsys):
+    assert _run(optim_objects, tmp_path / "none.parquet", tmp_path / "c.zarr") == 2
+    assert "none.parquet" in capsys.readouterr().err
+    assert not (tmp_path / "c.zarr").exists()
