@@ -1,0 +1,32 @@
+"""`dexlite energy` on a small store: every term added, the input arrays kept, a bad object reported."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from dexlite_pipeline.cli import main
+from dexlite_pipeline.io.grasp_store import GraspSet, read_grasp_store, write_grasp_store
+
+
+def test_energy_cli_adds_terms(sphere_objects, tmp_path, capsys):
+    pose = np.zeros((3, 28), np.float32)
+    pose[:, 2] = [-0.05, -0.3, -0.05]  # palm through the sphere, far below it, unknown object
+    grasps = GraspSet({"hand_pose": pose, "object_id": np.array(["sphere", "sphere", "ghost"], dtype=object),
+                       "scale": np.full(3, 0.08, np.float32), "lift_ratio": np.arange(3, dtype=np.float32)})
+    write_grasp_store(tmp_path / "in.zarr", grasps)
+    code = main(["energy", str(tmp_path / "in.zarr"), "--objects", str(sphere_objects), "--out", str(tmp_path / "out.zarr"), "--threads", "1"])
+    assert code == 0
+    out = read_grasp_store(tmp_path / "out.zarr")
+    assert np.array_equal(out.arrays["lift_ratio"], grasps.arrays["lift_ratio"])
+    assert out.arrays["penetration_mm"][0] > 10 and out.arrays["penetration_mm"][1] == 0
+    assert out.arrays["E_pen"][0] > 0 and out.arrays["E_pen"][1] == 0
+    assert np.isnan(out.arrays["E_fc"][2]) and "ghost" in out.arrays["energy_failure_reason"][2]
+    assert not out.arrays["passes_energy_thresholds"].any()
+    assert out.attrs["energy"]["config"]["weights"]["pen"] == 100.0
+    printed = capsys.readouterr().out
+    assert "grasps: 3, evaluated: 2" in printed and "penetration_mm" in printed
+
+
+def test_energy_cli_missing_store_is_an_error(sphere_objects, tmp_path, capsys):
+    code = main(["energy", str(tmp_path / "nope.zarr"), "--objects", str(sphere_objects), "--out", str(tmp_path / "o.zarr")])
+    assert code == 2 and "nope.zarr" in capsys.readouterr().err
