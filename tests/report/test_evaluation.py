@@ -10,7 +10,7 @@ import pytest
 
 from dexlite_pipeline.cli import main
 from dexlite_pipeline.io.grasp_store import GraspSet
-from dexlite_pipeline.report.evaluation import EvaluateConfig, method_grasps, select_grasps
+from dexlite_pipeline.report.evaluation import EvaluateConfig, method_grasps, select_grasps, stage_seconds_per_grasp
 
 from report_synthetic import OBJECT_ID, post_store, simulated_shard
 
@@ -42,6 +42,15 @@ def test_method_grasps_takes_only_pure_cvae_samples():
     raw = method_grasps("cvae_raw", [sample])
     assert len(raw) == 2 and set(raw.arrays) == {"hand_pose", "object_id", "scale"}
     assert len(method_grasps("seed", [sample])) == 3
+
+
+def test_seed_method_keeps_passing_grasps_and_costs_per_passing_grasp():
+    seed = _set(["a", "a", "a", "a"], {"passes_energy_thresholds": np.array([True, False, False, True])})
+    seed.attrs.update({"seconds_per_grasp": 2.0, "seconds": 8.0, "passing": 2})
+    assert len(method_grasps("seed", [seed], seed_passing_only=True)) == 2
+    assert len(method_grasps("seed", [seed], seed_passing_only=False)) == 4
+    assert stage_seconds_per_grasp("seed", {"seed": [seed]}, seed_passing_only=True) == {"seed": 4.0}
+    assert stage_seconds_per_grasp("seed", {"seed": [seed]}, seed_passing_only=False) == {"seed": 2.0}
 
 
 @pytest.fixture(scope="module")

@@ -49,6 +49,7 @@ class EvaluateConfig:
     splits: tuple[str, ...] = ("heldout",)  # object splits to evaluate (catalog column ``split``)
     grasps_per_object: int = 8  # cap per (method, object) on simulated grasps
     six_directions: bool = True  # also run the six-direction disturbance test
+    seed_passing_only: bool = True  # seed method = grasps passing the energy thresholds (the seed's dataset)
     entropy_bins: int = metrics.JOINT_ENTROPY_BINS  # bins per joint of the joint-angle entropy
     pca_components: tuple[int, ...] = metrics.PCA_COMPONENTS  # k of the cumulative PCA explained variance columns
     energy_batch_size: int = 256  # grasps per energy evaluation batch
@@ -98,29 +99,43 @@ def select_grasps(grasps: GraspSet, method: str, split_of: Mapping[str, str], cf
     return GraspSet(arrays, {"invalid_reasons": invalid_reasons})
 
 
-def method_grasps(method: str, sources: Sequence[GraspSet]) -> GraspSet:
+def method_grasps(method: str, sources: Sequence[GraspSet], seed_passing_only: bool = False) -> GraspSet:
     """Concatenate one method's source stores, keeping only the rows that belong to it.
 
     The sample (and post) stores hold both pure syntheses on held-out objects (``method ==
     cvae_raw``) and dataset expansion on train objects; only the former are the
-    ``cvae_raw`` method, and their refined versions the ``cvae_post`` method.
+    ``cvae_raw`` method, and their refined versions the ``cvae_post`` method. With
+    ``seed_passing_only`` the seed method keeps the grasps flagged
+    ``passes_energy_thresholds`` (what optimization from scratch delivers as a dataset).
     """
     parts = []
     for source in sources:
         subset = source
         if method in ("cvae_raw", "cvae_post") and "method" in source.arrays:
             subset = source.select(np.asarray([str(m) for m in source.arrays["method"]]) == "cvae_raw")
+        if method == "seed" and seed_passing_only and "passes_energy_thresholds" in source.arrays:
+            subset = source.select(np.asarray(source.arrays["passes_energy_thresholds"], dtype=bool))
         parts.append(GraspSet({k: subset.arrays[k] for k in SELECTED_ARRAYS}, subset.attrs))
     return GraspSet.concatenate(parts, attrs={})
 
 
-def stage_seconds_per_grasp(method: str, sources: Mapping[str, Sequence[GraspSet]]) -> dict[str, float]:
-    """Seconds per grasp of each stage that made a method's grasps (grasp-weighted over shards)."""
+def stage_seconds_per_grasp(method: str, sources: Mapping[str, Sequence[GraspSet]], seed_passing_only: bool = False) -> dict[str, float]:
+    """Seconds per grasp of each stage that made a method's grasps (grasp-weighted over shards).
+
+    With ``seed_passing_only`` the seed's cost is per grasp that passes the thresholds
+    (its seconds per grasp divided by its pass fraction).
+    """
     stages = {"seed": ("seed",), "cvae_raw": ("sample",), "cvae_post": ("sample", "post"), "random_post": ("random_post",), "dexgraspnet": ()}
     out = {}
     for stage in stages[method]:
         sets = sources.get(stage, [])
-        weighted = [(float(s.attrs["seconds_per_grasp"]), len(s)) for s in sets if "seconds_per_grasp" in s.attrs and len(s)]
+        weighted = []
+        for s in sets:
+            per_passing = stage == "seed" and seed_passing_only and s.attrs.get("seconds") is not None and s.attrs.get("passing")
+            if per_passing:
+                weighted.append((float(s.attrs["seconds"]) / int(s.attrs["passing"]), int(s.attrs["passing"])))
+            elif s.attrs.get("seconds_per_grasp") is not None and len(s):
+                weighted.append((float(s.attrs["seconds_per_grasp"]), len(s)))
         if weighted:
             total = sum(n for _, n in weighted)
             out[stage] = sum(t * n for t, n in weighted) / total

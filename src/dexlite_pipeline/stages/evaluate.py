@@ -98,10 +98,10 @@ def _simulate(args, config: dict) -> int:
         if not method_sources:
             missing.append(method)
             continue
-        selected = select_grasps(method_grasps(method, method_sources), method, split_of, cfg, seed)
+        selected = select_grasps(method_grasps(method, method_sources, cfg.seed_passing_only), method, split_of, cfg, seed)
         parts.append(GraspSet(selected.arrays, {}))
         invalid[method] = selected.attrs["invalid_reasons"]
-        seconds[method] = stage_seconds_per_grasp(method, sources)
+        seconds[method] = stage_seconds_per_grasp(method, sources, cfg.seed_passing_only)
         log.info("evaluate shard %s: %s: %d grasps on %d objects", args.shard, method, len(selected), len(set(selected.object_id)))
     selected_all = GraspSet.concatenate(parts, attrs={})
     if "method" not in selected_all.arrays:
