@@ -160,32 +160,38 @@ def judge(object_id: str, start_pos, start_orn, end_pos, end_orn, config: Stabil
     return StabilityResult(object_id, lateral, rotation, not problems, reason)
 
 
-def simulate_asset(object_id: str, objects_dirs: list[str], config: StabilityConfig, seed: int) -> dict:
-    """Stability row of one prepared object (its normalized mesh and convex pieces)."""
-    from dexlite_pipeline.objects.assets import find_asset_dir
+def simulate_asset(item: tuple[str, str], config: StabilityConfig, seed: int) -> dict:
+    """Stability row of one prepared object, ``item`` = (object id, asset folder)."""
     import trimesh
 
-    directory = find_asset_dir(objects_dirs, object_id)
+    object_id, folder = item
+    directory = Path(folder)
     mesh = trimesh.load(directory / "mesh.obj", force="mesh", process=False)
     pieces = sorted((directory / "convex").glob("*.obj"))
     return simulate_object(mesh, pieces, object_id, config, seed).row()
 
 
-def _failed_row(object_id: str, message: str) -> dict:
+def _failed_row(item: tuple[str, str], message: str) -> dict:
     first = message.splitlines()[0] if message else "unknown error"
-    return StabilityResult(object_id, math.nan, math.nan, False, f"simulation failed: {first}").row()
+    return StabilityResult(item[0], math.nan, math.nan, False, f"simulation failed: {first}").row()
 
 
 def stability_table(catalog, objects_dirs: list[str], config: StabilityConfig, seed: int, workers: int):
     """One row per catalog object: simulated for ok objects, rejected ones carried with their reason."""
     import pandas as pd
 
+    from dexlite_pipeline.objects.assets import ObjectAssetError, find_asset_dir
     from dexlite_pipeline.parallel import resilient_map
 
     ok = catalog["status"] == "ok"
-    ok_ids = sorted(catalog.loc[ok, "object_id"].astype(str))
-    task = functools.partial(simulate_asset, objects_dirs=[str(d) for d in objects_dirs], config=config, seed=seed)
-    rows = resilient_map(task, ok_ids, workers, _failed_row)
+    rows, items = [], []
+    for object_id in sorted(catalog.loc[ok, "object_id"].astype(str)):
+        try:
+            items.append((object_id, str(find_asset_dir(objects_dirs, object_id))))
+        except ObjectAssetError as exc:
+            rows.append(StabilityResult(object_id, math.nan, math.nan, False, f"not simulated: {exc}").row())
+    task = functools.partial(simulate_asset, config=config, seed=seed)
+    rows += resilient_map(task, items, workers, _failed_row)
     for row in catalog[~ok].itertuples():
         rows.append(StabilityResult(str(row.object_id), math.nan, math.nan, False, f"not simulated: rejected by prepare_objects ({row.reason})").row())
     table = pd.DataFrame(rows, columns=STABILITY_COLUMNS).sort_values("object_id", kind="stable").reset_index(drop=True)

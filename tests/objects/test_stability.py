@@ -1,0 +1,105 @@
+"""Stability filter: shapes whose answer is known, the centre-of-mass pitfall, determinism, the stage."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pandas as pd
+import pytest
+import trimesh
+
+from dexlite_pipeline.objects.build import AssetBuildSettings, write_asset
+from dexlite_pipeline.objects.prepare import normalize_mesh
+from dexlite_pipeline.objects.stability import STABILITY_COLUMNS, StabilityConfig, simulate_object, stability_table, tilt_rotation
+
+CONFIG = StabilityConfig()
+
+
+def _flip(mesh):
+    """Upside down (rotated 180 degrees about x)."""
+    mesh = mesh.copy()
+    mesh.apply_transform(trimesh.transformations.rotation_matrix(math.pi, [1, 0, 0]))
+    return mesh
+
+
+SHAPES = {
+    "cube": (trimesh.creation.box((1.0, 1.0, 1.0)), True),
+    "cone_on_base": (trimesh.creation.cone(0.5, 1.0, sections=32), True),
+    "squat_cylinder": (trimesh.creation.cylinder(0.4, 0.5, sections=32), True),
+    "cone_on_tip": (_flip(trimesh.creation.cone(0.5, 1.0, sections=32)), False),
+    # 3 degrees of tilt topple a cylinder whose radius is under tan(3 deg) = 0.052 of its half height.
+    "thin_cylinder_on_end": (trimesh.creation.cylinder(0.015, 1.0, sections=16), False),
+}
+
+
+def _simulate(tmp_path, name, mesh, seed=0, shift=(0.0, 0.0, 0.0)):
+    mesh = normalize_mesh(mesh)[0]
+    mesh.apply_translation(shift)
+    piece = tmp_path / f"{name}.obj"
+    mesh.export(piece)
+    return simulate_object(mesh, [piece], name, CONFIG, seed)
+
+
+@pytest.mark.parametrize("name", sorted(SHAPES))
+def test_known_shapes(tmp_path, name):
+    mesh, expected = SHAPES[name]
+    result = _simulate(tmp_path, name, mesh)
+    assert result.stable is expected, result
+    if expected:
+        assert result.reason == "" and result.lateral_displacement_m < 0.01 and result.rotation_deg < 5
+    else:
+        assert result.reason.startswith("unstable:") and result.rotation_deg > 30
+
+
+def test_true_centre_of_mass_is_used_not_the_mesh_origin(tmp_path):
+    """A rod whose mesh origin is the centre of its bottom face: with the centre of mass taken at
+    the origin (PyBullet's default) it would right itself from the tilt and pass (checked by
+    hand); with the true centre of mass, halfway up, it topples."""
+    rod, _ = SHAPES["thin_cylinder_on_end"]
+    half_height = normalize_mesh(rod)[0].bounds[1, 2]
+    base_origin = _simulate(tmp_path, "rod_base_origin", rod, shift=(0.0, 0.0, half_height))
+    assert not base_origin.stable and base_origin.rotation_deg > 30
+
+
+def test_deterministic_and_tilt_is_seeded(tmp_path):
+    mesh, _ = SHAPES["thin_cylinder_on_end"]
+    first = _simulate(tmp_path, "rod", mesh, seed=5)
+    assert _simulate(tmp_path, "rod", mesh, seed=5) == first
+    tilts = [tilt_rotation("rod", 3.0, seed) for seed in (5, 6)]
+    for tilt in tilts:
+        assert math.degrees(math.acos((np.trace(tilt) - 1) / 2)) == pytest.approx(3.0)
+        assert abs(tilt[2, 2] - math.cos(math.radians(3.0))) < 1e-12  # the axis is horizontal
+    assert not np.allclose(tilts[0], tilts[1])
+
+
+def test_table_carries_rejected_objects_and_stage_writes_it(tmp_path):
+    objects = tmp_path / "objects"
+    settings = AssetBuildSettings(sdf_resolution=16, surface_points=64)
+    for name in ("cube", "cone_on_tip"):
+        mesh = normalize_mesh(SHAPES[name][0])[0]
+        write_asset(mesh, name, objects, settings, {"source": "test"}, convex_pieces=[mesh])
+    catalog = pd.DataFrame(
+        {
+            "object_id": ["cube", "cone_on_tip", "broken"],
+            "source": "test", "file": "", "watertight": [True, True, False], "volume": [1.0, 1.0, np.nan],
+            "n_convex_pieces": [1, 1, 0], "status": ["ok", "ok", "rejected"],
+            "reason": ["", "", "not watertight after repair: 3 boundary edges, 0 non-manifold edges"], "split": ["train", "train", ""],
+        }
+    )
+    catalog.to_parquet(objects / "catalog.parquet", index=False)
+    table = stability_table(catalog, [str(objects)], CONFIG, seed=0, workers=0).set_index("object_id")
+    assert bool(table.loc["cube", "stable"]) and not bool(table.loc["cone_on_tip", "stable"])
+    assert not bool(table.loc["broken", "stable"]) and "not watertight" in table.loc["broken", "reason"]
+    assert math.isnan(table.loc["broken", "rotation_deg"])
+
+    from dexlite_pipeline.cli import main
+
+    out = tmp_path / "stability" / "stability.parquet"
+    cfg = json.dumps({"seed": 0, "stability": {"duration_s": 1.0}})
+    assert main(["stability-filter", "--config-json", cfg, "--objects", str(objects), "--out", str(out), "--threads", "1"]) == 0
+    written = pd.read_parquet(out)
+    assert list(written.columns) == STABILITY_COLUMNS
+    assert written.set_index("object_id")["stable"].to_dict() == {"broken": False, "cone_on_tip": False, "cube": True}
+    assert json.loads((out.parent / "stability_config.json").read_text())["stability"]["duration_s"] == 1.0
