@@ -2,12 +2,8 @@
 
 from __future__ import annotations
 
-import numpy as np
 import pytest
 import torch
-
-from dexlite_pipeline.hand.rotation import euler_xyz_to_matrix, matrix_to_euler_xyz
-from dexlite_pipeline.io.grasp_store import GraspSet
 
 OBJECT_IDS = ("box", "sphere")
 SURFACE_POINTS = 256
@@ -44,30 +40,12 @@ def tiny_assets(tiny_objects):
     return [load_asset(tiny_objects, oid) for oid in OBJECT_IDS]
 
 
-def wrapping_grasps(hand, count: int, seed: int, object_ids=OBJECT_IDS) -> GraspSet:
-    """Grasp-like poses: the palm facing the object just off its surface, fingers half closed.
-
-    The object centre sits in front of the palm (palm frame −y), so the pads face it;
-    random palm orientations about the object, scales from DexGraspNet's set.
-    """
-    rng = np.random.default_rng(seed)
-    scale = rng.choice([0.06, 0.08, 0.1], count).astype(np.float32)
-    rotation = euler_xyz_to_matrix(torch.as_tensor(rng.uniform(-np.pi, np.pi, (count, 3)), dtype=torch.float32))
-    centre_in_palm = torch.stack(
-        [torch.full((count,), 0.01), -(torch.as_tensor(scale) + 0.015), torch.full((count,), 0.07)], dim=1
-    )
-    translation = -(rotation @ centre_in_palm[:, :, None])[:, :, 0]
-    limits = hand.joint_limits
-    joints = limits[:, 0] + (limits[:, 1] - limits[:, 0]) * torch.as_tensor(rng.uniform(0.3, 0.5, (count, 22)), dtype=torch.float32)
-    pose = torch.cat([translation, matrix_to_euler_xyz(rotation), joints], dim=1).numpy()
-    objects = np.asarray([object_ids[i % len(object_ids)] for i in range(count)], dtype=object)
-    return GraspSet({"hand_pose": pose, "object_id": objects, "scale": scale})
-
-
 @pytest.fixture(scope="session")
 def make_grasps():
-    """``make_grasps(hand, count, seed)``: grasp-like poses on the tiny objects (see ``wrapping_grasps``)."""
-    return wrapping_grasps
+    """``make_grasps(hand, count, seed)``: grasp-like poses on the tiny objects, alternating box and sphere."""
+    from dexlite_pipeline.model.demo_grasps import facing_grasps
+
+    return lambda hand, count, seed: facing_grasps(hand, OBJECT_IDS, count, seed)
 
 
 @pytest.fixture

@@ -1,0 +1,82 @@
+"""The three learning stages through the CLI on tiny inputs: train -> sample -> post-optimize."""
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+import torch
+
+from dexlite_pipeline.cli import main
+from dexlite_pipeline.io.grasp_store import read_grasp_store, write_grasp_store
+
+
+CONFIG = {
+    "seed": 0,
+    "device": "cpu",
+    "shards": 1,
+    "train": {
+        "epochs": 3, "max_steps": 0, "batch_size": 8, "clouds_per_batch": 2, "points_per_cloud": 64, "min_grasps": 4,
+        "validation_fraction": 0.25, "energy_object_points": 64,
+        "model": {"pointnet_widths": [16, 32, 64, 32], "encoder_hidden": [32], "decoder_hidden": [32], "latent_dim": 8, "normalization": "batch"},
+    },
+    "sample": {"synthesis_grasps_per_object": 5, "expansion_grasps_per_object": 6, "scales": [0.08, 0.1]},
+    "post_optimize": {"iterations": 10, "energy_object_points": 64, "batch_size": 4},
+}
+
+
+@pytest.fixture
+def pipeline_inputs(tmp_path, hand, tiny_objects, make_grasps):
+    """A catalog (box: train, sphere: held out), a stability table and one lift shard."""
+    catalog_dir = tmp_path / "catalog"
+    catalog_dir.mkdir()
+    pd.DataFrame({"object_id": ["box", "sphere"], "status": ["ok", "ok"], "split": ["train", "heldout"]}).to_parquet(catalog_dir / "catalog.parquet")
+    pd.DataFrame({"object_id": ["box", "sphere"], "stable": [True, True]}).to_parquet(tmp_path / "stability.parquet")
+    grasps = make_grasps(hand, 16, seed=7)  # alternating box / sphere
+    grasps.arrays["lift_success"] = np.arange(16) % 4 != 0
+    write_grasp_store(tmp_path / "lift.zarr", grasps)
+    return tmp_path, ["--objects", str(catalog_dir), "--objects", str(tiny_objects)]
+
+
+def test_train_sample_post_optimize(pipeline_inputs):
+    root, objects = pipeline_inputs
+    cfg = json.dumps(CONFIG)
+    assert main(["train-cvae", "--config-json", cfg, "--lift", str(root / "lift.zarr"), *objects, "--out-dir", str(root / "model")]) == 0
+    history = pd.read_csv(root / "model" / "history.csv")
+    assert len(history) == 3 and {"train_recon", "val_recon", "train_pen", "val_kl"} <= set(history.columns)
+    assert (root / "model" / "training_curves.png").stat().st_size > 0
+    checkpoint = torch.load(root / "model" / "cvae.pt", weights_only=True)
+    assert checkpoint["train_object_ids"] == ["box"]  # held-out sphere grasps never trained on
+    assert checkpoint["excluded_grasps"] == {"failed the lift test": 4, "object not in the training split": 8}
+
+    common = [*objects, "--shard", "000"]
+    assert main(["sample-grasps", "--config-json", cfg, "--model", str(root / "model" / "cvae.pt"), "--stability", str(root / "stability.parquet"),
+                 "--lift", str(root / "lift.zarr"), *common, "--out", str(root / "sample.zarr")]) == 0
+    sample = read_grasp_store(root / "sample.zarr")
+    method = sample.arrays["method"]
+    assert sorted(set(sample.object_id[method == "cvae_raw"])) == ["sphere"] and (method == "cvae_raw").sum() == 5
+    assert set(sample.object_id[method != "cvae_raw"]) == {"box"} and (method != "cvae_raw").sum() == 6
+    assert set(method) <= {"cvae_raw", "cvae_expand_latent", "cvae_expand_point"}
+    assert sample.attrs["seconds_per_grasp"] > 0 and np.isfinite(sample.hand_pose).all()
+
+    assert main(["post-optimize", "--config-json", cfg, "--sample", str(root / "sample.zarr"), *common,
+                 "--out", str(root / "post.zarr"), "--random-out", str(root / "random.zarr")]) == 0
+    post = read_grasp_store(root / "post.zarr")
+    assert np.array_equal(post.arrays["raw_hand_pose"], sample.hand_pose)
+    assert post.arrays["trace_E_post"].shape == (11, 11) and post.attrs["trace_iterations"] == list(range(11))
+    assert {"E_fc", "raw_E_fc", "E_post", "raw_E_post", "penetration_mm", "raw_penetration_mm"} <= set(post.arrays)
+    assert np.array_equal(post.arrays["method"], method)
+    baseline = read_grasp_store(root / "random.zarr")
+    assert len(baseline) == 5 and set(baseline.arrays["method"]) == {"random_post"}
+    assert sorted(baseline.object_id) == sorted(sample.object_id[method == "cvae_raw"])
+    assert baseline.arrays["trace_E_post"].shape == (5, 11)
+    # Random starts are 0.2-0.3 m away: their palms start far from the object.
+    assert np.linalg.norm(baseline.arrays["raw_hand_pose"][:, :3], axis=1).min() > 0.15
+
+
+def test_training_refuses_too_few_grasps(pipeline_inputs, capsys):
+    root, objects = pipeline_inputs
+    cfg = json.dumps({**CONFIG, "train": {**CONFIG["train"], "min_grasps": 100}})
+    assert main(["train-cvae", "--config-json", cfg, "--lift", str(root / "lift.zarr"), *objects, "--out-dir", str(root / "model")]) == 2
+    assert "train.min_grasps is 100" in capsys.readouterr().err
+    assert not (root / "model" / "cvae.pt").exists()
