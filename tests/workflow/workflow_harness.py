@@ -21,9 +21,10 @@ REPO = Path(__file__).resolve().parents[2]
 SNAKEFILE = REPO / "Snakefile"
 BIN_DIR = Path(sys.executable).parent
 # Real grasps to train on: a tiny seed run finds none that hold, so the tiny config imports
-# the two-object DexGraspNet sample beside the repository (the mug trains, the bottle is held out).
+# the two-object DexGraspNet sample beside the repository (the bottle trains; the mug, which
+# tips over in its file orientation, is held out).
 DEXGRASPNET_SAMPLE = REPO.parent / "shared" / "dexgraspnet_sample"
-HELDOUT_SAMPLE_OBJECT = "sem-Bottle-437678d4bc6be981c8724d5673a063a6"
+HELDOUT_SAMPLE_OBJECT = "core-mug-8570d9a8d24cb0acbebd3c0c0c70fb03"
 
 # The smallest settings that still exercise every stage. Keys of sections that are not in
 # config.yaml yet are ignored (stages land one by one); keys that are, must be valid.
