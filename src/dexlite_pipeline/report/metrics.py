@@ -11,9 +11,11 @@ outside the pipeline. Conventions (stated once, used in the CSV column names):
     angles of all grasps are binned into ``bins`` equal bins spanning that joint's limit
     range (angles outside are clipped into the end bins); the Shannon entropy of the bin
     frequencies is taken in bits, H_j = -sum_b p_b log2 p_b, and the 22 values are
-    averaged. Identical poses give 0; a joint spread evenly over its range gives
-    log2(bins) (6.64 bits for 100 bins). The value grows with the number of grasps until
-    the histogram fills, so compare sets of similar size.
+    averaged (DexGraspNet reports this mean and the standard deviation over joints).
+    Identical poses give 0; a joint spread evenly over its range gives log2(bins)
+    (6.64 bits for 100 bins). The bin count is a setting (``evaluate.entropy_bins``), not
+    a number taken from the paper, and the value grows with the number of grasps until
+    the histogram fills: compare only sets of similar size at the same bin count.
   * **cumulative PCA explained variance** (DexGraspBench): principal components of the
     joint-angle vectors (N, 22) of a grasp set; the fraction of total variance carried
     by the first k components. Lower means the variation is spread over more directions
