@@ -65,3 +65,9 @@ def test_named_objects_ship_and_urdf_placement_is_read():
     mesh, scale, rpy = urdf_visual_mesh(pybullet_data_dir() / "jenga" / "jenga.urdf")
     assert mesh.name == "jenga.obj" and scale == (0.15, 0.05, 0.03) and rpy == (0.0, 0.0, 0.0)
     assert named["pb-jenga"].scale_xyz == (0.15, 0.05, 0.03)
+
+
+def test_a_file_listed_twice_is_one_object_and_held_out_wins(tmp_path):
+    (tmp_path / "cup.obj").write_text("v 0 0 0\n")
+    sources = collect_sources(0, [str(tmp_path), str(tmp_path)], [str(tmp_path)], seed=0)
+    assert [(s.object_id, s.always_heldout) for s in sources] == [("user-cup", True)]

@@ -170,7 +170,8 @@ def _make_ids_unique(sources: list[MeshSource]) -> list[MeshSource]:
 
 def collect_sources(builtin_count: int, mesh_dirs, heldout_mesh_dirs, seed: int) -> list[MeshSource]:
     """Every object to prepare: embedded default, user folders, always-held-out folders."""
-    sources = builtin_sources(builtin_count, seed)
-    sources += folder_sources(mesh_dirs, heldout=False)
-    sources += folder_sources(heldout_mesh_dirs, heldout=True)
-    return _make_ids_unique(sources)
+    # A file listed twice (a folder repeated, or in both lists) is one object; held out wins.
+    user: dict[str, MeshSource] = {}
+    for s in folder_sources(mesh_dirs, heldout=False) + folder_sources(heldout_mesh_dirs, heldout=True):
+        user[os.path.realpath(s.file)] = s
+    return _make_ids_unique(builtin_sources(builtin_count, seed) + list(user.values()))
