@@ -19,7 +19,6 @@ rule stability_filter:
         cfg=stage_params("seed", "stability"),
         code=code_hash("stability_filter"),
         objects=lambda wildcards, input: " ".join(f"--objects {Path(c).parent}" for c in input.catalogs),
-    threads: workflow.cores
     conda:
         CONDA_ENV
     log:
