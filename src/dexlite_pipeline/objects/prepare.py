@@ -158,11 +158,11 @@ def repair_mesh(mesh):
     mesh.remove_unreferenced_vertices()
     if len(mesh.faces) == 0:
         return mesh
+    trimesh.repair.fix_winding(mesh)  # hole boundaries are traced along the face winding
     if not mesh.is_watertight:
         trimesh.repair.fill_holes(mesh)
     if not mesh.is_watertight:
         mesh = _fill_boundary_loops(mesh)
-    trimesh.repair.fix_winding(mesh)
     trimesh.repair.fix_normals(mesh, multibody=True)
     if mesh.is_watertight:
         mesh = _union_overlapping_bodies(mesh)
