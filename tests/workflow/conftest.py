@@ -9,6 +9,7 @@ from pathlib import Path
 import pytest
 from workflow_harness import (
     DEXGRASPNET_SAMPLE,
+    freeze_checkout,
     local_run_args,
     rule_graph,
     run_snakemake,
@@ -26,8 +27,14 @@ class CompletedRun:
     seconds: float
 
 
+@pytest.fixture(scope="session", autouse=True)
+def frozen_checkout(tmp_path_factory) -> Path:
+    """The repository as it is when the session starts; every workflow run uses this copy."""
+    return freeze_checkout(tmp_path_factory.mktemp("checkout"))
+
+
 @pytest.fixture(scope="session")
-def complete_run(tmp_path_factory) -> CompletedRun:
+def complete_run(frozen_checkout, tmp_path_factory) -> CompletedRun:
     """The tiny config run to the end with `--cores 2` (read-only for tests: copy it to change it)."""
     if not (DEXGRASPNET_SAMPLE / "dataset").is_dir():
         pytest.skip(f"DexGraspNet sample not present at {DEXGRASPNET_SAMPLE}: the tiny run trains on its grasps")

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import pytest
-from workflow_harness import REPO, downstream, planned_rules, write_config
+from workflow_harness import checkout, downstream, planned_rules, write_config
 
 from dexlite_pipeline.codehash import module_closure
 from dexlite_pipeline.config import ConfigError, validate_config
@@ -108,16 +108,14 @@ def test_config_change_reruns_exactly_the_affected_stages(complete_run, scratch_
 
 def _source_copy(tmp_path: Path) -> Path:
     """A copy of the package source that a test may edit (put first on PYTHONPATH)."""
-    import dexlite_pipeline
-
-    source = Path(dexlite_pipeline.__file__).parent
+    source = checkout() / "src" / "dexlite_pipeline"
     target = tmp_path / "src" / "dexlite_pipeline"
     shutil.copytree(source, target, ignore=shutil.ignore_patterns("__pycache__"))
     return target.parent
 
 
 def _stage_modules(graph: dict) -> dict[str, str]:
-    stages = REPO / "src" / "dexlite_pipeline" / "stages"
+    stages = checkout() / "src" / "dexlite_pipeline" / "stages"
     return {rule: f"dexlite_pipeline.stages.{rule}" for rule in graph if (stages / f"{rule}.py").is_file()}
 
 
@@ -149,7 +147,8 @@ def test_comment_only_change_reruns_nothing(complete_run, tmp_path):
 def test_library_change_reruns_the_stages_that_import_it(complete_run, tmp_path):
     """A module that only some stages import: exactly those stages (and downstream) rerun."""
     graph = complete_run.graph
-    closures = {rule: set(module_closure(module)) for rule, module in _stage_modules(graph).items()}
+    root = checkout() / "src" / "dexlite_pipeline"
+    closures = {rule: set(module_closure(module, root=root)) for rule, module in _stage_modules(graph).items()}
     library = {m for closure in closures.values() for m in closure if ".stages" not in m}
     users_of = {m: {rule for rule, closure in closures.items() if m in closure} for m in library}
     module = min(sorted(library), key=lambda m: len(downstream(graph, users_of[m])))

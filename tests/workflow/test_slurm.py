@@ -16,7 +16,7 @@ import yaml
 import yte
 from outputs import results_differences
 from slurm_cluster import ClusterUnavailable, local_slurm_cluster, missing_requirements
-from workflow_harness import REPO, TEST_THREADS, job_blocks, run_snakemake, write_config
+from workflow_harness import TEST_THREADS, checkout, job_blocks, run_snakemake, write_config
 
 pytestmark = [pytest.mark.slurm, pytest.mark.slow]
 
@@ -26,7 +26,7 @@ JOB_RUNTIME_MIN = 15
 
 def node_sized_profile(cluster) -> dict:
     """profiles/slurm/config.yaml with every rule's resources capped to the test node."""
-    with open(REPO / "profiles" / "slurm" / "config.yaml") as stream:
+    with open(checkout() / "profiles" / "slurm" / "config.yaml") as stream:
         profile = yte.process_yaml(stream, require_use_yte=True)
     assert profile["executor"] == "slurm"
     profile["set-threads"] = {rule: TEST_THREADS for rule in profile["set-threads"]}

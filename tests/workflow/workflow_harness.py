@@ -1,8 +1,10 @@
 """Run the real Snakefile on a tiny config in a scratch directory, and read what it plans.
 
-Shared by the rerun, resume and SLURM tests. A run uses the repository's Snakefile and
-rules with ``--directory`` pointing at a scratch folder that holds only ``config.yaml``;
-results, logs and Snakemake's metadata all stay in that folder.
+Shared by the rerun, resume and SLURM tests. Runs use a frozen copy of the checkout
+(Snakefile, rules, profiles, config, package source on PYTHONPATH), taken once per test
+session, so that code edited while the tests run cannot change their code hashes half-way.
+``--directory`` points at a scratch folder that holds only ``config.yaml``; results, logs
+and Snakemake's metadata all stay in that folder.
 """
 
 from __future__ import annotations
@@ -10,6 +12,7 @@ from __future__ import annotations
 import copy
 import os
 import re
+import shutil
 import subprocess
 import sys
 from collections import Counter
@@ -18,7 +21,8 @@ from pathlib import Path
 import yaml
 
 REPO = Path(__file__).resolve().parents[2]
-SNAKEFILE = REPO / "Snakefile"
+CHECKOUT_PARTS = ("Snakefile", "config.yaml", "config", "workflow", "profiles", "envs", "src", "pyproject.toml")
+_checkout: Path | None = None
 BIN_DIR = Path(sys.executable).parent
 # Real grasps to train on: a tiny seed run finds none that hold, so the tiny config imports
 # the two-object DexGraspNet sample beside the repository (the bottle trains; the mug, which
@@ -70,6 +74,25 @@ TINY_OVERRIDES: dict = {
 TEST_THREADS = 1
 
 
+def freeze_checkout(destination: Path) -> Path:
+    """Copy the parts of the repository a workflow run reads to ``destination``; runs use it from now on."""
+    global _checkout
+    for part in CHECKOUT_PARTS:
+        source = REPO / part
+        if source.is_dir():
+            shutil.copytree(source, destination / part, ignore=shutil.ignore_patterns("__pycache__", "*.egg-info"))
+        elif source.is_file():
+            destination.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(source, destination / part)
+    _checkout = destination
+    return destination
+
+
+def checkout() -> Path:
+    """The frozen copy of the repository (the repository itself before freeze_checkout)."""
+    return _checkout or REPO
+
+
 def _merge(base: dict, override: dict) -> dict:
     merged = copy.deepcopy(base)
     for key, value in override.items():
@@ -81,7 +104,7 @@ def _merge(base: dict, override: dict) -> dict:
 
 
 def repo_config() -> dict:
-    return yaml.safe_load((REPO / "config.yaml").read_text())
+    return yaml.safe_load((checkout() / "config.yaml").read_text())
 
 
 def write_tiny_meshes(folder: Path) -> Path:
@@ -121,8 +144,9 @@ def write_config(workdir: Path, config: dict) -> Path:
 
 
 def snakemake_env(extra: dict[str, str] | None = None) -> dict[str, str]:
-    """The environment of a snakemake run: this venv's commands (snakemake, dexlite) first on PATH."""
-    env = {**os.environ, **(extra or {})}
+    """The environment of a snakemake run: this venv's commands (snakemake, dexlite) first on
+    PATH, the frozen checkout's package source first on PYTHONPATH (unless ``extra`` names one)."""
+    env = {**os.environ, "PYTHONPATH": str(checkout() / "src"), **(extra or {})}
     env["PATH"] = f"{BIN_DIR}{os.pathsep}{env.get('PATH', '')}"
     env.pop("SNAKEMAKE_PROFILE", None)
     return env
@@ -131,7 +155,7 @@ def snakemake_env(extra: dict[str, str] | None = None) -> dict[str, str]:
 def snakemake_command(workdir: Path, *args: str) -> list[str]:
     return [
         str(BIN_DIR / "snakemake"),
-        "--snakefile", str(SNAKEFILE),
+        "--snakefile", str(checkout() / "Snakefile"),
         "--directory", str(workdir),
         "--configfile", str(workdir / "config.yaml"),
         *args,
@@ -232,8 +256,8 @@ def planned_rules(workdir: Path, *args: str, env: dict | None = None) -> set[str
 def rule_names() -> list[str]:
     """Every rule the workflow defines (from ``snakemake --list-rules``)."""
     done = subprocess.run(
-        [str(BIN_DIR / "snakemake"), "--snakefile", str(SNAKEFILE), "--directory", str(REPO), "--cores", "2", "--list-rules"],
-        env=snakemake_env(), capture_output=True, text=True, timeout=120, cwd=REPO,
+        [str(BIN_DIR / "snakemake"), "--snakefile", str(checkout() / "Snakefile"), "--cores", "2", "--list-rules"],
+        env=snakemake_env(), capture_output=True, text=True, timeout=120, cwd=checkout(),
     )
     if done.returncode != 0:
         raise AssertionError(f"snakemake --list-rules failed: {done.stderr[-3000:]}")
