@@ -118,7 +118,7 @@ def _poses_near_sphere(count: int, seed: int) -> torch.Tensor:
 
 
 def test_penetration_culling_is_exact(hand, sphere_energy):
-    """Culled E_pen equals the brute-force sum over all object points and all spheres."""
+    """Culled E_pen equals the brute force: all object points in the hand plus all buried sphere centres."""
     pose = _poses_near_sphere(24, seed=1)
     index = torch.zeros(24, dtype=torch.long)
     scale = torch.full((24,), SCALE)
@@ -131,8 +131,9 @@ def test_penetration_culling_is_exact(hand, sphere_energy):
     centre = sphere_energy.penetration.sphere_map(frames)
     distance, _ = sample_signed_distance(sphere_energy.bank, centre, index[:, None], scale[:, None])
     hand_in_object = (distance + spheres.radius).clamp(min=0)
-    brute = object_in_hand.sum(1) + hand_in_object.sum(1)
+    brute = object_in_hand.sum(1) + distance.clamp(min=0).sum(1)
     assert (brute > 0).sum() >= 6, "the test poses should include penetrating hands"
+    assert (distance.max(1).values > 0).sum() >= 2, "and some links buried beyond their radius"
     assert torch.allclose(result.energy, brute, atol=1e-6, rtol=1e-4)
     assert torch.allclose(result.object_in_hand_max_m, object_in_hand.max(1).values, atol=1e-6)
     assert torch.allclose(result.hand_in_object_max_m, hand_in_object.max(1).values, atol=1e-6)
@@ -192,5 +193,10 @@ def test_evaluate_grasp_energies_reports_missing_objects(hand, sphere_objects):
     assert out["energy_failure_reason"][2].startswith("object asset unusable")
     assert out["energy_failure_reason"][0] == ""
     assert (out["contact_index"][:2] >= 0).all()
-    # Without given contacts, the chosen four are the candidates nearest the surface.
     assert out["contact_distance_mm"][0] * 4 == pytest.approx(out["E_dis"][0] * 1000, rel=1e-4)
+    # Without given contacts, the searched set is never worse than the four nearest the surface.
+    nearest = evaluate_grasp_energies(grasps.select(np.arange(2)), sphere_objects, config=EnergyConfig(object_points=500), hand=hand, contact_samples=0)
+    searched = out["E_fc"][:2] + 100 * out["E_dis"][:2]
+    assert (searched <= nearest["E_fc"] + 100 * nearest["E_dis"] + 1e-5).all()
+    again = evaluate_grasp_energies(grasps, sphere_objects, batch_size=2, config=EnergyConfig(object_points=500), hand=hand)
+    assert np.array_equal(again["contact_index"], out["contact_index"])

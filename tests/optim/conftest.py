@@ -23,13 +23,3 @@ def optim_objects(tmp_path_factory):
     pd.DataFrame(rows).to_parquet(root / "catalog.parquet")
     return root
 
-
-@pytest.fixture(autouse=True, scope="module")
-def single_thread():
-    """Small batched torch ops run fastest on one thread (and the machine is shared); restored after."""
-    import torch
-
-    previous = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(previous)

@@ -18,9 +18,12 @@ SHORT = AnnealingConfig(iterations=60, step_size_period=10, temperature_period=5
 
 @pytest.fixture(scope="module")
 def setup(hand, optim_objects):
+    """Energy and hull sampler on the tiny objects; one torch thread (small ops, shared machine)."""
     assets = [load_asset(optim_objects, "sphere"), load_asset(optim_objects, "box")]
-    energy = GraspEnergy.from_assets(hand, assets, EnergyConfig(object_points=400))
-    return energy, HullSampler(assets)
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield GraspEnergy.from_assets(hand, assets, EnergyConfig(object_points=400)), HullSampler(assets)
+    torch.set_num_threads(threads)
 
 
 def _batch(size: int):

@@ -26,12 +26,16 @@ def evaluate_grasp_energies(
     batch_size: int = 256,
     config: EnergyConfig = EnergyConfig(),
     hand: ShadowHand | None = None,
+    contact_samples: int = 1024,
 ) -> dict[str, np.ndarray]:
     """Per-grasp E_fc, E_dis, E_pen, E_spen, E_joints, E_total, penetration_mm, contact_distance_mm.
 
-    Contacts: a ``contact_index`` (N, 4) array in ``grasps`` is used as given; otherwise each
-    grasp's four contact candidates closest to the object surface (smallest |d|) are chosen,
-    the contacts the pose actually makes. The chosen ``contact_index`` is returned too.
+    Contacts: a ``contact_index`` (N, 4) array in ``grasps`` is used as given. Otherwise the
+    contacts are the set the pose makes best: starting from the four candidates closest to
+    the object surface (smallest |d|), ``contact_samples`` random sets favouring pads near
+    the surface are searched for the lowest w_fc·E_fc + w_dis·E_dis (deterministic). The
+    four nearest alone often lie on one pad, whose parallel normals read as no force
+    closure at all. The chosen ``contact_index`` is returned too.
     ``weights`` (default ``config.weights``) only affect ``E_total``.
     A grasp whose object has no usable asset gets NaN values and ``energy_failure_reason``.
     """
@@ -55,6 +59,7 @@ def evaluate_grasp_energies(
         assets_by_resolution.setdefault(asset.sdf.shape, []).append(asset)
 
     object_ids = np.asarray([str(o) for o in grasps.object_id])
+    generator = torch.Generator().manual_seed(0)
     for assets in assets_by_resolution.values():
         energy = GraspEnergy.from_assets(hand, assets, config)
         rows = np.nonzero(np.isin(object_ids, energy.object_ids))[0]
@@ -62,9 +67,14 @@ def evaluate_grasp_energies(
             idx = rows[start : start + batch_size]
             pose = torch.as_tensor(grasps.hand_pose[idx], dtype=hand.dtype, device=device)
             scale = torch.as_tensor(grasps.scale[idx], dtype=hand.dtype, device=device)
-            contacts = None if given_contacts is None else torch.as_tensor(given_contacts[idx], dtype=torch.long, device=device)
+            object_index = energy.object_index(object_ids[idx])
+            if given_contacts is None:
+                nearest = energy.nearest_contacts(hand.forward(pose), object_index, scale)
+                contacts = energy.best_contacts(pose, object_index, scale, nearest, contact_samples, generator) if contact_samples else nearest
+            else:
+                contacts = torch.as_tensor(given_contacts[idx], dtype=torch.long, device=device)
             with torch.no_grad():
-                result = energy(pose, object_index=energy.object_index(object_ids[idx]), scale=scale, contact_index=contacts)
+                result = energy(pose, object_index=object_index, scale=scale, contact_index=contacts)
             for name, value in result.terms.items():
                 out[name][idx] = value.cpu().numpy()
             out["E_total"][idx] = result.total.cpu().numpy()

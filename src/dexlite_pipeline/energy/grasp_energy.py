@@ -125,6 +125,39 @@ class GraspEnergy:
             distance, _ = sample_signed_distance(self.bank, candidates, object_index[:, None], scale[:, None])
             return distance.abs().topk(CONTACT_COUNT, dim=1, largest=False).indices
 
+    def best_contacts(
+        self,
+        hand_pose: torch.Tensor,
+        object_index: torch.Tensor,
+        scale: torch.Tensor,
+        contact_index: torch.Tensor,
+        samples: int,
+        generator: torch.Generator,
+        closeness_m: float = 0.002,
+    ) -> torch.Tensor:
+        """(B, 4) contacts minimizing the contact-dependent energy, w_fc·E_fc + w_dis·E_dis, for fixed poses.
+
+        Searches ``samples`` random 4-sets per grasp, drawn with probability ∝ exp(−|d|/closeness)
+        so that pads near the surface are preferred, plus the current set (so it never gets
+        worse). The pose-only terms do not depend on the contacts, so the total improves by
+        exactly the same amount.
+        """
+        with torch.no_grad():
+            frames = self.hand.forward(hand_pose)
+            candidates = self.candidate_map(frames)
+            distance, normal = sample_signed_distance(self.bank, candidates, object_index[:, None], scale[:, None])
+            batch, count = distance.shape
+            weight = torch.softmax(-distance.abs() / closeness_m, dim=1).cpu()
+            draws = torch.multinomial(weight, samples * CONTACT_COUNT, replacement=True, generator=generator)
+            draws = torch.cat([contact_index.cpu()[:, None, :], draws.reshape(batch, samples, CONTACT_COUNT)], dim=1).to(self.device)
+            flat = draws.reshape(batch, -1)
+            points = torch.gather(candidates, 1, flat[..., None].expand(-1, -1, 3)).reshape(-1, CONTACT_COUNT, 3)
+            normals = torch.gather(normal, 1, flat[..., None].expand(-1, -1, 3)).reshape(-1, CONTACT_COUNT, 3)
+            dis = torch.gather(distance, 1, flat).abs().reshape(batch, -1, CONTACT_COUNT).sum(-1)
+            score = self.weights.fc * self.force_closure(points, normals).reshape(batch, -1) + self.weights.dis * dis
+            best = score.argmin(dim=1)
+            return draws[torch.arange(batch, device=self.device), best]
+
     # -------------------------------------------------------------------- energy
     def __call__(
         self,

@@ -95,11 +95,14 @@ def shape_signed_distance(local: torch.Tensor, kind: torch.Tensor, size: torch.T
 
 
 class PenetrationTerm:
-    """E_pen: depth of object surface points inside the hand plus depth of hand spheres inside the object.
+    """E_pen: depth of object surface points inside the hand, plus depth of buried hand spheres' centres.
 
-    Object points in the hand's capsules and boxes is DexGraspNet's E_pen; it is capped by
-    a link's radius and blind to a link buried wholly inside the object, so the hand's
-    sphere model against the object's SDF is added (Σ max(0, d(c) + r), DESIGN.md).
+    Object points in the hand's capsules and boxes is DexGraspNet's E_pen (its 1 mm
+    threshold applies to it). It is capped by a link's radius and blind to a link buried
+    wholly inside the object, so the hand's sphere model adds Σ max(0, d(c)) over sphere
+    centres c: zero until a link is in deeper than its radius, which is exactly where the
+    first part stops seeing it, so the two never count the same penetration twice.
+    ``hand_in_object_max_m`` is the full depth max(d(c) + r) (for ``penetration_mm``).
 
     Exact culling keeps it cheap. Every sphere's depth is found first without autograd; a
     shape can hold object points only if one of its spheres reaches the object within the
@@ -133,9 +136,9 @@ class PenetrationTerm:
             shape_reach = shape_reach.scatter_reduce(1, self.spheres.shape.expand(batch, -1), sphere_depth, "amax")
             margin = (self.voxel_diagonal[object_index] * scale)[:, None] + self.spheres.shape_gap[None, :]
             active = shape_reach > -margin
-        b, k = (sphere_depth > 0).nonzero(as_tuple=True)
+        b, k = (sphere_depth > radius).nonzero(as_tuple=True)  # centres inside the object
         distance, _ = sample_signed_distance(self.bank, centre[b, k], object_index[b], scale[b], with_normal=False)
-        hand_energy = distance.new_zeros(batch).index_add(0, b, distance + radius[k])
+        hand_energy = distance.new_zeros(batch).index_add(0, b, distance)
         hand_max = sphere_depth.max(dim=1).values.clamp(min=0)
         obj_energy, obj_max = self._object_in_hand(self.shape_map(frames), active, object_index, scale)
         return PenetrationResult(obj_energy + hand_energy, obj_max, hand_max)
@@ -149,8 +152,7 @@ class PenetrationTerm:
         rot_t = frame[:, :, :3].transpose(1, 2)
         # Affine map from the normalized object frame to each pair's shape frame: Rᵀ (s·p − c).
         to_local = torch.cat([rot_t * scale[pair_b, None, None], -(rot_t @ frame[:, :, 3:])], dim=2)
-        cand_pair, cand_point = self._candidates_near_shapes(frame[:, :, 3].detach(), pair_b, pair_s, object_index, scale)
-        points = self.object_points[object_index[pair_b[cand_pair]], cand_point]
+        cand_pair, cand_point, points = self._candidates_near_shapes(frame[:, :, 3].detach(), pair_b, pair_s, object_index, scale)
         with torch.no_grad():
             depth = self._depth_in_shape(to_local.detach()[cand_pair], points, pair_s[cand_pair])
             inside = depth > 0
@@ -162,8 +164,8 @@ class PenetrationTerm:
         return per_point.sum(-1), per_point.detach().max(-1).values
 
     def _candidates_near_shapes(self, centre, pair_b, pair_s, object_index, scale):
-        """(pair, point) index lists of object points within each active shape's bounding radius."""
-        pairs, points = [], []
+        """(pair, point index, point) of object points within each active shape's bounding radius."""
+        pairs, indices = [], []
         pair_object = object_index[pair_b]
         for obj in torch.unique(pair_object).tolist():
             sel = (pair_object == obj).nonzero(as_tuple=True)[0]
@@ -174,11 +176,10 @@ class PenetrationTerm:
             near = (c_aug @ self.object_points_aug[obj].T) < (reach.square() - c.square().sum(-1))[:, None]
             local_pair, point = near.nonzero(as_tuple=True)
             pairs.append(sel[local_pair])
-            points.append(point)
-        if not pairs:
-            empty = torch.zeros(0, dtype=torch.long, device=centre.device)
-            return empty, empty
-        return torch.cat(pairs), torch.cat(points)
+            indices.append(point)
+        pair = torch.cat(pairs) if pairs else torch.zeros(0, dtype=torch.long, device=centre.device)
+        point = torch.cat(indices) if indices else pair
+        return pair, point, self.object_points[object_index[pair_b[pair]], point]
 
     def _depth_in_shape(self, to_local, points, shape):
         local = (to_local[:, :, :3] * points[:, None, :]).sum(-1) + to_local[:, :, 3]
