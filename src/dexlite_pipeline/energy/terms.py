@@ -106,7 +106,7 @@ class PenetrationTerm:
 
     Exact culling keeps it cheap. Every sphere's depth is found first without autograd; a
     shape can hold object points only if one of its spheres reaches the object within the
-    shape's covering gap plus one voxel diagonal (the bound on the trilinear grid's error),
+    shape's covering gap plus the grid's interpolation error bound (see ``interpolation_error``),
     so all other shapes are skipped, and an object point farther from a shape's centre
     than its bounding radius is never tested. Only the spheres and points actually inside
     are re-evaluated with gradients, so backward stays small.
@@ -119,7 +119,9 @@ class PenetrationTerm:
         # [p, |p|²] per point: squared distances to centres c are then one product with [−2c, 1].
         self.object_points_aug = torch.cat([object_points, object_points.square().sum(-1, keepdim=True)], dim=-1)
         self.radius = hand.shape_bounding_radius
-        self.voxel_diagonal = sdf_bank.voxel_size * 3**0.5  # normalized units, per object
+        self.interpolation_error = sdf_bank.voxel_size * 3**0.5 / 2  # normalized units, per object
+        # Trilinear interpolation of an exact SDF f (1-Lipschitz) errs by at most
+        # Σ wᵢ|cᵢ − x| ≤ (Σ wᵢ|cᵢ − x|²)^½ = h·(Σ_axes t(1−t))^½ ≤ h·√3/2 (t: fractional coordinate).
         self.spheres = build_hand_spheres(hand)
         link_count = len(hand.link_names)
         self.sphere_map = LinkFrameMap.for_points(self.spheres.centre_local, self.spheres.link, link_count)
@@ -134,7 +136,7 @@ class PenetrationTerm:
             sphere_depth = distance + radius
             shape_reach = sphere_depth.new_full((batch, len(self.radius)), -torch.inf)
             shape_reach = shape_reach.scatter_reduce(1, self.spheres.shape.expand(batch, -1), sphere_depth, "amax")
-            margin = (self.voxel_diagonal[object_index] * scale)[:, None] + self.spheres.shape_gap[None, :]
+            margin = (self.interpolation_error[object_index] * scale)[:, None] + self.spheres.shape_gap[None, :]
             active = shape_reach > -margin
         b, k = (sphere_depth > radius).nonzero(as_tuple=True)  # centres inside the object
         distance, _ = sample_signed_distance(self.bank, centre[b, k], object_index[b], scale[b], with_normal=False)
