@@ -2,6 +2,7 @@
 
 import base64
 import json
+import math
 import re
 
 import numpy as np
@@ -51,6 +52,9 @@ def test_seed_method_keeps_passing_grasps_and_costs_per_passing_grasp():
     assert len(method_grasps("seed", [seed], seed_passing_only=False)) == 4
     assert stage_seconds_per_grasp("seed", {"seed": [seed]}, seed_passing_only=True) == {"seed": 4.0}
     assert stage_seconds_per_grasp("seed", {"seed": [seed]}, seed_passing_only=False) == {"seed": 2.0}
+    none_pass = _set(["a"], {"passes_energy_thresholds": np.array([False])})
+    none_pass.attrs.update({"seconds_per_grasp": 2.0, "seconds": 2.0, "passing": 0})
+    assert stage_seconds_per_grasp("seed", {"seed": [none_pass]}, seed_passing_only=True) == {"seed": math.inf}
 
 
 @pytest.fixture(scope="module")

@@ -129,13 +129,11 @@ def stage_seconds_per_grasp(method: str, sources: Mapping[str, Sequence[GraspSet
     out = {}
     for stage in stages[method]:
         sets = sources.get(stage, [])
-        weighted = []
-        for s in sets:
-            per_passing = stage == "seed" and seed_passing_only and s.attrs.get("seconds") is not None and s.attrs.get("passing")
-            if per_passing:
-                weighted.append((float(s.attrs["seconds"]) / int(s.attrs["passing"]), int(s.attrs["passing"])))
-            elif s.attrs.get("seconds_per_grasp") is not None and len(s):
-                weighted.append((float(s.attrs["seconds_per_grasp"]), len(s)))
+        if stage == "seed" and seed_passing_only and sets and all(s.attrs.get("seconds") is not None and "passing" in s.attrs for s in sets):
+            seconds, passing = sum(float(s.attrs["seconds"]) for s in sets), sum(int(s.attrs["passing"]) for s in sets)
+            out[stage] = seconds / passing if passing else (math.inf if seconds > 0 else math.nan)
+            continue
+        weighted = [(float(s.attrs["seconds_per_grasp"]), len(s)) for s in sets if s.attrs.get("seconds_per_grasp") is not None and len(s)]
         if weighted:
             total = sum(n for _, n in weighted)
             out[stage] = sum(t * n for t, n in weighted) / total

@@ -151,27 +151,38 @@ def convergence_plot(curves) -> str | None:
 
 
 def training_plot(history) -> str | None:
-    """Every numeric column of the CVAE training history against its step (or epoch) column."""
+    """CVAE training history: one panel per loss term, training and validation curves together, against the step."""
     if history is None or not len(history):
         return None
     x_name = next((c for c in ("step", "epoch", "iteration") if c in history.columns), None)
     x = history[x_name] if x_name else np.arange(len(history))
-    series = [c for c in history.columns if c != x_name and np.issubdtype(history[c].dtype, np.number)]
-    if not series:
+    bookkeeping = {"step", "epoch", "iteration", "seconds", "time_s", "seconds_elapsed"}
+    numeric = [c for c in history.columns if c not in bookkeeping and np.issubdtype(history[c].dtype, np.number)]
+    panels: dict[str, list[str]] = {}
+    for name in numeric:
+        term = name.split("_", 1)[1] if name.startswith(("train_", "val_")) else name
+        panels.setdefault(term, []).append(name)
+    if not panels:
         return None
     plt = _plt()
-    cols = min(4, len(series))
-    rows = math.ceil(len(series) / cols)
+    cols = min(4, len(panels))
+    rows = math.ceil(len(panels) / cols)
     fig, axes = plt.subplots(rows, cols, figsize=(3.2 * cols, 2.4 * rows), squeeze=False)
-    for ax, name in zip(axes.ravel(), series):
-        values = history[name].astype(float)
-        ax.plot(x, values, lw=1)
-        if (values.dropna() > 0).all() and values.max() / max(values.min(), 1e-12) > 50:
+    for ax, (term, names) in zip(axes.ravel(), panels.items()):
+        for name in names:
+            values = history[name].astype(float)
+            ax.plot(x, values, lw=1, label=name.split("_", 1)[0] if name != term else name)
+        finite = history[names].astype(float).stack().dropna()
+        if len(finite) and (finite > 0).all() and finite.max() / max(finite.min(), 1e-12) > 50:
             ax.set_yscale("log")
-        ax.set_title(name, fontsize=8)
+        ax.set_title(term, fontsize=8)
         ax.tick_params(labelsize=7)
-    for ax in axes.ravel()[len(series) :]:
+        if len(names) > 1:
+            ax.legend(fontsize=6)
+    for ax in axes.ravel()[len(panels) :]:
         ax.set_axis_off()
+    for ax in axes[-1]:
+        ax.set_xlabel(x_name or "row", fontsize=7)
     fig.tight_layout()
     return figure_png_base64(fig)
 
@@ -200,7 +211,9 @@ def grasp_gallery(inputs: ReportInputs) -> str:
     from dexlite_pipeline.report.render import render_grasp_png
 
     hand = ShadowHand()
-    methods = list(dict.fromkeys(str(m) for m in simulated.arrays["method"]))
+    present = set(str(m) for m in simulated.arrays["method"])
+    table_order = list(dict.fromkeys(inputs.metrics["method"])) if len(inputs.metrics) else []
+    methods = [m for m in table_order if m in present] + sorted(present - set(table_order))
     parts = []
     for method in methods:
         cells = []
@@ -225,6 +238,8 @@ def grasp_gallery(inputs: ReportInputs) -> str:
 
 def _format(value) -> str:
     if isinstance(value, (float, np.floating)):
+        if np.isinf(value):
+            return "∞" if value > 0 else "−∞"
         if not np.isfinite(value):
             return "—"
         return f"{value:.3g}" if abs(value) < 1e4 else f"{value:.0f}"
