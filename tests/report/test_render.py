@@ -1,0 +1,52 @@
+"""Headless grasp pictures: both the hand and the object are visible, from two viewpoints."""
+
+import numpy as np
+import pytest
+from report_synthetic import OBJECT_ID, grasp_poses
+
+from dexlite_pipeline.cli import main
+from dexlite_pipeline.io.grasp_store import GraspSet, write_grasp_store
+from dexlite_pipeline.report.render import HAND_RGB, OBJECT_RGB, hand_mesh_world, hand_visual
+
+
+def _colour_fraction(image: np.ndarray, rgb, tolerance: float = 0.12) -> float:
+    """Fraction of pixels whose colour is a shade of ``rgb`` (same hue, any brightness)."""
+    pixels = image[..., :3].reshape(-1, 3).astype(np.float64)
+    norm = np.linalg.norm(pixels, axis=1, keepdims=True)
+    target = np.asarray(rgb) / np.linalg.norm(rgb)
+    direction = np.divide(pixels, norm, out=np.zeros_like(pixels), where=norm > 0.05)
+    return float((np.linalg.norm(direction - target, axis=1) < tolerance).mean())
+
+
+def test_hand_visual_mesh_follows_forward_kinematics(hand):
+    visual = hand_visual()
+    assert visual.faces.max() < len(visual.vertices) and len(visual.faces) > 1000
+    pose = np.zeros(28)
+    shifted = pose.copy()
+    shifted[:3] = [0.1, -0.2, 0.3]
+    a, _ = hand_mesh_world(hand, pose)
+    b, _ = hand_mesh_world(hand, shifted)
+    assert np.allclose(b - a, [0.1, -0.2, 0.3], atol=1e-6)
+
+
+def test_render_cli_draws_hand_and_object(tmp_path, tiny_objects):
+    import matplotlib.image
+
+    store = tmp_path / "g.zarr"
+    poses = grasp_poses(2, np.random.default_rng(0))
+    write_grasp_store(store, GraspSet({"hand_pose": poses, "object_id": np.array([OBJECT_ID] * 2, dtype=object), "scale": np.full(2, 0.06, np.float32)}))
+    out = tmp_path / "grasp.png"
+    assert main(["render", str(store), "--objects", str(tiny_objects), "--index", "1", "--out", str(out), "--size-px", "200"]) == 0
+    image = matplotlib.image.imread(out)
+    assert image.shape[0] == 200 and image.shape[1] == 400  # two views side by side
+    for half in (image[:, :200], image[:, 200:]):
+        assert _colour_fraction(half, HAND_RGB) > 0.01
+        assert _colour_fraction(half, OBJECT_RGB) > 0.01
+    assert main(["render", str(store), "--objects", str(tiny_objects), "--index", "5", "--out", str(out)]) == 2
+
+
+def test_render_rejects_bad_pose(hand):
+    from dexlite_pipeline.report.render import RenderError
+
+    with pytest.raises(RenderError):
+        hand_mesh_world(hand, np.full(28, np.nan))
