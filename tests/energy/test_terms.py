@@ -188,15 +188,15 @@ def test_evaluate_grasp_energies_reports_missing_objects(hand, sphere_objects):
     grasps = GraspSet(
         {"hand_pose": pose, "object_id": np.array(["sphere", "box", "nope"], dtype=object), "scale": np.full(3, SCALE, np.float32)}
     )
-    out = evaluate_grasp_energies(grasps, sphere_objects, device="cpu", batch_size=2, config=EnergyConfig(object_points=500), hand=hand)
+    out = evaluate_grasp_energies(grasps, sphere_objects, device="cpu", batch_size=2, config=EnergyConfig(object_points=500), hand=hand, contact_samples=256)
     assert np.isfinite(out["E_fc"][:2]).all() and np.isnan(out["E_fc"][2])
     assert out["energy_failure_reason"][2].startswith("object asset unusable")
     assert out["energy_failure_reason"][0] == ""
     assert (out["contact_index"][:2] >= 0).all()
     assert out["contact_distance_mm"][0] * 4 == pytest.approx(out["E_dis"][0] * 1000, rel=1e-4)
-    # Without given contacts, the searched set is never worse than the four nearest the surface.
+    # Without given contacts, the searched set is never worse than the four nearest the surface (the default).
     nearest = evaluate_grasp_energies(grasps.select(np.arange(2)), sphere_objects, config=EnergyConfig(object_points=500), hand=hand, contact_samples=0)
     searched = out["E_fc"][:2] + 100 * out["E_dis"][:2]
     assert (searched <= nearest["E_fc"] + 100 * nearest["E_dis"] + 1e-5).all()
-    again = evaluate_grasp_energies(grasps, sphere_objects, batch_size=2, config=EnergyConfig(object_points=500), hand=hand)
+    again = evaluate_grasp_energies(grasps, sphere_objects, batch_size=2, config=EnergyConfig(object_points=500), hand=hand, contact_samples=256)
     assert np.array_equal(again["contact_index"], out["contact_index"])

@@ -26,16 +26,17 @@ def evaluate_grasp_energies(
     batch_size: int = 256,
     config: EnergyConfig = EnergyConfig(),
     hand: ShadowHand | None = None,
-    contact_samples: int = 1024,
+    contact_samples: int = 0,
 ) -> dict[str, np.ndarray]:
     """Per-grasp E_fc, E_dis, E_pen, E_spen, E_joints, E_total, penetration_mm, contact_distance_mm.
 
-    Contacts: a ``contact_index`` (N, 4) array in ``grasps`` is used as given. Otherwise the
-    contacts are the set the pose makes best: starting from the four candidates closest to
-    the object surface (smallest |d|), ``contact_samples`` random sets favouring pads near
-    the surface are searched for the lowest w_fc·E_fc + w_dis·E_dis (deterministic). The
-    four nearest alone often lie on one pad, whose parallel normals read as no force
-    closure at all. The chosen ``contact_index`` is returned too.
+    Contacts: a ``contact_index`` (N, 4) array in ``grasps`` is used as given. Otherwise
+    the four candidates closest to the object surface (smallest |d|: the least E_dis any
+    choice gives, the contacts the pose actually makes). With ``contact_samples`` > 0,
+    that set and as many random sets favouring pads near the surface are searched for the
+    lowest w_fc·E_fc + w_dis·E_dis (deterministic): the four nearest often lie on one pad,
+    whose parallel normals read as no force closure. The chosen ``contact_index`` is
+    returned too.
     ``weights`` (default ``config.weights``) only affect ``E_total``.
     A grasp whose object has no usable asset gets NaN values and ``energy_failure_reason``.
     """

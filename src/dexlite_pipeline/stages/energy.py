@@ -4,7 +4,8 @@ Writes the input grasps with E_fc, E_dis, E_pen, E_spen, E_joints, E_total,
 penetration_mm, contact_distance_mm, contact_index, passes_energy_thresholds and
 energy_failure_reason added (existing arrays of those names are replaced), and prints
 a summary. Contacts: a ``contact_index`` array in the input is used; otherwise the four
-pad points nearest the object surface.
+pad points nearest the object surface, or with ``--contact-samples N`` the best of N
+searched sets (see ``energy.evaluate_grasp_energies``).
 """
 
 from __future__ import annotations
@@ -25,6 +26,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--config", default=None, help="config.yaml to take the energy section from (default: built-in weights)")
     parser.add_argument("--device", default="auto", help="auto, cpu, cuda, cuda:N")
     parser.add_argument("--batch-size", type=int, default=256, help="grasps per energy evaluation")
+    parser.add_argument("--contact-samples", type=int, default=0,
+                        help="without stored contacts: also search this many contact sets for the lowest E_fc + 100 E_dis (0: the 4 pads nearest the surface)")
 
 
 def summary_lines(arrays: dict[str, np.ndarray]) -> list[str]:
@@ -52,7 +55,9 @@ def run(args: argparse.Namespace) -> int:
     energy_config = from_section(EnergyConfig, config.get("energy"), "config.energy")
     thresholds = from_section(SeedConfig, config.get("seed_grasps"), "config.seed_grasps").thresholds if config else EnergyThresholds()
     grasps = read_grasp_store(args.grasps)
-    arrays = evaluate_grasp_energies(grasps, args.objects, device=resolve_device(args.device), batch_size=args.batch_size, config=energy_config)
+    arrays = evaluate_grasp_energies(
+        grasps, args.objects, device=resolve_device(args.device), batch_size=args.batch_size, config=energy_config, contact_samples=args.contact_samples
+    )
     arrays["passes_energy_thresholds"] = thresholds.passes(arrays) & (arrays["energy_failure_reason"] == "")
     grasps.arrays.update(arrays)
     attrs = {
@@ -60,6 +65,7 @@ def run(args: argparse.Namespace) -> int:
             "source": str(args.grasps),
             "config": dataclasses.asdict(energy_config),
             "thresholds": dataclasses.asdict(thresholds),
+            "contact_samples": args.contact_samples,
         }
     }
     write_grasp_store(args.out, grasps, attrs)
