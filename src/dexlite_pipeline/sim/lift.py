@@ -92,6 +92,17 @@ def _finger_masks(hand: ShadowHand) -> tuple[torch.Tensor, torch.Tensor]:
     return joints.to(hand.device), links.to(hand.device)
 
 
+def object_signed_distance(bank: SdfBank, points_m: torch.Tensor, scale: torch.Tensor) -> torch.Tensor:
+    """(B, P) signed distance (m, positive inside) of points (B, P, 3) to the bank's one object at per-grasp scales.
+
+    Uses d_s(x) = s * d_1(x / s) and samples every point as one batch row, so the grid is
+    gathered from once instead of copied per grasp (``SdfBank`` indexes a volume per row).
+    """
+    local = points_m / scale[:, None, None]
+    distance, _ = bank.signed_distance(local.reshape(1, -1, 3), torch.zeros(1, dtype=torch.long, device=local.device), torch.ones(1, dtype=local.dtype, device=local.device))
+    return distance.reshape(points_m.shape[:2]) * scale[:, None]
+
+
 def initial_penetration_m(hand: ShadowHand, bank: SdfBank, asset: ObjectAsset, hand_pose: torch.Tensor, scale: torch.Tensor) -> torch.Tensor:
     """(B,) deepest penetration between hand and object, the larger of both directions (metres, >= 0).
 
@@ -99,16 +110,15 @@ def initial_penetration_m(hand: ShadowHand, bank: SdfBank, asset: ObjectAsset, h
     and blind to a link buried in the object; hand surface points inside the object's SDF
     see that case. DESIGN.md: the larger of the two is the penetration.
     """
-    index = bank.indices([asset.object_id] * hand_pose.shape[0])
     frames = hand.forward(hand_pose)
     object_points = torch.as_tensor(asset.surface_points, dtype=hand_pose.dtype, device=hand_pose.device)
     object_points = object_points[None] * scale[:, None, None]
     object_in_hand = hand.collision_signed_distance(frames, object_points).amax(dim=1)
-    hand_in_object, _ = bank.signed_distance(hand.surface_points(frames), index, scale)
+    hand_in_object = object_signed_distance(bank, hand.surface_points(frames), scale)
     return torch.maximum(object_in_hand, hand_in_object.amax(dim=1)).clamp(min=0.0)
 
 
-def squeeze_targets(hand: ShadowHand, bank: SdfBank, asset: ObjectAsset, hand_pose: torch.Tensor, scale: torch.Tensor, config: LiftConfig) -> torch.Tensor:
+def squeeze_targets(hand: ShadowHand, bank: SdfBank, hand_pose: torch.Tensor, scale: torch.Tensor, config: LiftConfig) -> torch.Tensor:
     """(B, 22) joint targets a little past the grasp pose, pushing touching links into the object.
 
     A link touches if its deepest surface point is within ``squeeze_contact_distance_m`` of
@@ -119,8 +129,7 @@ def squeeze_targets(hand: ShadowHand, bank: SdfBank, asset: ObjectAsset, hand_po
     finger_joints, finger_links = _finger_masks(hand)
     joints = hand_pose[:, JOINTS].detach().clone().requires_grad_(True)
     pose = torch.cat([hand_pose[:, :6].detach(), joints], dim=1)
-    index = bank.indices([asset.object_id] * hand_pose.shape[0])
-    depth, _ = bank.signed_distance(hand.surface_points(hand.forward(pose)), index, scale)
+    depth = object_signed_distance(bank, hand.surface_points(hand.forward(pose)), scale)
     link_ids = hand.surface_link.expand_as(depth)
     link_depth = torch.full((depth.shape[0], len(hand.link_names)), -math.inf, dtype=depth.dtype, device=depth.device)
     link_depth = link_depth.scatter_reduce(1, link_ids, depth, reduce="amax", include_self=True)
@@ -351,7 +360,7 @@ def _prepare(hand: ShadowHand, asset: ObjectAsset, hand_pose: np.ndarray, scale:
         s = torch.as_tensor(scale[start : start + PREP_BATCH], dtype=hand.dtype, device=hand.device)
         with torch.no_grad():
             penetration.append(initial_penetration_m(hand, bank, asset, pose, s).cpu().numpy())
-        targets.append(squeeze_targets(hand, bank, asset, pose, s, config).detach().cpu().numpy())
+        targets.append(squeeze_targets(hand, bank, pose, s, config).detach().cpu().numpy())
     return np.concatenate(penetration).astype(np.float64), np.concatenate(targets).astype(np.float64)
 
 
