@@ -125,8 +125,16 @@ def _simulate(args, config: dict) -> int:
 
 
 def _json_safe(value):
-    """Attributes as JSON (NaN -> None)."""
-    return json.loads(json.dumps(value, default=lambda o: o.item() if hasattr(o, "item") else str(o)).replace("NaN", "null"))
+    """Attributes as plain JSON values: numpy scalars unwrapped, NaN as None (infinity kept)."""
+    if isinstance(value, dict):
+        return {str(k): _json_safe(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_json_safe(v) for v in value]
+    if hasattr(value, "item") and not isinstance(value, (str, bytes)):
+        value = value.item()
+    if isinstance(value, float) and math.isnan(value):
+        return None
+    return value
 
 
 def _aggregate(args, config: dict) -> int:
