@@ -144,6 +144,13 @@ def test_unchanged_assets_are_reused_and_stale_ones_removed(tmp_path):
     changed = ObjectsConfig(**{**config.__dict__, "surface_points": 64})
     prepare_objects(collect_sources(0, config.mesh_dirs, (), 0), out, changed, seed=0, workers=0)
     assert arrays.stat().st_mtime_ns != before
+    box = MeshSource("user-box", "user", str(tmp_path / "mine" / "box.obj"))
+    prepare_object(box, str(out), changed.build_settings(0), builder="v1")
+    built = arrays.stat().st_mtime_ns
+    prepare_object(box, str(out), changed.build_settings(0), builder="v1")
+    assert arrays.stat().st_mtime_ns == built
+    prepare_object(box, str(out), changed.build_settings(0), builder="v2")  # changed code: rebuilt
+    assert arrays.stat().st_mtime_ns != built
 
 
 def test_split_is_seeded_exact_and_respects_always_heldout():

@@ -4,8 +4,9 @@ Each mesh goes through ``load_source_mesh`` -> ``repair_mesh`` -> ``check_mesh``
 ``normalize_mesh`` -> ``objects.build.write_asset``. A mesh that cannot be used is
 *rejected* with a one-line reason (``MeshRejected``) and stays in the catalog; one bad
 object never stops the others (objects run in a crash-tolerant process pool).
-An asset whose inputs (file contents, placement, build settings) are unchanged since it
-was last written is reused, so adding a mesh folder rebuilds only the new objects.
+An asset whose inputs (file contents, placement, build settings, the code that builds it
+and the versions of trimesh, libigl and CoACD) are unchanged since it was last written is
+reused, so adding a mesh folder rebuilds only the new objects.
 """
 
 from __future__ import annotations
@@ -213,11 +214,21 @@ def file_label(path: str) -> str:
         return str(path)
 
 
-def _build_key(source: MeshSource, settings: AssetBuildSettings) -> str:
-    """Hash of everything an asset depends on: file bytes, placement, build settings."""
+def builder_version() -> str:
+    """Hash of the code that prepares an asset and the versions of the mesh libraries it uses."""
+    from importlib.metadata import version
+
+    from dexlite_pipeline.codehash import code_hash
+
+    libraries = {name: version(name) for name in ("trimesh", "libigl", "coacd")}
+    return f"{code_hash(__name__)}-{json.dumps(libraries, sort_keys=True)}"
+
+
+def _build_key(source: MeshSource, settings: AssetBuildSettings, builder: str) -> str:
+    """Hash of everything an asset depends on: file bytes, placement, build settings, builder version."""
     digest = hashlib.sha256()
     digest.update(Path(source.file).read_bytes())
-    digest.update(json.dumps([source.scale_xyz, source.rotation_rpy, dataclasses.asdict(settings)], sort_keys=True).encode())
+    digest.update(json.dumps([source.scale_xyz, source.rotation_rpy, dataclasses.asdict(settings), builder], sort_keys=True).encode())
     return digest.hexdigest()
 
 
@@ -247,11 +258,14 @@ def _row(source: MeshSource, **values) -> dict:
     return row
 
 
-def prepare_object(source: MeshSource, objects_dir: str, settings: AssetBuildSettings) -> dict:
-    """Prepare one object; returns its catalog row (status ok, or rejected with the reason)."""
+def prepare_object(source: MeshSource, objects_dir: str, settings: AssetBuildSettings, builder: str = "") -> dict:
+    """Prepare one object; returns its catalog row (status ok, or rejected with the reason).
+
+    ``builder`` (``builder_version()``) enters the reuse key: a code change rebuilds assets.
+    """
     objects_dir = Path(objects_dir)
     try:
-        key = _build_key(source, settings)
+        key = _build_key(source, settings, builder)
         previous = _reusable_asset(objects_dir, source.object_id, key)
         if previous is not None:
             return _row(source, watertight=bool(previous["watertight"]), volume=float(previous["volume"]),
@@ -328,7 +342,7 @@ def prepare_objects(
         raise ValueError(f"duplicate object ids among sources: {sorted({i for i in ids if ids.count(i) > 1})}")
     settings = config.build_settings(seed)
     objects_dir.mkdir(parents=True, exist_ok=True)
-    task = functools.partial(prepare_object, objects_dir=str(objects_dir), settings=settings)
+    task = functools.partial(prepare_object, objects_dir=str(objects_dir), settings=settings, builder=builder_version())
 
     def progress(done: int, total: int) -> None:
         log.info("prepared %d/%d objects", done, total)
