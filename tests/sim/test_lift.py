@@ -20,7 +20,7 @@ from dexlite_pipeline.hand.rotation import matrix_to_euler_xyz
 from dexlite_pipeline.io.grasp_store import GraspSet
 from dexlite_pipeline.objects.assets import SdfBank, load_asset
 from dexlite_pipeline.sim.config import LiftConfig
-from dexlite_pipeline.sim.lift import DIRECTIONS, initial_penetration_m, object_signed_distance, run_lift_tests, squeeze_targets
+from dexlite_pipeline.sim.lift import DIRECTIONS, object_signed_distance, run_lift_tests, squeeze_targets
 
 SCALE = 0.08  # bars 16 cm long, 4 cm thick
 BAR_HALF_THICKNESS_M = 0.02
@@ -93,8 +93,8 @@ def test_constructed_hook_grasp_touches_without_penetration(hand, objects_dir, h
         asset = load_asset(objects_dir, object_id)
         flex = pose[6:][[JOINT["FFJ2"], JOINT["MFJ2"], JOINT["RFJ2"], JOINT["LFJ2"]]]
         assert (flex > 0.4).all() and (flex < 1.4).all(), f"{object_id}: fingers should wrap part way round the bar, got {flex}"
-        depth = initial_penetration_m(hand, SdfBank([asset]), asset, torch.tensor(pose[None]), torch.tensor([SCALE]))
-        assert float(depth) < 0.002
+        plan = squeeze_targets(hand, SdfBank([asset]), torch.tensor(pose[None]), torch.tensor([SCALE]), LiftConfig())
+        assert -0.003 < float(plan.hand_in_object_m[0]) < 0.0  # touching, not inside
 
 
 def test_enclosing_grasp_passes_and_controls_fail(objects_dir, hooks):
@@ -144,7 +144,7 @@ def test_squeeze_target_moves_only_touching_fingers_and_never_starts_there(hand,
     asset = load_asset(objects_dir, "round_bar")
     pose = torch.tensor(hooks["round_bar"][None])
     config = LiftConfig()
-    target = squeeze_targets(hand, SdfBank([asset]), pose, torch.tensor([SCALE]), config)[0].numpy()
+    target = squeeze_targets(hand, SdfBank([asset]), pose, torch.tensor([SCALE]), config).targets[0].numpy()
     delta = target - hooks["round_bar"][6:]
     for finger in ("FF", "MF", "RF", "LF"):
         ids = [i for name, i in JOINT.items() if name.startswith(finger)]

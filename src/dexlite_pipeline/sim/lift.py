@@ -2,8 +2,8 @@
 
 Per grasp (DESIGN.md, "Physics tests"):
 
-1. Initial penetration, both ways (object surface points inside the hand's capsules and
-   boxes; hand surface points inside the object's SDF); deeper than
+1. Initial penetration: the larger of the deepest hand surface point inside the object's
+   SDF and the deepest hand-object contact MuJoCo finds at the grasp pose; deeper than
    ``max_initial_penetration_m`` fails at once with reason ``initial_penetration``.
 2. Squeeze target (geometric): every finger with a link within
    ``squeeze_contact_distance_m`` of the object moves its joints along the gradient that
@@ -103,28 +103,26 @@ def object_signed_distance(bank: SdfBank, points_m: torch.Tensor, scale: torch.T
     return distance.reshape(points_m.shape[:2]) * scale[:, None]
 
 
-def initial_penetration_m(hand: ShadowHand, bank: SdfBank, asset: ObjectAsset, hand_pose: torch.Tensor, scale: torch.Tensor) -> torch.Tensor:
-    """(B,) deepest penetration between hand and object, the larger of both directions (metres, >= 0).
+@dataclass
+class SqueezePlan:
+    """Squeeze targets of a batch of grasps and the link depths they were derived from."""
 
-    Object surface points inside the hand's collision shapes are capped by a link's radius
-    and blind to a link buried in the object; hand surface points inside the object's SDF
-    see that case. DESIGN.md: the larger of the two is the penetration.
-    """
-    frames = hand.forward(hand_pose)
-    object_points = torch.as_tensor(asset.surface_points, dtype=hand_pose.dtype, device=hand_pose.device)
-    object_points = object_points[None] * scale[:, None, None]
-    object_in_hand = hand.collision_signed_distance(frames, object_points).amax(dim=1)
-    hand_in_object = object_signed_distance(bank, hand.surface_points(frames), scale)
-    return torch.maximum(object_in_hand, hand_in_object.amax(dim=1)).clamp(min=0.0)
+    targets: torch.Tensor  # (B, 22) joint targets, clamped to the joint limits
+    link_depth_m: torch.Tensor  # (B, L) deepest surface point of each link inside the object (positive inside; -inf: no points)
+
+    @property
+    def hand_in_object_m(self) -> torch.Tensor:
+        """(B,) deepest hand surface point inside the object (the hand-points direction of initial penetration)."""
+        return self.link_depth_m.amax(dim=1)
 
 
-def squeeze_targets(hand: ShadowHand, bank: SdfBank, hand_pose: torch.Tensor, scale: torch.Tensor, config: LiftConfig) -> torch.Tensor:
-    """(B, 22) joint targets a little past the grasp pose, pushing touching links into the object.
+def squeeze_targets(hand: ShadowHand, bank: SdfBank, hand_pose: torch.Tensor, scale: torch.Tensor, config: LiftConfig) -> SqueezePlan:
+    """Joint targets a little past the grasp pose, pushing touching links into the object.
 
-    A link touches if its deepest surface point is within ``squeeze_contact_distance_m`` of
-    the object. Per finger with a touching link, the joints move along the gradient of the
-    summed depth of its touching links, scaled so the largest change is ``squeeze_rad``.
-    Targets are clamped to the joint limits.
+    ``bank`` holds the grasps' one object. A link touches if its deepest surface point is
+    within ``squeeze_contact_distance_m`` of the object. Per finger with a touching link,
+    the joints move along the gradient of the summed depth of its touching links, scaled
+    so the largest change is ``squeeze_rad``; fingers that touch nothing keep their pose.
     """
     finger_joints, finger_links = _finger_masks(hand)
     joints = hand_pose[:, JOINTS].detach().clone().requires_grad_(True)
@@ -144,7 +142,8 @@ def squeeze_targets(hand: ShadowHand, bank: SdfBank, hand_pose: torch.Tensor, sc
         step = torch.where(largest > 0, g / largest.clamp(min=1e-12), torch.zeros_like(g)) * config.squeeze_rad
         delta = delta + step * active[:, None]
     limits = hand.joint_limits.to(delta.dtype)
-    return (hand_pose[:, JOINTS].detach() + delta).clamp(limits[:, 0], limits[:, 1])
+    targets = (hand_pose[:, JOINTS].detach() + delta).clamp(limits[:, 0], limits[:, 1])
+    return SqueezePlan(targets=targets, link_depth_m=link_depth.detach())
 
 
 # --------------------------------------------------------------------------- simulation (MuJoCo)
@@ -187,6 +186,17 @@ class GraspSimulator:
         d.mocap_quat[0] = quat
         d.ctrl[:] = pose[6:]
         mujoco.mj_forward(m, d)
+
+    def initial_contact_depth_m(self, pose: np.ndarray, quat: np.ndarray) -> float:
+        """Deepest hand-object penetration MuJoCo finds at the grasp pose (capsules and boxes vs convex pieces)."""
+        self._reset(pose, quat)
+        s, m, d = self.scene, self.scene.model, self.scene.data
+        deepest = 0.0
+        for contact in d.contact[: d.ncon]:
+            bodies = {int(m.geom_bodyid[contact.geom1]), int(m.geom_bodyid[contact.geom2])}
+            if s.object_body in bodies and len(bodies) == 2:
+                deepest = max(deepest, -float(contact.dist))
+        return deepest
 
     def _close(self, start: np.ndarray, target: np.ndarray) -> None:
         """Ramp the finger targets from ``start`` to ``target`` over the close phase."""
@@ -351,40 +361,51 @@ def _init_worker() -> None:
     torch.set_num_threads(1)
 
 
-def _prepare(hand: ShadowHand, asset: ObjectAsset, hand_pose: np.ndarray, scale: np.ndarray, config: LiftConfig) -> tuple[np.ndarray, np.ndarray]:
-    """Initial penetration (m) and squeeze targets (B, 22) of one object's grasps, in torch batches."""
+def _squeeze_plans(hand: ShadowHand, asset: ObjectAsset, hand_pose: np.ndarray, scale: np.ndarray, config: LiftConfig) -> tuple[np.ndarray, np.ndarray]:
+    """Squeeze targets (B, 22) and hand-in-object depth (B,) of one object's grasps, in torch batches."""
     bank = SdfBank([asset], device=hand.device)
-    penetration, targets = [], []
+    targets, depth = [], []
     for start in range(0, len(hand_pose), PREP_BATCH):
         pose = torch.as_tensor(hand_pose[start : start + PREP_BATCH], dtype=hand.dtype, device=hand.device)
         s = torch.as_tensor(scale[start : start + PREP_BATCH], dtype=hand.dtype, device=hand.device)
-        with torch.no_grad():
-            penetration.append(initial_penetration_m(hand, bank, asset, pose, s).cpu().numpy())
-        targets.append(squeeze_targets(hand, bank, pose, s, config).detach().cpu().numpy())
-    return np.concatenate(penetration).astype(np.float64), np.concatenate(targets).astype(np.float64)
+        plan = squeeze_targets(hand, bank, pose, s, config)
+        targets.append(plan.targets.cpu().numpy())
+        depth.append(plan.hand_in_object_m.cpu().numpy())
+    return np.concatenate(targets).astype(np.float64), np.concatenate(depth).astype(np.float64)
+
+
+def _error_reason(exc: Exception) -> str:
+    return f"object_error: {str(exc).splitlines()[0] if str(exc) else type(exc).__name__}"
 
 
 def run_task(task: LiftTask) -> tuple[np.ndarray, LiftOutcome]:
-    """Lift-test one object's grasps (in a worker or in-process); never raises for a bad object."""
+    """Lift-test one object's grasps (in a worker or in-process); never raises for a bad object.
+
+    Initial penetration is the larger of the deepest hand surface point inside the
+    object's SDF (sees a link buried in the object) and the deepest hand-object contact
+    MuJoCo finds at the grasp pose (exact for the simulated capsules, boxes and convex
+    pieces, so it also sees an object edge cutting into a finger).
+    """
     cfg = task.config
     out = LiftOutcome.empty(len(task.indices))
     try:
         asset = _STATE.get_asset(task.objects_dirs, task.object_id)
-        penetration, targets = _prepare(_STATE.get_hand(), asset, task.hand_pose, task.scale, cfg)
+        targets, hand_in_object = _squeeze_plans(_STATE.get_hand(), asset, task.hand_pose, task.scale, cfg)
     except Exception as exc:  # one bad object must not stop the others: record it per grasp
         log.warning("object %s: %s", task.object_id, exc)
-        out.failure_reason[:] = f"object_error: {str(exc).splitlines()[0] if str(exc) else type(exc).__name__}"
+        out.failure_reason[:] = _error_reason(exc)
         return task.indices, out
-    out.initial_penetration_mm[:] = penetration * 1000.0
     quats = _palm_quaternions(task.hand_pose)
     for i in np.argsort(task.scale, kind="stable"):
-        if penetration[i] > cfg.max_initial_penetration_m:
-            out.failure_reason[i] = "initial_penetration"
-            continue
         try:
             sim = GraspSimulator(_STATE.get_scene(asset, task.scale[i], cfg), cfg)
         except Exception as exc:
-            out.failure_reason[i] = f"object_error: {str(exc).splitlines()[0] if str(exc) else type(exc).__name__}"
+            out.failure_reason[i] = _error_reason(exc)
+            continue
+        penetration = max(hand_in_object[i], sim.initial_contact_depth_m(task.hand_pose[i], quats[i]), 0.0)
+        out.initial_penetration_mm[i] = penetration * 1000.0
+        if penetration > cfg.max_initial_penetration_m:
+            out.failure_reason[i] = "initial_penetration"
             continue
         ratio, reason = sim.lift(task.hand_pose[i], quats[i], targets[i])
         out.lift_ratio[i] = ratio

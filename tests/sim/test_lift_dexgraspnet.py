@@ -1,0 +1,56 @@
+"""The lift test on real DexGraspNet grasps (../shared sample; skipped where absent).
+
+These grasps were made and validated by another system. A prototype of this protocol
+passed 79% of such grasps at friction 0.6 (88% at 1.0) and 0% once moved away; the full
+494-grasp sample passes 77.5% here at friction 0.6 (89.3% at 1.0). A seeded subset keeps
+the test short; its band is wide enough for the subset's sampling noise (about ±10
+points) and narrow enough to catch a broken frame, squeeze or contact model (each of
+which moves the rate by 15 points or more, DESIGN.md).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from dexlite_pipeline.sim.config import LiftConfig
+from dexlite_pipeline.sim.lift import run_lift_tests
+
+SUBSET = 64
+
+
+@pytest.fixture(scope="module")
+def sample(dexgraspnet_sample, tmp_path_factory):
+    """The sample imported by the project's importer (restricted unpickler) at a coarse grid, and a seeded subset."""
+    from dexlite_pipeline.io.dexgraspnet import DexGraspNetConfig, import_dexgraspnet
+    from dexlite_pipeline.objects.build import AssetBuildSettings
+
+    objects = tmp_path_factory.mktemp("dexgraspnet_objects")
+    settings = AssetBuildSettings(sdf_resolution=48, surface_points=2048)
+    result = import_dexgraspnet(dexgraspnet_sample, objects, settings, DexGraspNetConfig(), seed=0)
+    assert len(result.grasps) == 494
+    subset = np.sort(np.random.default_rng(0).choice(len(result.grasps), SUBSET, replace=False))
+    return result.grasps.select(subset), objects
+
+
+@pytest.mark.slow
+def test_real_grasps_pass_at_the_prototype_rate(sample):
+    grasps, objects = sample
+    result = run_lift_tests(grasps, [objects], LiftConfig(), threads=1)
+    rate = float(result["lift_success"].mean())
+    assert 0.6 <= rate <= 0.92, f"pass rate {rate:.2f} of {len(grasps)} real grasps at friction 0.6"
+    assert set(result["failure_reason"]) <= {"", "dropped"}
+    assert np.nanmedian(result["initial_penetration_mm"]) < 1.5  # frames right: ~0.6 mm
+    ratio = result["lift_ratio"]
+    assert np.mean((ratio > 0.5) & (ratio < 0.9)) < 0.05  # bimodal: the object is held or lost
+
+
+@pytest.mark.slow
+def test_real_grasps_moved_away_all_fail(sample):
+    grasps, objects = sample
+    away = grasps.select(np.arange(16))
+    away.arrays["hand_pose"] = away.hand_pose.copy()
+    away.arrays["hand_pose"][:, :3] *= 1.0 + 0.5 / np.linalg.norm(away.hand_pose[:, :3], axis=1, keepdims=True)  # 0.5 m further out
+    result = run_lift_tests(away, [objects], LiftConfig(), threads=1)
+    assert not result["lift_success"].any()
+    assert set(result["failure_reason"]) == {"dropped"}
