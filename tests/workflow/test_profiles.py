@@ -14,21 +14,9 @@ import tomllib
 
 import yaml
 import yte
-from workflow_harness import REPO
+from workflow_harness import REPO, rule_blocks
 
 RULE_FILES = sorted((REPO / "workflow" / "rules").glob("*.smk"))
-
-
-def rule_blocks() -> dict[str, str]:
-    """Rule name -> its text, from every workflow/rules/*.smk file."""
-    blocks = {}
-    for path in RULE_FILES:
-        parts = re.split(r"^(?=rule \w+:)", path.read_text(), flags=re.M)
-        for part in parts:
-            if match := re.match(r"rule (\w+):", part):
-                body = re.split(r"^\S", part[match.end():], maxsplit=1, flags=re.M)[0]
-                blocks[match.group(1)] = body
-    return blocks
 
 
 def slurm_profile(env: dict[str, str] | None = None, monkeypatch=None) -> dict:

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import pytest
-from workflow_harness import checkout, downstream, planned_rules, write_config
+from workflow_harness import checkout, downstream, planned_rules, rule_code_modules, write_config
 
 from dexlite_pipeline.codehash import module_closure
 from dexlite_pipeline.config import ConfigError, validate_config
@@ -114,26 +114,40 @@ def _source_copy(tmp_path: Path) -> Path:
     return target.parent
 
 
-def _stage_modules(graph: dict) -> dict[str, str]:
-    stages = checkout() / "src" / "dexlite_pipeline" / "stages"
-    return {rule: f"dexlite_pipeline.stages.{rule}" for rule in graph if (stages / f"{rule}.py").is_file()}
+def _code_closures(graph: dict) -> dict[str, set[str]]:
+    """Rule -> every package module its code hash covers (the modules it names and their imports)."""
+    root = checkout() / "src" / "dexlite_pipeline"
+    return {
+        rule: set(module_closure(*modules, root=root))
+        for rule, modules in rule_code_modules().items()
+        if rule in graph
+    }
+
+
+def _module_file(source: Path, module: str) -> Path:
+    relative = module.split(".")[1:]
+    path = source.joinpath("dexlite_pipeline", *relative).with_suffix(".py")
+    return path if path.is_file() else source.joinpath("dexlite_pipeline", *relative, "__init__.py")
 
 
 def _append_statement(module_file: Path) -> None:
     module_file.write_text(module_file.read_text() + "\nCODE_CHANGE_PROBE = 1\n")
 
 
-@pytest.mark.parametrize("stage", ["prepare_objects", "lift_validate", "train_cvae", "post_optimize"])
+@pytest.mark.parametrize("stage", ["prepare_objects", "lift_validate", "train_cvae", "post_optimize", "evaluate"])
 def test_stage_code_change_reruns_that_stage_and_downstream(complete_run, tmp_path, stage):
     graph = complete_run.graph
-    if stage not in _stage_modules(graph):
+    module = f"dexlite_pipeline.stages.{stage}"
+    users = {rule for rule, closure in _code_closures(graph).items() if module in closure}
+    if not users:
         pytest.skip(f"stage {stage} is not in the workflow yet")
+    assert stage in users, f"rule {stage} does not hash its own module"
     source = _source_copy(tmp_path)
-    _append_statement(source / "dexlite_pipeline" / "stages" / f"{stage}.py")
+    _append_statement(_module_file(source, module))
 
     planned = planned_rules(complete_run.workdir, env={"PYTHONPATH": str(source)})
 
-    assert planned == downstream(graph, {stage})
+    assert planned == downstream(graph, users)
 
 
 def test_comment_only_change_reruns_nothing(complete_run, tmp_path):
@@ -145,10 +159,9 @@ def test_comment_only_change_reruns_nothing(complete_run, tmp_path):
 
 
 def test_library_change_reruns_the_stages_that_import_it(complete_run, tmp_path):
-    """A module that only some stages import: exactly those stages (and downstream) rerun."""
+    """The library module with the fewest dependent stages: exactly those (and downstream) rerun."""
     graph = complete_run.graph
-    root = checkout() / "src" / "dexlite_pipeline"
-    closures = {rule: set(module_closure(module, root=root)) for rule, module in _stage_modules(graph).items()}
+    closures = _code_closures(graph)
     library = {m for closure in closures.values() for m in closure if ".stages" not in m}
     users_of = {m: {rule for rule, closure in closures.items() if m in closure} for m in library}
     module = min(sorted(library), key=lambda m: len(downstream(graph, users_of[m])))
@@ -156,11 +169,7 @@ def test_library_change_reruns_the_stages_that_import_it(complete_run, tmp_path)
     if downstream(graph, users) == downstream(graph, set(closures)):
         pytest.skip("every library module reaches every stage")
     source = _source_copy(tmp_path)
-    relative = module.split(".")[1:]
-    module_file = source.joinpath("dexlite_pipeline", *relative).with_suffix(".py")
-    if not module_file.is_file():
-        module_file = source.joinpath("dexlite_pipeline", *relative, "__init__.py")
-    _append_statement(module_file)
+    _append_statement(_module_file(source, module))
 
     planned = planned_rules(complete_run.workdir, env={"PYTHONPATH": str(source)})
 

@@ -264,6 +264,26 @@ def rule_names() -> list[str]:
     return [line.strip() for line in done.stdout.splitlines() if re.fullmatch(r"\s*\w+\s*", line)]
 
 
+def rule_blocks() -> dict[str, str]:
+    """Rule name -> the text of its definition, from every workflow/rules/*.smk file."""
+    blocks = {}
+    for path in sorted((checkout() / "workflow" / "rules").glob("*.smk")):
+        for part in re.split(r"^(?=rule \w+:)", path.read_text(), flags=re.M):
+            if match := re.match(r"rule (\w+):", part):
+                blocks[match.group(1)] = re.split(r"^\S", part[match.end():], maxsplit=1, flags=re.M)[0]
+    return blocks
+
+
+def rule_code_modules() -> dict[str, list[str]]:
+    """Rule name -> the modules its ``code=code_hash(...)`` param names (full dotted names)."""
+    modules = {}
+    for rule, body in rule_blocks().items():
+        if call := re.search(r"code_hash\(([^)]*)\)", body):
+            names = re.findall(r"[\"']([\w.]+)[\"']", call.group(1))
+            modules[rule] = [n if "." in n else f"dexlite_pipeline.stages.{n}" for n in names]
+    return modules
+
+
 _DOT_NODE = re.compile(r'^\s*(\d+)\[label = "(\w+)"')
 _DOT_EDGE = re.compile(r"^\s*(\d+) -> (\d+)")
 
@@ -286,11 +306,11 @@ def rule_graph(workdir: Path) -> dict[str, set[str]]:
 
 
 def downstream(graph: dict[str, set[str]], rules: set[str]) -> set[str]:
-    """``rules`` and every rule that (transitively) consumes their outputs."""
+    """``rules`` and every rule that (transitively) consumes their outputs, the target rule 'all' left out."""
     found, pending = set(), list(rules)
     while pending:
         rule = pending.pop()
         if rule not in found:
             found.add(rule)
             pending.extend(graph.get(rule, ()))
-    return found
+    return found - {"all"}

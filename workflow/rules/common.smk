@@ -10,6 +10,7 @@ import json
 import os
 from pathlib import Path
 
+from snakemake.exceptions import WorkflowError
 from snakemake.utils import validate
 
 from dexlite_pipeline.codehash import code_hash as _package_code_hash
@@ -28,6 +29,16 @@ os.environ.setdefault("DEXLITE_SOURCE", str(workflow.basedir))
 
 wildcard_constraints:
     shard=r"\d{3}",
+
+
+def all_cores():
+    """Threads for a stage that uses every core it is given: the total of `--cores` on one
+    machine. Where no total exists (cluster executors, `--unlock`) this is 1 and the
+    profile's `set-threads` decides."""
+    try:
+        return workflow.cores
+    except WorkflowError:
+        return 1
 
 
 def stage_params(*sections):

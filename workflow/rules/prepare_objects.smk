@@ -5,7 +5,7 @@ rule prepare_objects:
     params:
         cfg=stage_params("seed", "objects"),
         code=code_hash("prepare_objects"),
-    threads: workflow.cores
+    threads: all_cores()
     conda:
         CONDA_ENV
     log:
