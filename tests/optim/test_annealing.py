@@ -93,3 +93,17 @@ def test_schedule_constants():
     assert config.step_size_at(50) == pytest.approx(0.005 * 0.95)
     assert config.temperature_at(29) == pytest.approx(18.0)
     assert config.temperature_at(60) == pytest.approx(18.0 * 0.95**2)
+
+
+def test_contact_search_never_raises_the_final_energy(hand, setup):
+    energy, hulls = setup
+    object_index, scale = _batch(8)
+    init = initial_poses(hand, hulls, object_index, scale, InitConfig(distance_m=(0.05, 0.08)), torch.Generator().manual_seed(3))
+    plain = optimize(energy, init, object_index, scale, SHORT, torch.Generator().manual_seed(4))
+    searched_config = AnnealingConfig(**{**SHORT.__dict__, "final_contact_samples": 128})
+    searched = optimize(energy, init, object_index, scale, searched_config, torch.Generator().manual_seed(4))
+    assert torch.equal(searched.hand_pose, plain.hand_pose)  # same walk, only the final contacts differ
+    assert (searched.total <= plain.total + 1e-6).all() and (searched.total < plain.total).any()
+    during_config = AnnealingConfig(**{**searched_config.__dict__, "contact_search_every": 20})
+    during = optimize(energy, init, object_index, scale, during_config, torch.Generator().manual_seed(4))
+    assert torch.isfinite(during.total).all() and during.trace.shape == plain.trace.shape

@@ -8,7 +8,9 @@ vs 0.34 pass fraction on one object), plus each contact index re-drawn with prob
 exp((E_old − E_new)/T), T = T0·decay^⌊k/period⌋; a rejected grasp keeps its old pose,
 contacts and gradient. Optionally (``final_contact_samples``), a last search over many
 contact sets for the final poses picks the best (``GraspEnergy.best_contacts``): the
-random walk over contact indices rarely lands on the best set once T is low. The palm rotation is optimized in the 6D form; results come back
+random walk over contact indices rarely lands on the best set once T is low. With
+``contact_search_every`` the same search also runs during the run, so the gradient then
+pulls the best contacts found onto the surface (it never raises the energy). The palm rotation is optimized in the 6D form; results come back
 as the stored 28-vector.
 """
 
@@ -46,6 +48,7 @@ class AnnealingConfig:
     temperature_period: int = 30
     trace_every: int = 1  # record the energy trace every this many iterations
     final_contact_samples: int = 0  # after the last step, search this many contact sets per grasp (0: off, DexGraspNet)
+    contact_search_every: int = 0  # also run that search every this many iterations (0: only after the last step)
 
     def step_size_at(self, iteration: int) -> float:
         return self.step_size * self.step_size_decay ** (iteration // self.step_size_period)
@@ -145,6 +148,10 @@ def optimize(
         grad = torch.where(accept[:, None], candidate_grad, grad)
         total = torch.where(accept, new_total, total)
         current = _select(accept, candidate, current)
+        if config.final_contact_samples and config.contact_search_every and iteration % config.contact_search_every == 0 and iteration < config.iterations:
+            contacts = energy.best_contacts(state_to_pose(state), object_index, scale, contacts, config.final_contact_samples, generator)
+            current, grad = evaluate(state, contacts)
+            total = current.total.detach()
         if iteration % config.trace_every == 0 or iteration == config.iterations:
             trace.append(total.clone())
             trace_iterations.append(iteration)
