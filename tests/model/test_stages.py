@@ -38,6 +38,7 @@ def pipeline_inputs(tmp_path, hand, tiny_objects, make_grasps):
     return tmp_path, ["--objects", str(catalog_dir), "--objects", str(tiny_objects)]
 
 
+@pytest.mark.slow
 def test_train_sample_post_optimize(pipeline_inputs):
     root, objects = pipeline_inputs
     cfg = json.dumps(CONFIG)

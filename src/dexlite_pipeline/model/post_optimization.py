@@ -2,9 +2,11 @@
 
 E_post = E_fc + 100 E_dis + 100 E_pen + 10 E_spen + E_joints (weights in config). The
 optimizer is the seed's (``optim.annealing.optimize``) with its constants from config
-section ``post_optimize``; a CVAE grasp starts from the four pad points nearest the
-object as its contacts (where it already touches), a random start from uniform
-contacts (DexGraspNet's). The random-init baseline uses the same budget from
+section ``post_optimize``. A CVAE grasp starts from contacts where it already touches
+(``start_contacts="surface"``: the best of ``start_contact_samples`` near-surface pad
+4-sets, or the four nearest pads), a random start from uniform contacts (DexGraspNet's);
+with ``final_contact_samples`` the best contact set for the final pose is searched once
+at the end, so the reported E_post is that of the pose, not of a random contact walk. The random-init baseline uses the same budget from
 ``optim.init.initial_poses`` (convex-hull start) for the same objects and scales.
 """
 
@@ -40,6 +42,8 @@ class PostOptimizeConfig:
     weight_spen: float = 10.0
     weight_joints: float = 1.0
     energy_object_points: int = 2000  # object surface points for E_pen
+    start_contact_samples: int = 64  # sampled grasps start from the best of this many near-surface 4-sets (0: nearest pads)
+    final_contact_samples: int = 64  # after the last step, keep the best of this many contact sets (0: off)
     batch_size: int = 1024  # grasps per optimizer batch (a shard is cut into batches of this size)
     random_baseline: bool = True  # also run the random-init baseline (held-out objects' grasps)
     random_init: InitConfig = field(default_factory=InitConfig)
@@ -57,6 +61,7 @@ class PostOptimizeConfig:
             temperature_decay=self.temperature_decay,
             temperature_period=self.temperature_period,
             trace_every=1,
+            final_contact_samples=self.final_contact_samples,
         )
 
     def weights(self) -> EnergyWeights:
@@ -87,7 +92,7 @@ def refine(
     scale: torch.Tensor,
     config: PostOptimizeConfig,
     generator: torch.Generator,
-    start_contacts: str = "nearest",
+    start_contacts: str = "surface",
 ) -> RefinedGrasps:
     """Post-optimize ``init_pose`` (B, 28) in batches of ``config.batch_size``.
 
@@ -95,8 +100,8 @@ def refine(
     energy term before (``raw_*``) and after, the accepted-state E_post at every iteration
     (``energy_trace``, (B, iterations + 1)) and the acceptance rate.
     """
-    if start_contacts not in ("nearest", "random"):
-        raise ValueError(f"start_contacts must be 'nearest' or 'random', not {start_contacts!r}")
+    if start_contacts not in ("surface", "random"):
+        raise ValueError(f"start_contacts must be 'surface' or 'random', not {start_contacts!r}")
     annealing = config.annealing()
     chunks: list[dict[str, np.ndarray]] = []
     seconds = 0.0
@@ -105,8 +110,11 @@ def refine(
         rows = slice(start, start + config.batch_size)
         pose, obj, sc = init_pose[rows], object_index[rows], scale[rows]
         with torch.no_grad():
-            before = energy(pose, object_index=obj, scale=sc)
-        contacts = before.contact_index if start_contacts == "nearest" else None
+            contacts = energy.nearest_contacts(energy.hand.forward(pose), obj, sc)
+            if config.start_contact_samples > 0:
+                contacts = energy.best_contacts(pose, obj, sc, contacts, config.start_contact_samples, generator)
+            before = energy(pose, object_index=obj, scale=sc, contact_index=contacts)
+        contacts = contacts if start_contacts == "surface" else None
         result = optimize(energy, pose, obj, sc, annealing, generator, contact_index=contacts)
         seconds += result.seconds
         trace_iterations = result.trace_iterations.cpu().numpy()

@@ -92,7 +92,7 @@ def run(args: argparse.Namespace) -> int:
         return refine(energy, pose, obj, scale, config, generator, start_contacts)
 
     if valid.any():
-        refined = optimize_rows(sampled.select(valid), None, "nearest")
+        refined = optimize_rows(sampled.select(valid), None, "surface")
         attrs["trace_iterations"] = refined.trace_iterations.tolist()
         attrs["seconds_per_grasp"] = refined.seconds / int(valid.sum())
         log.info("shard %s: post-optimized %d grasps in %.1fs; median E_post %.3g -> %.3g", args.shard, int(valid.sum()), refined.seconds,

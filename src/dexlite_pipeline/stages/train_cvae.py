@@ -127,7 +127,8 @@ def run(args: argparse.Namespace) -> int:
             row["train_fc"], row["train_dis"], row["train_pen"], row["train_spen"], row["train_joints"], val,
         )
 
-    result = train_cvae(data, train_index, val_index, config, grasp_energy_terms(energy), seed, on_epoch=report)
+    energy_terms = grasp_energy_terms(energy, config.contact_samples, seed)
+    result = train_cvae(data, train_index, val_index, config, energy_terms, seed, on_epoch=report)
     history = pd.DataFrame(result.history)
     out_dir.mkdir(parents=True, exist_ok=True)
     with atomic_path(out_dir / "history.csv") as tmp:
