@@ -269,6 +269,24 @@ figcaption{font-size:11px;color:#444}img{max-width:100%}.note{font-size:12px;col
 """
 
 
+def convergence_note(metrics_df, curves) -> str:
+    """One sentence: at which iteration CVAE starts reach the random-init baseline's final median E_post."""
+    if curves is None or not len(curves) or not len(metrics_df) or "iterations_to_random_final_E_post" not in metrics_df:
+        return ""
+    rows = metrics_df.drop_duplicates("method").set_index("method")
+    if not {"cvae_post", "random_post"} <= set(rows.index):
+        return ""
+    budget = curves.loc[curves["method"] == "random_post", "iteration"].max()
+    reached = rows.loc["cvae_post", "iterations_to_random_final_E_post"]
+    if not np.isfinite(reached):
+        return f"<p class='note'>CVAE starts do not reach the random-init baseline's final median E_post within {int(budget)} iterations.</p>"
+    speedup = f"{budget / reached:.1f}×" if reached > 0 else "already at the start (iteration 0)"
+    return (
+        f"<p class='note'>CVAE starts reach the median E_post that random starts end with after {int(budget)} iterations "
+        f"at iteration {int(reached)}: speed-up {speedup} (seed paper: ≈ 3×).</p>"
+    )
+
+
 def build_report_html(inputs: ReportInputs) -> str:
     """The whole page as a string."""
     sections = [f"<h1>{html.escape(inputs.title)}</h1>"]
@@ -296,6 +314,8 @@ def build_report_html(inputs: ReportInputs) -> str:
         ("CVAE training curves", training_plot(inputs.history)),
     ):
         sections.append(f"<h2>{html.escape(title)}</h2>" + (_img(image, title) if image else "<p>Not available in this run.</p>"))
+        if title.startswith("Post-optimization convergence"):
+            sections.append(convergence_note(inputs.metrics, inputs.convergence))
     sections.append("<h2>Physical constants of the lift and six-direction tests</h2>" + constants_table_html(inputs.lift_config))
     if inputs.per_object is not None and len(inputs.per_object):
         sections.append("<h2>Per object</h2>" + inputs.per_object.to_html(index=False, float_format=lambda v: f"{v:.3g}", na_rep="—"))
