@@ -1,12 +1,6 @@
 # Evaluation on held-out objects: simulate each shard of every method's grasps, then tabulate,
 # then build the HTML report. Which methods are read comes from config.evaluate.methods.
-
-
-def _evaluate_objects_dirs():
-    dirs = [f"{RESULTS}/objects"]
-    if config["dexgraspnet"]["root"]:
-        dirs.append(f"{RESULTS}/dexgraspnet/objects")
-    return dirs
+# learning_objects_dirs / learning_cli_options come from train_cvae.smk (included before).
 
 
 def _evaluate_sources(shard):
@@ -32,10 +26,6 @@ def _post_stores(prefix):
     return expand(f"{RESULTS}/post/{prefix}_{{shard}}.zarr", shard=SHARDS) if wanted in methods else []
 
 
-def _cli_options(option, paths):
-    return " ".join(f"--{option} {p}" for p in paths)
-
-
 rule evaluate_simulate:
     input:
         unpack(lambda wc: {"catalog": f"{RESULTS}/objects/catalog.parquet", **{k.replace("-", "_"): v for k, v in _evaluate_sources(wc.shard).items()}}),
@@ -45,7 +35,7 @@ rule evaluate_simulate:
         cfg=stage_params("seed", "device", "shards", "evaluate", "lift", "energy"),
         code=code_hash("evaluate"),
         sources=lambda wc: " ".join(f"--{k} {v}" for k, v in _evaluate_sources(wc.shard).items()),
-        objects=_cli_options("objects", _evaluate_objects_dirs()),
+        objects=learning_cli_options("objects", learning_objects_dirs()),
     conda:
         CONDA_ENV
     log:
@@ -70,9 +60,9 @@ rule evaluate:
     params:
         cfg=stage_params("evaluate"),
         code=code_hash("evaluate"),
-        sims=lambda wc, input: _cli_options("sim", input.sims),
-        post=lambda wc, input: _cli_options("post", input.post) + " " + _cli_options("random-post", input.random_post),
-        objects=_cli_options("objects", _evaluate_objects_dirs()),
+        sims=lambda wc, input: learning_cli_options("sim", input.sims),
+        post=lambda wc, input: learning_cli_options("post", input.post) + " " + learning_cli_options("random-post", input.random_post),
+        objects=learning_cli_options("objects", learning_objects_dirs()),
     conda:
         CONDA_ENV
     log:
@@ -97,8 +87,8 @@ rule report:
     params:
         cfg=stage_params("evaluate"),
         code=code_hash("report"),
-        sims=lambda wc, input: _cli_options("sim", input.sims),
-        objects=_cli_options("objects", _evaluate_objects_dirs()),
+        sims=lambda wc, input: learning_cli_options("sim", input.sims),
+        objects=learning_cli_options("objects", learning_objects_dirs()),
     conda:
         CONDA_ENV
     log:
