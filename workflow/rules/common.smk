@@ -68,6 +68,10 @@ def final_outputs():
     # The lift-validated shards (MuJoCo lift test of the curated grasps) once their inputs have rules.
     if defined >= {"stability_filter", "seed_grasps", "curate", "lift_validate"}:
         outputs += [f"{RESULTS}/lift/shard_{shard}.zarr" for shard in SHARDS]
+    # The trained model and the post-optimized shards (with the random-init baseline) once training has data.
+    if defined >= {"lift_validate", "train_cvae", "sample_grasps", "post_optimize"}:
+        outputs += [f"{RESULTS}/model/cvae.pt", f"{RESULTS}/model/history.csv", f"{RESULTS}/model/training_curves.png"]
+        outputs += [f"{RESULTS}/post/{prefix}_{shard}.zarr" for prefix in ("shard", "random_shard") for shard in SHARDS]
     return outputs
 
 
