@@ -9,7 +9,6 @@ import pytest
 import torch
 
 from dexlite_pipeline.energy import EnergyConfig, GraspEnergy, evaluate_grasp_energies
-from dexlite_pipeline.energy.sdf import sample_signed_distance
 from dexlite_pipeline.energy.terms import (
     ContactDistanceTerm,
     ForceClosureTerm,
@@ -32,7 +31,7 @@ def sphere_energy(hand, sphere_objects):
 def _sphere_sdf(energy, points):
     points = torch.as_tensor(points, dtype=torch.float32)[None]
     index = torch.zeros(1, 1, dtype=torch.long)
-    return sample_signed_distance(energy.bank, points, index, torch.full((1, 1), SCALE))
+    return energy.bank.signed_distance(points, index, torch.full((1, 1), SCALE))
 
 
 def test_force_closure_two_opposite_contacts_on_sphere_is_zero(sphere_energy):
@@ -129,7 +128,7 @@ def test_penetration_culling_is_exact(hand, sphere_energy):
     object_in_hand = hand.collision_signed_distance(frames, points).clamp(min=0)
     spheres = sphere_energy.penetration.spheres
     centre = sphere_energy.penetration.sphere_map(frames)
-    distance, _ = sample_signed_distance(sphere_energy.bank, centre, index[:, None], scale[:, None])
+    distance, _ = sphere_energy.bank.signed_distance(centre, index[:, None], scale[:, None])
     hand_in_object = (distance + spheres.radius).clamp(min=0)
     brute = object_in_hand.sum(1) + distance.clamp(min=0).sum(1)
     assert (brute > 0).sum() >= 6, "the test poses should include penetrating hands"

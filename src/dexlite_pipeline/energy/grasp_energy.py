@@ -14,7 +14,6 @@ import numpy as np
 import torch
 
 from dexlite_pipeline.energy.link_map import LinkFrameMap
-from dexlite_pipeline.energy.sdf import sample_signed_distance
 from dexlite_pipeline.energy.terms import (
     ContactDistanceTerm,
     ForceClosureTerm,
@@ -122,7 +121,7 @@ class GraspEnergy:
         """
         with torch.no_grad():
             candidates = self.candidate_map(frames)
-            distance, _ = sample_signed_distance(self.bank, candidates, object_index[:, None], scale[:, None])
+            distance, _ = self.bank.signed_distance(candidates, object_index[:, None], scale[:, None])
             return distance.abs().topk(CONTACT_COUNT, dim=1, largest=False).indices
 
     def best_contacts(
@@ -145,7 +144,7 @@ class GraspEnergy:
         with torch.no_grad():
             frames = self.hand.forward(hand_pose)
             candidates = self.candidate_map(frames)
-            distance, normal = sample_signed_distance(self.bank, candidates, object_index[:, None], scale[:, None])
+            distance, normal = self.bank.signed_distance(candidates, object_index[:, None], scale[:, None])
             batch, count = distance.shape
             weight = torch.softmax(-distance.abs() / closeness_m, dim=1).cpu()
             draws = torch.multinomial(weight, samples * CONTACT_COUNT, replacement=True, generator=generator)
@@ -185,7 +184,7 @@ class GraspEnergy:
         if contact_index is None:
             contact_index = self.nearest_contacts(frames, object_index, scale)
         points = self.contact_points(frames, contact_index)
-        distance, normal = sample_signed_distance(self.bank, points, object_index[:, None], scale[:, None])
+        distance, normal = self.bank.signed_distance(points, object_index[:, None], scale[:, None])
         penetration = self.penetration(frames, object_index, scale)
         terms = {
             "E_fc": self.force_closure(points, normal),

@@ -13,7 +13,6 @@ from dataclasses import dataclass
 import torch
 
 from dexlite_pipeline.hand.model import CAPSULE, HandFrames, ShadowHand
-from dexlite_pipeline.energy.sdf import sample_signed_distance
 from dexlite_pipeline.energy.link_map import LinkFrameMap
 from dexlite_pipeline.energy.spheres import build_hand_spheres
 from dexlite_pipeline.objects.assets import SdfBank
@@ -132,14 +131,14 @@ class PenetrationTerm:
         radius = self.spheres.radius
         centre = self.sphere_map(frames)  # (B, K, 3)
         with torch.no_grad():
-            distance, _ = sample_signed_distance(self.bank, centre.detach(), object_index[:, None], scale[:, None], with_normal=False)
+            distance, _ = self.bank.signed_distance(centre.detach(), object_index[:, None], scale[:, None], with_normal=False)
             sphere_depth = distance + radius
             shape_reach = sphere_depth.new_full((batch, len(self.radius)), -torch.inf)
             shape_reach = shape_reach.scatter_reduce(1, self.spheres.shape.expand(batch, -1), sphere_depth, "amax")
             margin = (self.interpolation_error[object_index] * scale)[:, None] + self.spheres.shape_gap[None, :]
             active = shape_reach > -margin
         b, k = (sphere_depth > radius).nonzero(as_tuple=True)  # centres inside the object
-        distance, _ = sample_signed_distance(self.bank, centre[b, k], object_index[b], scale[b], with_normal=False)
+        distance, _ = self.bank.signed_distance(centre[b, k], object_index[b], scale[b], with_normal=False)
         hand_energy = distance.new_zeros(batch).index_add(0, b, distance)
         hand_max = sphere_depth.max(dim=1).values.clamp(min=0)
         obj_energy, obj_max = self._object_in_hand(self.shape_map(frames), active, object_index, scale)

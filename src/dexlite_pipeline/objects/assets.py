@@ -151,25 +151,34 @@ class SdfBank:
             raise ObjectAssetError(f"object {exc.args[0]!r} is not in the SDF bank") from None
 
     def signed_distance(
-        self, points_m: torch.Tensor, object_index: torch.Tensor, scale: torch.Tensor
-    ) -> tuple[torch.Tensor, torch.Tensor]:
+        self, points_m: torch.Tensor, object_index: torch.Tensor, scale: torch.Tensor, with_normal: bool = True
+    ) -> tuple[torch.Tensor, torch.Tensor | None]:
+        """Distance (metres, positive inside) and outward normal at ``points_m`` (..., 3).
+
+        ``object_index`` and ``scale`` give each point's object and scale: shape (B,) for
+        points (B, P, 3) as in the class doc, or any shape that broadcasts to the points'
+        batch shape (e.g. (N,) for a flat (N, 3) list). The grids are indexed in place (no
+        per-grasp copy of a grid). ``with_normal=False`` skips the normal (returns None).
+        """
         g = self.resolution
-        s = scale.to(points_m.dtype)[:, None, None]
+        shape = points_m.shape[:-1]
+        extra = (1,) * (len(shape) - object_index.dim())
+        object_index = object_index.reshape(object_index.shape + extra).expand(shape)
+        s = scale.to(points_m.dtype).reshape(scale.shape + (1,) * (len(shape) - scale.dim())).expand(shape)[..., None]
         local = points_m / s  # normalized frame
-        gmin = self.grid_min[object_index][:, None, :]
-        h = self.voxel_size[object_index][:, None, None]
+        gmin = self.grid_min[object_index]
+        h = self.voxel_size[object_index][..., None]
         u = (local - gmin) / h  # continuous grid coordinates
         u_clamped = u.clamp(0.0, g - 1 - 1e-4)
         outside = ((u - u_clamped) * h).norm(dim=-1)
         base = u_clamped.detach().floor().long()
         frac = u_clamped - base
-        flat = self.volumes[object_index]  # (B, G^3)
-        i, j, k = base.unbind(-1)
+        flat = self.volumes.reshape(-1)
+        origin = object_index * (g * g * g) + (base[..., 0] * g + base[..., 1]) * g + base[..., 2]
         fx, fy, fz = frac.unbind(-1)
 
         def corner(di: int, dj: int, dk: int) -> torch.Tensor:
-            idx = ((i + di) * g + (j + dj)) * g + (k + dk)
-            return torch.gather(flat, 1, idx.reshape(idx.shape[0], -1)).reshape(idx.shape)
+            return flat[origin + (di * g + dj) * g + dk]
 
         c000, c100, c010, c110 = corner(0, 0, 0), corner(1, 0, 0), corner(0, 1, 0), corner(1, 1, 0)
         c001, c101, c011, c111 = corner(0, 0, 1), corner(1, 0, 1), corner(0, 1, 1), corner(1, 1, 1)
@@ -180,14 +189,15 @@ class SdfBank:
         c0 = c00 + (c10 - c00) * fy
         c1 = c01 + (c11 - c01) * fy
         value = c0 + (c1 - c0) * fz
+        distance_m = (value - outside) * s[..., 0]
+        if not with_normal:
+            return distance_m, None
         # Analytic gradient of the trilinear interpolant (per unit of grid coordinate).
         gx = ((c100 - c000) * (1 - fy) + (c110 - c010) * fy) * (1 - fz) + ((c101 - c001) * (1 - fy) + (c111 - c011) * fy) * fz
         gy = (c10 - c00) * (1 - fz) + (c11 - c01) * fz
         gz = c1 - c0
         inward = torch.stack([gx, gy, gz], dim=-1)
         away = local - (gmin + u_clamped * h)
-        is_out = (outside > 0)[..., None]
-        direction = torch.where(is_out, away, -inward)
+        direction = torch.where((outside > 0)[..., None], away, -inward)
         normal = torch.nn.functional.normalize(direction, dim=-1)
-        distance_m = (value - outside) * s[..., 0]
         return distance_m, normal
