@@ -11,7 +11,7 @@ Choices that move measured success rates (DESIGN.md, "Physics tests"):
   only the object;
 - 22 independent position actuators (no tendons: DexGraspNet's grasps break the real
   hand's J0/J1 coupling), force limits from the gym model (J0 shares J1's motor);
-- elliptic friction cones with impratio 10, 2 ms steps;
+- elliptic friction cones with impratio 10, 2 ms steps (sparse Jacobians: speed only);
 - the world frame is the object frame, so gravity acts along the object's -z.
 """
 
@@ -79,6 +79,9 @@ def scene_mjcf(convex_paths: list[Path], scale: float, config: LiftConfig) -> st
             cone="elliptic",
             impratio=repr(config.impratio),
             gravity=f"0 0 {-GRAVITY_MPS2}",
+            # Sparse constraint Jacobians: ~27% less time per step here than MuJoCo's dense
+            # choice for small models, with results equal to 1e-10 (measured on real grasps).
+            jacobian="sparse",
         ),
     )
     asset = root.find("asset")
