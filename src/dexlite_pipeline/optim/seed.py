@@ -4,6 +4,24 @@ Every (object, scale) gets ``grasps_per_object`` starts on the inflated convex h
 grasps of the shard are optimized together in batches of ``batch_size`` (one batch mixes
 objects, so the CPU runs few, large steps). Each grasp keeps every energy term and a
 ``passes_energy_thresholds`` flag (DexGraspNet's E_fc < 0.3, E_dis < 5 mm, E_pen < 1 mm).
+
+The default schedule (config.yaml) was retuned and measured here on 3 pybullet_data
+objects x 3 scales, 144 grasps (48 for the first row), one thread; "per CPU hour" is
+threshold-passing grasps per hour of this process's CPU time (the machine was shared):
+
+====================================================  =====  ================
+schedule                                              pass   passing / CPU h
+====================================================  =====  ================
+DexGraspNet: 6000 it, palm 0.2-0.3 m out              42 %   ~500
+1500 it, periods 8/12, 0.1-0.15 m                     13 %
+  + best of 1024 contact sets after the last step     19 %
+  + E_pen without double-counted sphere depth         25 %   ~1,600
+2000 it, periods 10/17, final contact search          37 %   ~1,800
+  palm 0.05-0.1 m out instead                         26 %   ~1,400
+  + contact search every 100 iterations (default)     44 %   ~2,200
+====================================================  =====  ================
+
+Steps cost ~0.35 ms per grasp (CPU, batch 144, hands at the object).
 """
 
 from __future__ import annotations
