@@ -1,91 +1,19 @@
 """Honest controls of the MuJoCo lift test: good grasps pass, bad ones fail, for stated reasons.
 
-The objects are built here (a round and a square bar lying along x, low SDF resolution,
-the mesh as its own convex piece). The good grasp is constructed by hand: the palm above
-the bar, palmar side down, fingers across it, each finger flexed until it touches the
-bar (a bisection on one flex angle shared by its three joints), the thumb folded away.
-The fingers then hook around the bar: it is enclosed from above and below.
+The objects and the good grasps come from ``bar_grasps`` (fixtures in conftest.py): a
+round and a square bar, each hooked by fingers flexed until they touch it.
 """
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import pytest
 import torch
+from bar_grasps import JOINT, SCALE, grasp_set
 
-from dexlite_pipeline.hand import JOINT_NAMES
-from dexlite_pipeline.hand.rotation import matrix_to_euler_xyz
-from dexlite_pipeline.io.grasp_store import GraspSet
 from dexlite_pipeline.objects.assets import SdfBank, load_asset
 from dexlite_pipeline.sim.config import LiftConfig
-from dexlite_pipeline.sim.lift import DIRECTIONS, object_signed_distance, run_lift_tests, squeeze_targets
-
-SCALE = 0.08  # bars 16 cm long, 4 cm thick
-BAR_HALF_THICKNESS_M = 0.02
-PALM_HALF_THICKNESS_M = 0.0111  # C_palm0 box, palm frame y
-JOINT = {name.split(":")[1]: i for i, name in enumerate(JOINT_NAMES)}
-# Palm frame in the object frame: palm x along the bar, palmar side (-y) facing down (-z), fingers along -y.
-PALM_ROTATION = torch.tensor([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
-
-
-@pytest.fixture(scope="module")
-def objects_dir(tmp_path_factory):
-    import trimesh
-
-    from dexlite_pipeline.objects.build import AssetBuildSettings, write_asset
-
-    root = tmp_path_factory.mktemp("sim_objects")
-    settings = AssetBuildSettings(sdf_resolution=40, surface_points=1024)
-    along_x = trimesh.transformations.rotation_matrix(math.pi / 2, [0, 1, 0])
-    round_bar = trimesh.creation.cylinder(radius=0.25, height=2.0, sections=48)
-    round_bar.apply_transform(along_x)
-    square_bar = trimesh.creation.box(extents=[2.0, 0.5, 0.5])
-    for object_id, mesh in (("round_bar", round_bar), ("square_bar", square_bar)):
-        write_asset(mesh, object_id, root, settings, {"source": "test"}, convex_pieces=[mesh])
-    return root
-
-
-def _pose(bar_in_palm_m, joints) -> torch.Tensor:
-    """hand_pose with the bar's centre at ``bar_in_palm_m`` in the palm frame."""
-    translation = -(PALM_ROTATION @ torch.as_tensor(bar_in_palm_m, dtype=torch.float32))
-    euler = matrix_to_euler_xyz(PALM_ROTATION[None])[0]
-    return torch.cat([translation, euler, torch.as_tensor(joints, dtype=torch.float32)])
-
-
-def _finger_depth_m(hand, bank, poses: torch.Tensor, finger: str) -> torch.Tensor:
-    """(B,) deepest point of the finger's links inside the bar (negative: clearance)."""
-    depth = object_signed_distance(bank, hand.surface_points(hand.forward(poses)), torch.full((poses.shape[0],), SCALE))
-    links = [i for i, name in enumerate(hand.link_names) if name.split(":")[1].startswith(finger)]
-    return depth[:, torch.isin(hand.surface_link, torch.tensor(links))].amax(dim=1)
-
-
-def hook_grasp(hand, asset, clearance_m: float = 0.0005) -> np.ndarray:
-    """The constructed grasp: each finger flexed (J2 = J1 = J0) as far as it stays ``clearance_m`` from the bar."""
-    bank = SdfBank([asset])
-    bar_in_palm = [0.0, -(PALM_HALF_THICKNESS_M + BAR_HALF_THICKNESS_M + 0.002), 0.075]
-    joints = np.zeros(22)
-    joints[JOINT["THJ3"]] = 1.222  # thumb folded across the palm, clear of the bar
-    flex = torch.linspace(0.0, 1.571, 315)  # 5 mrad steps
-    for finger in ("FF", "MF", "RF", "LF"):
-        ids = [JOINT[f"{finger}J2"], JOINT[f"{finger}J1"], JOINT[f"{finger}J0"]]
-        trials = np.repeat(joints[None], len(flex), axis=0)
-        trials[:, ids] = flex[:, None].numpy()
-        poses = torch.stack([_pose(bar_in_palm, trial) for trial in trials])
-        touching = (_finger_depth_m(hand, bank, poses, finger.lower()) >= -clearance_m).nonzero()
-        joints[ids] = float(flex[max(int(touching[0]) - 1, 0)]) if len(touching) else 1.571
-    return _pose(bar_in_palm, joints).numpy()
-
-
-def _grasps(poses, object_ids) -> GraspSet:
-    poses = np.asarray(poses, dtype=np.float32).reshape(-1, 28)
-    return GraspSet({"hand_pose": poses, "object_id": np.asarray(object_ids, dtype=object), "scale": np.full(len(poses), SCALE, np.float32)})
-
-
-@pytest.fixture(scope="module")
-def hooks(hand, objects_dir):
-    return {oid: hook_grasp(hand, load_asset(objects_dir, oid)) for oid in ("round_bar", "square_bar")}
+from dexlite_pipeline.sim.lift import DIRECTIONS, run_lift_tests, squeeze_targets
 
 
 def test_constructed_hook_grasp_touches_without_penetration(hand, objects_dir, hooks):
@@ -109,7 +37,7 @@ def test_enclosing_grasp_passes_and_controls_fail(objects_dir, hooks):
         poses += [pose, away, open_hand]
         ids += [object_id] * 3
         labels += [(object_id, "good"), (object_id, "away"), (object_id, "open")]
-    grasps = _grasps(poses, ids)
+    grasps = grasp_set(poses, ids)
     result = run_lift_tests(grasps, [objects_dir], LiftConfig(), threads=1)
     outcome = {label: (float(r), str(reason)) for label, r, reason in zip(labels, result["lift_ratio"], result["failure_reason"])}
     for object_id in hooks:
@@ -120,21 +48,21 @@ def test_enclosing_grasp_passes_and_controls_fail(objects_dir, hooks):
             assert ratio < 0.5 and reason == "dropped", (object_id, control, ratio, reason)
     assert result["lift_success"].tolist() == [True, False, False, True, False, False]
 
-    heavy = run_lift_tests(_grasps([hooks["round_bar"]], ["round_bar"]), [objects_dir], LiftConfig(object_mass_kg=50.0), threads=1)
+    heavy = run_lift_tests(grasp_set([hooks["round_bar"]], ["round_bar"]), [objects_dir], LiftConfig(object_mass_kg=50.0), threads=1)
     assert not heavy["lift_success"][0] and heavy["failure_reason"][0] == "dropped"
     assert heavy["lift_ratio"][0] < 0.5
 
 
 def test_no_friction_squeezes_the_round_bar_out(objects_dir, hooks):
     """Friction matters: without it the squeeze pushes the round bar out of the open side of the hook."""
-    result = run_lift_tests(_grasps([hooks["round_bar"]], ["round_bar"]), [objects_dir], LiftConfig(friction=0.0), threads=1)
+    result = run_lift_tests(grasp_set([hooks["round_bar"]], ["round_bar"]), [objects_dir], LiftConfig(friction=0.0), threads=1)
     assert not result["lift_success"][0]
 
 
 def test_deep_initial_penetration_fails_before_simulation(objects_dir, hooks):
     buried = hooks["square_bar"].copy()
     buried[2] -= 0.03  # palm 3 cm down into the bar
-    result = run_lift_tests(_grasps([buried], ["square_bar"]), [objects_dir], LiftConfig(), threads=1)
+    result = run_lift_tests(grasp_set([buried], ["square_bar"]), [objects_dir], LiftConfig(), threads=1)
     assert result["failure_reason"].tolist() == ["initial_penetration"]
     assert result["initial_penetration_mm"][0] > 10.0
     assert np.isnan(result["lift_ratio"][0]) and not result["lift_success"][0]
@@ -158,7 +86,7 @@ def test_invalid_grasps_are_flagged_in_place_and_valid_ones_simulated(objects_di
     good = hooks["square_bar"]
     nan_pose = good.copy()
     nan_pose[4] = np.nan
-    grasps = _grasps([nan_pose, good, good], ["square_bar", "square_bar", "no_such_object"])
+    grasps = grasp_set([nan_pose, good, good], ["square_bar", "square_bar", "no_such_object"])
     result = run_lift_tests(grasps, [objects_dir], LiftConfig(), threads=1)
     assert result["failure_reason"].tolist() == [
         "invalid_grasp: non-finite hand_pose",
@@ -172,7 +100,7 @@ def test_invalid_grasps_are_flagged_in_place_and_valid_ones_simulated(objects_di
 def test_six_directions_fail_open_hand_and_hold_gravity_direction_of_hook(objects_dir, hooks):
     open_hand = hooks["square_bar"].copy()
     open_hand[6:] = 0.0
-    grasps = _grasps([hooks["square_bar"], open_hand], ["square_bar", "square_bar"])
+    grasps = grasp_set([hooks["square_bar"], open_hand], ["square_bar", "square_bar"])
     result = run_lift_tests(grasps, [objects_dir], LiftConfig(six_directions=True), threads=1)
     assert result["six_dir_translation_m"].shape == (2, 6) and result["six_dir_passed"].shape == (2, 6)
     down = DIRECTIONS.index("-z")
@@ -184,7 +112,7 @@ def test_six_directions_fail_open_hand_and_hold_gravity_direction_of_hook(object
 @pytest.mark.slow
 def test_process_pool_matches_in_process(objects_dir, hooks):
     """Two worker processes (one per object) give the same per-grasp results in input order."""
-    grasps = _grasps([hooks["square_bar"], hooks["round_bar"]], ["square_bar", "round_bar"])
+    grasps = grasp_set([hooks["square_bar"], hooks["round_bar"]], ["square_bar", "round_bar"])
     serial = run_lift_tests(grasps, [objects_dir], LiftConfig(), threads=1)
     pooled = run_lift_tests(grasps, [objects_dir], LiftConfig(), threads=2)
     np.testing.assert_array_equal(serial["lift_ratio"], pooled["lift_ratio"])

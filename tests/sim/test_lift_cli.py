@@ -1,0 +1,96 @@
+"""``dexlite lift-test`` and the ``lift_validate`` stage: outputs, flags, summaries, one-line errors."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import zarr
+from bar_grasps import grasp_set
+
+from dexlite_pipeline.cli import main
+from dexlite_pipeline.io.grasp_store import read_grasp_store, write_grasp_store
+
+
+def _store_with_bad_rows(tmp_path, hooks):
+    """Four grasps: good, NaN pose, object missing from the assets, good again (other bar)."""
+    nan_pose = hooks["square_bar"].copy()
+    nan_pose[0] = np.nan
+    grasps = grasp_set(
+        [hooks["square_bar"], nan_pose, hooks["square_bar"], hooks["round_bar"]],
+        ["square_bar", "square_bar", "mug_that_was_never_prepared", "round_bar"],
+    )
+    grasps.arrays["E_fc"] = np.arange(4, dtype=np.float32)  # an upstream column travels along
+    path = tmp_path / "grasps.zarr"
+    write_grasp_store(path, grasps, {"stage": "curate"})
+    return path
+
+
+def test_lift_test_flags_bad_rows_simulates_the_rest_and_prints_a_summary(tmp_path, objects_dir, hooks, capsys, caplog):
+    source = _store_with_bad_rows(tmp_path, hooks)
+    out = tmp_path / "lifted.zarr"
+    code = main(["lift-test", str(source), "--objects", str(objects_dir), "--out", str(out), "--friction", "0.8", "--threads", "1"])
+    assert code == 0
+    result = read_grasp_store(out)
+    assert result.arrays["failure_reason"].tolist() == [
+        "",
+        "invalid_grasp: non-finite hand_pose",
+        "invalid_grasp: object id not in the object assets",
+        "",
+    ]
+    assert result.arrays["lift_success"].tolist() == [True, False, False, True]
+    np.testing.assert_array_equal(result.arrays["E_fc"], np.arange(4))
+    assert result.attrs["lift_config"]["friction"] == 0.8
+    assert result.attrs["lift_summary"]["n_success"] == 2 and result.attrs["lift_summary"]["n_simulated"] == 2
+    printed = capsys.readouterr()
+    assert "2/4 grasps lifted (50.0%)" in printed.out
+    assert "invalid_grasp: non-finite hand_pose: 1" in printed.out
+    assert "friction 0.8" in printed.out
+    assert "1 grasp(s) not simulated: invalid_grasp: object id not in the object assets" in caplog.text
+
+
+def test_lift_test_six_directions_option_stores_per_direction_results(tmp_path, objects_dir, hooks):
+    source = tmp_path / "one.zarr"
+    write_grasp_store(source, grasp_set([hooks["square_bar"]], ["square_bar"]))
+    out = tmp_path / "six.zarr"
+    assert main(["lift-test", str(source), "--objects", str(objects_dir), "--out", str(out), "--six-directions", "--threads", "1"]) == 0
+    result = read_grasp_store(out)
+    assert result.arrays["six_dir_passed"].shape == (1, 6)
+    assert result.arrays["six_dir_rotation_deg"].shape == (1, 6)
+    assert result.attrs["six_dir_directions"] == ["+x", "-x", "+y", "-y", "+z", "-z"]
+    assert result.attrs["lift_config"]["six_directions"] is True
+
+
+def test_lift_test_one_line_errors(tmp_path, objects_dir, capsys):
+    bad = tmp_path / "bad.zarr"
+    group = zarr.open_group(str(bad), mode="w", zarr_format=3)
+    group.create_array("hand_pose", data=np.zeros((3, 27), np.float32))
+    group.create_array("object_id", shape=(3,), dtype=str)[:] = np.array(["a", "b", "c"], dtype=object)
+    group.create_array("scale", data=np.full(3, 0.1, np.float32))
+    out = tmp_path / "never.zarr"
+    assert main(["lift-test", str(bad), "--objects", str(objects_dir), "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"dexlite lift-test: error: {bad}: hand_pose has shape (3, 27), expected (N, 28)"]
+    assert not out.exists()
+
+    assert main(["lift-test", str(tmp_path / "missing.zarr"), "--objects", str(objects_dir), "--out", str(out)]) == 2
+    assert "no such grasp store" in capsys.readouterr().err
+    assert main(["lift-test", str(bad), "--objects", str(tmp_path / "no_objects"), "--out", str(out)]) == 2
+    assert "objects folder not found" in capsys.readouterr().err
+    assert main(["lift-test", str(bad), "--objects", str(objects_dir), "--out", str(out), "--config-json", '{"lift": {"fricton": 1}}']) == 2
+    assert "unknown key(s) fricton" in capsys.readouterr().err
+
+
+def test_lift_validate_stage_writes_the_shard_with_its_config(tmp_path, objects_dir, hooks):
+    source = _store_with_bad_rows(tmp_path, hooks)
+    out = tmp_path / "lift" / "shard_000.zarr"
+    config = {"seed": 3, "device": "cpu", "lift": {"friction": 1.0, "six_directions": False}}
+    code = main(["lift-validate", "--config-json", json.dumps(config), "--grasps", str(source), "--objects", str(objects_dir),
+                 "--shard", "000", "--out", str(out), "--threads", "1"])
+    assert code == 0
+    result = read_grasp_store(out)
+    assert len(result) == 4  # every curated grasp is kept, failures with their reason
+    assert result.arrays["lift_success"].tolist() == [True, False, False, True]
+    assert result.attrs["stage"] == "lift_validate" and result.attrs["shard"] == "000"
+    assert result.attrs["config"]["lift"]["friction"] == 1.0 and result.attrs["config"]["seed"] == 3
+    assert "six_dir_success" not in result.arrays
