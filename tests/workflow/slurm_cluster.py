@@ -110,7 +110,7 @@ def write_slurm_conf(root: Path, munge_socket: Path, ctld_port: int, slurmd_port
                 "MpiDefault=none",
                 "SwitchType=switch/none",
                 "ReturnToService=2",
-                "MinJobAge=300",
+                "MinJobAge=3600",  # squeue reports finished jobs this long (no accounting DB)
                 "SchedulerParameters=sched_interval=1",
                 "MessageTimeout=20",
                 f"NodeName=localhost NodeAddr=127.0.0.1 CPUs={NODE_CPUS} RealMemory={memory_mb} State=UNKNOWN",
