@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import io
 import re
-import tomllib
 
+import pytest
 import yaml
 import yte
 from workflow_harness import REPO, rule_blocks
@@ -90,6 +90,7 @@ def _requirement_name(spec: str) -> str:
 
 
 def test_conda_env_lists_exactly_the_package_dependencies():
+    tomllib = pytest.importorskip("tomllib")  # Python >= 3.11
     env = yaml.safe_load((REPO / "envs" / "dexlite.yaml").read_text())
     pip_section = next(d["pip"] for d in env["dependencies"] if isinstance(d, dict) and "pip" in d)
     project = tomllib.loads((REPO / "pyproject.toml").read_text())["project"]
