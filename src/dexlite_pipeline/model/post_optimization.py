@@ -12,6 +12,7 @@ at the end, so the reported E_post is that of the pose, not of a random contact 
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -20,6 +21,8 @@ import torch
 from dexlite_pipeline.energy.grasp_energy import TERM_NAMES, EnergyWeights, GraspEnergy
 from dexlite_pipeline.optim.annealing import AnnealingConfig, optimize
 from dexlite_pipeline.optim.init import InitConfig
+
+log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -77,6 +80,10 @@ class RefinedGrasps:
     seconds: float
 
 
+def _log_progress(iteration: int, total: torch.Tensor) -> None:
+    log.info("post-optimization iteration %d: median E_post %.4g", iteration, float(total.median()))
+
+
 def _energy_arrays(prefix: str, result) -> dict[str, np.ndarray]:
     arrays = {f"{prefix}{name}": result.terms[name].detach().cpu().numpy() for name in TERM_NAMES}
     arrays[f"{prefix}E_post"] = result.total.detach().cpu().numpy()
@@ -115,7 +122,7 @@ def refine(
                 contacts = energy.best_contacts(pose, obj, sc, contacts, config.start_contact_samples, generator)
             before = energy(pose, object_index=obj, scale=sc, contact_index=contacts)
         contacts = contacts if start_contacts == "surface" else None
-        result = optimize(energy, pose, obj, sc, annealing, generator, contact_index=contacts)
+        result = optimize(energy, pose, obj, sc, annealing, generator, contact_index=contacts, progress=_log_progress, progress_every=50)
         seconds += result.seconds
         trace_iterations = result.trace_iterations.cpu().numpy()
         chunk = {
