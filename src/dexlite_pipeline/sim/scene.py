@@ -17,6 +17,7 @@ Choices that move measured success rates (DESIGN.md, "Physics tests"):
 
 from __future__ import annotations
 
+import functools
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
@@ -37,6 +38,7 @@ class SceneBuildError(ValueError):
     """An object whose scene cannot be built (no convex pieces, MuJoCo compile error)."""
 
 
+@functools.cache
 def _actuator_force_limits() -> dict[str, float]:
     """Finger torque limits (N·m) of the gym model's actuators; J0 shares J1's (one motor drives both)."""
     robot = ET.parse(gym_hand_asset_dir() / "hand" / "shared.xml").getroot()
