@@ -9,7 +9,10 @@
    pybullet_data mix, the ``objects`` settings of config.yaml): wall time, wall and CPU
    seconds per object (CPU summed over the worker processes). Target: the default 40
    objects in under 5 minutes on 2 cores.
-2. The stability filter on the prepared objects (``stability`` settings of config.yaml)
+2. Where one object's preparation time goes (CPU seconds in this process, single
+   threaded): load + repair + checks, CoACD, SDF grid, surface samples; median and max
+   over the first ``--breakdown`` objects.
+3. The stability filter on the prepared objects (``stability`` settings of config.yaml)
    with 1 and with ``--workers`` processes: objects per second. Target: >= 5 objects/s on
    2 cores. Each object is simulated ``--repeat`` times per measurement to get a stable rate.
 
@@ -67,6 +70,42 @@ def bench_prepare(workdir: Path, count: int, workers: int, seed: int, objects) -
     return rows, catalog
 
 
+def bench_breakdown(count: int, seed: int, objects) -> list[dict]:
+    import numpy as np
+
+    from dexlite_pipeline.objects.build import convex_decomposition, signed_distance_grid, surface_samples
+    from dexlite_pipeline.objects.prepare import MeshRejected, check_mesh, check_shape, load_source_mesh, normalize_mesh, repair_mesh
+    from dexlite_pipeline.objects.sources import builtin_sources
+
+    settings = objects.build_settings(seed)
+    phases: dict[str, list[float]] = {"load, repair, check": [], "CoACD": [], "SDF grid": [], "surface samples": []}
+    for source in builtin_sources(objects.builtin_count, seed)[:count]:
+        t0 = time.process_time()
+        try:
+            raw = load_source_mesh(source)
+            check_shape(raw)
+            mesh = repair_mesh(raw)
+            check_mesh(mesh)
+        except MeshRejected:
+            continue
+        mesh = normalize_mesh(mesh)[0]
+        t1 = time.process_time()
+        convex_decomposition(mesh, settings)
+        t2 = time.process_time()
+        signed_distance_grid(mesh, settings.sdf_resolution, settings.sdf_padding, settings.sdf_exact_band)
+        t3 = time.process_time()
+        surface_samples(mesh, settings.surface_points, settings.seed)
+        t4 = time.process_time()
+        for name, seconds in zip(phases, (t1 - t0, t2 - t1, t3 - t2, t4 - t3)):
+            phases[name].append(seconds)
+    return [
+        {"benchmark": f"prepare phase: {name}", "size": f"{len(values)} objects", "value": float(np.median(values)),
+         "unit": "CPU s median", "note": f"max {max(values):.2f} s"}
+        for name, values in phases.items()
+        if values
+    ]
+
+
 def bench_stability(workdir: Path, catalog, workers: int, repeat: int, seed: int, stability) -> list[dict]:
     import pandas as pd
 
@@ -93,7 +132,10 @@ def bench_stability(workdir: Path, catalog, workers: int, repeat: int, seed: int
     return rows
 
 
-def run(quick: bool = False, count: int | None = None, workers: int = 2, repeat: int | None = None, prepared: str | None = None) -> list[dict]:
+def run(
+    quick: bool = False, count: int | None = None, workers: int = 2, repeat: int | None = None,
+    prepared: str | None = None, breakdown: int | None = None,
+) -> list[dict]:
     seed, objects, stability = _config_sections(quick)
     count = count or (6 if quick else objects.builtin_count)
     repeat = repeat or (1 if quick else 3)
@@ -104,6 +146,7 @@ def run(quick: bool = False, count: int | None = None, workers: int = 2, repeat:
     with tempfile.TemporaryDirectory(prefix="bench_stability_") as tmp:
         workdir = Path(tmp) / "objects"
         rows, catalog = bench_prepare(workdir, count, workers, seed, objects)
+        rows += bench_breakdown(breakdown or (3 if quick else 8), seed, objects)
         rows += bench_stability(workdir, catalog, workers, repeat, seed, stability)
     return rows
 
@@ -115,8 +158,9 @@ def main() -> None:
     parser.add_argument("--workers", type=int, default=2, help="worker processes")
     parser.add_argument("--repeat", type=int, default=None, help="simulations per object in the stability measurement")
     parser.add_argument("--prepared", default=None, help="objects dir already prepared: benchmark only the stability filter on it")
+    parser.add_argument("--breakdown", type=int, default=None, help="objects timed phase by phase (default 8, quick 3)")
     args = parser.parse_args()
-    rows = run(args.quick, args.objects, args.workers, args.repeat, args.prepared)
+    rows = run(args.quick, args.objects, args.workers, args.repeat, args.prepared, args.breakdown)
     print(f"{'benchmark':<32} {'size':<28} {'value':>10}  unit        note")
     for row in rows:
         print(f"{row['benchmark']:<32} {row['size']:<28} {row['value']:>10.2f}  {row['unit']:<11} {row['note']}")
