@@ -57,9 +57,13 @@ class LiftConfig:
         return dataclasses.asdict(self)
 
     def steps(self, seconds: float) -> int:
-        """Whole control chunks covering ``seconds``, in simulation steps."""
-        chunk = self.control_substeps * self.timestep_s
-        return int(round(seconds / chunk)) * self.control_substeps
+        """Simulation steps covering ``seconds`` (nearest whole step)."""
+        return int(round(seconds / self.timestep_s))
+
+    def chunks(self, seconds: float) -> list[int]:
+        """``seconds`` as control chunks of ``control_substeps`` steps (the last one shorter if need be)."""
+        total, chunk = self.steps(seconds), self.control_substeps
+        return [chunk] * (total // chunk) + ([total % chunk] if total % chunk else [])
 
 
 def lift_config_from(config: dict | None, **overrides) -> LiftConfig:

@@ -164,13 +164,12 @@ class GraspSimulator:
         scene.configure(config)
         self.scene = scene
         self.config = config
-        self.chunk = config.control_substeps
-        self.close_chunks = max(1, config.steps(config.close_s) // self.chunk)
+        self.close_chunks = config.chunks(config.close_s) or [1]
         self.hold_steps = config.steps(config.hold_s)
-        self.lift_chunks = max(1, config.steps(config.lift_s) // self.chunk)
+        self.lift_chunks = config.chunks(config.lift_s) or [1]
         self.final_steps = config.steps(config.final_hold_s)
-        self.six_dir_chunks = max(1, config.steps(config.six_dir_duration_s) // self.chunk)
-        self.total_steps = (self.close_chunks + self.lift_chunks) * self.chunk + self.hold_steps + self.final_steps
+        self.six_dir_chunks = config.chunks(config.six_dir_duration_s) or [1]
+        self.total_steps = sum(self.close_chunks) + self.hold_steps + sum(self.lift_chunks) + self.final_steps
 
     def _reset(self, pose: np.ndarray, quat: np.ndarray) -> None:
         import mujoco
@@ -201,9 +200,11 @@ class GraspSimulator:
         import mujoco
 
         m, d = self.scene.model, self.scene.data
-        for c in range(self.close_chunks):
-            d.ctrl[:] = start + (target - start) * ((c + 1) / self.close_chunks)
-            mujoco.mj_step(m, d, nstep=self.chunk)
+        total, done = sum(self.close_chunks), 0
+        for steps in self.close_chunks:
+            done += steps
+            d.ctrl[:] = start + (target - start) * (done / total)
+            mujoco.mj_step(m, d, nstep=steps)
 
     def _unstable(self) -> bool:
         import mujoco
@@ -249,16 +250,17 @@ class GraspSimulator:
         self._close(d.ctrl.copy(), target)
         if self.hold_steps:
             mujoco.mj_step(m, d, nstep=self.hold_steps)
-        steps_done = self.close_chunks * self.chunk + self.hold_steps
+        steps_done = sum(self.close_chunks) + self.hold_steps
+        lift_steps, lifted = sum(self.lift_chunks), 0
         object_z = None
-        for c in range(self.lift_chunks):
+        for steps in self.lift_chunks:
             if self._object_lost():
                 object_z = self._ballistic_z(self.total_steps - steps_done)
                 break
-            progress = (c + 1) / self.lift_chunks
-            d.mocap_pos[0, 2] = palm_z0 + cfg.lift_height_m * 0.5 * (1.0 - math.cos(math.pi * progress))
-            mujoco.mj_step(m, d, nstep=self.chunk)
-            steps_done += self.chunk
+            lifted += steps
+            d.mocap_pos[0, 2] = palm_z0 + cfg.lift_height_m * 0.5 * (1.0 - math.cos(math.pi * lifted / lift_steps))
+            mujoco.mj_step(m, d, nstep=steps)
+            steps_done += steps
         if object_z is None:
             if self.final_steps:
                 mujoco.mj_step(m, d, nstep=self.final_steps)
@@ -294,8 +296,8 @@ class GraspSimulator:
                 d.xfrc_applied[:] = 0.0
                 d.xfrc_applied[s.object_body, :3] = force * direction
                 worst_t = worst_r = 0.0
-                for _ in range(self.six_dir_chunks):
-                    mujoco.mj_step(m, d, nstep=self.chunk)
+                for steps in self.six_dir_chunks:
+                    mujoco.mj_step(m, d, nstep=steps)
                     worst_t = max(worst_t, float(np.linalg.norm(d.xipos[s.object_body] - com0)))
                     qw = min(1.0, abs(float(d.qpos[s.object_qpos][3])))
                     worst_r = max(worst_r, math.degrees(2.0 * math.acos(qw)))
