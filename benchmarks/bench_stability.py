@@ -161,9 +161,9 @@ def main() -> None:
     parser.add_argument("--breakdown", type=int, default=None, help="objects timed phase by phase (default 8, quick 3)")
     args = parser.parse_args()
     rows = run(args.quick, args.objects, args.workers, args.repeat, args.prepared, args.breakdown)
-    print(f"{'benchmark':<32} {'size':<28} {'value':>10}  unit        note")
+    print(f"{'benchmark':<36} {'size':<28} {'value':>10}  unit        note")
     for row in rows:
-        print(f"{row['benchmark']:<32} {row['size']:<28} {row['value']:>10.2f}  {row['unit']:<11} {row['note']}")
+        print(f"{row['benchmark']:<36} {row['size']:<28} {row['value']:>10.2f}  {row['unit']:<11} {row['note']}")
 
 
 if __name__ == "__main__":
