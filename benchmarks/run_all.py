@@ -1,20 +1,20 @@
-"""Benchmarks of the pipeline's hot paths, printed as one table.
+"""All benchmarks of the pipeline in one table.
 
-    python benchmarks/run_all.py            # full sizes (several minutes on 2 CPU cores)
-    python benchmarks/run_all.py --quick    # small sizes (about a minute), e.g. to check it runs
-    python benchmarks/run_all.py --only energy_step lift --csv bench.csv
+    python benchmarks/run_all.py            # full sizes (tens of minutes on 2 busy CPU cores)
+    python benchmarks/run_all.py --quick    # small sizes, e.g. to check that everything runs
+    python benchmarks/run_all.py --only object_scaling lift --csv bench.csv
 
-Measured: hand FK + energy (forward and backward) time per step against batch size; the
-MuJoCo lift test's grasps/s with and without the six-direction test; seed synthesis
-(optimization from scratch) cost per grasp-iteration and its projection to a full run;
-post-optimization grasps/s; CVAE pure-synthesis grasps/s; and how wall time grows with
-the number of objects (energy evaluation + lift test of a fixed number of grasps per
-object, 8/16/32 objects). Modules ``benchmarks/bench_*.py`` that expose
-``run(quick: bool) -> list[dict]`` (keys benchmark, size, value, unit, note) join the
-table. Objects are synthetic primitives (boxes, spheres, cylinders, capsules) prepared
-into a temporary folder, so no pipeline run is needed; poses are synthetic approaches
-(palms 4-6 cm off the surface), so success rates are not measured here, only cost.
-The script is importable: ``run_benchmarks(quick=True)`` returns the rows.
+Each component measures itself in ``benchmarks/bench_<name>.py``, which exposes
+``run(quick: bool) -> list[dict]`` (keys benchmark, size, value, unit, note): hand FK +
+energy step time against batch size and seed synthesis grasps/s (``bench_energy``), the
+MuJoCo lift test on real DexGraspNet grasps (``bench_lift``), post-optimization and CVAE
+sampling grasps/s (``bench_post_optimize``), object preparation and the stability test
+(``bench_stability``). This script runs every such module it finds, and adds what no
+single component owns: how wall time grows with the number of objects (8, 16, 32), for
+energy evaluation and for the lift test of a fixed number of grasps per object, on
+synthetic primitives (boxes, spheres, cylinders, capsules) with synthetic approach poses
+(palms 4-6 cm off the surface; cost only, not success). A module that is missing or fails
+gives a row saying so; the others still run. Importable: ``run_benchmarks(quick=True)``.
 """
 
 from __future__ import annotations
@@ -47,20 +47,11 @@ class Row:
 
 @dataclass
 class Context:
-    """Shared, lazily built fixtures: the hand, a folder of synthetic objects."""
+    """Shared, lazily built fixtures: a folder of synthetic objects."""
 
     workdir: Path
     quick: bool
-    _hand: object = None
     _objects: dict = None
-
-    @property
-    def hand(self):
-        if self._hand is None:
-            from dexlite_pipeline.hand import ShadowHand
-
-            self._hand = ShadowHand()
-        return self._hand
 
     def objects(self, count: int) -> list[str]:
         """Ids of ``count`` synthetic objects prepared under ``workdir/objects`` (built once each)."""
@@ -128,126 +119,6 @@ def _grasps(object_ids: list[str], per_object: int, scale: float = 0.08):
     )
 
 
-def bench_energy_step(ctx: Context) -> list[Row]:
-    """Hand FK + all energy terms, forward and backward, per step against batch size."""
-    from dexlite_pipeline.energy import GraspEnergy
-    from dexlite_pipeline.objects.assets import load_asset
-
-    object_id = ctx.objects(1)[0]
-    energy = GraspEnergy.from_assets(ctx.hand, [load_asset(ctx.objects_dir, object_id)])
-    rows = []
-    for batch in (8, 32) if ctx.quick else (16, 64, 256, 1024):
-        pose = torch.tensor(approach_poses(batch, 0.08), requires_grad=True)
-        index = energy.object_index([object_id] * batch)
-        scale = torch.full((batch,), 0.08)
-        contacts = torch.randint(0, len(ctx.hand.contact_link), (batch, 4))
-        repeats = 2 if ctx.quick else 5
-        energy(pose, object_index=index, scale=scale, contact_index=contacts).total.sum().backward()  # warm-up
-        start = time.perf_counter()
-        for _ in range(repeats):
-            pose.grad = None
-            energy(pose, object_index=index, scale=scale, contact_index=contacts).total.sum().backward()
-        step_s = (time.perf_counter() - start) / repeats
-        rows.append(Row("hand FK + energy step (fwd+bwd)", f"batch {batch}", step_s * 1e3, "ms/step", f"{step_s / batch * 1e3:.3f} ms/grasp"))
-    return rows
-
-
-def bench_lift(ctx: Context) -> list[Row]:
-    """MuJoCo lift test (with and without the six-direction test), grasps per second on one thread."""
-    from dexlite_pipeline.sim.config import LiftConfig
-    from dexlite_pipeline.sim.lift import run_lift_tests
-
-    objects = ctx.objects(2)
-    per_object = 2 if ctx.quick else 16
-    grasps = _grasps(objects, per_object)
-    rows = []
-    for six in (False, True):
-        start = time.perf_counter()
-        run_lift_tests(grasps, [ctx.objects_dir], LiftConfig(six_directions=six), 1)
-        elapsed = time.perf_counter() - start
-        label = "lift + six-direction test" if six else "lift test"
-        rows.append(Row(label, f"{len(grasps)} grasps", len(grasps) / elapsed, "grasps/s", "1 thread; synthetic approach poses"))
-    return rows
-
-
-def bench_seed_synthesis(ctx: Context) -> list[Row]:
-    """Optimization from scratch (DexGraspNet's schedule): cost per grasp-iteration, projected to a full run.
-
-    A full 6000-iteration run is too long for a benchmark, so the first iterations are
-    timed (while hands are still far, culling makes them cheaper than later ones: the
-    projection is an upper bound on grasps/s).
-    """
-    import dataclasses
-
-    from dexlite_pipeline.energy import GraspEnergy
-    from dexlite_pipeline.objects.assets import load_asset
-    from dexlite_pipeline.optim.annealing import AnnealingConfig, optimize
-    from dexlite_pipeline.optim.init import HullSampler, InitConfig, initial_poses
-
-    object_id = ctx.objects(1)[0]
-    asset = load_asset(ctx.objects_dir, object_id)
-    energy = GraspEnergy.from_assets(ctx.hand, [asset])
-    full = AnnealingConfig()
-    config = dataclasses.replace(full, iterations=20 if ctx.quick else 300)
-    batch = 16 if ctx.quick else 128
-    generator = torch.Generator().manual_seed(0)
-    object_index = energy.object_index([object_id] * batch)
-    scale = torch.full((batch,), 0.08)
-    init = initial_poses(ctx.hand, HullSampler([asset]), object_index, scale, InitConfig(), generator)
-    start = time.perf_counter()
-    optimize(energy, init.to(ctx.hand.dtype), object_index, scale, config, generator)
-    per_grasp_iteration_s = (time.perf_counter() - start) / (batch * config.iterations)
-    return [
-        Row("seed synthesis step", f"batch {batch}, first {config.iterations} it", per_grasp_iteration_s * 1e3, "ms/grasp/it", "from scratch"),
-        Row("seed synthesis (projected)", f"{full.iterations} it", 1.0 / (per_grasp_iteration_s * full.iterations), "grasps/s", "upper bound: early iterations are cheaper"),
-    ]
-
-
-def bench_post_optimization(ctx: Context) -> list[Row]:
-    """Post-optimization (annealed energy steps, the pipeline's defaults) grasps/s from approach poses."""
-    import dataclasses
-
-    from dexlite_pipeline.energy import GraspEnergy
-    from dexlite_pipeline.model.post_optimization import PostOptimizeConfig, refine
-    from dexlite_pipeline.objects.assets import load_asset
-
-    object_id = ctx.objects(1)[0]
-    config = PostOptimizeConfig()
-    if ctx.quick:
-        config = dataclasses.replace(config, iterations=10)
-    energy = GraspEnergy.from_assets(ctx.hand, [load_asset(ctx.objects_dir, object_id)])
-    batch = 16 if ctx.quick else 256
-    pose = torch.as_tensor(approach_poses(batch, 0.08))
-    start = time.perf_counter()
-    refine(energy, pose, energy.object_index([object_id] * batch), torch.full((batch,), 0.08), config, torch.Generator().manual_seed(0))
-    elapsed = time.perf_counter() - start
-    return [Row("post-optimization", f"{batch} grasps x {config.iterations} it", batch / elapsed, "grasps/s", f"{elapsed / batch:.3f} s/grasp")]
-
-
-def bench_cvae_sampling(ctx: Context) -> list[Row]:
-    """Pure synthesis from an (untrained, reference-size) CVAE: PointNet condition + decoder, grasps/s."""
-    from dexlite_pipeline.model.data import ObjectClouds
-    from dexlite_pipeline.model.network import GraspCVAE, ModelConfig
-    from dexlite_pipeline.model.sampling import synthesize
-    from dexlite_pipeline.objects.assets import load_asset
-
-    objects = ctx.objects(2)
-    clouds = ObjectClouds([load_asset(ctx.objects_dir, o) for o in objects])
-    model = GraspCVAE(ModelConfig()).eval()
-    rows = []
-    for batch in (64,) if ctx.quick else (64, 1024):
-        object_index = np.arange(batch) % len(objects)
-        scale = np.full(batch, 0.08, np.float32)
-        generator = torch.Generator().manual_seed(0)
-        with torch.no_grad():
-            synthesize(model, clouds, object_index, scale, 512, generator)  # warm-up
-            start = time.perf_counter()
-            synthesize(model, clouds, object_index, scale, 512, generator)
-        elapsed = time.perf_counter() - start
-        rows.append(Row("CVAE sampling (pure synthesis)", f"batch {batch}, 512 points", batch / elapsed, "grasps/s", "PointNet per grasp's cloud"))
-    return rows
-
-
 def bench_object_scaling(ctx: Context) -> list[Row]:
     """Wall time of energy evaluation and of the lift test for a fixed number of grasps per object, vs objects."""
     from dexlite_pipeline.energy import evaluate_grasp_energies
@@ -290,11 +161,6 @@ def external_benchmarks() -> dict[str, Callable[[Context], list[Row]]]:
 
 
 BENCHMARKS: dict[str, Callable[[Context], list[Row]]] = {
-    "energy_step": bench_energy_step,
-    "lift": bench_lift,
-    "seed_synthesis": bench_seed_synthesis,
-    "post_optimization": bench_post_optimization,
-    "cvae_sampling": bench_cvae_sampling,
     "object_scaling": bench_object_scaling,
 }
 

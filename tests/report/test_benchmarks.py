@@ -16,13 +16,20 @@ def _load():
     return module
 
 
-def test_energy_benchmark_quick(tmp_path):
+def test_object_scaling_quick(tmp_path):
     run_all = _load()
-    rows = run_all.run_benchmarks(quick=True, only=["energy_step"], workdir=tmp_path)
-    assert [r.size for r in rows] == ["batch 8", "batch 32"]
-    assert all(r.unit == "ms/step" and math.isfinite(r.value) and r.value > 0 for r in rows)
+    rows = run_all.run_benchmarks(quick=True, only=["object_scaling"], workdir=tmp_path)
+    assert [(r.size, r.note) for r in rows] == [
+        ("2 objects", "energies"), ("2 objects", "lift test, 1 thread"), ("4 objects", "energies"), ("4 objects", "lift test, 1 thread"),
+    ]
+    assert all(r.unit == "s" and math.isfinite(r.value) and r.value > 0 for r in rows)
     table = run_all.format_table(rows)
-    assert table.count("\n") == len(rows) + 1 and "hand FK + energy step" in table
+    assert table.count("\n") == len(rows) + 1 and "wall time vs objects" in table
+
+
+def test_component_modules_are_discovered():
+    names = set(_load().external_benchmarks())
+    assert {"energy", "lift", "post_optimize"} <= names
 
 
 def test_unknown_benchmark_is_an_error(tmp_path):
