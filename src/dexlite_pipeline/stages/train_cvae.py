@@ -77,6 +77,8 @@ def plot_history(history: pd.DataFrame, path: Path) -> None:
         if (history.filter(like=f"_{name}") > 0).all().all():
             ax.set_yscale("log")
         ax.legend(fontsize=8)
+    for ax in axes.flat[len(names):]:
+        ax.axis("off")
     for ax in axes[-1]:
         ax.set_xlabel("epoch")
     fig.suptitle("CVAE training (per-epoch means)")
