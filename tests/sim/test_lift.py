@@ -129,3 +129,23 @@ def test_config_rejects_nonsense():
         lift_config_from({"lift": {"frction": 0.5}})
     assert lift_config_from({"lift": {"friction": 1.0}}, friction=None).friction == 1.0
     assert lift_config_from({}, friction=0.3).friction == 0.3
+
+
+def test_configure_writes_constants_in_place_without_recompiling(objects_dir):
+    import mujoco
+
+    from dexlite_pipeline.sim.scene import LiftScene
+
+    scene = LiftScene.build(load_asset(objects_dir, "square_bar").convex_paths, SCALE, LiftConfig())
+    model = scene.model
+    multi_ccd_off = int(mujoco.mjtDisableBit.mjDSBL_MULTICCD)
+    assert model.body_mass[scene.object_body] == pytest.approx(0.1) and not model.opt.disableflags & multi_ccd_off
+    inertia = model.body_inertia[scene.object_body].copy()
+    scene.configure(LiftConfig(object_mass_kg=50.0, friction=1.0, finger_kp=2.0, multi_contact=False))
+    assert model.body_mass[scene.object_body] == pytest.approx(50.0)
+    np.testing.assert_allclose(model.body_inertia[scene.object_body], inertia * 500.0, rtol=1e-6)
+    assert (model.geom_friction[scene.hand_geoms, 0] == 1.0).all() and (model.geom_friction[scene.object_geoms, 0] == 1.0).all()
+    assert (model.actuator_gainprm[:, 0] == 2.0).all() and (model.actuator_biasprm[:, 1] == -2.0).all()
+    assert model.opt.disableflags & multi_ccd_off
+    scene.configure(LiftConfig())
+    assert not model.opt.disableflags & multi_ccd_off and model.body_mass[scene.object_body] == pytest.approx(0.1)

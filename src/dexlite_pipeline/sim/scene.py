@@ -206,10 +206,14 @@ class LiftScene:
         return scene
 
     def configure(self, config: LiftConfig) -> None:
-        """Write friction, object mass (inertia scaled alike), finger gains and solver options into the model."""
+        """Write friction, object mass (inertia scaled alike), finger gains and contact/solver options into the model."""
         m = self.model
+        import mujoco
+
         m.opt.timestep = config.timestep_s
         m.opt.impratio = config.impratio
+        multi_ccd_off = int(mujoco.mjtDisableBit.mjDSBL_MULTICCD)
+        m.opt.disableflags = (m.opt.disableflags & ~multi_ccd_off) | (0 if config.multi_contact else multi_ccd_off)
         m.geom_friction[self.hand_geoms, 0] = config.friction
         m.geom_friction[self.object_geoms, 0] = config.friction
         m.body_mass[self.object_body] = config.object_mass_kg
