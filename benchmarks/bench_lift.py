@@ -3,6 +3,7 @@
     python benchmarks/bench_lift.py                          # the DexGraspNet sample (../shared), 2 workers
     python benchmarks/bench_lift.py --count 128 --six-directions
     python benchmarks/bench_lift.py --grasps G.zarr --objects DIR   # any grasp store
+    python benchmarks/bench_lift.py --single-contact         # lift.multi_contact off (~15% faster)
     python benchmarks/bench_lift.py --quick                  # 32 grasps: checks that it runs
 
 Real grasps matter here: a held object costs the full 1,350 steps with contacts, a
@@ -62,7 +63,7 @@ def measure(grasps, objects_dir, config, workers: int) -> dict:
     cpu = (_own_cpu_s() - own0) + (_children_cpu_s() - children0)
     n = len(grasps)
     rate = float(np.mean(result["lift_success"]))
-    note = f"success {100 * rate:.1f}%, friction {config.friction}; load avg {load_before:.1f} -> {os.getloadavg()[0]:.1f}"
+    note = f"success {100 * rate:.1f}%, friction {config.friction}, multi_contact {config.multi_contact}; load avg {load_before:.1f} -> {os.getloadavg()[0]:.1f}"
     if config.six_directions:
         note += f"; six-direction pass {100 * float(np.mean(result['six_dir_success'])):.1f}%"
     return {"n": n, "wall_s": wall, "cpu_s": cpu, "note": note}
@@ -79,7 +80,8 @@ def rows_for(label: str, workers: int, m: dict) -> list[dict]:
 
 
 def run(quick: bool = False, count: int | None = None, workers: int = 2, six_directions: bool = False,
-        grasps_path: str | None = None, objects: str | None = None, friction: float | None = None) -> list[dict]:
+        grasps_path: str | None = None, objects: str | None = None, friction: float | None = None,
+        single_contact: bool = False) -> list[dict]:
     from dexlite_pipeline.io.grasp_store import read_grasp_store
     from dexlite_pipeline.sim.config import LiftConfig
 
@@ -94,13 +96,15 @@ def run(quick: bool = False, count: int | None = None, workers: int = 2, six_dir
                      "note": f"no real grasps: {SAMPLE} absent and no --grasps given"}]
         if count and count < len(grasps):
             grasps = grasps.select(np.sort(np.random.default_rng(0).choice(len(grasps), count, replace=False)))
-        config = LiftConfig(**({"friction": friction} if friction is not None else {}))
+        overrides = {"friction": friction} if friction is not None else {}
+        config = LiftConfig(multi_contact=not single_contact, **overrides)
         rows = []
         for n_workers in sorted({1, workers}):
             rows += rows_for("lift test", n_workers, measure(grasps, objects_dir, config, n_workers))
         if six_directions:
             six = grasps.select(np.arange(min(len(grasps), 32 if quick else 96)))
-            rows += rows_for("lift + six-direction test", workers, measure(six, objects_dir, LiftConfig(six_directions=True), workers))
+            six_config = LiftConfig(six_directions=True, multi_contact=not single_contact, **overrides)
+            rows += rows_for("lift + six-direction test", workers, measure(six, objects_dir, six_config, workers))
     return rows
 
 
@@ -113,10 +117,11 @@ def main() -> None:
     parser.add_argument("--grasps", default=None, help="a grasp store instead of the DexGraspNet sample")
     parser.add_argument("--objects", default=None, help="objects dir of --grasps")
     parser.add_argument("--friction", type=float, default=None)
+    parser.add_argument("--single-contact", action="store_true", help="lift.multi_contact off (one contact per touching pair)")
     args = parser.parse_args()
     if bool(args.grasps) != bool(args.objects):
         parser.error("--grasps and --objects go together")
-    rows = run(args.quick, args.count, args.workers, args.six_directions, args.grasps, args.objects, args.friction)
+    rows = run(args.quick, args.count, args.workers, args.six_directions, args.grasps, args.objects, args.friction, args.single_contact)
     width = max(len(r["benchmark"]) for r in rows)
     for r in rows:
         print(f"{r['benchmark']:<{width}}  {r['size']:<22}  {r['value']:9.3f} {r['unit']:<9}  {r['note']}")
