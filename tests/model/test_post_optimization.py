@@ -26,6 +26,9 @@ def test_post_optimization_lowers_e_post(hand, tiny_assets, make_grasps):
     assert np.allclose(a["raw_hand_pose"], pose, atol=1e-6)
     assert a["energy_trace"].shape == (12, 81) and list(refined.trace_iterations) == list(range(81))
     assert np.allclose(a["energy_trace"][:, -1], a["E_post"], rtol=1e-5)
+    for name in ("E_fc", "E_dis", "E_pen"):
+        assert a[f"trace_{name}"].shape == (12, 81)
+        assert np.allclose(a[f"trace_{name}"][:, -1], a[name], rtol=1e-5)
     assert np.median(a["E_post"]) < 0.8 * np.median(a["raw_E_post"])
     assert (a["E_post"] < a["raw_E_post"]).mean() >= 0.75
     recomputed = energy(torch.as_tensor(a["hand_pose"]), object_index=energy.object_index(grasps.object_id),

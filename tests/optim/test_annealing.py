@@ -67,6 +67,11 @@ def test_optimizer_lowers_energy_and_records_trace(hand, setup):
     assert result.trace.shape == (7, 12)  # initial + every 10 of 60
     assert result.trace_iterations.tolist() == [0, 10, 20, 30, 40, 50, 60]
     assert result.trace[-1].mean() < 0.7 * result.trace[0].mean()
+    # Each term is traced at the same rows and its last row is the returned state's term.
+    assert set(result.term_traces) == set(result.terms)
+    for name, trace in result.term_traces.items():
+        assert trace.shape == (7, 12)
+        assert torch.equal(trace[-1], result.terms[name])
     # The reported terms belong to the returned pose and contacts.
     again = energy(result.hand_pose, object_index=object_index, scale=scale, contact_index=result.contact_index)
     assert torch.allclose(again.total, result.total, rtol=1e-3, atol=1e-3)

@@ -22,6 +22,10 @@ from dexlite_pipeline.energy.grasp_energy import TERM_NAMES, EnergyWeights, Gras
 from dexlite_pipeline.optim.annealing import AnnealingConfig, optimize
 from dexlite_pipeline.optim.init import InitConfig
 
+# Terms traced per iteration beside E_post: those of DexGraspNet's success thresholds, so the
+# evaluation can tell at which iteration each grasp first meets them.
+TRACED_TERMS = ("E_fc", "E_dis", "E_pen")
+
 log = logging.getLogger(__name__)
 
 
@@ -105,7 +109,8 @@ def refine(
 
     Returns the refined pose (``hand_pose``), the initial one (``raw_hand_pose``), every
     energy term before (``raw_*``) and after, the accepted-state E_post at every iteration
-    (``energy_trace``, (B, iterations + 1)) and the acceptance rate.
+    (``energy_trace``, (B, iterations + 1)), the thresholded terms at every iteration
+    (``trace_E_fc``, ``trace_E_dis``, ``trace_E_pen``) and the acceptance rate.
     """
     if start_contacts not in ("surface", "random"):
         raise ValueError(f"start_contacts must be 'surface' or 'random', not {start_contacts!r}")
@@ -132,6 +137,8 @@ def refine(
             "acceptance_rate": result.acceptance_rate.cpu().numpy(),
             "energy_trace": result.trace.T.cpu().numpy().astype(np.float32),
         }
+        for name in TRACED_TERMS:
+            chunk[f"trace_{name}"] = result.term_traces[name].T.cpu().numpy().astype(np.float32)
         chunk.update(_energy_arrays("raw_", before))
         chunk.update(_energy_arrays("", result))
         chunks.append(chunk)

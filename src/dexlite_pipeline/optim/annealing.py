@@ -69,6 +69,7 @@ class OptimizationResult:
     contact_distance_mm: torch.Tensor
     trace: torch.Tensor  # (len(trace_iterations), B) total energy of the kept state (last row after the contact search)
     trace_iterations: torch.Tensor  # (T,) iteration numbers of the trace rows (0 = initial)
+    term_traces: dict[str, torch.Tensor]  # name -> (T, B): each energy term of the kept state at the trace rows
     acceptance_rate: torch.Tensor  # (B,) fraction of proposals accepted
     seconds: float
 
@@ -129,6 +130,7 @@ def optimize(
     accepted = torch.zeros(batch, dtype=torch.long, device=device)
     trace = [total.clone()]
     trace_iterations = [0]
+    term_traces = {name: [value.detach().clone()] for name, value in current.terms.items()}
     for iteration in range(1, config.iterations + 1):
         square_avg = config.rmsprop_mu * grad.square().mean(0) + (1 - config.rmsprop_mu) * square_avg
         step = config.step_size_at(iteration - 1) * grad / (square_avg.sqrt() + config.rmsprop_eps)
@@ -155,6 +157,8 @@ def optimize(
         if iteration % config.trace_every == 0 or iteration == config.iterations:
             trace.append(total.clone())
             trace_iterations.append(iteration)
+            for name, value in current.terms.items():
+                term_traces[name].append(value.detach().clone())
         if progress is not None and iteration % progress_every == 0:
             progress(iteration, total)
 
@@ -165,6 +169,8 @@ def optimize(
             current = energy(hand_pose, object_index=object_index, scale=scale, contact_index=contacts)
         total = current.total.detach()
         trace[-1] = total.clone()
+        for name, value in current.terms.items():
+            term_traces[name][-1] = value.detach().clone()
     return OptimizationResult(
         hand_pose=hand_pose,
         contact_index=contacts,
@@ -174,6 +180,7 @@ def optimize(
         contact_distance_mm=current.contact_distance_mm,
         trace=torch.stack(trace),
         trace_iterations=torch.as_tensor(trace_iterations),
+        term_traces={name: torch.stack(values) for name, values in term_traces.items()},
         acceptance_rate=accepted.to(state.dtype) / max(config.iterations, 1),
         seconds=time.perf_counter() - started,
     )
