@@ -56,23 +56,22 @@ def code_hash(*modules):
 
 
 def final_outputs():
-    """The final products of the stages that exist."""
-    outputs = [f"{RESULTS}/objects/catalog.parquet", f"{RESULTS}/stability/stability.parquet"]
-    # The evaluation needs every grasp-producing stage; it joins `all` once their rules are in.
-    defined = {rule.name for rule in workflow.rules}
-    if defined >= {"seed_grasps", "sample_grasps", "post_optimize", "evaluate", "report"}:
-        outputs += [f"{RESULTS}/eval/metrics.csv", f"{RESULTS}/eval/per_object.csv", f"{RESULTS}/eval/report.html"]
-    # The curation summary (per object: kept and dropped per reason) once its inputs have rules.
-    if defined >= {"stability_filter", "seed_grasps", "curate_summary"}:
-        outputs.append(f"{RESULTS}/curate/summary.csv")
-    # The lift-validated shards (MuJoCo lift test of the curated grasps) once their inputs have rules.
-    if defined >= {"stability_filter", "seed_grasps", "curate", "lift_validate"}:
-        outputs += [f"{RESULTS}/lift/shard_{shard}.zarr" for shard in SHARDS]
-    # The trained model and the post-optimized shards (with the random-init baseline) once training has data.
-    if defined >= {"lift_validate", "train_cvae", "sample_grasps", "post_optimize"}:
-        outputs += [f"{RESULTS}/model/cvae.pt", f"{RESULTS}/model/history.csv", f"{RESULTS}/model/training_curves.png"]
-        outputs += [f"{RESULTS}/post/{prefix}_{shard}.zarr" for prefix in ("shard", "random_shard") for shard in SHARDS]
-    return outputs
+    """The final products: object catalog, stability table, curation summary, lift-validated
+    shards, the trained model, post-optimized shards (with the random-init baseline) and
+    the evaluation (metrics, per-object table, report)."""
+    return [
+        f"{RESULTS}/objects/catalog.parquet",
+        f"{RESULTS}/stability/stability.parquet",
+        f"{RESULTS}/curate/summary.csv",
+        *[f"{RESULTS}/lift/shard_{shard}.zarr" for shard in SHARDS],
+        f"{RESULTS}/model/cvae.pt",
+        f"{RESULTS}/model/history.csv",
+        f"{RESULTS}/model/training_curves.png",
+        *[f"{RESULTS}/post/{prefix}_{shard}.zarr" for prefix in ("shard", "random_shard") for shard in SHARDS],
+        f"{RESULTS}/eval/metrics.csv",
+        f"{RESULTS}/eval/per_object.csv",
+        f"{RESULTS}/eval/report.html",
+    ]
 
 
 def stale_temporaries(root):
