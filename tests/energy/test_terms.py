@@ -14,9 +14,8 @@ from dexlite_pipeline.energy.terms import (
     ForceClosureTerm,
     JointLimitTerm,
     SelfPenetrationTerm,
-    shape_signed_distance,
 )
-from dexlite_pipeline.hand.model import CAPSULE
+from dexlite_pipeline.hand.model import CAPSULE, shape_signed_distance
 from dexlite_pipeline.io.grasp_store import GraspSet
 from dexlite_pipeline.objects.assets import load_asset
 

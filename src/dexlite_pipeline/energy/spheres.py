@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from dexlite_pipeline.hand.model import CAPSULE, ShadowHand
+from dexlite_pipeline.hand.model import CAPSULE, ShadowHand, shape_signed_distance
 
 
 @dataclass
@@ -55,8 +55,6 @@ def _shape_sphere_centres(kind: int, size: list[float]) -> tuple[np.ndarray, flo
 
 def build_hand_spheres(hand: ShadowHand) -> HandSpheres:
     """The sphere model of ``hand`` and each shape's covering gap (from its surface samples)."""
-    from dexlite_pipeline.energy.terms import shape_signed_distance
-
     centres, radii, links, shapes = [], [], [], []
     shape_rot = hand.shape_rot.cpu().double().numpy()
     shape_pos = hand.shape_pos.cpu().double().numpy()

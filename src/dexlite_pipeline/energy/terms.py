@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import torch
 
-from dexlite_pipeline.hand.model import CAPSULE, HandFrames, ShadowHand
+from dexlite_pipeline.hand.model import HandFrames, ShadowHand, shape_signed_distance
 from dexlite_pipeline.energy.link_map import LinkFrameMap
 from dexlite_pipeline.energy.spheres import build_hand_spheres
 from dexlite_pipeline.objects.assets import SdfBank
@@ -75,22 +75,6 @@ class PenetrationResult:
     energy: torch.Tensor
     object_in_hand_max_m: torch.Tensor
     hand_in_object_max_m: torch.Tensor
-
-
-def shape_signed_distance(local: torch.Tensor, kind: torch.Tensor, size: torch.Tensor) -> torch.Tensor:
-    """Signed distance (positive inside) of points in their shape's frame; capsules along z, boxes.
-
-    ``local`` (..., 3); ``kind`` and ``size`` (..., ) and (..., 3) broadcast against it.
-    """
-    half = size[..., 1]
-    z_clamped = torch.maximum(torch.minimum(local[..., 2], half), -half)
-    axis_offset = torch.stack([local[..., 0], local[..., 1], local[..., 2] - z_clamped], dim=-1)
-    capsule_sd = size[..., 0] - (axis_offset.square().sum(-1) + 1e-18).sqrt()
-    q = local.abs() - size
-    outside = (q.clamp(min=0).square().sum(-1) + 1e-18).sqrt()
-    inside = q.max(dim=-1).values.clamp(max=0)
-    box_sd = -(outside + inside)
-    return torch.where(kind == CAPSULE, capsule_sd, box_sd)
 
 
 class PenetrationTerm:

@@ -283,22 +283,24 @@ class ShadowHand:
         rot, centre = rot[:, ids], centre[:, ids]
         rel = points[:, None, :, :] - centre[:, :, None, :]  # (B, S, P, 3)
         local = (rel[..., :, None] * rot[:, :, None, :, :]).sum(-2)  # R^T rel
-        size = self.shape_size[ids][None, :, None, :]
-        kind = self.shape_kind[ids][None, :, None]
-        half = size[..., 1]
-        z_clamped = local[..., 2].clamp(min=-half, max=half)
-        closest = torch.stack([torch.zeros_like(z_clamped), torch.zeros_like(z_clamped), z_clamped], dim=-1)
-        capsule_sd = size[..., 0] - (local - closest).norm(dim=-1)
-        q = local.abs() - size
-        outside = q.clamp(min=0).norm(dim=-1)
-        inside = q.max(dim=-1).values.clamp(max=0)
-        box_sd = -(outside + inside)
-        sd = torch.where(kind == CAPSULE, capsule_sd, box_sd)
+        sd = shape_signed_distance(local, self.shape_kind[ids][None, :, None], self.shape_size[ids][None, :, None, :])
         return sd.max(dim=1).values
 
-    def to(self, device: torch.device | str) -> "ShadowHand":
-        """A copy of this hand on another device."""
-        return ShadowHand(device=device, dtype=self.dtype, contacts_per_link=len(self.contact_link) // len(FINGER_CONTACT_LINKS))
+
+def shape_signed_distance(local: torch.Tensor, kind: torch.Tensor, size: torch.Tensor) -> torch.Tensor:
+    """Signed distance (positive inside) of points in their shape's frame; capsules along z, boxes.
+
+    ``local`` (..., 3); ``kind`` and ``size`` (..., ) and (..., 3) broadcast against it.
+    """
+    half = size[..., 1]
+    z_clamped = torch.maximum(torch.minimum(local[..., 2], half), -half)
+    axis_offset = torch.stack([local[..., 0], local[..., 1], local[..., 2] - z_clamped], dim=-1)
+    capsule_sd = size[..., 0] - (axis_offset.square().sum(-1) + 1e-18).sqrt()
+    q = local.abs() - size
+    outside = (q.clamp(min=0).square().sum(-1) + 1e-18).sqrt()
+    inside = q.max(dim=-1).values.clamp(max=0)
+    box_sd = -(outside + inside)
+    return torch.where(kind == CAPSULE, capsule_sd, box_sd)
 
 
 def mujoco_geom(name: str):
