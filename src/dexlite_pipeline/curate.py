@@ -36,6 +36,7 @@ import numpy as np
 import pandas as pd
 import torch
 
+from dexlite_pipeline.energy.grasp_energy import DEXGRASPNET_THRESHOLDS
 from dexlite_pipeline.hand.model import JOINTS, ROTATION, TRANSLATION
 from dexlite_pipeline.hand.rotation import euler_xyz_to_matrix
 from dexlite_pipeline.io.grasp_store import GraspSet, invalid_grasp_reasons
@@ -60,9 +61,9 @@ IMPORTED_ORIGIN = "dexgraspnet"  # ``origin`` of grasps read from a DexGraspNet 
 class CurateConfig:
     """Config section ``curate``."""
 
-    max_e_fc: float = 0.3  # force-closure threshold (DexGraspNet: 0.3)
-    max_e_dis_m: float = 0.005  # contact-distance threshold Σ|d| in metres (DexGraspNet: 5 mm)
-    max_e_pen_m: float = 0.001  # penetration threshold in metres (DexGraspNet: 1 mm)
+    max_e_fc: float = DEXGRASPNET_THRESHOLDS["E_fc"]  # force-closure threshold
+    max_e_dis_m: float = DEXGRASPNET_THRESHOLDS["E_dis"]  # contact-distance threshold Σ|d| in metres
+    max_e_pen_m: float = DEXGRASPNET_THRESHOLDS["E_pen"]  # penetration threshold in metres
     duplicate_translation_m: float = 0.005  # palm positions closer than this ...
     duplicate_rotation_deg: float = 10.0  # ... and palm orientations closer than this ...
     duplicate_joint_rad: float = 0.1  # ... and every joint closer than this: near-duplicates

@@ -25,6 +25,8 @@ from dexlite_pipeline.hand.model import JOINTS, HandFrames, ShadowHand
 from dexlite_pipeline.objects.assets import ObjectAsset, SdfBank
 
 TERM_NAMES = ("E_fc", "E_dis", "E_pen", "E_spen", "E_joints")
+# DexGraspNet's success criteria: a grasp passes when each term is below its value (E_dis, E_pen in metres).
+DEXGRASPNET_THRESHOLDS: dict[str, float] = {"E_fc": 0.3, "E_dis": 0.005, "E_pen": 0.001}
 CONTACT_COUNT = 4
 
 

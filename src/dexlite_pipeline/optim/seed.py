@@ -38,7 +38,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import torch
 
-from dexlite_pipeline.energy.grasp_energy import TERM_NAMES, EnergyConfig, GraspEnergy
+from dexlite_pipeline.energy.grasp_energy import DEXGRASPNET_THRESHOLDS, TERM_NAMES, EnergyConfig, GraspEnergy
 from dexlite_pipeline.hand.model import ShadowHand
 from dexlite_pipeline.io.grasp_store import GraspSet
 from dexlite_pipeline.objects.assets import ObjectAsset
@@ -52,9 +52,9 @@ log = logging.getLogger(__name__)
 class EnergyThresholds:
     """A grasp passes when every term is below its threshold (DexGraspNet's success criteria)."""
 
-    max_E_fc: float = 0.3
-    max_E_dis_m: float = 0.005
-    max_E_pen_m: float = 0.001
+    max_E_fc: float = DEXGRASPNET_THRESHOLDS["E_fc"]
+    max_E_dis_m: float = DEXGRASPNET_THRESHOLDS["E_dis"]
+    max_E_pen_m: float = DEXGRASPNET_THRESHOLDS["E_pen"]
 
     def passes(self, terms: dict) -> np.ndarray:
         return (

@@ -33,7 +33,8 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-DEXGRASPNET_THRESHOLDS: dict[str, float] = {"E_fc": 0.3, "E_dis": 0.005, "E_pen": 0.001}
+from dexlite_pipeline.energy.grasp_energy import DEXGRASPNET_THRESHOLDS
+
 JOINT_ENTROPY_BINS = 100
 PCA_COMPONENTS = (1, 2, 3, 5)
 
