@@ -198,3 +198,62 @@ def test_evaluate_grasp_energies_reports_missing_objects(hand, sphere_objects):
     assert (searched <= nearest["E_fc"] + 100 * nearest["E_dis"] + 1e-5).all()
     again = evaluate_grasp_energies(grasps, sphere_objects, batch_size=2, config=EnergyConfig(object_points=500), hand=hand, contact_samples=256)
     assert np.array_equal(again["contact_index"], out["contact_index"])
+
+
+def _dense_reference_terms(energy, hand, pose, object_index, scale, contact_index):
+    """Every term the straightforward way: all candidates, all object points against all shapes, all keypoint pairs."""
+    frames = hand.forward(pose)
+    candidates = hand.contact_candidates(frames)
+    points = torch.gather(candidates, 1, contact_index[..., None].expand(-1, -1, 3))
+    distance, normal = energy.bank.signed_distance(points, object_index[:, None], scale[:, None])
+    object_points = energy.penetration.object_points[object_index] * scale[:, None, None]
+    object_in_hand = hand.collision_signed_distance(frames, object_points).clamp(min=0).sum(1)
+    spheres = energy.penetration.spheres
+    centre_distance, _ = energy.bank.signed_distance(frames.transform(spheres.centre_local, spheres.link), object_index[:, None], scale[:, None])
+    pairs = torch.triu(hand.keypoint_pair_mask, diagonal=1).nonzero(as_tuple=True)
+    return {
+        "E_fc": ForceClosureTerm()(points, normal),
+        "E_dis": distance.abs().sum(1),
+        "E_pen": object_in_hand + centre_distance.clamp(min=0).sum(1),
+        "E_spen": SelfPenetrationTerm.penalty(hand.penetration_keypoints(frames), pairs, 0.02),
+        "E_joints": JointLimitTerm(hand.joint_limits)(pose[:, 6:]),
+    }
+
+
+def test_energy_and_gradient_equal_the_dense_reference(hand, sphere_energy):
+    """The culled, sparse-gradient evaluation equals the dense one (both objects, three scales, curled fingers)."""
+    count = 48
+    pose = _poses_near_sphere(count, seed=5)
+    pose[::2, 6:] = 1.3 * torch.rand(count // 2, 22, generator=torch.Generator().manual_seed(6))  # fingers curled into each other
+    pose[-1, :3] = 0.5  # one hand far from its object: nothing near, nothing culled wrongly
+    object_index = torch.arange(count) % 2
+    scale = torch.tensor([0.07, 0.08, 0.09])[torch.arange(count) % 3]
+    contacts = torch.randint(0, 140, (count, 4), generator=torch.Generator().manual_seed(7))
+    weights = sphere_energy.weights
+
+    x = pose.clone().requires_grad_(True)
+    result = sphere_energy(x, object_index=object_index, scale=scale, contact_index=contacts)
+    (grad,) = torch.autograd.grad(result.total.sum(), x)
+    y = pose.clone().requires_grad_(True)
+    reference = _dense_reference_terms(sphere_energy, hand, y, object_index, scale, contacts)
+    (reference_grad,) = torch.autograd.grad(weights.combine(reference).sum(), y)
+
+    assert (reference["E_pen"] > 1e-4).sum() >= 10 and (reference["E_spen"] > 0).sum() >= 5, "the poses should exercise both terms"
+    for name, value in reference.items():
+        assert torch.allclose(result.terms[name], value, rtol=1e-5, atol=1e-7), name
+    assert result.terms["E_pen"][-1].item() == 0.0
+    assert torch.allclose(grad, reference_grad, rtol=1e-4, atol=1e-5 * float(reference_grad.abs().max()))
+
+
+def test_point_clusters_cover_every_point_once_within_their_radius(sphere_energy):
+    from dexlite_pipeline.energy.point_clusters import build_point_clusters
+
+    points = sphere_energy.penetration.object_points
+    clusters = build_point_clusters(points, leaf_size=8)
+    assert clusters.members.shape[2] <= 8
+    for o in range(len(points)):
+        members = clusters.members[o]
+        valid = members >= 0
+        assert torch.equal(members[valid].sort().values, torch.arange(points.shape[1]))
+        spread = (points[o][members.clamp(min=0)] - clusters.centre[o][:, None]).norm(dim=-1)
+        assert (spread[valid] <= clusters.radius[o][:, None].expand_as(spread)[valid]).all()

@@ -111,9 +111,9 @@ class GraspEnergy:
 
     # ------------------------------------------------------------------ contacts
     def contact_points(self, frames: HandFrames, contact_index: torch.Tensor) -> torch.Tensor:
-        """(B, 4, 3) object-frame positions of the chosen contact candidates."""
-        candidates = self.candidate_map(frames)
-        return torch.gather(candidates, 1, contact_index[..., None].expand(-1, -1, 3))
+        """(B, 4, 3) object-frame positions of the chosen contact candidates (only those are computed)."""
+        batch = torch.arange(contact_index.shape[0], device=contact_index.device)[:, None].expand_as(contact_index)
+        return self.candidate_map.rows(frames, batch.reshape(-1), contact_index.reshape(-1)).reshape(*contact_index.shape, 3)
 
     def nearest_contacts(self, frames: HandFrames, object_index: torch.Tensor, scale: torch.Tensor) -> torch.Tensor:
         """(B, 4) indices of the four candidates closest to the object surface (smallest |d|).

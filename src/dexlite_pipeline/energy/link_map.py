@@ -29,6 +29,9 @@ class LinkFrameMap:
             matrix[link, i, :, rows, i, :] = offsets
         self.matrix = matrix.reshape(link_count * 12, count * 3 * width)
         self.shape = (count, 3, width)
+        self.offsets = offsets
+        self.link = link
+        self._matrix_t: torch.Tensor | None = None
 
     @classmethod
     def for_points(cls, points_local: torch.Tensor, link: torch.Tensor, link_count: int) -> "LinkFrameMap":
@@ -47,4 +50,30 @@ class LinkFrameMap:
         batch = frames.translation.shape[0]
         flat = torch.cat([frames.rotation, frames.translation[..., None]], dim=-1).reshape(batch, -1)
         out = (flat @ self.matrix).reshape(batch, *self.shape)
+        return out[..., 0] if self.shape[2] == 1 else out
+
+    def transposed(self, frames: HandFrames) -> torch.Tensor:
+        """The outputs laid out (P, 3, B) or (P, 3, 4, B): each row's values for all grasps are contiguous.
+
+        Selecting rows (``index_select`` on dim 0) is then a plain copy of contiguous blocks,
+        several times faster than gathering along dim 1 of the (B, P, 3) layout.
+        """
+        if self._matrix_t is None:
+            self._matrix_t = self.matrix.T.contiguous()
+        batch = frames.translation.shape[0]
+        flat = torch.cat([frames.rotation, frames.translation[..., None]], dim=-1).reshape(batch, -1)
+        out = (self._matrix_t @ flat.T).reshape(*self.shape, batch)
+        return out[:, :, 0] if self.shape[2] == 1 else out
+
+    def rows(self, frames: HandFrames, batch_index: torch.Tensor, row_index: torch.Tensor) -> torch.Tensor:
+        """Only the outputs (N, 3) or (N, 3, 4) of the listed (grasp, row) pairs.
+
+        For the few points or frames whose gradient is needed (e.g. those found inside the
+        object without autograd): differentiating the dense product instead would push
+        the gradient of every row of every grasp back through the GEMM.
+        """
+        link = self.link[row_index]
+        rotation = frames.rotation[batch_index, link]  # (N, 3, 3)
+        offsets = self.offsets[row_index]  # (N, 4, K)
+        out = (rotation[..., None] * offsets[:, None, :3, :]).sum(2) + frames.translation[batch_index, link][..., None] * offsets[:, None, 3, :]
         return out[..., 0] if self.shape[2] == 1 else out

@@ -12,8 +12,17 @@ from dataclasses import dataclass
 
 import torch
 
-from dexlite_pipeline.hand.model import HandFrames, ShadowHand, shape_signed_distance
+from dexlite_pipeline.hand.model import (
+    BOX,
+    CAPSULE,
+    HandFrames,
+    ShadowHand,
+    box_signed_distance,
+    capsule_signed_distance,
+    shape_signed_distance,
+)
 from dexlite_pipeline.energy.link_map import LinkFrameMap
+from dexlite_pipeline.energy.point_clusters import build_point_clusters
 from dexlite_pipeline.energy.spheres import build_hand_spheres
 from dexlite_pipeline.objects.assets import SdfBank
 
@@ -49,6 +58,8 @@ class SelfPenetrationTerm:
     """E_spen = Σ over keypoint pairs on different, non-adjacent links of max(0, margin − ‖p_i − p_j‖).
 
     Each unordered pair counts once (DexGraspNet sums the full symmetric matrix, i.e. twice).
+    All pair distances are found without autograd; only the pairs closer than the margin
+    (the only ones with a nonzero value or gradient) are evaluated again with gradients.
     """
 
     def __init__(self, hand: ShadowHand, margin_m: float = 0.02) -> None:
@@ -58,14 +69,25 @@ class SelfPenetrationTerm:
         self.keypoint_map = LinkFrameMap.for_points(hand.keypoints_local, hand.keypoint_link, len(hand.link_names))
 
     def __call__(self, frames: HandFrames) -> torch.Tensor:
-        return self.penalty(self.keypoint_map(frames), self.pairs, self.margin_m)
+        first, second = self.pairs
+        with torch.no_grad():
+            keypoints = self.keypoint_map.transposed(frames)  # (K, 3, B)
+            diff = keypoints.index_select(0, first) - keypoints.index_select(0, second)
+            pair, grasp = ((diff.square().sum(1) + 1e-18).sqrt() < self.margin_m).nonzero(as_tuple=True)
+        rows = self.keypoint_map.rows
+        penalty = self.pair_penalty(rows(frames, grasp, first[pair]), rows(frames, grasp, second[pair]), self.margin_m)
+        return penalty.new_zeros(frames.translation.shape[0]).index_add(0, grasp, penalty)
 
     @staticmethod
     def penalty(keypoints: torch.Tensor, pairs: tuple[torch.Tensor, torch.Tensor], margin_m: float) -> torch.Tensor:
         """Σ over the listed pairs (i, j) of max(0, margin − ‖p_i − p_j‖) for keypoints (B, K, 3)."""
-        diff = keypoints[:, pairs[0]] - keypoints[:, pairs[1]]
-        distance = (diff.square().sum(-1) + 1e-18).sqrt()
-        return torch.relu(margin_m - distance).sum(dim=-1)
+        return SelfPenetrationTerm.pair_penalty(keypoints[:, pairs[0]], keypoints[:, pairs[1]], margin_m).sum(dim=-1)
+
+    @staticmethod
+    def pair_penalty(first: torch.Tensor, second: torch.Tensor, margin_m: float) -> torch.Tensor:
+        """max(0, margin − ‖p − q‖) for each pair of points p, q (..., 3)."""
+        distance = ((first - second).square().sum(-1) + 1e-18).sqrt()
+        return torch.relu(margin_m - distance)
 
 
 @dataclass
@@ -90,17 +112,26 @@ class PenetrationTerm:
     Exact culling keeps it cheap. Every sphere's depth is found first without autograd; a
     shape can hold object points only if one of its spheres reaches the object within the
     shape's covering gap plus the grid's interpolation error bound (see ``interpolation_error``),
-    so all other shapes are skipped, and an object point farther from a shape's centre
-    than its bounding radius is never tested. Only the spheres and points actually inside
-    are re-evaluated with gradients, so backward stays small.
+    so all other shapes are skipped. Object points are tested in clusters (``point_clusters``):
+    a cluster is opened only if its bounding sphere meets the shape's bounding sphere and
+    the shape's own signed distance at the cluster centre is within the cluster radius
+    (the distance is 1-Lipschitz). Which points lie inside which shapes is decided without
+    autograd; only those (and the buried sphere centres) are evaluated again with
+    gradients, straight from their link frames, so backward stays small.
     """
 
-    def __init__(self, hand: ShadowHand, sdf_bank: SdfBank, object_points: torch.Tensor) -> None:
+    # Float32 slack of the culling tests, so that rounding never drops a point (only adds candidates).
+    CULL_SLACK_M = 1e-6
+    CULL_SLACK_RELATIVE = 1e-4
+
+    def __init__(self, hand: ShadowHand, sdf_bank: SdfBank, object_points: torch.Tensor, cluster_size: int = 8) -> None:
         self.hand = hand
         self.bank = sdf_bank
         self.object_points = object_points  # (n_objects, P, 3), normalized frame
-        # [p, |p|²] per point: squared distances to centres c are then one product with [−2c, 1].
-        self.object_points_aug = torch.cat([object_points, object_points.square().sum(-1, keepdim=True)], dim=-1)
+        self.clusters = build_point_clusters(object_points, cluster_size)
+        # [m, |m|², 1] per cluster centre: squared distances to centres c are then one product with [−2c, 1, |c|²].
+        centre = self.clusters.centre
+        self.cluster_aug = torch.cat([centre, centre.square().sum(-1, keepdim=True), torch.ones_like(centre[..., :1])], dim=-1)
         self.radius = hand.shape_bounding_radius
         self.interpolation_error = sdf_bank.voxel_size * 3**0.5 / 2  # normalized units, per object
         # Trilinear interpolation of an exact SDF f (1-Lipschitz) errs by at most
@@ -113,59 +144,102 @@ class PenetrationTerm:
     def __call__(self, frames: HandFrames, object_index: torch.Tensor, scale: torch.Tensor) -> PenetrationResult:
         batch = object_index.shape[0]
         radius = self.spheres.radius
-        centre = self.sphere_map(frames)  # (B, K, 3)
         with torch.no_grad():
-            distance, _ = self.bank.signed_distance(centre.detach(), object_index[:, None], scale[:, None], with_normal=False)
+            centre = self.sphere_map(frames)  # (B, K, 3)
+            distance, _ = self.bank.signed_distance(centre, object_index[:, None], scale[:, None], with_normal=False)
             sphere_depth = distance + radius
             shape_reach = sphere_depth.new_full((batch, len(self.radius)), -torch.inf)
             shape_reach = shape_reach.scatter_reduce(1, self.spheres.shape.expand(batch, -1), sphere_depth, "amax")
             margin = (self.interpolation_error[object_index] * scale)[:, None] + self.spheres.shape_gap[None, :]
             active = shape_reach > -margin
-        b, k = (sphere_depth > radius).nonzero(as_tuple=True)  # centres inside the object
-        distance, _ = self.bank.signed_distance(centre[b, k], object_index[b], scale[b], with_normal=False)
+            b, k = (sphere_depth > radius).nonzero(as_tuple=True)  # centres inside the object
+            hand_max = sphere_depth.max(dim=1).values.clamp(min=0)
+        distance, _ = self.bank.signed_distance(self.sphere_map.rows(frames, b, k), object_index[b], scale[b], with_normal=False)
         hand_energy = distance.new_zeros(batch).index_add(0, b, distance)
-        hand_max = sphere_depth.max(dim=1).values.clamp(min=0)
-        obj_energy, obj_max = self._object_in_hand(self.shape_map(frames), active, object_index, scale)
+        obj_energy, obj_max = self._object_in_hand(frames, active, object_index, scale)
         return PenetrationResult(obj_energy + hand_energy, obj_max, hand_max)
 
-    def _object_in_hand(self, shape_frames, active, object_index, scale):
+    def _object_in_hand(self, frames, active, object_index, scale):
         """Σ over object points of their depth inside the active shapes (deepest shape per point)."""
-        batch = shape_frames.shape[0]
-        point_count = self.object_points.shape[1]
-        pair_b, pair_s = active.nonzero(as_tuple=True)
-        frame = shape_frames[pair_b, pair_s]  # (A, 3, 4): [R | c]
-        rot_t = frame[:, :, :3].transpose(1, 2)
-        # Affine map from the normalized object frame to each pair's shape frame: Rᵀ (s·p − c).
-        to_local = torch.cat([rot_t * scale[pair_b, None, None], -(rot_t @ frame[:, :, 3:])], dim=2)
-        cand_pair, cand_point, points = self._candidates_near_shapes(frame[:, :, 3].detach(), pair_b, pair_s, object_index, scale)
+        batch = object_index.shape[0]
         with torch.no_grad():
-            depth = self._depth_in_shape(to_local.detach()[cand_pair], points, pair_s[cand_pair])
-            inside = depth > 0
-        cand_pair, cand_point, points = cand_pair[inside], cand_point[inside], points[inside]
-        depth = self._depth_in_shape(to_local[cand_pair], points, pair_s[cand_pair])
-        # A point inside several shapes counts once, at its deepest.
-        key = pair_b[cand_pair] * point_count + cand_point
-        per_point = depth.new_zeros(batch * point_count).scatter_reduce(0, key, depth, "amax").reshape(batch, point_count)
-        return per_point.sum(-1), per_point.detach().max(-1).values
+            pair_b, pair_s = active.nonzero(as_tuple=True)
+            frame = self.shape_map(frames)[pair_b, pair_s]  # (A, 3, 4): [R | c]
+            cand_pair, cand_point, depth = self._points_inside(frame, pair_b, pair_s, object_index, scale)
+            grasp = pair_b[cand_pair]
+            deepest_max = depth.new_zeros(batch).scatter_reduce(0, grasp, depth, "amax")
+            # A point inside several shapes counts once, at its deepest; exact ties share it (as amax's gradient does).
+            _, point_id = torch.unique(grasp * self.object_points.shape[1] + cand_point, return_inverse=True)
+            deepest = depth.new_zeros(int(point_id.max()) + 1 if len(point_id) else 0).scatter_reduce(0, point_id, depth, "amax")
+            winner = depth == deepest[point_id]
+            cand_pair, cand_point, point_id, grasp = cand_pair[winner], cand_point[winner], point_id[winner], grasp[winner]
+            share = 1.0 / torch.zeros_like(deepest).index_add(0, point_id, torch.ones_like(deepest[point_id]))[point_id]
+        shape = pair_s[cand_pair]
+        frame = self.shape_map.rows(frames, grasp, shape)
+        local = self._apply(self._to_local(frame, scale[grasp]), self.object_points[object_index[grasp], cand_point])
+        depth = shape_signed_distance(local, self.hand.shape_kind[shape], self.hand.shape_size[shape])
+        return depth.new_zeros(batch).index_add(0, grasp, depth * share), deepest_max
 
-    def _candidates_near_shapes(self, centre, pair_b, pair_s, object_index, scale):
-        """(pair, point index, point) of object points within each active shape's bounding radius."""
-        pairs, indices = [], []
+    @staticmethod
+    def _to_local(frame: torch.Tensor, scale: torch.Tensor) -> torch.Tensor:
+        """(N, 3, 4) affine maps from the normalized object frame to shape frames [R | c]: Rᵀ (s·p − c)."""
+        rot_t = frame[:, :, :3].transpose(1, 2)
+        offset = (rot_t * frame[:, None, :, 3]).sum(-1)
+        return torch.cat([rot_t * scale[:, None, None], -offset[..., None]], dim=2)
+
+    @staticmethod
+    def _apply(affine: torch.Tensor, points: torch.Tensor) -> torch.Tensor:
+        """affine (..., 3, 4) applied to points (..., 3), broadcasting: three multiply-adds, no (..., 3, 3) temporary."""
+        out = affine[..., 3] + affine[..., 0] * points[..., 0:1]
+        return out + affine[..., 1] * points[..., 1:2] + affine[..., 2] * points[..., 2:3]
+
+    def _points_inside(self, frame, pair_b, pair_s, object_index, scale):
+        """(pair, point index, depth) of every object point inside its pair's shape; no autograd."""
+        pair, cluster = self._clusters_near(frame[:, :, 3], pair_b, pair_s, object_index, scale)
+        pair_scale = scale[pair_b[pair]]
+        cluster_object = object_index[pair_b[pair]]
+        flat_points = self.object_points.reshape(-1, 3)
+        found = []
+        for kind, distance in ((CAPSULE, self._capsule_distance), (BOX, self._box_distance)):
+            rows = (self.hand.shape_kind[pair_s[pair]] == kind).nonzero(as_tuple=True)[0]
+            to_local = self._to_local(frame[pair[rows]], pair_scale[rows])
+            size = self.hand.shape_size[pair_s[pair[rows]]]
+            obj, cl = cluster_object[rows], cluster[rows]
+            # The shape's signed distance at the cluster centre (1-Lipschitz) must come within the cluster radius.
+            reach = distance(self._apply(to_local, self.clusters.centre[obj, cl]), size) + self.clusters.radius[obj, cl] * pair_scale[rows]
+            near = (reach > -self.CULL_SLACK_M).nonzero(as_tuple=True)[0]
+            rows, to_local, size = rows[near], to_local[near], size[near]
+            members = self.clusters.members[obj[near], cl[near]]  # (M, L), −1 = padding
+            flat = (cluster_object[rows, None] * self.object_points.shape[1] + members.clamp(min=0)).reshape(-1)
+            points = flat_points.index_select(0, flat).reshape(*members.shape, 3)
+            depth = distance(self._apply(to_local[:, None], points), size[:, None])
+            row, slot = ((depth > 0) & (members >= 0)).nonzero(as_tuple=True)
+            found.append((pair[rows[row]], members[row, slot], depth[row, slot]))
+        return tuple(torch.cat(parts) for parts in zip(*found))
+
+    @staticmethod
+    def _capsule_distance(local, size):
+        return capsule_signed_distance(local, size[..., 0], size[..., 1])
+
+    @staticmethod
+    def _box_distance(local, size):
+        return box_signed_distance(local, size)
+
+    def _clusters_near(self, centre, pair_b, pair_s, object_index, scale):
+        """(pair, cluster) whose bounding spheres meet: |m − c| < reach + ρ, by one product per object."""
         pair_object = object_index[pair_b]
+        pair_scale = scale[pair_b]
+        centre_n = centre / pair_scale[:, None]  # normalized units
+        reach_n = self.radius[pair_s] / pair_scale
+        centre_aug = torch.cat([-2 * centre_n, torch.ones_like(centre_n[:, :1]), centre_n.square().sum(-1, keepdim=True)], dim=1)
+        slack_n = self.CULL_SLACK_RELATIVE * (1 + centre_aug[:, 4])
+        pairs, clusters = [], []
         for obj in torch.unique(pair_object).tolist():
             sel = (pair_object == obj).nonzero(as_tuple=True)[0]
-            pair_scale = scale[pair_b[sel]]
-            c = centre[sel] / pair_scale[:, None]
-            reach = self.radius[pair_s[sel]] / pair_scale
-            c_aug = torch.cat([-2 * c, torch.ones_like(c[:, :1])], dim=1)
-            near = (c_aug @ self.object_points_aug[obj].T) < (reach.square() - c.square().sum(-1))[:, None]
-            local_pair, point = near.nonzero(as_tuple=True)
+            squared = centre_aug[sel] @ self.cluster_aug[obj].T  # (a, C)
+            bound = (reach_n[sel, None] + self.clusters.radius[obj][None, :]).square() + slack_n[sel, None]
+            local_pair, cluster = (squared < bound).nonzero(as_tuple=True)
             pairs.append(sel[local_pair])
-            indices.append(point)
-        pair = torch.cat(pairs) if pairs else torch.zeros(0, dtype=torch.long, device=centre.device)
-        point = torch.cat(indices) if indices else pair
-        return pair, point, self.object_points[object_index[pair_b[pair]], point]
-
-    def _depth_in_shape(self, to_local, points, shape):
-        local = (to_local[:, :, :3] * points[:, None, :]).sum(-1) + to_local[:, :, 3]
-        return shape_signed_distance(local, self.hand.shape_kind[shape], self.hand.shape_size[shape])
+            clusters.append(cluster)
+        empty = pair_b.new_zeros(0)
+        return (torch.cat(pairs), torch.cat(clusters)) if pairs else (empty, empty)

