@@ -6,9 +6,12 @@
 
 1. Time of one energy-and-gradient step (forward kinematics, all five terms, backward) for
    batches of 64, 256 and 1024 grasps with the hands AT the object: poses come from a short
-   seed optimization (so fingers touch the surface), tiled to the batch size. Reported with
-   the median contact distance and the share of grasps that penetrate, to show where the
-   hands are. Target: <= 40 ms at 256.
+   seed optimization (so fingers touch the surface), tiled to the batch size. Measured with
+   1 and with 2 torch threads (the machine has 2 cores); each row gives the median wall
+   time, and in its note the minimum, the CPU time and the load average (the cores are
+   shared: with 2 threads and other jobs running, OpenMP threads wait on each other and a
+   step can take many times longer). Reported with the median contact distance and the
+   share of grasps that penetrate, to show where the hands are. Target: <= 40 ms at 256.
 2. Seed synthesis with the schedule of ``config.yaml`` (section ``seed_grasps``): pass
    fraction of the energy thresholds and threshold-passing grasps per hour. On a shared
    machine wall time depends on the other jobs, so the rate is given both per wall second
@@ -23,6 +26,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import os
 import tempfile
 import time
 from pathlib import Path
@@ -80,34 +84,47 @@ def poses_at_object(energy, hulls, seed_config, count: int, generator):
     return result.hand_pose, result.contact_index, object_index, scale
 
 
-def time_energy_steps(energy, pose, contacts, object_index, scale, batches, repeats: int) -> list[dict]:
+def time_energy_steps(energy, pose, contacts, object_index, scale, batches, repeats: int, thread_counts=(1, 2)) -> list[dict]:
+    """Wall time of one energy-and-gradient step per batch size and torch thread count.
+
+    The value is the median wall time over ``repeats`` steps; the note gives the minimum
+    (the cost with the least interference from other jobs), the median CPU time of this
+    process (all its threads) and the load average while measuring, since the machine's
+    cores are shared.
+    """
     rows = []
-    for batch in batches:
-        tile = -(-batch // len(pose))
-        p = pose.repeat(tile, 1)[:batch].clone()
-        c, o, s = contacts.repeat(tile, 1)[:batch], object_index.repeat(tile)[:batch], scale.repeat(tile)[:batch]
-        x = p.requires_grad_(True)
+    previous_threads = torch.get_num_threads()
+    for threads in thread_counts:
+        torch.set_num_threads(threads)
+        for batch in batches:
+            tile = -(-batch // len(pose))
+            x = pose.repeat(tile, 1)[:batch].clone().requires_grad_(True)
+            c, o, s = contacts.repeat(tile, 1)[:batch], object_index.repeat(tile)[:batch], scale.repeat(tile)[:batch]
 
-        def step():
-            result = energy(x, object_index=o, scale=s, contact_index=c)
-            (grad,) = torch.autograd.grad(result.total.sum(), x)
-            return result
+            def step():
+                result = energy(x, object_index=o, scale=s, contact_index=c)
+                torch.autograd.grad(result.total.sum(), x)
+                return result
 
-        result = step()
-        wall, cpu = [], []
-        for _ in range(repeats):
-            t_wall, t_cpu = time.perf_counter(), time.process_time()
-            step()
-            wall.append(time.perf_counter() - t_wall)
-            cpu.append(time.process_time() - t_cpu)
-        rows.append({
-            "benchmark": "energy+gradient step (hands at object)",
-            "size": f"batch {batch}",
-            "value": 1000 * float(np.median(wall)),
-            "unit": "ms (wall, median)",
-            "note": f"cpu {1000 * float(np.median(cpu)):.1f} ms; min wall {1000 * min(wall):.1f} ms; median contact distance "
-            f"{float(result.contact_distance_mm.median()):.1f} mm; {100 * float((result.penetration_mm > 0).float().mean()):.0f}% penetrate",
-        })
+            result = step()
+            wall, cpu = [], []
+            load_before = os.getloadavg()[0]
+            for _ in range(repeats):
+                t_wall, t_cpu = time.perf_counter(), time.process_time()
+                step()
+                wall.append(time.perf_counter() - t_wall)
+                cpu.append(time.process_time() - t_cpu)
+            load = max(load_before, os.getloadavg()[0])
+            rows.append({
+                "benchmark": f"energy+gradient step, {threads} thread{'s' if threads > 1 else ''}",
+                "size": f"batch {batch}",
+                "value": 1000 * float(np.median(wall)),
+                "unit": "ms (wall, median)",
+                "note": f"min {1000 * min(wall):.1f} ms; cpu {1000 * float(np.median(cpu)):.1f} ms (median, all threads); "
+                f"{repeats} steps; load avg {load:.1f} on {os.cpu_count()} cores; hands at the object: median contact distance "
+                f"{float(result.contact_distance_mm.median()):.1f} mm, {100 * float((result.penetration_mm > 0).float().mean()):.0f}% penetrate",
+            })
+    torch.set_num_threads(previous_threads)
     return rows
 
 
@@ -152,7 +169,7 @@ def run(quick: bool = False, objects_dir: str | None = None, object_count: int =
         energy = GraspEnergy.from_assets(hand, assets, energy_config)
         generator = torch.Generator().manual_seed(0)
         pose, contacts, object_index, scale = poses_at_object(energy, HullSampler(assets), seed_config, 16 if quick else 64, generator)
-        rows = time_energy_steps(energy, pose, contacts, object_index, scale, (64, 256) if quick else (64, 256, 1024), 2 if quick else 5)
+        rows = time_energy_steps(energy, pose, contacts, object_index, scale, (64, 256) if quick else (64, 256, 1024), 2 if quick else 10)
         rows += seed_throughput(assets, seed_config, energy_config, torch.Generator().manual_seed(1))
     return rows
 
