@@ -134,11 +134,36 @@ def test_imported_grasps_are_held_to_the_configured_terms_only():
     assert list(curate_grasps(grasps, FACTS, only_pen)) == ["e_fc", "e_dis", "e_pen", "", "", "e_pen"]
 
 
+def test_force_closure_drops_grasps_whose_contacts_do_not_close():
+    rows = [("a", _pose(t=(0.05 * i, 0, 0.1)), 0.1, GOOD) for i in range(4)]
+    rows.insert(1, ("a", _pose(t=(0.5, 0, 0.1)), 0.1, {**GOOD, "E_dis": 0.006}))
+    rows.append(("held", _pose(), 0.1, GOOD))
+    grasps = _grasp_set(rows)
+    epsilon_by_x = {0.0: 0.05, 0.05: 0.0, 0.1: 0.01, 0.15: 0.2}
+    seen = []
+
+    def evaluator(subset):
+        seen.append(len(subset))
+        return np.array([epsilon_by_x[round(float(x), 2)] for x in subset.hand_pose[:, 0]])
+
+    reasons = curate_grasps(grasps, FACTS, CurateConfig(force_closure=True, force_closure_min_epsilon=0.01), evaluator)
+    assert list(reasons) == ["", "e_dis", "force_closure", "force_closure", "", "not_train"]  # epsilon must exceed the minimum
+    assert seen == [4]  # called once, on the grasps that passed every earlier check
+    np.testing.assert_allclose(grasps.arrays["force_closure_epsilon"], [0.05, np.nan, 0.0, 0.01, 0.2, np.nan])
+    any_closure = CurateConfig(force_closure=True, force_closure_min_epsilon=0.0)
+    assert list(curate_grasps(_grasp_set(rows), FACTS, any_closure, evaluator))[2:4] == ["force_closure", ""]
+    assert list(curate_grasps(_grasp_set(rows), FACTS, CurateConfig(force_closure=False), evaluator))[2:4] == ["", ""]
+    with pytest.raises(ValueError, match="force-closure evaluator"):
+        curate_grasps(_grasp_set(rows), FACTS, CurateConfig(force_closure=True))
+
+
 def test_config_rejects_nonsense():
     with pytest.raises(ValueError, match="max_e_fc"):
         CurateConfig(max_e_fc=0)
     with pytest.raises(ValueError, match="E_foo"):
         CurateConfig(imported_thresholded_terms=("E_foo",))
+    with pytest.raises(ValueError, match="force_closure_min_epsilon"):
+        CurateConfig(force_closure_min_epsilon=-0.1)
 
 
 @pytest.fixture(scope="module")
@@ -209,3 +234,16 @@ def test_aggregate_refuses_overlapping_shards(tmp_path):
     row.to_csv(tmp_path / "s1.csv", index=False)
     code = dexlite(["curate", "--step", "aggregate", "--summary", str(tmp_path / "s0.csv"), "--summary", str(tmp_path / "s1.csv"), "--out", str(tmp_path / "m.csv")])
     assert code == 2 and not (tmp_path / "m.csv").exists()
+
+
+def test_cli_force_closure_drops_a_grasp_that_touches_nothing(workspace):
+    root = workspace
+    config = json.dumps({"shards": 2, "device": "cpu", "curate": {"force_closure": True}})
+    args = ["curate", "--step", "curate", "--shard", "0", "--config-json", config, "--stability", str(root / "stability.parquet"),
+            "--objects", str(root / "objects"), "--seed-grasps", str(root / "seed_000.zarr"),
+            "--out", str(root / "fc_0.zarr"), "--summary-out", str(root / "fc_summary_0.csv")]
+    assert dexlite(args) == 0
+    kept = read_grasp_store(root / "fc_0.zarr")
+    assert len(kept) == 0 and kept.attrs["dropped"]["force_closure"] == 1 and kept.attrs["dropped"]["e_dis"] == 1
+    assert kept.attrs["config"]["curate"]["force_closure_friction"] == 0.6
+    assert pd.read_csv(root / "fc_summary_0.csv").loc[0, "dropped_force_closure"] == 1

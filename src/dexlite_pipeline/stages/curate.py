@@ -85,6 +85,24 @@ def _common_arrays(sets):
     return GraspSet.concatenate([GraspSet({k: s.arrays[k] for k in shared}, {}) for s in sets], attrs={})
 
 
+def _force_closure_evaluator(objects_dirs, curate_config):
+    """grasps -> Ferrari–Canny ε of their actual contacts, with the contact model of ``curate_config``."""
+    from dexlite_pipeline.force_closure import ContactModel, force_closure_epsilon
+
+    model = ContactModel(
+        contact_distance_m=curate_config.force_closure_contact_distance_m,
+        friction=curate_config.force_closure_friction,
+        cone_edges=curate_config.force_closure_cone_edges,
+    )
+
+    def evaluate(grasps):
+        epsilon = force_closure_epsilon(grasps, objects_dirs, model)
+        log.info("force closure of %d grasps: epsilon median %.4f, %.1f%% above %g", len(grasps), float(np.median(epsilon)), 100 * float((epsilon > curate_config.force_closure_min_epsilon).mean()), curate_config.force_closure_min_epsilon)
+        return epsilon
+
+    return evaluate
+
+
 def _curate_shard(args, config: dict) -> int:
     import pandas as pd
 
@@ -106,7 +124,7 @@ def _curate_shard(args, config: dict) -> int:
     if not sets:
         raise ValueError("--step curate needs --seed-grasps and/or --imported")
     grasps = _common_arrays(sets)
-    reasons = curate_grasps(grasps, facts, curate_config)
+    reasons = curate_grasps(grasps, facts, curate_config, _force_closure_evaluator(args.objects, curate_config))
     kept = grasps.select(reasons == "")
     counts = {r: int((reasons == r).sum()) for r in DROP_REASONS}
     attrs = {
