@@ -34,12 +34,12 @@ resist per newton of total normal force. Why: E_fc is scored on four contact can
 that seed synthesis picks after the fact, as the set whose normals cancel best among
 1024, so E_fc < 0.3 says little about how the hand presses. Measured on the default run
 (seed 0, 264 curated seed grasps, 53% lifted in MuJoCo at friction 0.6): 111 of the 123
-failures lost the object before the lift began, during the close and hold, and with
-gravity off the squeeze alone pushed the object more than 2 cm in 86 of them (the
-DexGraspNet sample: 11% of grasps). With contacts within 1 mm at friction 0.6, ε = 0
-(no force closure) for 58% of those grasps (DexGraspNet sample: 25%), and the lifted
-fraction rises with ε on both sets (seed: 43% at ε = 0, 68% at ε > 0, 73% at ε > 0.01;
-DexGraspNet sample: 76% -> 85% -> 87%). The contact distance is the energy thresholds'
+failures had lost all contact with the object before the lift began, during the close
+and hold; with gravity off, the squeeze alone pushed the object more than 2 cm for 33%
+of the grasps (DexGraspNet sample: 11%). With contacts within 1 mm at friction 0.6,
+ε = 0 (no force closure) for 58% of those grasps (DexGraspNet sample: 25%), and the
+lifted fraction rises with ε on both sets (seed: 43% of the grasps with ε = 0, 68% of
+those with ε > 0, 73% with ε > 0.01; DexGraspNet sample: 50%, 85%, 87%). The contact distance is the energy thresholds'
 own scale (E_dis < 5 mm over four contacts is 1.25 mm each; DexGraspNet's 1 mm
 penetration filter). The check applies to imported grasps too: it uses no stored contacts.
 """

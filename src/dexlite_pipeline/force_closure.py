@@ -14,9 +14,9 @@ share a unit.
 ε is the radius of the largest ball about the origin inside the convex hull of those
 wrenches: the contacts resist every wrench of norm ε per newton of total normal force
 (0 when the hull does not strictly contain the origin: no force closure). In MuJoCo's
-lift test the object fell out of the hand before the lift started for 111 of 123 failed
-curated seed grasps of the default run, 86 of them pushed out by the squeeze alone with
-gravity off, and the fraction lifted rises steadily with ε on both the seed grasps and
+lift test the object had left the hand before the lift started for 111 of 123 failed
+curated seed grasps of the default run; the squeeze alone (gravity off) pushed the
+object more than 2 cm for a third of those grasps; and the fraction lifted rises steadily with ε on both the seed grasps and
 the DexGraspNet sample (see ``curate``).
 """
 
