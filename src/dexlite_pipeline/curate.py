@@ -39,7 +39,10 @@ and hold; with gravity off, the squeeze alone pushed the object more than 2 cm f
 of the grasps (DexGraspNet sample: 11%). With contacts within 1 mm at friction 0.6,
 ε = 0 (no force closure) for 58% of those grasps (DexGraspNet sample: 25%), and the
 lifted fraction rises with ε on both sets (seed: 43% of the grasps with ε = 0, 68% of
-those with ε > 0, 73% with ε > 0.01; DexGraspNet sample: 50%, 85%, 87%). The contact distance is the energy thresholds'
+those with ε > 0, 73% with ε > 0.01; DexGraspNet sample: 50%, 85%, 87%). Grasps with
+0 < ε <= 0.01 lift like those without closure (seed 8 of 18, DexGraspNet sample 11 of 21):
+nearly flat wrench hulls, or links at the edge of the contact band; hence the default
+minimum 0.01. The contact distance is the energy thresholds'
 own scale (E_dis < 5 mm over four contacts is 1.25 mm each; DexGraspNet's 1 mm
 penetration filter). The check applies to imported grasps too: it uses no stored contacts.
 """
