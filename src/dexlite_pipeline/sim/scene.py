@@ -73,19 +73,22 @@ def scene_mjcf(convex_paths: list[Path], scale: float, config: LiftConfig) -> st
         raise SceneBuildError("object has no convex pieces")
     root = hand_mjcf(free_root=True, model_name="lift_scene")
     _strip_visuals(root)
-    root.insert(
-        1,
-        ET.Element(
-            "option",
-            timestep=repr(config.timestep_s),
-            cone="elliptic",
-            impratio=repr(config.impratio),
-            gravity=f"0 0 {-GRAVITY_MPS2}",
-            # Sparse constraint Jacobians: ~27% less time per step here than MuJoCo's dense
-            # choice for small models, with results equal to 1e-10 (measured on real grasps).
-            jacobian="sparse",
-        ),
+    option = ET.Element(
+        "option",
+        timestep=repr(config.timestep_s),
+        cone="elliptic",
+        impratio=repr(config.impratio),
+        gravity=f"0 0 {-GRAVITY_MPS2}",
+        # Sparse constraint Jacobians: ~27% less time per step here than MuJoCo's dense
+        # choice for small models, with results equal to 1e-10 (measured on real grasps).
+        jacobian="sparse",
     )
+    # No constraint islands: the hand (welded to the world) and the object it touches form
+    # one island, so discovering islands every step is pure overhead (~3% of a step). On
+    # the 494 DexGraspNet sample grasps 490 lift ratios are bit-identical and 4 differ by
+    # rounding (< 3e-5); no outcome changes.
+    ET.SubElement(option, "flag", island="disable")
+    root.insert(1, option)
     asset = root.find("asset")
     worldbody = root.find("worldbody")
     for body in worldbody.iter("body"):
