@@ -35,8 +35,8 @@ from __future__ import annotations
 import logging
 import math
 import os
-from collections import OrderedDict
-from concurrent.futures import ProcessPoolExecutor
+from collections import OrderedDict, deque
+from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -54,7 +54,7 @@ log = logging.getLogger(__name__)
 DIRECTIONS = ("+x", "-x", "+y", "-y", "+z", "-z")
 DIRECTION_VECTORS = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], dtype=np.float64)
 FINGERS = ("ff", "mf", "rf", "lf", "th")
-TASK_GRASPS = 16  # grasps per worker task: small enough to balance cores, large enough to batch torch work
+TASK_GRASPS = 8  # grasps per task: the cores wait at most one task (~1 s) for the last one; one torch batch
 PREP_BATCH = 8  # grasps per torch batch in the penetration / squeeze computations
 SCENE_CACHE = 8  # compiled scenes kept per worker
 
@@ -443,7 +443,8 @@ def run_lift_tests(grasps: GraspSet, objects_dirs, config: LiftConfig, threads: 
 
     Invalid grasps (non-finite pose or scale, object missing from the assets) are kept,
     flagged with ``failure_reason = 'invalid_grasp: <reason>'`` and not simulated. Work
-    runs in ``threads`` processes (spawned: torch and MuJoCo are not fork-safe once used).
+    runs on ``threads`` cores: this process and ``threads - 1`` spawned helper processes
+    (spawned: torch and MuJoCo are not fork-safe once used).
     Returns ``lift_ratio``, ``lift_success``, ``failure_reason``, ``initial_penetration_mm``
     and, with ``config.six_directions``, ``six_dir_success``, ``six_dir_passed`` (N, 6),
     ``six_dir_translation_m`` (N, 6) and ``six_dir_rotation_deg`` (N, 6) in ``DIRECTIONS`` order.
@@ -455,17 +456,49 @@ def run_lift_tests(grasps: GraspSet, objects_dirs, config: LiftConfig, threads: 
     invalid = reasons != ""
     out.failure_reason[invalid] = np.asarray([f"invalid_grasp: {r}" for r in reasons[invalid]], dtype=object)
     tasks = make_tasks(grasps, np.flatnonzero(~invalid), dirs, config)
-    workers = max(1, min(int(threads or 1), len(tasks)))
-    if workers == 1:
-        results = map(run_task, tasks)
-        _collect(out, results)
-    else:
-        import multiprocessing
-
-        context = multiprocessing.get_context("spawn")
-        with ProcessPoolExecutor(max_workers=workers, mp_context=context, initializer=_init_worker) as pool:
-            _collect(out, pool.map(run_task, tasks))
+    _collect(out, _run_shared_queue(tasks, max(1, min(int(threads or 1), len(tasks)))))
     return _as_arrays(out, config)
+
+
+def _run_shared_queue(tasks: list[LiftTask], workers: int) -> list[tuple[np.ndarray, LiftOutcome]]:
+    """Results of ``run_task`` over ``tasks`` on ``workers`` cores: this process plus ``workers - 1`` spawned helpers.
+
+    All take the next task from one queue the moment they finish one. This process has
+    torch, MuJoCo and the hand model loaded already, so it starts at once while a helper
+    spends ~1.5 CPU s on imports, and one core's worth of those imports is saved. Each
+    helper is fed by a thread here (MuJoCo releases the GIL while it steps), so cores idle
+    only while the last tasks finish.
+    """
+    queue = deque(tasks)  # deque.popleft is atomic: the threads share it without a lock
+
+    def drain(run) -> list:
+        done = []
+        while True:
+            try:
+                task = queue.popleft()
+            except IndexError:
+                return done
+            done.append(run(task))
+
+    if workers == 1:
+        return drain(run_task)
+    import multiprocessing
+
+    context = multiprocessing.get_context("spawn")
+    torch_threads = torch.get_num_threads()
+    torch.set_num_threads(1)  # one core per process, as in the helpers (same results whichever process runs a grasp)
+    try:
+        with (
+            ProcessPoolExecutor(max_workers=workers - 1, mp_context=context, initializer=_init_worker) as pool,
+            ThreadPoolExecutor(max_workers=workers - 1) as feeders,
+        ):
+            helpers = [feeders.submit(drain, lambda task: pool.submit(run_task, task).result()) for _ in range(workers - 1)]
+            results = drain(run_task)
+            for helper in helpers:
+                results += helper.result()
+    finally:
+        torch.set_num_threads(torch_threads)
+    return results
 
 
 def _collect(out: LiftOutcome, results) -> None:
