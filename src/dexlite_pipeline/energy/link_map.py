@@ -73,7 +73,6 @@ class LinkFrameMap:
         the gradient of every row of every grasp back through the GEMM.
         """
         link = self.link[row_index]
-        rotation = frames.rotation[batch_index, link]  # (N, 3, 3)
-        offsets = self.offsets[row_index]  # (N, 4, K)
-        out = (rotation[..., None] * offsets[:, None, :3, :]).sum(2) + frames.translation[batch_index, link][..., None] * offsets[:, None, 3, :]
+        frame = torch.cat([frames.rotation[batch_index, link], frames.translation[batch_index, link][..., None]], dim=-1)  # (N, 3, 4)
+        out = frame @ self.offsets[row_index]  # (N, 4, K) offsets
         return out[..., 0] if self.shape[2] == 1 else out

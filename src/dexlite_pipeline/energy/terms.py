@@ -129,9 +129,9 @@ class PenetrationTerm:
         self.bank = sdf_bank
         self.object_points = object_points  # (n_objects, P, 3), normalized frame
         self.clusters = build_point_clusters(object_points, cluster_size)
-        # [m, |m|², 1] per cluster centre: squared distances to centres c are then one product with [−2c, 1, |c|²].
-        centre = self.clusters.centre
-        self.cluster_aug = torch.cat([centre, centre.square().sum(-1, keepdim=True), torch.ones_like(centre[..., :1])], dim=-1)
+        # [m, |m|² − ρ², ρ, 1] per cluster (see ``_clusters_near``).
+        centre, rho = self.clusters.centre, self.clusters.radius[..., None]
+        self.cluster_aug = torch.cat([centre, centre.square().sum(-1, keepdim=True) - rho.square(), rho, torch.ones_like(rho)], dim=-1)
         self.radius = hand.shape_bounding_radius
         self.interpolation_error = sdf_bank.voxel_size * 3**0.5 / 2  # normalized units, per object
         # Trilinear interpolation of an exact SDF f (1-Lipschitz) errs by at most
@@ -184,37 +184,49 @@ class PenetrationTerm:
     def _to_local(frame: torch.Tensor, scale: torch.Tensor) -> torch.Tensor:
         """(N, 3, 4) affine maps from the normalized object frame to shape frames [R | c]: Rᵀ (s·p − c)."""
         rot_t = frame[:, :, :3].transpose(1, 2)
-        offset = (rot_t * frame[:, None, :, 3]).sum(-1)
-        return torch.cat([rot_t * scale[:, None, None], -offset[..., None]], dim=2)
+        return torch.cat([rot_t * scale[:, None, None], -(rot_t @ frame[:, :, 3:])], dim=2)
 
     @staticmethod
     def _apply(affine: torch.Tensor, points: torch.Tensor) -> torch.Tensor:
-        """affine (..., 3, 4) applied to points (..., 3), broadcasting: three multiply-adds, no (..., 3, 3) temporary."""
-        out = affine[..., 3] + affine[..., 0] * points[..., 0:1]
-        return out + affine[..., 1] * points[..., 1:2] + affine[..., 2] * points[..., 2:3]
+        """Affine maps (N, 3, 4) applied to points (N, 3), or to (N, L, 3) with one map per row of L points."""
+        rows = points[:, None] if points.dim() == 2 else points
+        out = torch.baddbmm(affine[:, None, :, 3], rows, affine[:, :, :3].transpose(1, 2))
+        return out[:, 0] if points.dim() == 2 else out
 
     def _points_inside(self, frame, pair_b, pair_s, object_index, scale):
-        """(pair, point index, depth) of every object point inside its pair's shape; no autograd."""
-        pair, cluster = self._clusters_near(frame[:, :, 3], pair_b, pair_s, object_index, scale)
-        pair_scale = scale[pair_b[pair]]
-        cluster_object = object_index[pair_b[pair]]
+        """(pair, point index, depth) of every object point inside its pair's shape; no autograd.
+
+        Per-row values are gathered with ``index_select`` from per-pair and per-cluster
+        tables (much faster on CPU than advanced indexing of multi-dimensional tensors).
+        """
+        pair_object = object_index[pair_b]
+        pair_scale = scale[pair_b]
+        pair, cluster = self._clusters_near(frame[:, :, 3], pair_b, pair_s, pair_object, pair_scale)
+        cluster = pair_object.index_select(0, pair) * self.clusters.radius.shape[1] + cluster  # flat cluster id
+        to_local = self._to_local(frame, pair_scale).reshape(-1, 12)
+        size = self.hand.shape_size.index_select(0, pair_s)
+        row_kind = self.hand.shape_kind.index_select(0, pair_s).index_select(0, pair)
+        centre = self.clusters.centre.reshape(-1, 3)
+        radius = self.clusters.radius.reshape(-1)
+        members = self.clusters.members.reshape(len(radius), -1)
+        point_count = self.object_points.shape[1]
         flat_points = self.object_points.reshape(-1, 3)
         found = []
         for kind, distance in ((CAPSULE, self._capsule_distance), (BOX, self._box_distance)):
-            rows = (self.hand.shape_kind[pair_s[pair]] == kind).nonzero(as_tuple=True)[0]
-            to_local = self._to_local(frame[pair[rows]], pair_scale[rows])
-            size = self.hand.shape_size[pair_s[pair[rows]]]
-            obj, cl = cluster_object[rows], cluster[rows]
+            rows = (row_kind == kind).nonzero().squeeze(1)
+            p, c = pair.index_select(0, rows), cluster.index_select(0, rows)
+            affine = to_local.index_select(0, p).reshape(-1, 3, 4)
+            shape_size = size.index_select(0, p)
             # The shape's signed distance at the cluster centre (1-Lipschitz) must come within the cluster radius.
-            reach = distance(self._apply(to_local, self.clusters.centre[obj, cl]), size) + self.clusters.radius[obj, cl] * pair_scale[rows]
-            near = (reach > -self.CULL_SLACK_M).nonzero(as_tuple=True)[0]
-            rows, to_local, size = rows[near], to_local[near], size[near]
-            members = self.clusters.members[obj[near], cl[near]]  # (M, L), −1 = padding
-            flat = (cluster_object[rows, None] * self.object_points.shape[1] + members.clamp(min=0)).reshape(-1)
-            points = flat_points.index_select(0, flat).reshape(*members.shape, 3)
-            depth = distance(self._apply(to_local[:, None], points), size[:, None])
-            row, slot = ((depth > 0) & (members >= 0)).nonzero(as_tuple=True)
-            found.append((pair[rows[row]], members[row, slot], depth[row, slot]))
+            reach = distance(self._apply(affine, centre.index_select(0, c)), shape_size)
+            near = (reach + radius.index_select(0, c) * pair_scale.index_select(0, p) > -self.CULL_SLACK_M).nonzero().squeeze(1)
+            p, c, affine, shape_size = p.index_select(0, near), c.index_select(0, near), affine.index_select(0, near), shape_size.index_select(0, near)
+            point = members.index_select(0, c)  # (M, L), −1 = padding
+            flat = (pair_object.index_select(0, p)[:, None] * point_count + point.clamp(min=0)).reshape(-1)
+            points = flat_points.index_select(0, flat).reshape(*point.shape, 3)
+            depth = distance(self._apply(affine, points), shape_size[:, None])
+            row, slot = ((depth > 0) & (point >= 0)).nonzero(as_tuple=True)
+            found.append((p[row], point[row, slot], depth[row, slot]))
         return tuple(torch.cat(parts) for parts in zip(*found))
 
     @staticmethod
@@ -225,21 +237,23 @@ class PenetrationTerm:
     def _box_distance(local, size):
         return box_signed_distance(local, size)
 
-    def _clusters_near(self, centre, pair_b, pair_s, object_index, scale):
-        """(pair, cluster) whose bounding spheres meet: |m − c| < reach + ρ, by one product per object."""
-        pair_object = object_index[pair_b]
-        pair_scale = scale[pair_b]
-        centre_n = centre / pair_scale[:, None]  # normalized units
-        reach_n = self.radius[pair_s] / pair_scale
-        centre_aug = torch.cat([-2 * centre_n, torch.ones_like(centre_n[:, :1]), centre_n.square().sum(-1, keepdim=True)], dim=1)
-        slack_n = self.CULL_SLACK_RELATIVE * (1 + centre_aug[:, 4])
+    def _clusters_near(self, centre, pair_b, pair_s, pair_object, pair_scale):
+        """(pair, cluster) whose bounding spheres meet, |m − c|² − (R + ρ)² < 0, by one product per object.
+
+        With m̃ = [m, |m|² − ρ², ρ, 1] per cluster and c̃ = [−2c, 1, −2R, |c|² − R²] per pair, m̃·c̃ is
+        exactly that difference (normalized units; a small slack covers float32 cancellation).
+        """
+        centre_n = centre / pair_scale[:, None]
+        reach_n = self.radius.index_select(0, pair_s) / pair_scale
+        centre_sq = centre_n.square().sum(-1, keepdim=True)
+        centre_aug = torch.cat([-2 * centre_n, torch.ones_like(centre_sq), -2 * reach_n[:, None], centre_sq - reach_n[:, None].square()], dim=1)
+        slack_n = self.CULL_SLACK_RELATIVE * (1 + centre_sq)
         pairs, clusters = [], []
         for obj in torch.unique(pair_object).tolist():
-            sel = (pair_object == obj).nonzero(as_tuple=True)[0]
-            squared = centre_aug[sel] @ self.cluster_aug[obj].T  # (a, C)
-            bound = (reach_n[sel, None] + self.clusters.radius[obj][None, :]).square() + slack_n[sel, None]
-            local_pair, cluster = (squared < bound).nonzero(as_tuple=True)
-            pairs.append(sel[local_pair])
+            sel = (pair_object == obj).nonzero().squeeze(1)
+            gap = centre_aug.index_select(0, sel) @ self.cluster_aug[obj].T  # (a, C)
+            local_pair, cluster = (gap < slack_n.index_select(0, sel)).nonzero(as_tuple=True)
+            pairs.append(sel.index_select(0, local_pair))
             clusters.append(cluster)
         empty = pair_b.new_zeros(0)
         return (torch.cat(pairs), torch.cat(clusters)) if pairs else (empty, empty)

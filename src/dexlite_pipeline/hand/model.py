@@ -56,12 +56,12 @@ class HandFrames:
 
 
 def _mul33(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
-    """Batched 3x3 product by broadcasting (much faster than bmm for tiny matrices on CPU)."""
-    return (a[..., :, :, None] * b[..., None, :, :]).sum(-2)
+    """Batched 3x3 product (torch 2.13's CPU matmul beats broadcasting: ~3x forward, ~2x backward)."""
+    return a @ b
 
 
 def _mul33v(a: torch.Tensor, v: torch.Tensor) -> torch.Tensor:
-    return (a * v[..., None, :]).sum(-1)
+    return (a @ v[..., None])[..., 0]
 
 
 class ShadowHand:
@@ -102,9 +102,47 @@ class ShadowHand:
         self._joint_pos = as_t(model.jnt_pos.copy())
         if np.abs(model.jnt_pos).max() > 0:
             raise RuntimeError("joint anchors off the body origin are not supported")
+        self._build_levels()
 
         self._build_shapes(model, as_t)
         self._build_point_sets(as_t, contacts_per_link, surface_points_per_shape)
+
+    def _build_levels(self) -> None:
+        """Group the links by depth in the tree, so FK runs one batched step per level, not per link.
+
+        The five fingers hang side by side, so 23 links take 6 steps. A level holds its
+        links, their positions among the previous level's links (the palm frame is level −1)
+        and whether any has a rotated offset or a joint. Joint angles are gathered once
+        in level order (a link without a joint gets angle 0, i.e. the identity), and
+        ``_link_order`` puts the concatenated levels back in link order.
+        """
+        depth: list[int] = []
+        for parent in self._parent:  # MuJoCo lists every parent before its children
+            depth.append(0 if parent < 0 else depth[parent] + 1)
+        position: dict[int, int] = {}
+        self._levels = []
+        order: list[int] = []
+        joint_columns: list[int] = []
+        for d in range(max(depth) + 1):
+            links = [b for b in range(len(depth)) if depth[b] == d]
+            parents = [0 if self._parent[b] < 0 else position[self._parent[b]] for b in links]
+            position.update({b: i for i, b in enumerate(links)})
+            jointed = any(self._body_joint[b] >= 0 for b in links)
+            if jointed:
+                joint_columns += [self._body_joint[b] if self._body_joint[b] >= 0 else len(self.joint_names) for b in links]
+            self._levels.append({
+                "offset_pos": self._offset_pos[links],
+                "offset_rot": self._offset_rot[links],
+                "parents": torch.tensor(parents, device=self.device),
+                "rotated": not all(self._offset_is_identity[b] for b in links),  # else R·I is skipped (exact either way)
+                "jointed": jointed,
+                "size": len(links),
+            })
+            order += links
+        self._link_order = torch.argsort(torch.tensor(order, device=self.device))
+        self._level_joint_column = torch.tensor(joint_columns, device=self.device)
+        axis_or_none = torch.cat([self._joint_axis, self._joint_axis.new_tensor([[0.0, 0.0, 1.0]])])
+        self._level_joint_axis = axis_or_none[self._level_joint_column]
 
     # ----------------------------------------------------------------- geometry
     def _build_shapes(self, model, as_t) -> None:
@@ -218,26 +256,27 @@ class ShadowHand:
         return self.forward_parts(palm_rot, palm_t, hand_pose[..., JOINTS])
 
     def forward_parts(self, palm_rot: torch.Tensor, palm_t: torch.Tensor, joints: torch.Tensor) -> HandFrames:
-        """Like ``forward`` with the palm rotation given as a matrix (for 6D optimizers)."""
-        joint_rot = axis_angle_to_matrix(self._joint_axis, joints)  # (B, 22, 3, 3)
+        """Like ``forward`` with the palm rotation given as a matrix (for 6D optimizers).
+
+        Each link: R = R_parent · R_offset · R_joint(q), t = t_parent + R_parent · p_offset,
+        computed a tree level at a time (see ``_build_levels``).
+        """
+        angles = torch.cat([joints, joints.new_zeros(joints.shape[0], 1)], dim=1).index_select(1, self._level_joint_column)
+        joint_rots = iter(axis_angle_to_matrix(self._level_joint_axis, angles).split(
+            [level["size"] for level in self._levels if level["jointed"]], dim=1))
+        rot, t = palm_rot[:, None], palm_t[:, None]
         rots: list[torch.Tensor] = []
         trans: list[torch.Tensor] = []
-        for b, parent in enumerate(self._parent):
-            if parent < 0:
-                rot, t = palm_rot, palm_t
-                if not self._offset_is_identity[b]:
-                    rot = _mul33(rot, self._offset_rot[b])
-                t = t + _mul33v(palm_rot, self._offset_pos[b])
-            else:
-                parent_rot, parent_t = rots[parent], trans[parent]
-                t = parent_t + _mul33v(parent_rot, self._offset_pos[b])
-                rot = parent_rot if self._offset_is_identity[b] else _mul33(parent_rot, self._offset_rot[b])
-            j = self._body_joint[b]
-            if j >= 0:
-                rot = _mul33(rot, joint_rot[:, j])
+        for level in self._levels:
+            parent_rot, parent_t = rot.index_select(1, level["parents"]), t.index_select(1, level["parents"])
+            t = parent_t + _mul33v(parent_rot, level["offset_pos"])
+            rot = _mul33(parent_rot, level["offset_rot"]) if level["rotated"] else parent_rot
+            if level["jointed"]:
+                rot = _mul33(rot, next(joint_rots))
             rots.append(rot)
             trans.append(t)
-        return HandFrames(torch.stack(rots, dim=1), torch.stack(trans, dim=1))
+        rotation = torch.cat(rots, dim=1).index_select(1, self._link_order)
+        return HandFrames(rotation, torch.cat(trans, dim=1).index_select(1, self._link_order))
 
     def link_poses(self, hand_pose: torch.Tensor) -> dict[str, torch.Tensor]:
         """Link name -> (B, 4, 4) homogeneous pose of each body frame in the object frame."""
