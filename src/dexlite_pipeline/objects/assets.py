@@ -162,9 +162,9 @@ class SdfBank:
         """
         g = self.resolution
         shape = points_m.shape[:-1]
-        extra = (1,) * (len(shape) - object_index.dim())
-        object_index = object_index.reshape(object_index.shape + extra).expand(shape)
-        s = scale.to(points_m.dtype).reshape(scale.shape + (1,) * (len(shape) - scale.dim())).expand(shape)[..., None]
+        # Per-object and per-scale values stay broadcastable (e.g. (B, 1)): gathered once per grasp, not per point.
+        object_index = object_index.reshape(object_index.shape + (1,) * (len(shape) - object_index.dim()))
+        s = scale.to(points_m.dtype).reshape(scale.shape + (1,) * (len(shape) - scale.dim()))[..., None]
         local = points_m / s  # normalized frame
         gmin = self.grid_min[object_index]
         h = self.voxel_size[object_index][..., None]
