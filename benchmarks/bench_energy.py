@@ -9,9 +9,11 @@
    seed optimization (so fingers touch the surface), tiled to the batch size. Measured with
    1 and with 2 torch threads (the machine has 2 cores); each row gives the median wall
    time, and in its note the minimum, the CPU time and the load average (the cores are
-   shared: with 2 threads and other jobs running, OpenMP threads wait on each other and a
-   step can take many times longer). Reported with the median contact distance and the
-   share of grasps that penetrate, to show where the hands are. Target: <= 40 ms at 256.
+   shared). With 2 threads while other jobs run, OpenMP's default spin-waiting makes a
+   step 5-20x slower than with 1 thread (measured: 320-480 ms at batch 256, load ~5);
+   ``OMP_WAIT_POLICY=PASSIVE`` in the environment removes that (50 ms, as 1 thread), so
+   the note records the policy. Reported with the median contact distance and the share
+   of grasps that penetrate, to show where the hands are. Target: <= 40 ms at 256.
 2. Seed synthesis with the schedule of ``config.yaml`` (section ``seed_grasps``): pass
    fraction of the energy thresholds and threshold-passing grasps per hour. On a shared
    machine wall time depends on the other jobs, so the rate is given both per wall second
@@ -121,7 +123,8 @@ def time_energy_steps(energy, pose, contacts, object_index, scale, batches, repe
                 "value": 1000 * float(np.median(wall)),
                 "unit": "ms (wall, median)",
                 "note": f"min {1000 * min(wall):.1f} ms; cpu {1000 * float(np.median(cpu)):.1f} ms (median, all threads); "
-                f"{repeats} steps; load avg {load:.1f} on {os.cpu_count()} cores; hands at the object: median contact distance "
+                f"{repeats} steps; load avg {load:.1f} on {os.cpu_count()} cores; OMP_WAIT_POLICY {os.environ.get('OMP_WAIT_POLICY', 'unset')}; "
+                f"hands at the object: median contact distance "
                 f"{float(result.contact_distance_mm.median()):.1f} mm, {100 * float((result.penetration_mm > 0).float().mean()):.0f}% penetrate",
             })
     torch.set_num_threads(previous_threads)
