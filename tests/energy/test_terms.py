@@ -257,3 +257,15 @@ def test_point_clusters_cover_every_point_once_within_their_radius(sphere_energy
         assert torch.equal(members[valid].sort().values, torch.arange(points.shape[1]))
         spread = (points[o][members.clamp(min=0)] - clusters.centre[o][:, None]).norm(dim=-1)
         assert (spread[valid] <= clusters.radius[o][:, None].expand_as(spread)[valid]).all()
+
+
+def test_batch_with_nothing_near_the_object(sphere_energy):
+    """Every culling stage empty: E_pen is zero and the gradient of the rest still flows."""
+    pose = torch.zeros(3, 28)
+    pose[:, :3] = 0.5
+    x = pose.requires_grad_(True)
+    kwargs = dict(object_index=torch.tensor([0, 1, 0]), scale=torch.full((3,), SCALE), contact_index=torch.zeros(3, 4, dtype=torch.long))
+    result = sphere_energy(x, **kwargs)
+    (grad,) = torch.autograd.grad(result.total.sum(), x)
+    assert result.terms["E_pen"].tolist() == [0.0, 0.0, 0.0] and result.penetration_mm.tolist() == [0.0, 0.0, 0.0]
+    assert torch.isfinite(grad).all() and grad.abs().sum() > 0

@@ -218,8 +218,8 @@ class PenetrationTerm:
             affine = to_local.index_select(0, p).reshape(-1, 3, 4)
             shape_size = size.index_select(0, p)
             # The shape's signed distance at the cluster centre (1-Lipschitz) must come within the cluster radius.
-            reach = distance(self._apply(affine, centre.index_select(0, c)), shape_size)
-            near = (reach + radius.index_select(0, c) * pair_scale.index_select(0, p) > -self.CULL_SLACK_M).nonzero().squeeze(1)
+            centre_depth = distance(self._apply(affine, centre.index_select(0, c)), shape_size)
+            near = (centre_depth + radius.index_select(0, c) * pair_scale.index_select(0, p) > -self.CULL_SLACK_M).nonzero().squeeze(1)
             p, c, affine, shape_size = p.index_select(0, near), c.index_select(0, near), affine.index_select(0, near), shape_size.index_select(0, near)
             point = members.index_select(0, c)  # (M, L), −1 = padding
             flat = (pair_object.index_select(0, p)[:, None] * point_count + point.clamp(min=0)).reshape(-1)
@@ -241,13 +241,13 @@ class PenetrationTerm:
         """(pair, cluster) whose bounding spheres meet, |m − c|² − (R + ρ)² < 0, by one product per object.
 
         With m̃ = [m, |m|² − ρ², ρ, 1] per cluster and c̃ = [−2c, 1, −2R, |c|² − R²] per pair, m̃·c̃ is
-        exactly that difference (normalized units; a small slack covers float32 cancellation).
+        exactly that difference (normalized units; a slack relative to the largest terms covers float32 cancellation).
         """
         centre_n = centre / pair_scale[:, None]
         reach_n = self.radius.index_select(0, pair_s) / pair_scale
         centre_sq = centre_n.square().sum(-1, keepdim=True)
         centre_aug = torch.cat([-2 * centre_n, torch.ones_like(centre_sq), -2 * reach_n[:, None], centre_sq - reach_n[:, None].square()], dim=1)
-        slack_n = self.CULL_SLACK_RELATIVE * (1 + centre_sq)
+        slack_n = self.CULL_SLACK_RELATIVE * (1 + centre_sq + reach_n[:, None].square())
         pairs, clusters = [], []
         for obj in torch.unique(pair_object).tolist():
             sel = (pair_object == obj).nonzero().squeeze(1)
