@@ -149,3 +149,44 @@ def test_configure_writes_constants_in_place_without_recompiling(objects_dir):
     assert model.opt.disableflags & multi_ccd_off
     scene.configure(LiftConfig())
     assert not model.opt.disableflags & multi_ccd_off and model.body_mass[scene.object_body] == pytest.approx(0.1)
+
+
+def test_lost_object_early_exit_matches_full_simulation_and_held_grasp_runs_every_step(hand, objects_dir, hooks, monkeypatch):
+    """A dropped object is extrapolated once provably out of reach (here while the fingers still close), giving
+    the full simulation's ratio; a held object is simulated for the whole timeline."""
+    import mujoco
+
+    from dexlite_pipeline.sim.lift import GraspSimulator, _palm_quaternions
+    from dexlite_pipeline.sim.scene import LiftScene
+
+    config = LiftConfig()
+    asset = load_asset(objects_dir, "square_bar")
+    sim = GraspSimulator(LiftScene.build(asset.convex_paths, SCALE, config), config)
+    steps = []
+    mj_step = mujoco.mj_step
+
+    def counting_step(m, d, nstep=1):
+        steps.append(nstep)
+        mj_step(m, d, nstep=nstep)
+
+    monkeypatch.setattr(mujoco, "mj_step", counting_step)
+
+    def lift(pose):
+        steps.clear()
+        target = squeeze_targets(hand, SdfBank([asset]), torch.as_tensor(pose[None], dtype=hand.dtype), torch.tensor([SCALE]), config).targets[0]
+        ratio, reason = sim.lift(pose, _palm_quaternions(pose[None])[0], target.numpy().astype(np.float64))
+        return ratio, reason, sum(steps)
+
+    good = hooks["square_bar"].astype(np.float64)
+    ratio, reason, simulated = lift(good)
+    assert reason == "" and ratio > 0.9 and simulated == sim.total_steps == 1350
+
+    away = good.copy()
+    away[2] += 0.10
+    early_ratio, early_reason, early_steps = lift(away)
+    close_steps = sum(sim.close_chunks)
+    assert early_reason == "dropped" and early_steps < close_steps  # lost before the fingers finished closing
+    monkeypatch.setattr(sim, "_object_lost", lambda: False)
+    full_ratio, full_reason, full_steps = lift(away)
+    assert full_reason == "dropped" and full_steps == sim.total_steps
+    assert early_ratio == pytest.approx(full_ratio, abs=1e-6)  # metres of the 1 m lift: equal to rounding
