@@ -14,10 +14,25 @@ def test_link_maps_match_the_hand_model(hand):
     link_count = len(hand.link_names)
     points = LinkFrameMap.for_points(hand.contact_points_local, hand.contact_link, link_count)(frames)
     assert torch.allclose(points, hand.contact_candidates(frames), atol=1e-6)
-    shape_frames = LinkFrameMap.for_frames(hand.shape_rot, hand.shape_pos, hand.shape_link, link_count)(frames)
+    shape_map = LinkFrameMap.for_frames(hand.shape_rot, hand.shape_pos, hand.shape_link, link_count)
+    shape_frames = shape_map(frames)
     rotation, centre = hand.shape_frames(frames)
     assert torch.allclose(shape_frames[..., :3], rotation, atol=1e-6)
     assert torch.allclose(shape_frames[..., 3], centre, atol=1e-6)
+
+
+def test_link_map_rows_and_transposed_layout_equal_the_dense_map(hand):
+    pose = torch.rand(6, 28, generator=torch.Generator().manual_seed(1)) - 0.5
+    frames = hand.forward(pose)
+    link_count = len(hand.link_names)
+    grasp, row = torch.tensor([0, 5, 2, 2]), torch.tensor([3, 0, 17, 139])
+    point_map = LinkFrameMap.for_points(hand.contact_points_local, hand.contact_link, link_count)
+    dense = point_map(frames)
+    assert torch.allclose(point_map.rows(frames, grasp, row), dense[grasp, row], atol=1e-6)
+    assert torch.allclose(point_map.transposed(frames), dense.permute(1, 2, 0), atol=1e-6)
+    shape_map = LinkFrameMap.for_frames(hand.shape_rot, hand.shape_pos, hand.shape_link, link_count)
+    shape = torch.tensor([0, 1, 11, 17])
+    assert torch.allclose(shape_map.rows(frames, grasp, shape), shape_map(frames)[grasp, shape], atol=1e-6)
 
 
 def test_spheres_lie_in_their_shapes_and_cover_them(hand):
