@@ -171,18 +171,17 @@ class SdfBank:
         u = (local - gmin) / h  # continuous grid coordinates
         u_clamped = u.clamp(0.0, g - 1 - 1e-4)
         outside = ((u - u_clamped) * h).norm(dim=-1)
-        base = u_clamped.detach().floor().long()
-        frac = u_clamped - base
+        base_float = u_clamped.detach().floor()
+        frac = u_clamped - base_float
+        base = base_float.long()
         flat = self.volumes.reshape(-1)
         origin = object_index * (g * g * g) + (base[..., 0] * g + base[..., 1]) * g + base[..., 2]
         fx, fy, fz = frac.unbind(-1)
 
-        def corner(di: int, dj: int, dk: int) -> torch.Tensor:
-            # index_select on the flat grid: ~2x faster on CPU than advanced indexing.
-            return flat.index_select(0, (origin + (di * g + dj) * g + dk).reshape(-1)).reshape(origin.shape)
-
-        c000, c100, c010, c110 = corner(0, 0, 0), corner(1, 0, 0), corner(0, 1, 0), corner(1, 1, 0)
-        c001, c101, c011, c111 = corner(0, 0, 1), corner(1, 0, 1), corner(0, 1, 1), corner(1, 1, 1)
+        # The 8 cell corners in one index_select on the flat grid (~2x faster on CPU than advanced indexing).
+        corner_offset = torch.tensor([(di * g + dj) * g + dk for dk in (0, 1) for dj in (0, 1) for di in (0, 1)], device=origin.device)
+        corners = flat.index_select(0, (origin.reshape(1, -1) + corner_offset[:, None]).reshape(-1)).reshape(8, *origin.shape)
+        c000, c100, c010, c110, c001, c101, c011, c111 = corners.unbind(0)
         c00 = c000 + (c100 - c000) * fx
         c10 = c010 + (c110 - c010) * fx
         c01 = c001 + (c101 - c001) * fx
