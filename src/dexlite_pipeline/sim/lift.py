@@ -478,33 +478,39 @@ def _run_shared_queue(tasks: list[LiftTask], workers: int) -> list[tuple[np.ndar
     torch, MuJoCo and the hand model loaded already, so it starts at once while a helper
     spends ~1.5 CPU s on imports, and one core's worth of those imports is saved. Each
     helper is fed by a thread here (MuJoCo releases the GIL while it steps), so cores idle
-    only while the last tasks finish.
+    only while the last tasks finish. The helpers take tasks from the front of the queue
+    and this process from the back: tasks are ordered by object and scale, so most
+    (object, scale) scenes are compiled in one process only.
     """
-    queue = deque(tasks)  # deque.popleft is atomic: the threads share it without a lock
+    queue = deque(tasks)  # deque.pop / popleft are atomic: the threads share it without a lock
 
-    def drain(run) -> list:
+    def drain(take, run) -> list:
         done = []
         while True:
             try:
-                task = queue.popleft()
+                task = take()
             except IndexError:
                 return done
             done.append(run(task))
 
     if workers == 1:
-        return drain(run_task)
+        return drain(queue.popleft, run_task)
     import multiprocessing
 
     context = multiprocessing.get_context("spawn")
     torch_threads = torch.get_num_threads()
-    torch.set_num_threads(1)  # one core per process, as in the helpers (same results whichever process runs a grasp)
+    torch.set_num_threads(1)  # one core per process, as in the helpers
     try:
         with (
             ProcessPoolExecutor(max_workers=workers - 1, mp_context=context, initializer=_init_worker) as pool,
             ThreadPoolExecutor(max_workers=workers - 1) as feeders,
         ):
-            helpers = [feeders.submit(drain, lambda task: pool.submit(run_task, task).result()) for _ in range(workers - 1)]
-            results = drain(run_task)
+
+            def in_helper(task: LiftTask) -> tuple[np.ndarray, LiftOutcome]:
+                return pool.submit(run_task, task).result()
+
+            helpers = [feeders.submit(drain, queue.popleft, in_helper) for _ in range(workers - 1)]
+            results = drain(queue.pop, run_task)
             for helper in helpers:
                 results += helper.result()
     finally:
