@@ -10,31 +10,43 @@ from dexlite_pipeline.hand.rotation import euler_xyz_to_matrix
 from dexlite_pipeline.model.association import grasp_rays, nearest_to_ray
 from dexlite_pipeline.model.data import cloud_batches, cloud_keys, make_batch, split_validation
 from dexlite_pipeline.model.network import GraspCVAE, ModelConfig, kl_divergence
-from dexlite_pipeline.model.pose import POSE_FEATURE_DIM, features_to_pose, pose_to_features, reconstruction_error
-from dexlite_pipeline.model.training import TrainConfig
+from dexlite_pipeline.model.pose import (
+    POSE_FEATURE_DIM,
+    features_to_pose,
+    pose_to_features,
+    reconstruction_error,
+    rotate_features,
+    shift_translation,
+)
+from dexlite_pipeline.model.training import TrainConfig, vertical_turns
 
 
-def test_reference_sizes_give_the_seed_shapes():
+def test_reference_sizes_give_the_seed_shapes(random_clouds):
     model = GraspCVAE(ModelConfig(normalization="batch"))
-    clouds = torch.randn(3, 128, 3) * 0.1
+    clouds = random_clouds(3, 128)
     global_feature, per_point = model.pointnet(clouds)
     assert global_feature.shape == (3, 256) and per_point.shape == (3, 128, 256)
     condition = model.condition(clouds, torch.tensor([0, 2, 2, 1]), torch.tensor([0, 5, 127, 64]))
     assert condition.shape == (4, 512)
-    mu, log_var = model.encode(torch.randn(4, POSE_FEATURE_DIM), condition)
+    anchor = torch.randn(4, 3) * 0.1
+    mu, log_var = model.encode(torch.randn(4, POSE_FEATURE_DIM), condition, anchor)
     assert mu.shape == log_var.shape == (4, 256)
-    assert model.decode(mu, condition).shape == (4, POSE_FEATURE_DIM)
+    assert model.decode(mu, condition, anchor).shape == (4, POSE_FEATURE_DIM)
     assert model.encoder[0].in_features == 28 + 3 + 512  # [q (31 with 6D rotation), c 512]
-    assert [m.out_channels for m in model.pointnet.layers if isinstance(m, torch.nn.Conv1d)] == [64, 128, 1024, 256]
+    convolutions = [m for m in model.pointnet.layers if isinstance(m, torch.nn.Conv1d)]
+    assert [m.out_channels for m in convolutions] == [64, 128, 1024, 256] and convolutions[0].in_channels == 6  # xyz + normal
+    positions_only = GraspCVAE(ModelConfig(normalization="batch", point_normals=False))
+    assert positions_only.pointnet.layers[0].in_channels == 3
+    assert positions_only.condition(clouds[..., :3], torch.tensor([0]), torch.tensor([0])).shape == (1, 512)
 
 
-def test_gradients_reach_every_part(small_model_config):
+def test_gradients_reach_every_part(small_model_config, random_clouds):
     torch.manual_seed(0)
     model = GraspCVAE(small_model_config)
-    clouds = torch.randn(2, 64, 3) * 0.1
+    clouds = random_clouds(2, 64)
     condition = model.condition(clouds, torch.tensor([0, 1, 1]), torch.tensor([3, 4, 5]))
     target = torch.randn(3, POSE_FEATURE_DIM)
-    decoded, mu, log_var = model(target, condition, torch.randn(3, small_model_config.latent_dim))
+    decoded, mu, log_var = model(target, condition, torch.randn(3, 3) * 0.1, torch.randn(3, small_model_config.latent_dim))
     (reconstruction_error(decoded, target).mean() + kl_divergence(mu, log_var).mean()).backward()
     for name, part in (("pointnet", model.pointnet), ("encoder", model.encoder), ("decoder", model.decoder)):
         grads = [p.grad for p in part.parameters()]
@@ -104,3 +116,30 @@ def test_validation_split_is_seeded_and_disjoint():
     train, val = split_validation(50, 0.2, seed=3)
     assert len(val) == 10 and not set(train) & set(val) and len(train) + len(val) == 50
     assert np.array_equal(split_validation(50, 0.2, seed=3)[1], val)
+
+
+def test_turning_a_grasp_turns_the_hand_with_the_object(hand):
+    torch.manual_seed(3)
+    pose = torch.cat([torch.randn(4, 3) * 0.1, torch.randn(4, 3), torch.rand(4, 22) * 0.5], dim=1)
+    turn = vertical_turns(4, torch.Generator().manual_seed(0), torch.device("cpu"))
+    assert torch.allclose(turn[:, 2], torch.tensor([0.0, 0.0, 1.0]).expand(4, 3))  # the vertical axis stays put
+    turned = features_to_pose(rotate_features(pose_to_features(pose), turn))
+    links, turned_links = hand.forward(pose).translation, hand.forward(turned).translation
+    assert torch.allclose(turned_links, links @ turn.transpose(1, 2), atol=1e-5)
+    back = rotate_features(pose_to_features(turned), turn.transpose(1, 2))
+    assert torch.allclose(features_to_pose(back)[:, :3], pose[:, :3], atol=1e-6)
+
+
+def test_translation_from_the_associated_point_moves_with_the_point(small_model_config):
+    torch.manual_seed(0)
+    model = GraspCVAE(small_model_config)
+    assert small_model_config.translation_from_point
+    condition, latent = torch.randn(2, small_model_config.condition_dim), torch.randn(2, small_model_config.latent_dim)
+    anchor, shift = torch.randn(2, 3) * 0.1, torch.tensor([[0.01, -0.02, 0.03], [0.0, 0.05, 0.0]])
+    with torch.no_grad():
+        here, there = model.decode(latent, condition, anchor), model.decode(latent, condition, anchor + shift)
+        pose = torch.randn(2, POSE_FEATURE_DIM)
+        mu, _ = model.encode(pose, condition, anchor)
+        mu_shifted, _ = model.encode(shift_translation(pose, shift), condition, anchor + shift)
+    assert torch.allclose(features_to_pose(there)[:, :3] - features_to_pose(here)[:, :3], shift, atol=1e-6)
+    assert torch.allclose(there[:, 3:], here[:, 3:]) and torch.allclose(mu, mu_shifted, atol=1e-6)

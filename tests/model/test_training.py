@@ -5,8 +5,10 @@ import pytest
 import torch
 
 from dexlite_pipeline.energy.grasp_energy import EnergyConfig, GraspEnergy
+from dexlite_pipeline.hand.rotation import euler_xyz_to_matrix
 from dexlite_pipeline.model.checkpoint import CheckpointError, load_checkpoint, save_checkpoint
 from dexlite_pipeline.model.data import build_training_data, select_training_grasps, split_validation
+from dexlite_pipeline.model.network import anchor_at
 from dexlite_pipeline.model.pose import features_to_pose
 from dexlite_pipeline.model.training import TrainConfig, grasp_energy_terms, train_cvae
 
@@ -29,12 +31,13 @@ def _config(small_model_config, **overrides):
 def test_loss_falls_when_overfitting_a_handful_of_grasps(setup, small_model_config):
     grasps, data, energy_terms = setup
     everything = np.arange(len(grasps))
-    result = train_cvae(data, everything, np.zeros(0, np.int64), _config(small_model_config), energy_terms, seed=0)
+    memorize = _config(small_model_config, rotation_augmentation=False)
+    result = train_cvae(data, everything, np.zeros(0, np.int64), memorize, energy_terms, seed=0)
     first, last = result.history[0], result.history[-1]
     assert last["train_total"] < 0.5 * first["train_total"]
     assert all(np.isfinite(last[f"train_{k}"]) for k in ("fc", "dis", "pen", "spen", "joints", "kl"))
     # Reconstruction alone (energy weights 0): the decoder learns to reproduce these grasps.
-    no_energy = _config(small_model_config, weight_fc=0.0, weight_dis=0.0, weight_pen=0.0, weight_spen=0.0, weight_joints=0.0)
+    no_energy = _config(small_model_config, epochs=100, rotation_augmentation=False, weight_fc=0.0, weight_dis=0.0, weight_pen=0.0, weight_spen=0.0, weight_joints=0.0)
     result = train_cvae(data, everything, np.zeros(0, np.int64), no_energy, energy_terms, seed=0)
     assert result.history[-1]["train_recon"] < 0.3 * result.history[0]["train_recon"]
 
@@ -51,7 +54,7 @@ def test_training_is_deterministic_for_a_seed(setup, small_model_config):
     assert other.history[-1]["train_total"] != runs[0].history[-1]["train_total"]
 
 
-def test_checkpoint_round_trip_loads_weights_only(tmp_path, setup, small_model_config):
+def test_checkpoint_round_trip_loads_weights_only(tmp_path, setup, small_model_config, random_clouds):
     grasps, data, energy_terms = setup
     config = _config(small_model_config, epochs=1)
     model = train_cvae(data, np.arange(len(grasps)), np.zeros(0, np.int64), config, energy_terms, seed=0).model
@@ -61,12 +64,13 @@ def test_checkpoint_round_trip_loads_weights_only(tmp_path, setup, small_model_c
     loaded, meta = load_checkpoint(path)
     assert meta["train_object_ids"] == ["box", "sphere"]
     model.eval()
-    clouds = torch.randn(2, 64, 3) * 0.1
+    clouds = random_clouds(2, 64)
     latent = torch.randn(3, 8)
     with torch.no_grad():
-        cond = model.condition(clouds, torch.tensor([0, 1, 1]), torch.tensor([1, 2, 3]))
-        expected = features_to_pose(model.decode(latent, cond))
-        got = features_to_pose(loaded.decode(latent, loaded.condition(clouds, torch.tensor([0, 1, 1]), torch.tensor([1, 2, 3]))))
+        cloud_index, point_index = torch.tensor([0, 1, 1]), torch.tensor([1, 2, 3])
+        anchor = anchor_at(clouds, cloud_index, point_index)
+        expected = features_to_pose(model.decode(latent, model.condition(clouds, cloud_index, point_index), anchor))
+        got = features_to_pose(loaded.decode(latent, loaded.condition(clouds, cloud_index, point_index), anchor))
     assert torch.equal(expected, got)
     (tmp_path / "bad.pt").write_bytes(b"not a checkpoint")
     with pytest.raises(CheckpointError, match="bad.pt"):
@@ -81,3 +85,23 @@ def test_selection_keeps_lift_successes_of_training_objects_only(hand, make_gras
     kept, excluded = select_training_grasps(grasps, {"box", "sphere"}, {"box", "sphere", "heldout_thing"})
     assert len(kept) == 3
     assert excluded == {"failed the lift test": 1, "non-finite hand_pose": 1, "object not in the training split": 1}
+
+
+def test_loss_energies_use_the_contacts_a_grasp_was_made_with(hand, tiny_assets, make_grasps):
+    energy = GraspEnergy.from_assets(hand, tiny_assets, EnergyConfig(object_points=128))
+    terms = grasp_energy_terms(energy, contact_samples=8)
+    grasps = make_grasps(hand, 4, seed=3)
+    pose = torch.as_tensor(grasps.hand_pose)
+    parts = dict(palm_rot=euler_xyz_to_matrix(pose[:, 3:6]), palm_t=pose[:, :3], joints=pose[:, 6:])
+    object_index, scale = energy.object_index(grasps.object_id), torch.as_tensor(grasps.scale)
+    stored = torch.tensor([[0, 1, 2, 3], [10, 30, 50, 70], [-1, -1, -1, -1], [5, 45, 85, 125]])
+    got = terms(*parts.values(), object_index, scale, stored)
+    known = torch.tensor([0, 1, 3])
+    direct = energy(**{k: v[known] for k, v in parts.items()}, object_index=object_index[known], scale=scale[known], contact_index=stored[known])
+    assert torch.allclose(got["fc"][known], direct.terms["E_fc"]) and torch.allclose(got["dis"][known], direct.terms["E_dis"])
+    # The grasp without stored contacts gets searched ones, never worse than the nearest four pads.
+    one = torch.tensor([2])
+    nearest = energy(**{k: v[one] for k, v in parts.items()}, object_index=object_index[one], scale=scale[one])
+    weights = energy.weights
+    searched = weights.fc * got["fc"][2] + weights.dis * got["dis"][2]
+    assert searched <= weights.fc * nearest.terms["E_fc"][0] + weights.dis * nearest.terms["E_dis"][0] + 1e-6

@@ -53,7 +53,7 @@ def split_validation(count: int, fraction: float, seed: int) -> tuple[np.ndarray
 
 
 class ObjectClouds:
-    """Normalized surface samples of a set of objects, drawn into metre-scale clouds."""
+    """Normalized surface samples (with outward normals) of a set of objects, drawn into metre-scale clouds."""
 
     def __init__(self, assets: list[ObjectAsset], device: torch.device | str = "cpu") -> None:
         self.device = torch.device(device)
@@ -63,13 +63,14 @@ class ObjectClouds:
         if len(sizes) != 1:
             raise TrainingDataError(f"objects have different numbers of surface samples {sorted(sizes)}")
         self.surface = torch.as_tensor(np.stack([a.surface_points for a in assets]), dtype=torch.float32, device=self.device)
+        self.normals = torch.as_tensor(np.stack([a.surface_normals for a in assets]), dtype=torch.float32, device=self.device)
 
     @property
     def samples_per_object(self) -> int:
         return int(self.surface.shape[1])
 
     def draw(self, object_index: torch.Tensor, scale: torch.Tensor, points: int, generator: torch.Generator | None) -> torch.Tensor:
-        """(C, points, 3) clouds in metres: a random subset (or the first ``points`` when no generator) per cloud."""
+        """(C, points, 6) clouds: [xyz in metres, outward unit normal] of a random subset (or the first ``points`` when no generator)."""
         total = self.samples_per_object
         if points > total:
             raise TrainingDataError(f"asked for {points} points per cloud, the assets hold {total}")
@@ -77,7 +78,8 @@ class ObjectClouds:
             choice = torch.arange(points, device=self.device).expand(len(object_index), points)
         else:
             choice = torch.rand(len(object_index), total, generator=generator).argsort(dim=1)[:, :points].to(self.device)
-        return self.surface[object_index[:, None], choice] * scale[:, None, None]
+        rows = object_index[:, None]
+        return torch.cat([self.surface[rows, choice] * scale[:, None, None], self.normals[rows, choice]], dim=2)
 
 
 @dataclass
@@ -130,6 +132,14 @@ def cloud_keys(object_id: np.ndarray, scale: np.ndarray) -> np.ndarray:
     return np.unique(pairs, return_inverse=True)[1]
 
 
+def dataset_contacts(grasps: GraspSet) -> torch.Tensor:
+    """(G, 4) contact indices of ``grasps`` (seed synthesis stores them), rows of -1 where unknown."""
+    contacts = grasps.arrays.get("contact_index")
+    if contacts is None:
+        return torch.full((len(grasps), 4), -1, dtype=torch.long)
+    return torch.as_tensor(np.asarray(contacts, dtype=np.int64))
+
+
 @dataclass
 class TrainingData:
     """Everything the loop needs about the training grasps (already filtered)."""
@@ -137,6 +147,7 @@ class TrainingData:
     pose_features: torch.Tensor  # (G, 31)
     ray_origin: torch.Tensor  # (G, 3)
     ray_direction: torch.Tensor  # (G, 3)
+    contact_index: torch.Tensor  # (G, 4) the contacts each grasp was made with; -1 where the dataset has none
     object_index: np.ndarray  # (G,) into ``clouds`` and the energy's SDF bank (same object order)
     scale: np.ndarray  # (G,)
     cloud_key: np.ndarray  # (G,)
@@ -154,6 +165,7 @@ def build_training_data(grasps: GraspSet, assets: list[ObjectAsset], hand, devic
         pose_features=pose_to_features(pose),
         ray_origin=origin,
         ray_direction=direction,
+        contact_index=dataset_contacts(grasps).to(device),
         object_index=np.array([clouds.index_of[str(o)] for o in grasps.object_id], dtype=np.int64),
         scale=scale,
         cloud_key=cloud_keys(grasps.object_id, scale),

@@ -1,11 +1,17 @@
 """PointNet object encoder and the conditional VAE over hand poses (Dex1B / DexLite appendix).
 
-- PointNet: shared 1-D convolutions 3 -> 64 -> 128 -> 1024 -> 256, each followed by a
+- PointNet: shared 1-D convolutions 3 -> 64 -> 128 -> 1024 -> 256 (6 input channels with
+  ``point_normals``: each point's outward normal beside its position), each followed by a
   normalization and ReLU except the last; max-pooling over points gives the global
   feature, and the last layer's per-point features give the *local* feature of the
   grasp's associated point. Condition c = [global, local] (512 in the reference sizes).
 - Encoder: [pose features, c] -> hidden layers -> (mu, log sigma^2) of the latent.
   Decoder: [z, c] -> hidden layers -> pose features (``model.pose``: 31-d, 6D rotation).
+- With ``translation_from_point`` the palm translation the networks see is measured from
+  the associated point (the *anchor*), not from the object's origin: a grasp closes on
+  that point, so the decoder only has to learn where the palm sits relative to the
+  surface it grasps, which carries over to unseen objects; from the origin it has to
+  learn each training object's extent.
 
 Normalization: BatchNorm over the points of one cloud standardizes each cloud on its
 own when a batch holds a single object, which erases the object's size and position
@@ -24,7 +30,7 @@ from dataclasses import asdict, dataclass
 import torch
 from torch import nn
 
-from dexlite_pipeline.model.pose import POSE_FEATURE_DIM, TRANSLATION_UNIT_M
+from dexlite_pipeline.model.pose import POSE_FEATURE_DIM, TRANSLATION_UNIT_M, shift_translation
 
 NORMALIZATIONS = ("batch", "none")
 
@@ -38,6 +44,8 @@ class ModelConfig:
     decoder_hidden: tuple[int, ...] = (256, 512, 256)
     latent_dim: int = 256
     normalization: str = "batch"
+    translation_from_point: bool = True
+    point_normals: bool = True
 
     def __post_init__(self) -> None:
         if self.normalization not in NORMALIZATIONS:
@@ -58,12 +66,17 @@ class ModelConfig:
 
 
 class PointNet(nn.Module):
-    """Per-point shared MLP with max-pooling: (C, N, 3) clouds -> global (C, F), per-point (C, N, F)."""
+    """Per-point shared MLP with max-pooling: (C, N, 3 or 6) clouds -> global (C, F), per-point (C, N, F).
 
-    def __init__(self, widths: tuple[int, ...], normalization: str = "batch") -> None:
+    With ``normals`` each point enters with its outward normal (clouds of 6 channels), so
+    the associated point's local feature tells which way the surface faces there.
+    """
+
+    def __init__(self, widths: tuple[int, ...], normalization: str = "batch", normals: bool = False) -> None:
         super().__init__()
+        self.normals = normals
         layers: list[nn.Module] = []
-        channels = 3
+        channels = 6 if normals else 3
         for i, width in enumerate(widths):
             layers.append(nn.Conv1d(channels, width, kernel_size=1))
             if i < len(widths) - 1:
@@ -73,8 +86,11 @@ class PointNet(nn.Module):
             channels = width
         self.layers = nn.Sequential(*layers)
 
-    def forward(self, points_m: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        per_point = self.layers((points_m / TRANSLATION_UNIT_M).transpose(1, 2))  # (C, F, N)
+    def forward(self, clouds: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        inputs = clouds[..., :3] / TRANSLATION_UNIT_M
+        if self.normals:
+            inputs = torch.cat([inputs, clouds[..., 3:6]], dim=-1)
+        per_point = self.layers(inputs.transpose(1, 2))  # (C, F, N)
         return per_point.max(dim=2).values, per_point.transpose(1, 2)
 
 
@@ -98,36 +114,45 @@ class GraspCVAE(nn.Module):
     def __init__(self, config: ModelConfig) -> None:
         super().__init__()
         self.config = config
-        self.pointnet = PointNet(config.pointnet_widths, config.normalization)
+        self.pointnet = PointNet(config.pointnet_widths, config.normalization, config.point_normals)
         self.encoder = _mlp(POSE_FEATURE_DIM + config.condition_dim, config.encoder_hidden, 2 * config.latent_dim)
         self.decoder = _mlp(config.latent_dim + config.condition_dim, config.decoder_hidden, POSE_FEATURE_DIM)
 
-    def condition(self, clouds_m: torch.Tensor, cloud_index: torch.Tensor, point_index: torch.Tensor) -> torch.Tensor:
-        """Condition vectors (B, 2F) from clouds (C, N, 3) and each grasp's cloud and associated point."""
-        return condition_at(self.pointnet(clouds_m), cloud_index, point_index)
+    def condition(self, clouds: torch.Tensor, cloud_index: torch.Tensor, point_index: torch.Tensor) -> torch.Tensor:
+        """Condition vectors (B, 2F) from clouds (C, N, 3 or 6: xyz in metres, normal) and each grasp's cloud and associated point."""
+        return condition_at(self.pointnet(clouds), cloud_index, point_index)
 
-    def encode(self, pose_features: torch.Tensor, condition: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """(mu, log sigma^2), each (B, latent)."""
-        mu, log_var = self.encoder(torch.cat([pose_features, condition], dim=1)).chunk(2, dim=1)
+    def _relative(self, pose_features: torch.Tensor, anchor_m: torch.Tensor) -> torch.Tensor:
+        return shift_translation(pose_features, -anchor_m) if self.config.translation_from_point else pose_features
+
+    def encode(self, pose_features: torch.Tensor, condition: torch.Tensor, anchor_m: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """(mu, log sigma^2), each (B, latent), of poses (B, 31) whose associated points are ``anchor_m`` (B, 3)."""
+        mu, log_var = self.encoder(torch.cat([self._relative(pose_features, anchor_m), condition], dim=1)).chunk(2, dim=1)
         return mu, log_var.clamp(-20.0, 10.0)
 
-    def decode(self, latent: torch.Tensor, condition: torch.Tensor) -> torch.Tensor:
-        """Pose features (B, 31) for latents (B, latent) under their conditions."""
-        return self.decoder(torch.cat([latent, condition], dim=1))
+    def decode(self, latent: torch.Tensor, condition: torch.Tensor, anchor_m: torch.Tensor) -> torch.Tensor:
+        """Pose features (B, 31) in the object frame for latents (B, latent) under their conditions and anchors."""
+        decoded = self.decoder(torch.cat([latent, condition], dim=1))
+        return shift_translation(decoded, anchor_m) if self.config.translation_from_point else decoded
 
     def forward(
-        self, pose_features: torch.Tensor, condition: torch.Tensor, noise: torch.Tensor
+        self, pose_features: torch.Tensor, condition: torch.Tensor, anchor_m: torch.Tensor, noise: torch.Tensor
     ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """Reparameterized pass: (reconstructed features, mu, log sigma^2); ``noise`` ~ N(0, I) given by the caller."""
-        mu, log_var = self.encode(pose_features, condition)
+        mu, log_var = self.encode(pose_features, condition, anchor_m)
         latent = mu + torch.exp(0.5 * log_var) * noise
-        return self.decode(latent, condition), mu, log_var
+        return self.decode(latent, condition, anchor_m), mu, log_var
 
 
 def condition_at(cloud_features: tuple[torch.Tensor, torch.Tensor], cloud_index: torch.Tensor, point_index: torch.Tensor) -> torch.Tensor:
     """[global feature of the grasp's cloud, per-point feature of its associated point] from PointNet's output."""
     global_feature, per_point = cloud_features
     return torch.cat([global_feature[cloud_index], per_point[cloud_index, point_index]], dim=1)
+
+
+def anchor_at(clouds: torch.Tensor, cloud_index: torch.Tensor, point_index: torch.Tensor) -> torch.Tensor:
+    """(B, 3) associated points in metres: point ``point_index`` of cloud ``cloud_index`` of (C, N, 3+) clouds."""
+    return clouds[cloud_index, point_index, :3]
 
 
 def kl_divergence(mu: torch.Tensor, log_var: torch.Tensor) -> torch.Tensor:

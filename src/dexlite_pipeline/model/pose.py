@@ -21,8 +21,23 @@ TRANSLATION_UNIT_M = 0.1  # palm translations are tenths of a metre: this brings
 
 def pose_to_features(hand_pose: torch.Tensor) -> torch.Tensor:
     """(B, 28) stored poses -> (B, 31) network features."""
-    rotation = euler_xyz_to_matrix(hand_pose[:, ROTATION])
-    return torch.cat([hand_pose[:, TRANSLATION] / TRANSLATION_UNIT_M, matrix_to_rot6d(rotation), hand_pose[:, JOINTS]], dim=1)
+    return parts_to_features(euler_xyz_to_matrix(hand_pose[:, ROTATION]), hand_pose[:, TRANSLATION], hand_pose[:, JOINTS])
+
+
+def parts_to_features(rotation: torch.Tensor, translation_m: torch.Tensor, joints: torch.Tensor) -> torch.Tensor:
+    """Palm rotation (B, 3, 3), translation (B, 3) in metres and joints (B, 22) -> (B, 31) features."""
+    return torch.cat([translation_m / TRANSLATION_UNIT_M, matrix_to_rot6d(rotation), joints], dim=1)
+
+
+def rotate_features(features: torch.Tensor, rotation: torch.Tensor) -> torch.Tensor:
+    """The same grasps (B, 31) of an object turned by ``rotation`` (B, 3, 3) about its origin."""
+    palm_rot, palm_t, joints = features_to_parts(features)
+    return parts_to_features(rotation @ palm_rot, (rotation @ palm_t[..., None])[..., 0], joints)
+
+
+def shift_translation(features: torch.Tensor, offset_m: torch.Tensor) -> torch.Tensor:
+    """Features (B, 31) with ``offset_m`` (B, 3) added to the palm translation."""
+    return torch.cat([features[:, :3] + offset_m / TRANSLATION_UNIT_M, features[:, 3:]], dim=1)
 
 
 def features_to_parts(features: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:

@@ -20,7 +20,7 @@ import torch
 
 from dexlite_pipeline.model.association import nearest_to_ray, random_points
 from dexlite_pipeline.model.data import ObjectClouds, cloud_keys
-from dexlite_pipeline.model.network import GraspCVAE, condition_at
+from dexlite_pipeline.model.network import GraspCVAE, anchor_at, condition_at
 from dexlite_pipeline.model.pose import features_to_pose, pose_to_features
 
 SYNTHESIS = "cvae_raw"
@@ -34,7 +34,7 @@ class SampleConfig:
 
     synthesis_grasps_per_object: int = 32  # held-out objects: pure synthesis
     expansion_grasps_per_object: int = 16  # training objects with lift-validated grasps
-    scales: tuple[float, ...] = (0.06, 0.08, 0.10, 0.12, 0.15)  # synthesis scales, dealt in turn
+    scales: tuple[float, ...] = (0.08, 0.10, 0.12)  # synthesis scales, dealt in turn (those of the training grasps)
     expansion_latent_std: float = 0.5  # sigma of the latent perturbation
     expansion_point_fraction: float = 0.5  # share of expansions that move the associated point instead
     expansion_point_neighbours: int = 16  # the moved point is one of this many nearest cloud points
@@ -67,7 +67,7 @@ def synthesize(
     point_index = random_points(len(object_index), points, generator).to(clouds.device)
     condition = model.condition(drawn, cloud_index, point_index)
     latent = torch.randn(len(object_index), model.config.latent_dim, generator=generator).to(clouds.device)
-    return features_to_pose(model.decode(latent, condition))
+    return features_to_pose(model.decode(latent, condition, anchor_at(drawn, cloud_index, point_index)))
 
 
 @torch.no_grad()
@@ -86,7 +86,7 @@ def expand(
 ) -> torch.Tensor:
     """(B, 28) new poses near known grasps (B, 28): latent perturbed, or (``move_point``) associated point moved."""
     drawn, cloud_index = _clouds_for(clouds, object_index, scale, points, generator)
-    grasp_points = drawn[cloud_index]
+    grasp_points = drawn[cloud_index, :, :3]
     point_index = nearest_to_ray(grasp_points, ray_origin, ray_direction)
     neighbours = min(config.expansion_point_neighbours, points)
     anchor = grasp_points[torch.arange(len(point_index)), point_index]
@@ -94,8 +94,9 @@ def expand(
     pick = torch.randint(neighbours, (len(point_index),), generator=generator).to(clouds.device)
     moved_index = nearest[torch.arange(len(point_index)), pick]
     features = model.pointnet(drawn)
-    mu, _ = model.encode(pose_to_features(known_pose), condition_at(features, cloud_index, point_index))
+    mu, _ = model.encode(pose_to_features(known_pose), condition_at(features, cloud_index, point_index), anchor_at(drawn, cloud_index, point_index))
     noise = torch.randn(mu.shape, generator=generator).to(clouds.device) * config.expansion_latent_std
     latent = torch.where(move_point[:, None], mu, mu + noise)
-    condition = condition_at(features, cloud_index, torch.where(move_point, moved_index, point_index))
-    return features_to_pose(model.decode(latent, condition))
+    decode_index = torch.where(move_point, moved_index, point_index)
+    condition = condition_at(features, cloud_index, decode_index)
+    return features_to_pose(model.decode(latent, condition, anchor_at(drawn, cloud_index, decode_index)))

@@ -33,40 +33,55 @@ from dexlite_pipeline.energy.grasp_energy import GraspEnergy
 from dexlite_pipeline.hand.rotation import matrix_to_euler_xyz
 from dexlite_pipeline.model.data import Batch, TrainingData, cloud_batches, make_batch
 from dexlite_pipeline.model.association import nearest_to_ray
-from dexlite_pipeline.model.network import GraspCVAE, ModelConfig, kl_divergence
-from dexlite_pipeline.model.pose import features_to_parts, reconstruction_error
+from dexlite_pipeline.model.network import GraspCVAE, ModelConfig, anchor_at, kl_divergence
+from dexlite_pipeline.model.pose import features_to_parts, reconstruction_error, rotate_features
 
 log = logging.getLogger(__name__)
 
 ENERGY_TERMS = ("fc", "dis", "pen", "spen", "joints")
 LOSS_TERMS = ("recon", "kl", *ENERGY_TERMS)
 
-# (palm_rot (B,3,3), palm_t (B,3), joints (B,22), object_index (B,), scale (B,)) -> {term: (B,)}
-EnergyTerms = Callable[[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor], dict[str, torch.Tensor]]
+# (palm_rot (B,3,3), palm_t (B,3), joints (B,22), object_index (B,), scale (B,), dataset contacts (B,4), -1 = none)
+#   -> {term: (B,)}
+EnergyTerms = Callable[[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor], dict[str, torch.Tensor]]
 
 
 def grasp_energy_terms(energy: GraspEnergy, contact_samples: int = 0, seed: int = 0) -> EnergyTerms:
     """The loss's energy terms from ``GraspEnergy`` at contacts chosen for each decoded pose.
 
-    Contacts (chosen without gradient, then held fixed for the step): with
-    ``contact_samples`` > 0, the best of that many random 4-sets of pads near the surface
-    (``GraspEnergy.best_contacts``: lowest w_fc E_fc + w_dis E_dis), the contacts the pose
-    could really use; with 0, the four pads nearest the surface, which often lie on one
-    finger, so E_fc stays high (about 10 on real DexGraspNet grasps, 0.75 with 64 samples).
+    A grasp of the dataset that carries its contacts (the four pads its optimizer made
+    touch and oppose, ``contact_index``) is scored at those: the loss then asks the
+    decoded pose to be that grasp, touching where it touched, and a faithful
+    reconstruction scores what the grasp scored (E_fc < 0.3 for curated grasps).
+    Otherwise (imported grasps; rows of -1) contacts are chosen without gradient and held
+    fixed for the step: with ``contact_samples`` > 0, the best of that many random 4-sets
+    of pads near the surface (``GraspEnergy.best_contacts``: lowest w_fc E_fc + w_dis
+    E_dis); with 0, the four pads nearest the surface, which often lie on one finger, so
+    E_fc stays high (about 10 on real DexGraspNet grasps, 0.75 with 64 samples).
     """
     generator = torch.Generator().manual_seed(seed)
 
-    def terms(palm_rot, palm_t, joints, object_index, scale):
-        contacts = None
-        if contact_samples > 0:
+    def terms(palm_rot, palm_t, joints, object_index, scale, dataset_contacts):
+        known = (dataset_contacts >= 0).all(dim=1)
+        contacts = dataset_contacts.clamp(min=0)
+        if not bool(known.all()):
             with torch.no_grad():
                 pose = torch.cat([palm_t, matrix_to_euler_xyz(palm_rot), joints], dim=1)
-                nearest = energy.nearest_contacts(energy.hand.forward(pose), object_index, scale)
-                contacts = energy.best_contacts(pose, object_index, scale, nearest, contact_samples, generator)
+                chosen = energy.nearest_contacts(energy.hand.forward(pose), object_index, scale)
+                if contact_samples > 0:
+                    chosen = energy.best_contacts(pose, object_index, scale, chosen, contact_samples, generator)
+            contacts = torch.where(known[:, None], contacts, chosen)
         result = energy(palm_rot=palm_rot, palm_t=palm_t, joints=joints, object_index=object_index, scale=scale, contact_index=contacts)
         return {name: result.terms[f"E_{name}"] for name in ENERGY_TERMS}
 
     return terms
+
+
+def vertical_turns(count: int, generator: torch.Generator, device: torch.device) -> torch.Tensor:
+    """(count, 3, 3) rotations about the object frame's z axis (gravity's axis) by uniform random angles."""
+    angle = torch.rand(count, generator=generator).to(device) * (2 * math.pi)
+    cos, sin, zero, one = angle.cos(), angle.sin(), torch.zeros_like(angle), torch.ones_like(angle)
+    return torch.stack([cos, -sin, zero, sin, cos, zero, zero, zero, one], dim=1).reshape(count, 3, 3)
 
 
 @dataclass(frozen=True)
@@ -84,6 +99,7 @@ class TrainConfig:
     min_grasps: int = 8
     energy_object_points: int = 512
     contact_samples: int = 32
+    rotation_augmentation: bool = True
     energy_warmup_fraction: float = 0.3
     weight_recon: float = 1.0
     weight_kl: float = 0.001
@@ -120,22 +136,39 @@ def batch_loss(
     weights: dict[str, float],
     generator: torch.Generator,
     energy_scale: float = 1.0,
+    turn_clouds: bool = False,
 ) -> tuple[torch.Tensor, dict[str, float]]:
-    """Loss of one batch (energy weights times ``energy_scale``), and each term's batch mean with the full-weight total."""
+    """Loss of one batch (energy weights times ``energy_scale``), and each term's batch mean with the full-weight total.
+
+    With ``turn_clouds`` each cloud and its grasps are turned about the vertical axis by a
+    random angle (a grasp of a turned object is the turned grasp, and gravity keeps its
+    direction), so the model learns grasps from the shape, not from the orientation of ten
+    or so training objects; the decoded pose is turned back for the energies, which read
+    the object's SDF in its own frame.
+    """
     device = data.pose_features.device
     clouds = data.clouds.draw(batch.cloud_object, batch.cloud_scale, points, generator)
     index = torch.as_tensor(batch.grasp_index, device=device)
-    grasp_points = clouds[batch.cloud_index]
-    point_index = nearest_to_ray(grasp_points, data.ray_origin[index], data.ray_direction[index])
-    condition = model.condition(clouds, batch.cloud_index, point_index)
     target = data.pose_features[index]
+    ray_origin, ray_direction = data.ray_origin[index], data.ray_direction[index]
+    if turn_clouds:
+        turn = vertical_turns(len(clouds), generator, device)
+        clouds = torch.cat([clouds[..., :3] @ turn.transpose(1, 2), clouds[..., 3:] @ turn.transpose(1, 2)], dim=2)
+        grasp_turn = turn[batch.cloud_index]
+        target = rotate_features(target, grasp_turn)
+        ray_origin = (grasp_turn @ ray_origin[..., None])[..., 0]
+        ray_direction = (grasp_turn @ ray_direction[..., None])[..., 0]
+    point_index = nearest_to_ray(clouds[batch.cloud_index, :, :3], ray_origin, ray_direction)
+    condition = model.condition(clouds, batch.cloud_index, point_index)
     noise = torch.randn(len(index), model.config.latent_dim, generator=generator).to(device)
-    decoded, mu, log_var = model(target, condition, noise)
+    decoded, mu, log_var = model(target, condition, anchor_at(clouds, batch.cloud_index, point_index), noise)
+    terms = {"recon": reconstruction_error(decoded, target), "kl": kl_divergence(mu, log_var)}
+    if turn_clouds:
+        decoded = rotate_features(decoded, grasp_turn.transpose(1, 2))
     palm_rot, palm_t, joints = features_to_parts(decoded)
     object_index = torch.as_tensor(data.object_index[batch.grasp_index], device=device)
     scale = torch.as_tensor(data.scale[batch.grasp_index], dtype=torch.float32, device=device)
-    terms = {"recon": reconstruction_error(decoded, target), "kl": kl_divergence(mu, log_var)}
-    terms.update(energy_terms(palm_rot, palm_t, joints, object_index, scale))
+    terms.update(energy_terms(palm_rot, palm_t, joints, object_index, scale, data.contact_index[index]))
     means = {name: terms[name].mean() for name in LOSS_TERMS}
     weighted = {name: weights[name] * means[name] for name in LOSS_TERMS}
     total = sum(weighted.values())
@@ -185,7 +218,9 @@ def train_cvae(
         for chunks in cloud_batches(data.cloud_key, train_index, config.batch_size, config.clouds_per_batch, batch_rng):
             batch = make_batch(chunks, data.cloud_key, data.object_index, data.scale, device)
             energy_scale = min(1.0, step / warmup_steps) if warmup_steps else 1.0
-            loss, terms = batch_loss(model, data, batch, config.points_per_cloud, energy_terms, weights, generator, energy_scale)
+            loss, terms = batch_loss(
+                model, data, batch, config.points_per_cloud, energy_terms, weights, generator, energy_scale, config.rotation_augmentation
+            )
             optimizer.zero_grad(set_to_none=True)
             loss.backward()
             optimizer.step()

@@ -47,7 +47,11 @@ def object_splits(objects_dirs: list[str]) -> dict[str, str]:
 
 
 def read_lift_shards(paths: list[str]) -> GraspSet:
-    """All lift shards as one set (only the arrays training needs, so shards may differ in extras)."""
+    """All lift shards as one set (only the arrays training needs, so shards may differ in extras).
+
+    ``contact_index`` (the contacts seed synthesis made) is kept where a shard has it and
+    filled with -1 where it does not (imported grasps), so both can be trained on together.
+    """
     keep = ("hand_pose", "object_id", "scale", "lift_success")
     sets = []
     for p in paths:
@@ -55,7 +59,9 @@ def read_lift_shards(paths: list[str]) -> GraspSet:
         if len(grasps) and "lift_success" not in grasps.arrays:
             raise ValueError(f"{p}: grasp store has no lift_success array (not a lift_validate output)")
         if len(grasps):
-            sets.append(GraspSet({k: grasps.arrays[k] for k in keep}, {}))
+            arrays = {k: grasps.arrays[k] for k in keep}
+            arrays["contact_index"] = np.asarray(grasps.arrays.get("contact_index", np.full((len(grasps), 4), -1)), dtype=np.int64)
+            sets.append(GraspSet(arrays, {}))
     return GraspSet.concatenate(sets)
 
 
