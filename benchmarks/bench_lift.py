@@ -11,8 +11,9 @@ dropped one is cheap (no contacts, and the rest of its fall is extrapolated), so
 synthetic poses that mostly miss would flatter the rate. The DexGraspNet sample is
 imported with the project's importer into a temporary folder (SDF grid 64^3).
 
-Reported per worker count: wall-clock grasps/s (includes spawning the workers and
-their imports), the CPU seconds per grasp summed over the workers, and from that the
+Reported per worker count (N workers: this process plus N - 1 spawned helpers, as in
+``run_lift_tests``): wall-clock grasps/s (includes spawning the helpers and their
+imports), the CPU seconds per grasp summed over the processes, and from that the
 rate 2 dedicated cores would give (2 / CPU s per grasp). On a shared machine the wall
 rate follows the other jobs' load, so the load average is printed beside it. Target
 (issue 3): >= 20 grasps/s on 2 cores. ``run(quick)`` returns rows for run_all.py.
