@@ -15,9 +15,10 @@ share a unit.
 wrenches: the contacts resist every wrench of norm ε per newton of total normal force
 (0 when the hull does not strictly contain the origin: no force closure). In MuJoCo's
 lift test the object had left the hand before the lift started for 111 of 123 failed
-curated seed grasps of the default run; the squeeze alone (gravity off) pushed the
-object more than 2 cm for a third of those grasps; and the fraction lifted rises steadily with ε on both the seed grasps and
-the DexGraspNet sample (see ``curate``).
+curated seed grasps of the default run, the squeeze alone (gravity off) pushed the
+object more than 2 cm for a third of all its curated seed grasps, and the fraction
+lifted rises with ε on the seed grasps of two synthesis seeds and on the DexGraspNet
+sample (numbers in ``curate``).
 """
 
 from __future__ import annotations
@@ -32,7 +33,6 @@ from scipy.spatial import ConvexHull, QhullError
 from dexlite_pipeline.hand.model import ShadowHand
 from dexlite_pipeline.io.grasp_store import GraspSet
 from dexlite_pipeline.objects.assets import SdfBank, load_asset
-
 
 RANK_TOLERANCE = 1e-9  # singular values below this (wrench units) count as a missing direction
 
