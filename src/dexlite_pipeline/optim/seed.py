@@ -23,10 +23,12 @@ DexGraspNet: 6000 it, palm 0.2-0.3 m out              42 %   ~500
 1500 it, periods 8/12, contact search every 100       33 %   ~2,200
 ====================================================  =====  ================
 
-Steps cost ~0.35 ms per grasp (CPU, batch 144). ``benchmarks/bench_energy.py`` with the
-default on 4 other objects (192 grasps): 46 % pass, 0.31 ms per grasp-iteration, ~2,700
-passing grasps per CPU hour. The 2000-step default keeps the most passing grasps per
-start at the same rate as the shorter ones.
+Those rates were measured with the first energy implementation (~0.3 ms per
+grasp-iteration). With the culled energy step (``energy.terms``, same values),
+``benchmarks/bench_energy.py`` runs the default on 4 other objects (192 grasps) at
+0.123 ms per grasp-iteration: 47 % pass, ~6,850 passing grasps per CPU hour (shared
+machine). The 2000-step default keeps the most passing grasps per start at the same
+rate as the shorter ones.
 """
 
 from __future__ import annotations
