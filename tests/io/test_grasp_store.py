@@ -1,5 +1,7 @@
 """Grasp store schema, round trip and atomic writes."""
 
+import warnings
+
 import numpy as np
 import pytest
 
@@ -29,6 +31,14 @@ def test_round_trip(tmp_path):
     assert back.attrs["schema_version"] == 1
     assert back.attrs["stage"] == "test"
     assert not list(tmp_path.glob(".*tmp*"))
+
+
+def test_snakemake_directory_marker_is_read_quietly(tmp_path):
+    path = write_grasp_store(tmp_path / "g.zarr", _grasps(), attrs={})
+    (path / ".snakemake_timestamp").touch()  # what Snakemake adds to a directory output
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert len(read_grasp_store(path)) == 5
 
 
 def test_empty_store_round_trip(tmp_path):

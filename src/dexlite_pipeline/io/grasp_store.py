@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import os
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -144,7 +145,12 @@ def read_grasp_store(path: str | os.PathLike) -> GraspSet:
     except Exception as exc:  # zarr raises several types for a non-store folder
         raise GraspStoreError(f"{p}: not a Zarr grasp store ({exc})") from exc
     arrays = {}
-    for key in group.array_keys():
+    with warnings.catch_warnings():
+        # Snakemake marks directory outputs with a .snakemake_timestamp file, which zarr
+        # warns about while listing the group; it is not part of the store.
+        warnings.filterwarnings("ignore", message=r"Object at \.snakemake_timestamp is not recognized")
+        keys = list(group.array_keys())
+    for key in keys:
         value = group[key][...]
         if value.dtype.kind in "UOT":
             value = np.asarray([str(v) for v in value.tolist()], dtype=object).reshape(value.shape)
