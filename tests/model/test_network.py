@@ -1,5 +1,6 @@
 """The network, pose features, associated point and batching: shapes, gradients, invariants."""
 
+import dataclasses
 import math
 
 import numpy as np
@@ -28,7 +29,7 @@ def test_reference_sizes_give_the_seed_shapes(random_clouds):
     assert global_feature.shape == (3, 256) and per_point.shape == (3, 128, 256)
     condition = model.condition(clouds, torch.tensor([0, 2, 2, 1]), torch.tensor([0, 5, 127, 64]))
     assert condition.shape == (4, 512)
-    anchor = torch.randn(4, 3) * 0.1
+    anchor = random_clouds(1, 4)[0]  # (4, 6): positions and normals
     mu, log_var = model.encode(torch.randn(4, POSE_FEATURE_DIM), condition, anchor)
     assert mu.shape == log_var.shape == (4, 256)
     assert model.decode(mu, condition, anchor).shape == (4, POSE_FEATURE_DIM)
@@ -46,7 +47,7 @@ def test_gradients_reach_every_part(small_model_config, random_clouds):
     clouds = random_clouds(2, 64)
     condition = model.condition(clouds, torch.tensor([0, 1, 1]), torch.tensor([3, 4, 5]))
     target = torch.randn(3, POSE_FEATURE_DIM)
-    decoded, mu, log_var = model(target, condition, torch.randn(3, 3) * 0.1, torch.randn(3, small_model_config.latent_dim))
+    decoded, mu, log_var = model(target, condition, random_clouds(1, 3)[0], torch.randn(3, small_model_config.latent_dim))
     (reconstruction_error(decoded, target).mean() + kl_divergence(mu, log_var).mean()).backward()
     for name, part in (("pointnet", model.pointnet), ("encoder", model.encoder), ("decoder", model.decoder)):
         grads = [p.grad for p in part.parameters()]
@@ -130,16 +131,36 @@ def test_turning_a_grasp_turns_the_hand_with_the_object(hand):
     assert torch.allclose(features_to_pose(back)[:, :3], pose[:, :3], atol=1e-6)
 
 
-def test_translation_from_the_associated_point_moves_with_the_point(small_model_config):
+def test_point_frame_moves_the_palm_with_the_associated_point(small_model_config):
     torch.manual_seed(0)
-    model = GraspCVAE(small_model_config)
-    assert small_model_config.translation_from_point
+    model = GraspCVAE(dataclasses.replace(small_model_config, pose_frame="point"))
     condition, latent = torch.randn(2, small_model_config.condition_dim), torch.randn(2, small_model_config.latent_dim)
-    anchor, shift = torch.randn(2, 3) * 0.1, torch.tensor([[0.01, -0.02, 0.03], [0.0, 0.05, 0.0]])
+    anchor, shift = torch.randn(2, 6) * 0.1, torch.tensor([[0.01, -0.02, 0.03, 0, 0, 0], [0.0, 0.05, 0.0, 0, 0, 0]])
     with torch.no_grad():
         here, there = model.decode(latent, condition, anchor), model.decode(latent, condition, anchor + shift)
         pose = torch.randn(2, POSE_FEATURE_DIM)
         mu, _ = model.encode(pose, condition, anchor)
-        mu_shifted, _ = model.encode(shift_translation(pose, shift), condition, anchor + shift)
-    assert torch.allclose(features_to_pose(there)[:, :3] - features_to_pose(here)[:, :3], shift, atol=1e-6)
+        mu_shifted, _ = model.encode(shift_translation(pose, shift[:, :3]), condition, anchor + shift)
+    assert torch.allclose(features_to_pose(there)[:, :3] - features_to_pose(here)[:, :3], shift[:, :3], atol=1e-6)
     assert torch.allclose(there[:, 3:], here[:, 3:]) and torch.allclose(mu, mu_shifted, atol=1e-6)
+
+
+def test_surface_frame_turns_the_grasp_with_the_surface(small_model_config):
+    """Turning the associated point and its normal about the vertical axis turns the decoded grasp with them."""
+    torch.manual_seed(0)
+    model = GraspCVAE(small_model_config)
+    assert small_model_config.pose_frame == "surface"
+    normal = torch.nn.functional.normalize(torch.tensor([[1.0, 0.2, 0.3], [-0.3, 1.0, -0.5], [0.05, 0.0, 1.0]]), dim=-1)
+    anchor = torch.cat([torch.randn(3, 3) * 0.1, normal], dim=1)
+    turn = vertical_turns(3, torch.Generator().manual_seed(1), torch.device("cpu"))
+    turned_anchor = torch.cat([(turn @ anchor[:, :3, None])[..., 0], (turn @ anchor[:, 3:, None])[..., 0]], dim=1)
+    condition, latent = torch.randn(3, small_model_config.condition_dim), torch.randn(3, small_model_config.latent_dim)
+    with torch.no_grad():
+        decoded, decoded_turned = model.decode(latent, condition, anchor), model.decode(latent, condition, turned_anchor)
+        pose = pose_to_features(torch.cat([torch.randn(3, 3) * 0.1, torch.randn(3, 3), torch.rand(3, 22)], dim=1))
+        mu, _ = model.encode(pose, condition, anchor)
+        mu_turned, _ = model.encode(rotate_features(pose, turn), condition, turned_anchor)
+    # The first two grasps turn exactly; the third's normal is near vertical, where the frame's tangent is the object's x axis.
+    assert torch.allclose(rotate_features(decoded, turn)[:2], decoded_turned[:2], atol=1e-5)
+    assert torch.allclose(mu[:2], mu_turned[:2], atol=1e-5)
+    assert torch.isfinite(decoded_turned[2]).all()

@@ -7,11 +7,13 @@
   grasp's associated point. Condition c = [global, local] (512 in the reference sizes).
 - Encoder: [pose features, c] -> hidden layers -> (mu, log sigma^2) of the latent.
   Decoder: [z, c] -> hidden layers -> pose features (``model.pose``: 31-d, 6D rotation).
-- With ``translation_from_point`` the palm translation the networks see is measured from
-  the associated point (the *anchor*), not from the object's origin: a grasp closes on
-  that point, so the decoder only has to learn where the palm sits relative to the
-  surface it grasps, which carries over to unseen objects; from the origin it has to
-  learn each training object's extent.
+- ``pose_frame`` is the frame in which the networks see the palm pose: ``object`` (the
+  object's own frame), ``point`` (translation measured from the associated point, the
+  *anchor*) or ``surface`` (translation and rotation in a frame at the anchor: x along
+  its outward normal, y horizontal, z = x × y). A grasp closes on its anchor, so in the
+  surface frame the decoder learns how a hand sits on a patch of surface, which carries
+  over to unseen objects and to an object turned about the vertical axis; in the object
+  frame it has to learn each training object's extent and orientation.
 
 Normalization: BatchNorm over the points of one cloud standardizes each cloud on its
 own when a batch holds a single object, which erases the object's size and position
@@ -30,9 +32,10 @@ from dataclasses import asdict, dataclass
 import torch
 from torch import nn
 
-from dexlite_pipeline.model.pose import POSE_FEATURE_DIM, TRANSLATION_UNIT_M, shift_translation
+from dexlite_pipeline.model.pose import POSE_FEATURE_DIM, TRANSLATION_UNIT_M, features_to_parts, parts_to_features, shift_translation
 
 NORMALIZATIONS = ("batch", "none")
+POSE_FRAMES = ("object", "point", "surface")
 
 
 @dataclass(frozen=True)
@@ -44,12 +47,14 @@ class ModelConfig:
     decoder_hidden: tuple[int, ...] = (256, 512, 256)
     latent_dim: int = 256
     normalization: str = "batch"
-    translation_from_point: bool = True
+    pose_frame: str = "surface"
     point_normals: bool = True
 
     def __post_init__(self) -> None:
         if self.normalization not in NORMALIZATIONS:
             raise ValueError(f"model normalization {self.normalization!r} is not one of {', '.join(NORMALIZATIONS)}")
+        if self.pose_frame not in POSE_FRAMES:
+            raise ValueError(f"model pose_frame {self.pose_frame!r} is not one of {', '.join(POSE_FRAMES)}")
         if not self.pointnet_widths or min(self.pointnet_widths) < 1 or self.latent_dim < 1:
             raise ValueError("model sizes must be positive")
 
@@ -122,26 +127,42 @@ class GraspCVAE(nn.Module):
         """Condition vectors (B, 2F) from clouds (C, N, 3 or 6: xyz in metres, normal) and each grasp's cloud and associated point."""
         return condition_at(self.pointnet(clouds), cloud_index, point_index)
 
-    def _relative(self, pose_features: torch.Tensor, anchor_m: torch.Tensor) -> torch.Tensor:
-        return shift_translation(pose_features, -anchor_m) if self.config.translation_from_point else pose_features
+    def _to_frame(self, pose_features: torch.Tensor, anchor: torch.Tensor) -> torch.Tensor:
+        """Object-frame pose features -> the features the networks see (``config.pose_frame``)."""
+        if self.config.pose_frame == "object":
+            return pose_features
+        if self.config.pose_frame == "point":
+            return shift_translation(pose_features, -anchor[:, :3])
+        inverse = _anchor_frames(anchor).transpose(1, 2)
+        palm_rot, palm_t, joints = features_to_parts(pose_features)
+        return parts_to_features(inverse @ palm_rot, (inverse @ (palm_t - anchor[:, :3])[..., None])[..., 0], joints)
 
-    def encode(self, pose_features: torch.Tensor, condition: torch.Tensor, anchor_m: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """(mu, log sigma^2), each (B, latent), of poses (B, 31) whose associated points are ``anchor_m`` (B, 3)."""
-        mu, log_var = self.encoder(torch.cat([self._relative(pose_features, anchor_m), condition], dim=1)).chunk(2, dim=1)
+    def _from_frame(self, features: torch.Tensor, anchor: torch.Tensor) -> torch.Tensor:
+        """Inverse of ``_to_frame``: the networks' features -> object-frame pose features."""
+        if self.config.pose_frame == "object":
+            return features
+        if self.config.pose_frame == "point":
+            return shift_translation(features, anchor[:, :3])
+        frame = _anchor_frames(anchor)
+        palm_rot, palm_t, joints = features_to_parts(features)
+        return parts_to_features(frame @ palm_rot, anchor[:, :3] + (frame @ palm_t[..., None])[..., 0], joints)
+
+    def encode(self, pose_features: torch.Tensor, condition: torch.Tensor, anchor: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """(mu, log sigma^2), each (B, latent), of poses (B, 31) whose associated points are ``anchor`` (B, 6: point m, normal)."""
+        mu, log_var = self.encoder(torch.cat([self._to_frame(pose_features, anchor), condition], dim=1)).chunk(2, dim=1)
         return mu, log_var.clamp(-20.0, 10.0)
 
-    def decode(self, latent: torch.Tensor, condition: torch.Tensor, anchor_m: torch.Tensor) -> torch.Tensor:
+    def decode(self, latent: torch.Tensor, condition: torch.Tensor, anchor: torch.Tensor) -> torch.Tensor:
         """Pose features (B, 31) in the object frame for latents (B, latent) under their conditions and anchors."""
-        decoded = self.decoder(torch.cat([latent, condition], dim=1))
-        return shift_translation(decoded, anchor_m) if self.config.translation_from_point else decoded
+        return self._from_frame(self.decoder(torch.cat([latent, condition], dim=1)), anchor)
 
     def forward(
-        self, pose_features: torch.Tensor, condition: torch.Tensor, anchor_m: torch.Tensor, noise: torch.Tensor
+        self, pose_features: torch.Tensor, condition: torch.Tensor, anchor: torch.Tensor, noise: torch.Tensor
     ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """Reparameterized pass: (reconstructed features, mu, log sigma^2); ``noise`` ~ N(0, I) given by the caller."""
-        mu, log_var = self.encode(pose_features, condition, anchor_m)
+        mu, log_var = self.encode(pose_features, condition, anchor)
         latent = mu + torch.exp(0.5 * log_var) * noise
-        return self.decode(latent, condition, anchor_m), mu, log_var
+        return self.decode(latent, condition, anchor), mu, log_var
 
 
 def condition_at(cloud_features: tuple[torch.Tensor, torch.Tensor], cloud_index: torch.Tensor, point_index: torch.Tensor) -> torch.Tensor:
@@ -151,8 +172,28 @@ def condition_at(cloud_features: tuple[torch.Tensor, torch.Tensor], cloud_index:
 
 
 def anchor_at(clouds: torch.Tensor, cloud_index: torch.Tensor, point_index: torch.Tensor) -> torch.Tensor:
-    """(B, 3) associated points in metres: point ``point_index`` of cloud ``cloud_index`` of (C, N, 3+) clouds."""
-    return clouds[cloud_index, point_index, :3]
+    """(B, 6) associated points [position in metres, outward normal]: point ``point_index`` of cloud ``cloud_index``."""
+    return clouds[cloud_index, point_index, :6]
+
+
+def _anchor_frames(anchor: torch.Tensor) -> torch.Tensor:
+    if anchor.shape[1] < 6:
+        raise ValueError(f"pose_frame 'surface' needs anchors with normals, (B, 6), got {tuple(anchor.shape)}")
+    return surface_frames(anchor[:, 3:6])
+
+
+def surface_frames(normal: torch.Tensor) -> torch.Tensor:
+    """(B, 3, 3) frames with columns x = outward normal, y = horizontal tangent, z = x × y.
+
+    y is perpendicular to the vertical axis, so the frame turns with an object turned
+    about it; where the normal is within ~8° of vertical, y is taken perpendicular to
+    the object's x axis instead.
+    """
+    x = torch.nn.functional.normalize(normal, dim=-1)
+    vertical = x.new_tensor([0.0, 0.0, 1.0]).expand_as(x)
+    reference = torch.where(x[:, 2:3].abs() > 0.99, x.new_tensor([1.0, 0.0, 0.0]).expand_as(x), vertical)
+    y = torch.nn.functional.normalize(torch.cross(reference, x, dim=-1), dim=-1)
+    return torch.stack([x, y, torch.cross(x, y, dim=-1)], dim=-1)
 
 
 def kl_divergence(mu: torch.Tensor, log_var: torch.Tensor) -> torch.Tensor:
