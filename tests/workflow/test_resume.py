@@ -9,7 +9,6 @@ run of the same config.
 from __future__ import annotations
 
 import os
-import re
 import shutil
 import signal
 import subprocess
@@ -35,14 +34,16 @@ KILLED_STAGE = "post_optimize"
 KILL_TIMEOUT_S = 300
 
 
-def _stage_outputs(workdir: Path, stage: str) -> dict[str, Path]:
-    """First output of each shard job of ``stage``, by shard id (from a dry run that forces it)."""
+def _stage_files(workdir: Path, stage: str) -> tuple[dict[str, Path], dict[str, Path]]:
+    """First output and log of each shard job of ``stage``, by shard id (from a dry run that forces it)."""
     output = run_snakemake(workdir, "--dry-run", "--forcerun", stage, "--cores", "1")
-    return {
-        wildcard(block, "shard"): workdir / block["output"].split(",")[0].strip()
-        for block in job_blocks(output)
-        if block["rule"] == stage and wildcard(block, "shard") is not None
-    }
+    blocks = [b for b in job_blocks(output) if b["rule"] == stage and wildcard(b, "shard") is not None]
+    first = lambda field: {wildcard(b, "shard"): workdir / b[field].split(",")[0].strip() for b in blocks}  # noqa: E731
+    return first("output"), first("log")
+
+
+def _written_since(path: Path, since: float) -> bool:
+    return path.exists() and path.stat().st_mtime >= since
 
 
 def _shards_started(output: str, stage: str) -> list[str]:
@@ -64,7 +65,7 @@ def test_killed_run_resumes_without_recomputing_finished_shards(complete_run, tm
     stage = KILLED_STAGE
     workdir = tmp_path / "run"
     shutil.copytree(complete_run.workdir, workdir, symlinks=True)
-    shard_outputs = _stage_outputs(workdir, stage)
+    shard_outputs, shard_logs = _stage_files(workdir, stage)
     assert len(shard_outputs) >= 2, f"{stage}: the tiny config must give at least two shards"
 
     # One core: shards run one after the other, so one finishes while the next one runs.
@@ -76,12 +77,13 @@ def test_killed_run_resumes_without_recomputing_finished_shards(complete_run, tm
         )
     try:
         started = time.time()
-        finished_pattern = re.compile(rf"Finished jobid: \d+ \(Rule: {stage}\)")
-        _wait_for(lambda: finished_pattern.search(log.read_text()), f"the first {stage} shard", process, log)
-        finished = [s for s, p in shard_outputs.items() if p.exists() and p.stat().st_mtime >= started]
+        # Watch the files, not Snakemake's (buffered) log: an output appears at once, by rename.
+        _wait_for(lambda: any(_written_since(p, started) for p in shard_outputs.values()), f"the first {stage} shard", process, log)
+        finished = [s for s, p in shard_outputs.items() if _written_since(p, started)]
         assert len(finished) == 1, f"expected one freshly finished shard, found {finished}"
-        # Let the next shard's job get going, then kill snakemake and its jobs at once.
-        _wait_for(lambda: len(_shards_started(log.read_text(), stage)) >= 2,
+        # Let the next shard's job get going (its log file is opened when it starts), then kill
+        # snakemake and its jobs at once.
+        _wait_for(lambda: any(_written_since(shard_logs[s], started) for s in shard_outputs if s not in finished),
                   f"the second {stage} shard to start", process, log)
         time.sleep(1.0)
     finally:
