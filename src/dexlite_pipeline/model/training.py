@@ -1,18 +1,22 @@
 """CVAE training: reconstruction + KL + grasp energies of the decoded pose.
 
-Loss per batch = w_recon MSE + w_KL KL + w_fc E_fc + w_dis E_dis + w_pen E_pen +
-w_spen E_spen + w_joints E_joints, each term the mean over the batch's grasps; the
+Loss per batch = w_recon recon + w_KL KL + w_fc E_fc + w_dis E_dis + w_pen E_pen +
+w_spen E_spen + w_joints E_joints, each term the mean over the batch's grasps (recon is
+the squared error summed over the pose's components, ``pose.reconstruction_error``); the
 energies are evaluated through differentiable forward kinematics of the *decoded*
 pose (``energy_terms``), so the model learns poses that touch the object without
 penetrating it, not only poses that are close to the data in joint space.
 
 The energy weights ramp linearly from 0 to their values over the first
 ``energy_warmup_fraction`` of the steps, so the first steps shape the latent space by
-reconstruction before the energies (about 50x larger at the seed's weights) take over.
-Measured here on the DexGraspNet sample (345 grasps, 2 objects, 2000 steps): with the
-seed's weights the reconstruction error stays near that of a constant mean pose with or
-without the warm-up, i.e. the energies, not the data, decide most of the decoded pose.
-Logged totals always use the full weights, so train and validation curves compare.
+reconstruction before the energies take over. Logged totals always use the full
+weights, so train and validation curves compare.
+
+Measured on the default run's data (135 training grasps of 10 objects; all 160 samples
+on the 5 held-out objects lift-tested after 200 post-optimization steps): with the
+seed's energy weights 23.8% hold (21.9% with the reconstruction error averaged instead
+of summed over components), without the energies 13.8% (averaged; their raw samples
+penetrate: 156 of 160 deeper than 1 cm); random starts, post-optimized alike, 13.8%.
 
 Deterministic for a seed: the weights are initialized from it, and batches, point
 draws and latent noise come from seeded generators.
