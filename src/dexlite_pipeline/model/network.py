@@ -40,7 +40,7 @@ POSE_FRAMES = ("object", "point", "surface")
 
 @dataclass(frozen=True)
 class ModelConfig:
-    """Network sizes (the reference values are the seed's)."""
+    """Network sizes (the reference values are the seed's), the pose frame and PointNet's inputs."""
 
     pointnet_widths: tuple[int, ...] = (64, 128, 1024, 256)
     encoder_hidden: tuple[int, ...] = (256, 512, 256)
@@ -177,6 +177,7 @@ def anchor_at(clouds: torch.Tensor, cloud_index: torch.Tensor, point_index: torc
 
 
 def _anchor_frames(anchor: torch.Tensor) -> torch.Tensor:
+    """Surface frames (B, 3, 3) of anchors [position, normal] (B, 6)."""
     if anchor.shape[1] < 6:
         raise ValueError(f"pose_frame 'surface' needs anchors with normals, (B, 6), got {tuple(anchor.shape)}")
     return surface_frames(anchor[:, 3:6])
