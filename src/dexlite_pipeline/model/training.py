@@ -53,10 +53,10 @@ EnergyTerms = Callable[[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor, 
 def grasp_energy_terms(energy: GraspEnergy, contact_samples: int = 0, seed: int = 0) -> EnergyTerms:
     """The loss's energy terms from ``GraspEnergy`` at contacts chosen for each decoded pose.
 
-    A grasp of the dataset that carries its contacts (the four pads its optimizer made
-    touch and oppose, ``contact_index``) is scored at those: the loss then asks the
-    decoded pose to be that grasp, touching where it touched, and a faithful
-    reconstruction scores what the grasp scored (E_fc < 0.3 for curated grasps).
+    A grasp of the dataset that carries its contacts (``contact_index``: the four pads
+    seed synthesis scored it at) is scored at those: the loss then asks the decoded pose
+    to be that grasp, touching where it touched, and a faithful reconstruction scores
+    what the grasp scored (E_fc < 0.3 for curated grasps).
     Otherwise (imported grasps; rows of -1) contacts are chosen without gradient and held
     fixed for the step: with ``contact_samples`` > 0, the best of that many random 4-sets
     of pads near the surface (``GraspEnergy.best_contacts``: lowest w_fc E_fc + w_dis
