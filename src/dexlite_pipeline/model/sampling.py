@@ -89,8 +89,8 @@ def expand(
     grasp_points = drawn[cloud_index, :, :3]
     point_index = nearest_to_ray(grasp_points, ray_origin, ray_direction)
     neighbours = min(config.expansion_point_neighbours, points)
-    anchor = grasp_points[torch.arange(len(point_index)), point_index]
-    nearest = (grasp_points - anchor[:, None, :]).norm(dim=-1).topk(neighbours, largest=False).indices
+    ray_point = grasp_points[torch.arange(len(point_index)), point_index]
+    nearest = (grasp_points - ray_point[:, None, :]).norm(dim=-1).topk(neighbours, largest=False).indices
     pick = torch.randint(neighbours, (len(point_index),), generator=generator).to(clouds.device)
     moved_index = nearest[torch.arange(len(point_index)), pick]
     features = model.pointnet(drawn)
