@@ -110,8 +110,8 @@ def test_six_directions_fail_open_hand_and_hold_gravity_direction_of_hook(object
 
 
 @pytest.mark.slow
-def test_process_pool_matches_in_process(objects_dir, hooks):
-    """Two worker processes (one per object) give the same per-grasp results in input order."""
+def test_worker_threads_match_one_thread(objects_dir, hooks):
+    """Two worker threads (one per object, each with its own scenes) give the same per-grasp results in input order."""
     grasps = grasp_set([hooks["square_bar"], hooks["round_bar"]], ["square_bar", "round_bar"])
     serial = run_lift_tests(grasps, [objects_dir], LiftConfig(), threads=1)
     pooled = run_lift_tests(grasps, [objects_dir], LiftConfig(), threads=2)

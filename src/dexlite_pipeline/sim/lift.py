@@ -39,7 +39,7 @@ import logging
 import math
 import os
 from collections import OrderedDict, deque
-from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -335,17 +335,16 @@ class LiftTask:
 
 
 class _WorkerState:
-    """Per-process caches: the hand model, assets and compiled scenes (one per object and scale)."""
+    """One worker thread's caches: assets and compiled scenes (one per object and scale).
 
-    def __init__(self) -> None:
-        self.hand: ShadowHand | None = None
+    MuJoCo models and data are changed in place while simulating, so every thread owns
+    its own; the hand model is only read, so all threads share it.
+    """
+
+    def __init__(self, hand: ShadowHand) -> None:
+        self.hand = hand
         self.assets: OrderedDict[tuple, ObjectAsset] = OrderedDict()
         self.scenes: OrderedDict[tuple, LiftScene] = OrderedDict()
-
-    def get_hand(self) -> ShadowHand:
-        if self.hand is None:
-            self.hand = ShadowHand()
-        return self.hand
 
     def get_asset(self, dirs: list[str], object_id: str) -> ObjectAsset:
         key = (tuple(dirs), object_id)
@@ -365,13 +364,6 @@ class _WorkerState:
         return self.scenes[key]
 
 
-_STATE = _WorkerState()
-
-
-def _init_worker() -> None:
-    torch.set_num_threads(1)
-
-
 def _squeeze_plans(hand: ShadowHand, asset: ObjectAsset, hand_pose: np.ndarray, scale: np.ndarray, config: LiftConfig) -> tuple[np.ndarray, np.ndarray]:
     """Squeeze targets (B, 22) and hand-in-object depth (B,) of one object's grasps, in torch batches."""
     bank = SdfBank([asset], device=hand.device)
@@ -389,8 +381,8 @@ def _error_reason(exc: Exception) -> str:
     return f"object_error: {str(exc).splitlines()[0] if str(exc) else type(exc).__name__}"
 
 
-def run_task(task: LiftTask) -> tuple[np.ndarray, LiftOutcome]:
-    """Lift-test one object's grasps (in a worker or in-process); never raises for a bad object.
+def run_task(task: LiftTask, state: _WorkerState) -> tuple[np.ndarray, LiftOutcome]:
+    """Lift-test one object's grasps with one worker's caches; never raises for a bad object.
 
     Initial penetration is the larger of the deepest hand surface point inside the
     object's SDF (sees a link buried in the object) and the deepest hand-object contact
@@ -400,8 +392,8 @@ def run_task(task: LiftTask) -> tuple[np.ndarray, LiftOutcome]:
     cfg = task.config
     out = LiftOutcome.empty(len(task.indices))
     try:
-        asset = _STATE.get_asset(task.objects_dirs, task.object_id)
-        targets, hand_in_object = _squeeze_plans(_STATE.get_hand(), asset, task.hand_pose, task.scale, cfg)
+        asset = state.get_asset(task.objects_dirs, task.object_id)
+        targets, hand_in_object = _squeeze_plans(state.hand, asset, task.hand_pose, task.scale, cfg)
     except Exception as exc:  # one bad object must not stop the others: record it per grasp
         log.warning("object %s: %s", task.object_id, exc)
         out.failure_reason[:] = _error_reason(exc)
@@ -409,7 +401,7 @@ def run_task(task: LiftTask) -> tuple[np.ndarray, LiftOutcome]:
     quats = _palm_quaternions(task.hand_pose)
     for i in np.argsort(task.scale, kind="stable"):
         try:
-            sim = GraspSimulator(_STATE.get_scene(asset, task.scale[i], cfg), cfg)
+            sim = GraspSimulator(state.get_scene(asset, task.scale[i], cfg), cfg)
         except Exception as exc:
             out.failure_reason[i] = _error_reason(exc)
             continue
@@ -454,8 +446,7 @@ def run_lift_tests(grasps: GraspSet, objects_dirs, config: LiftConfig, threads: 
 
     Invalid grasps (non-finite pose or scale, object missing from the assets) are kept,
     flagged with ``failure_reason = 'invalid_grasp: <reason>'`` and not simulated. Work
-    runs on ``threads`` cores: this process and ``threads - 1`` spawned helper processes
-    (spawned: torch and MuJoCo are not fork-safe once used).
+    runs on ``threads`` threads of this process.
     Returns ``lift_ratio``, ``lift_success``, ``failure_reason``, ``initial_penetration_mm``
     and, with ``config.six_directions``, ``six_dir_success``, ``six_dir_passed`` (N, 6),
     ``six_dir_translation_m`` (N, 6) and ``six_dir_rotation_deg`` (N, 6) in ``DIRECTIONS`` order.
@@ -467,55 +458,43 @@ def run_lift_tests(grasps: GraspSet, objects_dirs, config: LiftConfig, threads: 
     invalid = reasons != ""
     out.failure_reason[invalid] = np.asarray([f"invalid_grasp: {r}" for r in reasons[invalid]], dtype=object)
     tasks = make_tasks(grasps, np.flatnonzero(~invalid), dirs, config)
-    _collect(out, _run_shared_queue(tasks, max(1, min(int(threads or 1), len(tasks)))))
+    _collect(out, _run_threads(tasks, max(1, min(int(threads or 1), len(tasks)))))
     return _as_arrays(out, config)
 
 
-def _run_shared_queue(tasks: list[LiftTask], workers: int) -> list[tuple[np.ndarray, LiftOutcome]]:
-    """Results of ``run_task`` over ``tasks`` on ``workers`` cores: this process plus ``workers - 1`` spawned helpers.
+def _run_threads(tasks: list[LiftTask], workers: int) -> list[tuple[np.ndarray, LiftOutcome]]:
+    """Results of ``run_task`` over ``tasks`` on ``workers`` threads of this process.
 
-    All take the next task from one queue the moment they finish one. This process has
-    torch, MuJoCo and the hand model loaded already, so it starts at once while a helper
-    spends ~1.5 CPU s on imports, and one core's worth of those imports is saved. Each
-    helper is fed by a thread here (MuJoCo releases the GIL while it steps), so cores idle
-    only while the last tasks finish. The helpers take tasks from the front of the queue
-    and this process from the back: tasks are ordered by object and scale, so most
-    (object, scale) scenes are compiled in one process only.
+    MuJoCo releases the GIL while it steps (89% of a grasp's CPU time) and torch while it
+    computes, so threads scale like processes without their start-up (a spawned process
+    spends ~1.5 CPU s importing torch and MuJoCo) or copies of the hand model. Each thread
+    has its own compiled scenes. All take the next task from one queue the moment they
+    finish one; the first thread takes from the back and the others from the front, and
+    tasks are ordered by object and scale, so most (object, scale) scenes are compiled in
+    one thread only. Torch runs one intra-op thread per worker while this runs.
     """
     queue = deque(tasks)  # deque.pop / popleft are atomic: the threads share it without a lock
+    hand = ShadowHand()
 
-    def drain(take, run) -> list:
-        done = []
+    def drain(take) -> list:
+        state, done = _WorkerState(hand), []
         while True:
             try:
                 task = take()
             except IndexError:
                 return done
-            done.append(run(task))
+            done.append(run_task(task, state))
 
     if workers == 1:
-        return drain(queue.popleft, run_task)
-    import multiprocessing
-
-    context = multiprocessing.get_context("spawn")
+        return drain(queue.popleft)
     torch_threads = torch.get_num_threads()
-    torch.set_num_threads(1)  # one core per process, as in the helpers
+    torch.set_num_threads(1)
     try:
-        with (
-            ProcessPoolExecutor(max_workers=workers - 1, mp_context=context, initializer=_init_worker) as pool,
-            ThreadPoolExecutor(max_workers=workers - 1) as feeders,
-        ):
-
-            def in_helper(task: LiftTask) -> tuple[np.ndarray, LiftOutcome]:
-                return pool.submit(run_task, task).result()
-
-            helpers = [feeders.submit(drain, queue.popleft, in_helper) for _ in range(workers - 1)]
-            results = drain(queue.pop, run_task)
-            for helper in helpers:
-                results += helper.result()
+        with ThreadPoolExecutor(max_workers=workers) as pool:
+            futures = [pool.submit(drain, queue.pop)] + [pool.submit(drain, queue.popleft) for _ in range(workers - 1)]
+            return [result for future in futures for result in future.result()]
     finally:
         torch.set_num_threads(torch_threads)
-    return results
 
 
 def _collect(out: LiftOutcome, results) -> None:
