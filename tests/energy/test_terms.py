@@ -81,10 +81,15 @@ def test_capsule_and_box_signed_distance():
     assert box.tolist() == pytest.approx([0.01, -0.03], abs=1e-6)
 
 
+def _dense_self_penetration(keypoints: torch.Tensor, pairs: tuple[torch.Tensor, torch.Tensor], margin_m: float) -> torch.Tensor:
+    """Reference E_spen: every listed pair (i, j) of keypoints (B, K, 3), no culling."""
+    return SelfPenetrationTerm.pair_penalty(keypoints[:, pairs[0]], keypoints[:, pairs[1]], margin_m).sum(dim=-1)
+
+
 def test_self_penetration_of_two_keypoints_one_cm_apart():
     keypoints = torch.tensor([[[0.0, 0.0, 0.0], [0.01, 0.0, 0.0], [0.5, 0.0, 0.0]]])
     pairs = (torch.tensor([0, 0, 1]), torch.tensor([1, 2, 2]))
-    e_spen = SelfPenetrationTerm.penalty(keypoints, pairs, 0.02)
+    e_spen = _dense_self_penetration(keypoints, pairs, 0.02)
     assert e_spen.item() == pytest.approx(0.01, abs=1e-6)
 
 
@@ -215,7 +220,7 @@ def _dense_reference_terms(energy, hand, pose, object_index, scale, contact_inde
         "E_fc": ForceClosureTerm()(points, normal),
         "E_dis": distance.abs().sum(1),
         "E_pen": object_in_hand + centre_distance.clamp(min=0).sum(1),
-        "E_spen": SelfPenetrationTerm.penalty(hand.penetration_keypoints(frames), pairs, 0.02),
+        "E_spen": _dense_self_penetration(hand.penetration_keypoints(frames), pairs, 0.02),
         "E_joints": JointLimitTerm(hand.joint_limits)(pose[:, 6:]),
     }
 

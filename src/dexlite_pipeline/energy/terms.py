@@ -79,11 +79,6 @@ class SelfPenetrationTerm:
         return penalty.new_zeros(frames.translation.shape[0]).index_add(0, grasp, penalty)
 
     @staticmethod
-    def penalty(keypoints: torch.Tensor, pairs: tuple[torch.Tensor, torch.Tensor], margin_m: float) -> torch.Tensor:
-        """Σ over the listed pairs (i, j) of max(0, margin − ‖p_i − p_j‖) for keypoints (B, K, 3)."""
-        return SelfPenetrationTerm.pair_penalty(keypoints[:, pairs[0]], keypoints[:, pairs[1]], margin_m).sum(dim=-1)
-
-    @staticmethod
     def pair_penalty(first: torch.Tensor, second: torch.Tensor, margin_m: float) -> torch.Tensor:
         """max(0, margin − ‖p − q‖) for each pair of points p, q (..., 3)."""
         distance = ((first - second).square().sum(-1) + 1e-18).sqrt()
