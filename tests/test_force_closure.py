@@ -115,3 +115,4 @@ def test_contact_model_rejects_nonsense():
         ContactModel(cone_edges=2)
     with pytest.raises(ValueError, match="friction"):
         ContactModel(friction=-0.1)
+

@@ -250,3 +250,15 @@ def test_real_sample_grasps_barely_penetrate(imported_sample):
     closed.arrays["hand_pose"] = closed.hand_pose.copy()
     closed.hand_pose[:, finger_flexion] = 1.571
     assert np.median(evaluate_grasp_energies(closed, [objects])["penetration_mm"]) > 3.0
+
+
+def test_real_sample_force_closure_on_threads_equals_serial(imported_sample):
+    """Real grasps give a mix of closing and open contact sets, and the threaded hull step changes nothing."""
+    from dexlite_pipeline.force_closure import force_closure_epsilon
+
+    result, objects = imported_sample
+    grasps = result.grasps.select(np.arange(0, 494, 12))
+    serial = force_closure_epsilon(grasps, [objects], batch_size=16)
+    threaded = force_closure_epsilon(grasps, [objects], batch_size=16, threads=2)
+    np.testing.assert_array_equal(serial, threaded)
+    assert 0.2 < float((serial > 0).mean()) < 1.0

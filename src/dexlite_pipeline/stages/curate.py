@@ -85,8 +85,8 @@ def _common_arrays(sets):
     return GraspSet.concatenate([GraspSet({k: s.arrays[k] for k in shared}, {}) for s in sets], attrs={})
 
 
-def _force_closure_evaluator(objects_dirs, curate_config):
-    """grasps -> Ferrari–Canny ε of their actual contacts, with the contact model of ``curate_config``."""
+def _force_closure_evaluator(objects_dirs, curate_config, threads: int):
+    """grasps -> Ferrari–Canny ε of their actual contacts, with the contact model of ``curate_config``, on ``threads`` threads."""
     from dexlite_pipeline.force_closure import ContactModel, force_closure_epsilon
 
     model = ContactModel(
@@ -96,7 +96,7 @@ def _force_closure_evaluator(objects_dirs, curate_config):
     )
 
     def evaluate(grasps):
-        epsilon = force_closure_epsilon(grasps, objects_dirs, model)
+        epsilon = force_closure_epsilon(grasps, objects_dirs, model, threads=threads)
         log.info("force closure of %d grasps: epsilon median %.4f, %.1f%% above %g", len(grasps), float(np.median(epsilon)), 100 * float((epsilon > curate_config.force_closure_min_epsilon).mean()), curate_config.force_closure_min_epsilon)
         return epsilon
 
@@ -124,7 +124,7 @@ def _curate_shard(args, config: dict) -> int:
     if not sets:
         raise ValueError("--step curate needs --seed-grasps and/or --imported")
     grasps = _common_arrays(sets)
-    reasons = curate_grasps(grasps, facts, curate_config, _force_closure_evaluator(args.objects, curate_config))
+    reasons = curate_grasps(grasps, facts, curate_config, _force_closure_evaluator(args.objects, curate_config, args.threads or 1))
     kept = grasps.select(reasons == "")
     counts = {r: int((reasons == r).sum()) for r in DROP_REASONS}
     attrs = {
