@@ -124,6 +124,16 @@ def test_import_keeps_good_grasps_and_reports_every_problem(layout, tmp_path):
     assert sorted(p.name for p in (tmp_path / "objects" / "assets").iterdir()) == ["box"]
 
 
+def test_import_on_worker_processes_equals_in_process(layout, tmp_path):
+    serial = import_dexgraspnet(layout["root"], tmp_path / "serial", SMALL_ASSETS, DexGraspNetConfig(), seed=0)
+    pooled = import_dexgraspnet(layout["root"], tmp_path / "pooled", SMALL_ASSETS, DexGraspNetConfig(), seed=0, workers=2)
+    np.testing.assert_array_equal(serial.grasps.hand_pose, pooled.grasps.hand_pose)
+    assert serial.problems == pooled.problems
+    assert [(r["object_id"], r["status"]) for r in serial.catalog] == [(r["object_id"], r["status"]) for r in pooled.catalog]
+    box = "assets/box/arrays.zarr"
+    assert sorted(p.name for p in (tmp_path / "pooled" / box).iterdir()) == sorted(p.name for p in (tmp_path / "serial" / box).iterdir())
+
+
 def test_union_of_pieces_gives_the_solids_sdf_and_outer_surface(layout, tmp_path):
     mesh, pieces = load_decomposed_mesh(layout["root"] / "meshdata" / "box" / "coacd" / "decomposed.obj")
     assert len(pieces) == 2 and mesh.is_watertight

@@ -231,13 +231,71 @@ def _catalog_row(object_id: str, mesh_path: Path, split: str, status: str, reaso
     }
 
 
-def import_dexgraspnet(root: str | os.PathLike, objects_out: str | os.PathLike, settings, config: DexGraspNetConfig, seed: int) -> ImportResult:
+@dataclass(frozen=True)
+class _FileTask:
+    """Everything one worker needs to import one ``dataset/<code>.npy`` and its mesh."""
+
+    path: Path
+    root: Path
+    objects_out: Path
+    settings: object  # objects.build.AssetBuildSettings
+    split: str
+
+
+@dataclass
+class _FileOutcome:
+    grasps: GraspFileResult | None  # None: the object was rejected (its catalog row says why)
+    catalog_row: dict
+    problems: list[ImportProblem]
+
+
+def _import_file(task: _FileTask) -> _FileOutcome:
+    """Convert one grasp file and build its object's asset; never raises for bad data."""
+    from dexlite_pipeline.objects.build import write_asset
+
+    result = read_grasp_file(task.path, task.root)
+    problems = list(result.problems)
+    object_id = result.object_id
+    mesh_path = task.root / MESHDATA_DIR / object_id / MESH_RELATIVE_PATH
+    count = len(result.source_index)
+    if count == 0:
+        return _FileOutcome(None, _catalog_row(object_id, mesh_path, task.split, "rejected", "no usable grasps"), problems)
+    if not mesh_path.is_file():
+        reason = f"missing mesh {mesh_path.relative_to(task.root).as_posix()}"
+        problems.append(ImportProblem(result.file, object_id, -1, count, "missing_mesh", reason))
+        return _FileOutcome(None, _catalog_row(object_id, mesh_path, task.split, "rejected", reason), problems)
+    try:
+        mesh, pieces = load_decomposed_mesh(mesh_path)
+        meta = {"source": SOURCE, "file": str(mesh_path), "normalization": "dexgraspnet frame kept", "split": task.split}
+        summary = write_asset(mesh, object_id, task.objects_out, task.settings, meta, convex_pieces=pieces)
+    except Exception as exc:  # one bad object never stops the import; the report names it
+        reason = f"mesh unusable: {exc}" if isinstance(exc, MeshImportError) else f"asset build failed: {type(exc).__name__}: {exc}"
+        problems.append(ImportProblem(result.file, object_id, -1, count, "bad_mesh", reason))
+        return _FileOutcome(None, _catalog_row(object_id, mesh_path, task.split, "rejected", reason), problems)
+    return _FileOutcome(result, _catalog_row(object_id, mesh_path, task.split, "ok", summary=summary), problems)
+
+
+def _crashed_file(task: _FileTask, message: str) -> _FileOutcome:
+    """The outcome of a file whose worker raised or died (a native-library crash while building the asset)."""
+    object_id = task.path.stem
+    mesh_path = task.root / MESHDATA_DIR / object_id / MESH_RELATIVE_PATH
+    label = task.path.relative_to(task.root).as_posix()
+    reason = f"import failed: {message}"
+    return _FileOutcome(None, _catalog_row(object_id, mesh_path, task.split, "rejected", reason), [ImportProblem(label, object_id, -1, 0, "import_failed", reason)])
+
+
+def import_dexgraspnet(
+    root: str | os.PathLike, objects_out: str | os.PathLike, settings, config: DexGraspNetConfig, seed: int, workers: int = 1
+) -> ImportResult:
     """Read a DexGraspNet download; write object assets under ``objects_out``; return grasps, catalog, problems.
 
     ``settings`` is an ``objects.build.AssetBuildSettings`` (use the pipeline's, so SDF grids
     match the other objects'). Only objects with at least one usable grasp get an asset.
+    Files are imported on ``workers`` processes (1: in this process); the result is in
+    file order whatever the number of workers, and a file whose worker crashes is
+    reported, not fatal.
     """
-    from dexlite_pipeline.objects.build import write_asset
+    from dexlite_pipeline.parallel import resilient_map
 
     root = Path(root)
     dataset = root / DATASET_DIR
@@ -246,37 +304,16 @@ def import_dexgraspnet(root: str | os.PathLike, objects_out: str | os.PathLike, 
     files = sorted(dataset.glob("*.npy"))
     if not files:
         raise FileNotFoundError(f"{dataset}: no .npy grasp files")
-    problems: list[ImportProblem] = []
-    catalog: list[dict] = []
-    kept: list[GraspFileResult] = []
-    for number, path in enumerate(files, 1):
-        result = read_grasp_file(path, root)
-        problems.extend(result.problems)
-        object_id = result.object_id
-        mesh_path = root / MESHDATA_DIR / object_id / MESH_RELATIVE_PATH
-        split = object_split(object_id, config, seed)
-        count = len(result.source_index)
-        if count == 0:
-            catalog.append(_catalog_row(object_id, mesh_path, split, "rejected", "no usable grasps"))
-            continue
-        if not mesh_path.is_file():
-            reason = f"missing mesh {mesh_path.relative_to(root).as_posix()}"
-            problems.append(ImportProblem(result.file, object_id, -1, count, "missing_mesh", reason))
-            catalog.append(_catalog_row(object_id, mesh_path, split, "rejected", reason))
-            continue
-        try:
-            mesh, pieces = load_decomposed_mesh(mesh_path)
-            meta = {"source": SOURCE, "file": str(mesh_path), "normalization": "dexgraspnet frame kept", "split": split}
-            summary = write_asset(mesh, object_id, objects_out, settings, meta, convex_pieces=pieces)
-        except Exception as exc:  # one bad object never stops the import; the report names it
-            reason = f"mesh unusable: {exc}" if isinstance(exc, MeshImportError) else f"asset build failed: {type(exc).__name__}: {exc}"
-            problems.append(ImportProblem(result.file, object_id, -1, count, "bad_mesh", reason))
-            catalog.append(_catalog_row(object_id, mesh_path, split, "rejected", reason))
-            continue
-        catalog.append(_catalog_row(object_id, mesh_path, split, "ok", summary=summary))
-        kept.append(result)
-        log.info("[%d/%d] %s: %d grasps, %d problems", number, len(files), object_id, count, len(result.problems))
-    return ImportResult(_grasp_set(kept), catalog, problems)
+    tasks = [_FileTask(path, root, Path(objects_out), settings, object_split(path.stem, config, seed)) for path in files]
+
+    def progress(done: int, total: int) -> None:
+        if done == total or done % max(1, total // 20) == 0:
+            log.info("imported %d/%d files", done, total)
+
+    outcomes = resilient_map(_import_file, tasks, workers if workers > 1 else 0, _crashed_file, progress)
+    problems = [problem for outcome in outcomes for problem in outcome.problems]
+    kept = [outcome.grasps for outcome in outcomes if outcome.grasps is not None]
+    return ImportResult(_grasp_set(kept), [outcome.catalog_row for outcome in outcomes], problems)
 
 
 def _grasp_set(results: list[GraspFileResult]) -> GraspSet:

@@ -57,7 +57,7 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.out)
     report = Path(args.report) if args.report else out.with_name(f"{out.stem}.import_report.csv")
 
-    result = import_dexgraspnet(args.root, args.objects_out, settings, section, seed)
+    result = import_dexgraspnet(args.root, args.objects_out, settings, section, seed, workers=args.threads or 1)
     write_table_atomic(result.catalog, CATALOG_COLUMNS, Path(args.objects_out) / CATALOG_NAME)
     write_table_atomic(problem_rows(result.problems), REPORT_COLUMNS, report)
     ok_objects = sum(row["status"] == "ok" for row in result.catalog)
