@@ -465,7 +465,7 @@ def run_lift_tests(grasps: GraspSet, objects_dirs, config: LiftConfig, threads: 
 def _run_threads(tasks: list[LiftTask], workers: int) -> list[tuple[np.ndarray, LiftOutcome]]:
     """Results of ``run_task`` over ``tasks`` on ``workers`` threads of this process.
 
-    MuJoCo releases the GIL while it steps (89% of a grasp's CPU time) and torch while it
+    MuJoCo releases the GIL while it steps (over 90% of a grasp's CPU time) and torch while it
     computes, so threads scale like processes without their start-up (a spawned process
     spends ~1.5 CPU s importing torch and MuJoCo) or copies of the hand model. Each thread
     has its own compiled scenes. All take the next task from one queue the moment they
