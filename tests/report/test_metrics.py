@@ -15,6 +15,16 @@ def test_rate_one_in_four():
     assert math.isnan(metrics.rate(np.array([], dtype=bool)))
 
 
+def test_wilson_interval_known_values():
+    low, high = metrics.wilson_interval(np.array([True] * 5 + [False] * 5))
+    assert (low, high) == (pytest.approx(0.2366, abs=1e-4), pytest.approx(0.7634, abs=1e-4))
+    low, high = metrics.wilson_interval(np.zeros(10, dtype=bool))
+    assert low == 0.0 and high == pytest.approx(0.2775, abs=1e-4)  # not degenerate at zero successes
+    low, high = metrics.wilson_interval(np.ones(80, dtype=bool))
+    assert high == pytest.approx(1.0) and low == pytest.approx(0.9542, abs=1e-4)
+    assert all(math.isnan(v) for v in metrics.wilson_interval(np.array([], dtype=bool)))
+
+
 def test_object_success_rate_counts_objects_with_any_success():
     ids = np.array(["a", "a", "b", "b", "c"])
     success = np.array([False, True, False, False, False])
@@ -93,6 +103,8 @@ def test_summarize_grasps_columns():
     assert out["lift_success_rate"] == 0.25
     assert out["object_success_rate"] == 0.5
     assert out["six_dir_success_rate"] == 0.0
+    assert out["lift_success_ci95_low"] < 0.25 < out["lift_success_ci95_high"]
+    assert out["six_dir_success_ci95_low"] == 0.0 and out["six_dir_success_ci95_high"] > 0.0
     assert out["penetration_mean_mm"] == pytest.approx(2.5)
     assert out["energy_threshold_pass_rate"] == 0.5  # grasp 2 fails E_fc (not < 0.3) and E_dis, grasp 3 fails E_fc
     assert out["joint_entropy_bits"] == pytest.approx(2.0)  # four values in four bins

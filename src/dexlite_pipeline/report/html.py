@@ -31,7 +31,8 @@ REFERENCE_ROWS = (
     ("BODex", "> 49 grasps/s; > 75% simulated success", "one RTX 3090"),
 )
 TABLE_COLUMNS = (
-    "method", "split", "n_grasps", "n_objects", "lift_success_rate", "object_success_rate", "six_dir_success_rate",
+    "method", "split", "n_grasps", "n_objects", "lift_success_rate", "lift_success_ci95_low", "lift_success_ci95_high",
+    "object_success_rate", "six_dir_success_rate", "six_dir_success_ci95_low", "six_dir_success_ci95_high",
     "penetration_mean_mm", "penetration_p95_mm", "contact_distance_mean_mm", "E_fc_mean", "energy_threshold_pass_rate",
     "joint_entropy_bits", "pca_explained_variance_k1", "pca_explained_variance_k3", "seconds_per_grasp",
     "E_post_median_final", "iterations_to_random_final_E_post", "threshold_reached_fraction",
@@ -78,7 +79,7 @@ def _plt():
 
 
 def success_plot(metrics_df) -> str | None:
-    """Grouped bars: lift, object and six-direction success per method (first split)."""
+    """Grouped bars: lift, object and six-direction success per method, per-grasp rates with their 95% intervals."""
     columns = [("lift_success_rate", "lift (per grasp)"), ("object_success_rate", "lift (per object)"), ("six_dir_success_rate", "six directions")]
     frame = metrics_df.dropna(subset=["lift_success_rate"]) if len(metrics_df) else metrics_df
     if not len(frame):
@@ -90,7 +91,13 @@ def success_plot(metrics_df) -> str | None:
     width = 0.8 / len(columns)
     for k, (column, name) in enumerate(columns):
         values = frame[column].astype(float).fillna(0).to_numpy() * 100
-        ax.bar(x + (k - 1) * width, values, width, label=name)
+        interval = column.replace("_rate", "_ci95")
+        error = None
+        if f"{interval}_low" in frame.columns:
+            low = frame[f"{interval}_low"].astype(float).to_numpy() * 100
+            high = frame[f"{interval}_high"].astype(float).to_numpy() * 100
+            error = np.nan_to_num(np.stack([values - low, high - values]), nan=0.0)
+        ax.bar(x + (k - 1) * width, values, width, label=name, yerr=error, capsize=2, error_kw={"lw": 0.8})
     ax.axhline(79, color="grey", ls="--", lw=0.8)
     ax.text(x[-1] + 0.45, 79, "seed paper post-opt 79%", fontsize=7, va="bottom", ha="right", color="grey")
     ax.set_xticks(x, labels, fontsize=8)
