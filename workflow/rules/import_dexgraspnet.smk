@@ -22,6 +22,7 @@ rule import_dexgraspnet:
         cfg=import_params(),
         code=code_hash("import_dexgraspnet"),
         root=DEXGRASPNET_ROOT,
+    threads: all_cores()
     conda:
         CONDA_ENV
     log:
