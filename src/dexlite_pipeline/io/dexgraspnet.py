@@ -244,6 +244,8 @@ class _FileTask:
 
 @dataclass
 class _FileOutcome:
+    """One file's share of the import: its converted grasps, catalog row and report rows."""
+
     grasps: GraspFileResult | None  # None: the object was rejected (its catalog row says why)
     catalog_row: dict
     problems: list[ImportProblem]
