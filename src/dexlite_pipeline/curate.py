@@ -4,9 +4,10 @@ A grasp is kept when its object is prepared (status ok), in the train split and 
 a table; its pose is finite and its energies exist; it meets the energy thresholds
 (DexGraspNet's E_fc < 0.3, E_dis < 5 mm, E_pen < 1 mm by default); with ``force_closure``
 on, the contacts it actually makes are in force closure with friction (Ferrari–Canny ε
-above ``force_closure_min_epsilon``, see below); it is not a near-duplicate of a better grasp; and its object's cap is not yet full. Every other grasp
-gets the first reason that applies, in ``DROP_REASONS`` order, so the per-object counts
-of the summary add up to the grasps read.
+above ``force_closure_min_epsilon``, see below); it is not a near-duplicate of a better
+grasp; and its object's cap is not yet full. Every other grasp gets the first reason
+that applies, in ``DROP_REASONS`` order, so the per-object counts of the summary add up
+to the grasps read.
 
 Near-duplicates: two grasps of the same object at the same scale whose palm positions
 differ by less than ``duplicate_translation_m``, palm orientations by less than

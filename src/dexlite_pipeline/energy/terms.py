@@ -207,7 +207,7 @@ class PenetrationTerm:
         point_count = self.object_points.shape[1]
         flat_points = self.object_points.reshape(-1, 3)
         found = []
-        for kind, distance in ((CAPSULE, self._capsule_distance), (BOX, self._box_distance)):
+        for kind, distance in ((CAPSULE, self._capsule_distance), (BOX, box_signed_distance)):
             rows = (row_kind == kind).nonzero().squeeze(1)
             p, c = pair.index_select(0, rows), cluster.index_select(0, rows)
             affine = to_local.index_select(0, p).reshape(-1, 3, 4)
@@ -227,10 +227,6 @@ class PenetrationTerm:
     @staticmethod
     def _capsule_distance(local, size):
         return capsule_signed_distance(local, size[..., 0], size[..., 1])
-
-    @staticmethod
-    def _box_distance(local, size):
-        return box_signed_distance(local, size)
 
     def _clusters_near(self, centre, pair_b, pair_s, pair_object, pair_scale):
         """(pair, cluster) whose bounding spheres meet, |m − c|² − (R + ρ)² < 0, by one product per object.

@@ -25,9 +25,9 @@ DexGraspNet: 6000 it, palm 0.2-0.3 m out              42 %   ~500
 
 Those rates were measured with the first energy implementation (~0.3 ms per
 grasp-iteration). With the culled energy step (``energy.terms``, same values),
-``benchmarks/bench_energy.py`` runs the default on 4 other objects (192 grasps) at
-0.123 ms per grasp-iteration: 47 % pass, ~6,850 passing grasps per CPU hour (shared
-machine). The 2000-step default keeps the most passing grasps per start at the same
+``benchmarks/bench_energy.py`` runs the default on 4 other objects (384 grasps) at
+0.098 ms per grasp-iteration: 50 % pass, ~9,400 passing grasps per CPU hour (2 cores,
+idle). The 2000-step default keeps the most passing grasps per start at the same
 rate as the shorter ones.
 """
 

@@ -335,16 +335,17 @@ class LiftTask:
 
 
 class _WorkerState:
-    """One worker thread's caches: assets and compiled scenes (one per object and scale).
+    """One worker thread's caches: assets and simulators (one compiled scene per object and scale).
 
     MuJoCo models and data are changed in place while simulating, so every thread owns
-    its own; the hand model is only read, so all threads share it.
+    its own; the hand model is only read, so all threads share it. One state serves one
+    ``run_lift_tests`` call, so a cached simulator's config is the call's config.
     """
 
     def __init__(self, hand: ShadowHand) -> None:
         self.hand = hand
         self.assets: OrderedDict[tuple, ObjectAsset] = OrderedDict()
-        self.scenes: OrderedDict[tuple, LiftScene] = OrderedDict()
+        self.simulators: OrderedDict[tuple, GraspSimulator] = OrderedDict()
 
     def get_asset(self, dirs: list[str], object_id: str) -> ObjectAsset:
         key = (tuple(dirs), object_id)
@@ -354,14 +355,14 @@ class _WorkerState:
                 self.assets.popitem(last=False)
         return self.assets[key]
 
-    def get_scene(self, asset: ObjectAsset, scale: float, config: LiftConfig) -> LiftScene:
+    def get_simulator(self, asset: ObjectAsset, scale: float, config: LiftConfig) -> GraspSimulator:
         key = (str(asset.directory), float(scale))
-        if key not in self.scenes:
-            self.scenes[key] = LiftScene.build(asset.convex_paths, float(scale), config)
-            while len(self.scenes) > SCENE_CACHE:
-                self.scenes.popitem(last=False)
-        self.scenes.move_to_end(key)
-        return self.scenes[key]
+        if key not in self.simulators:
+            self.simulators[key] = GraspSimulator(LiftScene.build(asset.convex_paths, float(scale), config), config)
+            while len(self.simulators) > SCENE_CACHE:
+                self.simulators.popitem(last=False)
+        self.simulators.move_to_end(key)
+        return self.simulators[key]
 
 
 def _squeeze_plans(hand: ShadowHand, asset: ObjectAsset, hand_pose: np.ndarray, scale: np.ndarray, config: LiftConfig) -> tuple[np.ndarray, np.ndarray]:
@@ -401,7 +402,7 @@ def run_task(task: LiftTask, state: _WorkerState) -> tuple[np.ndarray, LiftOutco
     quats = _palm_quaternions(task.hand_pose)
     for i in np.argsort(task.scale, kind="stable"):
         try:
-            sim = GraspSimulator(state.get_scene(asset, task.scale[i], cfg), cfg)
+            sim = state.get_simulator(asset, task.scale[i], cfg)
         except Exception as exc:
             out.failure_reason[i] = _error_reason(exc)
             continue
