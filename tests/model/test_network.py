@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 import torch
 
-from dexlite_pipeline.hand.rotation import euler_xyz_to_matrix
+from dexlite_pipeline.hand.rotation import euler_xyz_to_matrix, rot6d_to_matrix
 from dexlite_pipeline.model.association import grasp_rays, nearest_to_ray
 from dexlite_pipeline.model.data import cloud_batches, cloud_keys, make_batch, split_validation
 from dexlite_pipeline.model.network import GraspCVAE, ModelConfig, kl_divergence
@@ -82,10 +82,30 @@ def test_batchnorm_needs_several_clouds_per_batch():
     TrainConfig(clouds_per_batch=2, model=ModelConfig(normalization="batch"))
 
 
+def _with_normals(points: torch.Tensor, normals: torch.Tensor) -> torch.Tensor:
+    return torch.cat([points, torch.nn.functional.normalize(normals, dim=-1)], dim=-1)
+
+
 def test_associated_point_is_the_point_nearest_the_ray():
     points = torch.tensor([[[0.0, 0.0, -1.0], [1.0, 0.5, 0.0], [2.0, 0.1, 0.0], [0.5, 2.0, 0.0]]])
+    cloud = _with_normals(points, -torch.ones_like(points))  # every normal faces back toward the origin
     origin, direction = torch.zeros(1, 3), torch.tensor([[1.0, 0.0, 0.0]])
-    assert int(nearest_to_ray(points, origin, direction)) == 2  # point behind the origin does not count
+    assert int(nearest_to_ray(cloud, origin, direction)) == 2  # point behind the origin does not count
+
+
+def test_associated_point_is_on_the_side_of_the_object_the_hand_is_on():
+    # A unit sphere's surface; the ray from x = -3 goes through its centre, so points of the
+    # far side (x ~ +1) lie as close to it as those of the near side (x ~ -1).
+    generator = torch.Generator().manual_seed(0)
+    points = torch.nn.functional.normalize(torch.randn(1, 2000, 3, generator=generator), dim=-1)
+    cloud = _with_normals(points, points)
+    origin, direction = torch.tensor([[-3.0, 0.0, 0.0]]), torch.tensor([[1.0, 0.0, 0.0]])
+    chosen = cloud[0, int(nearest_to_ray(cloud, origin, direction))]
+    assert float(chosen[0]) < -0.95
+    far_only = cloud[:, cloud[0, :, 0] > 0]  # no point faces the ray: the nearest of all is taken
+    assert float(far_only[0, int(nearest_to_ray(far_only, origin, direction)), 0]) > 0.95
+    with pytest.raises(ValueError, match="normals"):
+        nearest_to_ray(points, origin, direction)
 
 
 def test_grasp_ray_points_from_the_palm_toward_the_fingertips(hand, make_grasps):
@@ -164,3 +184,39 @@ def test_surface_frame_turns_the_grasp_with_the_surface(small_model_config):
     assert torch.allclose(rotate_features(decoded, turn)[:2], decoded_turned[:2], atol=1e-5)
     assert torch.allclose(mu[:2], mu_turned[:2], atol=1e-5)
     assert torch.isfinite(decoded_turned[2]).all()
+
+
+def test_hand_frame_takes_the_roll_from_the_grasp_and_draws_it_for_new_grasps(small_model_config):
+    """In the ``hand`` frame a grasp's palm lateral axis has no component along the frame's z; sampled rolls are tangent and varied."""
+    torch.manual_seed(0)
+    model = GraspCVAE(dataclasses.replace(small_model_config, pose_frame="hand"))
+    normal = torch.nn.functional.normalize(torch.randn(5, 3), dim=-1)
+    anchor = torch.cat([torch.randn(5, 3) * 0.1, normal], dim=1)
+    pose = pose_to_features(torch.cat([torch.randn(5, 3) * 0.1, torch.randn(5, 3), torch.rand(5, 22)], dim=1))
+    full = model.pose_anchors(anchor, pose)
+    assert full.shape == (5, 9)
+    in_frame = model._to_frame(pose, full)
+    lateral_in_frame = rot6d_to_matrix(in_frame[:, 3:9])[:, :, 0]
+    assert torch.allclose(lateral_in_frame[:, 2], torch.zeros(5), atol=1e-5)  # roll fixed by the grasp
+    assert torch.allclose(model._from_frame(in_frame, full), pose, atol=1e-5)
+    drawn = model.sampling_anchors(anchor, torch.Generator().manual_seed(0))
+    again = model.sampling_anchors(anchor, torch.Generator().manual_seed(0))
+    assert torch.equal(drawn, again) and torch.equal(drawn[:, :6], anchor)
+    assert torch.allclose((drawn[:, 6:] * normal).sum(-1), torch.zeros(5), atol=1e-6)
+    assert torch.allclose(drawn[:, 6:].norm(dim=-1), torch.ones(5), atol=1e-6)
+    assert len(set(torch.round(drawn[:, 6], decimals=3).tolist())) == 5
+    with pytest.raises(ValueError, match="lateral"):
+        model.decode(torch.randn(5, small_model_config.latent_dim), torch.randn(5, small_model_config.condition_dim), anchor)
+
+
+def test_hand_frame_networks_read_the_roll(small_model_config):
+    """The same latent and condition decode to differently turned grasps at two rolls, which the networks are told."""
+    torch.manual_seed(0)
+    model = GraspCVAE(dataclasses.replace(small_model_config, pose_frame="hand"))
+    anchor = torch.tensor([[0.1, 0.0, 0.0, 1.0, 0.0, 0.0]])
+    up, side = torch.cat([anchor, torch.tensor([[0.0, 0.0, 1.0]])], 1), torch.cat([anchor, torch.tensor([[0.0, 1.0, 0.0]])], 1)
+    assert torch.allclose(model._inputs(torch.zeros(1, 0), up), torch.tensor([[0.0, 1.0, 0.0]]), atol=1e-6)
+    assert torch.allclose(model._inputs(torch.zeros(1, 0), side), torch.tensor([[0.0, 0.0, 1.0]]), atol=1e-6)
+    latent, condition = torch.randn(1, small_model_config.latent_dim), torch.randn(1, small_model_config.condition_dim)
+    with torch.no_grad():
+        assert not torch.allclose(model.decode(latent, condition, up), model.decode(latent, condition, side), atol=1e-3)

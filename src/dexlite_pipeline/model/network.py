@@ -9,11 +9,19 @@
   Decoder: [z, c] -> hidden layers -> pose features (``model.pose``: 31-d, 6D rotation).
 - ``pose_frame`` is the frame in which the networks see the palm pose: ``object`` (the
   object's own frame), ``point`` (translation measured from the associated point, the
-  *anchor*) or ``surface`` (translation and rotation in a frame at the anchor: x along
-  its outward normal, y horizontal, z = x × y). A grasp closes on its anchor, so in the
-  surface frame the decoder learns how a hand sits on a patch of surface, which carries
-  over to unseen objects and to an object turned about the vertical axis; in the object
-  frame it has to learn each training object's extent and orientation.
+  *anchor*), ``surface`` (translation and rotation in a frame at the anchor: x along
+  its outward normal, y horizontal, z = x × y) or ``hand`` (the same, but y is the palm's
+  lateral axis projected onto the tangent plane, and the networks also read which way
+  is up in that frame). A grasp closes on its anchor, so in the surface frames the
+  decoder learns how a hand sits on a patch of surface, which carries over to unseen
+  objects and to an object turned about the vertical axis; in the object frame it has to
+  learn each training object's extent and orientation.
+- Why ``hand``: grasps on one patch of surface come at every roll about the normal
+  (thumb up, thumb down, ...). In the ``surface`` frame that roll is a many-modal target
+  that only the latent could carry, and the latent carries little once the energies
+  shape the decoder (KL ~3 nats): decoded palms were ~100° off their training grasps'.
+  In the ``hand`` frame the roll is an input instead, taken from the grasp in training
+  and drawn uniformly at sampling (``sampling_anchors``), like the associated point.
 
 Normalization: BatchNorm over the points of one cloud standardizes each cloud on its
 own when a batch holds a single object, which erases the object's size and position
@@ -35,7 +43,8 @@ from torch import nn
 from dexlite_pipeline.model.pose import POSE_FEATURE_DIM, TRANSLATION_UNIT_M, features_to_parts, parts_to_features, shift_translation
 
 NORMALIZATIONS = ("batch", "none")
-POSE_FRAMES = ("object", "point", "surface")
+POSE_FRAMES = ("object", "point", "surface", "hand")
+LATERAL_AXIS = 0  # column of the palm rotation across the knuckles (first finger to little finger)
 
 
 @dataclass(frozen=True)
@@ -61,6 +70,11 @@ class ModelConfig:
     @property
     def condition_dim(self) -> int:
         return 2 * self.pointnet_widths[-1]
+
+    @property
+    def frame_input_dim(self) -> int:
+        """Extra network inputs that describe the pose frame: the vertical in the ``hand`` frame."""
+        return 3 if self.pose_frame == "hand" else 0
 
     def to_dict(self) -> dict:
         return {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(self).items()}
@@ -120,12 +134,43 @@ class GraspCVAE(nn.Module):
         super().__init__()
         self.config = config
         self.pointnet = PointNet(config.pointnet_widths, config.normalization, config.point_normals)
-        self.encoder = _mlp(POSE_FEATURE_DIM + config.condition_dim, config.encoder_hidden, 2 * config.latent_dim)
-        self.decoder = _mlp(config.latent_dim + config.condition_dim, config.decoder_hidden, POSE_FEATURE_DIM)
+        inputs = config.condition_dim + config.frame_input_dim
+        self.encoder = _mlp(POSE_FEATURE_DIM + inputs, config.encoder_hidden, 2 * config.latent_dim)
+        self.decoder = _mlp(config.latent_dim + inputs, config.decoder_hidden, POSE_FEATURE_DIM)
 
     def condition(self, clouds: torch.Tensor, cloud_index: torch.Tensor, point_index: torch.Tensor) -> torch.Tensor:
         """Condition vectors (B, 2F) from clouds (C, N, 3 or 6: xyz in metres, normal) and each grasp's cloud and associated point."""
         return condition_at(self.pointnet(clouds), cloud_index, point_index)
+
+    def pose_anchors(self, anchor: torch.Tensor, pose_features: torch.Tensor) -> torch.Tensor:
+        """Anchors (B, 6: point, normal) completed for known poses (B, 31): the ``hand`` frame adds the palm's lateral axis."""
+        if self.config.pose_frame != "hand":
+            return anchor
+        palm_rot, _, _ = features_to_parts(pose_features)
+        return torch.cat([anchor[:, :6], palm_rot[:, :, LATERAL_AXIS]], dim=1)
+
+    def sampling_anchors(self, anchor: torch.Tensor, generator: torch.Generator) -> torch.Tensor:
+        """Anchors (B, 6) completed for new grasps: the ``hand`` frame adds a tangent at a uniformly random roll."""
+        if self.config.pose_frame != "hand":
+            return anchor
+        frame = surface_frames(anchor[:, 3:6])
+        angle = (torch.rand(len(anchor), generator=generator) * (2 * torch.pi)).to(anchor.device)
+        lateral = frame[:, :, 1] * angle.cos()[:, None] + frame[:, :, 2] * angle.sin()[:, None]
+        return torch.cat([anchor[:, :6], lateral], dim=1)
+
+    def _frames(self, anchor: torch.Tensor) -> torch.Tensor:
+        """Pose frames (B, 3, 3) at anchors: ``surface`` or ``hand`` (x along the normal)."""
+        if self.config.pose_frame == "hand":
+            if anchor.shape[1] < 9:
+                raise ValueError(f"pose_frame 'hand' needs anchors with a lateral axis, (B, 9), got {tuple(anchor.shape)}")
+            return tangent_frames(anchor[:, 3:6], anchor[:, 6:9])
+        return _anchor_frames(anchor)
+
+    def _inputs(self, condition: torch.Tensor, anchor: torch.Tensor) -> torch.Tensor:
+        """Condition plus the frame inputs: for ``hand``, the object's vertical in the pose frame."""
+        if self.config.pose_frame != "hand":
+            return condition
+        return torch.cat([condition, self._frames(anchor)[:, 2, :]], dim=1)
 
     def _to_frame(self, pose_features: torch.Tensor, anchor: torch.Tensor) -> torch.Tensor:
         """Object-frame pose features -> the features the networks see (``config.pose_frame``)."""
@@ -133,7 +178,7 @@ class GraspCVAE(nn.Module):
             return pose_features
         if self.config.pose_frame == "point":
             return shift_translation(pose_features, -anchor[:, :3])
-        inverse = _anchor_frames(anchor).transpose(1, 2)
+        inverse = self._frames(anchor).transpose(1, 2)
         palm_rot, palm_t, joints = features_to_parts(pose_features)
         return parts_to_features(inverse @ palm_rot, (inverse @ (palm_t - anchor[:, :3])[..., None])[..., 0], joints)
 
@@ -143,18 +188,19 @@ class GraspCVAE(nn.Module):
             return features
         if self.config.pose_frame == "point":
             return shift_translation(features, anchor[:, :3])
-        frame = _anchor_frames(anchor)
+        frame = self._frames(anchor)
         palm_rot, palm_t, joints = features_to_parts(features)
         return parts_to_features(frame @ palm_rot, anchor[:, :3] + (frame @ palm_t[..., None])[..., 0], joints)
 
     def encode(self, pose_features: torch.Tensor, condition: torch.Tensor, anchor: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """(mu, log sigma^2), each (B, latent), of poses (B, 31) whose associated points are ``anchor`` (B, 6: point m, normal)."""
-        mu, log_var = self.encoder(torch.cat([self._to_frame(pose_features, anchor), condition], dim=1)).chunk(2, dim=1)
+        """(mu, log sigma^2), each (B, latent), of poses (B, 31) at ``anchor`` (B, 6: point m, normal; ``pose_anchors``)."""
+        inputs = torch.cat([self._to_frame(pose_features, anchor), self._inputs(condition, anchor)], dim=1)
+        mu, log_var = self.encoder(inputs).chunk(2, dim=1)
         return mu, log_var.clamp(-20.0, 10.0)
 
     def decode(self, latent: torch.Tensor, condition: torch.Tensor, anchor: torch.Tensor) -> torch.Tensor:
         """Pose features (B, 31) in the object frame for latents (B, latent) under their conditions and anchors."""
-        return self._from_frame(self.decoder(torch.cat([latent, condition], dim=1)), anchor)
+        return self._from_frame(self.decoder(torch.cat([latent, self._inputs(condition, anchor)], dim=1)), anchor)
 
     def forward(
         self, pose_features: torch.Tensor, condition: torch.Tensor, anchor: torch.Tensor, noise: torch.Tensor
@@ -194,6 +240,20 @@ def surface_frames(normal: torch.Tensor) -> torch.Tensor:
     vertical = x.new_tensor([0.0, 0.0, 1.0]).expand_as(x)
     reference = torch.where(x[:, 2:3].abs() > 0.99, x.new_tensor([1.0, 0.0, 0.0]).expand_as(x), vertical)
     y = torch.nn.functional.normalize(torch.cross(reference, x, dim=-1), dim=-1)
+    return torch.stack([x, y, torch.cross(x, y, dim=-1)], dim=-1)
+
+
+def tangent_frames(normal: torch.Tensor, lateral: torch.Tensor) -> torch.Tensor:
+    """(B, 3, 3) frames with columns x = outward normal, y = ``lateral`` projected onto the tangent plane, z = x × y.
+
+    Where ``lateral`` is within ~8° of the normal (a palm edge-on to the surface), the
+    ``surface_frames`` tangent is used instead.
+    """
+    x = torch.nn.functional.normalize(normal, dim=-1)
+    lateral = torch.nn.functional.normalize(lateral, dim=-1)
+    fallback = surface_frames(x)[:, :, 1]
+    lateral = torch.where((lateral * x).sum(-1, keepdim=True).abs() > 0.99, fallback, lateral)
+    y = torch.nn.functional.normalize(lateral - (lateral * x).sum(-1, keepdim=True) * x, dim=-1)
     return torch.stack([x, y, torch.cross(x, y, dim=-1)], dim=-1)
 
 

@@ -2,11 +2,13 @@
 
 - Pure synthesis (method ``cvae_raw``, held-out objects): PointNet on the object's cloud,
   an associated point drawn uniformly from the cloud (``association.random_points``),
-  z ~ N(0, I), decoder only.
+  in the ``hand`` pose frame a uniformly random roll about its normal, z ~ N(0, I),
+  decoder only.
 - Dataset expansion (training objects), from a known grasp: its associated point from
   its ray; either the latent is perturbed, z = mu + sigma_expand * eps (method
   ``cvae_expand_latent``), or the associated point is moved to one of its nearest
-  neighbours in the cloud and z = mu (method ``cvae_expand_point``).
+  neighbours in the cloud and z = mu (method ``cvae_expand_point``); the ``hand`` pose
+  frame keeps the known grasp's roll.
 
 Each object (and scale) is one cloud: PointNet runs once per cloud, decoding is batched.
 """
@@ -67,7 +69,8 @@ def synthesize(
     point_index = random_points(len(object_index), points, generator).to(clouds.device)
     condition = model.condition(drawn, cloud_index, point_index)
     latent = torch.randn(len(object_index), model.config.latent_dim, generator=generator).to(clouds.device)
-    return features_to_pose(model.decode(latent, condition, anchor_at(drawn, cloud_index, point_index)))
+    anchor = model.sampling_anchors(anchor_at(drawn, cloud_index, point_index), generator)
+    return features_to_pose(model.decode(latent, condition, anchor))
 
 
 @torch.no_grad()
@@ -86,17 +89,18 @@ def expand(
 ) -> torch.Tensor:
     """(B, 28) new poses near known grasps (B, 28): latent perturbed, or (``move_point``) associated point moved."""
     drawn, cloud_index = _clouds_for(clouds, object_index, scale, points, generator)
+    point_index = nearest_to_ray(drawn[cloud_index], ray_origin, ray_direction)
     grasp_points = drawn[cloud_index, :, :3]
-    point_index = nearest_to_ray(grasp_points, ray_origin, ray_direction)
     neighbours = min(config.expansion_point_neighbours, points)
     ray_point = grasp_points[torch.arange(len(point_index)), point_index]
     nearest = (grasp_points - ray_point[:, None, :]).norm(dim=-1).topk(neighbours, largest=False).indices
     pick = torch.randint(neighbours, (len(point_index),), generator=generator).to(clouds.device)
     moved_index = nearest[torch.arange(len(point_index)), pick]
     features = model.pointnet(drawn)
-    mu, _ = model.encode(pose_to_features(known_pose), condition_at(features, cloud_index, point_index), anchor_at(drawn, cloud_index, point_index))
+    known = pose_to_features(known_pose)
+    mu, _ = model.encode(known, condition_at(features, cloud_index, point_index), model.pose_anchors(anchor_at(drawn, cloud_index, point_index), known))
     noise = torch.randn(mu.shape, generator=generator).to(clouds.device) * config.expansion_latent_std
     latent = torch.where(move_point[:, None], mu, mu + noise)
     decode_index = torch.where(move_point, moved_index, point_index)
     condition = condition_at(features, cloud_index, decode_index)
-    return features_to_pose(model.decode(latent, condition, anchor_at(drawn, cloud_index, decode_index)))
+    return features_to_pose(model.decode(latent, condition, model.pose_anchors(anchor_at(drawn, cloud_index, decode_index), known)))

@@ -162,10 +162,11 @@ def batch_loss(
         target = rotate_features(target, grasp_turn)
         ray_origin = (grasp_turn @ ray_origin[..., None])[..., 0]
         ray_direction = (grasp_turn @ ray_direction[..., None])[..., 0]
-    point_index = nearest_to_ray(clouds[batch.cloud_index, :, :3], ray_origin, ray_direction)
+    point_index = nearest_to_ray(clouds[batch.cloud_index], ray_origin, ray_direction)
     condition = model.condition(clouds, batch.cloud_index, point_index)
     noise = torch.randn(len(index), model.config.latent_dim, generator=generator).to(device)
-    decoded, mu, log_var = model(target, condition, anchor_at(clouds, batch.cloud_index, point_index), noise)
+    anchor = model.pose_anchors(anchor_at(clouds, batch.cloud_index, point_index), target)
+    decoded, mu, log_var = model(target, condition, anchor, noise)
     terms = {"recon": reconstruction_error(decoded, target), "kl": kl_divergence(mu, log_var)}
     if turn_clouds:
         decoded = rotate_features(decoded, grasp_turn.transpose(1, 2))
