@@ -112,3 +112,25 @@ def test_contact_search_never_raises_the_final_energy(hand, setup):
     during_config = AnnealingConfig(**{**searched_config.__dict__, "contact_search_every": 20})
     during = optimize(energy, init, object_index, scale, during_config, torch.Generator().manual_seed(4))
     assert torch.isfinite(during.total).all() and during.trace.shape == plain.trace.shape
+
+
+def test_keep_best_returns_the_lowest_energy_state_visited(hand, setup):
+    """At a constant high temperature the walk leaves good states; keep_best ends in the best one seen."""
+    energy, hulls = setup
+    object_index, scale = _batch(8)
+    init = initial_poses(hand, hulls, object_index, scale, InitConfig(distance_m=(0.05, 0.08)), torch.Generator().manual_seed(3))
+    good = optimize(energy, init, object_index, scale, SHORT, torch.Generator().manual_seed(4))
+    hot = AnnealingConfig(iterations=40, temperature_decay=1.0, trace_every=1)
+    last = optimize(energy, good.hand_pose, object_index, scale, hot, torch.Generator().manual_seed(5), contact_index=good.contact_index)
+    best = optimize(
+        energy, good.hand_pose, object_index, scale, AnnealingConfig(**{**hot.__dict__, "keep_best": True}),
+        torch.Generator().manual_seed(5), contact_index=good.contact_index,
+    )
+    start = last.trace[0]
+    assert (last.total > start + 1e-4).any()  # the plain walk ends worse than it started for some grasps
+    assert (best.total <= start + 1e-5).all()
+    assert torch.allclose(best.total, last.trace.min(dim=0).values, atol=1e-5)  # the same walk, its minimum kept
+    assert (best.trace[1:] <= best.trace[:-1] + 1e-6).all()
+    with torch.no_grad():
+        again = energy(best.hand_pose, object_index=object_index, scale=scale, contact_index=best.contact_index)
+    assert torch.allclose(again.total, best.total, rtol=1e-4, atol=1e-4)

@@ -6,8 +6,14 @@ section ``post_optimize``. A CVAE grasp starts from contacts where it already to
 (``start_contacts="surface"``: the best of ``start_contact_samples`` near-surface pad
 4-sets, or the four nearest pads), a random start from uniform contacts (DexGraspNet's);
 with ``final_contact_samples`` the best contact set for the final pose is searched once
-at the end, so the reported E_post is that of the pose, not of a random contact walk. The random-init baseline uses the same budget from
-``optim.init.initial_poses`` (convex-hull start) for the same objects and scales.
+at the end, so the reported E_post is that of the pose, not of a random contact walk.
+With ``keep_best`` (default) each grasp ends in the lowest-E_post state it visited: at
+the seed's T0 = 18 nearly every step is accepted, and 200 steps of that walk from the 581
+lift-validated training grasps of a 160-object run left 39.2% of them holding, 99.0% with
+``keep_best``; from CVAE samples and random starts on held-out objects it made no
+difference beyond noise (18.5% vs 19.6%, 17.9% vs 18.8% of 352). The random-init
+baseline uses the same budget from ``optim.init.initial_poses`` (convex-hull start) for
+the same objects and scales.
 """
 
 from __future__ import annotations
@@ -51,6 +57,7 @@ class PostOptimizeConfig:
     energy_object_points: int = 2000  # object surface points for E_pen
     start_contact_samples: int = 64  # sampled grasps start from the best of this many near-surface 4-sets (0: nearest pads)
     final_contact_samples: int = 64  # after the last step, keep the best of this many contact sets (0: off)
+    keep_best: bool = True  # return each grasp's lowest-E_post visited state instead of the last one
     batch_size: int = 1024  # grasps per optimizer batch (a shard is cut into batches of this size)
     random_baseline: bool = True  # also run the random-init baseline (held-out objects' grasps)
     random_init: InitConfig = field(default_factory=InitConfig)
@@ -69,6 +76,7 @@ class PostOptimizeConfig:
             temperature_period=self.temperature_period,
             trace_every=1,
             final_contact_samples=self.final_contact_samples,
+            keep_best=self.keep_best,
         )
 
     def weights(self) -> EnergyWeights:

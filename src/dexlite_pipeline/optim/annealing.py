@@ -10,8 +10,11 @@ contacts and gradient. Optionally (``final_contact_samples``), a last search ove
 contact sets for the final poses picks the best (``GraspEnergy.best_contacts``): the
 random walk over contact indices rarely lands on the best set once T is low. With
 ``contact_search_every`` the same search also runs during the run, so the gradient then
-pulls the best contacts found onto the surface (it never raises the energy). The palm rotation is optimized in the 6D form; results come back
-as the stored 28-vector.
+pulls the best contacts found onto the surface (it never raises the energy). With
+``keep_best`` each grasp ends in the lowest-energy state it visited rather than the last
+one: at a high temperature the walk accepts almost every proposal, and 200 steps of it
+at T0 = 18 turn grasps that hold into ones that mostly do not (see ``post_optimization``).
+The palm rotation is optimized in the 6D form; results come back as the stored 28-vector.
 """
 
 from __future__ import annotations
@@ -49,6 +52,7 @@ class AnnealingConfig:
     trace_every: int = 1  # record the energy trace every this many iterations
     final_contact_samples: int = 0  # after the last step, search this many contact sets per grasp (0: off, DexGraspNet)
     contact_search_every: int = 0  # also run that search every this many iterations (0: only after the last step)
+    keep_best: bool = False  # end in each grasp's lowest-energy visited state (False: the last state, DexGraspNet)
 
     def step_size_at(self, iteration: int) -> float:
         return self.step_size * self.step_size_decay ** (iteration // self.step_size_period)
@@ -67,7 +71,8 @@ class OptimizationResult:
     total: torch.Tensor  # (B,)
     penetration_mm: torch.Tensor
     contact_distance_mm: torch.Tensor
-    trace: torch.Tensor  # (len(trace_iterations), B) total energy of the kept state (last row after the contact search)
+    trace: torch.Tensor  # (len(trace_iterations), B) total energy of the kept state (the best so far with keep_best;
+    # last row after the contact search)
     trace_iterations: torch.Tensor  # (T,) iteration numbers of the trace rows (0 = initial)
     term_traces: dict[str, torch.Tensor]  # name -> (T, B): each energy term of the kept state at the trace rows
     acceptance_rate: torch.Tensor  # (B,) fraction of proposals accepted
@@ -128,6 +133,7 @@ def optimize(
     total = current.total.detach()
     square_avg = torch.zeros(state.shape[1], dtype=state.dtype, device=device)
     accepted = torch.zeros(batch, dtype=torch.long, device=device)
+    best_state, best_contacts, best_total, best = state, contacts, total, current
     trace = [total.clone()]
     trace_iterations = [0]
     term_traces = {name: [value.detach().clone()] for name, value in current.terms.items()}
@@ -154,14 +160,23 @@ def optimize(
             contacts = energy.best_contacts(state_to_pose(state), object_index, scale, contacts, config.final_contact_samples, generator)
             current, grad = evaluate(state, contacts)
             total = current.total.detach()
+        if config.keep_best:
+            improved = total < best_total
+            best_state = torch.where(improved[:, None], state, best_state)
+            best_contacts = torch.where(improved[:, None], contacts, best_contacts)
+            best_total = torch.where(improved, total, best_total)
+            best = _select(improved, current, best)
         if iteration % config.trace_every == 0 or iteration == config.iterations:
-            trace.append(total.clone())
+            kept_total, kept = (best_total, best) if config.keep_best else (total, current)
+            trace.append(kept_total.clone())
             trace_iterations.append(iteration)
-            for name, value in current.terms.items():
+            for name, value in kept.terms.items():
                 term_traces[name].append(value.detach().clone())
         if progress is not None and iteration % progress_every == 0:
             progress(iteration, total)
 
+    if config.keep_best:
+        state, contacts, total, current = best_state, best_contacts, best_total, best
     hand_pose = state_to_pose(state).detach()
     if config.final_contact_samples > 0:
         contacts = energy.best_contacts(hand_pose, object_index, scale, contacts, config.final_contact_samples, generator)
