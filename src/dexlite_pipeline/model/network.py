@@ -44,7 +44,7 @@ from dexlite_pipeline.model.pose import POSE_FEATURE_DIM, TRANSLATION_UNIT_M, fe
 
 NORMALIZATIONS = ("batch", "none")
 POSE_FRAMES = ("object", "point", "surface", "hand")
-LATERAL_AXIS = 0  # column of the palm rotation across the knuckles (first finger to little finger)
+LATERAL_AXIS = 0  # column of the palm rotation across the knuckles, little finger -> first finger
 
 
 @dataclass(frozen=True)
