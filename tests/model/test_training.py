@@ -54,6 +54,15 @@ def test_training_is_deterministic_for_a_seed(setup, small_model_config):
     assert other.history[-1]["train_total"] != runs[0].history[-1]["train_total"]
 
 
+def test_step_budget_ends_training_mid_epoch(setup, small_model_config):
+    grasps, data, energy_terms = setup
+    # 8 grasps in batches of 2 are 4 steps an epoch: a budget of 7 ends inside the second epoch.
+    config = _config(small_model_config, epochs=30, max_steps=7, batch_size=2)
+    result = train_cvae(data, np.arange(len(grasps)), np.zeros(0, np.int64), config, energy_terms, seed=0)
+    assert result.steps == 7
+    assert [row["step"] for row in result.history] == [4, 7]
+
+
 def test_checkpoint_round_trip_loads_weights_only(tmp_path, setup, small_model_config, random_clouds):
     grasps, data, energy_terms = setup
     config = _config(small_model_config, epochs=1)

@@ -221,6 +221,8 @@ def train_cvae(
         model.train()
         rows = []
         for chunks in cloud_batches(data.cloud_key, train_index, config.batch_size, config.clouds_per_batch, batch_rng):
+            if step >= planned_steps:
+                break
             batch = make_batch(chunks, data.cloud_key, data.object_index, data.scale, device)
             energy_scale = min(1.0, step / warmup_steps) if warmup_steps else 1.0
             loss, terms = batch_loss(
