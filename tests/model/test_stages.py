@@ -81,3 +81,19 @@ def test_training_refuses_too_few_grasps(pipeline_inputs, capsys):
     assert main(["train-cvae", "--config-json", cfg, "--lift", str(root / "lift.zarr"), *objects, "--out-dir", str(root / "model")]) == 2
     assert "train.min_grasps is 100" in capsys.readouterr().err
     assert not (root / "model" / "cvae.pt").exists()
+
+
+def test_lift_shards_keep_seed_contacts_and_drop_imported_ones(tmp_path, hand, make_grasps):
+    from dexlite_pipeline.stages.train_cvae import read_lift_shards
+
+    grasps = make_grasps(hand, 4, seed=3)
+    grasps.arrays["lift_success"] = np.ones(4, bool)
+    grasps.arrays["origin"] = np.array(["seed", "dexgraspnet", "seed", "dexgraspnet"], dtype=object)
+    grasps.arrays["contact_index"] = np.arange(16, dtype=np.int64).reshape(4, 4)  # curation's scoring contacts for imported rows
+    write_grasp_store(tmp_path / "with_origin.zarr", grasps)
+    no_contacts = make_grasps(hand, 2, seed=4)
+    no_contacts.arrays["lift_success"] = np.ones(2, bool)
+    write_grasp_store(tmp_path / "no_contacts.zarr", no_contacts)
+    contacts = read_lift_shards([str(tmp_path / "with_origin.zarr"), str(tmp_path / "no_contacts.zarr")]).arrays["contact_index"]
+    np.testing.assert_array_equal(contacts[[0, 2]], [[0, 1, 2, 3], [8, 9, 10, 11]])
+    assert (contacts[[1, 3, 4, 5]] == -1).all()

@@ -15,6 +15,7 @@ import numpy as np
 import pandas as pd
 
 from dexlite_pipeline.config import from_section, parse_config_json
+from dexlite_pipeline.curate import IMPORTED_ORIGIN
 from dexlite_pipeline.io.atomic import atomic_path
 from dexlite_pipeline.io.grasp_store import GraspSet, read_grasp_store
 from dexlite_pipeline.model.training import LOSS_TERMS, TrainConfig
@@ -49,8 +50,10 @@ def object_splits(objects_dirs: list[str]) -> dict[str, str]:
 def read_lift_shards(paths: list[str]) -> GraspSet:
     """All lift shards as one set (only the arrays training needs, so shards may differ in extras).
 
-    ``contact_index`` (the contacts seed synthesis made) is kept where a shard has it and
-    filled with -1 where it does not (imported grasps), so both can be trained on together.
+    ``contact_index`` (the contacts seed synthesis made) is kept for seed grasps and set to
+    -1 for imported ones, so the loss searches contacts for those: an imported grasp's
+    ``contact_index`` is the four pads nearest the surface that curation scored it at, not
+    contacts it was made with (on real DexGraspNet grasps those give E_fc ≈ 10).
     """
     keep = ("hand_pose", "object_id", "scale", "lift_success")
     sets = []
@@ -60,7 +63,10 @@ def read_lift_shards(paths: list[str]) -> GraspSet:
             raise ValueError(f"{p}: grasp store has no lift_success array (not a lift_validate output)")
         if len(grasps):
             arrays = {k: grasps.arrays[k] for k in keep}
-            arrays["contact_index"] = np.asarray(grasps.arrays.get("contact_index", np.full((len(grasps), 4), -1)), dtype=np.int64)
+            contacts = np.array(grasps.arrays.get("contact_index", np.full((len(grasps), 4), -1)), dtype=np.int64)
+            imported = np.asarray(grasps.arrays.get("origin", np.full(len(grasps), "", dtype=object)) == IMPORTED_ORIGIN, bool)
+            contacts[imported] = -1
+            arrays["contact_index"] = contacts
             sets.append(GraspSet(arrays, {}))
     return GraspSet.concatenate(sets)
 
