@@ -134,3 +134,11 @@ def test_keep_best_returns_the_lowest_energy_state_visited(hand, setup):
     with torch.no_grad():
         again = energy(best.hand_pose, object_index=object_index, scale=scale, contact_index=best.contact_index)
     assert torch.allclose(again.total, best.total, rtol=1e-4, atol=1e-4)
+
+
+def test_an_empty_batch_gives_empty_results(setup):
+    energy, _ = setup
+    pose, object_index, scale = torch.zeros(0, 28), torch.zeros(0, dtype=torch.long), torch.zeros(0)
+    assert energy(pose, object_index=object_index, scale=scale).total.shape == (0,)
+    result = optimize(energy, pose, object_index, scale, AnnealingConfig(iterations=3, final_contact_samples=4), torch.Generator().manual_seed(0))
+    assert result.hand_pose.shape == (0, 28) and result.contact_index.shape == (0, 4)

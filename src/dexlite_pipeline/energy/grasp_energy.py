@@ -151,11 +151,11 @@ class GraspEnergy:
             weight = torch.softmax(-distance.abs() / closeness_m, dim=1).cpu()
             draws = torch.multinomial(weight, samples * CONTACT_COUNT, replacement=True, generator=generator)
             draws = torch.cat([contact_index.cpu()[:, None, :], draws.reshape(batch, samples, CONTACT_COUNT)], dim=1).to(self.device)
-            flat = draws.reshape(batch, -1)
+            flat = draws.reshape(batch, (samples + 1) * CONTACT_COUNT)
             points = torch.gather(candidates, 1, flat[..., None].expand(-1, -1, 3)).reshape(-1, CONTACT_COUNT, 3)
             normals = torch.gather(normal, 1, flat[..., None].expand(-1, -1, 3)).reshape(-1, CONTACT_COUNT, 3)
-            dis = torch.gather(distance, 1, flat).abs().reshape(batch, -1, CONTACT_COUNT).sum(-1)
-            score = self.weights.fc * self.force_closure(points, normals).reshape(batch, -1) + self.weights.dis * dis
+            dis = torch.gather(distance, 1, flat).abs().reshape(batch, samples + 1, CONTACT_COUNT).sum(-1)
+            score = self.weights.fc * self.force_closure(points, normals).reshape(batch, samples + 1) + self.weights.dis * dis
             best = score.argmin(dim=1)
             return draws[torch.arange(batch, device=self.device), best]
 

@@ -48,7 +48,7 @@ class LinkFrameMap:
 
     def __call__(self, frames: HandFrames) -> torch.Tensor:
         batch = frames.translation.shape[0]
-        flat = torch.cat([frames.rotation, frames.translation[..., None]], dim=-1).reshape(batch, -1)
+        flat = torch.cat([frames.rotation, frames.translation[..., None]], dim=-1).reshape(batch, self.matrix.shape[0])
         out = (flat @ self.matrix).reshape(batch, *self.shape)
         return out[..., 0] if self.shape[2] == 1 else out
 
@@ -61,7 +61,7 @@ class LinkFrameMap:
         if self._matrix_t is None:
             self._matrix_t = self.matrix.T.contiguous()
         batch = frames.translation.shape[0]
-        flat = torch.cat([frames.rotation, frames.translation[..., None]], dim=-1).reshape(batch, -1)
+        flat = torch.cat([frames.rotation, frames.translation[..., None]], dim=-1).reshape(batch, self.matrix.shape[0])
         out = (self._matrix_t @ flat.T).reshape(*self.shape, batch)
         return out[:, :, 0] if self.shape[2] == 1 else out
 
