@@ -27,6 +27,22 @@ def test_energy_cli_adds_terms(sphere_objects, tmp_path, capsys):
     assert "grasps: 3, evaluated: 2" in printed and "penetration_mm" in printed
 
 
+def test_energy_cli_flags_invalid_rows_and_fills_missing_contacts(sphere_objects, tmp_path):
+    pose = np.zeros((3, 28), np.float32)
+    pose[:, 2] = -0.05
+    pose[1, 0] = np.nan
+    contacts = np.array([[0, 1, 2, 3], [0, 1, 2, 3], [-1, -1, -1, -1]], np.int64)
+    grasps = GraspSet({"hand_pose": pose, "object_id": np.array(["sphere"] * 3, dtype=object),
+                       "scale": np.full(3, 0.08, np.float32), "contact_index": contacts})
+    write_grasp_store(tmp_path / "in.zarr", grasps)
+    assert main(["energy", str(tmp_path / "in.zarr"), "--objects", str(sphere_objects), "--out", str(tmp_path / "out.zarr"), "--threads", "1"]) == 0
+    out = read_grasp_store(tmp_path / "out.zarr").arrays
+    assert list(out["energy_failure_reason"]) == ["", "non-finite hand_pose", ""]
+    assert np.isnan(out["E_fc"][1]) and np.isfinite(out["E_fc"][[0, 2]]).all()
+    np.testing.assert_array_equal(out["contact_index"][0], [0, 1, 2, 3])  # given contacts are kept
+    assert (out["contact_index"][2] >= 0).all()  # a row of -1 gets the contacts the pose makes, not candidate -1
+
+
 def test_energy_cli_missing_store_is_an_error(sphere_objects, tmp_path, capsys):
     code = main(["energy", str(tmp_path / "nope.zarr"), "--objects", str(sphere_objects), "--out", str(tmp_path / "o.zarr")])
     assert code == 2 and "nope.zarr" in capsys.readouterr().err

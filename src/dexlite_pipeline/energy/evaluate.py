@@ -10,7 +10,7 @@ import torch
 
 from dexlite_pipeline.energy.grasp_energy import CONTACT_COUNT, TERM_NAMES, EnergyConfig, EnergyWeights, GraspEnergy
 from dexlite_pipeline.hand.model import ShadowHand
-from dexlite_pipeline.io.grasp_store import GraspSet
+from dexlite_pipeline.io.grasp_store import GraspSet, invalid_grasp_reasons
 from dexlite_pipeline.objects.assets import ObjectAssetError, load_asset
 
 log = logging.getLogger(__name__)
@@ -30,7 +30,8 @@ def evaluate_grasp_energies(
 ) -> dict[str, np.ndarray]:
     """Per-grasp E_fc, E_dis, E_pen, E_spen, E_joints, E_total, penetration_mm, contact_distance_mm.
 
-    Contacts: a ``contact_index`` (N, 4) array in ``grasps`` is used as given. Otherwise
+    Contacts: a ``contact_index`` (N, 4) array in ``grasps`` is used as given where a row
+    has four non-negative indices (rows with -1: no contacts given). Otherwise
     the four candidates closest to the object surface (smallest |d|: the least E_dis any
     choice gives, the contacts the pose actually makes). With ``contact_samples`` > 0,
     that set and as many random sets favouring pads near the surface are searched for the
@@ -38,7 +39,8 @@ def evaluate_grasp_energies(
     whose parallel normals read as no force closure. The chosen ``contact_index`` is
     returned too.
     ``weights`` (default ``config.weights``) only affect ``E_total``.
-    A grasp whose object has no usable asset gets NaN values and ``energy_failure_reason``.
+    A grasp with a non-finite pose or scale, or whose object has no usable asset, gets NaN
+    values and its reason in ``energy_failure_reason``; the others are evaluated.
     """
     config = dataclasses.replace(config, weights=weights or config.weights)
     device = torch.device(device)
@@ -48,6 +50,9 @@ def evaluate_grasp_energies(
     out["contact_index"] = np.full((n, CONTACT_COUNT), -1, np.int64)
     out["energy_failure_reason"] = np.full(n, "", dtype=object)
     given_contacts = grasps.arrays.get("contact_index")
+    has_given = np.zeros(n, bool) if given_contacts is None else (np.asarray(given_contacts) >= 0).all(axis=1)
+    invalid = invalid_grasp_reasons(grasps)
+    out["energy_failure_reason"][invalid != ""] = invalid[invalid != ""]
 
     assets_by_resolution: dict[tuple, list] = {}
     for object_id in sorted(set(map(str, grasps.object_id))):
@@ -63,17 +68,19 @@ def evaluate_grasp_energies(
     generator = torch.Generator().manual_seed(0)
     for assets in assets_by_resolution.values():
         energy = GraspEnergy.from_assets(hand, assets, config)
-        rows = np.nonzero(np.isin(object_ids, energy.object_ids))[0]
+        rows = np.nonzero(np.isin(object_ids, energy.object_ids) & (invalid == ""))[0]
         for start in range(0, len(rows), batch_size):
             idx = rows[start : start + batch_size]
             pose = torch.as_tensor(grasps.hand_pose[idx], dtype=hand.dtype, device=device)
             scale = torch.as_tensor(grasps.scale[idx], dtype=hand.dtype, device=device)
             object_index = energy.object_index(object_ids[idx])
-            if given_contacts is None:
-                nearest = energy.nearest_contacts(hand.forward(pose), object_index, scale)
-                contacts = energy.best_contacts(pose, object_index, scale, nearest, contact_samples, generator) if contact_samples else nearest
-            else:
-                contacts = torch.as_tensor(given_contacts[idx], dtype=torch.long, device=device)
+            given = torch.as_tensor(has_given[idx], device=device)
+            contacts = torch.as_tensor(given_contacts[idx], dtype=torch.long, device=device).clamp(min=0) if given.any() else None
+            if not given.all():
+                chosen = energy.nearest_contacts(hand.forward(pose), object_index, scale)
+                if contact_samples:
+                    chosen = energy.best_contacts(pose, object_index, scale, chosen, contact_samples, generator)
+                contacts = chosen if contacts is None else torch.where(given[:, None], contacts, chosen)
             with torch.no_grad():
                 result = energy(pose, object_index=object_index, scale=scale, contact_index=contacts)
             for name, value in result.terms.items():
