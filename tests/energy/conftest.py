@@ -5,11 +5,11 @@ from __future__ import annotations
 import pytest
 
 
-def build_assets(objects_dir, meshes: dict, resolution: int = 40) -> None:
+def build_assets(objects_dir, meshes: dict, resolution: int = 40, surface_points: int = 1500) -> None:
     """Write one asset per (id -> trimesh) with its own mesh as the only convex piece."""
     from dexlite_pipeline.objects.build import AssetBuildSettings, write_asset
 
-    settings = AssetBuildSettings(sdf_resolution=resolution, sdf_padding=0.3, surface_points=1500)
+    settings = AssetBuildSettings(sdf_resolution=resolution, sdf_padding=0.3, surface_points=surface_points)
     for object_id, mesh in meshes.items():
         write_asset(mesh, object_id, objects_dir, settings, {"source": "test"}, convex_pieces=[mesh])
 
@@ -27,6 +27,16 @@ def sphere_objects(tmp_path_factory):
             "box": trimesh.creation.box(extents=(1.2, 0.8, 0.6)),
         },
     )
+    return root
+
+
+@pytest.fixture(scope="session")
+def fine_sphere_objects(tmp_path_factory):
+    """A unit sphere ('sphere') with a fine SDF and dense surface points: small interpolation bounds in culling."""
+    import trimesh
+
+    root = tmp_path_factory.mktemp("fine_sphere_objects")
+    build_assets(root, {"sphere": trimesh.creation.icosphere(subdivisions=4, radius=1.0)}, resolution=96, surface_points=4096)
     return root
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import numpy as np
@@ -140,6 +141,39 @@ def test_penetration_culling_is_exact(hand, sphere_energy):
     assert torch.allclose(result.energy, brute, atol=1e-6, rtol=1e-4)
     assert torch.allclose(result.object_in_hand_max_m, object_in_hand.max(1).values, atol=1e-6)
     assert torch.allclose(result.hand_in_object_max_m, hand_in_object.max(1).values, atol=1e-6)
+
+
+@pytest.fixture(scope="module")
+def fine_sphere_energy(hand, fine_sphere_objects):
+    return GraspEnergy.from_assets(hand, [load_asset(fine_sphere_objects, "sphere")], EnergyConfig(object_points=4096))
+
+
+def test_penetration_culling_is_exact_at_box_corners(hand, fine_sphere_energy):
+    """A palm-box corner just inside the sphere (the point of a box farthest from its spheres) is not culled."""
+    sphere_energy = fine_sphere_energy
+    frames = hand.forward(torch.zeros(1, 28))
+    rotation, position = hand.shape_frames(frames)
+    radius_m = float(sphere_energy.penetration.object_points[0].norm(dim=1).mean()) * SCALE  # the asset is normalized
+    poses = []
+    for s in torch.nonzero(hand.shape_kind != CAPSULE).flatten().tolist():
+        for signs in itertools.product((-1.0, 1.0), repeat=3):
+            sign = torch.tensor(signs)
+            corner = position[0, s] + rotation[0, s] @ (sign * hand.shape_size[s, :3])
+            outward = rotation[0, s] @ sign / math.sqrt(3.0)  # along the box diagonal: the corner is the box part deepest in
+            for depth_m in (0.0005, 0.0015, 0.003):
+                pose = torch.zeros(28)
+                pose[:3] = -(corner + outward * (radius_m - depth_m))  # the sphere, beyond the corner, at the origin
+                poses.append(pose)
+    pose = torch.stack(poses)
+    index, scale = torch.zeros(len(pose), dtype=torch.long), torch.full((len(pose),), SCALE)
+    frames = hand.forward(pose)
+    result = sphere_energy.penetration(frames, index, scale)
+    points = sphere_energy.penetration.object_points[0][None].expand(len(pose), -1, -1) * SCALE
+    centre = sphere_energy.penetration.sphere_map(frames)
+    distance, _ = sphere_energy.bank.signed_distance(centre, index[:, None], scale[:, None])
+    brute = hand.collision_signed_distance(frames, points).clamp(min=0).sum(1) + distance.clamp(min=0).sum(1)
+    assert (brute > 0).sum() >= len(pose) // 2, "the corners should reach object points"
+    assert torch.allclose(result.energy, brute, atol=1e-7, rtol=1e-4)
 
 
 def test_penetration_far_hand_is_zero_and_inside_is_positive(sphere_energy):

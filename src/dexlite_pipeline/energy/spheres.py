@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from dexlite_pipeline.hand.model import CAPSULE, ShadowHand, shape_signed_distance
+from dexlite_pipeline.hand.model import CAPSULE, ShadowHand
 
 
 @dataclass
@@ -53,8 +53,33 @@ def _shape_sphere_centres(kind: int, size: list[float]) -> tuple[np.ndarray, flo
     return centres, radius
 
 
+def _covering_gap(kind: int, size: list[float]) -> float:
+    """How far the shape's surface reaches beyond its spheres (max over the surface of distance to the union), m.
+
+    Exact, from the grids of ``_shape_sphere_centres``. Capsule: a point of the cylinder is
+    at most half a spacing along the axis from a centre, sqrt(r² + (s/2)²) − r; the end
+    caps lie on their spheres. Box (thin half-extent r): along each other axis a point is
+    at most d = max(s/2, overhang past the last centre) from the nearest grid line, and
+    |thin coordinate| ≤ r, so sqrt(d_u² + d_v² + r²) − r, reached at the corners.
+    """
+    if kind == CAPSULE:
+        radius, half = size[0], size[1]
+        z = _axis_positions(half, radius / 2)
+        spacing = float(z[1] - z[0]) if len(z) > 1 else 0.0
+        return math.hypot(radius, spacing / 2) - radius
+    half = np.asarray(size[:3])
+    thin = int(np.argmin(half))
+    radius = float(half[thin])
+    reach = []
+    for a in (a for a in range(3) if a != thin):
+        grid = _axis_positions(max(half[a] - radius, 0.0), radius)
+        spacing = float(grid[1] - grid[0]) if len(grid) > 1 else 0.0
+        reach.append(max(spacing / 2, float(half[a] - grid.max())))
+    return math.sqrt(reach[0] ** 2 + reach[1] ** 2 + radius**2) - radius
+
+
 def build_hand_spheres(hand: ShadowHand) -> HandSpheres:
-    """The sphere model of ``hand`` and each shape's covering gap (from its surface samples)."""
+    """The sphere model of ``hand`` and each shape's covering gap."""
     centres, radii, links, shapes = [], [], [], []
     shape_rot = hand.shape_rot.cpu().double().numpy()
     shape_pos = hand.shape_pos.cpu().double().numpy()
@@ -68,19 +93,7 @@ def build_hand_spheres(hand: ShadowHand) -> HandSpheres:
     radius = torch.as_tensor(radii, dtype=torch.float64)
     shape = torch.as_tensor(shapes)
 
-    # Covering gap: surface samples of each shape (points of its link lying on its surface).
-    surface = hand.surface_points_local.cpu().double()
-    surface_link = hand.surface_link.cpu()
-    gaps = []
-    for s in range(len(hand.shape_kind)):
-        on_link = surface[surface_link == int(hand.shape_link[s])]
-        rot = hand.shape_rot[s].cpu().double()
-        local = (on_link - hand.shape_pos[s].cpu().double()) @ rot
-        sd = shape_signed_distance(local, hand.shape_kind[s].cpu(), hand.shape_size[s].cpu().double())
-        on_shape = on_link[sd.abs() < 1e-5]
-        mine = shape == s
-        reach = (torch.cdist(on_shape, centre[mine]) - radius[mine]).min(dim=1).values
-        gaps.append(float(reach.max().clamp(min=0)) if len(reach) else 0.0)
+    gaps = [_covering_gap(int(hand.shape_kind[s]), hand.shape_size[s].tolist()) for s in range(len(hand.shape_kind))]
     device, dtype = hand.device, hand.dtype
     return HandSpheres(
         centre_local=centre.to(device, dtype),
