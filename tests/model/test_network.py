@@ -133,6 +133,16 @@ def test_cloud_batches_cover_each_grasp_once_with_few_clouds_each():
         assert torch.equal(torch.as_tensor(keys[batch.grasp_index]), torch.as_tensor(np.unique(keys[batch.grasp_index]))[batch.cloud_index])
 
 
+def test_cloud_batches_hold_distinct_clouds_while_several_are_left():
+    # One big cloud (100 grasps) and a small one (10): chunks of 32 are 4 of the big cloud, 1 of the small.
+    keys = np.array([0] * 100 + [1] * 10)
+    for seed in range(5):
+        batches = cloud_batches(keys, np.arange(110), batch_size=64, clouds_per_batch=2, rng=np.random.default_rng(seed))
+        clouds = [[int(keys[chunk[0]]) for chunk in chunks] for chunks in batches]
+        assert sum(len(c) == 2 for c in clouds) == 1 and all(len(set(c)) == len(c) for c in clouds)
+        assert sorted(np.concatenate([np.concatenate(chunks) for chunks in batches]).tolist()) == list(range(110))
+
+
 def test_validation_split_is_seeded_and_disjoint():
     train, val = split_validation(50, 0.2, seed=3)
     assert len(val) == 10 and not set(train) & set(val) and len(train) + len(val) == 50

@@ -99,7 +99,9 @@ def cloud_batches(
 
     Each grasp appears once. Grasps of one cloud are cut into chunks of
     ``batch_size // clouds_per_batch``; chunks are shuffled (when ``rng`` is given) and
-    dealt into batches, so a batch mixes clouds and PointNet runs once per chunk's cloud.
+    dealt into batches, each batch taking the next chunks whose clouds it does not hold
+    yet, so a batch holds distinct clouds (BatchNorm then never normalizes a lone cloud)
+    until only one cloud's chunks are left. PointNet runs once per chunk's cloud.
     """
     per_chunk = max(1, batch_size // max(1, clouds_per_batch))
     chunks: list[np.ndarray] = []
@@ -109,8 +111,20 @@ def cloud_batches(
             members = rng.permutation(members)
         chunks += [members[i : i + per_chunk] for i in range(0, len(members), per_chunk)]
     order = rng.permutation(len(chunks)) if rng is not None else np.arange(len(chunks))
-    chunks = [chunks[i] for i in order]
-    return [chunks[i : i + clouds_per_batch] for i in range(0, len(chunks), clouds_per_batch)]
+    remaining = [chunks[i] for i in order]
+    batches = []
+    while remaining:
+        batch, clouds, left = [], set(), []
+        for chunk in remaining:
+            key = cloud_key[chunk[0]]
+            if len(batch) < clouds_per_batch and key not in clouds:
+                batch.append(chunk)
+                clouds.add(key)
+            else:
+                left.append(chunk)
+        batches.append(batch)
+        remaining = left
+    return batches
 
 
 def make_batch(chunks: list[np.ndarray], cloud_key: np.ndarray, object_index: np.ndarray, scale: np.ndarray, device) -> Batch:
