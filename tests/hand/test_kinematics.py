@@ -81,6 +81,6 @@ def test_collision_signed_distance(hand):
     sd = hand.collision_signed_distance(frames, torch.stack([centre, far])[None])
     assert sd[0, 0].item() == pytest.approx(0.01, abs=1e-6)
     assert sd[0, 1].item() < -0.4
-    # Hand surface samples are on the boundary of the union (sd <= 0 up to float error).
+    # Hand surface samples lie on their own shape and so on or inside the union (sd >= 0 up to float error).
     surface = hand.surface_points(frames)
     assert (hand.collision_signed_distance(frames, surface) > -1e-6).all()

@@ -100,8 +100,9 @@ class PenetrationTerm:
     Object points in the hand's capsules and boxes is DexGraspNet's E_pen (its 1 mm
     threshold applies to it). It is capped by a link's radius and blind to a link buried
     wholly inside the object, so the hand's sphere model adds Σ max(0, d(c)) over sphere
-    centres c: zero until a link is in deeper than its radius, which is exactly where the
-    first part stops seeing it, so the two never count the same penetration twice.
+    centres c: zero until a link's axis is inside the object, about where the first part
+    stops growing. Near that depth both parts see the same link (object points inside
+    it and its buried centres), so they overlap there rather than meeting exactly.
     ``hand_in_object_max_m`` is the full depth max(d(c) + r) (for ``penetration_mm``).
 
     Exact culling keeps it cheap. Every sphere's depth is found first without autograd; a

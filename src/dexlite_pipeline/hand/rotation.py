@@ -7,8 +7,6 @@ of R), which has no wrap-around or gimbal lock.
 
 from __future__ import annotations
 
-import math
-
 import torch
 
 
@@ -81,7 +79,3 @@ def quat_wxyz_to_matrix(quat: torch.Tensor) -> torch.Tensor:
     ]
     return torch.stack(rows, dim=-1).reshape(*quat.shape[:-1], 3, 3)
 
-
-def wrap_angle(angle_rad: torch.Tensor) -> torch.Tensor:
-    """Wrap angles to (-pi, pi]."""
-    return angle_rad - 2.0 * math.pi * torch.floor((angle_rad + math.pi) / (2.0 * math.pi))

@@ -27,9 +27,10 @@ Normalization: BatchNorm over the points of one cloud standardizes each cloud on
 own when a batch holds a single object, which erases the object's size and position
 (the features become invariant to them) and makes training statistics differ from
 the running ones used at sampling time. GroupNorm does the same per cloud in every
-mode. The default is therefore BatchNorm with several clouds per batch (``train.
-clouds_per_batch`` >= 2, see ``training``), whose running statistics are used at
-sampling; ``"none"`` (no normalization) is the alternative for one cloud per batch.
+mode. So BatchNorm (the seed's; ``config/profiles/seed_gpu.yaml``) needs several
+clouds per batch (``train.clouds_per_batch`` >= 2, see ``training``) and its running
+statistics are used at sampling; the default profile trains one cloud per batch and
+uses ``"none"`` (no normalization).
 Point coordinates enter in tenths of a metre (``pose.TRANSLATION_UNIT_M``).
 """
 

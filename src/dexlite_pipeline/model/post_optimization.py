@@ -116,8 +116,9 @@ def refine(
     """Post-optimize ``init_pose`` (B, 28) in batches of ``config.batch_size``.
 
     Returns the refined pose (``hand_pose``), the initial one (``raw_hand_pose``), every
-    energy term before (``raw_*``) and after, the accepted-state E_post at every iteration
-    (``energy_trace``, (B, iterations + 1)), the thresholded terms at every iteration
+    energy term before (``raw_*``) and after, E_post at every iteration (``energy_trace``,
+    (B, iterations + 1): of the accepted state, or with ``keep_best`` of the best state so
+    far), the thresholded terms at every iteration
     (``trace_E_fc``, ``trace_E_dis``, ``trace_E_pen``) and the acceptance rate.
     """
     if start_contacts not in ("surface", "random"):
