@@ -22,6 +22,7 @@ CONFIG = {
     },
     "sample": {"synthesis_grasps_per_object": 5, "expansion_grasps_per_object": 6, "scales": [0.08, 0.1]},
     "post_optimize": {"iterations": 10, "energy_object_points": 64, "batch_size": 4},
+    "energy": {"self_penetration_margin_m": 0.015},
 }
 
 
@@ -49,6 +50,7 @@ def test_train_sample_post_optimize(pipeline_inputs):
     checkpoint = torch.load(root / "model" / "cvae.pt", weights_only=True)
     assert checkpoint["train_object_ids"] == ["box"]  # held-out sphere grasps never trained on
     assert checkpoint["excluded_grasps"] == {"failed the lift test": 4, "object not in the training split": 8}
+    assert checkpoint["self_penetration_margin_m"] == 0.015  # E_spen as configured in section energy
 
     common = [*objects, "--shard", "000"]
     assert main(["sample-grasps", "--config-json", cfg, "--model", str(root / "model" / "cvae.pt"), "--stability", str(root / "stability.parquet"),
@@ -64,6 +66,7 @@ def test_train_sample_post_optimize(pipeline_inputs):
                  "--out", str(root / "post.zarr"), "--random-out", str(root / "random.zarr")]) == 0
     post = read_grasp_store(root / "post.zarr")
     assert np.array_equal(post.arrays["raw_hand_pose"], sample.hand_pose)
+    assert post.attrs["config"]["energy"] == {"self_penetration_margin_m": 0.015}
     assert post.arrays["trace_E_post"].shape == (11, 11) and post.attrs["trace_iterations"] == list(range(11))
     assert {"E_fc", "raw_E_fc", "E_post", "raw_E_post", "penetration_mm", "raw_penetration_mm"} <= set(post.arrays)
     assert np.array_equal(post.arrays["method"], method)

@@ -26,7 +26,7 @@ RANDOM_METHOD = "random_post"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--config-json", required=True, help="config sections seed, device, post_optimize (canonical JSON)")
+    parser.add_argument("--config-json", required=True, help="config sections seed, device, energy, post_optimize (canonical JSON)")
     parser.add_argument("--sample", required=True, help="sampled grasp shard (sample_grasps output)")
     parser.add_argument("--objects", action="append", required=True, help="prepared objects dir (repeatable)")
     parser.add_argument("--shard", required=True, help="shard id, e.g. 000")
@@ -34,10 +34,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--random-out", required=True, help="random-init baseline store (.zarr; no rows when post_optimize.random_baseline is off)")
 
 
-def _config_attrs(seed: int, config: PostOptimizeConfig) -> dict:
+def _config_attrs(seed: int, config: PostOptimizeConfig, spen_margin_m: float) -> dict:
     values = dataclasses.asdict(config)
     values["random_init"]["distance_m"] = list(values["random_init"]["distance_m"])
-    return {"seed": seed, "post_optimize": values}
+    return {"seed": seed, "post_optimize": values, "energy": {"self_penetration_margin_m": spen_margin_m}}
 
 
 def _store_arrays(grasps: GraspSet, refined, reasons: np.ndarray, method: np.ndarray) -> dict[str, np.ndarray]:
@@ -65,6 +65,7 @@ def run(args: argparse.Namespace) -> int:
     cfg = parse_config_json(args.config_json)
     config = from_section(PostOptimizeConfig, cfg.get("post_optimize"), "config.post_optimize")
     seed = int(cfg.get("seed", 0))
+    spen_margin_m = from_section(EnergyConfig, cfg.get("energy"), "config.energy").self_penetration_margin_m
     shard = int(args.shard)
     device = resolve_device(cfg.get("device", "auto"))
     sampled = read_grasp_store(args.sample)
@@ -76,13 +77,15 @@ def run(args: argparse.Namespace) -> int:
     attrs = {
         "stage": "post_optimize",
         "shard": args.shard,
-        "config": _config_attrs(seed, config),
+        "config": _config_attrs(seed, config, spen_margin_m),
         "trace_iterations": list(range(config.iterations + 1)),
         "sample_seconds_per_grasp": sampled.attrs.get("seconds_per_grasp"),
     }
     if object_ids:
         assets = [load_asset(args.objects, oid) for oid in object_ids]
-        energy = GraspEnergy.from_assets(hand, assets, EnergyConfig(weights=config.weights(), object_points=config.energy_object_points))
+        energy = GraspEnergy.from_assets(
+            hand, assets, EnergyConfig(weights=config.weights(), object_points=config.energy_object_points, self_penetration_margin_m=spen_margin_m)
+        )
     generator = torch.Generator().manual_seed(seed * 1000 + shard + 500)
 
     def optimize_rows(rows: GraspSet, init_pose: torch.Tensor | None, start_contacts: str):

@@ -24,7 +24,7 @@ log = logging.getLogger("dexlite.train_cvae")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--config-json", required=True, help="config sections seed, device, train (canonical JSON)")
+    parser.add_argument("--config-json", required=True, help="config sections seed, device, energy, train (canonical JSON)")
     parser.add_argument("--lift", action="append", required=True, help="a lift-validated grasp shard (repeatable)")
     parser.add_argument("--objects", action="append", required=True, help="prepared objects dir with catalog.parquet (repeatable)")
     parser.add_argument("--out-dir", required=True, help="where cvae.pt, history.csv and training_curves.png go")
@@ -130,7 +130,8 @@ def run(args: argparse.Namespace) -> int:
     assets = [load_asset(args.objects, oid) for oid in object_ids]
     hand = ShadowHand(device)
     data = build_training_data(grasps, assets, hand, device)
-    energy = GraspEnergy.from_assets(hand, assets, EnergyConfig(object_points=config.energy_object_points))
+    spen_margin_m = from_section(EnergyConfig, cfg.get("energy"), "config.energy").self_penetration_margin_m
+    energy = GraspEnergy.from_assets(hand, assets, EnergyConfig(object_points=config.energy_object_points, self_penetration_margin_m=spen_margin_m))
     train_index, val_index = split_validation(len(grasps), config.validation_fraction, seed)
 
     def report(row: dict) -> None:
@@ -154,6 +155,7 @@ def run(args: argparse.Namespace) -> int:
         config,
         {
             "seed": seed,
+            "self_penetration_margin_m": spen_margin_m,
             "steps": result.steps,
             "train_grasps": int(len(train_index)),
             "validation_grasps": int(len(val_index)),
