@@ -1,0 +1,104 @@
+"""config.yaml, its JSON schema and the typed settings classes stay in step; the profiles validate."""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import typing
+from pathlib import Path
+
+import pytest
+import yaml
+
+from dexlite_pipeline.config import ConfigError, from_section, load_config, load_schema, validate_config
+from dexlite_pipeline.curate import CurateConfig
+from dexlite_pipeline.energy.grasp_energy import EnergyConfig
+from dexlite_pipeline.io.dexgraspnet import DexGraspNetConfig
+from dexlite_pipeline.model.post_optimization import PostOptimizeConfig
+from dexlite_pipeline.model.sampling import SampleConfig
+from dexlite_pipeline.model.training import TrainConfig
+from dexlite_pipeline.objects.prepare import ObjectsConfig
+from dexlite_pipeline.objects.stability import StabilityConfig
+from dexlite_pipeline.optim.seed import SeedConfig
+from dexlite_pipeline.report.evaluation import EvaluateConfig
+from dexlite_pipeline.sim.config import LiftConfig
+
+ROOT = Path(__file__).resolve().parents[1]
+SECTIONS = {
+    "objects": ObjectsConfig,
+    "dexgraspnet": DexGraspNetConfig,
+    "stability": StabilityConfig,
+    "curate": CurateConfig,
+    "energy": EnergyConfig,
+    "lift": LiftConfig,
+    "evaluate": EvaluateConfig,
+    "train": TrainConfig,
+    "sample": SampleConfig,
+    "post_optimize": PostOptimizeConfig,
+    "seed_grasps": SeedConfig,
+}
+
+
+def _field_tree(cls) -> dict:
+    """Field names of a settings class, nested settings classes as sub-trees."""
+    hints = typing.get_type_hints(cls)
+    return {f.name: _field_tree(hints[f.name]) if dataclasses.is_dataclass(hints[f.name]) else None for f in dataclasses.fields(cls)}
+
+
+def _key_tree(section: dict, like: dict) -> dict:
+    """Keys of a config section, descending where the settings class nests a class."""
+    return {k: _key_tree(v, like[k]) if isinstance(like.get(k), dict) and isinstance(v, dict) else None for k, v in section.items()}
+
+
+def _merged(base: dict, overlay: dict) -> dict:
+    """``overlay`` over ``base``, nested mappings merged key by key (as Snakemake merges --configfile)."""
+    out = copy.deepcopy(base)
+    for key, value in overlay.items():
+        out[key] = _merged(out[key], value) if isinstance(value, dict) and isinstance(out.get(key), dict) else value
+    return out
+
+
+@pytest.fixture(scope="module")
+def config() -> dict:
+    return load_config(ROOT / "config.yaml")
+
+
+def test_config_has_exactly_the_sections_the_code_reads(config):
+    assert set(config) - {"seed", "device", "shards"} == set(SECTIONS)
+
+
+@pytest.mark.parametrize("name", sorted(SECTIONS))
+def test_every_setting_is_in_config_yaml_and_builds(config, name):
+    """Each section lists every field of its class (so the file documents them all) and nothing else."""
+    fields = _field_tree(SECTIONS[name])
+    assert _key_tree(config[name], fields) == fields
+    from_section(SECTIONS[name], config[name], f"config.{name}")
+
+
+def _schema_tree(schema: dict) -> dict | None:
+    """Property names of an object schema, nested object schemas as sub-trees."""
+    if schema.get("type") != "object" or "properties" not in schema:
+        return None
+    return {k: _schema_tree(v) for k, v in schema["properties"].items()}
+
+
+def test_schema_describes_exactly_the_keys_of_config_yaml(config):
+    schema = _schema_tree(load_schema())
+    assert _key_tree(config, schema) == schema
+
+
+@pytest.mark.parametrize("profile", sorted(p.name for p in (ROOT / "config" / "profiles").glob("*.yaml")))
+def test_profiles_over_the_default_config_validate_and_build(config, profile):
+    merged = _merged(config, yaml.safe_load((ROOT / "config" / "profiles" / profile).read_text()))
+    validate_config(merged, profile)
+    for name, cls in SECTIONS.items():
+        from_section(cls, merged[name], f"{profile}: {name}")
+
+
+def test_schema_rejects_unknown_keys_and_wrong_types(config):
+    unknown = _merged(config, {"post_optimize": {"iteratons": 100}})
+    with pytest.raises(ConfigError, match="post_optimize"):
+        validate_config(unknown)
+    wrong_type = _merged(config, {"lift": {"friction": "high"}})
+    with pytest.raises(ConfigError, match="lift.friction"):
+        validate_config(wrong_type)
