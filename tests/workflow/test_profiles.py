@@ -3,7 +3,7 @@
 Fast checks that need no Snakemake run: every rule logs, benchmarks, declares the conda
 env and hashes its code; every rule has threads and resources in the SLURM profile and
 threads in the local profile; the GPU option reaches train_cvae only; the conda env lists
-exactly the package's dependencies.
+exactly the package's dependencies and the same CPU torch as install.sh.
 """
 
 from __future__ import annotations
@@ -89,14 +89,29 @@ def _requirement_name(spec: str) -> str:
     return re.split(r"[<>=!~\[ ;]", spec.strip(), maxsplit=1)[0].lower().replace("_", "-")
 
 
+def _conda_pip_section() -> list[str]:
+    env = yaml.safe_load((REPO / "envs" / "dexlite.yaml").read_text())
+    return next(d["pip"] for d in env["dependencies"] if isinstance(d, dict) and "pip" in d)
+
+
 def test_conda_env_lists_exactly_the_package_dependencies():
     tomllib = pytest.importorskip("tomllib")  # Python >= 3.11
-    env = yaml.safe_load((REPO / "envs" / "dexlite.yaml").read_text())
-    pip_section = next(d["pip"] for d in env["dependencies"] if isinstance(d, dict) and "pip" in d)
+    requirements = [line for line in _conda_pip_section() if not line.startswith("-")]  # not pip options
     project = tomllib.loads((REPO / "pyproject.toml").read_text())["project"]
-    assert sorted(map(_requirement_name, pip_section)) == sorted(map(_requirement_name, project["dependencies"]))
+    assert sorted(map(_requirement_name, requirements)) == sorted(map(_requirement_name, project["dependencies"]))
     post_deploy = REPO / "envs" / "dexlite.post-deploy.sh"
     assert post_deploy.is_file() and "--no-deps" in post_deploy.read_text()
+
+
+def test_conda_env_and_install_script_pin_the_same_cpu_torch():
+    """Both install torch's CPU build (PyPI's torch is a CUDA build of several GB), of one version."""
+    install_script = (REPO / "install.sh").read_text()
+    version = re.search(r"^TORCH_VERSION=(\S+)$", install_script, re.M).group(1)
+    cpu_index = re.search(r"^TORCH_CPU_INDEX=(\S+)$", install_script, re.M).group(1)
+    pip_section = _conda_pip_section()
+    assert f"torch=={version}+cpu" in pip_section
+    assert f"--extra-index-url {cpu_index}" in pip_section
+    assert cpu_index.endswith("/whl/cpu")
 
 
 def test_every_rule_file_is_included():
