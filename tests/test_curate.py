@@ -247,3 +247,24 @@ def test_cli_force_closure_drops_a_grasp_that_touches_nothing(workspace):
     assert len(kept) == 0 and kept.attrs["dropped"]["force_closure"] == 1 and kept.attrs["dropped"]["e_dis"] == 1
     assert kept.attrs["config"]["curate"]["force_closure_friction"] == 0.6
     assert pd.read_csv(root / "fc_summary_0.csv").loc[0, "dropped_force_closure"] == 1
+
+
+def _curate_args(root, shard_name, config, objects=None, seed=None, imported=None, stability=None):
+    args = ["curate", "--step", "curate", "--shard", "0", "--config-json", json.dumps(config),
+            "--stability", str(stability or root / "stability.parquet"), "--objects", str(objects or root / "objects"),
+            "--out", str(root / f"{shard_name}.zarr"), "--summary-out", str(root / f"{shard_name}.csv")]
+    if seed:
+        args += ["--seed-grasps", str(seed)]
+    if imported:
+        args += ["--imported", str(imported)]
+    return args
+
+
+def test_cli_stability_table_without_stable_is_a_one_line_error(workspace, tmp_path, capsys):
+    malformed = tmp_path / "malformed.parquet"
+    pd.DataFrame({"object_id": ["box0"], "is_stable": [True]}).to_parquet(malformed)
+    args = _curate_args(tmp_path, "out", {"shards": 1}, objects=workspace / "objects", seed=workspace / "seed_000.zarr", stability=malformed)
+    assert dexlite(args) == 2
+    error = capsys.readouterr().err.strip()
+    assert len(error.splitlines()) == 1 and "malformed.parquet" in error and "stable" in error
+    assert not (tmp_path / "out.zarr").exists()

@@ -74,7 +74,7 @@ def main(argv: list[str] | None = None) -> int:
     set_threads(args.threads)
     try:
         return int(module.run(args) or 0)
-    except (CliError, ValueError, FileNotFoundError, NotADirectoryError) as exc:
+    except (CliError, ValueError, OSError) as exc:  # bad input or an unreadable/unwritable file: one line, no traceback
         print(f"dexlite {top.command}: error: {exc}", file=sys.stderr)
         return 2
 

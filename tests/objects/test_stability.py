@@ -103,3 +103,34 @@ def test_table_carries_rejected_objects_and_stage_writes_it(tmp_path):
     assert list(written.columns) == STABILITY_COLUMNS
     assert written.set_index("object_id")["stable"].to_dict() == {"broken": False, "cone_on_tip": False, "cube": True}
     assert json.loads((out.parent / "stability_config.json").read_text())["stability"]["duration_s"] == 1.0
+
+
+def test_malformed_stability_table_is_a_one_line_error_naming_file_and_problem(tmp_path):
+    from dexlite_pipeline.objects.stability import read_stability_table, stable_object_ids
+
+    path = tmp_path / "stability.parquet"
+    with pytest.raises(FileNotFoundError, match="stability.parquet: stability table not found"):
+        read_stability_table(path)
+    pd.DataFrame({"object_id": ["a"], "is_stable": [True]}).to_parquet(path)
+    with pytest.raises(ValueError, match=r"stability.parquet: stability table lacks column\(s\) stable"):
+        read_stability_table(path)
+    pd.DataFrame({"object_id": ["a"], "stable": ["False"]}).to_parquet(path)  # a string is truthy: refused, not read as stable
+    with pytest.raises(ValueError, match="stability.parquet: stability column 'stable' holds .*, expected true/false"):
+        read_stability_table(path)
+    path.write_text("not parquet")
+    with pytest.raises(ValueError, match="stability.parquet: cannot read the stability table"):
+        read_stability_table(path)
+    pd.DataFrame({"object_id": ["a", "b"], "stable": [True, False]}).to_parquet(path)
+    assert stable_object_ids(path) == {"a"}
+
+
+def test_stage_refuses_a_catalog_without_status_in_one_line(tmp_path, capsys):
+    from dexlite_pipeline.cli import main
+
+    objects = tmp_path / "objects"
+    objects.mkdir()
+    pd.DataFrame({"object_id": ["cube"], "split": ["train"]}).to_parquet(objects / "catalog.parquet")
+    assert main(["stability-filter", "--objects", str(objects), "--out", str(tmp_path / "stability.parquet"), "--threads", "1"]) == 2
+    error = capsys.readouterr().err.strip()
+    assert len(error.splitlines()) == 1 and "catalog.parquet" in error and "status" in error
+    assert not (tmp_path / "stability.parquet").exists()

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import shutil
 
 import numpy as np
 import pandas as pd
@@ -66,3 +67,26 @@ def test_seed_stage_missing_stability_table_is_a_clear_error(optim_objects, tmp_
     assert _run(optim_objects, tmp_path / "none.parquet", tmp_path / "c.zarr") == 2
     assert "none.parquet" in capsys.readouterr().err
     assert not (tmp_path / "c.zarr").exists()
+
+
+def test_damaged_asset_is_recorded_and_the_other_objects_synthesized(optim_objects, tmp_path):
+    objects = tmp_path / "objects"
+    shutil.copytree(optim_objects, objects)
+    for chunk in (objects / "assets" / "box" / "arrays.zarr" / "sdf" / "c").rglob("*"):
+        if chunk.is_file():
+            chunk.write_bytes(b"not zstd")  # zarr's codec raises RuntimeError
+    both_stable = tmp_path / "both_stable.parquet"
+    pd.DataFrame({"object_id": ["sphere", "box"], "stable": [True, True]}).to_parquet(both_stable)
+    assert _run(objects, both_stable, tmp_path / "out.zarr") == 0
+    grasps = read_grasp_store(tmp_path / "out.zarr")
+    assert set(grasps.object_id) == {"sphere"}
+    assert list(grasps.attrs["failed_objects"]) == ["box"] and "arrays.zarr" in grasps.attrs["failed_objects"]["box"]
+
+
+def test_seed_stage_catalog_without_status_column_is_a_clear_error(optim_objects, stability, tmp_path, capsys):
+    objects = tmp_path / "objects"
+    shutil.copytree(optim_objects, objects)
+    pd.read_parquet(objects / "catalog.parquet").drop(columns="status").to_parquet(objects / "catalog.parquet")
+    assert _run(objects, stability, tmp_path / "d.zarr") == 2
+    error = capsys.readouterr().err
+    assert "catalog.parquet" in error and "status" in error and len(error.strip().splitlines()) == 1

@@ -77,34 +77,86 @@ def find_asset_dir(objects_dirs, object_id: str) -> Path:
 
 
 def load_asset(objects_dirs, object_id: str) -> ObjectAsset:
-    """Load one object's arrays and metadata from one objects dir or a list of them."""
+    """Load one object's arrays and metadata from one objects dir or a list of them.
+
+    Anything missing, unreadable or of the wrong shape is an ``ObjectAssetError`` naming
+    the object and the path, so that callers can set that one object aside.
+    """
     import zarr
 
     directory = find_asset_dir(objects_dirs, object_id)
     arrays_path = directory / "arrays.zarr"
-    group = zarr.open_group(str(arrays_path), mode="r")
+    try:
+        group = zarr.open_group(str(arrays_path), mode="r")
+        sdf = np.asarray(group["sdf"][...], dtype=np.float32)
+        grid_min = np.asarray(group.attrs["grid_min"], dtype=np.float32)
+        voxel_size = float(group.attrs["voxel_size"])
+        surface_points = np.asarray(group["surface_points"][...], dtype=np.float32)
+        surface_normals = np.asarray(group["surface_normals"][...], dtype=np.float32)
+    except (OSError, ValueError, KeyError, TypeError, RuntimeError) as exc:  # zarr and its codecs raise all of these
+        raise ObjectAssetError(f"object {object_id!r}: cannot read {arrays_path}: {type(exc).__name__}: {exc}") from None
+    cubic_grid = sdf.ndim == 3 and len(set(sdf.shape)) == 1 and grid_min.shape == (3,)
+    if not cubic_grid or surface_points.shape[1:] != (3,) or surface_normals.shape != surface_points.shape:
+        raise ObjectAssetError(
+            f"object {object_id!r}: {arrays_path} has sdf {sdf.shape}, grid_min {grid_min.shape}, "
+            f"surface_points {surface_points.shape}, surface_normals {surface_normals.shape}; "
+            "expected a cubic grid, (3,) and two equal (P, 3)"
+        )
     meta_path = directory / "meta.json"
-    meta = json.loads(meta_path.read_text()) if meta_path.exists() else {}
+    try:
+        meta = json.loads(meta_path.read_text()) if meta_path.exists() else {}
+    except (OSError, ValueError) as exc:
+        raise ObjectAssetError(f"object {object_id!r}: cannot read {meta_path}: {exc}") from None
     return ObjectAsset(
         object_id=object_id,
         directory=directory,
-        sdf=np.asarray(group["sdf"][...], dtype=np.float32),
-        grid_min=np.asarray(group.attrs["grid_min"], dtype=np.float32),
-        voxel_size=float(group.attrs["voxel_size"]),
-        surface_points=np.asarray(group["surface_points"][...], dtype=np.float32),
-        surface_normals=np.asarray(group["surface_normals"][...], dtype=np.float32),
+        sdf=sdf,
+        grid_min=grid_min,
+        voxel_size=voxel_size,
+        surface_points=surface_points,
+        surface_normals=surface_normals,
         meta=meta,
     )
 
 
-def read_catalog(objects_dir: str | os.PathLike):
-    """The object catalog as a pandas DataFrame."""
+CATALOG_REQUIRED_COLUMNS = ("object_id", "status")  # what the stages that read a catalog use
+
+
+def read_object_table(path: str | os.PathLike, name: str, required_columns: tuple[str, ...], made_by: str):
+    """An object-level Parquet table (``name``: 'object catalog', 'stability table') that has ``required_columns``.
+
+    Every stage reads these tables through here, so a bad one stops it with one line naming
+    the file and the problem: FileNotFoundError if missing (``made_by`` says which stage
+    writes it), ValueError if unreadable or lacking a column.
+    """
     import pandas as pd
 
-    path = Path(objects_dir) / CATALOG_NAME
+    path = Path(path)
     if not path.exists():
-        raise ObjectAssetError(f"{path}: object catalog not found (run prepare_objects first)")
-    return pd.read_parquet(path)
+        raise FileNotFoundError(f"{path}: {name} not found (run {made_by} first)")
+    try:
+        table = pd.read_parquet(path)
+    except (OSError, ValueError) as exc:
+        raise ValueError(f"{path}: cannot read the {name} ({exc})") from None
+    missing = [c for c in required_columns if c not in table.columns]
+    if missing:
+        raise ValueError(f"{path}: {name} lacks column(s) {', '.join(missing)}")
+    return table
+
+
+def read_catalog(objects_dir: str | os.PathLike):
+    """The object catalog of ``objects_dir`` as a pandas DataFrame, checked by ``read_object_table``."""
+    return read_object_table(Path(objects_dir) / CATALOG_NAME, "object catalog", CATALOG_REQUIRED_COLUMNS, "prepare_objects")
+
+
+def ok_object_ids(objects_dirs) -> set[str]:
+    """Ids of the objects whose status is ok in the catalogs of one objects dir or several."""
+    dirs = [objects_dirs] if isinstance(objects_dirs, (str, os.PathLike)) else list(objects_dirs)
+    ids: set[str] = set()
+    for d in dirs:
+        catalog = read_catalog(d)
+        ids |= set(catalog.loc[catalog["status"] == "ok", "object_id"].astype(str))
+    return ids
 
 
 def available_object_ids(objects_dirs) -> set[str]:

@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 STABILITY_COLUMNS = ["object_id", "lateral_displacement_m", "rotation_deg", "stable", "reason"]
+STABILITY_REQUIRED_COLUMNS = ("object_id", "stable")  # what the stages that read the table use
 GRAVITY_M_S2 = 9.81
 
 
@@ -193,7 +194,26 @@ def stability_table(catalog, objects_dirs: list[str], config: StabilityConfig, s
     task = functools.partial(simulate_asset, config=config, seed=seed)
     rows += resilient_map(task, items, workers, _failed_row)
     for row in catalog[~ok].itertuples():
-        rows.append(StabilityResult(str(row.object_id), math.nan, math.nan, False, f"not simulated: rejected by prepare_objects ({row.reason})").row())
+        reason = getattr(row, "reason", "") or "no reason recorded"
+        rows.append(StabilityResult(str(row.object_id), math.nan, math.nan, False, f"not simulated: rejected by prepare_objects ({reason})").row())
     table = pd.DataFrame(rows, columns=STABILITY_COLUMNS).sort_values("object_id", kind="stable").reset_index(drop=True)
     table["stable"] = table["stable"].astype(bool)
     return table
+
+
+def read_stability_table(path: str | Path):
+    """A stability table (.parquet) with ``STABILITY_REQUIRED_COLUMNS`` and a boolean ``stable`` (one-line errors naming the file)."""
+    import pandas as pd
+
+    from dexlite_pipeline.objects.assets import read_object_table
+
+    table = read_object_table(path, "stability table", STABILITY_REQUIRED_COLUMNS, "stability_filter")
+    if not pd.api.types.is_bool_dtype(table["stable"]):
+        raise ValueError(f"{path}: stability column 'stable' holds {table['stable'].dtype}, expected true/false")
+    return table
+
+
+def stable_object_ids(path: str | Path) -> set[str]:
+    """Ids of the objects a stability table marks stable."""
+    table = read_stability_table(path)
+    return set(table.loc[table["stable"].to_numpy(dtype=bool, na_value=False), "object_id"].astype(str))

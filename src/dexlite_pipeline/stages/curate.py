@@ -104,19 +104,18 @@ def _force_closure_evaluator(objects_dirs, curate_config, threads: int):
 
 
 def _curate_shard(args, config: dict) -> int:
-    import pandas as pd
-
     from dexlite_pipeline.config import from_section
     from dexlite_pipeline.curate import DROP_REASONS, CurateConfig, ObjectFacts, curate_grasps, summarize
     from dexlite_pipeline.io.atomic import atomic_path
     from dexlite_pipeline.io.grasp_store import read_grasp_store, write_grasp_store
     from dexlite_pipeline.objects.assets import CATALOG_NAME, read_catalog
+    from dexlite_pipeline.objects.stability import read_stability_table
 
     if args.shard is None or not args.out or not args.summary_out:
         raise ValueError("--step curate needs --shard, --out and --summary-out")
     curate_config = from_section(CurateConfig, config.get("curate"), "config.curate")
     catalogs = [read_catalog(d) for d in args.objects if (Path(d) / CATALOG_NAME).exists()]
-    stability = [pd.read_parquet(p) for p in args.stability]
+    stability = [read_stability_table(p) for p in args.stability]
     facts = ObjectFacts.from_tables(catalogs, stability)
     sets = [_tag(read_grasp_store(p), "seed") for p in args.seed_grasps]
     if args.imported:

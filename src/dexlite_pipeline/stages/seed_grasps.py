@@ -29,21 +29,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def stable_object_ids(objects_dirs: list[str], stability_path: str) -> list[str]:
     """Objects that are prepared (status ok) and stable, over all catalogs."""
-    import pandas as pd
+    from dexlite_pipeline.objects.assets import ok_object_ids
+    from dexlite_pipeline.objects.stability import stable_object_ids as stable_in_table
 
-    from dexlite_pipeline.objects.assets import read_catalog
-
-    catalog = pd.concat([read_catalog(d) for d in objects_dirs], ignore_index=True)
-    try:
-        stability = pd.read_parquet(stability_path)
-    except (OSError, ValueError) as exc:
-        raise FileNotFoundError(f"{stability_path}: cannot read the stability table ({exc})") from exc
-    missing = {"object_id", "stable"} - set(stability.columns)
-    if missing:
-        raise ValueError(f"{stability_path}: stability table lacks column(s) {', '.join(sorted(missing))}")
-    ok = set(catalog.loc[catalog["status"] == "ok", "object_id"].astype(str))
-    stable = set(stability.loc[stability["stable"].astype(bool), "object_id"].astype(str))
-    return sorted(ok & stable)
+    return sorted(ok_object_ids(objects_dirs) & stable_in_table(stability_path))
 
 
 def _jsonable(value):
@@ -77,7 +66,7 @@ def run(args: argparse.Namespace) -> int:
     for object_id in object_ids:
         try:
             assets.append(load_asset(args.objects, object_id))
-        except (ObjectAssetError, OSError, KeyError) as exc:
+        except ObjectAssetError as exc:
             failed[object_id] = f"asset unusable: {exc}"
             log.warning("object %s skipped: %s", object_id, failed[object_id])
     # One SDF bank needs one grid size; objects with another are recorded, not dropped silently.
