@@ -10,7 +10,8 @@ import pytest
 from dexlite_pipeline.cli import main as dexlite
 from dexlite_pipeline.curate import DROP_REASONS, CurateConfig, ObjectFacts, curate_grasps, near_duplicates, summarize
 from dexlite_pipeline.hand.qpos import ROTATION_KEYS
-from dexlite_pipeline.io.grasp_store import GraspSet, read_grasp_store, write_grasp_store
+from dexlite_pipeline.io.grasp_store import GraspSet, empty_grasp_set, read_grasp_store, write_grasp_store
+from dexlite_pipeline.stages.curate import _common_arrays, _tag
 
 GOOD = {"E_fc": 0.05, "E_dis": 0.001, "E_pen": 0.0002}
 
@@ -157,6 +158,18 @@ def test_force_closure_drops_grasps_whose_contacts_do_not_close():
         curate_grasps(_grasp_set(rows), FACTS, CurateConfig(force_closure=True))
 
 
+def test_empty_input_sets_do_not_decide_the_shared_arrays():
+    """A seed shard without grasps (and without energy arrays) must not strip the imported grasps' energies."""
+    empty_seed = _tag(empty_grasp_set(), "seed")
+    imported = _grasp_set([("a", _pose(t=(0.05 * i, 0, 0.1)), 0.1, {**GOOD, "E_pen": 0.002}) for i in range(2)])
+    imported.arrays["source_index"] = np.arange(2)
+    merged = _common_arrays([empty_seed, _tag(imported, "dexgraspnet")])
+    assert set(merged.arrays) == {"hand_pose", "object_id", "scale", "E_fc", "E_dis", "E_pen", "source_index", "origin", "origin_index"}
+    np.testing.assert_array_equal(merged.arrays["E_pen"], imported.arrays["E_pen"])
+    assert list(curate_grasps(merged, FACTS, CurateConfig())) == ["", ""]  # imported: held to E_dis only
+    assert len(_common_arrays([empty_seed])) == 0 and list(curate_grasps(_common_arrays([empty_seed]), FACTS, CurateConfig())) == []
+
+
 def test_config_rejects_nonsense():
     with pytest.raises(ValueError, match="max_e_fc"):
         CurateConfig(max_e_fc=0)
@@ -258,6 +271,19 @@ def _curate_args(root, shard_name, config, objects=None, seed=None, imported=Non
     if imported:
         args += ["--imported", str(imported)]
     return args
+
+
+def test_cli_empty_seed_shard_keeps_the_imported_grasps_and_their_energies(workspace):
+    """An empty seed shard (as the seed stage wrote one without usable objects) no longer strips E_* from imported grasps."""
+    root = workspace
+    write_grasp_store(root / "seed_empty.zarr", empty_grasp_set())
+    config = {"shards": 1, "device": "cpu", "curate": {"max_e_dis_m": 100.0}}  # imported grasps are held to E_dis only
+    assert dexlite(_curate_args(root, "from_empty_seed", config, seed=root / "seed_empty.zarr", imported=root / "imported.zarr")) == 0
+    kept = read_grasp_store(root / "from_empty_seed.zarr")
+    assert len(kept) == 1 and kept.arrays["origin"][0] == "dexgraspnet"
+    assert kept.attrs["dropped"]["duplicate"] == 1 and kept.attrs["dropped"]["not_train"] == 1  # box0's two imported grasps are one pose
+    for term in ("E_fc", "E_dis", "E_pen"):
+        assert np.isfinite(kept.arrays[term]).all()
 
 
 def test_cli_stability_table_without_stable_is_a_one_line_error(workspace, tmp_path, capsys):

@@ -231,7 +231,8 @@ def curate_grasps(
     """
     reasons = object_reasons(grasps, facts)
     open_rows = reasons == ""
-    reasons[open_rows] = threshold_reasons(grasps.select(open_rows), config)
+    if open_rows.any():
+        reasons[open_rows] = threshold_reasons(grasps.select(open_rows), config)
     if config.force_closure:
         if force_closure_epsilon is None:
             raise ValueError("config.curate.force_closure is on but no force-closure evaluator was given")

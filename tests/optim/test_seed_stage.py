@@ -69,6 +69,17 @@ def test_seed_stage_missing_stability_table_is_a_clear_error(optim_objects, tmp_
     assert not (tmp_path / "c.zarr").exists()
 
 
+def test_shard_without_stable_objects_writes_the_full_schema(optim_objects, stability, tmp_path):
+    """Curation keeps only arrays every input has: an empty shard must not lack the energy arrays."""
+    nothing_stable = tmp_path / "nothing_stable.parquet"
+    pd.DataFrame({"object_id": ["sphere", "box"], "stable": [False, False]}).to_parquet(nothing_stable)
+    assert _run(optim_objects, nothing_stable, tmp_path / "empty.zarr") == 0
+    assert _run(optim_objects, stability, tmp_path / "full.zarr") == 0
+    empty, full = read_grasp_store(tmp_path / "empty.zarr"), read_grasp_store(tmp_path / "full.zarr")
+    assert len(empty) == 0 and len(full) == 6
+    assert {k: (v.dtype, v.shape[1:]) for k, v in empty.arrays.items()} == {k: (v.dtype, v.shape[1:]) for k, v in full.arrays.items()}
+
+
 def test_damaged_asset_is_recorded_and_the_other_objects_synthesized(optim_objects, tmp_path):
     objects = tmp_path / "objects"
     shutil.copytree(optim_objects, objects)

@@ -75,14 +75,19 @@ def _imported_with_energies(args, config: dict, curate_config, facts):
 
 
 def _common_arrays(sets):
-    """Concatenate sets keeping the arrays all of them have (provenance arrays always exist)."""
+    """Concatenate sets keeping the arrays all of them have (provenance arrays always exist).
+
+    Sets without rows are left out of that choice (and of the concatenation): they add no
+    grasps, and an empty shard written without some array must not strip it from the rest.
+    """
     from dexlite_pipeline.io.grasp_store import GraspSet
 
-    shared = set.intersection(*(set(s.arrays) for s in sets))
-    dropped = sorted(set.union(*(set(s.arrays) for s in sets)) - shared)
+    with_rows = [s for s in sets if len(s)] or sets[:1]
+    shared = set.intersection(*(set(s.arrays) for s in with_rows))
+    dropped = sorted(set.union(*(set(s.arrays) for s in with_rows)) - shared)
     if dropped:
         log.info("arrays not present in every input, left out of the curated store: %s", ", ".join(dropped))
-    return GraspSet.concatenate([GraspSet({k: s.arrays[k] for k in shared}, {}) for s in sets], attrs={})
+    return GraspSet.concatenate([GraspSet({k: s.arrays[k] for k in shared}, {}) for s in with_rows], attrs={})
 
 
 def _force_closure_evaluator(objects_dirs, curate_config, threads: int):

@@ -13,8 +13,12 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import logging
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from dexlite_pipeline.io.grasp_store import GraspSet
 
 log = logging.getLogger("dexlite.seed_grasps")
 
@@ -35,6 +39,25 @@ def stable_object_ids(objects_dirs: list[str], stability_path: str) -> list[str]
     return sorted(ok_object_ids(objects_dirs) & stable_in_table(stability_path))
 
 
+def empty_seed_grasps() -> GraspSet:
+    """A zero-row shard with every array ``optim.seed.synthesize`` writes (dtypes and trailing shapes alike).
+
+    A shard without usable objects must still carry the energy arrays: curation keeps only
+    the arrays all its inputs have, and E_fc, E_dis and E_pen are what it filters on.
+    """
+    from dexlite_pipeline.energy.grasp_energy import CONTACT_COUNT, TERM_NAMES
+    from dexlite_pipeline.hand.model import POSE_DIM
+    from dexlite_pipeline.io.grasp_store import empty_grasp_set
+
+    grasps = empty_grasp_set()
+    grasps.arrays["init_pose"] = np.zeros((0, POSE_DIM), np.float32)
+    grasps.arrays["contact_index"] = np.zeros((0, CONTACT_COUNT), np.int16)
+    for name in ("acceptance_rate", "penetration_mm", "contact_distance_mm", "E_total", *TERM_NAMES):
+        grasps.arrays[name] = np.zeros(0, np.float32)
+    grasps.arrays["passes_energy_thresholds"] = np.zeros(0, bool)
+    return grasps
+
+
 def _jsonable(value):
     """Dataclass dicts with tuples turned into lists (for Zarr attributes)."""
     if isinstance(value, dict):
@@ -48,7 +71,7 @@ def run(args: argparse.Namespace) -> int:
     from dexlite_pipeline.config import from_section, parse_config_json
     from dexlite_pipeline.device import resolve_device
     from dexlite_pipeline.energy.grasp_energy import EnergyConfig
-    from dexlite_pipeline.io.grasp_store import empty_grasp_set, write_grasp_store
+    from dexlite_pipeline.io.grasp_store import write_grasp_store
     from dexlite_pipeline.objects.assets import ObjectAssetError, load_asset
     from dexlite_pipeline.optim.seed import SeedConfig, seed_generator, synthesize
     from dexlite_pipeline.sharding import shard_objects
@@ -93,7 +116,7 @@ def run(args: argparse.Namespace) -> int:
     if assets:
         grasps, stats = synthesize(assets, config, energy_config, seed_generator(seed, shard), device)
     else:
-        grasps, stats = empty_grasp_set(), {"grasps": 0, "passing": 0, "pass_fraction": 0.0, "seconds": 0.0, "seconds_per_grasp": 0.0}
+        grasps, stats = empty_seed_grasps(), {"grasps": 0, "passing": 0, "pass_fraction": 0.0, "seconds": 0.0, "seconds_per_grasp": 0.0}
     attrs.update(stats)
     attrs["passing_per_hour"] = stats["passing"] / stats["seconds"] * 3600 if stats["seconds"] else 0.0
     write_grasp_store(args.out, grasps, attrs)
