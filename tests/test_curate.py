@@ -9,6 +9,7 @@ import pytest
 
 from dexlite_pipeline.cli import main as dexlite
 from dexlite_pipeline.curate import DROP_REASONS, CurateConfig, ObjectFacts, curate_grasps, near_duplicates, summarize
+from dexlite_pipeline.force_closure import ForceClosureResult
 from dexlite_pipeline.hand.qpos import ROTATION_KEYS
 from dexlite_pipeline.io.grasp_store import GraspSet, empty_grasp_set, read_grasp_store, write_grasp_store
 from dexlite_pipeline.stages.curate import _common_arrays, _tag
@@ -145,7 +146,7 @@ def test_force_closure_drops_grasps_whose_contacts_do_not_close():
 
     def evaluator(subset):
         seen.append(len(subset))
-        return np.array([epsilon_by_x[round(float(x), 2)] for x in subset.hand_pose[:, 0]])
+        return ForceClosureResult(np.array([epsilon_by_x[round(float(x), 2)] for x in subset.hand_pose[:, 0]]), np.full(len(subset), "", dtype=object))
 
     reasons = curate_grasps(grasps, FACTS, CurateConfig(force_closure=True, force_closure_min_epsilon=0.01), evaluator)
     assert list(reasons) == ["", "e_dis", "force_closure", "force_closure", "", "not_train"]  # epsilon must exceed the minimum
@@ -156,6 +157,18 @@ def test_force_closure_drops_grasps_whose_contacts_do_not_close():
     assert list(curate_grasps(_grasp_set(rows), FACTS, CurateConfig(force_closure=False), evaluator))[2:4] == ["", ""]
     with pytest.raises(ValueError, match="force-closure evaluator"):
         curate_grasps(_grasp_set(rows), FACTS, CurateConfig(force_closure=True))
+
+
+def test_grasps_whose_force_closure_could_not_be_computed_are_dropped_with_the_reason():
+    rows = [("a", _pose(t=(0.05 * i, 0, 0.1)), 0.1, GOOD) for i in range(3)]
+    grasps = _grasp_set(rows)
+
+    def evaluator(subset):
+        return ForceClosureResult(np.array([0.05, np.nan, 0.2]), np.array(["", "object asset unusable: damaged", ""], dtype=object))
+
+    reasons = curate_grasps(grasps, FACTS, CurateConfig(force_closure=True), evaluator)
+    assert list(reasons) == ["", "force_closure_unknown", ""]
+    assert list(grasps.arrays["force_closure_failure_reason"]) == ["", "object asset unusable: damaged", ""]
 
 
 def test_empty_input_sets_do_not_decide_the_shared_arrays():
@@ -294,3 +307,20 @@ def test_cli_stability_table_without_stable_is_a_one_line_error(workspace, tmp_p
     error = capsys.readouterr().err.strip()
     assert len(error.splitlines()) == 1 and "malformed.parquet" in error and "stable" in error
     assert not (tmp_path / "out.zarr").exists()
+
+
+def test_cli_force_closure_of_a_damaged_asset_drops_its_grasps_with_the_reason(workspace, tmp_path, capsys):
+    import shutil
+
+    objects = tmp_path / "objects"
+    shutil.copytree(workspace / "objects", objects)
+    (objects / "assets" / "box0" / "meta.json").write_text("{not json")
+    config = {"shards": 1, "device": "cpu", "curate": {"force_closure": True}}
+    args = _curate_args(tmp_path, "fc", config, objects=objects, seed=workspace / "seed_000.zarr", stability=workspace / "stability.parquet")
+    assert dexlite(args) == 0
+    kept = read_grasp_store(tmp_path / "fc.zarr")
+    assert len(kept) == 0 and kept.attrs["dropped"]["force_closure_unknown"] == 1 and kept.attrs["dropped"]["e_dis"] == 1
+    (reason, count), = kept.attrs["force_closure_failures"].items()
+    assert count == 1 and "object 'box0'" in reason and "meta.json" in reason
+    assert reason in capsys.readouterr().out
+    assert pd.read_csv(tmp_path / "fc.csv").loc[0, "dropped_force_closure_unknown"] == 1

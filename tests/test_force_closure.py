@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import torch
 
-from dexlite_pipeline.force_closure import ContactModel, contact_wrenches, epsilon_quality, force_closure_epsilon, link_contacts
+from dexlite_pipeline.force_closure import ContactModel, contact_wrenches, epsilon_quality, evaluate_force_closure, link_contacts
 from dexlite_pipeline.io.grasp_store import GraspSet
 
 
@@ -99,15 +99,42 @@ def test_link_contacts_pick_each_links_deepest_point(hand, sphere_dir):
     assert bool(((normals[1, near] * radial).sum(-1) > 0.95).all())  # a sphere's outward normal is radial
 
 
-def test_force_closure_epsilon_of_a_grasp_set(hand, sphere_dir):
-    pose = np.zeros((2, 28), np.float32)
-    pose[:, 9:] = 0.3
-    pose[0, :3] = (0.0, 0.0, 1.0)
-    grasps = GraspSet({"hand_pose": pose, "object_id": np.array(["sphere", "sphere"], dtype=object), "scale": np.array([0.05, 5.0], np.float32)})
-    epsilon = force_closure_epsilon(grasps, [sphere_dir], ContactModel(contact_distance_m=0.001), hand=hand)
-    assert epsilon.shape == (2,)
-    assert epsilon[0] == 0.0  # no contacts
-    assert epsilon[1] >= 0.0 and np.isfinite(epsilon[1])
+class _PointHand:
+    """A stand-in hand of three one-point links, put where the first nine numbers of the pose say (metres)."""
+
+    device = torch.device("cpu")
+    dtype = torch.float32
+    link_names = ("first", "second", "third")
+    surface_link = torch.arange(3)
+
+    def forward(self, hand_pose):
+        return hand_pose
+
+    def surface_points(self, frames):
+        return frames[:, :9].reshape(-1, 3, 3)
+
+
+def test_epsilon_of_a_grasp_set_matches_its_contacts_known_answer(sphere_dir, tmp_path):
+    """Three links on the sphere's equator close like the exact contacts there, at any scale; the rest get 0 or NaN with a reason."""
+    import shutil
+
+    shutil.copytree(sphere_dir, tmp_path / "objects")
+    shutil.copytree(sphere_dir / "assets" / "sphere", tmp_path / "objects" / "assets" / "damaged")
+    (tmp_path / "objects" / "assets" / "damaged" / "meta.json").write_text("{not json")
+    scales = np.array([0.05, 0.1, 0.05, 0.05, 0.05], np.float32)
+    pose = np.zeros((5, 28), np.float32)
+    pose[:, :9] = (_equator(3) * scales[:, None, None]).reshape(5, 9)
+    pose[2, :9] += 1.0  # a metre away: no contact
+    pose[3, 20] = np.nan
+    object_id = np.array(["sphere"] * 4 + ["damaged"], dtype=object)
+    grasps = GraspSet({"hand_pose": pose, "object_id": object_id, "scale": scales})
+    result = evaluate_force_closure(grasps, [tmp_path / "objects"], ContactModel(contact_distance_m=0.001), hand=_PointHand())
+    exact = _epsilon(_equator(3), friction=0.6)  # exact radial normals; the grid's normals differ by a few degrees
+    assert exact > 0.05
+    np.testing.assert_allclose(result.epsilon[:2], exact, rtol=0.02)  # torques over the scale: one answer at every scale
+    assert result.epsilon[2] == 0.0 and list(result.failure_reason[:3]) == ["", "", ""]
+    assert np.isnan(result.epsilon[3]) and result.failure_reason[3] == "non-finite hand_pose"
+    assert np.isnan(result.epsilon[4]) and "object 'damaged'" in result.failure_reason[4] and "meta.json" in result.failure_reason[4]
 
 
 def test_contact_model_rejects_nonsense():

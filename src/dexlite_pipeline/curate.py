@@ -68,6 +68,7 @@ import pandas as pd
 import torch
 
 from dexlite_pipeline.energy.grasp_energy import DEXGRASPNET_THRESHOLDS
+from dexlite_pipeline.force_closure import ForceClosureResult
 from dexlite_pipeline.hand.model import JOINTS, ROTATION, TRANSLATION
 from dexlite_pipeline.hand.rotation import euler_xyz_to_matrix
 from dexlite_pipeline.io.grasp_store import GraspSet, invalid_grasp_reasons
@@ -81,6 +82,7 @@ DROP_REASONS = (
     "e_fc",  # E_fc >= max_e_fc
     "e_dis",  # E_dis >= max_e_dis_m
     "e_pen",  # E_pen >= max_e_pen_m
+    "force_closure_unknown",  # its force closure could not be computed (e.g. unreadable object asset; reason in force_closure_failure_reason)
     "force_closure",  # the contacts it makes are not in force closure with a margin (epsilon <= force_closure_min_epsilon)
     "duplicate",  # near-duplicate of a better grasp of the same object and scale
     "cap",  # beyond max_grasps_per_object
@@ -221,27 +223,33 @@ def near_duplicates(hand_pose: np.ndarray, order: np.ndarray, config: CurateConf
 
 
 def curate_grasps(
-    grasps: GraspSet, facts: ObjectFacts, config: CurateConfig, force_closure_epsilon: Callable[[GraspSet], np.ndarray] | None = None
+    grasps: GraspSet, facts: ObjectFacts, config: CurateConfig, force_closure_evaluator: Callable[[GraspSet], ForceClosureResult] | None = None
 ) -> np.ndarray:
     """Per grasp, '' if kept, else its drop reason (one of ``DROP_REASONS``).
 
-    With ``config.force_closure``, ``force_closure_epsilon`` (grasps -> ε per grasp) is
-    called once, on the grasps that meet the energy thresholds, and its values are added
-    to ``grasps`` as the array ``force_closure_epsilon`` (NaN where not evaluated).
+    With ``config.force_closure``, ``force_closure_evaluator`` is called once, on the
+    grasps that meet the energy thresholds, and its results are added to ``grasps`` as the
+    arrays ``force_closure_epsilon`` (NaN where not evaluated) and
+    ``force_closure_failure_reason`` (why ε could not be computed, '' elsewhere).
     """
     reasons = object_reasons(grasps, facts)
     open_rows = reasons == ""
     if open_rows.any():
         reasons[open_rows] = threshold_reasons(grasps.select(open_rows), config)
     if config.force_closure:
-        if force_closure_epsilon is None:
+        if force_closure_evaluator is None:
             raise ValueError("config.curate.force_closure is on but no force-closure evaluator was given")
         evaluated = reasons == ""
         epsilon = np.full(len(grasps), np.nan)
+        failure_reason = np.full(len(grasps), "", dtype=object)
         if evaluated.any():
-            epsilon[evaluated] = force_closure_epsilon(grasps.select(evaluated))
+            result = force_closure_evaluator(grasps.select(evaluated))
+            epsilon[evaluated] = result.epsilon
+            failure_reason[evaluated] = result.failure_reason
         grasps.arrays["force_closure_epsilon"] = epsilon.astype(np.float32)
-        reasons[evaluated & ~(epsilon > config.force_closure_min_epsilon)] = "force_closure"
+        grasps.arrays["force_closure_failure_reason"] = failure_reason
+        reasons[evaluated & (failure_reason != "")] = "force_closure_unknown"
+        reasons[evaluated & (reasons == "") & ~(epsilon > config.force_closure_min_epsilon)] = "force_closure"
     passing = np.nonzero(reasons == "")[0]
     if len(passing) == 0:
         return reasons

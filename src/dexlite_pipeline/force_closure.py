@@ -23,6 +23,7 @@ sample (numbers in ``curate``).
 
 from __future__ import annotations
 
+import logging
 import math
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
@@ -32,8 +33,10 @@ import torch
 from scipy.spatial import ConvexHull, QhullError
 
 from dexlite_pipeline.hand.model import ShadowHand
-from dexlite_pipeline.io.grasp_store import GraspSet
-from dexlite_pipeline.objects.assets import SdfBank, load_asset
+from dexlite_pipeline.io.grasp_store import GraspSet, invalid_grasp_reasons
+from dexlite_pipeline.objects.assets import ObjectAssetError, SdfBank, load_asset
+
+log = logging.getLogger(__name__)
 
 RANK_TOLERANCE = 1e-9  # singular values below this (wrench units) count as a missing direction
 
@@ -106,26 +109,44 @@ def epsilon_quality(wrenches: np.ndarray) -> float:
     return float(max(0.0, -hull.equations[:, -1].max()))
 
 
-def force_closure_epsilon(
+@dataclass
+class ForceClosureResult:
+    """Per grasp: ε, NaN where it could not be computed, and why not ('' where it was)."""
+
+    epsilon: np.ndarray  # (N,) float64
+    failure_reason: np.ndarray  # (N,) str objects
+
+
+def evaluate_force_closure(
     grasps: GraspSet,
     objects_dirs,
     model: ContactModel = ContactModel(),
     batch_size: int = 256,
     hand: ShadowHand | None = None,
     threads: int = 1,
-) -> np.ndarray:
-    """Per grasp (N,) float64: ε of its link contacts under ``model``.
+) -> ForceClosureResult:
+    """Per grasp, ε of its link contacts under ``model``.
 
-    Contacts come from torch in batches; the hulls (scipy's Qhull, ~90% of the time) are
-    computed on ``threads`` threads, as Qhull releases the GIL.
+    A grasp with a non-finite pose or scale, or whose object asset cannot be loaded, gets
+    NaN and the reason; the other grasps are evaluated. Contacts come from torch in
+    batches; the hulls (scipy's Qhull, ~90% of the time) are computed on ``threads``
+    threads, as Qhull releases the GIL.
     """
     hand = hand if hand is not None else ShadowHand("cpu")
-    epsilon = np.zeros(len(grasps))
+    epsilon = np.full(len(grasps), np.nan)
+    failure_reason = invalid_grasp_reasons(grasps)
     object_ids = np.asarray([str(o) for o in grasps.object_id])
     with ThreadPoolExecutor(max_workers=max(1, int(threads))) as pool:
-        for object_id in np.unique(object_ids):
-            bank = SdfBank([load_asset(objects_dirs, object_id)], device=hand.device, dtype=hand.dtype)
-            rows = np.nonzero(object_ids == object_id)[0]
+        for object_id in sorted(set(object_ids.tolist())):
+            rows = np.nonzero((object_ids == object_id) & (failure_reason == ""))[0]
+            if not len(rows):
+                continue
+            try:
+                bank = SdfBank([load_asset(objects_dirs, object_id)], device=hand.device, dtype=hand.dtype)
+            except ObjectAssetError as exc:
+                log.warning("force closure: %s", exc)
+                failure_reason[rows] = f"object asset unusable: {exc}"
+                continue
             for start in range(0, len(rows), batch_size):
                 idx = rows[start : start + batch_size]
                 pose = torch.as_tensor(grasps.hand_pose[idx], dtype=hand.dtype, device=hand.device)
@@ -137,4 +158,4 @@ def force_closure_epsilon(
                     for k, row in enumerate(idx)
                 ]
                 epsilon[idx] = list(pool.map(epsilon_quality, wrench_sets))
-    return epsilon
+    return ForceClosureResult(epsilon, failure_reason)

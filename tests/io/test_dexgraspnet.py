@@ -264,11 +264,11 @@ def test_real_sample_grasps_barely_penetrate(imported_sample):
 
 def test_real_sample_force_closure_on_threads_equals_serial(imported_sample):
     """Real grasps give a mix of closing and open contact sets, and the threaded hull step changes nothing."""
-    from dexlite_pipeline.force_closure import force_closure_epsilon
+    from dexlite_pipeline.force_closure import evaluate_force_closure
 
     result, objects = imported_sample
     grasps = result.grasps.select(np.arange(0, 494, 12))
-    serial = force_closure_epsilon(grasps, [objects], batch_size=16)
-    threaded = force_closure_epsilon(grasps, [objects], batch_size=16, threads=2)
+    serial = evaluate_force_closure(grasps, [objects], batch_size=16).epsilon
+    threaded = evaluate_force_closure(grasps, [objects], batch_size=16, threads=2).epsilon
     np.testing.assert_array_equal(serial, threaded)
     assert 0.2 < float((serial > 0).mean()) < 1.0

@@ -6,7 +6,10 @@ Two steps, so that each shard is one job and the summary one small job:
   ``--imported``, the imported DexGraspNet grasps of this shard's objects (their energies
   are computed here); keeps the grasps ``dexlite_pipeline.curate`` admits; writes the
   curated store (``origin`` seed/dexgraspnet and ``origin_index``, the row in its input)
-  and a per-object summary CSV of kept and dropped counts.
+  and a per-object summary CSV of kept and dropped counts. Grasps whose force closure
+  could not be computed (an unreadable object asset) are dropped as
+  ``force_closure_unknown``; their reasons are printed and counted in the store's
+  attribute ``force_closure_failures``.
 - ``--step aggregate``: merges the per-shard summaries into one CSV.
 """
 
@@ -15,6 +18,8 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import logging
+import math
+from collections import Counter
 from pathlib import Path
 
 import numpy as np
@@ -91,8 +96,8 @@ def _common_arrays(sets):
 
 
 def _force_closure_evaluator(objects_dirs, curate_config, threads: int):
-    """grasps -> Ferrari–Canny ε of their actual contacts, with the contact model of ``curate_config``, on ``threads`` threads."""
-    from dexlite_pipeline.force_closure import ContactModel, force_closure_epsilon
+    """grasps -> Ferrari–Canny ε of their actual contacts (``ForceClosureResult``), with the contact model of ``curate_config``, on ``threads`` threads."""
+    from dexlite_pipeline.force_closure import ContactModel, evaluate_force_closure
 
     model = ContactModel(
         contact_distance_m=curate_config.force_closure_contact_distance_m,
@@ -101,9 +106,14 @@ def _force_closure_evaluator(objects_dirs, curate_config, threads: int):
     )
 
     def evaluate(grasps):
-        epsilon = force_closure_epsilon(grasps, objects_dirs, model, threads=threads)
-        log.info("force closure of %d grasps: epsilon median %.4f, %.1f%% above %g", len(grasps), float(np.median(epsilon)), 100 * float((epsilon > curate_config.force_closure_min_epsilon).mean()), curate_config.force_closure_min_epsilon)
-        return epsilon
+        result = evaluate_force_closure(grasps, objects_dirs, model, threads=threads)
+        epsilon = result.epsilon[np.isfinite(result.epsilon)]
+        log.info(
+            "force closure of %d grasps: %d evaluated, epsilon median %.4f, %.1f%% above %g",
+            len(grasps), len(epsilon), float(np.median(epsilon)) if len(epsilon) else math.nan,
+            100 * float((epsilon > curate_config.force_closure_min_epsilon).mean()) if len(epsilon) else 0.0, curate_config.force_closure_min_epsilon,
+        )
+        return result
 
     return evaluate
 
@@ -129,6 +139,9 @@ def _curate_shard(args, config: dict) -> int:
         raise ValueError("--step curate needs --seed-grasps and/or --imported")
     grasps = _common_arrays(sets)
     reasons = curate_grasps(grasps, facts, curate_config, _force_closure_evaluator(args.objects, curate_config, args.threads or 1))
+    # Reported in the attributes and printed, not stored: it is '' for every kept grasp.
+    failure_reason = grasps.arrays.pop("force_closure_failure_reason", np.full(len(grasps), "", dtype=object))
+    force_closure_failures = Counter(failure_reason[failure_reason != ""].tolist())
     kept = grasps.select(reasons == "")
     counts = {r: int((reasons == r).sum()) for r in DROP_REASONS}
     attrs = {
@@ -139,12 +152,15 @@ def _curate_shard(args, config: dict) -> int:
         "n_input": len(grasps),
         "n_kept": len(kept),
         "dropped": counts,
+        "force_closure_failures": dict(force_closure_failures),
     }
     write_grasp_store(args.out, kept, attrs)
     with atomic_path(args.summary_out) as tmp:
         summarize(grasps, reasons, facts).to_csv(tmp, index=False)
     dropped = ", ".join(f"{r} {c}" for r, c in counts.items() if c)
     print(f"shard {args.shard}: kept {len(kept)} of {len(grasps)} grasps; dropped: {dropped or 'none'}")
+    for reason, count in force_closure_failures.items():
+        print(f"shard {args.shard}: {count} grasps dropped as force_closure_unknown: {reason}")
     return 0
 
 
