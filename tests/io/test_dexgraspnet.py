@@ -151,6 +151,29 @@ def test_union_of_pieces_gives_the_solids_sdf_and_outer_surface(layout, tmp_path
     assert (np.einsum("ij,ij->i", asset.surface_points, asset.surface_normals) > 0).all()
 
 
+def test_a_crashed_file_counts_its_grasps_from_the_header_or_says_unknown(layout, tmp_path, monkeypatch, capsys):
+    """A worker that dies takes all of its file's grasps with it; the report and the summary must not say none were lost."""
+    from dexlite_pipeline.io import dexgraspnet
+
+    (layout["root"] / "dataset" / "garbled.npy").write_bytes(b"not an npy file")
+
+    def crash(path, root):
+        raise RuntimeError("simulated native crash")
+
+    monkeypatch.setattr(dexgraspnet, "read_grasp_file", crash)
+    out = tmp_path / "grasps.zarr"
+    code = dexlite(["import-dexgraspnet", str(layout["root"]), "--out", str(out), "--objects-out", str(tmp_path / "objects"), "--threads", "1"])
+    assert code == 0
+    report = pd.read_csv(tmp_path / "grasps.import_report.csv").set_index("file")
+    assert set(report["kind"]) == {"import_failed"}
+    # Grasp files are 1-D arrays of dicts; a header that cannot be read or declares another shape says nothing of grasps.
+    counts = {"dataset/box.npy": 8, "dataset/evil.npy": 1, "dataset/garbled.npy": -1, "dataset/nomesh.npy": 3, "dataset/numbers.npy": -1}
+    assert report["grasps_affected"].to_dict() == counts
+    attrs = read_grasp_store(out).attrs
+    assert attrs["grasps_not_imported"] == 12 and attrs["failed_files_with_unknown_grasp_count"] == 2
+    assert "12 grasps (plus the grasps of 2 failed files, number unknown)" in capsys.readouterr().out
+
+
 def test_export_then_import_round_trip(layout, tmp_path):
     first = import_dexgraspnet(layout["root"], tmp_path / "objects", SMALL_ASSETS, DexGraspNetConfig(), seed=0).grasps
     from dexlite_pipeline.io.grasp_store import write_grasp_store

@@ -16,7 +16,8 @@ the raw piece soup would measure depth to internal faces, and surface samples wo
 fall inside the object.
 
 Problems never stop the import: each is a row of the import report (file-level rows
-have ``grasp_index`` -1) and everything else is imported.
+have ``grasp_index`` -1; ``grasps_affected`` is -1 where a failed file's grasp count is
+unknown) and everything else is imported.
 """
 
 from __future__ import annotations
@@ -31,6 +32,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from numpy.lib import format as npy_format
 
 from dexlite_pipeline.hand.model import JOINT_NAMES
 from dexlite_pipeline.hand.qpos import QPOS_KEYS, ROTATION_KEYS, TRANSLATION_KEYS, QposError, hand_pose_from_qpos, qpos_from_hand_pose
@@ -46,6 +48,7 @@ MESHDATA_DIR = "meshdata"
 MESH_RELATIVE_PATH = Path("coacd") / "decomposed.obj"
 CATALOG_COLUMNS = ("object_id", "source", "file", "watertight", "volume", "n_convex_pieces", "status", "reason", "split")
 REPORT_COLUMNS = ("file", "object_id", "grasp_index", "grasps_affected", "kind", "reason")
+UNKNOWN_GRASP_COUNT = -1  # grasps_affected of a failed file whose header does not say how many grasps it holds
 # DexGraspNet writes the joints first, then the palm rotation and translation.
 EXPORT_KEY_ORDER = (*JOINT_NAMES, *ROTATION_KEYS, *TRANSLATION_KEYS)
 
@@ -66,7 +69,7 @@ class ImportProblem:
     file: str
     object_id: str
     grasp_index: int
-    grasps_affected: int
+    grasps_affected: int  # grasps not imported because of this problem; UNKNOWN_GRASP_COUNT if not known
     kind: str  # refused_pickle, unreadable_file, wrong_type, missing_mesh, bad_mesh, unknown_joint_names, ...
     reason: str
 
@@ -277,13 +280,30 @@ def _import_file(task: _FileTask) -> _FileOutcome:
     return _FileOutcome(result, _catalog_row(object_id, mesh_path, task.split, "ok", summary=summary), problems)
 
 
+def declared_grasp_count(path: Path) -> int:
+    """The number of grasps the ``.npy`` header of ``path`` declares (nothing is unpickled), or UNKNOWN_GRASP_COUNT."""
+    try:
+        with open(path, "rb") as fp:
+            major, _ = npy_format.read_magic(fp)
+            read_header = npy_format.read_array_header_1_0 if major == 1 else npy_format.read_array_header_2_0
+            shape, _, _ = read_header(fp)
+    except (OSError, ValueError):
+        return UNKNOWN_GRASP_COUNT
+    return int(shape[0]) if len(shape) == 1 else UNKNOWN_GRASP_COUNT
+
+
 def _crashed_file(task: _FileTask, message: str) -> _FileOutcome:
-    """The outcome of a file whose worker raised or died (a native-library crash while building the asset)."""
+    """The outcome of a file whose worker raised or died (a native-library crash while building the asset).
+
+    All of the file's grasps are lost; their number is read from the file's header (the
+    crash may have come before the grasps were counted).
+    """
     object_id = task.path.stem
     mesh_path = task.root / MESHDATA_DIR / object_id / MESH_RELATIVE_PATH
     label = task.path.relative_to(task.root).as_posix()
     reason = f"import failed: {message}"
-    return _FileOutcome(None, _catalog_row(object_id, mesh_path, task.split, "rejected", reason), [ImportProblem(label, object_id, -1, 0, "import_failed", reason)])
+    problem = ImportProblem(label, object_id, -1, declared_grasp_count(task.path), "import_failed", reason)
+    return _FileOutcome(None, _catalog_row(object_id, mesh_path, task.split, "rejected", reason), [problem])
 
 
 def import_dexgraspnet(

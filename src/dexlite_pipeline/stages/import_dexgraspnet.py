@@ -42,6 +42,7 @@ def run(args: argparse.Namespace) -> int:
     from dexlite_pipeline.io.dexgraspnet import (
         CATALOG_COLUMNS,
         REPORT_COLUMNS,
+        UNKNOWN_GRASP_COUNT,
         DexGraspNetConfig,
         import_dexgraspnet,
         problem_rows,
@@ -61,8 +62,9 @@ def run(args: argparse.Namespace) -> int:
     write_table_atomic(result.catalog, CATALOG_COLUMNS, Path(args.objects_out) / CATALOG_NAME)
     write_table_atomic(problem_rows(result.problems), REPORT_COLUMNS, report)
     ok_objects = sum(row["status"] == "ok" for row in result.catalog)
-    rejected_grasps = sum(p.grasps_affected for p in result.problems)
+    rejected_grasps = sum(p.grasps_affected for p in result.problems if p.grasps_affected != UNKNOWN_GRASP_COUNT)
     files_not_read = sum(p.grasp_index == -1 and p.grasps_affected == 0 for p in result.problems)
+    files_uncounted = sum(p.grasps_affected == UNKNOWN_GRASP_COUNT for p in result.problems)
     attrs = {
         "stage": "import_dexgraspnet",
         "source": "dexgraspnet",
@@ -72,10 +74,12 @@ def run(args: argparse.Namespace) -> int:
         "grasps_imported": len(result.grasps),
         "grasps_not_imported": rejected_grasps,
         "files_not_read": files_not_read,
+        "failed_files_with_unknown_grasp_count": files_uncounted,
     }
     write_grasp_store(out, result.grasps, attrs)
+    uncounted = f" (plus the grasps of {files_uncounted} failed files, number unknown)" if files_uncounted else ""
     print(
         f"imported {len(result.grasps)} grasps of {ok_objects}/{len(result.catalog)} objects; "
-        f"{rejected_grasps} grasps and {files_not_read} whole files not imported, {len(result.problems)} problems (see {report})"
+        f"{rejected_grasps} grasps{uncounted} and {files_not_read} whole files not imported, {len(result.problems)} problems (see {report})"
     )
     return 0
