@@ -3,9 +3,8 @@
 These grasps were made and validated by another system. A prototype of this protocol
 passed 79% of such grasps at friction 0.6 (88% at 1.0) and 0% once moved away; the full
 494-grasp sample passes 76.5% here at friction 0.6 (89.1% at 1.0). A seeded subset keeps
-the test short; its band is wide enough for the subset's sampling noise (about ±10
-points) and narrow enough to catch a broken frame, squeeze or contact model (each of
-which moves the rate by 15 points or more, DESIGN.md).
+the test short; the subset is fixed, so its pass count is not a sample statistic but a
+deterministic result, and the test pins it (see ``EXPECTED_PASSES``).
 """
 
 from __future__ import annotations
@@ -17,6 +16,13 @@ from dexlite_pipeline.sim.config import LiftConfig
 from dexlite_pipeline.sim.lift import run_lift_tests
 
 SUBSET = 64
+# The subset passes 48 of 64, the same on every run. The tolerance is for another platform's
+# floating point (other CPU, compiler, BLAS): measured, noise of 1e-4 and 3e-4 (metres,
+# radians) added to every pose flipped none of the 64 outcomes in four runs, and 1e-3 flipped
+# one in two runs, while rounding differences are ~1e-7. Two grasps either way leave room for
+# a marginal grasp or two and fail any change of the simulation worth 3 grasps (5 points).
+EXPECTED_PASSES = 48
+PASS_TOLERANCE = 2
 
 
 @pytest.fixture(scope="module")
@@ -37,8 +43,8 @@ def sample(dexgraspnet_sample, tmp_path_factory):
 def test_real_grasps_pass_at_the_prototype_rate(sample):
     grasps, objects = sample
     result = run_lift_tests(grasps, [objects], LiftConfig(), threads=1)
-    rate = float(result["lift_success"].mean())
-    assert 0.6 <= rate <= 0.92, f"pass rate {rate:.2f} of {len(grasps)} real grasps at friction 0.6"
+    passes = int(result["lift_success"].sum())
+    assert abs(passes - EXPECTED_PASSES) <= PASS_TOLERANCE, f"{passes} of {len(grasps)} real grasps pass at friction 0.6, expected {EXPECTED_PASSES}"
     assert set(result["failure_reason"]) <= {"", "dropped"}
     assert np.nanmedian(result["initial_penetration_mm"]) < 1.5  # frames right: ~0.6 mm
     ratio = result["lift_ratio"]
