@@ -15,11 +15,11 @@ import logging
 import time
 
 import numpy as np
-import pandas as pd
 
 from dexlite_pipeline.config import from_section, parse_config_json
 from dexlite_pipeline.io.grasp_store import GraspSet, read_grasp_store, write_grasp_store
 from dexlite_pipeline.model.sampling import EXPAND_LATENT, EXPAND_POINT, SYNTHESIS, SampleConfig
+from dexlite_pipeline.objects.stability import stable_object_ids
 from dexlite_pipeline.stages.train_cvae import object_splits
 
 log = logging.getLogger("dexlite.sample_grasps")
@@ -33,14 +33,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--lift", action="append", default=[], help="lift-validated grasp shard, the expansion seeds (repeatable)")
     parser.add_argument("--shard", required=True, help="shard id, e.g. 000")
     parser.add_argument("--out", required=True, help="output grasp store (.zarr)")
-
-
-def stable_object_ids(stability_path: str) -> set[str]:
-    table = pd.read_parquet(stability_path)
-    for column in ("object_id", "stable"):
-        if column not in table.columns:
-            raise ValueError(f"{stability_path}: stability table has no {column!r} column")
-    return {str(o) for o, s in zip(table["object_id"], table["stable"]) if bool(s)}
 
 
 def known_grasps(paths: list[str], object_ids: set[str]) -> GraspSet:

@@ -19,6 +19,7 @@ from dexlite_pipeline.curate import IMPORTED_ORIGIN
 from dexlite_pipeline.io.atomic import atomic_path
 from dexlite_pipeline.io.grasp_store import GraspSet, read_grasp_store
 from dexlite_pipeline.model.training import LOSS_TERMS, TrainConfig
+from dexlite_pipeline.objects.assets import CATALOG_NAME, CATALOG_REQUIRED_COLUMNS, read_object_table
 
 log = logging.getLogger("dexlite.train_cvae")
 
@@ -34,14 +35,12 @@ def object_splits(objects_dirs: list[str]) -> dict[str, str]:
     """Object id -> split ('train' / 'heldout') from the catalogs of the objects dirs (first one wins)."""
     splits: dict[str, str] = {}
     for d in objects_dirs:
-        path = Path(d) / "catalog.parquet"
+        path = Path(d) / CATALOG_NAME
         if not path.exists():
             log.warning("%s: no catalog, its objects count as of unknown split and are not trained on", path)
             continue
-        catalog = pd.read_parquet(path)
-        if "split" not in catalog.columns:
-            raise ValueError(f"{path}: catalog has no 'split' column")
-        ok = catalog["status"] == "ok" if "status" in catalog.columns else np.ones(len(catalog), bool)
+        catalog = read_object_table(path, "object catalog", (*CATALOG_REQUIRED_COLUMNS, "split"), "prepare_objects")
+        ok = catalog["status"] == "ok"
         for oid, split in zip(catalog["object_id"][ok], catalog["split"][ok]):
             splits.setdefault(str(oid), str(split))
     return splits
