@@ -112,3 +112,61 @@ def test_summarize_grasps_columns():
     assert math.isnan(out["contact_distance_mean_mm"])
     rows = metrics.per_object_rows(arrays)
     assert [r["lift_success_rate"] for r in rows] == [0.5, 0.0]
+
+
+def test_invalid_grasps_fail_every_rate_and_are_left_out_of_diversity():
+    pose = np.zeros((4, 28))
+    pose[:, 6:] = np.linspace(0, 1, 4)[:, None]
+    pose[3] = np.nan
+    arrays = {
+        "hand_pose": pose,
+        "object_id": np.array(["a", "a", "b", "b"], dtype=object),
+        "lift_success": np.array([True, True, False, False]),
+        "six_dir_success": np.array([True, False, False, False]),
+        "invalid_reason": np.array(["", "", "", "non-finite hand_pose"], dtype=object),
+    }
+    out = metrics.summarize_grasps(arrays, LIMITS, entropy_bins=4)
+    assert (out["n_grasps"], out["n_invalid"]) == (4, 1)
+    assert out["lift_success_rate"] == 0.5 and out["six_dir_success_rate"] == 0.25
+    assert math.isfinite(out["joint_entropy_bits"]) and out["joint_entropy_bits"] == pytest.approx(math.log2(3))
+    assert [r["n_invalid"] for r in metrics.per_object_rows(arrays)] == [0, 1]
+
+
+def _clustered(rates_per_object, grasps_per_object=16):
+    """Object ids and success flags: object k has round(rate_k * grasps_per_object) successes."""
+    ids, flags = [], []
+    for k, rate in enumerate(rates_per_object):
+        successes = round(rate * grasps_per_object)
+        ids += [f"obj{k}"] * grasps_per_object
+        flags += [True] * successes + [False] * (grasps_per_object - successes)
+    return np.array(ids), np.array(flags)
+
+
+def test_cluster_bootstrap_is_wider_than_wilson_when_objects_decide_success():
+    """80 grasps, 16 each from 5 objects, two of which always hold and three never: 40%.
+
+    Wilson (grasps independent) says 30-51%; resampling objects says anything from 0% to 80%
+    is plausible for another 5 objects, which is the honest answer.
+    """
+    ids, flags = _clustered([1, 1, 0, 0, 0])
+    wilson = metrics.wilson_interval(flags)
+    low, high = metrics.cluster_bootstrap_interval(ids, flags, seed=0)
+    assert wilson == (pytest.approx(0.300, abs=1e-3), pytest.approx(0.510, abs=1e-3))
+    assert low <= 0.05 and high >= 0.75
+    assert high - low > 3 * (wilson[1] - wilson[0])
+    assert (low, high) == metrics.cluster_bootstrap_interval(ids, flags, seed=0)  # seeded: the same interval again
+
+
+def test_cluster_bootstrap_collapses_when_every_object_has_the_same_rate():
+    ids, flags = _clustered([0.25] * 5)
+    assert metrics.cluster_bootstrap_interval(ids, flags, seed=0) == (pytest.approx(0.25), pytest.approx(0.25))
+    assert all(math.isnan(v) for v in metrics.cluster_bootstrap_interval(np.array([]), np.array([], dtype=bool), seed=0))
+
+
+def test_summary_has_bootstrap_columns_beside_wilson():
+    ids, flags = _clustered([1, 1, 0, 0, 0])
+    arrays = {"hand_pose": np.zeros((len(ids), 28)), "object_id": ids, "lift_success": flags}
+    out = metrics.summarize_grasps(arrays, LIMITS, bootstrap_seed=0)
+    assert (out["lift_success_boot_ci95_low"], out["lift_success_boot_ci95_high"]) == metrics.cluster_bootstrap_interval(ids, flags, seed=0)
+    assert out["lift_success_ci95_high"] < out["lift_success_boot_ci95_high"]
+    assert math.isnan(out["six_dir_success_boot_ci95_low"])  # not measured: no interval either

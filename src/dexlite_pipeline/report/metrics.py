@@ -6,7 +6,17 @@ outside the pipeline. Conventions (stated once, used in the CSV column names):
 - rates are fractions in [0, 1]; NaN when there is nothing to measure (never 0 by default);
   the per-grasp success rates come with a 95% Wilson score interval (``_ci95_low`` /
   ``_ci95_high``): with 80 grasps a rate of 20% is 12–30%, so a difference of a few points
-  between methods is not a finding;
+  between methods is not a finding. Wilson treats the grasps as independent, but they come
+  in clusters (16 each from 5 objects) and grasps of one object succeed or fail together,
+  so the rates also get an object-level (cluster) bootstrap 95% interval
+  (``_boot_ci95_low`` / ``_boot_ci95_high``): objects resampled with replacement. It is
+  wider than Wilson's when success depends strongly on the object (two of five objects
+  always hold, three never: 0–80% against Wilson's 30–51%); with as few as 5 objects it
+  is itself rough (it sees only the spread the sampled objects show) and can come out
+  narrower, so read the two together;
+- a grasp whose pose or scale is unusable (``invalid_reason`` not empty) is not simulated
+  but counts as a failure in every success rate (``n_invalid`` of ``n_grasps``), so a
+  method cannot raise its rate by emitting NaN poses; diversity is measured on the others;
 - lengths are reported in millimetres (``_mm``), energies in the energy module's units;
 - diversity follows the two papers whose numbers a reader compares against:
 
@@ -40,6 +50,7 @@ from dexlite_pipeline.energy.grasp_energy import DEXGRASPNET_THRESHOLDS
 
 JOINT_ENTROPY_BINS = 100
 PCA_COMPONENTS = (1, 2, 3, 5)
+BOOTSTRAP_RESAMPLES = 4000
 
 
 def rate(flags: np.ndarray) -> float:
@@ -63,6 +74,32 @@ def wilson_interval(flags: np.ndarray, z: float = 1.959964) -> tuple[float, floa
     centre = (p + z * z / (2 * n)) / denominator
     half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / denominator
     return max(0.0, centre - half), min(1.0, centre + half)
+
+
+def cluster_bootstrap_interval(
+    cluster_ids: np.ndarray, flags: np.ndarray, seed: int, resamples: int = BOOTSTRAP_RESAMPLES, level: float = 0.95
+) -> tuple[float, float]:
+    """Percentile interval of the success fraction when whole clusters (objects) are resampled with replacement.
+
+    Each resample draws as many clusters as there are and pools their grasps, so the
+    spread reflects how much success varies between objects, not only between grasps.
+    Seeded, so the same inputs give the same interval. NaNs when empty; a single
+    cluster gives its own rate at both ends (nothing to resample between).
+    """
+    flags = np.asarray(flags, dtype=bool).reshape(-1)
+    if flags.size == 0:
+        return math.nan, math.nan
+    _, cluster = np.unique(np.asarray(cluster_ids).astype(str), return_inverse=True)
+    n_clusters = int(cluster.max()) + 1
+    grasps = np.bincount(cluster, minlength=n_clusters).astype(np.float64)
+    successes = np.bincount(cluster, weights=flags.astype(np.float64), minlength=n_clusters)
+    draws = np.random.default_rng(seed).integers(0, n_clusters, size=(resamples, n_clusters))
+    offsets = (np.arange(resamples)[:, None] * n_clusters + draws).ravel()
+    multiplicity = np.bincount(offsets, minlength=resamples * n_clusters).reshape(resamples, n_clusters)
+    rates = (multiplicity @ successes) / (multiplicity @ grasps)
+    tail = (1.0 - level) / 2 * 100
+    low, high = np.percentile(rates, [tail, 100 - tail])
+    return float(low), float(high)
 
 
 def object_success_rate(object_ids: np.ndarray, success: np.ndarray) -> float:
@@ -177,15 +214,18 @@ def summarize_grasps(
     joint_limits_rad: np.ndarray,
     entropy_bins: int = JOINT_ENTROPY_BINS,
     pca_components: Sequence[int] = PCA_COMPONENTS,
+    bootstrap_seed: int = 0,
 ) -> dict[str, float]:
     """All per-set metrics of one (method, split) from its per-grasp arrays.
 
     Uses whichever of these arrays are present (absent ones give NaN columns, never a
     made-up number): lift_success, six_dir_success, penetration_mm, contact_distance_mm,
-    E_fc, E_dis, E_pen, hand_pose, object_id.
+    E_fc, E_dis, E_pen, hand_pose, object_id, invalid_reason. Invalid grasps are in
+    ``n_grasps`` and fail every success rate; joint diversity uses the valid ones.
     """
     n = int(np.asarray(arrays["hand_pose"]).shape[0])
     object_ids = np.asarray(arrays["object_id"]).astype(str)
+    invalid = invalid_flags(arrays)
 
     def column(name: str) -> np.ndarray | None:
         return np.asarray(arrays[name]) if name in arrays else None
@@ -195,33 +235,51 @@ def summarize_grasps(
     pen_mean, pen_p95 = mean_and_p95(column("penetration_mm")) if "penetration_mm" in arrays else (math.nan, math.nan)
     contact = column("contact_distance_mm")
     e_fc = column("E_fc")
-    joints = np.asarray(arrays["hand_pose"], dtype=np.float64)[:, 6:]
+    joints = np.asarray(arrays["hand_pose"], dtype=np.float64)[~invalid, 6:]
     entropy = joint_entropy_bits(joints, joint_limits_rad, entropy_bins)
     pca = pca_cumulative_explained_variance(joints, pca_components)
-    lift_low, lift_high = wilson_interval(lift) if lift is not None else (math.nan, math.nan)
-    six_low, six_high = wilson_interval(six) if six is not None else (math.nan, math.nan)
     out = {
         "n_grasps": n,
+        "n_invalid": int(invalid.sum()),
         "n_objects": int(len(np.unique(object_ids))),
-        "lift_success_rate": rate(lift) if lift is not None else math.nan,
-        "lift_success_ci95_low": lift_low,
-        "lift_success_ci95_high": lift_high,
+        **_rate_columns("lift_success", lift, object_ids, bootstrap_seed),
         "object_success_rate": object_success_rate(object_ids, lift) if lift is not None else math.nan,
-        "six_dir_success_rate": rate(six) if six is not None else math.nan,
-        "six_dir_success_ci95_low": six_low,
-        "six_dir_success_ci95_high": six_high,
+        **_rate_columns("six_dir_success", six, object_ids, bootstrap_seed),
         "penetration_mean_mm": pen_mean,
         "penetration_p95_mm": pen_p95,
         "contact_distance_mean_mm": finite_mean(contact) if contact is not None else math.nan,
         "E_fc_mean": finite_mean(e_fc) if e_fc is not None else math.nan,
         "E_fc_median": float(np.nanmedian(e_fc)) if e_fc is not None and np.isfinite(e_fc).any() else math.nan,
         "energy_threshold_pass_rate": _threshold_pass_rate(arrays),
-        "joint_entropy_bits": float(np.mean(entropy)) if n else math.nan,
-        "joint_entropy_std_bits": float(np.std(entropy)) if n else math.nan,
+        "joint_entropy_bits": float(np.mean(entropy)) if len(joints) else math.nan,
+        "joint_entropy_std_bits": float(np.std(entropy)) if len(joints) else math.nan,
     }
     for k, value in pca.items():
         out[f"pca_explained_variance_k{k}"] = value
     return out
+
+
+def _rate_columns(name: str, flags: np.ndarray | None, object_ids: np.ndarray, bootstrap_seed: int) -> dict[str, float]:
+    """``<name>_rate`` with its Wilson (``_ci95_*``) and object-bootstrap (``_boot_ci95_*``) intervals; NaNs when not measured."""
+    if flags is None:
+        return {f"{name}{suffix}": math.nan for suffix in ("_rate", "_ci95_low", "_ci95_high", "_boot_ci95_low", "_boot_ci95_high")}
+    wilson = wilson_interval(flags)
+    bootstrap = cluster_bootstrap_interval(object_ids, flags, bootstrap_seed)
+    return {
+        f"{name}_rate": rate(flags),
+        f"{name}_ci95_low": wilson[0],
+        f"{name}_ci95_high": wilson[1],
+        f"{name}_boot_ci95_low": bootstrap[0],
+        f"{name}_boot_ci95_high": bootstrap[1],
+    }
+
+
+def invalid_flags(arrays: Mapping[str, np.ndarray]) -> np.ndarray:
+    """Per grasp, True where it was not simulated for an unusable pose or scale (``invalid_reason`` set)."""
+    n = int(np.asarray(arrays["hand_pose"]).shape[0])
+    if "invalid_reason" not in arrays:
+        return np.zeros(n, dtype=bool)
+    return np.asarray([str(r) != "" for r in arrays["invalid_reason"]], dtype=bool)
 
 
 def _threshold_pass_rate(arrays: Mapping[str, np.ndarray]) -> float:
@@ -233,12 +291,13 @@ def _threshold_pass_rate(arrays: Mapping[str, np.ndarray]) -> float:
 
 
 def per_object_rows(arrays: Mapping[str, np.ndarray]) -> list[dict]:
-    """One row per object: grasp count, lift and six-direction success rates, mean penetration."""
+    """One row per object: grasp count (invalid ones among them), lift and six-direction success rates, mean penetration."""
     object_ids = np.asarray(arrays["object_id"]).astype(str)
+    invalid = invalid_flags(arrays)
     rows = []
     for object_id in np.unique(object_ids):
         mask = object_ids == object_id
-        row = {"object_id": str(object_id), "n_grasps": int(mask.sum())}
+        row = {"object_id": str(object_id), "n_grasps": int(mask.sum()), "n_invalid": int(invalid[mask].sum())}
         for name, key in (("lift_success", "lift_success_rate"), ("six_dir_success", "six_dir_success_rate")):
             row[key] = rate(np.asarray(arrays[name])[mask]) if name in arrays else math.nan
         row["any_lift_success"] = bool(np.asarray(arrays["lift_success"])[mask].any()) if "lift_success" in arrays else False
