@@ -16,28 +16,41 @@ def grasp_poses(n: int, rng: np.random.Generator) -> np.ndarray:
     return pose
 
 
-def simulated_shard(path, methods_success: dict[str, list[bool]], rng, attrs=None):
-    """A store shaped like evaluate's simulated output, with chosen lift outcomes per method."""
-    methods, success = [], []
+def simulated_shard(path, methods_success: dict[str, list[bool | None]], rng, attrs=None):
+    """A store shaped like evaluate's simulated output, with chosen lift outcomes per method.
+
+    An outcome of None is an invalid grasp: NaN pose, not simulated (NaN measurements), a failure.
+    """
+    methods, outcomes = [], []
     for method, flags in methods_success.items():
         methods += [method] * len(flags)
-        success += flags
+        outcomes += flags
     n = len(methods)
+    invalid = np.asarray([o is None for o in outcomes])
+    success = np.asarray([bool(o) for o in outcomes])
+    hand_pose = grasp_poses(n, rng)
+    hand_pose[invalid] = np.nan
+
+    def measured(values):
+        return np.where(invalid, np.nan, values).astype(np.float32)
+
     arrays = {
-        "hand_pose": grasp_poses(n, rng),
+        "hand_pose": hand_pose,
         "object_id": np.full(n, OBJECT_ID, dtype=object),
         "scale": np.full(n, 0.06, np.float32),
         "method": np.asarray(methods, dtype=object),
         "split": np.full(n, "heldout", dtype=object),
         "source_row": np.arange(n),
-        "lift_success": np.asarray(success, dtype=bool),
+        "sample_row": np.full(n, -1),
+        "invalid_reason": np.where(invalid, "non-finite hand_pose", "").astype(object),
+        "lift_success": success,
         "six_dir_success": np.zeros(n, bool),
-        "failure_reason": np.where(success, "", "object slipped").astype(object),
-        "penetration_mm": rng.uniform(0, 2, n).astype(np.float32),
-        "contact_distance_mm": rng.uniform(0, 3, n).astype(np.float32),
-        "E_fc": rng.uniform(0, 1, n).astype(np.float32),
-        "E_dis": np.full(n, 0.002, np.float32),
-        "E_pen": np.zeros(n, np.float32),
+        "failure_reason": np.where(success, "", np.where(invalid, "invalid_grasp: non-finite hand_pose", "object slipped")).astype(object),
+        "penetration_mm": measured(rng.uniform(0, 2, n)),
+        "contact_distance_mm": measured(rng.uniform(0, 3, n)),
+        "E_fc": measured(rng.uniform(0, 1, n)),
+        "E_dis": measured(np.full(n, 0.002)),
+        "E_pen": measured(np.zeros(n)),
     }
     write_grasp_store(path, GraspSet(arrays), attrs or {})
     return path

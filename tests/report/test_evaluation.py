@@ -4,6 +4,8 @@ import base64
 import json
 import math
 import re
+from collections import Counter
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -11,7 +13,8 @@ import pytest
 
 from dexlite_pipeline.cli import main
 from dexlite_pipeline.io.grasp_store import GraspSet
-from dexlite_pipeline.report.evaluation import EvaluateConfig, method_grasps, select_grasps, stage_seconds_per_grasp
+from dexlite_pipeline.report.evaluation import EvaluateConfig, method_grasps, sample_rows_of, select_grasps, stage_seconds_per_grasp
+from dexlite_pipeline.stages.evaluate import METHOD_SOURCES
 
 from report_synthetic import OBJECT_ID, post_store, simulated_shard
 
@@ -23,19 +26,92 @@ def _set(object_ids, extra=None):
     return GraspSet(arrays)
 
 
-def test_select_grasps_caps_per_object_keeps_split_and_counts_invalid():
+def test_select_grasps_caps_per_object_keeps_split_and_keeps_invalid_as_chosen_rows():
     ids = ["a"] * 10 + ["b"] * 3 + ["t"] * 5
     grasps = _set(ids)
-    grasps.arrays["scale"][0] = np.nan
+    grasps.arrays["scale"][10] = np.nan  # one of b's three: chosen whatever the draw (cap 4)
     split_of = {"a": "heldout", "b": "heldout", "t": "train"}
     cfg = EvaluateConfig(grasps_per_object=4)
     chosen = select_grasps(grasps, "seed", split_of, cfg, seed=0)
     assert sorted(chosen.object_id.tolist()) == ["a"] * 4 + ["b"] * 3
-    assert 0 not in chosen.arrays["source_row"]
+    reasons = dict(zip(chosen.arrays["source_row"].tolist(), chosen.arrays["invalid_reason"].tolist()))
+    assert reasons[10] == "non-positive or non-finite scale" and sum(r != "" for r in reasons.values()) == 1
     assert chosen.attrs["invalid_reasons"] == {"non-positive or non-finite scale": 1}
     assert set(chosen.arrays["split"]) == {"heldout"} and set(chosen.arrays["method"]) == {"seed"}
+    assert (chosen.arrays["sample_row"] == -1).all()
     again = select_grasps(grasps, "seed", split_of, cfg, seed=0)
     assert np.array_equal(again.arrays["source_row"], chosen.arrays["source_row"])
+
+
+def test_invalid_grasps_are_chosen_as_often_as_valid_ones():
+    """A method emitting NaN poses for half its grasps gets about half its chosen grasps invalid, not none."""
+    grasps = _set(["a"] * 400)
+    grasps.arrays["hand_pose"][::2] = np.nan
+    chosen = select_grasps(grasps, "cvae_raw", {"a": "heldout"}, EvaluateConfig(grasps_per_object=100), seed=3)
+    invalid = (chosen.arrays["invalid_reason"] != "").sum()
+    assert 35 <= invalid <= 65
+    assert chosen.attrs["invalid_reasons"] == {"non-finite hand_pose": int(invalid)}
+
+
+def _paired_stores(rng):
+    """A sampled store (syntheses on held-out a and b, one with a NaN pose; expansions on train t), its
+    post-optimized store (one row per sampled row) and its random-init baseline (one row per valid synthesis)."""
+    ids = np.asarray(["a"] * 10 + ["b"] * 6 + ["t"] * 4, dtype=object)
+    labels = np.asarray(["cvae_raw"] * 16 + ["cvae_expand_latent"] * 4, dtype=object)
+    order = rng.permutation(len(ids))
+    ids, labels = ids[order], labels[order]
+    scales = np.resize(np.asarray([0.08, 0.1, 0.12], np.float32), len(ids))
+    poses = rng.normal(size=(len(ids), 28)).astype(np.float32)
+    poses[np.flatnonzero(ids == "a")[3]] = np.nan
+    sample = GraspSet({"hand_pose": poses, "object_id": ids, "scale": scales, "method": labels})
+    post = GraspSet({"hand_pose": poses + 0.01, "object_id": ids, "scale": scales, "method": labels, "raw_hand_pose": poses})
+    targets = np.flatnonzero((labels == "cvae_raw") & np.isfinite(poses).all(axis=1))
+    random_post = GraspSet({
+        "hand_pose": rng.normal(size=(len(targets), 28)).astype(np.float32), "object_id": ids[targets], "scale": scales[targets],
+        "method": np.full(len(targets), "random_post", dtype=object),
+    })  # fmt: skip
+    return {"sample": [sample], "post": [post], "random_post": [random_post]}
+
+
+def _chosen_sample_rows(sources, method, cfg, seed=0):
+    split_of = {"a": "heldout", "b": "heldout", "t": "train"}
+    grasps = method_grasps(method, sources[METHOD_SOURCES[method]])
+    rows = sample_rows_of(method, sources, {"a", "b", "t"})
+    chosen = select_grasps(grasps, method, split_of, cfg, seed, rows)
+    sample = sources["sample"][0]
+    assert np.array_equal(sample.object_id[chosen.arrays["sample_row"]], chosen.object_id)
+    assert np.array_equal(sample.scale[chosen.arrays["sample_row"]], chosen.scale)
+    return chosen
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_cvae_and_random_methods_are_evaluated_on_the_same_sampled_rows(seed):
+    sources = _paired_stores(np.random.default_rng(seed))
+    cfg = EvaluateConfig(grasps_per_object=4)
+    raw, post, random_post = (_chosen_sample_rows(sources, m, cfg, seed) for m in ("cvae_raw", "cvae_post", "random_post"))
+    assert sorted(raw.arrays["sample_row"]) == sorted(post.arrays["sample_row"])
+    assert sorted(set(raw.object_id)) == ["a", "b"] and (raw.arrays["invalid_reason"] == post.arrays["invalid_reason"]).all()
+    sample_poses = sources["sample"][0].hand_pose
+    valid_raw = {int(r) for r in raw.arrays["sample_row"] if np.isfinite(sample_poses[r]).all()}
+    # the baseline has no row for an invalid sample: it takes the next sampled row in the shared order instead
+    assert valid_raw <= set(random_post.arrays["sample_row"].tolist())
+    assert sorted(Counter(random_post.object_id.tolist()).items()) == [("a", 4), ("b", 4)]
+
+
+def test_stores_that_do_not_line_up_with_the_sampled_rows_are_an_error():
+    sources = _paired_stores(np.random.default_rng(0))
+    sources["random_post"][0].arrays["scale"][0] += 0.01
+    with pytest.raises(ValueError, match="do not line up"):
+        sample_rows_of("random_post", sources, {"a", "b", "t"})
+    sources["post"] = [sources["post"][0].select(np.arange(5))]
+    with pytest.raises(ValueError, match="do not line up"):
+        sample_rows_of("cvae_post", sources, {"a", "b", "t"})
+
+
+def test_unpaired_methods_and_runs_without_sampled_stores_draw_over_their_own_rows():
+    sources = _paired_stores(np.random.default_rng(0))
+    assert sample_rows_of("seed", sources, {"a", "b", "t"}) is None
+    assert sample_rows_of("random_post", {"random_post": sources["random_post"]}, {"a", "b", "t"}) is None
 
 
 def test_method_grasps_takes_only_pure_cvae_samples():
@@ -69,7 +145,7 @@ def tiny_run(tmp_path_factory, tiny_objects):
         {"lift_config": lift_config, "method_seconds_per_grasp": {"seed": {"seed": 3.0}, "cvae_post": {"sample": 0.01, "post": 0.5}},
          "methods_without_input": ["dexgraspnet"], "simulation_seconds_per_grasp": 0.2},
     )  # fmt: skip
-    shard1 = simulated_shard(root / "sim_001.zarr", {"cvae_post": [True]}, rng, {"methods_without_input": ["dexgraspnet", "random_post"]})
+    shard1 = simulated_shard(root / "sim_001.zarr", {"cvae_post": [True, None]}, rng, {"methods_without_input": ["dexgraspnet", "random_post"]})
     post = post_store(root / "post.zarr", 6, 21, rng, decay=0.2)  # E_fc < 0.3 from t = 7 (iteration 70)
     random_post = post_store(root / "random.zarr", 6, 21, rng, decay=0.045)  # from t = 27: never within 21
     eval_dir = root / "eval"
@@ -88,7 +164,9 @@ def test_metrics_csv_from_tiny_run(tiny_run):
     table = pd.read_csv(eval_dir / "metrics.csv").set_index("method")
     assert list(table.index) == ["seed", "cvae_post", "random_post"]  # dexgraspnet had no input anywhere
     assert table.loc["seed", "lift_success_rate"] == 0.25
-    assert table.loc["cvae_post", "lift_success_rate"] == 0.75
+    # the invalid grasp of shard 1 is a failure: 3 of 5, not 3 of 4
+    assert table.loc["cvae_post", "lift_success_rate"] == 0.6
+    assert table.loc["cvae_post", ["n_grasps", "n_invalid"]].tolist() == [5, 1] and table.loc["seed", "n_invalid"] == 0
     assert table.loc["seed", "object_success_rate"] == 1.0
     assert table.loc["cvae_post", "seconds_per_grasp"] == pytest.approx(0.51)
     assert table.loc["random_post", "n_grasps"] == 0 and np.isnan(table.loc["random_post", "lift_success_rate"])
@@ -101,7 +179,7 @@ def test_metrics_csv_from_tiny_run(tiny_run):
     assert table.loc["random_post", "iterations_to_random_final_E_post"] == 200
     assert np.isnan(table.loc["seed", "iterations_to_random_final_E_post"])
     per_object = pd.read_csv(eval_dir / "per_object.csv")
-    assert per_object[["method", "object_id", "n_grasps"]].values.tolist() == [["seed", OBJECT_ID, 4], ["cvae_post", OBJECT_ID, 4]]
+    assert per_object[["method", "object_id", "n_grasps", "n_invalid"]].values.tolist() == [["seed", OBJECT_ID, 4, 0], ["cvae_post", OBJECT_ID, 5, 1]]
     curves = pd.read_csv(eval_dir / "convergence.csv")
     assert set(curves["method"]) == {"cvae_post", "random_post"} and (curves["q25"] <= curves["median"]).all()
 
@@ -120,21 +198,51 @@ def test_report_is_self_contained_with_pictures(tiny_run):
 
 
 def test_simulate_step_on_tiny_object(tmp_path, tiny_objects):
-    """The per-shard step: selection, energies and the MuJoCo lift test, one store out."""
+    """The per-shard step: selection, energies and the MuJoCo lift test, one store out; a NaN pose stays in as a failure."""
     from dexlite_pipeline.io.grasp_store import read_grasp_store, write_grasp_store
     from report_synthetic import grasp_poses
 
     rng = np.random.default_rng(1)
     seed_store = tmp_path / "seed.zarr"
     ids = [OBJECT_ID] * 3 + ["train_obj"] * 2
-    write_grasp_store(seed_store, GraspSet({"hand_pose": grasp_poses(5, rng), "object_id": np.asarray(ids, dtype=object), "scale": np.full(5, 0.06, np.float32)}), {"seconds_per_grasp": 2.0})
+    poses = grasp_poses(5, rng)
+    poses[1, 4] = np.nan
+    write_grasp_store(seed_store, GraspSet({"hand_pose": poses, "object_id": np.asarray(ids, dtype=object), "scale": np.full(5, 0.06, np.float32)}), {"seconds_per_grasp": 2.0})
     out = tmp_path / "sim.zarr"
-    cfg = json.dumps({"seed": 0, "shards": 1, "device": "cpu", "evaluate": {"grasps_per_object": 2, "six_directions": False}})
+    cfg = json.dumps({"seed": 0, "shards": 1, "device": "cpu", "evaluate": {"grasps_per_object": 3, "six_directions": False}})
     assert main(["evaluate", "--step", "simulate", "--shard", "0", "--config-json", cfg, "--seed", str(seed_store), "--objects", str(tiny_objects), "--out", str(out)]) == 0
     result = read_grasp_store(out)
-    assert len(result) == 2 and set(result.object_id) == {OBJECT_ID}
+    assert len(result) == 3 and set(result.object_id) == {OBJECT_ID}
     for name in ("lift_success", "failure_reason", "E_fc", "penetration_mm", "contact_distance_mm"):
         assert name in result.arrays
+    invalid = result.arrays["source_row"] == 1
+    assert result.arrays["invalid_reason"][invalid].tolist() == ["non-finite hand_pose"] and not result.arrays["lift_success"][invalid].any()
+    assert (result.arrays["invalid_reason"][~invalid] == "").all() and np.isfinite(result.arrays["E_fc"][~invalid]).all()
+    assert result.attrs["invalid_reasons"]["seed"] == {"non-finite hand_pose": 1}
     assert result.attrs["lift_config"]["six_directions"] is False
     assert result.attrs["method_seconds_per_grasp"] == {"seed": {"seed": 2.0}}
     assert set(result.attrs["methods_without_input"]) == {"cvae_raw", "cvae_post", "random_post", "dexgraspnet"}
+
+
+def test_split_without_objects_fails_in_one_line(tmp_path, capsys):
+    objects = tmp_path / "objects"
+    objects.mkdir()
+    pd.DataFrame({"object_id": ["h1"], "split": ["heldout"], "status": ["ok"]}).to_parquet(objects / "catalog.parquet")
+    cfg = json.dumps({"seed": 0, "shards": 1, "evaluate": {"splits": ["train"]}})
+    code = main(["evaluate", "--step", "simulate", "--shard", "0", "--config-json", cfg, "--objects", str(objects), "--out", str(tmp_path / "sim.zarr")])
+    error = capsys.readouterr().err.strip()
+    assert code == 2 and "\n" not in error
+    assert "config.evaluate.splits: no object of split train" in error and "their splits: heldout" in error
+    assert not (tmp_path / "sim.zarr").exists()
+
+
+def test_splits_are_the_catalog_split_names():
+    from dexlite_pipeline.config import ConfigError, load_config, validate_config
+
+    config = load_config(Path(__file__).resolve().parents[2] / "config.yaml")
+    with pytest.raises(ConfigError, match="evaluate.splits.0: 'held_out' is not one of"):
+        validate_config({**config, "evaluate": {**config["evaluate"], "splits": ["held_out"]}})
+    validate_config({**config, "evaluate": {**config["evaluate"], "splits": ["train", "heldout"]}})
+    with pytest.raises(ValueError, match="unknown split"):
+        EvaluateConfig(splits=("held_out",))
+

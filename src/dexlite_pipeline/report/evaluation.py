@@ -13,7 +13,11 @@ Every method goes through the same measurement: energies recomputed by one code 
 (contacts = the four candidates nearest the surface, so no method is judged by its own
 optimizer's bookkeeping), then the MuJoCo lift and six-direction tests with one set of
 physical constants. At most ``grasps_per_object`` grasps per (method, object) are
-simulated, chosen by a seeded permutation, so every method is weighted alike per object.
+chosen by a seeded draw, so every method is weighted alike per object. The CVAE methods
+and the random-init baseline share one draw over the sampled rows, so they are compared
+on the same source rows (same objects and scales; raw and refined: the same samples).
+A chosen grasp with an unusable pose or scale is not simulated but stays in the set as a
+failure (``invalid_reason``), so emitting NaN poses cannot raise a method's rate.
 """
 
 from __future__ import annotations
@@ -22,6 +26,7 @@ import hashlib
 import logging
 import math
 import time
+from collections import Counter
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
@@ -34,6 +39,10 @@ from dexlite_pipeline.report import metrics
 log = logging.getLogger(__name__)
 
 METHODS = ("seed", "cvae_raw", "cvae_post", "random_post", "dexgraspnet")
+SPLITS = ("train", "heldout")  # the values of the object catalogs' ``split`` column
+PAIRED_METHODS = ("cvae_raw", "cvae_post", "random_post")  # rows correspond to rows of the sampled store
+PAIRED_DRAW = "sampled_rows"  # name of the draw these methods share
+PURE_SYNTHESIS = "cvae_raw"  # the sampled stores' method label of pure syntheses on held-out objects
 SELECTED_ARRAYS = ("hand_pose", "object_id", "scale")
 CONVERGENCE_COLUMNS = (
     "threshold_reached_fraction", "threshold_iteration_median", "E_post_median_initial", "E_post_median_final",
@@ -59,6 +68,9 @@ class EvaluateConfig:
         unknown = sorted(set(self.methods) - set(METHODS))
         if unknown:
             raise ValueError(f"config.evaluate.methods: unknown method(s) {', '.join(unknown)} (known: {', '.join(METHODS)})")
+        unknown = sorted(set(self.splits) - set(SPLITS))
+        if unknown:
+            raise ValueError(f"config.evaluate.splits: unknown split(s) {', '.join(unknown)} (known: {', '.join(SPLITS)})")
         if self.grasps_per_object < 1 or self.entropy_bins < 2 or self.energy_batch_size < 1 or self.rendered_per_method < 0:
             raise ValueError("config.evaluate: grasps_per_object, energy_batch_size >= 1, entropy_bins >= 2, rendered_per_method >= 0")
 
@@ -67,36 +79,81 @@ def evaluate_config_from(config: Mapping | None) -> EvaluateConfig:
     return from_section(EvaluateConfig, (config or {}).get("evaluate"), "config.evaluate")
 
 
+def require_split_objects(split_of: Mapping[str, str], splits: Sequence[str], objects_dirs: Sequence) -> None:
+    """Fail when an evaluated split has no object in the catalogs: it would give empty rows, not a result."""
+    present = set(split_of.values())
+    empty = [split for split in splits if split not in present]
+    if empty:
+        raise ValueError(
+            f"config.evaluate.splits: no object of split {', '.join(empty)} in the catalogs of "
+            f"{', '.join(map(str, objects_dirs)) or '(no objects dir)'} (their splits: {', '.join(sorted(present)) or 'none'})"
+        )
+
+
 def method_seed(seed: int, method: str) -> int:
     """A per-method seed that does not depend on Python's hash randomization."""
     digest = hashlib.sha256(f"{seed}:{method}".encode()).digest()
     return int.from_bytes(digest[:8], "little")
 
 
-def select_grasps(grasps: GraspSet, method: str, split_of: Mapping[str, str], cfg: EvaluateConfig, seed: int) -> GraspSet:
-    """The grasps of one method on objects of the evaluated splits, capped per object.
+def row_priorities(seed: int, draw: str, count: int) -> np.ndarray:
+    """Seeded uniform priorities of rows 0..count-1 for a named draw (lower is chosen first).
 
-    Adds ``method``, ``split`` and ``source_row`` (row in the source store) arrays.
-    Grasps with an unusable pose or scale are kept out of simulation but counted in the
-    selection's attrs (``invalid_reasons``), never silently dropped.
+    Row k gets the k-th value of the draw's stream whatever ``count`` is, so methods that
+    share a draw rank the rows they have in common alike.
+    """
+    return np.random.default_rng(method_seed(seed, draw)).random(count)
+
+
+def select_grasps(
+    grasps: GraspSet,
+    method: str,
+    split_of: Mapping[str, str],
+    cfg: EvaluateConfig,
+    seed: int,
+    sample_rows: np.ndarray | None = None,
+) -> GraspSet:
+    """The grasps of one method on objects of the evaluated splits, at most ``grasps_per_object`` per object.
+
+    Per object, the rows with the lowest seeded priorities are taken. With ``sample_rows``
+    (each grasp's row in the sampled store, see ``sample_rows_of``) the priorities are those
+    of the sampled rows in one draw shared by the paired methods, so they take the same
+    source rows; otherwise the method draws over its own rows. A grasp with an unusable
+    pose or scale is chosen like any other and kept with its ``invalid_reason``: it is not
+    simulated and counts as a failure. Adds ``method``, ``split``, ``source_row`` (row in
+    the method's grasps), ``sample_row`` (-1 when unpaired) and ``invalid_reason`` arrays.
     """
     object_ids = np.asarray([str(o) for o in grasps.object_id])
     splits = np.asarray([split_of.get(o, "unknown") for o in object_ids])
     reasons = invalid_grasp_reasons(grasps)
     candidate = np.isin(splits, list(cfg.splits))
-    invalid = candidate & (reasons != "")
-    rng = np.random.default_rng(method_seed(seed, method))
+    if sample_rows is None:
+        keys, draw = np.arange(len(grasps)), method
+    else:
+        keys, draw = np.asarray(sample_rows, dtype=np.int64), PAIRED_DRAW
+        if keys.shape != (len(grasps),):
+            raise ValueError(f"{method}: {keys.shape[0]} sampled rows given for {len(grasps)} grasps")
+    priority = row_priorities(seed, draw, int(keys.max()) + 1 if len(keys) else 0)[keys]
     chosen: list[int] = []
-    for object_id in sorted(set(object_ids[candidate & ~invalid])):
-        rows = np.nonzero((object_ids == object_id) & candidate & ~invalid)[0]
-        chosen.extend(sorted(rng.permutation(rows)[: cfg.grasps_per_object].tolist()))
+    for object_id in sorted(set(object_ids[candidate])):
+        rows = np.flatnonzero(candidate & (object_ids == object_id))
+        chosen.extend(sorted(rows[np.argsort(priority[rows], kind="stable")][: cfg.grasps_per_object].tolist()))
     rows = np.asarray(chosen, dtype=np.int64)
     arrays = {name: grasps.arrays[name][rows] for name in SELECTED_ARRAYS}
     arrays["method"] = np.full(len(rows), method, dtype=object)
     arrays["split"] = splits[rows].astype(object)
     arrays["source_row"] = rows
-    invalid_reasons = {str(r): int((reasons[invalid] == r).sum()) for r in sorted(set(reasons[invalid]))}
-    return GraspSet(arrays, {"invalid_reasons": invalid_reasons})
+    arrays["sample_row"] = keys[rows] if sample_rows is not None else np.full(len(rows), -1, np.int64)
+    arrays["invalid_reason"] = reasons[rows].astype(object)
+    invalid_reasons = Counter(str(r) for r in reasons[rows] if r)
+    return GraspSet(arrays, {"invalid_reasons": dict(sorted(invalid_reasons.items()))})
+
+
+def _pure_syntheses(store: GraspSet) -> np.ndarray:
+    """Rows of a sampled (or post-optimized) store that are pure syntheses; all rows when it has no method column."""
+    if "method" not in store.arrays:
+        return np.ones(len(store), dtype=bool)
+    return np.asarray([str(m) for m in store.arrays["method"]]) == PURE_SYNTHESIS
 
 
 def method_grasps(method: str, sources: Sequence[GraspSet], seed_passing_only: bool = False) -> GraspSet:
@@ -111,12 +168,49 @@ def method_grasps(method: str, sources: Sequence[GraspSet], seed_passing_only: b
     parts = []
     for source in sources:
         subset = source
-        if method in ("cvae_raw", "cvae_post") and "method" in source.arrays:
-            subset = source.select(np.asarray([str(m) for m in source.arrays["method"]]) == "cvae_raw")
+        if method in ("cvae_raw", "cvae_post"):
+            subset = source.select(_pure_syntheses(source))
         if method == "seed" and seed_passing_only and "passes_energy_thresholds" in source.arrays:
             subset = source.select(np.asarray(source.arrays["passes_energy_thresholds"], dtype=bool))
         parts.append(GraspSet({k: subset.arrays[k] for k in SELECTED_ARRAYS}, subset.attrs))
     return GraspSet.concatenate(parts, attrs={})
+
+
+def sample_rows_of(method: str, sources: Mapping[str, Sequence[GraspSet]], known_object_ids: set[str]) -> np.ndarray | None:
+    """For a paired method, the row in the sampled stores (concatenated) of each grasp ``method_grasps`` gives.
+
+    None for the other methods, or without sampled stores. Post-optimized stores keep one
+    row per sampled row (the refined pose beside the raw one); the random-init baseline
+    has one row per valid pure synthesis of the sampled store, in order, started for that
+    row's object and scale (stages/post_optimize.py). Stores that do not line up with the
+    sampled ones (other length, object or scale) are an error: they come from another run.
+    """
+    samples = list(sources.get("sample") or [])
+    if method not in PAIRED_METHODS or not samples:
+        return None
+    sampled = _rows_of(samples)
+    synthesis = _pure_syntheses(sampled)
+    if method == "cvae_raw":
+        return np.flatnonzero(synthesis)
+    stores = list(sources.get("post" if method == "cvae_post" else "random_post") or [])
+    stored = _rows_of(stores)
+    if method == "cvae_post":
+        rows = np.arange(len(sampled))
+    else:
+        rows = np.flatnonzero(synthesis & (invalid_grasp_reasons(sampled, known_object_ids) == ""))
+        if len(stored) == 0:  # the baseline was not run (post_optimize.random_baseline off)
+            return np.zeros(0, dtype=np.int64)
+    lined_up = len(stored) == len(rows) and np.array_equal(stored.object_id.astype(str), sampled.object_id[rows].astype(str))
+    lined_up = lined_up and np.array_equal(stored.scale, sampled.scale[rows])
+    if not lined_up:
+        raise ValueError(f"{method}: its {len(stored)} grasps do not line up with the {len(rows)} sampled rows they refine (object or scale differ): stores of different runs?")
+    return rows[_pure_syntheses(stored)] if method == "cvae_post" else rows
+
+
+def _rows_of(stores: Sequence[GraspSet]) -> GraspSet:
+    """Pose, object, scale and (where stored) method label of ``stores``, concatenated in order."""
+    kept = (*SELECTED_ARRAYS, "method")
+    return GraspSet.concatenate([GraspSet({k: v for k, v in s.arrays.items() if k in kept}) for s in stores], attrs={})
 
 
 def stage_seconds_per_grasp(method: str, sources: Mapping[str, Sequence[GraspSet]], seed_passing_only: bool = False) -> dict[str, float]:
@@ -149,13 +243,18 @@ def simulate(
     threads: int,
     energy_batch_size: int,
 ) -> GraspSet:
-    """Energies and lift (+ six-direction) results for every selected grasp, as one grasp set."""
+    """Energies and lift (+ six-direction) results for every selected grasp, as one grasp set.
+
+    Invalid grasps (``invalid_reason``) pass through both with NaN results and a failed
+    lift; the seconds per grasp are per simulated (valid) grasp.
+    """
     from dexlite_pipeline.energy import evaluate_grasp_energies
     from dexlite_pipeline.sim.lift import run_lift_tests
 
     arrays = dict(selected.arrays)
     if len(selected) == 0:
         return GraspSet(arrays, dict(selected.attrs))
+    simulated_count = max(1, len(selected) - int(metrics.invalid_flags(arrays).sum()))
     start = time.perf_counter()
     energies = evaluate_grasp_energies(selected, objects_dirs, device=device, batch_size=energy_batch_size, config=energy_cfg)
     energy_s = time.perf_counter() - start
@@ -164,8 +263,8 @@ def simulate(
     arrays.update(run_lift_tests(selected, objects_dirs, lift_cfg, threads))
     lift_s = time.perf_counter() - start
     attrs = dict(selected.attrs)
-    attrs["energy_seconds_per_grasp"] = energy_s / len(selected)
-    attrs["simulation_seconds_per_grasp"] = lift_s / len(selected)
+    attrs["energy_seconds_per_grasp"] = energy_s / simulated_count
+    attrs["simulation_seconds_per_grasp"] = lift_s / simulated_count
     return GraspSet(arrays, attrs)
 
 
@@ -232,6 +331,15 @@ def iterations_to_reach(curves, method: str, level: float) -> float:
     return float(below["iteration"].iloc[0]) if len(below) and math.isfinite(level) else math.nan
 
 
+def concatenate_shards(shards: Sequence[GraspSet]) -> GraspSet | None:
+    """The simulated shards with grasps as one set (the arrays they all have); None when all are empty."""
+    nonempty = [s for s in shards if len(s)]
+    if not nonempty:
+        return None
+    common = set.intersection(*(set(s.arrays) for s in nonempty))
+    return GraspSet.concatenate([GraspSet({k: s.arrays[k] for k in common}) for s in nonempty], attrs={})
+
+
 def metrics_tables(
     simulated: GraspSet,
     joint_limits_rad: np.ndarray,
@@ -239,8 +347,9 @@ def metrics_tables(
     seconds: Mapping[str, Mapping[str, float]],
     convergence: Mapping[str, Mapping[str, float]],
     sim_seconds_per_grasp: float = math.nan,
+    bootstrap_seed: int = 0,
 ):
-    """(metrics DataFrame: one row per (method, split); per-object DataFrame)."""
+    """(metrics DataFrame: one row per (method, split); per-object DataFrame). ``bootstrap_seed`` seeds the object bootstrap."""
     import pandas as pd
 
     methods = np.asarray([str(m) for m in simulated.arrays.get("method", [])])
@@ -251,7 +360,7 @@ def metrics_tables(
             mask = (methods == method) & (splits == split)
             subset = {k: v[mask] for k, v in simulated.arrays.items()}
             row = {"method": method, "split": split}
-            row.update(metrics.summarize_grasps(subset, joint_limits_rad, cfg.entropy_bins, cfg.pca_components))
+            row.update(metrics.summarize_grasps(subset, joint_limits_rad, cfg.entropy_bins, cfg.pca_components, bootstrap_seed))
             stage_times = seconds.get(method, {})
             row["seconds_per_grasp"] = sum(stage_times.values()) if stage_times else math.nan
             row["seconds_per_grasp_by_stage"] = ";".join(f"{k}={v:.4g}" for k, v in stage_times.items())
@@ -260,6 +369,6 @@ def metrics_tables(
             rows.append(row)
             for object_row in metrics.per_object_rows(subset) if mask.any() else []:
                 object_rows.append({"method": method, "split": split, **object_row})
-    per_object_columns = ["method", "split", "object_id", "n_grasps", "lift_success_rate", "six_dir_success_rate", "any_lift_success", "penetration_mean_mm"]
+    per_object_columns = ["method", "split", "object_id", "n_grasps", "n_invalid", "lift_success_rate", "six_dir_success_rate", "any_lift_success", "penetration_mean_mm"]
     return pd.DataFrame(rows), pd.DataFrame(object_rows, columns=per_object_columns)
 

@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from dexlite_pipeline.io.grasp_store import GraspSet
+from dexlite_pipeline.report.metrics import invalid_flags
 
 log = logging.getLogger(__name__)
 
@@ -195,13 +196,17 @@ def training_plot(history) -> str | None:
 
 
 def pick_examples(simulated: GraspSet, method: str, count: int) -> list[tuple[int, bool]]:
-    """Up to ``count`` lift successes and ``count`` failures of a method (rows, success flag), spread over objects."""
+    """Up to ``count`` lift successes and ``count`` failures of a method (rows, success flag), spread over objects.
+
+    Invalid grasps (no usable pose, not simulated) are not pictured.
+    """
     methods = np.asarray([str(m) for m in simulated.arrays["method"]])
     success = np.asarray(simulated.arrays.get("lift_success", np.zeros(len(simulated), bool)), dtype=bool)
     object_ids = np.asarray([str(o) for o in simulated.object_id])
+    picturable = ~invalid_flags(simulated.arrays)
     picks = []
     for outcome in (True, False):
-        rows = np.nonzero((methods == method) & (success == outcome))[0]
+        rows = np.nonzero((methods == method) & (success == outcome) & picturable)[0]
         # one per object first (sorted objects), then the rest in row order
         firsts = [int(rows[object_ids[rows] == o][0]) for o in sorted(set(object_ids[rows]))]
         ordered = firsts + [int(r) for r in rows if int(r) not in set(firsts)]

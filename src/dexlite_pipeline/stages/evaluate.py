@@ -3,8 +3,10 @@
 Two steps, so that the heavy simulation is sharded like the other grasp-heavy stages:
 
 - ``--step simulate --shard K``: reads the K-th shard of every method's grasp stores,
-  keeps the evaluated objects, recomputes energies, runs the lift (+ six-direction) test,
-  writes ``results/eval/sim/shard_K.zarr`` (with ``method`` and ``split`` columns);
+  chooses the grasps on the evaluated objects (the CVAE methods and the random baseline
+  on the same sampled rows), recomputes energies, runs the lift (+ six-direction) test,
+  writes ``results/eval/sim/shard_K.zarr`` (with ``method``, ``split``, ``sample_row`` and
+  ``invalid_reason`` columns: invalid grasps stay in as failures);
 - ``--step aggregate``: reads all simulated shards plus the post-optimization traces and
   writes ``metrics.csv`` (one row per method and split), ``per_object.csv`` and
   ``convergence.csv`` (E_post quartiles per iteration) into ``--out-dir``.
@@ -73,7 +75,10 @@ def _simulate(args, config: dict) -> int:
     from dexlite_pipeline.energy.grasp_energy import EnergyConfig
     from dexlite_pipeline.io.grasp_store import GraspSet, write_grasp_store
     from dexlite_pipeline.config import from_section
-    from dexlite_pipeline.report.evaluation import evaluate_config_from, method_grasps, select_grasps, simulate, stage_seconds_per_grasp
+    from dexlite_pipeline.objects.assets import available_object_ids
+    from dexlite_pipeline.report.evaluation import (
+        evaluate_config_from, method_grasps, require_split_objects, sample_rows_of, select_grasps, simulate, stage_seconds_per_grasp,
+    )  # fmt: skip
     from dexlite_pipeline.sharding import shard_objects
     from dexlite_pipeline.sim.config import lift_config_from
 
@@ -84,6 +89,8 @@ def _simulate(args, config: dict) -> int:
     energy_cfg = from_section(EnergyConfig, config.get("energy"), "config.energy")
     seed = int(config.get("seed") or 0)
     split_of = split_map(args.objects)
+    require_split_objects(split_of, cfg.splits, args.objects)
+    known_object_ids = available_object_ids(args.objects)
     sources = _read_sources(args)
     if sources["dexgraspnet"]:  # one store for all shards: take this shard's objects
         shard_count = int(config.get("shards") or 1)
@@ -98,14 +105,17 @@ def _simulate(args, config: dict) -> int:
         if not method_sources:
             missing.append(method)
             continue
-        selected = select_grasps(method_grasps(method, method_sources, cfg.seed_passing_only), method, split_of, cfg, seed)
+        grasps = method_grasps(method, method_sources, cfg.seed_passing_only)
+        selected = select_grasps(grasps, method, split_of, cfg, seed, sample_rows_of(method, sources, known_object_ids))
         parts.append(GraspSet(selected.arrays, {}))
         invalid[method] = selected.attrs["invalid_reasons"]
         seconds[method] = stage_seconds_per_grasp(method, sources, cfg.seed_passing_only)
-        log.info("evaluate shard %s: %s: %d grasps on %d objects", args.shard, method, len(selected), len(set(selected.object_id)))
+        n_invalid = sum(invalid[method].values())
+        log.info("evaluate shard %s: %s: %d grasps (%d invalid) on %d objects", args.shard, method, len(selected), n_invalid, len(set(selected.object_id)))
     selected_all = GraspSet.concatenate(parts, attrs={})
     if "method" not in selected_all.arrays:
-        selected_all.arrays.update({"method": np.zeros(0, dtype=object), "split": np.zeros(0, dtype=object), "source_row": np.zeros(0, np.int64)})
+        for name, dtype in (("method", object), ("split", object), ("source_row", np.int64), ("sample_row", np.int64), ("invalid_reason", object)):
+            selected_all.arrays[name] = np.zeros(0, dtype=dtype)
     device = resolve_device(config.get("device") or "auto")
     result = simulate(selected_all, args.objects, lift_cfg, energy_cfg, device, args.threads or 1, cfg.energy_batch_size)
     attrs = {
@@ -140,8 +150,11 @@ def _json_safe(value):
 def _aggregate(args, config: dict) -> int:
     from dexlite_pipeline.hand import ShadowHand
     from dexlite_pipeline.io.atomic import atomic_path
-    from dexlite_pipeline.io.grasp_store import GraspSet, read_grasp_store
-    from dexlite_pipeline.report.evaluation import convergence_rows, evaluate_config_from, iterations_to_reach, metrics_tables
+    from dexlite_pipeline.io.grasp_store import empty_grasp_set, read_grasp_store
+    from dexlite_pipeline.report.evaluation import (
+        concatenate_shards, convergence_rows, evaluate_config_from, iterations_to_reach, metrics_tables, require_split_objects,
+    )  # fmt: skip
+    from dexlite_pipeline.report.metrics import BOOTSTRAP_RESAMPLES
 
     import pandas as pd
 
@@ -152,15 +165,16 @@ def _aggregate(args, config: dict) -> int:
     # A method with no input in any shard (e.g. dexgraspnet when not configured) gets no row.
     absent = set.intersection(*(set(s.attrs.get("methods_without_input") or []) for s in shards))
     cfg = dataclasses.replace(cfg, methods=tuple(m for m in cfg.methods if m not in absent))
-    common = set.intersection(*(set(s.arrays) for s in shards if len(s))) if any(len(s) for s in shards) else set()
-    nonempty = [GraspSet({k: s.arrays[k] for k in common}, s.attrs) for s in shards if len(s)]
-    simulated = GraspSet.concatenate(nonempty, attrs={}) if nonempty else GraspSet({"hand_pose": np.zeros((0, 28)), "object_id": np.zeros(0, object), "scale": np.zeros(0)})
+    simulated = concatenate_shards(shards)
+    if simulated is None:
+        simulated = empty_grasp_set()
     seconds = _weighted_method_seconds(shards)
     sim_counts = [(s.attrs.get("simulation_seconds_per_grasp"), len(s)) for s in shards if len(s)]
     sim_total = sum(n for t, n in sim_counts if t is not None)
     sim_seconds = sum(t * n for t, n in sim_counts if t is not None) / sim_total if sim_total else math.nan
 
     split_of = split_map(args.objects)
+    require_split_objects(split_of, cfg.splits, args.objects)
     convergence, curve_rows = {}, []
     for method, paths in (("cvae_post", args.post), ("random_post", args.random_post)):
         if method in cfg.methods and paths:
@@ -172,15 +186,23 @@ def _aggregate(args, config: dict) -> int:
     for method, summary in convergence.items():
         summary["iterations_to_random_final_E_post"] = iterations_to_reach(curves, method, baseline_final)
     joint_limits = ShadowHand().joint_limits.cpu().numpy()
-    metrics_df, per_object_df = metrics_tables(simulated, joint_limits, cfg, seconds, convergence, sim_seconds)
+    bootstrap_seed = int(config.get("seed") or 0)
+    metrics_df, per_object_df = metrics_tables(simulated, joint_limits, cfg, seconds, convergence, sim_seconds, bootstrap_seed)
     out_dir = Path(args.out_dir)
     for name, frame in (("metrics.csv", metrics_df), ("per_object.csv", per_object_df), ("convergence.csv", curves)):
         with atomic_path(out_dir / name) as tmp:
             frame.to_csv(tmp, index=False, float_format="%.6g")
     lift_attrs = next((s.attrs.get("lift_config") for s in shards if s.attrs.get("lift_config")), {})
     with atomic_path(out_dir / "evaluation.json") as tmp:
-        tmp.write_text(json.dumps(_json_safe({"config": config, "evaluate": dataclasses.asdict(cfg), "lift_config": lift_attrs, "shards": [str(p) for p in args.sim]}), indent=2, sort_keys=True))
-    with_columns = ["method", "split", "n_grasps", "lift_success_rate", "six_dir_success_rate", "penetration_mean_mm", "seconds_per_grasp"]
+        record = {
+            "config": config,
+            "evaluate": dataclasses.asdict(cfg),
+            "bootstrap": {"resamples": BOOTSTRAP_RESAMPLES, "seed": bootstrap_seed, "cluster": "object"},
+            "lift_config": lift_attrs,
+            "shards": [str(p) for p in args.sim],
+        }
+        tmp.write_text(json.dumps(_json_safe(record), indent=2, sort_keys=True))
+    with_columns = ["method", "split", "n_grasps", "n_invalid", "lift_success_rate", "six_dir_success_rate", "penetration_mean_mm", "seconds_per_grasp"]
     print(metrics_df[with_columns].to_string(index=False))
     return 0
 
