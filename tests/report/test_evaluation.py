@@ -149,13 +149,20 @@ def tiny_run(tmp_path_factory, tiny_objects):
     post = post_store(root / "post.zarr", 6, 21, rng, decay=0.2)  # E_fc < 0.3 from t = 7 (iteration 70)
     random_post = post_store(root / "random.zarr", 6, 21, rng, decay=0.045)  # from t = 27: never within 21
     eval_dir = root / "eval"
-    cfg = json.dumps({"evaluate": {"methods": ["seed", "cvae_post", "random_post", "dexgraspnet"], "rendered_per_method": 1}})
-    common = ["--objects", str(tiny_objects), "--config-json", cfg]
-    assert main(["evaluate", "--step", "aggregate", "--sim", str(shard0), "--sim", str(shard1), "--post", str(post), "--random-post", str(random_post), "--out-dir", str(eval_dir), *common]) == 0
+    evaluate = {"methods": ["seed", "cvae_post", "random_post", "dexgraspnet"], "rendered_per_method": 1}
+    aggregate_cfg = json.dumps({"seed": 0, "evaluate": evaluate})
+    run_config = {
+        "seed": 7, "shards": 2, "objects": {"builtin_count": 40, "mesh_dirs": []}, "lift": lift_config, "evaluate": evaluate,
+        "train": {"profile": "default", "max_steps": 2000}, "post_optimize": {"iterations": 200, "keep_best": True},
+    }  # fmt: skip
+    objects = ["--objects", str(tiny_objects)]
+    assert main(["evaluate", "--step", "aggregate", "--sim", str(shard0), "--sim", str(shard1), "--post", str(post), "--random-post", str(random_post),
+                 "--out-dir", str(eval_dir), *objects, "--config-json", aggregate_cfg]) == 0  # fmt: skip
     history = root / "history.csv"
     pd.DataFrame({"step": np.arange(20), "loss": np.linspace(2, 1, 20), "kl": np.linspace(0, 1, 20)}).to_csv(history, index=False)
     report = root / "report.html"
-    assert main(["report", "--eval-dir", str(eval_dir), "--sim", str(shard0), "--sim", str(shard1), "--history", str(history), "--out", str(report), *common]) == 0
+    assert main(["report", "--eval-dir", str(eval_dir), "--sim", str(shard0), "--sim", str(shard1), "--history", str(history), "--out", str(report),
+                 *objects, "--config-json", json.dumps(run_config)]) == 0  # fmt: skip
     return eval_dir, report
 
 
@@ -167,6 +174,7 @@ def test_metrics_csv_from_tiny_run(tiny_run):
     # the invalid grasp of shard 1 is a failure: 3 of 5, not 3 of 4
     assert table.loc["cvae_post", "lift_success_rate"] == 0.6
     assert table.loc["cvae_post", ["n_grasps", "n_invalid"]].tolist() == [5, 1] and table.loc["seed", "n_invalid"] == 0
+    assert table.loc["cvae_post", "lift_success_boot_ci95_low"] <= 0.6 <= table.loc["cvae_post", "lift_success_boot_ci95_high"]
     assert table.loc["seed", "object_success_rate"] == 1.0
     assert table.loc["cvae_post", "seconds_per_grasp"] == pytest.approx(0.51)
     assert table.loc["random_post", "n_grasps"] == 0 and np.isnan(table.loc["random_post", "lift_success_rate"])
@@ -192,9 +200,15 @@ def test_report_is_self_contained_with_pictures(tiny_run):
     # success bars, histograms, convergence, training curves, then a success and a failure per method
     assert len(images) == 4 + 2 * 2
     assert all(base64.b64decode(b)[:8] == b"\x89PNG\r\n\x1a\n" for b in images)
-    for needle in ("seed", "cvae_post", "friction", "object_mass_kg", "lift success ≈ 55%", "failure", "Evaluated object splits: heldout",
-                   "after 200 iterations at iteration 50: speed-up 4.0×"):
+    for needle in ("seed", "cvae_post", "friction", "object_mass_kg", "lift success ≈ 55%", "failure", "n_invalid", "boot_ci95",
+                   "after 200 iterations at iteration 50: speed-up 4.0×", "object-level bootstrap"):
         assert needle in text
+    # the run's key settings, from the whole config the report was given, and the config itself
+    for label, value in (("seed", "7"), ("built-in objects requested", "40"), ("lift: friction", "0.6"), ("training profile", "default"),
+                         ("training steps (max_steps)", "2000"), ("post-optimization iterations", "200"),
+                         ("objects prepared (catalogs)", "1 heldout, 1 train; 0 rejected")):
+        assert f"<tr><td>{label}</td><td>{value}</td></tr>" in text, label
+    assert "<summary>whole config</summary>" in text and '&quot;max_steps&quot;: 2000' in text
 
 
 def test_simulate_step_on_tiny_object(tmp_path, tiny_objects):
@@ -246,3 +260,13 @@ def test_splits_are_the_catalog_split_names():
     with pytest.raises(ValueError, match="unknown split"):
         EvaluateConfig(splits=("held_out",))
 
+
+def test_every_evaluate_setting_belongs_to_a_step_and_steps_read_only_theirs():
+    from dataclasses import fields
+
+    from dexlite_pipeline.report.evaluation import evaluate_config_from
+    from dexlite_pipeline.report.steps import AGGREGATE_KEYS, REPORT_KEYS, SIMULATE_KEYS
+
+    assert {f.name for f in fields(EvaluateConfig)} == set(SIMULATE_KEYS) | set(AGGREGATE_KEYS) | set(REPORT_KEYS)
+    cfg = evaluate_config_from({"evaluate": {"grasps_per_object": 5, "rendered_per_method": 7}}, SIMULATE_KEYS)
+    assert cfg.grasps_per_object == 5 and cfg.rendered_per_method == EvaluateConfig().rendered_per_method

@@ -1,6 +1,14 @@
 # Evaluation on held-out objects: simulate each shard of every method's grasps, then tabulate,
 # then build the HTML report. Which methods are read comes from config.evaluate.methods.
 # learning_objects_dirs / learning_cli_options come from train_cvae.smk (included before).
+# Each step tracks only the evaluate keys it reads (report.steps): a report-only setting
+# reruns the report, a metric setting the aggregate step and the report, not the simulation.
+from dexlite_pipeline.report.steps import AGGREGATE_KEYS, SIMULATE_KEYS, with_evaluate_keys
+
+
+def evaluate_step_params(keys, *sections):
+    """Canonical JSON of ``sections`` plus the given keys of config.evaluate: what one evaluation step tracks."""
+    return section_json(with_evaluate_keys(config, keys), "evaluate", *sections)
 
 
 def _evaluate_sources(shard):
@@ -32,7 +40,7 @@ rule evaluate_simulate:
     output:
         directory(f"{RESULTS}/eval/sim/shard_{{shard}}.zarr"),
     params:
-        cfg=stage_params("seed", "device", "shards", "evaluate", "lift", "energy"),
+        cfg=evaluate_step_params(SIMULATE_KEYS, "seed", "device", "shards", "lift", "energy"),
         code=code_hash("evaluate"),
         sources=lambda wc: " ".join(f"--{k} {v}" for k, v in _evaluate_sources(wc.shard).items()),
         objects=learning_cli_options("objects", learning_objects_dirs()),
@@ -58,7 +66,7 @@ rule evaluate:
         convergence=f"{RESULTS}/eval/convergence.csv",
         summary=f"{RESULTS}/eval/evaluation.json",
     params:
-        cfg=stage_params("evaluate"),
+        cfg=evaluate_step_params(AGGREGATE_KEYS, "seed"),
         code=code_hash("evaluate"),
         sims=lambda wc, input: learning_cli_options("sim", input.sims),
         post=lambda wc, input: learning_cli_options("post", input.post) + " " + learning_cli_options("random-post", input.random_post),
@@ -85,7 +93,7 @@ rule report:
     output:
         f"{RESULTS}/eval/report.html",
     params:
-        cfg=stage_params("evaluate"),
+        cfg=stage_params(*sorted(config)),  # the whole config: the report shows it (last stage, so nothing else reruns)
         code=code_hash("report"),
         sims=lambda wc, input: learning_cli_options("sim", input.sims),
         objects=learning_cli_options("objects", learning_objects_dirs()),

@@ -35,6 +35,7 @@ import numpy as np
 from dexlite_pipeline.config import from_section
 from dexlite_pipeline.io.grasp_store import GraspSet, invalid_grasp_reasons
 from dexlite_pipeline.report import metrics
+from dexlite_pipeline.report.steps import with_evaluate_keys
 
 log = logging.getLogger(__name__)
 
@@ -75,8 +76,16 @@ class EvaluateConfig:
             raise ValueError("config.evaluate: grasps_per_object, energy_batch_size >= 1, entropy_bins >= 2, rendered_per_method >= 0")
 
 
-def evaluate_config_from(config: Mapping | None) -> EvaluateConfig:
-    return from_section(EvaluateConfig, (config or {}).get("evaluate"), "config.evaluate")
+def evaluate_config_from(config: Mapping | None, keys: Sequence[str] | None = None) -> EvaluateConfig:
+    """The ``evaluate`` section as a dataclass; with ``keys``, only those keys are read (the others keep defaults).
+
+    A step passes the keys it tracks (``report.steps``), so it computes the same from the
+    rule's cut-down section as from a whole section given on the command line.
+    """
+    config = config or {}
+    if keys is not None:
+        config = with_evaluate_keys(config, keys)
+    return from_section(EvaluateConfig, config.get("evaluate"), "config.evaluate")
 
 
 def require_split_objects(split_of: Mapping[str, str], splits: Sequence[str], objects_dirs: Sequence) -> None:

@@ -1,9 +1,10 @@
 """The evaluation report: one self-contained HTML page (every image base64-embedded).
 
-Sections: the metrics table beside the published reference numbers, success rates per
-method, energy and penetration histograms, post-optimization convergence curves, CVAE
-training curves, the physical constants of the simulation, and pictures of successful
-and failed grasps of every method from two viewpoints. It opens from disk, no server.
+Sections: the run's key settings (and its whole config), the metrics table beside the
+published reference numbers, success rates per method, energy and penetration histograms,
+post-optimization convergence curves, CVAE training curves, the physical constants of the
+simulation, and pictures of successful and failed grasps of every method from two
+viewpoints. It opens from disk, no server.
 """
 
 from __future__ import annotations
@@ -11,10 +12,13 @@ from __future__ import annotations
 import base64
 import html
 import io
+import json
 import logging
 import math
+from collections import Counter
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
@@ -32,13 +36,44 @@ REFERENCE_ROWS = (
     ("BODex", "> 49 grasps/s; > 75% simulated success", "one RTX 3090"),
 )
 TABLE_COLUMNS = (
-    "method", "split", "n_grasps", "n_objects", "lift_success_rate", "lift_success_ci95_low", "lift_success_ci95_high",
-    "object_success_rate", "six_dir_success_rate", "six_dir_success_ci95_low", "six_dir_success_ci95_high",
+    "method", "split", "n_grasps", "n_invalid", "n_objects", "lift_success_rate", "lift_success_ci95_low", "lift_success_ci95_high",
+    "lift_success_boot_ci95_low", "lift_success_boot_ci95_high", "object_success_rate", "six_dir_success_rate",
+    "six_dir_success_ci95_low", "six_dir_success_ci95_high", "six_dir_success_boot_ci95_low", "six_dir_success_boot_ci95_high",
     "penetration_mean_mm", "penetration_p95_mm", "contact_distance_mean_mm", "E_fc_mean", "energy_threshold_pass_rate",
     "joint_entropy_bits", "pca_explained_variance_k1", "pca_explained_variance_k3", "seconds_per_grasp",
     "E_post_median_final", "iterations_to_random_final_E_post", "threshold_reached_fraction",
 )  # fmt: skip
 HISTOGRAMS = (("E_fc", "E_fc"), ("penetration_mm", "penetration (mm)"), ("contact_distance_mm", "contact distance (mm)"))
+SUCCESS_BARS = (("lift_success_rate", "lift (per grasp)"), ("object_success_rate", "lift (per object)"), ("six_dir_success_rate", "six directions"))
+# The run's key settings: (label, path in the config).
+KEY_SETTINGS = (
+    ("seed", ("seed",)),
+    ("shards", ("shards",)),
+    ("built-in objects requested", ("objects", "builtin_count")),
+    ("mesh folders added", ("objects", "mesh_dirs")),
+    ("held-out mesh folders", ("objects", "heldout_mesh_dirs")),
+    ("held-out fraction", ("objects", "heldout_fraction")),
+    ("DexGraspNet root", ("dexgraspnet", "root")),
+    ("seed synthesis: starts per object and scale", ("seed_grasps", "grasps_per_object")),
+    ("seed synthesis: iterations", ("seed_grasps", "annealing", "iterations")),
+    ("seed synthesis: scales", ("seed_grasps", "scales")),
+    ("lift: friction", ("lift", "friction")),
+    ("lift: object mass (kg)", ("lift", "object_mass_kg")),
+    ("lift: finger kp", ("lift", "finger_kp")),
+    ("lift: time step (s)", ("lift", "timestep_s")),
+    ("lift: success lift ratio", ("lift", "success_lift_ratio")),
+    ("training profile", ("train", "profile")),
+    ("training steps (max_steps)", ("train", "max_steps")),
+    ("training epochs", ("train", "epochs")),
+    ("training batch size", ("train", "batch_size")),
+    ("CVAE syntheses per held-out object", ("sample", "synthesis_grasps_per_object")),
+    ("post-optimization iterations", ("post_optimize", "iterations")),
+    ("post-optimization keep_best", ("post_optimize", "keep_best")),
+    ("random-init baseline", ("post_optimize", "random_baseline")),
+    ("evaluated splits", ("evaluate", "splits")),
+    ("grasps per method and object (at most)", ("evaluate", "grasps_per_object")),
+    ("six-direction test", ("evaluate", "six_directions")),
+)
 
 
 @dataclass
@@ -53,7 +88,7 @@ class ReportInputs:
     lift_config: Mapping = field(default_factory=dict)
     objects_dirs: Sequence[str] = ()
     rendered_per_method: int = 2
-    evaluate_settings: Mapping = field(default_factory=dict)
+    config: Mapping = field(default_factory=dict)  # the whole run config, shown in the page
     title: str = "DexLite evaluation"
 
 
@@ -79,33 +114,53 @@ def _plt():
     return plt
 
 
-def success_plot(metrics_df) -> str | None:
-    """Grouped bars: lift, object and six-direction success per method, per-grasp rates with their 95% intervals."""
-    columns = [("lift_success_rate", "lift (per grasp)"), ("object_success_rate", "lift (per object)"), ("six_dir_success_rate", "six directions")]
+def success_figure(metrics_df):
+    """Grouped bars: lift, object and six-direction success per method; error bars are the object-bootstrap 95% intervals.
+
+    A rate that was not measured (NaN, e.g. the six-direction test switched off) gets no
+    bar and a "not run" mark, never a bar at 0%. None when no method has a lift rate.
+    """
     frame = metrics_df.dropna(subset=["lift_success_rate"]) if len(metrics_df) else metrics_df
     if not len(frame):
         return None
     plt = _plt()
+    from matplotlib.patches import Patch
+
     labels = [f"{m}\n({s})" for m, s in zip(frame["method"], frame["split"])]
     x = np.arange(len(frame))
-    fig, ax = plt.subplots(figsize=(max(5, 1.3 * len(frame)), 3.2))
-    width = 0.8 / len(columns)
-    for k, (column, name) in enumerate(columns):
-        values = frame[column].astype(float).fillna(0).to_numpy() * 100
-        interval = column.replace("_rate", "_ci95")
+    fig, ax = plt.subplots(figsize=(max(5, 1.3 * len(frame)), 3.4))
+    width = 0.8 / len(SUCCESS_BARS)
+    not_run = []
+    for k, (column, name) in enumerate(SUCCESS_BARS):
+        values = frame[column].astype(float).to_numpy() * 100 if column in frame.columns else np.full(len(frame), np.nan)
+        measured = np.isfinite(values)
+        positions = x + (k - 1) * width
+        interval = column.replace("_rate", "_boot_ci95")
         error = None
         if f"{interval}_low" in frame.columns:
             low = frame[f"{interval}_low"].astype(float).to_numpy() * 100
             high = frame[f"{interval}_high"].astype(float).to_numpy() * 100
-            error = np.nan_to_num(np.stack([values - low, high - values]), nan=0.0)
-        ax.bar(x + (k - 1) * width, values, width, label=name, yerr=error, capsize=2, error_kw={"lw": 0.8})
+            error = np.nan_to_num(np.stack([values - low, high - values])[:, measured], nan=0.0)
+        if measured.any():
+            ax.bar(positions[measured], values[measured], width, color=f"C{k}", label=name, yerr=error, capsize=2, error_kw={"lw": 0.8})
+        else:
+            not_run.append(Patch(facecolor="none", edgecolor=f"C{k}", label=f"{name} (not run)"))
+        for position in positions[~measured]:
+            ax.text(position, 1, "not run", rotation=90, fontsize=6, ha="center", va="bottom", color="grey")
     ax.axhline(79, color="grey", ls="--", lw=0.8)
     ax.text(x[-1] + 0.45, 79, "seed paper post-opt 79%", fontsize=7, va="bottom", ha="right", color="grey")
     ax.set_xticks(x, labels, fontsize=8)
     ax.set_ylabel("success (%)")
     ax.set_ylim(0, 100)
-    ax.legend(fontsize=7, loc="upper left")
-    return figure_png_base64(fig)
+    ax.set_title("error bars: object-level bootstrap 95% interval (objects resampled)", fontsize=8)
+    ax.legend(handles=ax.get_legend_handles_labels()[0] + not_run, fontsize=7, loc="upper left")
+    return fig
+
+
+def success_plot(metrics_df) -> str | None:
+    """The success bars as base64 PNG (None when there is nothing to show)."""
+    fig = success_figure(metrics_df)
+    return figure_png_base64(fig) if fig is not None else None
 
 
 def histogram_plot(simulated: GraspSet | None) -> str | None:
@@ -265,6 +320,62 @@ def metrics_table_html(metrics_df) -> str:
     return f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
 
 
+def _setting(config: Mapping, path: Sequence[str]):
+    """The value at ``path`` in the nested config, or None where a level is missing."""
+    value = config
+    for key in path:
+        if not isinstance(value, Mapping) or key not in value:
+            return None
+        value = value[key]
+    return value
+
+
+def _setting_text(value) -> str:
+    if value is None:
+        return "not given"
+    if isinstance(value, bool):
+        return "on" if value else "off"
+    if isinstance(value, (list, tuple)):
+        return ", ".join(map(str, value)) if value else "none"
+    if value == "":
+        return "none"
+    return _format(value)
+
+
+def catalog_counts(objects_dirs: Sequence[str]) -> tuple[dict[str, int], int]:
+    """(prepared objects per split, rejected objects) over the catalogs of the objects dirs."""
+    from dexlite_pipeline.objects.assets import CATALOG_NAME, read_catalog
+
+    per_split: Counter = Counter()
+    rejected = 0
+    for directory in objects_dirs:
+        if not (Path(directory) / CATALOG_NAME).is_file():
+            continue
+        catalog = read_catalog(directory)
+        ok = catalog["status"].astype(str) == "ok"
+        splits = catalog["split"].astype(str) if "split" in catalog.columns else catalog["object_id"].map(lambda _: "unknown")
+        per_split.update(splits[ok])
+        rejected += int((~ok).sum())
+    return dict(per_split), rejected
+
+
+def run_settings_html(config: Mapping, objects_dirs: Sequence[str]) -> str:
+    """The run's key settings as a table, then the whole config (folded), so a page says how it was made."""
+    if not config:
+        return "<p>The report was not given the run's config.</p>"
+    rows = [(label, _setting_text(_setting(config, path))) for label, path in KEY_SETTINGS]
+    per_split, rejected = catalog_counts(objects_dirs)
+    if per_split or rejected:
+        prepared = ", ".join(f"{n} {split}" for split, n in sorted(per_split.items())) or "none"
+        rows.append(("objects prepared (catalogs)", f"{prepared}; {rejected} rejected"))
+    body = "".join(f"<tr><td>{html.escape(label)}</td><td>{html.escape(value)}</td></tr>" for label, value in rows)
+    whole = html.escape(json.dumps(config, indent=2, sort_keys=True))
+    return (
+        f"<table><thead><tr><th>setting</th><th>value</th></tr></thead><tbody>{body}</tbody></table>"
+        f"<details><summary>whole config</summary><pre>{whole}</pre></details>"
+    )
+
+
 def constants_table_html(lift_config: Mapping) -> str:
     if not lift_config:
         return "<p>The simulated shards carry no lift configuration.</p>"
@@ -307,20 +418,19 @@ def build_report_html(inputs: ReportInputs) -> str:
         f"{_format(inputs.lift_config.get('success_lift_ratio', math.nan))}); per-object success = at least one successful grasp. "
         "Joint entropy: DexGraspNet's mean per-joint histogram entropy in bits (bins over each joint's range); "
         "PCA: cumulative explained variance of the 22 joint angles (DexGraspBench; lower = more diverse). "
-        "seconds_per_grasp sums the stages that made the method's grasps on this machine.</p>"
+        "seconds_per_grasp sums the stages that made the method's grasps on this machine. "
+        "n_invalid of the n_grasps had no usable pose or scale: they were not simulated and count as failures. "
+        "cvae_raw, cvae_post and random_post are evaluated on the same sampled rows (same objects and scales). "
+        "Intervals: ci95 = Wilson (grasps taken as independent); boot_ci95 = object-level bootstrap "
+        "(objects resampled with replacement: wider when success depends on the object, rough with few objects), "
+        "used for the error bars.</p>"
     )
-    settings = inputs.evaluate_settings
-    if settings:
-        sections.append(
-            f"<p class='note'>Evaluated object splits: {html.escape(', '.join(map(str, settings.get('splits', []))))}; "
-            f"at most {_format(settings.get('grasps_per_object', math.nan))} grasps per method and object (seeded choice); "
-            f"six-direction test: {'on' if settings.get('six_directions', True) else 'off'}.</p>"
-        )
+    sections.append("<h2>Run settings</h2>" + run_settings_html(inputs.config, inputs.objects_dirs))
     sections.append("<h2>Metrics</h2>" + metrics_table_html(inputs.metrics))
     ref_rows = "".join(f"<tr><td>{html.escape(a)}</td><td>{html.escape(b)}</td><td>{html.escape(c)}</td></tr>" for a, b, c in REFERENCE_ROWS)
     sections.append(f"<h2>Reference numbers</h2><table><thead><tr><th>source</th><th>result</th><th>hardware</th></tr></thead><tbody>{ref_rows}</tbody></table>")
     for title, image in (
-        ("Success per method", success_plot(inputs.metrics)),
+        ("Success per method (error bars: object-level bootstrap 95% interval)", success_plot(inputs.metrics)),
         ("Energies and penetration", histogram_plot(inputs.simulated)),
         ("Post-optimization convergence (median, interquartile band)", convergence_plot(inputs.convergence)),
         ("CVAE training curves", training_plot(inputs.history)),

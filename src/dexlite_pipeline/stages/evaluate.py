@@ -10,6 +10,9 @@ Two steps, so that the heavy simulation is sharded like the other grasp-heavy st
 - ``--step aggregate``: reads all simulated shards plus the post-optimization traces and
   writes ``metrics.csv`` (one row per method and split), ``per_object.csv`` and
   ``convergence.csv`` (E_post quartiles per iteration) into ``--out-dir``.
+
+Each step reads only its keys of the ``evaluate`` section (``report.steps``), the keys its
+rule tracks, so a report-only setting does not rerun the simulation.
 """
 
 from __future__ import annotations
@@ -79,12 +82,13 @@ def _simulate(args, config: dict) -> int:
     from dexlite_pipeline.report.evaluation import (
         evaluate_config_from, method_grasps, require_split_objects, sample_rows_of, select_grasps, simulate, stage_seconds_per_grasp,
     )  # fmt: skip
+    from dexlite_pipeline.report.steps import SIMULATE_KEYS
     from dexlite_pipeline.sharding import shard_objects
     from dexlite_pipeline.sim.config import lift_config_from
 
     if not args.out or args.shard is None:
         raise ValueError("evaluate --step simulate needs --out and --shard")
-    cfg = evaluate_config_from(config)
+    cfg = evaluate_config_from(config, SIMULATE_KEYS)
     lift_cfg = lift_config_from(config, six_directions=cfg.six_directions)
     energy_cfg = from_section(EnergyConfig, config.get("energy"), "config.energy")
     seed = int(config.get("seed") or 0)
@@ -155,12 +159,13 @@ def _aggregate(args, config: dict) -> int:
         concatenate_shards, convergence_rows, evaluate_config_from, iterations_to_reach, metrics_tables, require_split_objects,
     )  # fmt: skip
     from dexlite_pipeline.report.metrics import BOOTSTRAP_RESAMPLES
+    from dexlite_pipeline.report.steps import AGGREGATE_KEYS
 
     import pandas as pd
 
     if not args.out_dir or not args.sim:
         raise ValueError("evaluate --step aggregate needs --sim and --out-dir")
-    cfg = evaluate_config_from(config)
+    cfg = evaluate_config_from(config, AGGREGATE_KEYS)
     shards = [read_grasp_store(p) for p in args.sim]
     # A method with no input in any shard (e.g. dexgraspnet when not configured) gets no row.
     absent = set.intersection(*(set(s.attrs.get("methods_without_input") or []) for s in shards))
@@ -196,7 +201,7 @@ def _aggregate(args, config: dict) -> int:
     with atomic_path(out_dir / "evaluation.json") as tmp:
         record = {
             "config": config,
-            "evaluate": dataclasses.asdict(cfg),
+            "evaluated_methods": list(cfg.methods),
             "bootstrap": {"resamples": BOOTSTRAP_RESAMPLES, "seed": bootstrap_seed, "cluster": "object"},
             "lift_config": lift_attrs,
             "shards": [str(p) for p in args.sim],

@@ -1,4 +1,8 @@
-"""``dexlite report``: build ``results/eval/report.html`` from the evaluation outputs."""
+"""``dexlite report``: build ``results/eval/report.html`` from the evaluation outputs.
+
+It takes the run's whole config (``--config-json``) and shows its key settings and the
+whole of it in the page; of the ``evaluate`` section it reads ``report.steps.REPORT_KEYS``.
+"""
 
 from __future__ import annotations
 
@@ -8,7 +12,7 @@ from pathlib import Path
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--config-json", default="{}", help="config sections (evaluate) as JSON")
+    parser.add_argument("--config-json", default="{}", help="the run's whole config as JSON (shown in the report)")
     parser.add_argument("--eval-dir", required=True, help="folder with metrics.csv, per_object.csv, convergence.csv, evaluation.json")
     parser.add_argument("--sim", action="append", default=[], help="simulated shard store(s) of the evaluation (for histograms and pictures)")
     parser.add_argument("--history", default=None, help="CVAE training history CSV (optional)")
@@ -22,22 +26,20 @@ def run(args: argparse.Namespace) -> int:
 
     from dexlite_pipeline.config import parse_config_json
     from dexlite_pipeline.io.atomic import write_text_atomic
-    from dexlite_pipeline.io.grasp_store import GraspSet, read_grasp_store
-    from dexlite_pipeline.report.evaluation import evaluate_config_from
+    from dexlite_pipeline.io.grasp_store import read_grasp_store
+    from dexlite_pipeline.report.evaluation import concatenate_shards, evaluate_config_from
     from dexlite_pipeline.report.html import ReportInputs, build_report_html
+    from dexlite_pipeline.report.steps import REPORT_KEYS
 
-    cfg = evaluate_config_from(parse_config_json(args.config_json))
+    config = parse_config_json(args.config_json)
+    cfg = evaluate_config_from(config, REPORT_KEYS)
     eval_dir = Path(args.eval_dir)
     for name in ("metrics.csv", "per_object.csv", "convergence.csv"):
         if not (eval_dir / name).is_file():
             raise FileNotFoundError(f"{eval_dir / name}: evaluation output missing (run dexlite evaluate --step aggregate)")
     summary_path = eval_dir / "evaluation.json"
     summary = json.loads(summary_path.read_text()) if summary_path.is_file() else {}
-    shards = [s for s in (read_grasp_store(p) for p in args.sim) if len(s)]
-    simulated = None
-    if shards:
-        common = set.intersection(*(set(s.arrays) for s in shards))
-        simulated = GraspSet.concatenate([GraspSet({k: s.arrays[k] for k in common}) for s in shards])
+    simulated = concatenate_shards([read_grasp_store(p) for p in args.sim])
     history = None
     if args.history and Path(args.history).is_file():
         history = pd.read_csv(args.history)
@@ -50,7 +52,7 @@ def run(args: argparse.Namespace) -> int:
         lift_config=summary.get("lift_config") or {},
         objects_dirs=args.objects,
         rendered_per_method=cfg.rendered_per_method,
-        evaluate_settings=summary.get("evaluate") or {},
+        config=config,
     )
     write_text_atomic(args.out, build_report_html(inputs))
     n_rendered = 0 if simulated is None else len(set(np.asarray(simulated.arrays.get("method", [])).tolist()))

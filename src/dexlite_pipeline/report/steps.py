@@ -1,0 +1,25 @@
+"""Which ``evaluate`` settings each evaluation step reads, so that changing one reruns only the steps that read it.
+
+The workflow passes each step only its keys of the ``evaluate`` section (Snakemake tracks a
+rule's params), and the steps themselves drop every other key before reading the section,
+so a step behaves the same whether the rule or a user calling the CLI with the whole
+section runs it. The report step reads the whole config (it is the last stage and records it).
+This module imports nothing heavy: the workflow imports it while it parses the rules.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+# evaluate --step simulate: which grasps are chosen and how they are measured
+SIMULATE_KEYS = ("methods", "splits", "grasps_per_object", "six_directions", "seed_passing_only", "energy_batch_size")
+# evaluate --step aggregate: which rows metrics.csv has and how diversity is measured
+AGGREGATE_KEYS = ("methods", "splits", "entropy_bins", "pca_components")
+# dexlite report: pictures per method (its rule passes the whole config, which the report shows)
+REPORT_KEYS = ("rendered_per_method",)
+
+
+def with_evaluate_keys(config: Mapping, keys: Sequence[str]) -> dict:
+    """``config`` with its ``evaluate`` section cut down to ``keys`` (the other sections as they are)."""
+    section = config.get("evaluate") or {}
+    return {**config, "evaluate": {key: section[key] for key in keys if key in section}}
