@@ -8,10 +8,17 @@
 # in the rules: they live in the profiles (profiles/local, profiles/slurm).
 import json
 import os
+import sys
 from pathlib import Path
 
 from snakemake.exceptions import WorkflowError
 from snakemake.utils import validate
+
+# The package source beside this Snakefile is the last place the imports below look: a
+# Snakemake installed without the package (e.g. for `--sdm conda`, whose environment is built
+# only after parsing) still parses the workflow, while an installed package or a PYTHONPATH
+# entry is used first. Parse-time code stays light (standard library and PyYAML only).
+sys.path.append(str(Path(workflow.basedir) / "src"))
 
 from dexlite_pipeline.codehash import code_hash as _package_code_hash
 from dexlite_pipeline.config import SCHEMA_PATH, section_json
