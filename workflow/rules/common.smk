@@ -1,11 +1,13 @@
-# Shared helpers for the rules: config validation, per-stage params, code hashes, shard lists.
+# Shared helpers for the rules: config validation, per-stage params, code hashes, input
+# files read from outside results/, shard lists.
 #
 # Rerun contract: a rule's params hold (1) the config sections it uses, as canonical JSON
 # (stage_params), and (2) a hash of its stage code and everything that code imports from
-# the package (code_hash). Snakemake's default rerun triggers (mtime, params, input, code,
-# software-env) then rerun exactly the stage whose settings or code changed, and what
-# depends on its outputs. Resources (threads, memory, runtime, GPUs) are NOT set here or
-# in the rules: they live in the profiles (profiles/local, profiles/slurm).
+# the package (code_hash); stages that read files from outside results/ (meshes, a DexGraspNet
+# download) list them as inputs. Snakemake's default rerun triggers (mtime, params, input,
+# code, software-env) then rerun exactly the stage whose settings, code or input files
+# changed, and what depends on its outputs. Resources (threads, memory, runtime, GPUs) are NOT
+# set here or in the rules: they live in the profiles (profiles/local, profiles/slurm).
 import json
 import os
 import sys
@@ -32,6 +34,11 @@ SHARDS = [f"{i:03d}" for i in range(int(config["shards"]))]
 # Its post-deploy script installs the checkout named by DEXLITE_SOURCE: this one.
 CONDA_ENV = str(Path(workflow.basedir) / "envs" / "dexlite.yaml")
 os.environ.setdefault("DEXLITE_SOURCE", str(workflow.basedir))
+# Files the object loader reads from objects.mesh_dirs / heldout_mesh_dirs: those directly in
+# each folder with one of these suffixes, in any case (objects.sources.folder_sources; that
+# module needs numpy, so it is not imported at parse time: tests/workflow/test_input_reruns.py
+# checks that both list the same files).
+MESH_SUFFIXES = (".obj", ".stl")
 
 
 wildcard_constraints:
@@ -60,6 +67,27 @@ def code_hash(*modules):
     or full dotted module names.
     """
     return _package_code_hash(*(m if "." in m else f"dexlite_pipeline.stages.{m}" for m in modules))
+
+
+def mesh_dir_files(wildcards):
+    """The mesh files of objects.mesh_dirs and heldout_mesh_dirs, as the object loader picks
+    them: a new file changes prepare_objects' input set and an edited one is newer than its
+    outputs, so either reruns it. A missing folder lists nothing (the stage names it)."""
+    objects = config["objects"]
+    files = []
+    for folder in map(Path, [*objects["mesh_dirs"], *objects["heldout_mesh_dirs"]]):
+        if folder.is_dir():
+            files += sorted(str(p) for p in folder.iterdir() if p.is_file() and p.suffix.lower() in MESH_SUFFIXES)
+    return list(dict.fromkeys(files))
+
+
+def dexgraspnet_files(wildcards):
+    """The files the DexGraspNet import reads (io.dexgraspnet's layout): ROOT/dataset/*.npy
+    and, where present, each one's ROOT/meshdata/<code>/coacd/decomposed.obj."""
+    root = Path(config["dexgraspnet"]["root"])
+    grasp_files = sorted((root / "dataset").glob("*.npy"))
+    meshes = [root / "meshdata" / path.stem / "coacd" / "decomposed.obj" for path in grasp_files]
+    return [str(path) for path in [*grasp_files, *meshes] if path.is_file()]
 
 
 def final_outputs():

@@ -14,6 +14,8 @@ def import_params():
 
 
 rule import_dexgraspnet:
+    input:
+        dexgraspnet_files,
     output:
         grasps=directory(f"{RESULTS}/dexgraspnet/grasps.zarr"),
         catalog=f"{DEXGRASPNET_OBJECTS}/catalog.parquet",

@@ -1,4 +1,6 @@
 rule prepare_objects:
+    input:
+        meshes=mesh_dir_files,
     output:
         catalog=f"{RESULTS}/objects/catalog.parquet",
         config=f"{RESULTS}/objects/prepare_config.json",
