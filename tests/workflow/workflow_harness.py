@@ -12,6 +12,7 @@ from __future__ import annotations
 import copy
 import os
 import re
+import shlex
 import shutil
 import subprocess
 import sys
@@ -204,6 +205,22 @@ def job_blocks(output: str) -> list[dict[str, str]]:
         else:
             current = None
     return blocks
+
+
+def planned_commands(output: str) -> dict[str, list[str]]:
+    """Rule -> the shell commands of its jobs in a ``snakemake --dry-run --printshellcmds`` output."""
+    commands: dict[str, list[str]] = {}
+    rules = iter(block["rule"] for block in job_blocks(output))
+    for line in output.splitlines():
+        if line.startswith("Shell command: "):
+            commands.setdefault(next(rules), []).append(line.removeprefix("Shell command: "))
+    return commands
+
+
+def option_value(command: str, option: str) -> str:
+    """The value that ``option`` has in a shell command (before its log redirection)."""
+    words = shlex.split(command.split(" > ")[0])
+    return words[words.index(option) + 1]
 
 
 def wildcard(block: dict[str, str], name: str) -> str | None:

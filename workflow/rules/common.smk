@@ -1,13 +1,14 @@
 # Shared helpers for the rules: config validation, per-stage params, code hashes, input
-# files read from outside results/, shard lists.
+# files read from outside results/, threads, shard lists.
 #
 # Rerun contract: a rule's params hold (1) the config sections it uses, as canonical JSON
 # (stage_params), and (2) a hash of its stage code and everything that code imports from
 # the package (code_hash); stages that read files from outside results/ (meshes, a DexGraspNet
 # download) list them as inputs. Snakemake's default rerun triggers (mtime, params, input,
 # code, software-env) then rerun exactly the stage whose settings, code or input files
-# changed, and what depends on its outputs. Resources (threads, memory, runtime, GPUs) are NOT
-# set here or in the rules: they live in the profiles (profiles/local, profiles/slurm).
+# changed, and what depends on its outputs. Threads: each rule's default is set here for a
+# plain `snakemake --cores N` (heavy unsharded stages all N, sharded stages one per job);
+# the profiles (profiles/local, profiles/slurm) may override them and hold the other resources.
 import json
 import os
 import sys
@@ -30,6 +31,8 @@ validate(config, str(SCHEMA_PATH))
 RESULTS = "results"
 LOGS = "logs"
 SHARDS = [f"{i:03d}" for i in range(int(config["shards"]))]
+# Threads of a sharded stage's job: one, so that `--cores` shards run side by side.
+SHARD_THREADS = 1
 # The conda environment every rule declares; used only with `--sdm conda` (see README).
 # Its post-deploy script installs the checkout named by DEXLITE_SOURCE: this one.
 CONDA_ENV = str(Path(workflow.basedir) / "envs" / "dexlite.yaml")

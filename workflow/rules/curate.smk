@@ -37,6 +37,7 @@ rule curate:
         cfg=stage_params(*CURATE_SECTIONS),
         code=code_hash("curate"),
         options=lambda wildcards, input: curate_options(input),
+    threads: SHARD_THREADS
     conda:
         CONDA_ENV
     log:
@@ -57,6 +58,7 @@ rule curate_summary:
     params:
         code=code_hash("curate"),
         summaries=lambda wildcards, input: " ".join(f"--summary {p}" for p in input),
+    threads: 1
     conda:
         CONDA_ENV
     log:

@@ -12,6 +12,7 @@ rule lift_validate:
         cfg=stage_params("seed", "device", "lift"),
         code=code_hash("lift_validate"),
         objects=learning_cli_options("objects", learning_objects_dirs()),
+    threads: SHARD_THREADS
     conda:
         CONDA_ENV
     log:

@@ -12,6 +12,7 @@ rule post_optimize:
         cfg=stage_params("seed", "device", "post_optimize"),
         code=code_hash("post_optimize"),
         objects=learning_cli_options("objects", learning_objects_dirs()),
+    threads: SHARD_THREADS
     conda:
         CONDA_ENV
     log:

@@ -14,6 +14,7 @@ rule sample_grasps:
         code=code_hash("sample_grasps"),
         lift=lambda wc, input: learning_cli_options("lift", input.lift),
         objects=learning_cli_options("objects", learning_objects_dirs()),
+    threads: SHARD_THREADS
     conda:
         CONDA_ENV
     log:

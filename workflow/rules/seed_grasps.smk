@@ -11,6 +11,7 @@ rule seed_grasps:
         cfg=stage_params("seed", "device", "shards", "energy", "seed_grasps"),
         code=code_hash("seed_grasps"),
         objects=lambda wildcards, input: Path(input.catalog).parent,
+    threads: SHARD_THREADS
     conda:
         CONDA_ENV
     log:

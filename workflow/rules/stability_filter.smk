@@ -19,6 +19,7 @@ rule stability_filter:
         cfg=stage_params("seed", "stability"),
         code=code_hash("stability_filter"),
         objects=lambda wildcards, input: " ".join(f"--objects {Path(c).parent}" for c in input.catalogs),
+    threads: all_cores()
     conda:
         CONDA_ENV
     log:

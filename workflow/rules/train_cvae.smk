@@ -26,6 +26,7 @@ rule train_cvae:
         code=code_hash("train_cvae"),
         lift=lambda wc, input: learning_cli_options("lift", input.lift),
         objects=learning_cli_options("objects", learning_objects_dirs()),
+    threads: all_cores()
     conda:
         CONDA_ENV
     log:
