@@ -7,12 +7,23 @@ stages must and must not rerun).
 
 from __future__ import annotations
 
+import json
 import shutil
 from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
-from workflow_harness import checkout, downstream, planned_rules, rule_code_modules, write_config
+from workflow_harness import (
+    checkout,
+    downstream,
+    option_value,
+    planned_commands,
+    planned_rules,
+    rule_code_modules,
+    run_snakemake,
+    tiny_config,
+    write_config,
+)
 
 from dexlite_pipeline.codehash import module_closure
 from dexlite_pipeline.config import ConfigError, validate_config
@@ -44,6 +55,11 @@ CHANGES = [
         frozenset(UPSTREAM_OF_TRAINING),
     ),
 ]
+
+
+# Settings that cannot change any output (log cadence; the batch size of energy evaluation,
+# which is per grasp) reach their stage but rerun nothing.
+RESULT_NEUTRAL_KEYS = [("seed_grasps", "progress_every"), ("curate", "energy_batch_size")]
 
 
 def _numeric_variants(value):
@@ -92,6 +108,27 @@ def test_config_change_reruns_exactly_the_affected_stages(complete_run, scratch_
     assert planned == downstream(graph, {change.stage}), description
     assert change.must_rerun <= planned, description
     assert not (planned & change.must_not_rerun), description
+
+
+@pytest.mark.parametrize(("section", "key"), RESULT_NEUTRAL_KEYS, ids=lambda name: name)
+def test_result_neutral_setting_reruns_nothing(complete_run, scratch_copy, section, key):
+    description, config = changed_config(complete_run.config, section, key)
+    write_config(scratch_copy, config)
+
+    assert planned_rules(scratch_copy) == set(), description
+
+
+def test_result_neutral_settings_still_reach_their_stages(tmp_path):
+    (tmp_path / "meshes").mkdir()
+    neutral_values = {section: {key: 7} for section, key in RESULT_NEUTRAL_KEYS}
+    write_config(tmp_path / "run", tiny_config(tmp_path / "meshes", **neutral_values))
+
+    output = run_snakemake(tmp_path / "run", "--dry-run", "--printshellcmds", "--cores", "2", "all")
+
+    commands = planned_commands(output)
+    for section, key in RESULT_NEUTRAL_KEYS:
+        stage_config = json.loads(option_value(commands[section][0], "--config-json"))
+        assert stage_config[section][key] == 7, f"{section}.{key} does not reach rule {section}"
 
 
 def _source_copy(tmp_path: Path) -> Path:

@@ -37,6 +37,15 @@ SHARD_THREADS = 1
 # Its post-deploy script installs the checkout named by DEXLITE_SOURCE: this one.
 CONDA_ENV = str(Path(workflow.basedir) / "envs" / "dexlite.yaml")
 os.environ.setdefault("DEXLITE_SOURCE", str(workflow.basedir))
+# Config keys that cannot change any output reach their stage but never rerun it: log
+# cadence, and the batch size of energy evaluation (energies are computed grasp by grasp;
+# batches of 1, 37, 256 and 1000 gave bit-identical results on CPU). The optimizers' batch
+# sizes (seed_grasps.batch_size, post_optimize.batch_size) do change results (their step
+# uses the batch-mean squared gradient) and stay tracked.
+RESULT_NEUTRAL_KEYS = {
+    "seed_grasps": ("progress_every",),
+    "curate": ("energy_batch_size",),
+}
 # Files the object loader reads from objects.mesh_dirs / heldout_mesh_dirs: those directly in
 # each folder with one of these suffixes, in any case (objects.sources.folder_sources; that
 # module needs numpy, so it is not imported at parse time: tests/workflow/test_input_reruns.py
@@ -58,9 +67,28 @@ def all_cores():
         return 1
 
 
+class StageConfigJSON(str):
+    """The JSON a stage is given, whose repr (what Snakemake records to detect changed params)
+    is the JSON without RESULT_NEUTRAL_KEYS (``tracked``): changing one of those reruns nothing."""
+
+    def __repr__(self):
+        return repr(self.tracked)
+
+
 def stage_params(*sections):
-    """Canonical JSON of the config sections a stage uses: changes rerun exactly that stage."""
-    return section_json(config, *sections)
+    """Canonical JSON of the config sections a stage uses: changes rerun exactly that stage.
+
+    Given as a params function: Snakemake rebuilds a plain-string param as a plain str
+    (wildcards applied), which would lose StageConfigJSON's tracked form.
+    """
+    tracked_config = {
+        name: {k: v for k, v in section.items() if k not in RESULT_NEUTRAL_KEYS.get(name, ())}
+        if isinstance(section, dict) else section
+        for name, section in config.items()
+    }
+    stage_json = StageConfigJSON(section_json(config, *sections))
+    stage_json.tracked = section_json(tracked_config, *sections)
+    return lambda wildcards: stage_json
 
 
 def code_hash(*modules):
