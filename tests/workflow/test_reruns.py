@@ -59,7 +59,12 @@ CHANGES = [
 
 # Settings that cannot change any output (log cadence; the batch size of energy evaluation,
 # which is per grasp) reach their stage but rerun nothing.
-RESULT_NEUTRAL_KEYS = [("seed_grasps", "progress_every"), ("curate", "energy_batch_size")]
+# (section, key, a rule that reads it)
+RESULT_NEUTRAL_KEYS = [
+    ("seed_grasps", "progress_every", "seed_grasps"),
+    ("curate", "energy_batch_size", "curate"),
+    ("evaluate", "energy_batch_size", "evaluate_simulate"),
+]
 
 
 def _numeric_variants(value):
@@ -110,8 +115,8 @@ def test_config_change_reruns_exactly_the_affected_stages(complete_run, scratch_
     assert not (planned & change.must_not_rerun), description
 
 
-@pytest.mark.parametrize(("section", "key"), RESULT_NEUTRAL_KEYS, ids=lambda name: name)
-def test_result_neutral_setting_reruns_nothing(complete_run, scratch_copy, section, key):
+@pytest.mark.parametrize(("section", "key", "rule"), RESULT_NEUTRAL_KEYS, ids=lambda name: name)
+def test_result_neutral_setting_reruns_nothing(complete_run, scratch_copy, section, key, rule):
     description, config = changed_config(complete_run.config, section, key)
     write_config(scratch_copy, config)
 
@@ -120,15 +125,15 @@ def test_result_neutral_setting_reruns_nothing(complete_run, scratch_copy, secti
 
 def test_result_neutral_settings_still_reach_their_stages(tmp_path):
     (tmp_path / "meshes").mkdir()
-    neutral_values = {section: {key: 7} for section, key in RESULT_NEUTRAL_KEYS}
+    neutral_values = {section: {key: 7} for section, key, _ in RESULT_NEUTRAL_KEYS}
     write_config(tmp_path / "run", tiny_config(tmp_path / "meshes", **neutral_values))
 
     output = run_snakemake(tmp_path / "run", "--dry-run", "--printshellcmds", "--cores", "2", "all")
 
     commands = planned_commands(output)
-    for section, key in RESULT_NEUTRAL_KEYS:
-        stage_config = json.loads(option_value(commands[section][0], "--config-json"))
-        assert stage_config[section][key] == 7, f"{section}.{key} does not reach rule {section}"
+    for section, key, rule in RESULT_NEUTRAL_KEYS:
+        stage_config = json.loads(option_value(commands[rule][0], "--config-json"))
+        assert stage_config[section][key] == 7, f"{section}.{key} does not reach rule {rule}"
 
 
 def _source_copy(tmp_path: Path) -> Path:

@@ -45,6 +45,7 @@ os.environ.setdefault("DEXLITE_SOURCE", str(workflow.basedir))
 RESULT_NEUTRAL_KEYS = {
     "seed_grasps": ("progress_every",),
     "curate": ("energy_batch_size",),
+    "evaluate": ("energy_batch_size",),
 }
 # Files the object loader reads from objects.mesh_dirs / heldout_mesh_dirs: those directly in
 # each folder with one of these suffixes, in any case (objects.sources.folder_sources; that
@@ -75,18 +76,20 @@ class StageConfigJSON(str):
         return repr(self.tracked)
 
 
-def stage_params(*sections):
+def stage_params(*sections, source=None):
     """Canonical JSON of the config sections a stage uses: changes rerun exactly that stage.
 
-    Given as a params function: Snakemake rebuilds a plain-string param as a plain str
-    (wildcards applied), which would lose StageConfigJSON's tracked form.
+    ``source`` is the config to take them from (default: the whole config; the evaluation
+    steps pass a cut-down one). Given as a params function: Snakemake rebuilds a plain-string
+    param as a plain str (wildcards applied), which would lose StageConfigJSON's tracked form.
     """
+    source = config if source is None else source
     tracked_config = {
         name: {k: v for k, v in section.items() if k not in RESULT_NEUTRAL_KEYS.get(name, ())}
         if isinstance(section, dict) else section
-        for name, section in config.items()
+        for name, section in source.items()
     }
-    stage_json = StageConfigJSON(section_json(config, *sections))
+    stage_json = StageConfigJSON(section_json(source, *sections))
     stage_json.tracked = section_json(tracked_config, *sections)
     return lambda wildcards: stage_json
 

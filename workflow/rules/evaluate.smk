@@ -7,8 +7,8 @@ from dexlite_pipeline.report.steps import AGGREGATE_KEYS, SIMULATE_KEYS, with_ev
 
 
 def evaluate_step_params(keys, *sections):
-    """Canonical JSON of ``sections`` plus the given keys of config.evaluate: what one evaluation step tracks."""
-    return section_json(with_evaluate_keys(config, keys), "evaluate", *sections)
+    """``sections`` plus the given keys of config.evaluate (stage_params): what one evaluation step tracks."""
+    return stage_params("evaluate", *sections, source=with_evaluate_keys(config, keys))
 
 
 def _evaluate_sources(shard):
@@ -39,6 +39,7 @@ rule evaluate_simulate:
         unpack(lambda wc: {"catalog": f"{RESULTS}/objects/catalog.parquet", **{k.replace("-", "_"): v for k, v in _evaluate_sources(wc.shard).items()}}),
     output:
         directory(f"{RESULTS}/eval/sim/shard_{{shard}}.zarr"),
+    threads: SHARD_THREADS
     params:
         cfg=evaluate_step_params(SIMULATE_KEYS, "seed", "device", "shards", "lift", "energy"),
         code=code_hash("evaluate"),
@@ -65,6 +66,7 @@ rule evaluate:
         per_object=f"{RESULTS}/eval/per_object.csv",
         convergence=f"{RESULTS}/eval/convergence.csv",
         summary=f"{RESULTS}/eval/evaluation.json",
+    threads: 1
     params:
         cfg=evaluate_step_params(AGGREGATE_KEYS, "seed"),
         code=code_hash("evaluate"),
@@ -92,6 +94,7 @@ rule report:
         history=f"{RESULTS}/model/history.csv",
     output:
         f"{RESULTS}/eval/report.html",
+    threads: 1
     params:
         cfg=stage_params(*sorted(config)),  # the whole config: the report shows it (last stage, so nothing else reruns)
         code=code_hash("report"),

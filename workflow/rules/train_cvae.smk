@@ -22,7 +22,7 @@ rule train_cvae:
         history=f"{RESULTS}/model/history.csv",
         curves=f"{RESULTS}/model/training_curves.png",
     params:
-        cfg=stage_params("seed", "device", "train"),
+        cfg=stage_params("seed", "device", "energy", "train"),
         code=code_hash("train_cvae"),
         lift=lambda wc, input: learning_cli_options("lift", input.lift),
         objects=learning_cli_options("objects", learning_objects_dirs()),
