@@ -65,6 +65,21 @@ class GraspSet:
         arrays = {k: np.concatenate([s.arrays[k] for s in sets]) for k in sets[0].arrays}
         return GraspSet(arrays, dict(attrs if attrs is not None else sets[0].attrs))
 
+    @staticmethod
+    def concatenate_common(sets: list["GraspSet"]) -> tuple["GraspSet", list[str]]:
+        """The sets with rows concatenated on the arrays they all have, and the names of the arrays left out.
+
+        Sets without rows add no grasps and take no part in choosing the arrays (a shard
+        written empty without some array must not strip it from the others). With no rows
+        at all, the first set (or an empty set) is returned as it is.
+        """
+        with_rows = [s for s in sets if len(s)]
+        if not with_rows:
+            return (GraspSet(dict(sets[0].arrays), {}) if sets else empty_grasp_set()), []
+        shared = set.intersection(*(set(s.arrays) for s in with_rows))
+        left_out = sorted(set.union(*(set(s.arrays) for s in with_rows)) - shared)
+        return GraspSet.concatenate([GraspSet({k: s.arrays[k] for k in shared}) for s in with_rows], attrs={}), left_out
+
 
 def empty_grasp_set(attrs: dict | None = None) -> GraspSet:
     return GraspSet(

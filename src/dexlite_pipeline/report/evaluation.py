@@ -342,11 +342,9 @@ def iterations_to_reach(curves, method: str, level: float) -> float:
 
 def concatenate_shards(shards: Sequence[GraspSet]) -> GraspSet | None:
     """The simulated shards with grasps as one set (the arrays they all have); None when all are empty."""
-    nonempty = [s for s in shards if len(s)]
-    if not nonempty:
+    if not any(len(s) for s in shards):
         return None
-    common = set.intersection(*(set(s.arrays) for s in nonempty))
-    return GraspSet.concatenate([GraspSet({k: s.arrays[k] for k in common}) for s in nonempty], attrs={})
+    return GraspSet.concatenate_common(shards)[0]
 
 
 def metrics_tables(

@@ -80,19 +80,13 @@ def _imported_with_energies(args, config: dict, curate_config, facts):
 
 
 def _common_arrays(sets):
-    """Concatenate sets keeping the arrays all of them have (provenance arrays always exist).
-
-    Sets without rows are left out of that choice (and of the concatenation): they add no
-    grasps, and an empty shard written without some array must not strip it from the rest.
-    """
+    """Concatenate sets keeping the arrays all of them with rows have (provenance arrays always exist)."""
     from dexlite_pipeline.io.grasp_store import GraspSet
 
-    with_rows = [s for s in sets if len(s)] or sets[:1]
-    shared = set.intersection(*(set(s.arrays) for s in with_rows))
-    dropped = sorted(set.union(*(set(s.arrays) for s in with_rows)) - shared)
-    if dropped:
-        log.info("arrays not present in every input, left out of the curated store: %s", ", ".join(dropped))
-    return GraspSet.concatenate([GraspSet({k: s.arrays[k] for k in shared}, {}) for s in with_rows], attrs={})
+    grasps, left_out = GraspSet.concatenate_common(sets)
+    if left_out:
+        log.info("arrays not present in every input, left out of the curated store: %s", ", ".join(left_out))
+    return grasps
 
 
 def _force_closure_evaluator(objects_dirs, curate_config, threads: int):
