@@ -58,7 +58,7 @@ def evaluate_grasp_energies(
     for object_id in sorted(set(map(str, grasps.object_id))):
         try:
             asset = load_asset(objects_dirs, object_id)
-        except (ObjectAssetError, OSError, KeyError) as exc:
+        except ObjectAssetError as exc:  # load_asset reports every unreadable asset as this
             log.warning("energy: %s", exc)
             out["energy_failure_reason"][grasps.object_id == object_id] = f"object asset unusable: {exc}"
             continue
