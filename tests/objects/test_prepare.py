@@ -173,3 +173,17 @@ def test_cli_stops_at_once_on_a_missing_folder(tmp_path, capsys):
     assert main(["prepare-objects", "--config-json", cfg, "--out-dir", str(tmp_path / "out")]) == 2
     assert "gone" in capsys.readouterr().err
     assert not (tmp_path / "out" / "catalog.parquet").exists()
+
+
+def test_cli_fails_when_no_object_could_be_prepared(tmp_path, capsys, caplog):
+    from dexlite_pipeline.cli import main
+
+    meshes = tmp_path / "meshes"
+    meshes.mkdir()
+    for name, text in (BAD_MESHES["empty mesh"], BAD_MESHES["degenerate: flat"], BAD_MESHES["unreadable"]):
+        (meshes / name).write_text(text)
+    objects = {**TINY.__dict__, "mesh_dirs": [str(meshes)]}
+    cfg = json.dumps({"seed": 0, "objects": objects})
+    assert main(["prepare-objects", "--config-json", cfg, "--out-dir", str(tmp_path / "out"), "--threads", "1"]) == 1
+    assert "prepared 0/3 objects" in capsys.readouterr().out
+    assert "none of the 3 objects could be prepared" in caplog.text

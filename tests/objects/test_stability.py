@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import json
 import math
+import subprocess
+import sys
 
 import numpy as np
 import pandas as pd
@@ -134,3 +136,20 @@ def test_stage_refuses_a_catalog_without_status_in_one_line(tmp_path, capsys):
     error = capsys.readouterr().err.strip()
     assert len(error.splitlines()) == 1 and "catalog.parquet" in error and "status" in error
     assert not (tmp_path / "stability.parquet").exists()
+
+
+def test_stability_filter_fails_when_no_object_was_prepared(tmp_path, caplog):
+    from dexlite_pipeline.cli import main
+
+    objects = tmp_path / "objects"
+    objects.mkdir()
+    pd.DataFrame({"object_id": ["a", "b"], "status": ["rejected", "rejected"], "reason": ["empty mesh", "flat"]}).to_parquet(objects / "catalog.parquet")
+    assert main(["stability-filter", "--objects", str(objects), "--out", str(tmp_path / "stability.parquet"), "--threads", "1"]) == 1
+    assert "no prepared object to test" in caplog.text
+    assert not (tmp_path / "stability.parquet").exists()
+
+
+def test_pybullet_is_imported_without_its_banner():
+    code = "from dexlite_pipeline.objects.stability import import_pybullet; import_pybullet(); print('done')"
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert result.stdout == "done\n" and "pybullet build time" not in result.stderr

@@ -367,6 +367,7 @@ def prepare_objects(
 
     from dexlite_pipeline.io.atomic import atomic_path
     from dexlite_pipeline.parallel import resilient_map
+    from dexlite_pipeline.progress import ProgressLog
 
     objects_dir = Path(objects_dir)
     ids = [s.object_id for s in sources]
@@ -376,10 +377,8 @@ def prepare_objects(
     objects_dir.mkdir(parents=True, exist_ok=True)
     task = functools.partial(prepare_object, objects_dir=str(objects_dir), settings=settings, builder=builder_version())
 
-    def progress(done: int, total: int) -> None:
-        log.info("prepared %d/%d objects", done, total)
-
-    rows = resilient_map(task, sources, workers, _crashed_row, progress)
+    progress = ProgressLog(log, "prepared", len(sources), unit="objects")
+    rows = resilient_map(task, sources, workers, _crashed_row, lambda done, total: progress.advance())
     catalog = pd.DataFrame(rows, columns=CATALOG_COLUMNS[:-1])
     catalog["watertight"] = catalog["watertight"].astype("boolean")
     catalog["n_convex_pieces"] = catalog["n_convex_pieces"].astype("int64")

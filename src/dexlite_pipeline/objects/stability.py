@@ -15,7 +15,10 @@ almost everything look stable.
 from __future__ import annotations
 
 import functools
+import logging
 import math
+import os
+import sys
 import zlib
 from dataclasses import dataclass
 from pathlib import Path
@@ -25,6 +28,37 @@ import numpy as np
 STABILITY_COLUMNS = ["object_id", "lateral_displacement_m", "rotation_deg", "stable", "reason"]
 STABILITY_REQUIRED_COLUMNS = ("object_id", "stable")  # what the stages that read the table use
 GRAVITY_M_S2 = 9.81
+
+log = logging.getLogger(__name__)
+
+
+def import_pybullet():
+    """The ``pybullet`` module, imported without its 'pybullet build time' banner.
+
+    The C extension prints the banner to standard error when the module loads, below
+    Python's ``sys.stderr``, so descriptors 1 and 2 point at /dev/null during the import
+    (C's buffers flushed before they are restored).
+    """
+    import ctypes
+
+    if "pybullet" in sys.modules:
+        return sys.modules["pybullet"]
+    sys.stdout.flush()
+    sys.stderr.flush()
+    saved = {fd: os.dup(fd) for fd in (1, 2)}
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    try:
+        for fd in saved:
+            os.dup2(devnull, fd)
+        import pybullet
+
+        ctypes.CDLL(None).fflush(None)
+    finally:
+        for fd, copy in saved.items():
+            os.dup2(copy, fd)
+            os.close(copy)
+        os.close(devnull)
+    return pybullet
 
 
 @dataclass(frozen=True)
@@ -94,8 +128,7 @@ def simulate_object(
     mesh, piece_files: list[Path], object_id: str, config: StabilityConfig, seed: int
 ) -> StabilityResult:
     """Drop one object (watertight ``mesh`` for mass properties, convex ``piece_files`` to collide) on a table."""
-    import pybullet as pb
-
+    pb = import_pybullet()
     if not piece_files:
         return StabilityResult(object_id, math.nan, math.nan, False, "no convex pieces to simulate")
     s = config.scale
@@ -183,6 +216,7 @@ def stability_table(catalog, objects_dirs: list[str], config: StabilityConfig, s
 
     from dexlite_pipeline.objects.assets import ObjectAssetError, find_asset_dir
     from dexlite_pipeline.parallel import resilient_map
+    from dexlite_pipeline.progress import ProgressLog
 
     ok = catalog["status"] == "ok"
     rows, items = [], []
@@ -192,7 +226,8 @@ def stability_table(catalog, objects_dirs: list[str], config: StabilityConfig, s
         except ObjectAssetError as exc:
             rows.append(StabilityResult(object_id, math.nan, math.nan, False, f"not simulated: {exc}").row())
     task = functools.partial(simulate_asset, config=config, seed=seed)
-    rows += resilient_map(task, items, workers, _failed_row)
+    progress = ProgressLog(log, "stability test", len(items), unit="objects")
+    rows += resilient_map(task, items, workers, _failed_row, lambda done, total: progress.advance())
     for row in catalog[~ok].itertuples():
         reason = getattr(row, "reason", "") or "no reason recorded"
         rows.append(StabilityResult(str(row.object_id), math.nan, math.nan, False, f"not simulated: rejected by prepare_objects ({reason})").row())

@@ -49,6 +49,7 @@ from dexlite_pipeline.hand.model import JOINT_NAMES, JOINTS, ShadowHand
 from dexlite_pipeline.hand.rotation import euler_xyz_to_matrix
 from dexlite_pipeline.io.grasp_store import GraspSet, invalid_grasp_reasons
 from dexlite_pipeline.objects.assets import ObjectAsset, SdfBank, available_object_ids, load_asset
+from dexlite_pipeline.progress import ProgressLog
 from dexlite_pipeline.sim.config import LiftConfig
 from dexlite_pipeline.sim.scene import GRAVITY_MPS2, LiftScene
 
@@ -459,11 +460,13 @@ def run_lift_tests(grasps: GraspSet, objects_dirs, config: LiftConfig, threads: 
     invalid = reasons != ""
     out.failure_reason[invalid] = np.asarray([f"invalid_grasp: {r}" for r in reasons[invalid]], dtype=object)
     tasks = make_tasks(grasps, np.flatnonzero(~invalid), dirs, config)
-    _collect(out, _run_threads(tasks, max(1, min(int(threads or 1), len(tasks)))))
+    label = "lift + six-direction test" if config.six_directions else "lift test"
+    progress = ProgressLog(log, label, int((~invalid).sum()), unit="grasps")
+    _collect(out, _run_threads(tasks, max(1, min(int(threads or 1), len(tasks))), progress))
     return _as_arrays(out, config)
 
 
-def _run_threads(tasks: list[LiftTask], workers: int) -> list[tuple[np.ndarray, LiftOutcome]]:
+def _run_threads(tasks: list[LiftTask], workers: int, progress: ProgressLog | None = None) -> list[tuple[np.ndarray, LiftOutcome]]:
     """Results of ``run_task`` over ``tasks`` on ``workers`` threads of this process.
 
     MuJoCo releases the GIL while it steps (over 90% of a grasp's CPU time) and torch while it
@@ -473,6 +476,7 @@ def _run_threads(tasks: list[LiftTask], workers: int) -> list[tuple[np.ndarray, 
     finish one; the first thread takes from the back and the others from the front, and
     tasks are ordered by object and scale, so most (object, scale) scenes are compiled in
     one thread only. Torch runs one intra-op thread per worker while this runs.
+    ``progress`` counts the grasps of every finished task.
     """
     queue = deque(tasks)  # deque.pop / popleft are atomic: the threads share it without a lock
     hand = ShadowHand()
@@ -485,6 +489,8 @@ def _run_threads(tasks: list[LiftTask], workers: int) -> list[tuple[np.ndarray, 
             except IndexError:
                 return done
             done.append(run_task(task, state))
+            if progress is not None:
+                progress.advance(len(task.indices))
 
     if workers == 1:
         return drain(queue.popleft)
