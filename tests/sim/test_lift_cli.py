@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import json
+import subprocess
+import sys
 
 import numpy as np
 import zarr
@@ -94,3 +96,38 @@ def test_lift_validate_stage_writes_the_shard_with_its_config(tmp_path, objects_
     assert result.attrs["stage"] == "lift_validate" and result.attrs["shard"] == "000"
     assert result.attrs["config"]["lift"]["friction"] == 1.0 and result.attrs["config"]["seed"] == 3
     assert "six_dir_success" not in result.arrays
+
+
+def test_lift_test_on_an_objects_folder_without_objects_fails(tmp_path, hooks, capsys):
+    source = tmp_path / "one.zarr"
+    write_grasp_store(source, grasp_set([hooks["square_bar"]], ["square_bar"]))
+    empty = tmp_path / "empty_objects"
+    empty.mkdir()
+    assert main(["lift-test", str(source), "--objects", str(empty), "--out", str(tmp_path / "out.zarr")]) == 2
+    err = capsys.readouterr().err
+    assert str(empty) in err and "no prepared objects" in err
+    assert not (tmp_path / "out.zarr").exists()
+
+
+def test_lift_test_with_no_simulable_grasp_exits_non_zero(tmp_path, objects_dir, hooks, caplog):
+    source = tmp_path / "unknown.zarr"
+    write_grasp_store(source, grasp_set([hooks["square_bar"]] * 2, ["never_prepared"] * 2))
+    assert main(["lift-test", str(source), "--objects", str(objects_dir), "--out", str(tmp_path / "out.zarr"), "--threads", "1"]) == 1
+    assert "none of the 2 grasps could be simulated" in caplog.text
+
+
+def test_lift_test_log_has_progress_lines(tmp_path, objects_dir, hooks):
+    """The command as a job runs it: a separate process whose standard error is the log file."""
+    source = tmp_path / "two.zarr"
+    write_grasp_store(source, grasp_set([hooks["square_bar"], hooks["round_bar"]], ["square_bar", "round_bar"]))
+    log = tmp_path / "lift.log"
+    with open(log, "w") as stream:
+        code = subprocess.run(
+            [sys.executable, "-m", "dexlite_pipeline.cli", "lift-test", str(source), "--objects", str(objects_dir),
+             "--out", str(tmp_path / "out.zarr"), "--threads", "1"],
+            stdout=stream, stderr=subprocess.STDOUT, check=False,
+        ).returncode  # fmt: skip
+    text = log.read_text()
+    assert code == 0, text
+    progress = [line for line in text.splitlines() if "lift test: " in line and "grasps/s" in line]
+    assert progress and "2/2 grasps (100%)" in progress[-1], text

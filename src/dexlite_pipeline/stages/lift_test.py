@@ -4,7 +4,8 @@ Writes the input grasps with ``lift_ratio``, ``lift_success``, ``failure_reason`
 ``initial_penetration_mm`` (plus the six-direction arrays with ``--six-directions``) and
 prints a summary. Grasps with a non-finite pose or scale, or whose object is not among the
 assets, are kept and flagged (``failure_reason = 'invalid_grasp: ...'``); the others are
-simulated. Physical constants: ``LiftConfig`` defaults, the ``lift`` section of
+simulated. Exit status 2 when no --objects folder holds prepared objects, 1 when the
+store has grasps but none of them could be simulated. Physical constants: ``LiftConfig`` defaults, the ``lift`` section of
 ``--config-json``, then the explicit options, in that order; all are recorded in the output.
 """
 
@@ -30,10 +31,24 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def check_objects_dirs(dirs: list[str]) -> None:
-    """Every --objects folder must exist (an id missing from existing folders is flagged per grasp instead)."""
+    """Every --objects folder must exist and one at least hold prepared objects (an id missing from them is flagged per grasp)."""
+    from dexlite_pipeline.objects.assets import ASSETS_DIR, available_object_ids
+
     for d in dirs:
         if not Path(d).is_dir():
             raise FileNotFoundError(f"{d}: objects folder not found")
+    if not available_object_ids(dirs):
+        raise FileNotFoundError(
+            f"{', '.join(map(str, dirs))}: no prepared objects (expected {ASSETS_DIR}/<object id>/ as written by prepare-objects)"
+        )
+
+
+def nothing_simulated(grasps_path: str, summary: dict) -> bool:
+    """True (and an error line) when the store had grasps but none could be simulated."""
+    if summary["n_grasps"] and not summary["n_simulated"]:
+        log.error("%s: none of the %d grasps could be simulated (see the reasons above)", grasps_path, summary["n_grasps"])
+        return True
+    return False
 
 
 def report_invalid(grasps_path: str, failure_reason) -> None:
@@ -64,4 +79,4 @@ def run(args: argparse.Namespace) -> int:
     report_invalid(args.grasps, result.arrays["failure_reason"])
     write_grasp_store(args.out, result, {"stage": "lift_test", "source": str(args.grasps)})
     print(format_summary(summary, config), file=sys.stdout)
-    return 0
+    return 1 if nothing_simulated(args.grasps, summary) else 0

@@ -27,7 +27,7 @@ def run(args: argparse.Namespace) -> int:
     from dexlite_pipeline.io.grasp_store import read_grasp_store, write_grasp_store
     from dexlite_pipeline.sim.config import lift_config_from
     from dexlite_pipeline.sim.results import format_summary, lift_grasp_set
-    from dexlite_pipeline.stages.lift_test import check_objects_dirs, report_invalid
+    from dexlite_pipeline.stages.lift_test import check_objects_dirs, nothing_simulated, report_invalid
 
     sections = parse_config_json(args.config_json)
     config = lift_config_from(sections)
@@ -39,4 +39,4 @@ def run(args: argparse.Namespace) -> int:
     write_grasp_store(args.out, result, attrs)
     for line in format_summary(summary, config).splitlines():
         log.info("shard %s: %s", args.shard, line)
-    return 0
+    return 1 if nothing_simulated(args.grasps, summary) else 0

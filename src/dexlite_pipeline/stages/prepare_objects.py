@@ -3,7 +3,8 @@
 Config sections ``seed`` and ``objects``. Writes ``OUT/assets/<id>/`` per usable object,
 ``OUT/catalog.parquet`` (every object, ok or rejected with the reason, with its split) and
 ``OUT/prepare_config.json`` (the config used). A configured folder that does not exist stops
-the run at once; a bad mesh is only a rejected row.
+the run at once; a bad mesh is only a rejected row, but a run in which every object is
+rejected exits with status 1.
 """
 
 from __future__ import annotations
@@ -42,4 +43,7 @@ def run(args: argparse.Namespace) -> int:
         f"prepared {int(ok.sum())}/{len(catalog)} objects ({counts.get('train', 0)} train, {counts.get('heldout', 0)} heldout, "
         f"{int((~ok).sum())} rejected) in {time.perf_counter() - start:.1f} s -> {args.out_dir}"
     )
+    if len(catalog) and not ok.any():
+        log.error("none of the %d objects could be prepared (reasons above)", len(catalog))
+        return 1
     return 0

@@ -3,7 +3,8 @@
 Config sections ``seed`` and ``stability``. Every object of each ``--objects`` catalog gets a
 row (object_id, lateral_displacement_m, rotation_deg, stable, reason): ok objects are
 simulated in parallel, rejected ones are carried with their rejection reason. The config
-used is written next to the table (``<out stem>_config.json``).
+used is written next to the table (``<out stem>_config.json``). Catalogs without a single
+prepared (ok) object are an error (exit status 1, nothing written).
 """
 
 from __future__ import annotations
@@ -42,6 +43,9 @@ def run(args: argparse.Namespace) -> int:
     seed = int(config.get("seed", 0))
     section = from_section(StabilityConfig, config.get("stability"), "config.stability")
     catalog = pd.concat([read_catalog(d) for d in args.objects], ignore_index=True).drop_duplicates("object_id", keep="first")
+    if not (catalog["status"] == "ok").any():
+        log.error("%s: no prepared object to test (%d in the catalogs, all rejected)", ", ".join(args.objects), len(catalog))
+        return 1
     workers = args.threads or os.cpu_count() or 1
     start = time.perf_counter()
     table = stability_table(catalog, args.objects, section, seed, workers)
