@@ -200,12 +200,19 @@ def test_report_is_self_contained_with_pictures(tiny_run):
     # success bars, histograms, convergence, training curves, then a success and a failure per method
     assert len(images) == 4 + 2 * 2
     assert all(base64.b64decode(b)[:8] == b"\x89PNG\r\n\x1a\n" for b in images)
-    for needle in ("seed", "cvae_post", "friction", "object_mass_kg", "lift success ≈ 55%", "failure", "n_invalid", "boot_ci95",
-                   "after 200 iterations at iteration 50: speed-up 4.0×", "object-level bootstrap"):
-        assert needle in text
+    for needle in ("Seed optimization (from scratch)", "CVAE samples + post-optimization", "friction", "object_mass_kg", "lift success ≈ 55%",
+                   "n_invalid", "boot_ci95", "after 200 iterations at iteration 50: speed-up 4.0×", "object-level bootstrap"):
+        assert needle in text, needle
+    # the result sentence leads with the post-optimized samples: 3 of 5 lifted, none held against the pushes
+    assert "<p class='result'>On 1 held-out object (5 grasps), 60.0% of CVAE samples + post-optimization held the object" in text
+    # pictures: outcome in large type from both tests (the synthetic lifts all fail the pushes)
+    assert text.count("<div class='outcome partial'>LIFTED, FAILS PUSHES</div>") == 2 and text.count("<div class='outcome dropped'>DROPPED</div>") == 2
+    # the full tables are linked relative to the page (written one folder above them here)
+    for name in ("metrics.csv", "per_object.csv", "convergence.csv"):
+        assert f"<a href='eval/{name}'>{name}</a>" in text
     # the run's key settings, from the whole config the report was given, and the config itself
     for label, value in (("seed", "7"), ("built-in objects requested", "40"), ("lift: friction", "0.6"), ("training profile", "default"),
-                         ("training steps (max_steps)", "2000"), ("post-optimization iterations", "200"),
+                         ("training steps (max_steps)", "2000"), ("training: steps run", "19 steps"), ("post-optimization iterations", "200"),
                          ("objects prepared (catalogs)", "1 heldout, 1 train; 0 rejected")):
         assert f"<tr><td>{label}</td><td>{value}</td></tr>" in text, label
     assert "<summary>whole config</summary>" in text and '&quot;max_steps&quot;: 2000' in text

@@ -1,9 +1,16 @@
-"""The report's success bars: what is drawn for unmeasured rates, and which interval the error bars show."""
+"""The report page: the result sentence and compact table, the success chart, the learning ladder, the pictured grasps."""
 
 import numpy as np
 import pandas as pd
+import pytest
+from report_synthetic import OBJECT_ID, grasp_poses
 
-from dexlite_pipeline.report.html import success_figure
+from dexlite_pipeline.io.grasp_store import GraspSet
+from dexlite_pipeline.report.html import (
+    OBJECT_MARKER_LABEL, ReportInputs, build_report_html, compact_table_html, headline_rows, headline_sentence, ladder_html,
+    outcome_of, pick_examples, run_settings_html, success_figure, training_run_text,
+)  # fmt: skip
+from dexlite_pipeline.report.metrics import method_label, percent_text, seconds_text
 
 
 def _metrics(six_dir_rate: float) -> pd.DataFrame:
@@ -17,6 +24,21 @@ def _metrics(six_dir_rate: float) -> pd.DataFrame:
     })  # fmt: skip
 
 
+def _run_metrics() -> pd.DataFrame:
+    """Four methods on 5 held-out objects, 80 grasps each, shaped like metrics.csv."""
+    rows = []
+    for method, lift, six, seconds in (("seed", 0.55, 0.5, 0.35), ("cvae_raw", 0.0625, 0.0, 0.003), ("cvae_post", 0.175, 0.1375, 0.021),
+                                       ("random_post", 0.2125, 0.0875, 0.024)):  # fmt: skip
+        rows.append({
+            "method": method, "split": "heldout", "n_grasps": 80, "n_invalid": 0, "n_objects": 5,
+            "lift_success_rate": lift, "lift_success_boot_ci95_low": max(0.0, lift - 0.1), "lift_success_boot_ci95_high": lift + 0.11,
+            "lift_success_ci95_low": max(0.0, lift - 0.08), "lift_success_ci95_high": lift + 0.09, "object_success_rate": 0.8,
+            "six_dir_success_rate": six, "six_dir_success_boot_ci95_low": max(0.0, six - 0.05), "six_dir_success_boot_ci95_high": six + 0.1,
+            "penetration_mean_mm": 2.5, "contact_distance_mean_mm": 1.3, "seconds_per_grasp": seconds,
+        })  # fmt: skip
+    return pd.DataFrame(rows)
+
+
 def _bar_containers(fig):
     from matplotlib.container import BarContainer
 
@@ -24,24 +46,167 @@ def _bar_containers(fig):
 
 
 def _bars(fig) -> dict[str, list[float]]:
-    return {label: [patch.get_height() for patch in container.patches] for label, container in _bar_containers(fig).items()}
+    return {label: [patch.get_width() for patch in container.patches] for label, container in _bar_containers(fig).items()}
 
 
 def test_six_direction_rate_not_measured_gets_no_bar_but_a_not_run_mark():
     fig = success_figure(_metrics(np.nan))
     bars = _bars(fig)
-    assert "six directions" not in bars and bars["lift (per grasp)"] == [20.0, 40.0]
+    assert "six-direction test" not in bars and bars["lift test"] == [40.0, 20.0]  # the post-optimized samples first
     assert [t.get_text() for t in fig.axes[0].texts].count("not run") == 2
-    assert "six directions (not run)" in [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
+    assert "six-direction test (not run)" in [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
 
 
 def test_measured_zero_is_still_a_bar():
-    assert _bars(success_figure(_metrics(0.0)))["six directions"] == [0.0, 0.0]
+    assert _bars(success_figure(_metrics(0.0)))["six-direction test"] == [0.0, 0.0]
 
 
 def test_error_bars_are_the_object_bootstrap_interval():
     fig = success_figure(_metrics(np.nan))
-    lift = _bar_containers(fig)["lift (per grasp)"]
+    lift = _bar_containers(fig)["lift test"]
     segments = lift.errorbar.lines[2][0].get_segments()
-    assert [(float(s[0][1]), float(s[1][1])) for s in segments] == [(0.0, 60.0), (10.0, 90.0)]
+    assert [(float(s[0][0]), float(s[1][0])) for s in segments] == [(10.0, 90.0), (0.0, 60.0)]
     assert "bootstrap" in fig.axes[0].get_title()
+
+
+def test_objects_with_one_success_are_a_marker_not_a_bar():
+    fig = success_figure(_metrics(0.1))
+    assert set(_bars(fig)) == {"lift test", "six-direction test"}
+    marker = next(line for line in fig.axes[0].get_lines() if line.get_label() == OBJECT_MARKER_LABEL)
+    assert sorted(marker.get_xdata().tolist()) == [40.0, 80.0]
+    # readable method names on the axis, not the ids
+    assert {t.get_text() for t in fig.axes[0].get_yticklabels()} == {"CVAE samples, raw", "CVAE samples + post-optimization"}
+
+
+def test_method_labels_and_cell_texts():
+    assert method_label("random_post") == "Random start + post-optimization"
+    assert method_label("cvae_recon_post") == "CVAE reconstructions + post-optimization"
+    assert method_label("cvae_prior_heldout_post") == "CVAE prior heldout + post-optimization"  # fallback for new ids
+    assert percent_text(0.175) == "17.5%" and percent_text(np.nan) == "not run" and percent_text(None) == "not run"
+    assert seconds_text(0.35) == "0.35 s" and seconds_text(0.021) == "21 ms" and seconds_text(0.003) == "3 ms" and seconds_text(np.nan) == "—"
+
+
+def test_headline_sentence_gives_both_rates_of_the_product_and_the_comparisons():
+    sentence = headline_sentence(headline_rows(_run_metrics()), {})
+    assert sentence.startswith("On 5 held-out objects (80 grasps), 17.5% of CVAE samples + post-optimization held the object in the lift test")
+    assert "13.8% against pushes from all six directions" in sentence
+    assert "; for comparison, random start + post-optimization 21.2% / 8.8%, CVAE samples, raw 6.2% / 0.0%," in sentence
+    assert sentence.endswith(", seed optimization (from scratch) 55.0% / 50.0%.")
+    assert sentence.count(".") == sentence.count("%") + 1  # one sentence: the only other full stops are decimal points
+    no_six = _run_metrics().assign(six_dir_success_rate=np.nan)
+    assert "(six-direction test not run)" in headline_sentence(headline_rows(no_six), {})
+
+
+def test_compact_table_shows_percentages_with_intervals_and_readable_names():
+    table = compact_table_html(headline_rows(_run_metrics()))
+    assert table.count("<tr>") == 5  # header and four methods
+    order = [table.index(method_label(m)) for m in ("cvae_post", "random_post", "cvae_raw", "seed")]
+    assert order == sorted(order)  # the product first, then its baselines
+    assert "<b>17.5%</b> <small>(7–28)</small>" in table and "<b>13.8%</b> <small>(9–24)</small>" in table
+    assert "0.175" not in table and "21 ms" in table and "80 on 5" in table
+    without_six = compact_table_html(headline_rows(_run_metrics().assign(six_dir_success_rate=np.nan)))
+    assert without_six.count("not run") == 4
+
+
+def _with_ladder(frame: pd.DataFrame) -> pd.DataFrame:
+    ladder = pd.DataFrame({
+        "method": ["cvae_prior_train", "cvae_recon_post", "cvae_recon", "cvae_raw"], "split": ["train", "train", "train", "heldout"],
+        "rung": ["in_distribution", "fit", "fit", "heldout"], "n_grasps": [40, 40, 40, 80], "n_objects": [10, 10, 10, 5],
+        "lift_success_rate": [0.05, 0.3, 0.02, 0.0625], "six_dir_success_rate": [0.0, 0.2, 0.0, 0.0],
+        "palm_rotation_error_deg": [np.nan, 20.0, 107.0, np.nan],
+    })  # fmt: skip
+    return pd.concat([frame.assign(rung=np.nan), ladder], ignore_index=True)
+
+
+def test_ladder_section_lists_rungs_in_order_and_only_when_measured():
+    metrics = _with_ladder(_run_metrics())
+    section = ladder_html(metrics)
+    assert section.startswith("<h2>Learning ladder</h2>")
+    positions = [section.index(method_label(m)) for m in ("cvae_recon", "cvae_recon_post", "cvae_prior_train")]
+    assert positions == sorted(positions) and section.index("1 · fit") < section.index("2 · in distribution") < section.index("3 · held out")
+    assert "palm rotation error deg" in section and ">107<" in section  # a column only the ladder fills
+    assert headline_rows(metrics)["method"].tolist() == ["cvae_post", "random_post", "cvae_raw", "seed"]  # cvae_raw once
+    assert ladder_html(_run_metrics()) == "" and ladder_html(_run_metrics().assign(rung=np.nan)) == ""
+
+
+def test_page_order_sentence_table_ladder_plots_settings_csv():
+    page = build_report_html(ReportInputs(metrics=_with_ladder(_run_metrics()), per_object=None, convergence=None, history=None,
+                                          simulated=None, config={"seed": 3}, csv_links={"metrics.csv": "metrics.csv"}))  # fmt: skip
+    marks = ["class='result'", "class='compact'", "<h2>Learning ladder</h2>", "<h2>Success per method</h2>", "<h2>Grasps, drawn at random",
+             "<h2>Run settings</h2>", "href='metrics.csv'"]  # fmt: skip
+    positions = [page.index(mark) for mark in marks]
+    assert positions == sorted(positions)
+    plain = build_report_html(ReportInputs(metrics=_run_metrics(), per_object=None, convergence=None, history=None, simulated=None))
+    assert "Learning ladder" not in plain
+
+
+def test_training_steps_shown_are_the_steps_run():
+    history = pd.DataFrame({"epoch": np.arange(1, 70), "step": np.arange(1, 70) * 20, "train_loss": np.linspace(2, 1, 69)})
+    assert training_run_text(history) == "1,380 steps (69 epochs)"
+    settings = run_settings_html({"train": {"epochs": 400, "max_steps": 2000}}, [], history)
+    assert "<tr><td>training: steps run</td><td>1,380 steps (69 epochs)</td></tr>" in settings
+    assert "training epochs" not in settings and training_run_text(None) is None
+
+
+def _simulated(n_per_method: int) -> GraspSet:
+    rng = np.random.default_rng(0)
+    n = 2 * n_per_method
+    lift = np.tile([True, False], n // 2)
+    invalid = np.zeros(n, bool)
+    invalid[1] = True  # a failure with no usable pose: never pictured
+    return GraspSet({
+        "hand_pose": grasp_poses(n, rng), "object_id": np.full(n, OBJECT_ID, dtype=object), "scale": np.full(n, 0.06, np.float32),
+        "method": np.asarray(["cvae_post"] * n_per_method + ["seed"] * n_per_method, dtype=object),
+        "lift_success": lift, "invalid_reason": np.where(invalid, "non-finite hand_pose", "").astype(object),
+    })  # fmt: skip
+
+
+def test_pictured_grasps_are_drawn_at_random_with_a_seed():
+    simulated = _simulated(40)
+    picks = pick_examples(simulated, "cvae_post", 2, seed=0)
+    assert picks == pick_examples(simulated, "cvae_post", 2, seed=0)  # reproducible
+    assert [ok for _, ok in picks] == [True, True, False, False]
+    assert all(bool(simulated.arrays["lift_success"][r]) == ok and r < 40 and r != 1 for r, ok in picks)
+    drawn = {r for seed in range(30) for r, _ in pick_examples(simulated, "cvae_post", 2, seed=seed)}
+    assert len(drawn) > 20  # not the first rows every time
+    assert len(pick_examples(simulated, "seed", 50, seed=0)) == 40  # no more than there are
+    assert pick_examples(simulated, "cvae_post", 2, seed=1) != picks
+
+
+def test_outcome_reads_both_tests():
+    arrays = {
+        "lift_success": np.array([True, True, False]),
+        "six_dir_passed": np.array([[True] * 6, [True, True, True, False, False, False], [False] * 6]),
+        "failure_reason": np.array(["", "", "object slipped"], dtype=object),
+    }
+    assert outcome_of(arrays, 0) == ("HELD", "held against 6 of 6 pushes", "held")
+    assert outcome_of(arrays, 1) == ("LIFTED, FAILS PUSHES", "held against 3 of 6 pushes", "partial")  # e.g. a palm-up carry
+    assert outcome_of(arrays, 2) == ("DROPPED", "held against 0 of 6 pushes · object slipped", "dropped")
+    assert outcome_of({"lift_success": np.array([True])}, 0)[0] == "HELD"  # six-direction test not run: the lift decides
+
+
+def test_picture_marks_the_contacts(tiny_objects):
+    import io
+
+    import matplotlib.image
+
+    from dexlite_pipeline.hand import ShadowHand
+    from dexlite_pipeline.report.html import contact_points, grasp_picture_png
+    from dexlite_pipeline.report.render import object_mesh_world
+
+    hand = ShadowHand()
+    simulated = _simulated(2)
+    object_mesh = object_mesh_world([str(tiny_objects)], OBJECT_ID, 0.06)
+    nearest = contact_points(hand, simulated.hand_pose[0], None, object_mesh)
+    given = contact_points(hand, simulated.hand_pose[0], np.array([0, 1, 2, 3]), object_mesh)
+    assert nearest.shape == given.shape == (4, 3) and not np.allclose(nearest, given)
+    image = matplotlib.image.imread(io.BytesIO(grasp_picture_png(hand, simulated, 0, [str(tiny_objects)], size_px=200)))
+    red = (image[..., 0] > 0.8) & (image[..., 1] < 0.15) & (image[..., 2] < 0.15)
+    assert red[:, :200].sum() > 20 and red[:, 200:].sum() > 20  # dots in both views
+
+
+@pytest.mark.parametrize("column", ["rung"])
+def test_metrics_without_or_with_empty_ladder_column_render(column):
+    for frame in (_run_metrics(), _run_metrics().assign(**{column: ""})):
+        page = build_report_html(ReportInputs(metrics=frame, per_object=None, convergence=None, history=None, simulated=None))
+        assert "Learning ladder" not in page and "17.5%" in page

@@ -1,10 +1,13 @@
 """The evaluation report: one self-contained HTML page (every image base64-embedded).
 
-Sections: the run's key settings (and its whole config), the metrics table beside the
-published reference numbers, success rates per method, energy and penetration histograms,
-post-optimization convergence curves, CVAE training curves, the physical constants of the
-simulation, and pictures of successful and failed grasps of every method from two
-viewpoints. It opens from disk, no server.
+Read from the top, the page answers in this order: one sentence with the result and a
+compact table (readable method names, lift and six-direction rates side by side with
+their 95% intervals); the learning ladder when the evaluation measured it; plots
+(success per method, energies, post-optimization convergence, training curves);
+published numbers for context; pictures of grasps drawn at random among each method's
+successes and failures, with their contacts marked and the outcome in large type; and
+last the run's settings, the physical constants and links to the full CSV tables. It
+opens from disk, no server.
 """
 
 from __future__ import annotations
@@ -15,6 +18,7 @@ import io
 import json
 import logging
 import math
+import zlib
 from collections import Counter
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -23,29 +27,45 @@ from pathlib import Path
 import numpy as np
 
 from dexlite_pipeline.io.grasp_store import GraspSet
-from dexlite_pipeline.report.metrics import invalid_flags
+from dexlite_pipeline.report.metrics import (
+    interval_text, invalid_flags, method_label, percent_text, rung_label, seconds_text, split_label,
+)  # fmt: skip
 
 log = logging.getLogger(__name__)
 
-# Published numbers a reader compares against (DESIGN.md, "Reference results to beat").
+# Published numbers a reader compares against: (source, result, how it was measured).
+# None of them used this project's test; the last column says what differs.
 REFERENCE_ROWS = (
-    ("DexLite seed paper, raw CVAE samples", "lift success ≈ 55%", "RTX 4050 laptop GPU"),
-    ("DexLite seed paper, CVAE + 200 post-optimization steps", "lift success ≈ 79%; ≈ 2 s per grasp", "RTX 4050 laptop GPU"),
-    ("DexLite seed paper, CVAE init vs random init", "≈ 3× faster convergence", ""),
-    ("DexLite seed paper, curated DexGraspNet grasps", "≈ 90% pass lift", ""),
-    ("BODex", "> 49 grasps/s; > 75% simulated success", "one RTX 3090"),
-)
+    ("DexLite (a lightweight reproduction of Dex1B), raw CVAE samples", "lift success ≈ 55%",
+     "its own MuJoCo test (friction 2, lift ratio > 0.7), on its training objects; laptop RTX 4050"),
+    ("DexLite, CVAE + 200 post-optimization steps", "lift success ≈ 79%; ≈ 2 s per grasp; ≈ 3× faster convergence than random starts",
+     "same test and objects"),
+    ("Dex1B: Learning with 1B Demonstrations for Dexterous Manipulation", "86.0% with post-optimization and filtering",
+     "DexGraspNet benchmark in Isaac Gym, a more lenient test"),
+    ("BODex (DexGraspBench: MuJoCo, friction 0.6, six 1 g pushes; the closest protocol to ours)",
+     "> 75% success, > 49 grasps/s; learned generators ≈ 40% (trained on DexGraspNet) to ≈ 80% (on BODex data)", "one RTX 3090"),
+)  # fmt: skip
+# Every column of metrics.csv worth a reader's look, for the folded full table at the end.
 TABLE_COLUMNS = (
-    "method", "split", "n_grasps", "n_invalid", "n_objects", "lift_success_rate", "lift_success_ci95_low", "lift_success_ci95_high",
+    "method", "split", "rung", "n_grasps", "n_invalid", "n_objects", "lift_success_rate", "lift_success_ci95_low", "lift_success_ci95_high",
     "lift_success_boot_ci95_low", "lift_success_boot_ci95_high", "object_success_rate", "six_dir_success_rate",
     "six_dir_success_ci95_low", "six_dir_success_ci95_high", "six_dir_success_boot_ci95_low", "six_dir_success_boot_ci95_high",
     "penetration_mean_mm", "penetration_p95_mm", "contact_distance_mean_mm", "E_fc_mean", "energy_threshold_pass_rate",
     "joint_entropy_bits", "pca_explained_variance_k1", "pca_explained_variance_k3", "seconds_per_grasp",
     "E_post_median_final", "iterations_to_random_final_E_post", "threshold_reached_fraction",
 )  # fmt: skip
+# The methods of the main comparison, in the order the compact table lists them.
+HEADLINE_METHODS = ("cvae_post", "random_post", "cvae_raw", "seed", "dexgraspnet")
+HEADLINE_METHOD = "cvae_post"  # the pipeline's product: the sentence leads with it when present
+RUNG_ORDER = ("fit", "in_distribution", "heldout")
+# Within a rung: each kind of start raw, then post-optimized; the random-start baseline last.
+LADDER_METHOD_ORDER = ("cvae_recon", "cvae_recon_post", "cvae_prior_train", "cvae_prior_train_post", "cvae_raw", "cvae_post", "random_post")
 HISTOGRAMS = (("E_fc", "E_fc"), ("penetration_mm", "penetration (mm)"), ("contact_distance_mm", "contact distance (mm)"))
-SUCCESS_BARS = (("lift_success_rate", "lift (per grasp)"), ("object_success_rate", "lift (per object)"), ("six_dir_success_rate", "six directions"))
-# The run's key settings: (label, path in the config).
+# Bars of the success chart: (rate column, legend); the per-object rate is a small marker instead.
+SUCCESS_BARS = (("lift_success_rate", "lift test"), ("six_dir_success_rate", "six-direction test"))
+OBJECT_MARKER_LABEL = "objects with ≥ 1 lifted grasp"
+CSV_FILES = ("metrics.csv", "per_object.csv", "convergence.csv")
+# The run's key settings: (label, path in the config). Training steps actually run come from the history.
 KEY_SETTINGS = (
     ("seed", ("seed",)),
     ("shards", ("shards",)),
@@ -64,7 +84,6 @@ KEY_SETTINGS = (
     ("lift: success lift ratio", ("lift", "success_lift_ratio")),
     ("training profile", ("train", "profile")),
     ("training steps (max_steps)", ("train", "max_steps")),
-    ("training epochs", ("train", "epochs")),
     ("training batch size", ("train", "batch_size")),
     ("CVAE syntheses per held-out object", ("sample", "synthesis_grasps_per_object")),
     ("post-optimization iterations", ("post_optimize", "iterations")),
@@ -90,6 +109,8 @@ class ReportInputs:
     rendered_per_method: int = 2
     config: Mapping = field(default_factory=dict)  # the whole run config, shown in the page
     title: str = "DexLite evaluation"
+    csv_links: Mapping[str, str] = field(default_factory=dict)  # CSV file name -> link relative to the page
+    seed: int = 0  # seeds the random choice of pictured grasps
 
 
 def figure_png_base64(fig) -> str:
@@ -114,27 +135,64 @@ def _plt():
     return plt
 
 
-def success_figure(metrics_df):
-    """Grouped bars: lift, object and six-direction success per method; error bars are the object-bootstrap 95% intervals.
+def headline_rows(metrics_df):
+    """The rows of the main comparison: the evaluation's own methods, one row per (method, split), in table order.
 
+    Rows of the learning ladder (a ``rung`` value and a method outside the main ones) are
+    left to ``ladder_rows``; a main method that also carries a rung appears here once.
+    """
+    if metrics_df is None or not len(metrics_df):
+        return metrics_df
+    main = metrics_df[metrics_df["method"].astype(str).isin(HEADLINE_METHODS)]
+    main = main.drop_duplicates(subset=["method", "split"] if "split" in main.columns else ["method"])
+    order = {m: k for k, m in enumerate(HEADLINE_METHODS)}
+    keys = main["method"].astype(str).map(order)
+    splits = main["split"].astype(str).map(lambda s: 0 if s == "heldout" else 1) if "split" in main.columns else keys * 0
+    return main.assign(_split_key=splits, _method_key=keys).sort_values(["_split_key", "_method_key"], kind="stable").drop(columns=["_split_key", "_method_key"])
+
+
+def ladder_rows(metrics_df):
+    """Rows of metrics.csv with a learning-ladder ``rung`` (fit, in_distribution, heldout), in rung order; None when there are none."""
+    if metrics_df is None or not len(metrics_df) or "rung" not in metrics_df.columns:
+        return None
+    rung = metrics_df["rung"].astype(object)
+    present = rung.notna() & (rung.astype(str).str.strip() != "") & (rung.astype(str) != "nan")
+    frame = metrics_df[present]
+    if not len(frame):
+        return None
+    order = {r: k for k, r in enumerate(RUNG_ORDER)}
+    keys = frame["rung"].astype(str).map(lambda r: order.get(r, len(order)))
+    method_order = {m: k for k, m in enumerate(LADDER_METHOD_ORDER)}
+    method_keys = frame["method"].astype(str).map(lambda m: method_order.get(m, len(method_order)))
+    frame = frame.assign(_rung_key=keys, _method_key=method_keys)
+    return frame.sort_values(["_rung_key", "_method_key"], kind="stable").drop(columns=["_rung_key", "_method_key"])
+
+
+def success_figure(metrics_df):
+    """Horizontal bars per method: lift and six-direction success side by side, error bars the object-bootstrap 95% intervals.
+
+    The share of objects with at least one lifted grasp is a small marker on the lift bar,
+    not a bar of its own (it is high whenever a method lifts anything, and would dominate).
     A rate that was not measured (NaN, e.g. the six-direction test switched off) gets no
     bar and a "not run" mark, never a bar at 0%. None when no method has a lift rate.
     """
-    frame = metrics_df.dropna(subset=["lift_success_rate"]) if len(metrics_df) else metrics_df
-    if not len(frame):
+    frame = headline_rows(metrics_df) if metrics_df is not None and len(metrics_df) else metrics_df
+    frame = frame.dropna(subset=["lift_success_rate"]) if frame is not None and len(frame) else frame
+    if frame is None or not len(frame):
         return None
     plt = _plt()
     from matplotlib.patches import Patch
 
-    labels = [f"{m}\n({s})" for m, s in zip(frame["method"], frame["split"])]
-    x = np.arange(len(frame))
-    fig, ax = plt.subplots(figsize=(max(5, 1.3 * len(frame)), 3.4))
-    width = 0.8 / len(SUCCESS_BARS)
+    several_splits = "split" in frame.columns and frame["split"].nunique() > 1
+    labels = [method_label(m) + (f" ({split_label(s)})" if several_splits else "") for m, s in zip(frame["method"], frame.get("split", frame["method"]))]
+    y = np.arange(len(frame))[::-1].astype(float)  # first row at the top
+    fig, ax = plt.subplots(figsize=(7.5, 0.75 * len(frame) + 1.1))
+    height = 0.8 / len(SUCCESS_BARS)
     not_run = []
     for k, (column, name) in enumerate(SUCCESS_BARS):
         values = frame[column].astype(float).to_numpy() * 100 if column in frame.columns else np.full(len(frame), np.nan)
         measured = np.isfinite(values)
-        positions = x + (k - 1) * width
+        positions = y + (0.5 - k) * height
         interval = column.replace("_rate", "_boot_ci95")
         error = None
         if f"{interval}_low" in frame.columns:
@@ -142,18 +200,25 @@ def success_figure(metrics_df):
             high = frame[f"{interval}_high"].astype(float).to_numpy() * 100
             error = np.nan_to_num(np.stack([values - low, high - values])[:, measured], nan=0.0)
         if measured.any():
-            ax.bar(positions[measured], values[measured], width, color=f"C{k}", label=name, yerr=error, capsize=2, error_kw={"lw": 0.8})
+            ax.barh(positions[measured], values[measured], height, color=f"C{k}", label=name, xerr=error, capsize=2, error_kw={"lw": 0.8})
+            ends = values[measured] + (error[1] if error is not None else 0.0)
+            for position, value, end in zip(positions[measured], values[measured], ends):
+                ax.text(min(end, 88) + 1.5, position, f"{value:.1f}%", va="center", ha="left", fontsize=7)
         else:
             not_run.append(Patch(facecolor="none", edgecolor=f"C{k}", label=f"{name} (not run)"))
         for position in positions[~measured]:
-            ax.text(position, 1, "not run", rotation=90, fontsize=6, ha="center", va="bottom", color="grey")
-    ax.axhline(79, color="grey", ls="--", lw=0.8)
-    ax.text(x[-1] + 0.45, 79, "seed paper post-opt 79%", fontsize=7, va="bottom", ha="right", color="grey")
-    ax.set_xticks(x, labels, fontsize=8)
-    ax.set_ylabel("success (%)")
-    ax.set_ylim(0, 100)
+            ax.text(1, position, "not run", fontsize=7, ha="left", va="center", color="grey")
+    if "object_success_rate" in frame.columns:
+        objects = frame["object_success_rate"].astype(float).to_numpy() * 100
+        shown = np.isfinite(objects)
+        if shown.any():
+            ax.plot(objects[shown], (y + 0.5 * height)[shown], linestyle="none", marker="|", markersize=9, mew=1.5, color="0.25", label=OBJECT_MARKER_LABEL)
+    ax.set_yticks(y, labels, fontsize=8)
+    ax.set_xlabel("grasps held (%)")
+    ax.set_xlim(0, 100)
     ax.set_title("error bars: object-level bootstrap 95% interval (objects resampled)", fontsize=8)
-    ax.legend(handles=ax.get_legend_handles_labels()[0] + not_run, fontsize=7, loc="upper left")
+    ax.legend(handles=ax.get_legend_handles_labels()[0] + not_run, fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.45 / (0.75 * len(frame) + 1.1) - 0.1), ncol=3, frameon=False)
+    fig.tight_layout()
     return fig
 
 
@@ -185,7 +250,7 @@ def histogram_plot(simulated: GraspSet | None) -> str | None:
         for method in dict.fromkeys(methods):
             v = values[(methods == method) & np.isfinite(values)]
             if v.size:
-                ax.hist(np.clip(v, bins[0], bins[-1]), bins=bins, histtype="step", lw=1.4, label=method, density=True)
+                ax.hist(np.clip(v, bins[0], bins[-1]), bins=bins, histtype="step", lw=1.4, label=method_label(method), density=True)
         ax.set_xlabel(label)
         ax.set_ylabel("density")
     axes[0].legend(fontsize=7)
@@ -203,7 +268,7 @@ def convergence_plot(curves) -> str | None:
     fig, ax = plt.subplots(figsize=(5.5, 3.2))
     for method, group in frame.groupby("method"):
         group = group.sort_values("iteration")
-        line = ax.plot(group["iteration"], group["median"], label=f"{method} (median)")[0]
+        line = ax.plot(group["iteration"], group["median"], label=f"{method_label(method)} (median)")[0]
         ax.fill_between(group["iteration"], group["q25"], group["q75"], color=line.get_color(), alpha=0.2)
     if (frame[["q25", "median", "q75"]].to_numpy() > 0).all():
         ax.set_yscale("log")
@@ -250,56 +315,135 @@ def training_plot(history) -> str | None:
     return figure_png_base64(fig)
 
 
-def pick_examples(simulated: GraspSet, method: str, count: int) -> list[tuple[int, bool]]:
-    """Up to ``count`` lift successes and ``count`` failures of a method (rows, success flag), spread over objects.
+def pick_examples(simulated: GraspSet, method: str, count: int, seed: int = 0) -> list[tuple[int, bool]]:
+    """Up to ``count`` lift successes and ``count`` lift failures of a method (rows, success flag), drawn at random.
 
+    Drawn uniformly without replacement among the method's pictureable grasps of each
+    outcome by a generator seeded with ``seed`` and the method's name, so a page shows
+    typical grasps, not hand-picked ones, and the same inputs give the same pictures.
     Invalid grasps (no usable pose, not simulated) are not pictured.
     """
     methods = np.asarray([str(m) for m in simulated.arrays["method"]])
     success = np.asarray(simulated.arrays.get("lift_success", np.zeros(len(simulated), bool)), dtype=bool)
-    object_ids = np.asarray([str(o) for o in simulated.object_id])
     picturable = ~invalid_flags(simulated.arrays)
+    rng = np.random.default_rng([int(seed) & 0xFFFFFFFF, zlib.crc32(method.encode())])
     picks = []
     for outcome in (True, False):
         rows = np.nonzero((methods == method) & (success == outcome) & picturable)[0]
-        # one per object first (sorted objects), then the rest in row order
-        firsts = [int(rows[object_ids[rows] == o][0]) for o in sorted(set(object_ids[rows]))]
-        ordered = firsts + [int(r) for r in rows if int(r) not in set(firsts)]
-        picks += [(r, outcome) for r in ordered[:count]]
+        chosen = rng.choice(rows, size=min(count, len(rows)), replace=False) if len(rows) else rows
+        picks += [(int(r), outcome) for r in sorted(chosen)]
     return picks
 
 
+def outcome_of(arrays: Mapping[str, np.ndarray], row: int) -> tuple[str, str, str]:
+    """(headline, detail, css class) of one simulated grasp, from both tests.
+
+    Held: lifted and held against all six pushes; lifted only: it rose with the hand but
+    fails a push (often a palm-up carry, the object resting on the palm); dropped: it did
+    not rise with the hand.
+    """
+    lifted = bool(np.asarray(arrays["lift_success"])[row]) if "lift_success" in arrays else False
+    detail = []
+    pushes = None
+    if "six_dir_passed" in arrays:
+        passed = np.asarray(arrays["six_dir_passed"])[row]
+        pushes = int(np.sum(passed))
+        detail.append(f"held against {pushes} of {len(passed)} pushes")
+    elif "six_dir_success" in arrays:
+        pushes = 6 if bool(np.asarray(arrays["six_dir_success"])[row]) else 0
+        detail.append("held against all six pushes" if pushes == 6 else "fails the six-direction test")
+    else:
+        detail.append("six-direction test not run")
+    reason = str(arrays["failure_reason"][row]) if "failure_reason" in arrays else ""
+    if not lifted and reason:
+        detail.append(reason)
+    if lifted and (pushes is None or pushes == 6):
+        return "HELD", " · ".join(detail), "held"
+    if lifted:
+        return "LIFTED, FAILS PUSHES", " · ".join(detail), "partial"
+    return "DROPPED", " · ".join(detail), "dropped"
+
+
+def contact_points(hand, hand_pose: np.ndarray, contact_index: np.ndarray | None, object_mesh) -> np.ndarray:
+    """(4, 3) contact points of a grasp in the object frame (metres).
+
+    The evaluation's own contacts when the store carries them (``contact_index``, the four
+    candidates nearest the surface, as the energies used), else those four computed here
+    against the object's mesh.
+    """
+    import torch
+
+    with torch.no_grad():
+        frames = hand.forward(torch.as_tensor(np.asarray(hand_pose, dtype=np.float64)[None], dtype=hand.dtype, device=hand.device))
+        candidates = hand.contact_candidates(frames)[0].double().cpu().numpy()
+    index = None if contact_index is None else np.asarray(contact_index, dtype=np.int64).reshape(-1)
+    if index is not None and len(index) and (index >= 0).all() and (index < len(candidates)).all():
+        return candidates[index]
+    import trimesh
+
+    mesh = trimesh.Trimesh(vertices=object_mesh[0], faces=object_mesh[1], process=False)
+    _, distance, _ = trimesh.proximity.closest_point(mesh, candidates)
+    return candidates[np.argsort(distance)[:4]]
+
+
+def grasp_picture_png(hand, simulated: GraspSet, row: int, objects_dirs, size_px: int = 260) -> bytes:
+    """Two viewpoints of one grasp (the renderer's hand and object) with its four contact points as red dots."""
+    from dexlite_pipeline.report.render import DEFAULT_VIEWS_DEG, draw_grasp, hand_mesh_world, object_mesh_world
+
+    plt = _plt()
+    pose = np.asarray(simulated.hand_pose[row], dtype=np.float64)
+    hand_mesh = hand_mesh_world(hand, pose)
+    object_mesh = object_mesh_world(objects_dirs, str(simulated.object_id[row]), float(simulated.scale[row]))
+    index = simulated.arrays["contact_index"][row] if "contact_index" in simulated.arrays else None
+    contacts = contact_points(hand, pose, index, object_mesh)
+    dpi = 100
+    fig = plt.figure(figsize=(size_px * len(DEFAULT_VIEWS_DEG) / dpi, size_px / dpi), dpi=dpi)
+    for k, (elev, azim) in enumerate(DEFAULT_VIEWS_DEG):
+        ax = fig.add_subplot(1, len(DEFAULT_VIEWS_DEG), k + 1, projection="3d")
+        draw_grasp(ax, hand_mesh, object_mesh, elev, azim)
+        ax.computed_zorder = False  # the dots are drawn over the meshes, so occluded contacts still show
+        ax.scatter(contacts[:, 0], contacts[:, 1], contacts[:, 2], s=42, c="#e00000", edgecolors="white", linewidths=0.8, zorder=10, depthshade=False)
+    fig.subplots_adjust(left=0, right=1, bottom=0, top=1, wspace=0)
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="png", dpi=dpi)
+    plt.close(fig)
+    return buffer.getvalue()
+
+
 def grasp_gallery(inputs: ReportInputs) -> str:
-    """HTML of rendered successes and failures for each method."""
+    """HTML of randomly drawn lift successes and failures for each method, outcome in large type."""
     simulated = inputs.simulated
     if simulated is None or len(simulated) == 0 or inputs.rendered_per_method == 0:
         return "<p>No simulated grasps to picture.</p>"
     from dexlite_pipeline.hand import ShadowHand
-    from dexlite_pipeline.report.render import render_grasp_png
 
     hand = ShadowHand()
     present = set(str(m) for m in simulated.arrays["method"])
-    table_order = list(dict.fromkeys(inputs.metrics["method"])) if len(inputs.metrics) else []
+    table_order = list(dict.fromkeys(headline_rows(inputs.metrics)["method"])) if inputs.metrics is not None and len(inputs.metrics) else []
     methods = [m for m in table_order if m in present] + sorted(present - set(table_order))
     parts = []
     for method in methods:
         cells = []
-        for row, success in pick_examples(simulated, method, inputs.rendered_per_method):
+        for row, _ in pick_examples(simulated, method, inputs.rendered_per_method, inputs.seed):
+            headline, detail, css = outcome_of(simulated.arrays, row)
             object_id, scale = str(simulated.object_id[row]), float(simulated.scale[row])
-            caption = f"{'success' if success else 'failure'} · {object_id} · scale {scale:.3f}"
-            reason = str(simulated.arrays["failure_reason"][row]) if "failure_reason" in simulated.arrays else ""
-            if reason and not success:
-                caption += f" · {reason}"
-            if "penetration_mm" in simulated.arrays and np.isfinite(simulated.arrays["penetration_mm"][row]):
-                caption += f" · pen {float(simulated.arrays['penetration_mm'][row]):.1f} mm"
+            facts = [object_id, f"scale {scale:.3f}"]
+            for key, name in (("penetration_mm", "penetration"), ("contact_distance_mm", "contact distance")):
+                if key in simulated.arrays and np.isfinite(simulated.arrays[key][row]):
+                    facts.append(f"{name} {float(simulated.arrays[key][row]):.1f} mm")
+            caption = (
+                f"<div class='outcome {css}'>{html.escape(headline)}</div>"
+                f"<div class='detail'>{html.escape(detail)}</div><div class='facts'>{html.escape(' · '.join(facts))}</div>"
+            )
+            alt = f"{method_label(method)}: {headline.lower()}, {object_id}"
             try:
-                png = render_grasp_png(hand, simulated.hand_pose[row], object_id, scale, inputs.objects_dirs, size_px=260)
+                png = grasp_picture_png(hand, simulated, row, inputs.objects_dirs)
             except (ValueError, OSError) as exc:
                 log.warning("report: cannot render %s row %d: %s", method, row, exc)
-                cells.append(f"<figure><figcaption>{html.escape(caption)} — not rendered: {html.escape(str(exc))}</figcaption></figure>")
+                cells.append(f"<figure><figcaption>{caption}<div class='facts'>not rendered: {html.escape(str(exc))}</div></figcaption></figure>")
                 continue
-            cells.append(f"<figure>{_img(base64.b64encode(png).decode('ascii'), caption)}<figcaption>{html.escape(caption)}</figcaption></figure>")
-        parts.append(f"<h3>{html.escape(method)}</h3><div class='gallery'>{''.join(cells) or '<p>none</p>'}</div>")
+            cells.append(f"<figure>{_img(base64.b64encode(png).decode('ascii'), alt)}<figcaption>{caption}</figcaption></figure>")
+        parts.append(f"<h3>{html.escape(method_label(method))} <span class='id'>({html.escape(method)})</span></h3><div class='gallery'>{''.join(cells) or '<p>none</p>'}</div>")
     return "".join(parts)
 
 
@@ -313,7 +457,160 @@ def _format(value) -> str:
     return html.escape(str(value))
 
 
-def metrics_table_html(metrics_df) -> str:
+def _number(value, digits: int = 1) -> str:
+    try:
+        value = float(value)
+    except (TypeError, ValueError):
+        return "—"
+    return f"{value:.{digits}f}" if math.isfinite(value) else "—"
+
+
+def _interval_columns(row, name: str) -> tuple[object, object]:
+    """The object-bootstrap interval of a rate when present, else the Wilson one."""
+    for kind in ("_boot_ci95", "_ci95"):
+        low, high = row.get(f"{name}{kind}_low"), row.get(f"{name}{kind}_high")
+        if interval_text(low, high):
+            return low, high
+    return None, None
+
+
+def _rate_cell(row, name: str) -> str:
+    """A rate as "17.5%" in bold with its 95% interval in small type."""
+    value = row.get(f"{name}_rate")
+    text = percent_text(value)
+    if text == "not run":
+        return "<td class='rate na'>not run</td>"
+    interval = interval_text(*_interval_columns(row, name))
+    small = f" <small>({interval})</small>" if interval else ""
+    return f"<td class='rate'><b>{text}</b>{small}</td>"
+
+
+def _grasps_cell(row) -> str:
+    n = row.get("n_grasps")
+    try:
+        n = int(n)
+    except (TypeError, ValueError):
+        return "<td>—</td>"
+    objects = row.get("n_objects")
+    text = f"{n}"
+    if objects is not None and np.isfinite(float(objects)):
+        text += f" on {int(objects)}"
+    invalid = row.get("n_invalid")
+    if invalid is not None and np.isfinite(float(invalid)) and int(invalid) > 0:
+        text += f" ({int(invalid)} invalid)"
+    return f"<td>{text}</td>"
+
+
+def compact_table_html(frame, first_column: str = "method") -> str:
+    """The headline table: readable names, grasps, lift and six-direction rates with intervals, a few quality columns."""
+    if frame is None or not len(frame):
+        return "<p>No method was evaluated.</p>"
+    several_splits = "split" in frame.columns and frame["split"].nunique() > 1
+    head = (
+        "<tr><th>method</th>" + ("<th>objects</th>" if several_splits else "") + "<th>grasps on objects</th>"
+        "<th>held: lift test</th><th>held: six pushes</th><th>penetration (mm)</th>"
+        "<th>contact dist. (mm)</th><th>time / grasp</th></tr>"
+    )
+    body = []
+    for _, row in frame.iterrows():
+        method = str(row["method"])
+        cells = [f"<td class='name'>{html.escape(method_label(method))} <span class='id'>{html.escape(method)}</span></td>"]
+        if several_splits:
+            cells.append(f"<td>{html.escape(split_label(row['split']))}</td>")
+        cells += [
+            _grasps_cell(row), _rate_cell(row, "lift_success"), _rate_cell(row, "six_dir_success"),
+            f"<td>{_number(row.get('penetration_mean_mm'))}</td>", f"<td>{_number(row.get('contact_distance_mean_mm'))}</td>",
+            f"<td>{seconds_text(row.get('seconds_per_grasp'))}</td>",
+        ]  # fmt: skip
+        body.append("<tr>" + "".join(cells) + "</tr>")
+    return f"<table class='compact'><thead>{head}</thead><tbody>{''.join(body)}</tbody></table>"
+
+
+def _ladder_extra_columns(metrics_df, ladder) -> list[str]:
+    """Numeric columns only the ladder rows fill (e.g. the fit's pose errors): shown in the ladder table."""
+    import pandas as pd
+
+    others = metrics_df.drop(index=ladder.index)
+    known = set(TABLE_COLUMNS) | {"rung"}
+    extra = []
+    for column in metrics_df.columns:
+        if column in known or not pd.api.types.is_numeric_dtype(metrics_df[column]):
+            continue
+        if ladder[column].notna().any() and (not len(others) or others[column].isna().all()):
+            extra.append(column)
+    return extra[:4]
+
+
+def ladder_html(metrics_df) -> str:
+    """The learning ladder: fit, in-distribution and held-out rows, each with both rates; empty when not measured."""
+    ladder = ladder_rows(metrics_df)
+    if ladder is None:
+        return ""
+    extra = _ladder_extra_columns(metrics_df, ladder)
+    head = (
+        "<tr><th>rung</th><th class='name'>method</th><th>grasps on objects</th><th>held: lift test</th><th>held: six pushes</th>"
+        + "".join(f"<th class='wrap'>{html.escape(c.replace('_', ' '))}</th>" for c in extra) + "</tr>"
+    )
+    body = []
+    previous = None
+    rungs = ladder["rung"].astype(str)
+    for _, row in ladder.iterrows():
+        rung = str(row["rung"])
+        cells = []
+        if rung != previous:  # one cell for all rows of a rung
+            cells.append(f"<td class='name' rowspan='{int((rungs == rung).sum())}'>{html.escape(rung_label(rung))}</td>")
+        previous = rung
+        method = str(row["method"])
+        cells += [f"<td class='name'>{html.escape(method_label(method))} <span class='id'>{html.escape(method)}</span></td>",
+                  _grasps_cell(row), _rate_cell(row, "lift_success"), _rate_cell(row, "six_dir_success")]  # fmt: skip
+        cells += [f"<td>{_format(row[c])}</td>" for c in extra]
+        body.append("<tr>" + "".join(cells) + "</tr>")
+    return (
+        "<h2>Learning ladder</h2><p class='note'>Whether the model learned, rung by rung: its own training grasps encoded and "
+        "decoded (the originals all held), samples on the objects it was trained on, and samples on objects it never saw. "
+        "A rung it fails explains the rungs above it.</p>"
+        f"<table class='compact'><thead>{head}</thead><tbody>{''.join(body)}</tbody></table>"
+    )
+
+
+def _in_sentence(label: str) -> str:
+    """A method label inside a sentence: "Random start ..." -> "random start ...", acronyms ("CVAE ...") kept."""
+    return label[:1].lower() + label[1:] if len(label) > 1 and label[1].islower() else label
+
+
+def headline_sentence(frame, lift_config: Mapping) -> str:
+    """One sentence with the result: the product's two rates and the comparison methods', on the held-out objects."""
+    if frame is None or not len(frame):
+        return "No method was evaluated in this run."
+    split = "heldout" if "split" in frame.columns and (frame["split"].astype(str) == "heldout").any() else (str(frame["split"].iloc[0]) if "split" in frame.columns else "")
+    rows = frame[frame["split"].astype(str) == split] if split else frame
+    rows = rows.dropna(subset=["lift_success_rate"])
+    if not len(rows):
+        return "No grasp was simulated in this run."
+    lead_method = HEADLINE_METHOD if (rows["method"] == HEADLINE_METHOD).any() else str(rows["method"].iloc[0])
+    lead = rows[rows["method"] == lead_method].iloc[0]
+    six_run = math.isfinite(float(lead.get("six_dir_success_rate", math.nan)))
+    n_objects = int(lead["n_objects"]) if math.isfinite(float(lead.get("n_objects", math.nan))) else None
+    objects = split_label(split)
+    if n_objects == 1 and objects.endswith("objects"):
+        objects = objects[:-1]
+    where = f"On {n_objects} {objects}" if n_objects is not None else f"On the {objects}"
+    grasps = f" ({int(lead['n_grasps'])} grasps)" if math.isfinite(float(lead.get("n_grasps", math.nan))) else ""
+    if six_run:
+        result = (f"{percent_text(lead['lift_success_rate'])} of {method_label(lead_method)} held the object in the lift test and "
+                  f"{percent_text(lead['six_dir_success_rate'])} against pushes from all six directions")  # fmt: skip
+    else:
+        result = f"{percent_text(lead['lift_success_rate'])} of {method_label(lead_method)} held the object in the lift test (six-direction test not run)"
+    others = []
+    for _, row in rows[rows["method"] != lead_method].iterrows():
+        pair = percent_text(row["lift_success_rate"]) + (f" / {percent_text(row['six_dir_success_rate'])}" if six_run else "")
+        others.append(f"{_in_sentence(method_label(str(row['method'])))} {pair}")
+    tail = f"; for comparison, {', '.join(others)}" if others else ""
+    return f"{where}{grasps}, {result}{tail}."
+
+
+def full_table_html(metrics_df) -> str:
+    """Every column of metrics.csv a reader may want, raw fractions, folded."""
     columns = [c for c in TABLE_COLUMNS if c in metrics_df.columns]
     head = "".join(f"<th>{html.escape(c)}</th>" for c in columns)
     body = "".join("<tr>" + "".join(f"<td>{_format(row[c])}</td>" for c in columns) + "</tr>" for _, row in metrics_df.iterrows())
@@ -359,11 +656,30 @@ def catalog_counts(objects_dirs: Sequence[str]) -> tuple[dict[str, int], int]:
     return dict(per_split), rejected
 
 
-def run_settings_html(config: Mapping, objects_dirs: Sequence[str]) -> str:
+def training_run_text(history) -> str | None:
+    """What training actually ran, from its history: "1,380 steps (69 epochs)"; None without a history."""
+    if history is None or not len(history):
+        return None
+    last = history.iloc[-1]
+    parts = []
+    if "step" in history.columns and np.isfinite(float(last["step"])):
+        parts.append(f"{int(last['step']):,} steps")
+    if "epoch" in history.columns and np.isfinite(float(last["epoch"])):
+        parts.append(f"{int(last['epoch']):,} epochs")
+    if not parts:
+        parts.append(f"{len(history):,} history rows")
+    return parts[0] + (f" ({parts[1]})" if len(parts) > 1 else "")
+
+
+def run_settings_html(config: Mapping, objects_dirs: Sequence[str], history=None) -> str:
     """The run's key settings as a table, then the whole config (folded), so a page says how it was made."""
     if not config:
         return "<p>The report was not given the run's config.</p>"
     rows = [(label, _setting_text(_setting(config, path))) for label, path in KEY_SETTINGS]
+    ran = training_run_text(history)
+    if ran is not None:
+        at = next(k for k, (label, _) in enumerate(rows) if label == "training steps (max_steps)") + 1
+        rows.insert(at, ("training: steps run", ran))
     per_split, rejected = catalog_counts(objects_dirs)
     if per_split or rejected:
         prepared = ", ".join(f"{n} {split}" for split, n in sorted(per_split.items())) or "none"
@@ -384,11 +700,19 @@ def constants_table_html(lift_config: Mapping) -> str:
 
 
 STYLE = """
-body{font-family:system-ui,sans-serif;margin:2em;max-width:1400px;color:#222}
-table{border-collapse:collapse;font-size:12px;margin:1em 0}th,td{border:1px solid #ccc;padding:3px 6px;text-align:right}
+body{font-family:system-ui,sans-serif;margin:1.2em 2em;max-width:1400px;color:#222}
+h1{font-size:22px;margin:0 0 .4em}h2{font-size:18px;margin:1.4em 0 .4em}h3{font-size:15px}
+p.result{font-size:17px;line-height:1.45;max-width:1150px;margin:.3em 0 .6em}
+table{border-collapse:collapse;font-size:12px;margin:.6em 0}th,td{border:1px solid #ccc;padding:3px 6px;text-align:right}
 th{background:#f0f0f0}td:first-child,th:first-child{text-align:left}
-.gallery{display:flex;flex-wrap:wrap;gap:8px}figure{margin:0;border:1px solid #ddd;padding:4px;max-width:540px}
-figcaption{font-size:11px;color:#444}img{max-width:100%}.note{font-size:12px;color:#555}
+table.compact{font-size:14px}table.compact td,table.compact th{padding:5px 9px}table.compact td.name{text-align:left;white-space:nowrap}
+table.compact th{white-space:nowrap}table.compact th.wrap{white-space:normal;max-width:9em}table.compact th.name{text-align:left}
+td.rate b{font-size:15px}td.rate small{color:#555}td.na{color:#888}.id{color:#888;font-size:11px;font-family:monospace}
+table.text td,table.text th{text-align:left;max-width:34em}
+.gallery{display:flex;flex-wrap:wrap;gap:10px}figure{margin:0;border:1px solid #ddd;padding:4px;width:300px}
+figcaption{font-size:11px;color:#444}img{max-width:100%}.note{font-size:12px;color:#555;max-width:1150px}
+.outcome{font-size:24px;font-weight:700;letter-spacing:.02em}.held{color:#1a7f37}.partial{color:#b35c00}.dropped{color:#c62828}
+.detail{font-size:12px;color:#333}.facts{font-size:11px;color:#666}
 """
 
 
@@ -406,31 +730,54 @@ def convergence_note(metrics_df, curves) -> str:
     speedup = f"{budget / reached:.1f}×" if reached > 0 else "already at the start (iteration 0)"
     return (
         f"<p class='note'>CVAE starts reach the median E_post that random starts end with after {int(budget)} iterations "
-        f"at iteration {int(reached)}: speed-up {speedup} (seed paper: ≈ 3×).</p>"
+        f"at iteration {int(reached)}: speed-up {speedup} (DexLite reports ≈ 3×).</p>"
     )
+
+
+def definitions_html(lift_config: Mapping) -> str:
+    def constant(key: str, scale: float = 1.0) -> str:
+        value = lift_config.get(key)
+        return _format(float(value) * scale) if isinstance(value, (int, float)) else "?"
+
+    return (
+        f"<p class='note'>Lift test: the hand closes on the object and rises {constant('lift_height_m')} m; a grasp holds when the "
+        f"object rises with it (lift ratio &gt; {constant('success_lift_ratio')}). Six-direction test: from a fresh start each "
+        f"time and without gravity, a force of {constant('six_dir_force_per_kg_n')} N per kg of the object's mass along ±x, ±y and "
+        f"±z in turn, {constant('six_dir_duration_s')} s each; a grasp holds when the object moves less than "
+        f"{constant('six_dir_max_translation_m', 100)} cm and turns less than {constant('six_dir_max_rotation_deg')}° in all six. "
+        "The two rates carry equal weight: "
+        "a lift alone can be a palm-up carry. Rates are fractions of the evaluated grasps; n_invalid of the n_grasps had no usable "
+        "pose or scale, were not simulated and count as failures. object_success_rate: share of objects with at least one lifted "
+        "grasp. Joint entropy: mean per-joint histogram entropy in bits (bins over each joint's range, as in DexGraspNet); PCA: "
+        "cumulative explained variance of the 22 joint angles (lower = more diverse). seconds_per_grasp sums the stages that made "
+        "the method's grasps on this machine. cvae_raw, cvae_post and random_post are evaluated on the same sampled rows (same "
+        "objects and scales). Intervals: ci95 = Wilson (grasps taken as independent); boot_ci95 = object-level bootstrap "
+        "(objects resampled with replacement: wider when success depends on the object, rough with few objects), the one the "
+        "compact table and the error bars show.</p>"
+    )
+
+
+def csv_links_html(links: Mapping[str, str]) -> str:
+    if not links:
+        return ""
+    items = " · ".join(f"<a href='{html.escape(href)}'>{html.escape(name)}</a>" for name, href in links.items())
+    return f"<p>Full tables: {items}</p>"
 
 
 def build_report_html(inputs: ReportInputs) -> str:
     """The whole page as a string."""
+    headline = headline_rows(inputs.metrics)
     sections = [f"<h1>{html.escape(inputs.title)}</h1>"]
+    sections.append(f"<p class='result'>{html.escape(headline_sentence(headline, inputs.lift_config))}</p>")
+    sections.append(compact_table_html(headline))
     sections.append(
-        "<p class='note'>Rates are fractions of simulated grasps (lift: object rises with the hand, ratio &gt; "
-        f"{_format(inputs.lift_config.get('success_lift_ratio', math.nan))}); per-object success = at least one successful grasp. "
-        "Joint entropy: DexGraspNet's mean per-joint histogram entropy in bits (bins over each joint's range); "
-        "PCA: cumulative explained variance of the 22 joint angles (DexGraspBench; lower = more diverse). "
-        "seconds_per_grasp sums the stages that made the method's grasps on this machine. "
-        "n_invalid of the n_grasps had no usable pose or scale: they were not simulated and count as failures. "
-        "cvae_raw, cvae_post and random_post are evaluated on the same sampled rows (same objects and scales). "
-        "Intervals: ci95 = Wilson (grasps taken as independent); boot_ci95 = object-level bootstrap "
-        "(objects resampled with replacement: wider when success depends on the object, rough with few objects), "
-        "used for the error bars.</p>"
+        "<p class='note'>Both tests count with equal weight: “lift test” = the object rose with the hand; "
+        "“six pushes” = it stayed put under a push of about its own weight along each of ±x, ±y, ±z in turn. "
+        "Small numbers: object-level bootstrap 95% interval (objects resampled). Definitions and every column: end of the page.</p>"
     )
-    sections.append("<h2>Run settings</h2>" + run_settings_html(inputs.config, inputs.objects_dirs))
-    sections.append("<h2>Metrics</h2>" + metrics_table_html(inputs.metrics))
-    ref_rows = "".join(f"<tr><td>{html.escape(a)}</td><td>{html.escape(b)}</td><td>{html.escape(c)}</td></tr>" for a, b, c in REFERENCE_ROWS)
-    sections.append(f"<h2>Reference numbers</h2><table><thead><tr><th>source</th><th>result</th><th>hardware</th></tr></thead><tbody>{ref_rows}</tbody></table>")
+    sections.append(ladder_html(inputs.metrics))
     for title, image in (
-        ("Success per method (error bars: object-level bootstrap 95% interval)", success_plot(inputs.metrics)),
+        ("Success per method", success_plot(inputs.metrics)),
         ("Energies and penetration", histogram_plot(inputs.simulated)),
         ("Post-optimization convergence (median, interquartile band)", convergence_plot(inputs.convergence)),
         ("CVAE training curves", training_plot(inputs.history)),
@@ -438,8 +785,24 @@ def build_report_html(inputs: ReportInputs) -> str:
         sections.append(f"<h2>{html.escape(title)}</h2>" + (_img(image, title) if image else "<p>Not available in this run.</p>"))
         if title.startswith("Post-optimization convergence"):
             sections.append(convergence_note(inputs.metrics, inputs.convergence))
-    sections.append("<h2>Physical constants of the lift and six-direction tests</h2>" + constants_table_html(inputs.lift_config))
+    ref_rows = "".join(f"<tr><td>{html.escape(a)}</td><td>{html.escape(b)}</td><td>{html.escape(c)}</td></tr>" for a, b, c in REFERENCE_ROWS)
+    sections.append(
+        "<h2>Published numbers, for context</h2><p class='note'>Measured with other tests and other data: none of them is "
+        "directly comparable with the rates above.</p>"
+        f"<table class='text'><thead><tr><th>source</th><th>result</th><th>how measured</th></tr></thead><tbody>{ref_rows}</tbody></table>"
+    )
+    sections.append(
+        "<h2>Grasps, drawn at random</h2><p class='note'>For each method, grasps drawn at random (seeded) among those that passed "
+        "the lift test and those that failed it; two viewpoints each; red dots: the four contact points nearest the surface.</p>"
+        + grasp_gallery(inputs)
+    )
     if inputs.per_object is not None and len(inputs.per_object):
-        sections.append("<h2>Per object</h2>" + inputs.per_object.to_html(index=False, float_format=lambda v: f"{v:.3g}", na_rep="—"))
-    sections.append("<h2>Grasps (two viewpoints each)</h2>" + grasp_gallery(inputs))
+        per_object = inputs.per_object.to_html(index=False, float_format=lambda v: f"{v:.3g}", na_rep="—")
+        sections.append(f"<h2>Per object</h2><details><summary>{len(inputs.per_object)} rows</summary>{per_object}</details>")
+    sections.append("<h2>Run settings</h2>" + run_settings_html(inputs.config, inputs.objects_dirs, inputs.history))
+    sections.append("<h2>Physical constants of the lift and six-direction tests</h2>" + constants_table_html(inputs.lift_config))
+    sections.append(
+        "<h2>All numbers</h2>" + csv_links_html(inputs.csv_links) + definitions_html(inputs.lift_config)
+        + "<details><summary>metrics.csv, every method and column</summary>" + full_table_html(inputs.metrics) + "</details>"
+    )  # fmt: skip
     return f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{html.escape(inputs.title)}</title><style>{STYLE}</style></head><body>{''.join(sections)}</body></html>"

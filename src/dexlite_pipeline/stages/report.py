@@ -2,6 +2,8 @@
 
 It takes the run's whole config (``--config-json``) and shows its key settings and the
 whole of it in the page; of the ``evaluate`` section it reads ``report.steps.REPORT_KEYS``.
+The run's ``seed`` seeds the random choice of pictured grasps; the page links the CSV
+tables relative to where it is written.
 """
 
 from __future__ import annotations
@@ -18,6 +20,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--history", default=None, help="CVAE training history CSV (optional)")
     parser.add_argument("--objects", action="append", default=[], help="prepared objects dir (repeatable), for the pictures")
     parser.add_argument("--out", required=True, help="output HTML file")
+
+
+def csv_links(eval_dir: Path, page_dir: Path) -> dict[str, str]:
+    """The evaluation's CSV tables that exist, as links relative to the page's folder (the page opens from disk)."""
+    import os
+
+    from dexlite_pipeline.report.html import CSV_FILES
+
+    return {name: Path(os.path.relpath(eval_dir / name, page_dir)).as_posix() for name in CSV_FILES if (eval_dir / name).is_file()}
 
 
 def run(args: argparse.Namespace) -> int:
@@ -53,6 +64,8 @@ def run(args: argparse.Namespace) -> int:
         objects_dirs=args.objects,
         rendered_per_method=cfg.rendered_per_method,
         config=config,
+        csv_links=csv_links(eval_dir, Path(args.out).parent),
+        seed=int(config.get("seed") or 0),
     )
     write_text_atomic(args.out, build_report_html(inputs))
     n_rendered = 0 if simulated is None else len(set(np.asarray(simulated.arrays.get("method", [])).tolist()))
