@@ -1,4 +1,4 @@
-"""Energy and seed-synthesis benchmark (issue: energies and seed synthesis).
+"""Energy and seed-synthesis benchmark: cost of an energy step and of seed synthesis.
 
     python benchmarks/bench_energy.py                 # full: batches 64/256/1024, seed run on 4 objects
     python benchmarks/bench_energy.py --quick         # small sizes, to check it runs

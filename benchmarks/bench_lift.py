@@ -1,6 +1,6 @@
 """MuJoCo lift-test throughput on real grasps: grasps/s on N worker threads.
 
-    python benchmarks/bench_lift.py                          # the DexGraspNet sample (../shared), 2 workers
+    python benchmarks/bench_lift.py                          # the DexGraspNet sample grasps (SAMPLE below), 2 workers
     python benchmarks/bench_lift.py --count 128 --six-directions
     python benchmarks/bench_lift.py --grasps G.zarr --objects DIR   # any grasp store
     python benchmarks/bench_lift.py --single-contact         # lift.multi_contact off (~15% faster)
@@ -14,8 +14,8 @@ imported with the project's importer into a temporary folder (SDF grid 64^3).
 Reported per worker count (N worker threads of this process, as in ``run_lift_tests``):
 wall-clock grasps/s, the CPU seconds per grasp summed over the threads, and from that
 the rate 2 dedicated cores would give (2 / CPU s per grasp). On a shared machine the wall
-rate follows the other jobs' load, so the load average is printed beside it. Target
-(issue 3): >= 20 grasps/s on 2 cores. ``run(quick)`` returns rows for run_all.py.
+rate follows the other jobs' load, so the load average is printed beside it. Target:
+>= 20 grasps/s on 2 cores. ``run(quick)`` returns rows for run_all.py.
 """
 
 from __future__ import annotations

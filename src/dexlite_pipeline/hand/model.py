@@ -59,7 +59,7 @@ def _rotate(rotation: torch.Tensor, vector: torch.Tensor) -> torch.Tensor:
     """Batched rotation (..., 3, 3) applied to vectors (..., 3).
 
     A matmul, not broadcasting: torch 2.13's CPU matmul is ~3x faster forward and ~2x
-    backward for these 3x3 products (DESIGN.md measured the opposite on an older torch).
+    backward for these 3x3 products (older torch versions were faster with broadcasting).
     """
     return (rotation @ vector[..., None])[..., 0]
 

@@ -1,4 +1,4 @@
-"""Grasp stores: one Zarr v3 group per shard (schema in DESIGN.md).
+"""Grasp stores: one Zarr v3 group per shard (the layout is described in README.md, "Grasp store layout").
 
 Arrays: ``hand_pose`` float32 (N, 28), ``object_id`` (N,) strings, ``scale`` float32 (N,),
 and any further per-grasp arrays with first dimension N. Root attributes:
