@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import copy
+import json
 import dataclasses
 import typing
 from pathlib import Path
@@ -102,3 +103,21 @@ def test_schema_rejects_unknown_keys_and_wrong_types(config):
     wrong_type = _merged(config, {"lift": {"friction": "high"}})
     with pytest.raises(ConfigError, match="lift.friction"):
         validate_config(wrong_type)
+
+
+def test_a_string_where_a_list_is_expected_is_one_clear_error(tmp_path, capsys):
+    from dexlite_pipeline.cli import main
+
+    cfg = json.dumps({"objects": {"builtin_count": 0, "mesh_dirs": str(tmp_path)}})
+    assert main(["prepare-objects", "--config-json", cfg, "--out-dir", str(tmp_path / "out")]) == 2
+    error = capsys.readouterr().err.strip()
+    assert error == f'dexlite prepare-objects: error: --config-json: objects.mesh_dirs: expected a list (array), got a string "{tmp_path}"'
+    assert not (tmp_path / "out").exists()
+
+
+def test_library_sections_check_types_without_the_schema():
+    from dexlite_pipeline.sim.config import LiftConfig
+
+    with pytest.raises(ConfigError, match=r'^config.lift.friction: expected a number, got a string "abc"$'):
+        from_section(LiftConfig, {"friction": "abc"}, "config.lift")
+    assert from_section(LiftConfig, {"friction": 1}, "config.lift").friction == 1

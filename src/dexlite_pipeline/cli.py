@@ -12,6 +12,7 @@ import argparse
 import importlib
 import logging
 import os
+import re
 import sys
 
 from dexlite_pipeline import __version__
@@ -75,8 +76,30 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return int(module.run(args) or 0)
     except (CliError, ValueError, OSError) as exc:  # bad input or an unreadable/unwritable file: one line, no traceback
-        print(f"dexlite {top.command}: error: {exc}", file=sys.stderr)
+        print(f"dexlite {top.command}: error: {error_text(exc)}", file=sys.stderr)
         return 2
+
+
+# Outputs are written to a hidden sibling ``.NAME.tmp-XXXXXXXX`` and renamed into place
+# (``io.atomic``); an error on the sibling is reported with the path the user gave.
+TEMPORARY_SIBLING = re.compile(r"\.(?P<name>.+)\.tmp-[0-9a-f]{8}")
+
+
+def user_path(path: str) -> str:
+    """``path`` with a temporary output sibling replaced by the final output path."""
+    head, tail = os.path.split(str(path))
+    match = TEMPORARY_SIBLING.fullmatch(tail)
+    return os.path.join(head, match["name"]) if match else str(path)
+
+
+def error_text(exc: BaseException) -> str:
+    """The one-line message of ``exc``, naming the user's paths rather than temporary siblings."""
+    if isinstance(exc, OSError) and exc.filename is not None:
+        text = f"{user_path(exc.filename)}: {exc.strerror or type(exc).__name__}"
+        if exc.filename2 is not None:
+            text += f" (and {user_path(exc.filename2)})"
+        return text
+    return " ".join(user_path(w) if ".tmp-" in w else w for w in str(exc).split(" ")) or type(exc).__name__
 
 
 if __name__ == "__main__":

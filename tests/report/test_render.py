@@ -50,3 +50,15 @@ def test_render_rejects_bad_pose(hand):
 
     with pytest.raises(RenderError):
         hand_mesh_world(hand, np.full(28, np.nan))
+
+
+def test_render_cli_names_the_file_and_row_of_a_nan_pose(tmp_path, tiny_objects, capsys):
+    store = tmp_path / "g.zarr"
+    poses = grasp_poses(2, np.random.default_rng(0))
+    poses[1, 4] = np.nan
+    write_grasp_store(store, GraspSet({"hand_pose": poses, "object_id": np.array([OBJECT_ID] * 2, dtype=object), "scale": np.full(2, 0.06, np.float32)}))
+    out = tmp_path / "grasp.png"
+    assert main(["render", str(store), "--objects", str(tiny_objects), "--index", "1", "--out", str(out)]) == 2
+    error = capsys.readouterr().err.strip()
+    assert error == f"dexlite render: error: {store}: row 1 ({OBJECT_ID}): hand_pose is not finite at position(s) 4"
+    assert not out.exists()

@@ -131,3 +131,37 @@ def test_lift_test_log_has_progress_lines(tmp_path, objects_dir, hooks):
     assert code == 0, text
     progress = [line for line in text.splitlines() if "lift test: " in line and "grasps/s" in line]
     assert progress and "2/2 grasps (100%)" in progress[-1], text
+
+
+def test_config_errors_name_the_key_and_the_expected_type(tmp_path, objects_dir, hooks, capsys):
+    source = tmp_path / "one.zarr"
+    write_grasp_store(source, grasp_set([hooks["square_bar"]], ["square_bar"]))
+    run = ["lift-test", str(source), "--objects", str(objects_dir), "--out", str(tmp_path / "out.zarr"), "--threads", "1"]
+    assert main([*run, "--config-json", '{"lift": {"friction": "abc"}}']) == 2
+    assert capsys.readouterr().err.strip() == 'dexlite lift-test: error: --config-json: lift.friction: expected a number, got a string "abc"'
+    assert main([*run, "--config-json", str(tmp_path / "my.json")]) == 2
+    assert f"--config-json {tmp_path / 'my.json'}: no such file" in capsys.readouterr().err
+    assert not (tmp_path / "out.zarr").exists()
+
+
+def test_config_json_accepts_a_json_or_yaml_file(tmp_path, objects_dir, hooks, capsys):
+    source = tmp_path / "one.zarr"
+    write_grasp_store(source, grasp_set([hooks["square_bar"]], ["square_bar"]))
+    (tmp_path / "my.json").write_text('{"lift": {"friction": 0.9}}')
+    (tmp_path / "my.yaml").write_text("lift:\n  friction: 0.7\n  object_mass_kg: 0.2\n")
+    for name, friction in (("my.json", 0.9), ("my.yaml", 0.7)):
+        out = tmp_path / f"{name}.zarr"
+        assert main(["lift-test", str(source), "--objects", str(objects_dir), "--out", str(out), "--threads", "1", "--config-json", str(tmp_path / name)]) == 0
+        assert read_grasp_store(out).attrs["lift_config"]["friction"] == friction
+    (tmp_path / "bad.yaml").write_text("lift:\n  friction: [1, 2]\n")
+    assert main(["lift-test", str(source), "--objects", str(objects_dir), "--out", str(tmp_path / "x.zarr"), "--config-json", str(tmp_path / "bad.yaml")]) == 2
+    assert f"--config-json {tmp_path / 'bad.yaml'}: lift.friction: expected a number, got a list [1, 2]" in capsys.readouterr().err
+
+
+def test_an_unwritable_output_is_named_as_the_user_gave_it(tmp_path, objects_dir, hooks, capsys):
+    source = tmp_path / "one.zarr"
+    write_grasp_store(source, grasp_set([hooks["square_bar"]], ["square_bar"]))
+    out = "/proc/dexlite_lifted.zarr"  # not writable, even for root
+    assert main(["lift-test", str(source), "--objects", str(objects_dir), "--out", out, "--threads", "1"]) == 2
+    err = capsys.readouterr().err
+    assert f"error: {out}" in err and ".tmp-" not in err, err

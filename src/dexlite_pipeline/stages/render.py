@@ -14,6 +14,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    import numpy as np
+
     from dexlite_pipeline.hand import ShadowHand
     from dexlite_pipeline.io.grasp_store import read_grasp_store
     from dexlite_pipeline.report.render import RenderError, render_grasp_png
@@ -23,6 +25,11 @@ def run(args: argparse.Namespace) -> int:
         raise RenderError(f"{args.grasps}: index {args.index} out of range (store has {len(grasps)} grasps)")
     k = args.index
     object_id, scale = str(grasps.object_id[k]), float(grasps.scale[k])
+    bad = [i for i, v in enumerate(np.asarray(grasps.hand_pose[k], dtype=np.float64)) if not np.isfinite(v)]
+    if bad:
+        raise RenderError(f"{args.grasps}: row {k} ({object_id}): hand_pose is not finite at position(s) {', '.join(map(str, bad))}")
+    if not np.isfinite(scale) or scale <= 0:
+        raise RenderError(f"{args.grasps}: row {k} ({object_id}): scale {scale} is not a positive number")
     title = f"{object_id}  scale {scale:.3f}  grasp {k}"
     if "lift_success" in grasps.arrays:
         title += "  lift " + ("success" if bool(grasps.arrays["lift_success"][k]) else "failure")
