@@ -200,7 +200,7 @@ def test_report_is_self_contained_with_pictures(tiny_run):
     # success bars, histograms, convergence, training curves, then a success and a failure per method
     assert len(images) == 4 + 2 * 2
     assert all(base64.b64decode(b)[:8] == b"\x89PNG\r\n\x1a\n" for b in images)
-    for needle in ("Seed optimization (from scratch)", "CVAE samples + post-optimization", "friction", "object_mass_kg", "lift success ≈ 55%",
+    for needle in ("Optimization from scratch (seed grasps)", "CVAE samples + post-optimization", "friction", "object_mass_kg", "lift success ≈ 55%",
                    "n_invalid", "boot_ci95", "after 200 iterations at iteration 50: speed-up 4.0×", "object-level bootstrap"):
         assert needle in text, needle
     # the result sentence leads with the post-optimized samples: 3 of 5 lifted, none held against the pushes

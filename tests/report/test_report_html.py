@@ -91,7 +91,7 @@ def test_headline_sentence_gives_both_rates_of_the_product_and_the_comparisons()
     assert sentence.startswith("On 5 held-out objects (80 grasps), 17.5% of CVAE samples + post-optimization held the object in the lift test")
     assert "13.8% against pushes from all six directions" in sentence
     assert "; for comparison, random start + post-optimization 21.2% / 8.8%, CVAE samples, raw 6.2% / 0.0%," in sentence
-    assert sentence.endswith(", seed optimization (from scratch) 55.0% / 50.0%.")
+    assert sentence.endswith(", optimization from scratch (seed grasps) 55.0% / 50.0%.")
     assert sentence.count(".") == sentence.count("%") + 1  # one sentence: the only other full stops are decimal points
     no_six = _run_metrics().assign(six_dir_success_rate=np.nan)
     assert "(six-direction test not run)" in headline_sentence(headline_rows(no_six), {})

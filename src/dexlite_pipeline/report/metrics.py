@@ -310,7 +310,7 @@ def per_object_rows(arrays: Mapping[str, np.ndarray]) -> list[dict]:
 # Readable names for the method ids of metrics.csv; an id not listed here is shown by
 # ``method_label``'s fallback (words of the id, "+ post-optimization" for a ``_post`` suffix).
 METHOD_LABELS = {
-    "seed": "Seed optimization (from scratch)",
+    "seed": "Optimization from scratch (seed grasps)",
     "cvae_raw": "CVAE samples, raw",
     "cvae_post": "CVAE samples + post-optimization",
     "random_post": "Random start + post-optimization",
