@@ -420,6 +420,7 @@ def grasp_gallery(inputs: ReportInputs) -> str:
     hand = ShadowHand()
     present = set(str(m) for m in simulated.arrays["method"])
     table_order = list(dict.fromkeys(headline_rows(inputs.metrics)["method"])) if inputs.metrics is not None and len(inputs.metrics) else []
+    table_order += [m for m in LADDER_METHOD_ORDER if m not in table_order]  # then the ladder's rows, rung by rung
     methods = [m for m in table_order if m in present] + sorted(present - set(table_order))
     parts = []
     for method in methods:
