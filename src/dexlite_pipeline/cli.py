@@ -33,6 +33,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "evaluate": ("evaluate", "simulate and measure every method on held-out objects"),
     "report": ("report", "build results/eval/report.html from the evaluation outputs"),
     "render": ("render", "render one grasp (hand and object) to a PNG"),
+    "grasp": ("grasp", "grasps that hold for your own meshes: prepare, synthesize, test, export, summarize"),
 }
 
 

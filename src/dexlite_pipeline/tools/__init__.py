@@ -1,0 +1,1 @@
+"""User tools built on the pipeline's library (``dexlite grasp``)."""
