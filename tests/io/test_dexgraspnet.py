@@ -227,6 +227,15 @@ def test_export_reports_missing_assets_and_refuses_unsafe_ids(tmp_path, capsys):
     assert not (tmp_path / "out2").exists()
 
 
+def test_exporting_an_empty_store_fails(tmp_path, capsys):
+    from dexlite_pipeline.io.grasp_store import empty_grasp_set, write_grasp_store
+
+    write_grasp_store(tmp_path / "empty.zarr", empty_grasp_set())
+    assert dexlite(["export-dexgraspnet", str(tmp_path / "empty.zarr"), str(tmp_path / "out")]) == 2
+    assert f"{tmp_path / 'empty.zarr'}: the grasp store is empty, nothing to export" in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()
+
+
 def test_missing_dataset_folder_is_a_clear_error(tmp_path, capsys):
     code = dexlite(["import-dexgraspnet", str(tmp_path), "--out", str(tmp_path / "g.zarr"), "--objects-out", str(tmp_path / "o")])
     assert code == 2 and "dataset: no such folder" in capsys.readouterr().err

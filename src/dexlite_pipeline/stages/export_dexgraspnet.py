@@ -4,6 +4,7 @@
 ``{'qpos': {...}, 'scale': s}`` dicts; with ``--objects DIR`` the convex pieces of each
 object are written as ``OUT_DIR/meshdata/<object_id>/coacd/decomposed.obj`` too, so
 DexGraspNet-based tools (and ``dexlite import-dexgraspnet``) can read the result whole.
+An empty store is an error (exit status 2): there would be nothing to read.
 """
 
 from __future__ import annotations
@@ -21,7 +22,10 @@ def run(args: argparse.Namespace) -> int:
     from dexlite_pipeline.io.dexgraspnet import export_dexgraspnet
     from dexlite_pipeline.io.grasp_store import read_grasp_store
 
-    summary = export_dexgraspnet(read_grasp_store(args.grasps), args.out_dir, args.objects or None)
+    grasps = read_grasp_store(args.grasps)
+    if not len(grasps):
+        raise ValueError(f"{args.grasps}: the grasp store is empty, nothing to export")
+    summary = export_dexgraspnet(grasps, args.out_dir, args.objects or None)
     print(f"wrote {summary['grasps']} grasps of {summary['objects']} objects to {args.out_dir}/dataset")
     if summary["missing_assets"]:
         print(f"no prepared asset (mesh not exported) for: {', '.join(summary['missing_assets'])}")
