@@ -206,7 +206,7 @@ def synthesize_with_model(assets, scales: dict, n: int, config: dict, model_path
 
 
 def render_examples(grasps, objects_dir: Path, out_dir: Path, per_object: int) -> list[Path]:
-    """Up to ``per_object`` held grasps per object as PNGs (one failure when none held)."""
+    """Up to ``per_object`` held grasps per object as PNGs, six-direction passes first (one failure when none held)."""
     from dexlite_pipeline.hand import ShadowHand
     from dexlite_pipeline.report.render import render_grasp_png
 
@@ -214,7 +214,8 @@ def render_examples(grasps, objects_dir: Path, out_dir: Path, per_object: int) -
     held = np.asarray(grasps.arrays["lift_success"], bool)
     six = np.asarray(grasps.arrays.get("six_dir_success", np.zeros(len(grasps), bool)), bool)
     for object_id in sorted(set(grasps.object_id.tolist())):
-        rows = np.flatnonzero((grasps.object_id == object_id) & held)[:per_object]
+        rows = np.flatnonzero((grasps.object_id == object_id) & held)
+        rows = rows[np.argsort(~six[rows], kind="stable")][:per_object]  # those that also pass the six-direction test first
         if not len(rows):
             finite = np.flatnonzero((grasps.object_id == object_id) & np.isfinite(grasps.hand_pose).all(axis=1))
             rows = finite[:1]
@@ -312,7 +313,7 @@ def run_grasp_tool(request: GraspRequest) -> GraspOutcome:
         raise GraspToolError(f"--n must be at least 1, got {request.grasps_per_object}")
     started = time.perf_counter()
     config = merge_config(default_config(), request.config)
-    config.setdefault("objects", {}).update(builtin_count=0, mesh_dirs=[], heldout_mesh_dirs=[])
+    config["objects"] = {**config.get("objects", {}), "builtin_count": 0, "mesh_dirs": [], "heldout_mesh_dirs": []}  # only the given meshes
     validate_config(config, "configuration", partial=True)
     seed = int(config.get("seed", 0))
     device = resolve_device(request.device or config.get("device") or "auto")
