@@ -58,8 +58,14 @@ def test_train_sample_post_optimize(pipeline_inputs):
     sample = read_grasp_store(root / "sample.zarr")
     method = sample.arrays["method"]
     assert sorted(set(sample.object_id[method == "cvae_raw"])) == ["sphere"] and (method == "cvae_raw").sum() == 5
-    assert set(sample.object_id[method != "cvae_raw"]) == {"box"} and (method != "cvae_raw").sum() == 6
-    assert set(method) <= {"cvae_raw", "cvae_expand_latent", "cvae_expand_point"}
+    expansion = np.isin(method, ["cvae_expand_latent", "cvae_expand_point"])
+    assert set(sample.object_id[expansion]) == {"box"} and expansion.sum() == 6
+    # the learning ladder's rows on the training object: one reconstruction per grasp trained on, and pure syntheses
+    reconstruction, prior = method == "cvae_recon", method == "cvae_prior_train"
+    assert reconstruction.sum() == checkpoint["train_grasps"] == len(checkpoint["training_grasps"]["object_id"])
+    assert set(sample.object_id[reconstruction]) == {"box"}
+    assert set(sample.object_id[prior]) == {"box"} and prior.sum() == 5
+    assert set(method) == {"cvae_raw", "cvae_expand_latent", "cvae_expand_point", "cvae_recon", "cvae_prior_train"}
     assert sample.attrs["seconds_per_grasp"] > 0 and np.isfinite(sample.hand_pose).all()
 
     assert main(["post-optimize", "--config-json", cfg, "--sample", str(root / "sample.zarr"), *common,
@@ -67,7 +73,10 @@ def test_train_sample_post_optimize(pipeline_inputs):
     post = read_grasp_store(root / "post.zarr")
     assert np.array_equal(post.arrays["raw_hand_pose"], sample.hand_pose)
     assert post.attrs["config"]["energy"] == {"self_penetration_margin_m": 0.015}
-    assert post.arrays["trace_E_post"].shape == (11, 11) and post.attrs["trace_iterations"] == list(range(11))
+    assert post.arrays["trace_E_post"].shape == (len(sample), 11) and post.attrs["trace_iterations"] == list(range(11))
+    # poses kept for the budget curve at the configured iterations within the 10 run (0 is the start)
+    assert post.attrs["budget_iterations"] == [0] and post.arrays["budget_hand_pose"].shape == (len(sample), 1, 28)
+    np.testing.assert_array_equal(post.arrays["budget_hand_pose"][:, 0], sample.hand_pose)
     assert {"E_fc", "raw_E_fc", "E_post", "raw_E_post", "penetration_mm", "raw_penetration_mm"} <= set(post.arrays)
     assert np.array_equal(post.arrays["method"], method)
     baseline = read_grasp_store(root / "random.zarr")

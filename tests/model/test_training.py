@@ -22,6 +22,9 @@ def setup(hand, tiny_assets, request):
     return grasps, data, grasp_energy_terms(energy)
 
 
+SEED_ENERGY_WEIGHTS = dict(weight_fc=1.0, weight_dis=100.0, weight_pen=100.0, weight_spen=10.0, weight_joints=1.0)  # DexLite's
+
+
 def _config(small_model_config, **overrides):
     values = dict(epochs=30, max_steps=0, batch_size=8, clouds_per_batch=2, points_per_cloud=64, learning_rate=3e-3, validation_fraction=0.0)
     values.update(overrides)
@@ -31,7 +34,7 @@ def _config(small_model_config, **overrides):
 def test_loss_falls_when_overfitting_a_handful_of_grasps(setup, small_model_config):
     grasps, data, energy_terms = setup
     everything = np.arange(len(grasps))
-    memorize = _config(small_model_config, rotation_augmentation=False)
+    memorize = _config(small_model_config, rotation_augmentation=False, **SEED_ENERGY_WEIGHTS)
     result = train_cvae(data, everything, np.zeros(0, np.int64), memorize, energy_terms, seed=0)
     first, last = result.history[0], result.history[-1]
     assert last["train_total"] < 0.5 * first["train_total"]
@@ -40,6 +43,8 @@ def test_loss_falls_when_overfitting_a_handful_of_grasps(setup, small_model_conf
     no_energy = _config(small_model_config, epochs=100, rotation_augmentation=False, weight_fc=0.0, weight_dis=0.0, weight_pen=0.0, weight_spen=0.0, weight_joints=0.0)
     result = train_cvae(data, everything, np.zeros(0, np.int64), no_energy, energy_terms, seed=0)
     assert result.history[-1]["train_recon"] < 0.3 * result.history[0]["train_recon"]
+    # energies that are not weighted are not computed (they log as NaN)
+    assert all(np.isnan(result.history[-1][f"train_{k}"]) for k in ("fc", "dis", "pen", "spen", "joints"))
 
 
 def test_training_is_deterministic_for_a_seed(setup, small_model_config):

@@ -17,9 +17,9 @@ def _evaluate_sources(shard):
     sources = {}
     if "seed" in methods:
         sources["seed"] = f"{RESULTS}/seed/shard_{shard}.zarr"
-    if "cvae_raw" in methods or "cvae_post" in methods:
+    if any(m.startswith("cvae_") for m in methods):
         sources["sample"] = f"{RESULTS}/sample/shard_{shard}.zarr"
-    if "cvae_post" in methods:
+    if any(m.startswith("cvae_") and m.endswith("_post") for m in methods):
         sources["post"] = f"{RESULTS}/post/shard_{shard}.zarr"
     if "random_post" in methods:
         sources["random-post"] = f"{RESULTS}/post/random_shard_{shard}.zarr"

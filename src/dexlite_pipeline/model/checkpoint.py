@@ -23,8 +23,15 @@ class CheckpointError(ValueError):
     """A model file that is missing or not a DexLite CVAE checkpoint."""
 
 
-def save_checkpoint(path: str | os.PathLike, model: GraspCVAE, train_config, extra: dict) -> Path:
-    """Write the model's weights, its ModelConfig, the training config and ``extra`` (JSON-like) atomically."""
+def save_checkpoint(
+    path: str | os.PathLike, model: GraspCVAE, train_config, extra: dict, training_grasps: dict | None = None
+) -> Path:
+    """Write the model's weights, its ModelConfig, the training config and ``extra`` (JSON-like) atomically.
+
+    ``training_grasps`` ({"hand_pose": (N, 28), "object_id": N strings, "scale": (N,)}) are the
+    grasps the model was fitted to, kept so that the learning ladder's *fit* rung can be
+    measured from the model file alone.
+    """
     payload = {
         "format": CHECKPOINT_FORMAT,
         "state_dict": {k: v.detach().cpu() for k, v in model.state_dict().items()},
@@ -32,6 +39,12 @@ def save_checkpoint(path: str | os.PathLike, model: GraspCVAE, train_config, ext
         "train_config": json.loads(json.dumps(dataclasses.asdict(train_config))),
         **json.loads(json.dumps(extra)),
     }
+    if training_grasps is not None:
+        payload["training_grasps"] = {
+            "hand_pose": torch.as_tensor(training_grasps["hand_pose"], dtype=torch.float32).cpu(),
+            "object_id": [str(o) for o in training_grasps["object_id"]],
+            "scale": torch.as_tensor(training_grasps["scale"], dtype=torch.float32).cpu(),
+        }
     with atomic_path(path) as tmp:
         torch.save(payload, tmp)
     return Path(path)
@@ -49,6 +62,13 @@ def load_checkpoint(path: str | os.PathLike, device: torch.device | str = "cpu")
     if not isinstance(payload, dict) or payload.get("format") != CHECKPOINT_FORMAT:
         raise CheckpointError(f"{p}: not a {CHECKPOINT_FORMAT} checkpoint")
     model = GraspCVAE(ModelConfig.from_dict(payload["model_config"])).to(device)
-    model.load_state_dict(payload["state_dict"])
+    state = dict(payload["state_dict"])
+    empty = torch.zeros(0, model.config.latent_dim)
+    model.set_latent_codes(state.pop("codes_mu", empty), state.pop("codes_log_var", empty))
+    model.load_state_dict(state, strict=False)
+    missing = set(model.state_dict()) - set(state) - {"codes_mu", "codes_log_var"}
+    unexpected = set(state) - set(model.state_dict())
+    if missing or unexpected:
+        raise CheckpointError(f"{p}: weights do not match the model config (missing {sorted(missing)[:3]}, unexpected {sorted(unexpected)[:3]})")
     model.eval()
     return model, {k: v for k, v in payload.items() if k != "state_dict"}

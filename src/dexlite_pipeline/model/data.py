@@ -2,9 +2,10 @@
 
 A *cloud* is one object at one scale (the object in metres is ``scale`` times its
 normalized surface samples). A batch holds the grasps of a few clouds, so PointNet runs
-once per cloud per step; the points of each cloud are re-drawn every step from the
-asset's surface samples, and each grasp's associated point is found in the drawn
-points from the grasp's ray (``association``), computed once.
+once per cloud per step. A cloud is either a fixed farthest-point subset of the asset's
+surface samples (``ObjectClouds.draw_fixed``, the default: each grasp keeps one
+associated point) or a fresh random subset every step (``draw``); each grasp's
+associated point is found in the cloud from the grasp's ray (``association``).
 """
 
 from __future__ import annotations
@@ -64,10 +65,34 @@ class ObjectClouds:
             raise TrainingDataError(f"objects have different numbers of surface samples {sorted(sizes)}")
         self.surface = torch.as_tensor(np.stack([a.surface_points for a in assets]), dtype=torch.float32, device=self.device)
         self.normals = torch.as_tensor(np.stack([a.surface_normals for a in assets]), dtype=torch.float32, device=self.device)
+        self._fixed: dict[int, torch.Tensor] = {}
 
     @property
     def samples_per_object(self) -> int:
         return int(self.surface.shape[1])
+
+    def fixed_subset(self, points: int) -> torch.Tensor:
+        """(objects, points) indices of a farthest-point subset of each object's samples, the same on every call.
+
+        A fixed, evenly spread subset keeps each grasp's associated point and its normal
+        in one place across steps (a fresh random draw of 512 of 4,096 samples moves the
+        nearest point by ~1 cm), so the model sees one condition per grasp, and sampling
+        reads the clouds the model was trained on.
+        """
+        total = self.samples_per_object
+        if points > total:
+            raise TrainingDataError(f"asked for {points} points per cloud, the assets hold {total}")
+        cached = self._fixed.get(points)
+        if cached is None:
+            cached = torch.stack([farthest_point_indices(surface, points) for surface in self.surface])
+            self._fixed[points] = cached
+        return cached
+
+    def draw_fixed(self, object_index: torch.Tensor, scale: torch.Tensor, points: int) -> torch.Tensor:
+        """(C, points, 6) clouds like ``draw`` but of each object's ``fixed_subset``."""
+        choice = self.fixed_subset(points)[object_index]
+        rows = object_index[:, None]
+        return torch.cat([self.surface[rows, choice] * scale[:, None, None], self.normals[rows, choice]], dim=2)
 
     def draw(self, object_index: torch.Tensor, scale: torch.Tensor, points: int, generator: torch.Generator | None) -> torch.Tensor:
         """(C, points, 6) clouds: [xyz in metres, outward unit normal] of a random subset (or the first ``points`` when no generator)."""
@@ -80,6 +105,18 @@ class ObjectClouds:
             choice = torch.rand(len(object_index), total, generator=generator).argsort(dim=1)[:, :points].to(self.device)
         rows = object_index[:, None]
         return torch.cat([self.surface[rows, choice] * scale[:, None, None], self.normals[rows, choice]], dim=2)
+
+
+def farthest_point_indices(points: torch.Tensor, count: int) -> torch.Tensor:
+    """(count,) indices of a farthest-point subset of ``points`` (P, 3), starting at point 0 (deterministic)."""
+    chosen = torch.zeros(count, dtype=torch.long, device=points.device)
+    distance = torch.full((len(points),), float("inf"), device=points.device)
+    current = 0
+    for i in range(count):
+        chosen[i] = current
+        distance = torch.minimum(distance, (points - points[current]).pow(2).sum(-1))
+        current = int(distance.argmax())
+    return chosen
 
 
 @dataclass

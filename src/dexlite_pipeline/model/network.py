@@ -138,6 +138,19 @@ class GraspCVAE(nn.Module):
         inputs = config.condition_dim + config.frame_input_dim
         self.encoder = _mlp(POSE_FEATURE_DIM + inputs, config.encoder_hidden, 2 * config.latent_dim)
         self.decoder = _mlp(config.latent_dim + inputs, config.decoder_hidden, POSE_FEATURE_DIM)
+        # The training grasps' posterior codes (mu, log sigma^2), stored with the weights after
+        # training so that sampling can draw from their aggregate (``sampling.sample_latents``).
+        self.register_buffer("codes_mu", torch.zeros(0, config.latent_dim))
+        self.register_buffer("codes_log_var", torch.zeros(0, config.latent_dim))
+
+    def set_latent_codes(self, mu: torch.Tensor, log_var: torch.Tensor) -> None:
+        """Store the training grasps' codes (N, latent) each."""
+        self.codes_mu = mu.detach().to(self.codes_mu.device).clone()
+        self.codes_log_var = log_var.detach().to(self.codes_log_var.device).clone()
+
+    @property
+    def latent_codes(self) -> tuple[torch.Tensor, torch.Tensor]:
+        return self.codes_mu, self.codes_log_var
 
     def condition(self, clouds: torch.Tensor, cloud_index: torch.Tensor, point_index: torch.Tensor) -> torch.Tensor:
         """Condition vectors (B, 2F) from clouds (C, N, 3 or 6: xyz in metres, normal) and each grasp's cloud and associated point."""

@@ -66,3 +66,15 @@ def reconstruction_error(predicted: torch.Tensor, target: torch.Tensor) -> torch
         [((t_p - t_t) / TRANSLATION_UNIT_M) ** 2, (rot_p - rot_t).flatten(1) ** 2, (q_p - q_t) ** 2], dim=1
     )
     return squared.sum(dim=1)
+
+
+def pose_errors(predicted_pose: torch.Tensor, target_pose: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """Per grasp (B,) each: palm rotation error (degrees, geodesic angle), palm translation error (mm) and mean
+    absolute joint error (rad) between stored poses (B, 28)."""
+    rot_p = euler_xyz_to_matrix(predicted_pose[:, ROTATION])
+    rot_t = euler_xyz_to_matrix(target_pose[:, ROTATION])
+    cosine = ((rot_p.transpose(1, 2) @ rot_t).diagonal(dim1=1, dim2=2).sum(-1) - 1.0) / 2.0
+    angle_deg = torch.rad2deg(torch.arccos(cosine.clamp(-1.0, 1.0)))
+    translation_mm = (predicted_pose[:, TRANSLATION] - target_pose[:, TRANSLATION]).norm(dim=-1) * 1000.0
+    joint_rad = (predicted_pose[:, JOINTS] - target_pose[:, JOINTS]).abs().mean(dim=-1)
+    return angle_deg, translation_mm, joint_rad

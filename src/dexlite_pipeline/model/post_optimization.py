@@ -58,6 +58,7 @@ class PostOptimizeConfig:
     start_contact_samples: int = 64  # sampled grasps start from the best of this many near-surface 4-sets (0: nearest pads)
     final_contact_samples: int = 64  # after the last step, keep the best of this many contact sets (0: off)
     keep_best: bool = True  # return each grasp's lowest-E_post visited state instead of the last one
+    budget_iterations: tuple[int, ...] = (0, 25, 50, 100, 200)  # poses kept after these iterations for the budget curve
     batch_size: int = 1024  # grasps per optimizer batch (a shard is cut into batches of this size)
     random_baseline: bool = True  # also run the random-init baseline (held-out objects' grasps)
     random_init: InitConfig = field(default_factory=InitConfig)
@@ -78,6 +79,10 @@ class PostOptimizeConfig:
             final_contact_samples=self.final_contact_samples,
             keep_best=self.keep_best,
         )
+
+    def budget(self) -> tuple[int, ...]:
+        """The budget-curve iterations within this run's length."""
+        return tuple(sorted(i for i in set(self.budget_iterations) if 0 <= i <= self.iterations))
 
     def weights(self) -> EnergyWeights:
         return EnergyWeights(self.weight_fc, self.weight_dis, self.weight_pen, self.weight_spen, self.weight_joints)
@@ -136,7 +141,10 @@ def refine(
                 contacts = energy.best_contacts(pose, obj, sc, contacts, config.start_contact_samples, generator)
             before = energy(pose, object_index=obj, scale=sc, contact_index=contacts)
         contacts = contacts if start_contacts == "surface" else None
-        result = optimize(energy, pose, obj, sc, annealing, generator, contact_index=contacts, progress=_log_progress, progress_every=50)
+        result = optimize(
+            energy, pose, obj, sc, annealing, generator, contact_index=contacts, progress=_log_progress, progress_every=50,
+            snapshot_iterations=config.budget(),
+        )
         seconds += result.seconds
         trace_iterations = result.trace_iterations.cpu().numpy()
         chunk = {
@@ -148,6 +156,8 @@ def refine(
         }
         for name in TRACED_TERMS:
             chunk[f"trace_{name}"] = result.term_traces[name].T.cpu().numpy().astype(np.float32)
+        if config.budget():
+            chunk["budget_hand_pose"] = torch.stack([result.snapshots[i] for i in config.budget()], dim=1).cpu().numpy()
         chunk.update(_energy_arrays("raw_", before))
         chunk.update(_energy_arrays("", result))
         chunks.append(chunk)

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from dexlite_pipeline.model.association import nearest_to_ray, random_points
+from dexlite_pipeline.model.association import grasp_rays, nearest_to_ray, random_points
 from dexlite_pipeline.model.data import ObjectClouds, cloud_keys
 from dexlite_pipeline.model.network import GraspCVAE, anchor_at, condition_at
 from dexlite_pipeline.model.pose import features_to_pose, pose_to_features
@@ -28,6 +28,9 @@ from dexlite_pipeline.model.pose import features_to_pose, pose_to_features
 SYNTHESIS = "cvae_raw"
 EXPAND_LATENT = "cvae_expand_latent"
 EXPAND_POINT = "cvae_expand_point"
+RECONSTRUCTION = "cvae_recon"  # learning ladder, fit rung: encoder-mean reconstructions of the training grasps
+PRIOR_ON_TRAINING = "cvae_prior_train"  # learning ladder, in-distribution rung: pure synthesis on training objects
+LATENT_PRIORS = ("standard", "aggregate")
 
 
 @dataclass(frozen=True)
@@ -41,34 +44,101 @@ class SampleConfig:
     expansion_point_fraction: float = 0.5  # share of expansions that move the associated point instead
     expansion_point_neighbours: int = 16  # the moved point is one of this many nearest cloud points
     points_per_cloud: int = 0  # 0 = the value the model was trained with
+    ladder: bool = True  # also sample the learning ladder's rows on training objects (reconstructions, prior samples)
+    latent_prior: str = "aggregate"  # where synthesis draws latents: standard N(0, I) or the training codes' aggregate
+    latent_temperature: float = 1.0  # scale of the latent noise
 
     def __post_init__(self) -> None:
         if not self.scales or min(self.scales) <= 0:
             raise ValueError("sample.scales must be a non-empty list of positive scales")
+        if self.latent_prior not in LATENT_PRIORS:
+            raise ValueError(f"sample.latent_prior {self.latent_prior!r} is not one of {', '.join(LATENT_PRIORS)}")
 
 
-def _clouds_for(clouds: ObjectClouds, object_index: np.ndarray, scale: np.ndarray, points: int, generator: torch.Generator):
-    """One drawn cloud per distinct (object, scale) and the cloud of each grasp."""
+def _clouds_for(
+    clouds: ObjectClouds, object_index: np.ndarray, scale: np.ndarray, points: int, generator: torch.Generator, fixed: bool = True
+):
+    """One cloud per distinct (object, scale) and the cloud of each grasp: the fixed subset the model was trained on
+    (``fixed``), else a random draw."""
     keys = cloud_keys(np.asarray(object_index).astype(str), scale)
     first = np.array([np.flatnonzero(keys == k)[0] for k in range(keys.max() + 1)]) if len(keys) else np.zeros(0, int)
-    drawn = clouds.draw(
-        torch.as_tensor(object_index[first], device=clouds.device),
-        torch.as_tensor(scale[first], dtype=torch.float32, device=clouds.device),
-        points,
-        generator,
-    )
+    cloud_object = torch.as_tensor(object_index[first], device=clouds.device)
+    cloud_scale = torch.as_tensor(scale[first], dtype=torch.float32, device=clouds.device)
+    if fixed:
+        drawn = clouds.draw_fixed(cloud_object, cloud_scale, points)
+    else:
+        drawn = clouds.draw(cloud_object, cloud_scale, points, generator)
     return drawn, torch.as_tensor(keys, device=clouds.device)
+
+
+def sample_latents(model: GraspCVAE, count: int, generator: torch.Generator, prior: str = "standard", temperature: float = 1.0) -> torch.Tensor:
+    """(count, latent) latents for new grasps.
+
+    - ``standard``: z ~ N(0, I), the VAE's nominal prior;
+    - ``aggregate``: z ~ q(z) = mean_i N(mu_i, sigma_i^2) over the training grasps' codes
+      (stored with the model, ``latent_codes``): the codes of a CVAE trained with a small KL
+      weight do not fill N(0, I), so nominal-prior latents decode to poses unlike any grasp,
+      while the aggregate posterior is where the decoder was trained.
+    ``temperature`` scales the noise (of the prior, or of each code's posterior).
+    """
+    device = next(model.parameters()).device
+    if prior == "standard":
+        return torch.randn(count, model.config.latent_dim, generator=generator).to(device) * temperature
+    if prior != "aggregate":
+        raise ValueError(f"latent prior {prior!r} is not one of {', '.join(LATENT_PRIORS)}")
+    codes_mu, codes_log_var = model.latent_codes
+    if codes_mu is None or len(codes_mu) == 0:
+        raise ValueError("latent prior 'aggregate' needs a model saved with its training codes (train again with this version)")
+    pick = torch.randint(len(codes_mu), (count,), generator=generator).to(device)
+    noise = torch.randn(count, model.config.latent_dim, generator=generator).to(device)
+    return codes_mu[pick] + temperature * torch.exp(0.5 * codes_log_var[pick]) * noise
+
+
+@torch.no_grad()
+def reconstruct(
+    model: GraspCVAE,
+    clouds: ObjectClouds,
+    known_pose: torch.Tensor,
+    ray_origin: torch.Tensor,
+    ray_direction: torch.Tensor,
+    object_index: np.ndarray,
+    scale: np.ndarray,
+    points: int,
+    fixed_clouds: bool = True,
+    generator: torch.Generator | None = None,
+) -> torch.Tensor:
+    """(B, 28) encoder-mean reconstructions of known grasps (B, 28): same cloud, same associated point, z = mu.
+
+    The *fit* rung of the learning ladder: a model that learned its data returns each
+    training grasp almost unchanged.
+    """
+    generator = generator if generator is not None else torch.Generator().manual_seed(0)
+    drawn, cloud_index = _clouds_for(clouds, object_index, scale, points, generator, fixed_clouds)
+    point_index = nearest_to_ray(drawn[cloud_index], ray_origin, ray_direction)
+    known = pose_to_features(known_pose)
+    condition = model.condition(drawn, cloud_index, point_index)
+    anchor = model.pose_anchors(anchor_at(drawn, cloud_index, point_index), known)
+    mu, _ = model.encode(known, condition, anchor)
+    return features_to_pose(model.decode(mu, condition, anchor))
 
 
 @torch.no_grad()
 def synthesize(
-    model: GraspCVAE, clouds: ObjectClouds, object_index: np.ndarray, scale: np.ndarray, points: int, generator: torch.Generator
+    model: GraspCVAE,
+    clouds: ObjectClouds,
+    object_index: np.ndarray,
+    scale: np.ndarray,
+    points: int,
+    generator: torch.Generator,
+    prior: str = "standard",
+    temperature: float = 1.0,
+    fixed_clouds: bool = True,
 ) -> torch.Tensor:
-    """(B, 28) decoded poses for grasps on (object_index, scale) pairs, from the prior."""
-    drawn, cloud_index = _clouds_for(clouds, object_index, scale, points, generator)
+    """(B, 28) decoded poses for grasps on (object_index, scale) pairs, from the latent ``prior`` (``sample_latents``)."""
+    drawn, cloud_index = _clouds_for(clouds, object_index, scale, points, generator, fixed_clouds)
     point_index = random_points(len(object_index), points, generator).to(clouds.device)
     condition = model.condition(drawn, cloud_index, point_index)
-    latent = torch.randn(len(object_index), model.config.latent_dim, generator=generator).to(clouds.device)
+    latent = sample_latents(model, len(object_index), generator, prior, temperature)
     anchor = model.sampling_anchors(anchor_at(drawn, cloud_index, point_index), generator)
     return features_to_pose(model.decode(latent, condition, anchor))
 
@@ -86,9 +156,10 @@ def expand(
     config: SampleConfig,
     points: int,
     generator: torch.Generator,
+    fixed_clouds: bool = True,
 ) -> torch.Tensor:
     """(B, 28) new poses near known grasps (B, 28): latent perturbed, or (``move_point``) associated point moved."""
-    drawn, cloud_index = _clouds_for(clouds, object_index, scale, points, generator)
+    drawn, cloud_index = _clouds_for(clouds, object_index, scale, points, generator, fixed_clouds)
     point_index = nearest_to_ray(drawn[cloud_index], ray_origin, ray_direction)
     grasp_points = drawn[cloud_index, :, :3]
     neighbours = min(config.expansion_point_neighbours, points)
@@ -104,3 +175,78 @@ def expand(
     decode_index = torch.where(move_point, moved_index, point_index)
     condition = condition_at(features, cloud_index, decode_index)
     return features_to_pose(model.decode(latent, condition, model.pose_anchors(anchor_at(drawn, cloud_index, decode_index), known)))
+
+
+@dataclass
+class SampledRows:
+    """Poses (B, 28) with their object ids, scales and method labels."""
+
+    hand_pose: torch.Tensor
+    object_id: list[str]
+    scale: np.ndarray
+    method: list[str]
+
+
+def synthesis_rows(
+    model: GraspCVAE,
+    clouds: ObjectClouds,
+    object_ids: list[str],
+    config: SampleConfig,
+    points: int,
+    generator: torch.Generator,
+    fixed_clouds: bool,
+    label: str,
+) -> SampledRows:
+    """``synthesis_grasps_per_object`` pure syntheses per object (scales dealt in turn from ``config.scales``), labelled ``label``."""
+    count = config.synthesis_grasps_per_object
+    obj = np.repeat([clouds.index_of[o] for o in object_ids], count)
+    scale = np.tile(np.resize(np.asarray(config.scales, np.float32), count), len(object_ids))
+    pose = synthesize(model, clouds, obj, scale, points, generator, config.latent_prior, config.latent_temperature, fixed_clouds)
+    return SampledRows(hand_pose=pose, object_id=[clouds.object_ids[i] for i in obj], scale=scale, method=[label] * len(obj))
+
+
+def ladder_rows(
+    model: GraspCVAE,
+    training_grasps: dict,
+    clouds: ObjectClouds,
+    object_ids: list[str],
+    config: SampleConfig,
+    points: int,
+    generator: torch.Generator,
+    hand,
+    fixed_clouds: bool = True,
+) -> SampledRows:
+    """The learning ladder's grasps on training objects ``object_ids`` (those of this shard).
+
+    - ``cvae_recon`` (fit): the encoder-mean reconstruction of every grasp the model was
+      trained on (``training_grasps`` from the checkpoint), on its own cloud and associated point;
+    - ``cvae_prior_train`` (in-distribution): ``synthesis_grasps_per_object`` pure syntheses
+      per training object, by the same rule as on held-out objects (``synthesize``).
+    """
+    wanted = set(object_ids)
+    poses, ids, scales, methods = [], [], [], []
+    known_ids = np.asarray(training_grasps["object_id"], dtype=object)
+    rows = np.flatnonzero([str(o) in wanted and str(o) in clouds.index_of for o in known_ids])
+    if len(rows):
+        known = torch.as_tensor(training_grasps["hand_pose"], dtype=torch.float32)[rows].to(clouds.device)
+        scale = np.asarray(training_grasps["scale"], dtype=np.float32)[rows]
+        obj = np.array([clouds.index_of[str(o)] for o in known_ids[rows]])
+        origin, direction = grasp_rays(hand, known)
+        poses.append(reconstruct(model, clouds, known, origin, direction, obj, scale, points, fixed_clouds, generator))
+        ids += [str(o) for o in known_ids[rows]]
+        scales.append(scale)
+        methods += [RECONSTRUCTION] * len(rows)
+    present = [o for o in object_ids if o in clouds.index_of]
+    if present and config.synthesis_grasps_per_object > 0:
+        synthesized = synthesis_rows(model, clouds, present, config, points, generator, fixed_clouds, PRIOR_ON_TRAINING)
+        poses.append(synthesized.hand_pose)
+        ids += synthesized.object_id
+        scales.append(synthesized.scale)
+        methods += synthesized.method
+    return SampledRows(
+        hand_pose=torch.cat(poses) if poses else torch.zeros(0, 28, device=clouds.device),
+        object_id=ids,
+        scale=np.concatenate(scales) if scales else np.zeros(0, np.float32),
+        method=methods,
+    )
+

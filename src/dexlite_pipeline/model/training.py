@@ -38,12 +38,13 @@ from dexlite_pipeline.hand.rotation import matrix_to_euler_xyz
 from dexlite_pipeline.model.data import Batch, TrainingData, cloud_batches, make_batch
 from dexlite_pipeline.model.association import nearest_to_ray
 from dexlite_pipeline.model.network import GraspCVAE, ModelConfig, anchor_at, kl_divergence
-from dexlite_pipeline.model.pose import features_to_parts, reconstruction_error, rotate_features
+from dexlite_pipeline.model.pose import features_to_parts, features_to_pose, pose_errors, reconstruction_error, rotate_features
 
 log = logging.getLogger(__name__)
 
 ENERGY_TERMS = ("fc", "dis", "pen", "spen", "joints")
 LOSS_TERMS = ("recon", "kl", *ENERGY_TERMS)
+LR_SCHEDULES = ("constant", "cosine")
 
 # (palm_rot (B,3,3), palm_t (B,3), joints (B,22), object_index (B,), scale (B,), dataset contacts (B,4), -1 = none)
 #   -> {term: (B,)}
@@ -93,8 +94,8 @@ class TrainConfig:
     """Config section ``train`` (two documented profiles: the default and ``config/profiles/seed_gpu.yaml``)."""
 
     profile: str = "default"
-    epochs: int = 100
-    max_steps: int = 4000
+    epochs: int = 100000
+    max_steps: int = 8000
     batch_size: int = 64
     clouds_per_batch: int = 1
     points_per_cloud: int = 512
@@ -103,20 +104,26 @@ class TrainConfig:
     min_grasps: int = 8
     energy_object_points: int = 512
     contact_samples: int = 32
-    rotation_augmentation: bool = True
+    rotation_augmentation: bool = False
+    fixed_clouds: bool = True
+    lr_schedule: str = "cosine"
+    lr_warmup_steps: int = 200
+    grad_clip_norm: float = 1.0
     energy_warmup_fraction: float = 0.3
     weight_recon: float = 1.0
     weight_kl: float = 0.001
-    weight_fc: float = 1.0
-    weight_dis: float = 100.0
-    weight_pen: float = 100.0
-    weight_spen: float = 10.0
-    weight_joints: float = 1.0
+    weight_fc: float = 0.0
+    weight_dis: float = 0.0
+    weight_pen: float = 0.0
+    weight_spen: float = 0.0
+    weight_joints: float = 0.0
     model: ModelConfig = field(default_factory=lambda: ModelConfig(normalization="none"))
 
     def __post_init__(self) -> None:
         if self.batch_size < 1 or self.clouds_per_batch < 1 or self.points_per_cloud < 1 or self.epochs < 1:
             raise ValueError("train: batch_size, clouds_per_batch, points_per_cloud and epochs must be positive")
+        if self.lr_schedule not in LR_SCHEDULES:
+            raise ValueError(f"train.lr_schedule {self.lr_schedule!r} is not one of {', '.join(LR_SCHEDULES)}")
         if self.model.normalization == "batch" and self.clouds_per_batch < 2:
             raise ValueError("train: BatchNorm needs clouds_per_batch >= 2 (one cloud per batch erases object size); use model.normalization: none")
 
@@ -141,6 +148,7 @@ def batch_loss(
     generator: torch.Generator,
     energy_scale: float = 1.0,
     turn_clouds: bool = False,
+    fixed_clouds: bool = False,
 ) -> tuple[torch.Tensor, dict[str, float]]:
     """Loss of one batch (energy weights times ``energy_scale``), and each term's batch mean with the full-weight total.
 
@@ -151,7 +159,10 @@ def batch_loss(
     the object's SDF in its own frame.
     """
     device = data.pose_features.device
-    clouds = data.clouds.draw(batch.cloud_object, batch.cloud_scale, points, generator)
+    if fixed_clouds:
+        clouds = data.clouds.draw_fixed(batch.cloud_object, batch.cloud_scale, points)
+    else:
+        clouds = data.clouds.draw(batch.cloud_object, batch.cloud_scale, points, generator)
     index = torch.as_tensor(batch.grasp_index, device=device)
     target = data.pose_features[index]
     ray_origin, ray_direction = data.ray_origin[index], data.ray_direction[index]
@@ -168,17 +179,31 @@ def batch_loss(
     anchor = model.pose_anchors(anchor_at(clouds, batch.cloud_index, point_index), target)
     decoded, mu, log_var = model(target, condition, anchor, noise)
     terms = {"recon": reconstruction_error(decoded, target), "kl": kl_divergence(mu, log_var)}
-    if turn_clouds:
-        decoded = rotate_features(decoded, grasp_turn.transpose(1, 2))
-    palm_rot, palm_t, joints = features_to_parts(decoded)
-    object_index = torch.as_tensor(data.object_index[batch.grasp_index], device=device)
-    scale = torch.as_tensor(data.scale[batch.grasp_index], dtype=torch.float32, device=device)
-    terms.update(energy_terms(palm_rot, palm_t, joints, object_index, scale, data.contact_index[index]))
+    if any(weights[name] > 0 for name in ENERGY_TERMS):
+        if turn_clouds:
+            decoded = rotate_features(decoded, grasp_turn.transpose(1, 2))
+        palm_rot, palm_t, joints = features_to_parts(decoded)
+        object_index = torch.as_tensor(data.object_index[batch.grasp_index], device=device)
+        scale = torch.as_tensor(data.scale[batch.grasp_index], dtype=torch.float32, device=device)
+        terms.update(energy_terms(palm_rot, palm_t, joints, object_index, scale, data.contact_index[index]))
+    else:  # all energy weights 0: the terms are not computed (they cost most of a step), and log as NaN
+        terms.update({name: torch.full_like(terms["recon"], float("nan")) for name in ENERGY_TERMS})
     means = {name: terms[name].mean() for name in LOSS_TERMS}
-    weighted = {name: weights[name] * means[name] for name in LOSS_TERMS}
+    weighted = {name: weights[name] * means[name] for name in LOSS_TERMS if weights[name] > 0 or name in ("recon", "kl")}
     total = sum(weighted.values())
-    loss = sum(weighted[name] * (energy_scale if name in ENERGY_TERMS else 1.0) for name in LOSS_TERMS)
+    loss = sum(value * (energy_scale if name in ENERGY_TERMS else 1.0) for name, value in weighted.items())
     return loss, {"total": float(total.detach()), **{name: float(v.detach()) for name, v in means.items()}}
+
+
+def learning_rate_factor(config: TrainConfig, step: int, planned_steps: int) -> float:
+    """Multiplier of ``learning_rate`` at ``step``: linear warm-up over ``lr_warmup_steps``, then constant or cosine to 0."""
+    if config.lr_warmup_steps > 0 and step < config.lr_warmup_steps:
+        return (step + 1) / config.lr_warmup_steps
+    if config.lr_schedule == "constant":
+        return 1.0
+    span = max(planned_steps - config.lr_warmup_steps, 1)
+    progress = min(max(step - config.lr_warmup_steps, 0) / span, 1.0)
+    return 0.5 * (1.0 + math.cos(math.pi * progress))
 
 
 def _average(rows: list[tuple[int, dict[str, float]]]) -> dict[str, float]:
@@ -210,6 +235,7 @@ def train_cvae(
         epochs = max(1, min(epochs, math.ceil(config.max_steps / max(steps_per_epoch, 1))))
     planned_steps = epochs * steps_per_epoch if config.max_steps <= 0 else min(epochs * steps_per_epoch, config.max_steps)
     warmup_steps = int(config.energy_warmup_fraction * planned_steps)
+    scheduler = torch.optim.lr_scheduler.LambdaLR(optimizer, lambda k: learning_rate_factor(config, k, planned_steps))
     log.info(
         "training on %d grasps (%d validation), %d steps per epoch, %d epochs, energy warm-up %d steps, profile %s",
         len(train_index), len(val_index), steps_per_epoch, epochs, warmup_steps, config.profile,
@@ -226,11 +252,15 @@ def train_cvae(
             batch = make_batch(chunks, data.cloud_key, data.object_index, data.scale, device)
             energy_scale = min(1.0, step / warmup_steps) if warmup_steps else 1.0
             loss, terms = batch_loss(
-                model, data, batch, config.points_per_cloud, energy_terms, weights, generator, energy_scale, config.rotation_augmentation
+                model, data, batch, config.points_per_cloud, energy_terms, weights, generator, energy_scale,
+                config.rotation_augmentation, config.fixed_clouds,
             )
             optimizer.zero_grad(set_to_none=True)
             loss.backward()
+            if config.grad_clip_norm > 0:
+                torch.nn.utils.clip_grad_norm_(model.parameters(), config.grad_clip_norm)
             optimizer.step()
+            scheduler.step()
             rows.append((len(batch.grasp_index), terms))
             step += 1
         row = {"epoch": epoch, "step": step, "seconds": round(time.perf_counter() - start, 3)}
@@ -253,6 +283,62 @@ def evaluate_loss(
     rows = []
     for chunks in cloud_batches(data.cloud_key, index, config.batch_size, config.clouds_per_batch, None):
         batch = make_batch(chunks, data.cloud_key, data.object_index, data.scale, data.pose_features.device)
-        _, terms = batch_loss(model, data, batch, config.points_per_cloud, energy_terms, config.weights(), generator)
+        _, terms = batch_loss(
+            model, data, batch, config.points_per_cloud, energy_terms, config.weights(), generator, fixed_clouds=config.fixed_clouds
+        )
         rows.append((len(batch.grasp_index), terms))
     return _average(rows)
+
+
+@torch.no_grad()
+def encode_training_grasps(
+    model: GraspCVAE, data: TrainingData, index: np.ndarray, config: TrainConfig
+) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """Posterior (mu, log sigma^2) and the encoder-mean reconstruction (features, object frame) of grasps ``index``.
+
+    Eval mode, each grasp on the cloud it was trained on (the fixed subset, or the first
+    ``points_per_cloud`` samples when clouds were drawn at random) and at its associated point.
+    """
+    model.eval()
+    mus, log_vars, decoded, grasp_ids = [], [], [], []
+    for chunks in cloud_batches(data.cloud_key, np.asarray(index), config.batch_size, config.clouds_per_batch, None):
+        batch = make_batch(chunks, data.cloud_key, data.object_index, data.scale, data.pose_features.device)
+        if config.fixed_clouds:
+            clouds = data.clouds.draw_fixed(batch.cloud_object, batch.cloud_scale, config.points_per_cloud)
+        else:
+            clouds = data.clouds.draw(batch.cloud_object, batch.cloud_scale, config.points_per_cloud, None)
+        rows = torch.as_tensor(batch.grasp_index, device=clouds.device)
+        target = data.pose_features[rows]
+        point_index = nearest_to_ray(clouds[batch.cloud_index], data.ray_origin[rows], data.ray_direction[rows])
+        condition = model.condition(clouds, batch.cloud_index, point_index)
+        anchor = model.pose_anchors(anchor_at(clouds, batch.cloud_index, point_index), target)
+        mu, log_var = model.encode(target, condition, anchor)
+        mus.append(mu)
+        log_vars.append(log_var)
+        decoded.append(model.decode(mu, condition, anchor))
+        grasp_ids.append(batch.grasp_index)
+    # batches group grasps by cloud: put the rows back in the order of ``index``
+    row_of = {int(g): r for r, g in enumerate(np.concatenate(grasp_ids))} if grasp_ids else {}
+    take = torch.as_tensor([row_of[int(g)] for g in np.asarray(index)], dtype=torch.long)
+    if not grasp_ids:
+        empty = torch.zeros(0, model.config.latent_dim)
+        return empty, empty, torch.zeros(0, data.pose_features.shape[1])
+    return torch.cat(mus)[take], torch.cat(log_vars)[take], torch.cat(decoded)[take]
+
+
+def fit_training_codes(model: GraspCVAE, data: TrainingData, index: np.ndarray, config: TrainConfig) -> dict[str, float]:
+    """Store the training grasps' codes in ``model`` (for aggregate-prior sampling); return the fit rung's pose errors.
+
+    The errors are those of the encoder-mean reconstructions of grasps ``index``: median
+    palm rotation error (deg), median palm translation error (mm), mean joint error (rad).
+    """
+    mu, log_var, decoded = encode_training_grasps(model, data, index, config)
+    model.set_latent_codes(mu, log_var)
+    rotation, translation, joints = pose_errors(features_to_pose(decoded), features_to_pose(data.pose_features[torch.as_tensor(index)]))
+    return {
+        "grasps": int(len(index)),
+        "rotation_error_deg_median": float(rotation.median()) if len(index) else math.nan,
+        "translation_error_mm_median": float(translation.median()) if len(index) else math.nan,
+        "joint_error_rad_mean": float(joints.mean()) if len(index) else math.nan,
+    }
+

@@ -77,6 +77,8 @@ class OptimizationResult:
     term_traces: dict[str, torch.Tensor]  # name -> (T, B): each energy term of the kept state at the trace rows
     acceptance_rate: torch.Tensor  # (B,) fraction of proposals accepted
     seconds: float
+    snapshots: dict[int, torch.Tensor] | None = None  # iteration -> (B, 28) kept pose after it (``snapshot_iterations``
+    # of ``optimize``; iteration 0 is the start)
 
 
 def pose_to_state(hand_pose: torch.Tensor) -> torch.Tensor:
@@ -106,12 +108,15 @@ def optimize(
     contact_index: torch.Tensor | None = None,
     progress: Callable[[int, torch.Tensor], None] | None = None,
     progress_every: int = 100,
+    snapshot_iterations: tuple[int, ...] = (),
 ) -> OptimizationResult:
     """Run the annealed optimizer on a batch of grasps from ``init_pose`` (B, 28).
 
     ``contact_index`` None draws the initial contacts uniformly (DexGraspNet's start);
     ``generator`` (a CPU ``torch.Generator``) makes the run deterministic for a seed.
     ``progress(iteration, total_energy)`` is called every ``progress_every`` iterations.
+    ``snapshot_iterations``: also return the kept pose (the best so far with ``keep_best``)
+    after each of these iterations, for budget curves.
     """
     started = time.perf_counter()
     device = energy.device
@@ -137,6 +142,7 @@ def optimize(
     trace = [total.clone()]
     trace_iterations = [0]
     term_traces = {name: [value.detach().clone()] for name, value in current.terms.items()}
+    snapshots = {0: init_pose.detach().to(device, energy.hand.dtype).clone()} if 0 in snapshot_iterations else {}
     for iteration in range(1, config.iterations + 1):
         square_avg = config.rmsprop_mu * grad.square().mean(0) + (1 - config.rmsprop_mu) * square_avg
         step = config.step_size_at(iteration - 1) * grad / (square_avg.sqrt() + config.rmsprop_eps)
@@ -172,6 +178,8 @@ def optimize(
             trace_iterations.append(iteration)
             for name, value in kept.terms.items():
                 term_traces[name].append(value.detach().clone())
+        if iteration in snapshot_iterations:
+            snapshots[iteration] = state_to_pose(best_state if config.keep_best else state).detach()
         if progress is not None and iteration % progress_every == 0:
             progress(iteration, total)
 
@@ -198,6 +206,7 @@ def optimize(
         term_traces={name: torch.stack(values) for name, values in term_traces.items()},
         acceptance_rate=accepted.to(state.dtype) / max(config.iterations, 1),
         seconds=time.perf_counter() - started,
+        snapshots=snapshots,
     )
 
 

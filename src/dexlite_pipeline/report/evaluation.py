@@ -39,15 +39,36 @@ from dexlite_pipeline.report.steps import with_evaluate_keys
 
 log = logging.getLogger(__name__)
 
-METHODS = ("seed", "cvae_raw", "cvae_post", "random_post", "dexgraspnet")
+METHODS = (
+    "seed", "cvae_raw", "cvae_post", "random_post", "dexgraspnet",
+    "cvae_recon", "cvae_recon_post", "cvae_prior_train", "cvae_prior_train_post",
+)  # fmt: skip
 SPLITS = ("train", "heldout")  # the values of the object catalogs' ``split`` column
-PAIRED_METHODS = ("cvae_raw", "cvae_post", "random_post")  # rows correspond to rows of the sampled store
-PAIRED_DRAW = "sampled_rows"  # name of the draw these methods share
 PURE_SYNTHESIS = "cvae_raw"  # the sampled stores' method label of pure syntheses on held-out objects
+# Methods read from the sampled / post-optimized stores: method -> (the stores' row label, stage of the store).
+SAMPLED_METHODS = {
+    "cvae_raw": (PURE_SYNTHESIS, "sample"),
+    "cvae_post": (PURE_SYNTHESIS, "post"),
+    "cvae_recon": ("cvae_recon", "sample"),
+    "cvae_recon_post": ("cvae_recon", "post"),
+    "cvae_prior_train": ("cvae_prior_train", "sample"),
+    "cvae_prior_train_post": ("cvae_prior_train", "post"),
+}
+PAIRED_METHODS = (*SAMPLED_METHODS, "random_post")  # rows correspond to rows of the sampled store
+PAIRED_DRAW = "sampled_rows"  # name of the draw these methods share
+# The learning ladder: rung of each method. Fit and in-distribution rows are measured on the
+# training objects whatever ``evaluate.splits`` says; held-out rows are the other methods'.
+LADDER_RUNGS = {
+    "cvae_recon": "fit", "cvae_recon_post": "fit",
+    "cvae_prior_train": "in_distribution", "cvae_prior_train_post": "in_distribution",
+}  # fmt: skip
+LADDER_SPLIT = "train"
 SELECTED_ARRAYS = ("hand_pose", "object_id", "scale")
+BUDGET_POSES = "budget_hand_pose"  # (N, S, 28) post-optimized poses after each budget iteration (post stores)
+BUDGET_SUCCESS = "budget_lift_success"  # (N, S) lift success of those poses (1/0; NaN where a method has none)
 CONVERGENCE_COLUMNS = (
     "threshold_reached_fraction", "threshold_iteration_median", "E_post_median_initial", "E_post_median_final",
-    "iterations_to_random_final_E_post",
+    "iterations_to_random_final_E_post", "convergence_ratio",
 )  # fmt: skip
 
 
@@ -64,6 +85,7 @@ class EvaluateConfig:
     pca_components: tuple[int, ...] = metrics.PCA_COMPONENTS  # k of the cumulative PCA explained variance columns
     energy_batch_size: int = 256  # grasps per energy evaluation batch
     rendered_per_method: int = 2  # successes and failures pictured per method in the report
+    ladder_grasps_per_object: int = 8  # cap per (ladder method, training object) on simulated grasps
 
     def __post_init__(self) -> None:
         unknown = sorted(set(self.methods) - set(METHODS))
@@ -72,8 +94,26 @@ class EvaluateConfig:
         unknown = sorted(set(self.splits) - set(SPLITS))
         if unknown:
             raise ValueError(f"config.evaluate.splits: unknown split(s) {', '.join(unknown)} (known: {', '.join(SPLITS)})")
-        if self.grasps_per_object < 1 or self.entropy_bins < 2 or self.energy_batch_size < 1 or self.rendered_per_method < 0:
-            raise ValueError("config.evaluate: grasps_per_object, energy_batch_size >= 1, entropy_bins >= 2, rendered_per_method >= 0")
+        if self.grasps_per_object < 1 or self.ladder_grasps_per_object < 1 or self.entropy_bins < 2 or self.energy_batch_size < 1 or self.rendered_per_method < 0:
+            raise ValueError(
+                "config.evaluate: grasps_per_object, ladder_grasps_per_object, energy_batch_size >= 1, entropy_bins >= 2, rendered_per_method >= 0"
+            )
+
+    def splits_of(self, method: str) -> tuple[str, ...]:
+        """The object splits a method is evaluated on: the training objects for the ladder's rungs, else ``splits``."""
+        return (LADDER_SPLIT,) if method in LADDER_RUNGS else self.splits
+
+    def cap_of(self, method: str) -> int:
+        return self.ladder_grasps_per_object if method in LADDER_RUNGS else self.grasps_per_object
+
+
+def rung_of(method: str, split: str) -> str:
+    """The learning-ladder rung a (method, split) row measures: fit, in_distribution, heldout, or '' (not a model row)."""
+    if method in LADDER_RUNGS:
+        return LADDER_RUNGS[method]
+    if split == "heldout" and method in ("cvae_raw", "cvae_post", "random_post"):
+        return "heldout"
+    return ""
 
 
 def evaluate_config_from(config: Mapping | None, keys: Sequence[str] | None = None) -> EvaluateConfig:
@@ -135,7 +175,7 @@ def select_grasps(
     object_ids = np.asarray([str(o) for o in grasps.object_id])
     splits = np.asarray([split_of.get(o, "unknown") for o in object_ids])
     reasons = invalid_grasp_reasons(grasps)
-    candidate = np.isin(splits, list(cfg.splits))
+    candidate = np.isin(splits, list(cfg.splits_of(method)))
     if sample_rows is None:
         keys, draw = np.arange(len(grasps)), method
     else:
@@ -146,9 +186,9 @@ def select_grasps(
     chosen: list[int] = []
     for object_id in sorted(set(object_ids[candidate])):
         rows = np.flatnonzero(candidate & (object_ids == object_id))
-        chosen.extend(sorted(rows[np.argsort(priority[rows], kind="stable")][: cfg.grasps_per_object].tolist()))
+        chosen.extend(sorted(rows[np.argsort(priority[rows], kind="stable")][: cfg.cap_of(method)].tolist()))
     rows = np.asarray(chosen, dtype=np.int64)
-    arrays = {name: grasps.arrays[name][rows] for name in SELECTED_ARRAYS}
+    arrays = {name: grasps.arrays[name][rows] for name in (*SELECTED_ARRAYS, BUDGET_POSES) if name in grasps.arrays}
     arrays["method"] = np.full(len(rows), method, dtype=object)
     arrays["split"] = splits[rows].astype(object)
     arrays["source_row"] = rows
@@ -158,11 +198,12 @@ def select_grasps(
     return GraspSet(arrays, {"invalid_reasons": dict(sorted(invalid_reasons.items()))})
 
 
-def _pure_syntheses(store: GraspSet) -> np.ndarray:
-    """Rows of a sampled (or post-optimized) store that are pure syntheses; all rows when it has no method column."""
+def _labelled(store: GraspSet, label: str = PURE_SYNTHESIS) -> np.ndarray:
+    """Rows of a sampled (or post-optimized) store with method label ``label``; for pure syntheses, all rows of a store
+    without a method column."""
     if "method" not in store.arrays:
-        return np.ones(len(store), dtype=bool)
-    return np.asarray([str(m) for m in store.arrays["method"]]) == PURE_SYNTHESIS
+        return np.full(len(store), label == PURE_SYNTHESIS, dtype=bool)
+    return np.asarray([str(m) for m in store.arrays["method"]]) == label
 
 
 def method_grasps(method: str, sources: Sequence[GraspSet], seed_passing_only: bool = False) -> GraspSet:
@@ -177,11 +218,12 @@ def method_grasps(method: str, sources: Sequence[GraspSet], seed_passing_only: b
     parts = []
     for source in sources:
         subset = source
-        if method in ("cvae_raw", "cvae_post"):
-            subset = source.select(_pure_syntheses(source))
+        if method in SAMPLED_METHODS:
+            subset = source.select(_labelled(source, SAMPLED_METHODS[method][0]))
         if method == "seed" and seed_passing_only and "passes_energy_thresholds" in source.arrays:
             subset = source.select(np.asarray(source.arrays["passes_energy_thresholds"], dtype=bool))
-        parts.append(GraspSet({k: subset.arrays[k] for k in SELECTED_ARRAYS}, subset.attrs))
+        kept = (*SELECTED_ARRAYS, BUDGET_POSES) if all(BUDGET_POSES in src.arrays for src in sources) else SELECTED_ARRAYS
+        parts.append(GraspSet({k: subset.arrays[k] for k in kept}, subset.attrs))
     return GraspSet.concatenate(parts, attrs={})
 
 
@@ -198,22 +240,23 @@ def sample_rows_of(method: str, sources: Mapping[str, Sequence[GraspSet]], known
     if method not in PAIRED_METHODS or not samples:
         return None
     sampled = _rows_of(samples)
-    synthesis = _pure_syntheses(sampled)
-    if method == "cvae_raw":
-        return np.flatnonzero(synthesis)
-    stores = list(sources.get("post" if method == "cvae_post" else "random_post") or [])
+    label, stage = SAMPLED_METHODS.get(method, (PURE_SYNTHESIS, "random_post"))
+    labelled = _labelled(sampled, label)
+    if stage == "sample":
+        return np.flatnonzero(labelled)
+    stores = list(sources.get(stage) or [])
     stored = _rows_of(stores)
-    if method == "cvae_post":
+    if stage == "post":
         rows = np.arange(len(sampled))
     else:
-        rows = np.flatnonzero(synthesis & (invalid_grasp_reasons(sampled, known_object_ids) == ""))
+        rows = np.flatnonzero(labelled & (invalid_grasp_reasons(sampled, known_object_ids) == ""))
         if len(stored) == 0:  # the baseline was not run (post_optimize.random_baseline off)
             return np.zeros(0, dtype=np.int64)
     lined_up = len(stored) == len(rows) and np.array_equal(stored.object_id.astype(str), sampled.object_id[rows].astype(str))
     lined_up = lined_up and np.array_equal(stored.scale, sampled.scale[rows])
     if not lined_up:
         raise ValueError(f"{method}: its {len(stored)} grasps do not line up with the {len(rows)} sampled rows they refine (object or scale differ): stores of different runs?")
-    return rows[_pure_syntheses(stored)] if method == "cvae_post" else rows
+    return rows[_labelled(stored, label)] if stage == "post" else rows
 
 
 def _rows_of(stores: Sequence[GraspSet]) -> GraspSet:
@@ -228,7 +271,8 @@ def stage_seconds_per_grasp(method: str, sources: Mapping[str, Sequence[GraspSet
     With ``seed_passing_only`` the seed's cost is per grasp that passes the thresholds
     (its seconds per grasp divided by its pass fraction).
     """
-    stages = {"seed": ("seed",), "cvae_raw": ("sample",), "cvae_post": ("sample", "post"), "random_post": ("random_post",), "dexgraspnet": ()}
+    stages = {"seed": ("seed",), "random_post": ("random_post",), "dexgraspnet": ()}
+    stages.update({m: ("sample",) if stage == "sample" else ("sample", "post") for m, (_, stage) in SAMPLED_METHODS.items()})
     out = {}
     for stage in stages[method]:
         sets = sources.get(stage, [])
@@ -340,6 +384,16 @@ def iterations_to_reach(curves, method: str, level: float) -> float:
     return float(below["iteration"].iloc[0]) if len(below) and math.isfinite(level) else math.nan
 
 
+def convergence_ratio(random_iterations: float, method_iterations: float) -> float:
+    """How many times fewer iterations a method needs than random init to reach random init's final median E_post.
+
+    Iteration 0 counts as 1 (a start already at that level); NaN when either never gets there.
+    """
+    if not (math.isfinite(random_iterations) and math.isfinite(method_iterations)):
+        return math.nan
+    return max(random_iterations, 1.0) / max(method_iterations, 1.0)
+
+
 def concatenate_shards(shards: Sequence[GraspSet]) -> GraspSet | None:
     """The simulated shards with grasps as one set (the arrays they all have); None when all are empty."""
     if not any(len(s) for s in shards):
@@ -363,10 +417,10 @@ def metrics_tables(
     splits = np.asarray([str(s) for s in simulated.arrays.get("split", [])])
     rows, object_rows = [], []
     for method in cfg.methods:
-        for split in cfg.splits:
+        for split in cfg.splits_of(method):
             mask = (methods == method) & (splits == split)
             subset = {k: v[mask] for k, v in simulated.arrays.items()}
-            row = {"method": method, "split": split}
+            row = {"method": method, "split": split, "rung": rung_of(method, split)}
             row.update(metrics.summarize_grasps(subset, joint_limits_rad, cfg.entropy_bins, cfg.pca_components, bootstrap_seed))
             stage_times = seconds.get(method, {})
             row["seconds_per_grasp"] = sum(stage_times.values()) if stage_times else math.nan
@@ -378,4 +432,48 @@ def metrics_tables(
                 object_rows.append({"method": method, "split": split, **object_row})
     per_object_columns = ["method", "split", "object_id", "n_grasps", "n_invalid", "lift_success_rate", "six_dir_success_rate", "any_lift_success", "penetration_mean_mm"]
     return pd.DataFrame(rows), pd.DataFrame(object_rows, columns=per_object_columns)
+
+
+def simulate_budget(selected: GraspSet, objects_dirs, lift_cfg, threads: int) -> np.ndarray:
+    """(N, S) lift success (1.0 / 0.0, lift test only) of each selected grasp's pose after every budget iteration.
+
+    The six-direction test is left out here: the budget curve asks how soon post-optimization
+    reaches a grasp that holds, and the lift test alone is ten times cheaper.
+    """
+    import dataclasses
+
+    from dexlite_pipeline.sim.lift import run_lift_tests
+
+    poses = np.asarray(selected.arrays[BUDGET_POSES], dtype=np.float32)
+    count, steps = poses.shape[:2]
+    flat = GraspSet(
+        {
+            "hand_pose": poses.reshape(count * steps, -1),
+            "object_id": np.repeat(np.asarray(selected.object_id, dtype=object), steps),
+            "scale": np.repeat(np.asarray(selected.scale, dtype=np.float32), steps),
+        },
+        {},
+    )
+    result = run_lift_tests(flat, objects_dirs, dataclasses.replace(lift_cfg, six_directions=False), threads)
+    return np.asarray(result["lift_success"], dtype=np.float64).reshape(count, steps)
+
+
+def budget_rows(simulated: GraspSet, iterations: Sequence[int], methods: Sequence[str]) -> list[dict]:
+    """Rows of budget.csv: lift success rate (Wilson 95%) of each method after each budget iteration."""
+    if BUDGET_SUCCESS not in simulated.arrays or not len(iterations):
+        return []
+    success = np.asarray(simulated.arrays[BUDGET_SUCCESS], dtype=np.float64)
+    labels = np.asarray([str(m) for m in simulated.arrays["method"]])
+    rows = []
+    for method in methods:
+        mine = success[labels == method]
+        mine = mine[np.isfinite(mine).all(axis=1)] if len(mine) else mine
+        if not len(mine):
+            continue
+        for column, iteration in enumerate(iterations):
+            flags = mine[:, column] > 0.5
+            low, high = metrics.wilson_interval(flags)
+            rows.append({"method": method, "iteration": int(iteration), "n_grasps": int(len(flags)),
+                         "lift_success_rate": metrics.rate(flags), "lift_ci95_low": low, "lift_ci95_high": high})
+    return rows
 

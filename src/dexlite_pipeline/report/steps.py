@@ -12,7 +12,9 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 
 # evaluate --step simulate: which grasps are chosen and how they are measured
-SIMULATE_KEYS = ("methods", "splits", "grasps_per_object", "six_directions", "seed_passing_only", "energy_batch_size")
+SIMULATE_KEYS = (
+    "methods", "splits", "grasps_per_object", "ladder_grasps_per_object", "six_directions", "seed_passing_only", "energy_batch_size",
+)  # fmt: skip
 # evaluate --step aggregate: which rows metrics.csv has and how diversity is measured
 AGGREGATE_KEYS = ("methods", "splits", "entropy_bins", "pca_components")
 # dexlite report: pictures per method (its rule passes the whole config, which the report shows)

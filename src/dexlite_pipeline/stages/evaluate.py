@@ -35,7 +35,12 @@ SOURCE_OPTIONS = {
     "random_post": "random-post",
     "dexgraspnet": "dexgraspnet",
 }
-METHOD_SOURCES = {"seed": "seed", "cvae_raw": "sample", "cvae_post": "post", "random_post": "random_post", "dexgraspnet": "dexgraspnet"}
+BUDGET_METHODS = ("cvae_post", "random_post")  # methods whose post-optimization budget curve is simulated
+METHOD_SOURCES = {
+    "seed": "seed", "random_post": "random_post", "dexgraspnet": "dexgraspnet",
+    "cvae_raw": "sample", "cvae_recon": "sample", "cvae_prior_train": "sample",
+    "cvae_post": "post", "cvae_recon_post": "post", "cvae_prior_train_post": "post",
+}  # fmt: skip
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -80,7 +85,8 @@ def _simulate(args, config: dict) -> int:
     from dexlite_pipeline.config import from_section
     from dexlite_pipeline.objects.assets import available_object_ids
     from dexlite_pipeline.report.evaluation import (
-        evaluate_config_from, method_grasps, require_split_objects, sample_rows_of, select_grasps, simulate, stage_seconds_per_grasp,
+        BUDGET_POSES, BUDGET_SUCCESS, evaluate_config_from, method_grasps, require_split_objects, sample_rows_of, select_grasps,
+        simulate, simulate_budget, stage_seconds_per_grasp,
     )  # fmt: skip
     from dexlite_pipeline.report.steps import SIMULATE_KEYS
     from dexlite_pipeline.sharding import shard_objects
@@ -104,6 +110,7 @@ def _simulate(args, config: dict) -> int:
         sources["dexgraspnet"] = [s.select(np.isin([str(o) for o in s.object_id], sorted(mine))) for s in sources["dexgraspnet"]]
 
     parts, seconds, invalid, missing = [], {}, {}, []
+    budget_iterations: list[int] = []
     for method in cfg.methods:
         method_sources = sources[METHOD_SOURCES[method]]
         if not method_sources:
@@ -111,11 +118,21 @@ def _simulate(args, config: dict) -> int:
             continue
         grasps = method_grasps(method, method_sources, cfg.seed_passing_only)
         selected = select_grasps(grasps, method, split_of, cfg, seed, sample_rows_of(method, sources, known_object_ids))
-        parts.append(GraspSet(selected.arrays, {}))
+        arrays = dict(selected.arrays)
+        budget_poses = arrays.pop(BUDGET_POSES, None)
+        if budget_poses is not None and method in BUDGET_METHODS and len(selected):
+            budget_iterations = budget_iterations or _budget_iterations(method_sources)
+            arrays[BUDGET_SUCCESS] = simulate_budget(selected, args.objects, lift_cfg, args.threads or 1)
+            log.info("evaluate shard %s: %s: budget curve over iterations %s simulated", args.shard, method, budget_iterations)
+        parts.append(GraspSet(arrays, {}))
         invalid[method] = selected.attrs["invalid_reasons"]
         seconds[method] = stage_seconds_per_grasp(method, sources, cfg.seed_passing_only)
         n_invalid = sum(invalid[method].values())
         log.info("evaluate shard %s: %s: %d grasps (%d invalid) on %d objects", args.shard, method, len(selected), n_invalid, len(set(selected.object_id)))
+    width = max((p.arrays[BUDGET_SUCCESS].shape[1] for p in parts if BUDGET_SUCCESS in p.arrays), default=0)
+    if width:  # methods without a budget curve get NaN rows, so the shards concatenate
+        for part in parts:
+            part.arrays.setdefault(BUDGET_SUCCESS, np.full((len(part), width), np.nan))
     selected_all = GraspSet.concatenate(parts, attrs={})
     if "method" not in selected_all.arrays:
         for name, dtype in (("method", object), ("split", object), ("source_row", np.int64), ("sample_row", np.int64), ("invalid_reason", object)):
@@ -130,12 +147,22 @@ def _simulate(args, config: dict) -> int:
         "method_seconds_per_grasp": seconds,
         "invalid_reasons": invalid,
         "methods_without_input": missing,
+        "budget_iterations": budget_iterations,
         **{k: v for k, v in result.attrs.items() if k not in ("invalid_reasons",)},
     }
     write_grasp_store(args.out, result, _json_safe(attrs))
     summary = {m: int((np.asarray(result.arrays["method"]) == m).sum()) for m in cfg.methods}
     print(f"evaluate shard {args.shard}: simulated {len(result)} grasps {summary} -> {args.out}")
     return 0
+
+
+def _budget_iterations(stores) -> list[int]:
+    """The budget iterations recorded by the post-optimization stores (attribute ``budget_iterations``)."""
+    for store in stores:
+        found = store.attrs.get("budget_iterations")
+        if found:
+            return [int(i) for i in found]
+    return []
 
 
 def _json_safe(value):
@@ -156,7 +183,8 @@ def _aggregate(args, config: dict) -> int:
     from dexlite_pipeline.io.atomic import atomic_path
     from dexlite_pipeline.io.grasp_store import empty_grasp_set, read_grasp_store
     from dexlite_pipeline.report.evaluation import (
-        concatenate_shards, convergence_rows, evaluate_config_from, iterations_to_reach, metrics_tables, require_split_objects,
+        budget_rows, concatenate_shards, convergence_ratio, convergence_rows, evaluate_config_from, iterations_to_reach, metrics_tables,
+        require_split_objects,
     )  # fmt: skip
     from dexlite_pipeline.report.metrics import BOOTSTRAP_RESAMPLES
     from dexlite_pipeline.report.steps import AGGREGATE_KEYS
@@ -190,11 +218,19 @@ def _aggregate(args, config: dict) -> int:
     baseline_final = convergence.get("random_post", {}).get("E_post_median_final", math.nan)
     for method, summary in convergence.items():
         summary["iterations_to_random_final_E_post"] = iterations_to_reach(curves, method, baseline_final)
+    random_needs = convergence.get("random_post", {}).get("iterations_to_random_final_E_post", math.nan)
+    for method, summary in convergence.items():
+        summary["convergence_ratio"] = convergence_ratio(random_needs, summary["iterations_to_random_final_E_post"])
     joint_limits = ShadowHand().joint_limits.cpu().numpy()
     bootstrap_seed = int(config.get("seed") or 0)
     metrics_df, per_object_df = metrics_tables(simulated, joint_limits, cfg, seconds, convergence, sim_seconds, bootstrap_seed)
+    budget_iterations = next((s.attrs.get("budget_iterations") for s in shards if s.attrs.get("budget_iterations")), [])
+    budget = pd.DataFrame(
+        budget_rows(simulated, budget_iterations, BUDGET_METHODS),
+        columns=["method", "iteration", "n_grasps", "lift_success_rate", "lift_ci95_low", "lift_ci95_high"],
+    )
     out_dir = Path(args.out_dir)
-    for name, frame in (("metrics.csv", metrics_df), ("per_object.csv", per_object_df), ("convergence.csv", curves)):
+    for name, frame in (("metrics.csv", metrics_df), ("per_object.csv", per_object_df), ("convergence.csv", curves), ("budget.csv", budget)):
         with atomic_path(out_dir / name) as tmp:
             frame.to_csv(tmp, index=False, float_format="%.6g")
     lift_attrs = next((s.attrs.get("lift_config") for s in shards if s.attrs.get("lift_config")), {})

@@ -79,6 +79,7 @@ def run(args: argparse.Namespace) -> int:
         "shard": args.shard,
         "config": _config_attrs(seed, config, spen_margin_m),
         "trace_iterations": list(range(config.iterations + 1)),
+        "budget_iterations": list(config.budget()),
         "sample_seconds_per_grasp": sampled.attrs.get("seconds_per_grasp"),
     }
     if object_ids:

@@ -1,7 +1,9 @@
 """Stage ``sample_grasps`` (one shard): CVAE grasps for the shard's stable objects.
 
 Held-out objects get pure synthesis (method ``cvae_raw``); training objects get dataset
-expansion from their lift-validated grasps (``cvae_expand_latent`` / ``cvae_expand_point``).
+expansion from their lift-validated grasps (``cvae_expand_latent`` / ``cvae_expand_point``)
+and, with ``sample.ladder``, the learning ladder's rows (``cvae_recon``: reconstructions of
+the grasps the model was trained on; ``cvae_prior_train``: pure synthesis on training objects).
 Objects are grouped into shards exactly as the other grasp stages do
 (``sharding.shard_objects`` over the stable objects of the catalogs). Objects that get no
 grasps are listed with the reason in the store's ``skipped_objects`` attribute.
@@ -56,7 +58,7 @@ def run(args: argparse.Namespace) -> int:
     from dexlite_pipeline.model.association import grasp_rays
     from dexlite_pipeline.model.checkpoint import load_checkpoint
     from dexlite_pipeline.model.data import ObjectClouds
-    from dexlite_pipeline.model.sampling import expand, synthesize
+    from dexlite_pipeline.model.sampling import expand, ladder_rows, synthesis_rows
     from dexlite_pipeline.objects.assets import available_object_ids, load_asset
     from dexlite_pipeline.sharding import shard_objects
 
@@ -78,7 +80,10 @@ def run(args: argparse.Namespace) -> int:
     seeds = known_grasps(args.lift, {oid for oid in ids if splits[oid] == "train"})
     seeded = set(seeds.object_id.tolist())
     skipped.update({oid: "training object without lift-validated grasps to expand" for oid in ids if splits[oid] == "train" and oid not in seeded})
-    targets = sorted(set(heldout) | seeded)
+    model_train_ids = set(checkpoint.get("train_object_ids") or [])
+    ladder_ids = sorted(oid for oid in ids if splits[oid] == "train" and oid in model_train_ids) if config.ladder else []
+    fixed_clouds = bool(checkpoint["train_config"].get("fixed_clouds", False))
+    targets = sorted(set(heldout) | seeded | set(ladder_ids))
     generator = torch.Generator().manual_seed(seed * 1000 + shard)
     started = time.perf_counter()
     poses, object_ids, scales, methods = [], [], [], []
@@ -86,13 +91,11 @@ def run(args: argparse.Namespace) -> int:
         assets = [load_asset(args.objects, oid) for oid in targets]
         clouds = ObjectClouds(assets, device)
         if heldout and config.synthesis_grasps_per_object > 0:
-            count = config.synthesis_grasps_per_object
-            obj = np.repeat([clouds.index_of[o] for o in heldout], count)
-            scale = np.tile(np.resize(np.asarray(config.scales, np.float32), count), len(heldout))
-            poses.append(synthesize(model, clouds, obj, scale, points, generator))
-            object_ids += [clouds.object_ids[i] for i in obj]
-            scales.append(scale)
-            methods += [SYNTHESIS] * len(obj)
+            synthesized = synthesis_rows(model, clouds, heldout, config, points, generator, fixed_clouds, SYNTHESIS)
+            poses.append(synthesized.hand_pose)
+            object_ids += synthesized.object_id
+            scales.append(synthesized.scale)
+            methods += synthesized.method
         if len(seeds) and config.expansion_grasps_per_object > 0:
             pick = np.concatenate([
                 np.flatnonzero(seeds.object_id == oid)[np.arange(config.expansion_grasps_per_object) % int((seeds.object_id == oid).sum())]
@@ -103,10 +106,18 @@ def run(args: argparse.Namespace) -> int:
             obj = np.array([clouds.index_of[o] for o in seeds.object_id[pick]])
             scale = seeds.scale[pick].astype(np.float32)
             move_point = torch.rand(len(pick), generator=generator) < config.expansion_point_fraction
-            poses.append(expand(model, clouds, known, origin, direction, obj, scale, move_point.to(device), config, points, generator))
+            poses.append(expand(model, clouds, known, origin, direction, obj, scale, move_point.to(device), config, points, generator, fixed_clouds))
             object_ids += [clouds.object_ids[i] for i in obj]
             scales.append(scale)
             methods += [EXPAND_POINT if m else EXPAND_LATENT for m in move_point.tolist()]
+        if ladder_ids and "training_grasps" in checkpoint:
+            ladder = ladder_rows(model, checkpoint["training_grasps"], clouds, ladder_ids, config, points, generator, ShadowHand(device), fixed_clouds)
+            poses.append(ladder.hand_pose)
+            object_ids += ladder.object_id
+            scales.append(ladder.scale)
+            methods += ladder.method
+        elif ladder_ids:
+            log.warning("%s: the model file holds no training grasps, so the learning ladder's rows are not sampled", args.model)
     seconds = time.perf_counter() - started
     count = sum(len(p) for p in poses)
     arrays = {

@@ -107,7 +107,7 @@ def run(args: argparse.Namespace) -> int:
     from dexlite_pipeline.hand import ShadowHand
     from dexlite_pipeline.model.checkpoint import save_checkpoint
     from dexlite_pipeline.model.data import TrainingDataError, build_training_data, select_training_grasps, split_validation
-    from dexlite_pipeline.model.training import grasp_energy_terms, train_cvae
+    from dexlite_pipeline.model.training import fit_training_codes, grasp_energy_terms, train_cvae
     from dexlite_pipeline.objects.assets import available_object_ids, load_asset
 
     cfg = parse_config_json(args.config_json)
@@ -143,6 +143,12 @@ def run(args: argparse.Namespace) -> int:
 
     energy_terms = grasp_energy_terms(energy, config.contact_samples, seed)
     result = train_cvae(data, train_index, val_index, config, energy_terms, seed, on_epoch=report)
+    fit = fit_training_codes(result.model, data, train_index, config)
+    log.info(
+        "fit rung (encoder-mean reconstructions of the %d training grasps): median palm rotation error %.2f deg, "
+        "translation %.2f mm, mean joint error %.4f rad",
+        len(train_index), fit["rotation_error_deg_median"], fit["translation_error_mm_median"], fit["joint_error_rad_mean"],
+    )
     history = pd.DataFrame(result.history)
     out_dir.mkdir(parents=True, exist_ok=True)
     with atomic_path(out_dir / "history.csv") as tmp:
@@ -161,6 +167,12 @@ def run(args: argparse.Namespace) -> int:
             "train_object_ids": object_ids,
             "excluded_grasps": excluded,
             "torch_version": torch.__version__,
+            "fit": fit,
+        },
+        training_grasps={
+            "hand_pose": grasps.hand_pose[train_index],
+            "object_id": grasps.object_id[train_index],
+            "scale": grasps.scale[train_index],
         },
     )
     log.info("wrote %s (%d steps, %d grasps of %d objects)", out_dir / "cvae.pt", result.steps, len(grasps), len(object_ids))
