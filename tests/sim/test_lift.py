@@ -190,3 +190,30 @@ def test_lost_object_early_exit_matches_full_simulation_and_held_grasp_runs_ever
     full_ratio, full_reason, full_steps = lift(away)
     assert full_reason == "dropped" and full_steps == sim.total_steps
     assert early_ratio == pytest.approx(full_ratio, abs=1e-6)  # metres of the 1 m lift: equal to rounding
+
+
+def test_preclose_adds_to_the_flexion_targets_only(hand, objects_dir, hooks):
+    """DexLite's lenient protocol closes every finger's J2/J1/J0 a further preclose_rad; other joints keep the squeeze."""
+    asset = load_asset(objects_dir, "round_bar")
+    far = torch.tensor(hooks["round_bar"][None]).clone()
+    far[0, :3] += 0.5  # nothing touches: the squeeze alone moves no joint
+    strict = squeeze_targets(hand, SdfBank([asset]), far, torch.tensor([SCALE]), LiftConfig()).targets[0].numpy()
+    lenient = squeeze_targets(hand, SdfBank([asset]), far, torch.tensor([SCALE]), LiftConfig(preclose_rad=0.07)).targets[0].numpy()
+    np.testing.assert_allclose(strict, hooks["round_bar"][6:], atol=1e-6)
+    limits = hand.joint_limits.cpu().numpy()
+    for name, i in JOINT.items():
+        flexion = name[:2] in ("FF", "MF", "RF", "LF") and name[-2:] in ("J2", "J1", "J0")
+        expected = min(strict[i] + 0.07, limits[i, 1]) if flexion else strict[i]
+        assert lenient[i] == pytest.approx(expected, abs=1e-6), name
+
+
+def test_condim_reaches_the_object_geoms(objects_dir):
+    from dexlite_pipeline.sim.scene import LiftScene
+
+    asset = load_asset(objects_dir, "round_bar")
+    scene = LiftScene.build(asset.convex_paths, SCALE, LiftConfig(contact_condim=6))
+    assert set(scene.model.geom_condim[scene.object_geoms].tolist()) == {6}
+    scene.configure(LiftConfig())  # a cached scene takes another config's condim in place
+    assert set(scene.model.geom_condim[scene.object_geoms].tolist()) == {3}
+    with pytest.raises(Exception, match="contact_condim"):
+        LiftConfig(contact_condim=5)

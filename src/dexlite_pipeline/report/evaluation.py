@@ -22,13 +22,14 @@ failure (``invalid_reason``), so emitting NaN poses cannot raise a method's rate
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import logging
 import math
 import time
 from collections import Counter
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -65,11 +66,30 @@ LADDER_RUNGS = {
 LADDER_SPLIT = "train"
 SELECTED_ARRAYS = ("hand_pose", "object_id", "scale")
 BUDGET_POSES = "budget_hand_pose"  # (N, S, 28) post-optimized poses after each budget iteration (post stores)
+SEED_PROTOCOL_SUCCESS = "seed_protocol_lift_success"  # lift success under ``evaluate.seed_protocol``'s physics
 BUDGET_SUCCESS = "budget_lift_success"  # (N, S) lift success of those poses (1/0; NaN where a method has none)
 CONVERGENCE_COLUMNS = (
     "threshold_reached_fraction", "threshold_iteration_median", "E_post_median_initial", "E_post_median_final",
     "iterations_to_random_final_E_post", "convergence_ratio",
 )  # fmt: skip
+
+
+@dataclass(frozen=True)
+class SeedProtocolConfig:
+    """Config ``evaluate.seed_protocol``: DexLite's own lift test, a second, lenient measure beside ours.
+
+    Its physics differs from ours in these constants (lift test only); everything else is ours.
+    """
+
+    enabled: bool = True
+    friction: float = 2.0
+    preclose_rad: float = 0.07
+    contact_condim: int = 6
+    success_lift_ratio: float = 0.7
+
+    def lift_overrides(self) -> dict:
+        return {"friction": self.friction, "preclose_rad": self.preclose_rad, "contact_condim": self.contact_condim,
+                "success_lift_ratio": self.success_lift_ratio, "six_directions": False}
 
 
 @dataclass(frozen=True)
@@ -86,6 +106,7 @@ class EvaluateConfig:
     energy_batch_size: int = 256  # grasps per energy evaluation batch
     rendered_per_method: int = 2  # successes and failures pictured per method in the report
     ladder_grasps_per_object: int = 8  # cap per (ladder method, training object) on simulated grasps
+    seed_protocol: SeedProtocolConfig = field(default_factory=SeedProtocolConfig)  # DexLite's lenient test beside ours
 
     def __post_init__(self) -> None:
         unknown = sorted(set(self.methods) - set(METHODS))
@@ -295,6 +316,7 @@ def simulate(
     device: str,
     threads: int,
     energy_batch_size: int,
+    seed_protocol: SeedProtocolConfig | None = None,
 ) -> GraspSet:
     """Energies and lift (+ six-direction) results for every selected grasp, as one grasp set.
 
@@ -315,6 +337,11 @@ def simulate(
     start = time.perf_counter()
     arrays.update(run_lift_tests(selected, objects_dirs, lift_cfg, threads))
     lift_s = time.perf_counter() - start
+    if seed_protocol is not None and seed_protocol.enabled:
+        lenient = dataclasses.replace(lift_cfg, **seed_protocol.lift_overrides())
+        log.info("lift test of %d grasps under DexLite's protocol (friction %g, +%g rad, ratio %g)", len(selected),
+                 lenient.friction, lenient.preclose_rad, lenient.success_lift_ratio)
+        arrays[SEED_PROTOCOL_SUCCESS] = run_lift_tests(selected, objects_dirs, lenient, threads)["lift_success"]
     attrs = dict(selected.attrs)
     attrs["energy_seconds_per_grasp"] = energy_s / simulated_count
     attrs["simulation_seconds_per_grasp"] = lift_s / simulated_count
@@ -426,6 +453,11 @@ def metrics_tables(
             row["seconds_per_grasp"] = sum(stage_times.values()) if stage_times else math.nan
             row["seconds_per_grasp_by_stage"] = ";".join(f"{k}={v:.4g}" for k, v in stage_times.items())
             row["simulation_seconds_per_grasp"] = sim_seconds_per_grasp
+            if SEED_PROTOCOL_SUCCESS in subset:
+                lenient = np.asarray(subset[SEED_PROTOCOL_SUCCESS], dtype=bool)
+                low, high = metrics.wilson_interval(lenient)
+                row.update({"seed_protocol_lift_success_rate": metrics.rate(lenient), "seed_protocol_lift_success_ci95_low": low,
+                            "seed_protocol_lift_success_ci95_high": high})
             row.update({name: convergence.get(method, {}).get(name, math.nan) for name in CONVERGENCE_COLUMNS})
             rows.append(row)
             for object_row in metrics.per_object_rows(subset) if mask.any() else []:

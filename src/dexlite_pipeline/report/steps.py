@@ -14,6 +14,7 @@ from collections.abc import Mapping, Sequence
 # evaluate --step simulate: which grasps are chosen and how they are measured
 SIMULATE_KEYS = (
     "methods", "splits", "grasps_per_object", "ladder_grasps_per_object", "six_directions", "seed_passing_only", "energy_batch_size",
+    "seed_protocol",
 )  # fmt: skip
 # evaluate --step aggregate: which rows metrics.csv has and how diversity is measured
 AGGREGATE_KEYS = ("methods", "splits", "entropy_bins", "pca_components")

@@ -29,6 +29,9 @@ class LiftConfig:
     lift_s: float = 2.0  # duration of the rise (smooth profile)
     final_hold_s: float = 0.2  # hold at the top
     success_lift_ratio: float = 0.9  # success if dz_object / dz_hand is above this
+    preclose_rad: float = 0.0  # added to the finger flexion joints' (J2, J1, J0) closing targets, rad (DexLite's test: 0.07)
+    contact_condim: int = 3  # MuJoCo contact dimensionality of the object's geoms: 3 sliding friction, 4 + torsional,
+    # 6 + rolling (DexLite's test: 6)
     max_initial_penetration_m: float = 0.01  # deeper initial penetration fails before simulation
     control_substeps: int = 10  # simulation steps per control update (targets and mocap)
     multi_contact: bool = True  # MuJoCo's multi-point convex contacts (its default); off: ~15% faster, ~1% of outcomes change
@@ -51,6 +54,10 @@ class LiftConfig:
                 raise ConfigError(f"lift.{name} must be non-negative, got {getattr(self, name)}")
         if not 0 < self.success_lift_ratio <= 1:
             raise ConfigError(f"lift.success_lift_ratio must be in (0, 1], got {self.success_lift_ratio}")
+        if self.contact_condim not in (1, 3, 4, 6):
+            raise ConfigError(f"lift.contact_condim must be one of 1, 3, 4, 6, got {self.contact_condim}")
+        if self.preclose_rad < 0:
+            raise ConfigError(f"lift.preclose_rad must be non-negative, got {self.preclose_rad}")
         if self.control_substeps < 1:
             raise ConfigError(f"lift.control_substeps must be >= 1, got {self.control_substeps}")
 

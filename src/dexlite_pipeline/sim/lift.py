@@ -118,6 +118,13 @@ class SqueezePlan:
         return self.link_depth_m.amax(dim=1)
 
 
+def _flexion_mask(hand: ShadowHand) -> torch.Tensor:
+    """(22,) 1 for the flexion joints J2, J1, J0 of the four fingers, else 0."""
+    names = [name.split(":")[-1] for name in JOINT_NAMES]
+    flexion = [name[:2] in ("FF", "MF", "RF", "LF") and name[-2:] in ("J2", "J1", "J0") for name in names]
+    return torch.as_tensor(flexion, dtype=torch.float32, device=hand.device)
+
+
 def squeeze_targets(hand: ShadowHand, bank: SdfBank, hand_pose: torch.Tensor, scale: torch.Tensor, config: LiftConfig) -> SqueezePlan:
     """Joint targets a little past the grasp pose, pushing touching links into the object.
 
@@ -143,6 +150,8 @@ def squeeze_targets(hand: ShadowHand, bank: SdfBank, hand_pose: torch.Tensor, sc
         largest = g.abs().amax(dim=1, keepdim=True)
         step = torch.where(largest > 0, g / largest.clamp(min=1e-12), torch.zeros_like(g)) * config.squeeze_rad
         delta = delta + step * active[:, None]
+    if config.preclose_rad > 0:  # a lenient protocol's extra closure of every finger's flexion joints
+        delta = delta + config.preclose_rad * _flexion_mask(hand).to(delta.dtype)
     limits = hand.joint_limits.to(delta.dtype)
     targets = (hand_pose[:, JOINTS].detach() + delta).clamp(limits[:, 0], limits[:, 1])
     return SqueezePlan(targets=targets, link_depth_m=link_depth.detach())

@@ -107,7 +107,7 @@ def scene_mjcf(convex_paths: list[Path], scale: float, config: LiftConfig) -> st
             mesh=f"object_piece_{i:03d}",
             contype="1",
             conaffinity="1",
-            condim="3",
+            condim=str(config.contact_condim),
             friction=f"{config.friction} 0.005 0.0001",
             group="3",
         )
@@ -219,6 +219,7 @@ class LiftScene:
         m.opt.disableflags = (m.opt.disableflags & ~multi_ccd_off) | (0 if config.multi_contact else multi_ccd_off)
         m.geom_friction[self.hand_geoms, 0] = config.friction
         m.geom_friction[self.object_geoms, 0] = config.friction
+        m.geom_condim[self.object_geoms] = config.contact_condim  # a contact takes the larger condim of its two geoms
         m.body_mass[self.object_body] = config.object_mass_kg
         m.body_inertia[self.object_body] = self.compiled_inertia * (config.object_mass_kg / self.compiled_mass_kg)
         # Position actuator: force = kp * (ctrl - q), i.e. gain kp and bias [0, -kp, 0].

@@ -138,7 +138,7 @@ def _simulate(args, config: dict) -> int:
         for name, dtype in (("method", object), ("split", object), ("source_row", np.int64), ("sample_row", np.int64), ("invalid_reason", object)):
             selected_all.arrays[name] = np.zeros(0, dtype=dtype)
     device = resolve_device(config.get("device") or "auto")
-    result = simulate(selected_all, args.objects, lift_cfg, energy_cfg, device, args.threads or 1, cfg.energy_batch_size)
+    result = simulate(selected_all, args.objects, lift_cfg, energy_cfg, device, args.threads or 1, cfg.energy_batch_size, cfg.seed_protocol)
     attrs = {
         "stage": "evaluate",
         "shard": args.shard,
