@@ -55,12 +55,18 @@ def test_metrics_rows_carry_rungs_and_ladder_rows_use_the_training_split():
         "scale": np.full(count, 0.1, np.float32), "method": methods, "split": splits,
         "lift_success": np.array([1, 1, 0, 0, 1, 0], bool), "six_dir_success": np.array([1, 0, 0, 0, 0, 0], bool),
         "invalid_reason": np.full(count, "", dtype=object),
+        "fit_rotation_error_deg": np.array([1.0, 2.0, 9.0, np.nan, np.nan, np.nan]),
+        "fit_translation_error_mm": np.array([3.0, 4.0, 5.0, np.nan, np.nan, np.nan]),
+        "fit_joint_error_rad": np.array([0.1, 0.2, 0.6, np.nan, np.nan, np.nan]),
     })
     cfg = EvaluateConfig(methods=("cvae_raw", "cvae_recon"), splits=("heldout",))
     table, _ = metrics_tables(simulated, np.tile([0.0, 1.5], (22, 1)), cfg, {}, {})
     rows = {r.method: r for r in table.itertuples()}
     assert rows["cvae_recon"].split == "train" and rows["cvae_recon"].rung == "fit"
     assert rows["cvae_recon"].lift_success_rate == pytest.approx(2 / 3) and rows["cvae_recon"].six_dir_success_rate == pytest.approx(1 / 3)
+    assert rows["cvae_recon"].fit_rotation_error_deg_median == 2.0 and rows["cvae_recon"].fit_translation_error_mm_median == 4.0
+    assert rows["cvae_recon"].fit_joint_error_rad_mean == pytest.approx(0.3)
+    assert math.isnan(rows["cvae_raw"].fit_rotation_error_deg_median)
     assert rows["cvae_raw"].split == "heldout" and rows["cvae_raw"].rung == "heldout" and rows["cvae_raw"].lift_success_rate == pytest.approx(1 / 3)
 
 

@@ -142,11 +142,15 @@ class GraspCVAE(nn.Module):
         # training so that sampling can draw from their aggregate (``sampling.sample_latents``).
         self.register_buffer("codes_mu", torch.zeros(0, config.latent_dim))
         self.register_buffer("codes_log_var", torch.zeros(0, config.latent_dim))
+        self.register_buffer("codes_local_feature", torch.zeros(0, config.pointnet_widths[-1]))
 
-    def set_latent_codes(self, mu: torch.Tensor, log_var: torch.Tensor) -> None:
-        """Store the training grasps' codes (N, latent) each."""
+    def set_latent_codes(self, mu: torch.Tensor, log_var: torch.Tensor, local_feature: torch.Tensor | None = None) -> None:
+        """Store the training grasps' codes (N, latent) each and the local feature (N, F) of each grasp's associated point."""
         self.codes_mu = mu.detach().to(self.codes_mu.device).clone()
         self.codes_log_var = log_var.detach().to(self.codes_log_var.device).clone()
+        if local_feature is None:
+            local_feature = torch.zeros(0, self.config.pointnet_widths[-1])
+        self.codes_local_feature = local_feature.detach().to(self.codes_mu.device).clone()
 
     @property
     def latent_codes(self) -> tuple[torch.Tensor, torch.Tensor]:

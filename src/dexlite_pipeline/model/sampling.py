@@ -31,6 +31,7 @@ EXPAND_POINT = "cvae_expand_point"
 RECONSTRUCTION = "cvae_recon"  # learning ladder, fit rung: encoder-mean reconstructions of the training grasps
 PRIOR_ON_TRAINING = "cvae_prior_train"  # learning ladder, in-distribution rung: pure synthesis on training objects
 LATENT_PRIORS = ("standard", "aggregate")
+ANCHOR_RULES = ("uniform", "matched")
 
 
 @dataclass(frozen=True)
@@ -47,10 +48,13 @@ class SampleConfig:
     ladder: bool = True  # also sample the learning ladder's rows on training objects (reconstructions, prior samples)
     latent_prior: str = "aggregate"  # where synthesis draws latents: standard N(0, I) or the training codes' aggregate
     latent_temperature: float = 1.0  # scale of the latent noise
+    anchor_rule: str = "uniform"  # associated points of pure synthesis: uniform, or matched to each latent's training grasp
 
     def __post_init__(self) -> None:
         if not self.scales or min(self.scales) <= 0:
             raise ValueError("sample.scales must be a non-empty list of positive scales")
+        if self.anchor_rule not in ANCHOR_RULES:
+            raise ValueError(f"sample.anchor_rule {self.anchor_rule!r} is not one of {', '.join(ANCHOR_RULES)}")
         if self.latent_prior not in LATENT_PRIORS:
             raise ValueError(f"sample.latent_prior {self.latent_prior!r} is not one of {', '.join(LATENT_PRIORS)}")
 
@@ -71,7 +75,9 @@ def _clouds_for(
     return drawn, torch.as_tensor(keys, device=clouds.device)
 
 
-def sample_latents(model: GraspCVAE, count: int, generator: torch.Generator, prior: str = "standard", temperature: float = 1.0) -> torch.Tensor:
+def sample_latents(
+    model: GraspCVAE, count: int, generator: torch.Generator, prior: str = "standard", temperature: float = 1.0
+) -> tuple[torch.Tensor, torch.Tensor | None]:
     """(count, latent) latents for new grasps.
 
     - ``standard``: z ~ N(0, I), the VAE's nominal prior;
@@ -79,11 +85,12 @@ def sample_latents(model: GraspCVAE, count: int, generator: torch.Generator, pri
       (stored with the model, ``latent_codes``): the codes of a CVAE trained with a small KL
       weight do not fill N(0, I), so nominal-prior latents decode to poses unlike any grasp,
       while the aggregate posterior is where the decoder was trained.
-    ``temperature`` scales the noise (of the prior, or of each code's posterior).
+    ``temperature`` scales the noise (of the prior, or of each code's posterior). Also returns
+    which training code each latent came from (None for the standard prior).
     """
     device = next(model.parameters()).device
     if prior == "standard":
-        return torch.randn(count, model.config.latent_dim, generator=generator).to(device) * temperature
+        return torch.randn(count, model.config.latent_dim, generator=generator).to(device) * temperature, None
     if prior != "aggregate":
         raise ValueError(f"latent prior {prior!r} is not one of {', '.join(LATENT_PRIORS)}")
     codes_mu, codes_log_var = model.latent_codes
@@ -91,7 +98,20 @@ def sample_latents(model: GraspCVAE, count: int, generator: torch.Generator, pri
         raise ValueError("latent prior 'aggregate' needs a model saved with its training codes (train again with this version)")
     pick = torch.randint(len(codes_mu), (count,), generator=generator).to(device)
     noise = torch.randn(count, model.config.latent_dim, generator=generator).to(device)
-    return codes_mu[pick] + temperature * torch.exp(0.5 * codes_log_var[pick]) * noise
+    return codes_mu[pick] + temperature * torch.exp(0.5 * codes_log_var[pick]) * noise, pick
+
+
+def matched_points(model: GraspCVAE, per_point: torch.Tensor, cloud_index: torch.Tensor, code_index: torch.Tensor) -> torch.Tensor:
+    """(B,) associated points whose local feature is nearest that of the training grasp each latent came from.
+
+    ``per_point`` (C, N, F) are PointNet's per-point features of the clouds. A training
+    grasp's code describes a hand relative to a patch of surface; decoding it where the new
+    object has the most similar patch (by the network's own local feature) places it where
+    a grasp of that kind fits, instead of at a uniformly random point.
+    """
+    wanted = model.codes_local_feature[code_index]  # (B, F)
+    distance = (per_point[cloud_index] - wanted[:, None, :]).pow(2).sum(-1)  # (B, N)
+    return distance.argmin(dim=1)
 
 
 @torch.no_grad()
@@ -133,12 +153,25 @@ def synthesize(
     prior: str = "standard",
     temperature: float = 1.0,
     fixed_clouds: bool = True,
+    anchor_rule: str = "uniform",
 ) -> torch.Tensor:
-    """(B, 28) decoded poses for grasps on (object_index, scale) pairs, from the latent ``prior`` (``sample_latents``)."""
+    """(B, 28) decoded poses for grasps on (object_index, scale) pairs, from the latent ``prior`` (``sample_latents``).
+
+    ``anchor_rule``: ``uniform`` (associated points uniformly random over the cloud) or
+    ``matched`` (``matched_points``; needs the aggregate prior, whose latents name their code).
+    """
+    if anchor_rule not in ANCHOR_RULES:
+        raise ValueError(f"anchor rule {anchor_rule!r} is not one of {', '.join(ANCHOR_RULES)}")
+    if anchor_rule == "matched" and (prior != "aggregate" or len(model.codes_local_feature) == 0):
+        raise ValueError("anchor rule 'matched' needs latent prior 'aggregate' and a model saved with its codes' local features")
     drawn, cloud_index = _clouds_for(clouds, object_index, scale, points, generator, fixed_clouds)
-    point_index = random_points(len(object_index), points, generator).to(clouds.device)
-    condition = model.condition(drawn, cloud_index, point_index)
-    latent = sample_latents(model, len(object_index), generator, prior, temperature)
+    features = model.pointnet(drawn)
+    latent, code_index = sample_latents(model, len(object_index), generator, prior, temperature)
+    if anchor_rule == "matched":
+        point_index = matched_points(model, features[1], cloud_index, code_index)
+    else:
+        point_index = random_points(len(object_index), points, generator).to(clouds.device)
+    condition = condition_at(features, cloud_index, point_index)
     anchor = model.sampling_anchors(anchor_at(drawn, cloud_index, point_index), generator)
     return features_to_pose(model.decode(latent, condition, anchor))
 
@@ -185,6 +218,7 @@ class SampledRows:
     object_id: list[str]
     scale: np.ndarray
     method: list[str]
+    reference_pose: np.ndarray | None = None  # (B, 28) the known grasp a row reconstructs, NaN for other rows
 
 
 def synthesis_rows(
@@ -201,7 +235,9 @@ def synthesis_rows(
     count = config.synthesis_grasps_per_object
     obj = np.repeat([clouds.index_of[o] for o in object_ids], count)
     scale = np.tile(np.resize(np.asarray(config.scales, np.float32), count), len(object_ids))
-    pose = synthesize(model, clouds, obj, scale, points, generator, config.latent_prior, config.latent_temperature, fixed_clouds)
+    pose = synthesize(
+        model, clouds, obj, scale, points, generator, config.latent_prior, config.latent_temperature, fixed_clouds, config.anchor_rule
+    )
     return SampledRows(hand_pose=pose, object_id=[clouds.object_ids[i] for i in obj], scale=scale, method=[label] * len(obj))
 
 
@@ -224,7 +260,7 @@ def ladder_rows(
       per training object, by the same rule as on held-out objects (``synthesize``).
     """
     wanted = set(object_ids)
-    poses, ids, scales, methods = [], [], [], []
+    poses, ids, scales, methods, references = [], [], [], [], []
     known_ids = np.asarray(training_grasps["object_id"], dtype=object)
     rows = np.flatnonzero([str(o) in wanted and str(o) in clouds.index_of for o in known_ids])
     if len(rows):
@@ -233,6 +269,7 @@ def ladder_rows(
         obj = np.array([clouds.index_of[str(o)] for o in known_ids[rows]])
         origin, direction = grasp_rays(hand, known)
         poses.append(reconstruct(model, clouds, known, origin, direction, obj, scale, points, fixed_clouds, generator))
+        references.append(known.cpu().numpy())
         ids += [str(o) for o in known_ids[rows]]
         scales.append(scale)
         methods += [RECONSTRUCTION] * len(rows)
@@ -243,10 +280,12 @@ def ladder_rows(
         ids += synthesized.object_id
         scales.append(synthesized.scale)
         methods += synthesized.method
+        references.append(np.full((len(synthesized.method), 28), np.nan, np.float32))
     return SampledRows(
         hand_pose=torch.cat(poses) if poses else torch.zeros(0, 28, device=clouds.device),
         object_id=ids,
         scale=np.concatenate(scales) if scales else np.zeros(0, np.float32),
         method=methods,
+        reference_pose=np.concatenate(references) if references else np.zeros((0, 28), np.float32),
     )
 

@@ -293,14 +293,15 @@ def evaluate_loss(
 @torch.no_grad()
 def encode_training_grasps(
     model: GraspCVAE, data: TrainingData, index: np.ndarray, config: TrainConfig
-) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-    """Posterior (mu, log sigma^2) and the encoder-mean reconstruction (features, object frame) of grasps ``index``.
+) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
+    """Posterior (mu, log sigma^2), the encoder-mean reconstruction (features, object frame) and the associated point's
+    local feature of grasps ``index``.
 
     Eval mode, each grasp on the cloud it was trained on (the fixed subset, or the first
     ``points_per_cloud`` samples when clouds were drawn at random) and at its associated point.
     """
     model.eval()
-    mus, log_vars, decoded, grasp_ids = [], [], [], []
+    mus, log_vars, decoded, grasp_ids, local = [], [], [], [], []
     for chunks in cloud_batches(data.cloud_key, np.asarray(index), config.batch_size, config.clouds_per_batch, None):
         batch = make_batch(chunks, data.cloud_key, data.object_index, data.scale, data.pose_features.device)
         if config.fixed_clouds:
@@ -317,13 +318,14 @@ def encode_training_grasps(
         log_vars.append(log_var)
         decoded.append(model.decode(mu, condition, anchor))
         grasp_ids.append(batch.grasp_index)
+        local.append(condition[:, model.config.pointnet_widths[-1] :])
     # batches group grasps by cloud: put the rows back in the order of ``index``
     row_of = {int(g): r for r, g in enumerate(np.concatenate(grasp_ids))} if grasp_ids else {}
     take = torch.as_tensor([row_of[int(g)] for g in np.asarray(index)], dtype=torch.long)
     if not grasp_ids:
         empty = torch.zeros(0, model.config.latent_dim)
-        return empty, empty, torch.zeros(0, data.pose_features.shape[1])
-    return torch.cat(mus)[take], torch.cat(log_vars)[take], torch.cat(decoded)[take]
+        return empty, empty, torch.zeros(0, data.pose_features.shape[1]), torch.zeros(0, model.config.pointnet_widths[-1])
+    return torch.cat(mus)[take], torch.cat(log_vars)[take], torch.cat(decoded)[take], torch.cat(local)[take]
 
 
 def fit_training_codes(model: GraspCVAE, data: TrainingData, index: np.ndarray, config: TrainConfig) -> dict[str, float]:
@@ -332,8 +334,8 @@ def fit_training_codes(model: GraspCVAE, data: TrainingData, index: np.ndarray, 
     The errors are those of the encoder-mean reconstructions of grasps ``index``: median
     palm rotation error (deg), median palm translation error (mm), mean joint error (rad).
     """
-    mu, log_var, decoded = encode_training_grasps(model, data, index, config)
-    model.set_latent_codes(mu, log_var)
+    mu, log_var, decoded, local = encode_training_grasps(model, data, index, config)
+    model.set_latent_codes(mu, log_var, local)
     rotation, translation, joints = pose_errors(features_to_pose(decoded), features_to_pose(data.pose_features[torch.as_tensor(index)]))
     return {
         "grasps": int(len(index)),

@@ -453,6 +453,11 @@ def metrics_tables(
             row["seconds_per_grasp"] = sum(stage_times.values()) if stage_times else math.nan
             row["seconds_per_grasp_by_stage"] = ";".join(f"{k}={v:.4g}" for k, v in stage_times.items())
             row["simulation_seconds_per_grasp"] = sim_seconds_per_grasp
+            for name in FIT_ERRORS:
+                values = np.asarray(subset.get(name, []), dtype=np.float64)
+                values = values[np.isfinite(values)]
+                statistic = np.mean if name == "fit_joint_error_rad" else np.median
+                row[f"{name}_{'mean' if statistic is np.mean else 'median'}"] = float(statistic(values)) if len(values) else math.nan
             if SEED_PROTOCOL_SUCCESS in subset:
                 lenient = np.asarray(subset[SEED_PROTOCOL_SUCCESS], dtype=bool)
                 low, high = metrics.wilson_interval(lenient)
@@ -508,4 +513,31 @@ def budget_rows(simulated: GraspSet, iterations: Sequence[int], methods: Sequenc
             rows.append({"method": method, "iteration": int(iteration), "n_grasps": int(len(flags)),
                          "lift_success_rate": metrics.rate(flags), "lift_ci95_low": low, "lift_ci95_high": high})
     return rows
+
+
+FIT_ERRORS = ("fit_rotation_error_deg", "fit_translation_error_mm", "fit_joint_error_rad")
+FIT_METHODS = ("cvae_recon", "cvae_recon_post")  # rows that reproduce a known grasp (``reference_hand_pose``)
+
+
+def fit_error_arrays(selected: GraspSet, method: str, sampled_reference: np.ndarray | None) -> dict[str, np.ndarray]:
+    """Per-row pose errors against the known grasp a fit-rung row reconstructs; NaN for rows of other methods.
+
+    ``sampled_reference`` is the sampled stores' ``reference_hand_pose`` (rows as in
+    ``sample_row``): the training grasp each reconstruction (and its post-optimized version) stands for.
+    """
+    import torch
+
+    from dexlite_pipeline.model.pose import pose_errors
+
+    out = {name: np.full(len(selected), np.nan) for name in FIT_ERRORS}
+    if method not in FIT_METHODS or sampled_reference is None or not len(selected):
+        return out
+    reference = np.asarray(sampled_reference, dtype=np.float32)[np.asarray(selected.arrays["sample_row"])]
+    pose = np.asarray(selected.hand_pose, dtype=np.float32)
+    usable = np.isfinite(reference).all(axis=1) & np.isfinite(pose).all(axis=1)
+    if usable.any():
+        errors = pose_errors(torch.as_tensor(pose[usable]), torch.as_tensor(reference[usable]))
+        for name, values in zip(FIT_ERRORS, errors):
+            out[name][usable] = values.numpy()
+    return out
 

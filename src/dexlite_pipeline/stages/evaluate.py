@@ -86,7 +86,7 @@ def _simulate(args, config: dict) -> int:
     from dexlite_pipeline.objects.assets import available_object_ids
     from dexlite_pipeline.report.evaluation import (
         BUDGET_POSES, BUDGET_SUCCESS, evaluate_config_from, method_grasps, require_split_objects, sample_rows_of, select_grasps,
-        simulate, simulate_budget, stage_seconds_per_grasp,
+        fit_error_arrays, simulate, simulate_budget, stage_seconds_per_grasp,
     )  # fmt: skip
     from dexlite_pipeline.report.steps import SIMULATE_KEYS
     from dexlite_pipeline.sharding import shard_objects
@@ -109,6 +109,7 @@ def _simulate(args, config: dict) -> int:
             mine |= set(shard_objects([str(o) for o in store.object_id], args.shard, shard_count))
         sources["dexgraspnet"] = [s.select(np.isin([str(o) for o in s.object_id], sorted(mine))) for s in sources["dexgraspnet"]]
 
+    sampled_reference = _sampled_reference(sources["sample"])
     parts, seconds, invalid, missing = [], {}, {}, []
     budget_iterations: list[int] = []
     for method in cfg.methods:
@@ -119,6 +120,7 @@ def _simulate(args, config: dict) -> int:
         grasps = method_grasps(method, method_sources, cfg.seed_passing_only)
         selected = select_grasps(grasps, method, split_of, cfg, seed, sample_rows_of(method, sources, known_object_ids))
         arrays = dict(selected.arrays)
+        arrays.update(fit_error_arrays(selected, method, sampled_reference))
         budget_poses = arrays.pop(BUDGET_POSES, None)
         if budget_poses is not None and method in BUDGET_METHODS and len(selected):
             budget_iterations = budget_iterations or _budget_iterations(method_sources)
@@ -154,6 +156,13 @@ def _simulate(args, config: dict) -> int:
     summary = {m: int((np.asarray(result.arrays["method"]) == m).sum()) for m in cfg.methods}
     print(f"evaluate shard {args.shard}: simulated {len(result)} grasps {summary} -> {args.out}")
     return 0
+
+
+def _sampled_reference(stores) -> np.ndarray | None:
+    """The sampled stores' ``reference_hand_pose`` concatenated in order (rows as ``sample_row``); None when absent."""
+    if not stores or not all("reference_hand_pose" in s.arrays for s in stores):
+        return None
+    return np.concatenate([np.asarray(s.arrays["reference_hand_pose"], np.float32).reshape(len(s), 28) for s in stores])
 
 
 def _budget_iterations(stores) -> list[int]:

@@ -87,6 +87,7 @@ def run(args: argparse.Namespace) -> int:
     generator = torch.Generator().manual_seed(seed * 1000 + shard)
     started = time.perf_counter()
     poses, object_ids, scales, methods = [], [], [], []
+    reference_pose = None
     if targets:
         assets = [load_asset(args.objects, oid) for oid in targets]
         clouds = ObjectClouds(assets, device)
@@ -112,10 +113,12 @@ def run(args: argparse.Namespace) -> int:
             methods += [EXPAND_POINT if m else EXPAND_LATENT for m in move_point.tolist()]
         if ladder_ids and "training_grasps" in checkpoint:
             ladder = ladder_rows(model, checkpoint["training_grasps"], clouds, ladder_ids, config, points, generator, ShadowHand(device), fixed_clouds)
+            references = np.full((sum(len(p) for p in poses), 28), np.nan, np.float32)
             poses.append(ladder.hand_pose)
             object_ids += ladder.object_id
             scales.append(ladder.scale)
             methods += ladder.method
+            reference_pose = np.concatenate([references, ladder.reference_pose])
         elif ladder_ids:
             log.warning("%s: the model file holds no training grasps, so the learning ladder's rows are not sampled", args.model)
     seconds = time.perf_counter() - started
@@ -126,6 +129,8 @@ def run(args: argparse.Namespace) -> int:
         "scale": np.concatenate(scales) if scales else np.zeros(0, np.float32),
         "method": np.asarray(methods, dtype=object),
     }
+    # the known grasp each ladder reconstruction reproduces (NaN for other rows): the fit rung's pose errors
+    arrays["reference_hand_pose"] = reference_pose if reference_pose is not None else np.full((count, 28), np.nan, np.float32)
     attrs = {
         "stage": "sample_grasps",
         "shard": args.shard,
