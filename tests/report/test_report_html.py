@@ -113,7 +113,7 @@ def _with_ladder(frame: pd.DataFrame) -> pd.DataFrame:
         "method": ["cvae_prior_train", "cvae_recon_post", "cvae_recon", "cvae_raw"], "split": ["train", "train", "train", "heldout"],
         "rung": ["in_distribution", "fit", "fit", "heldout"], "n_grasps": [40, 40, 40, 80], "n_objects": [10, 10, 10, 5],
         "lift_success_rate": [0.05, 0.3, 0.02, 0.0625], "six_dir_success_rate": [0.0, 0.2, 0.0, 0.0],
-        "palm_rotation_error_deg": [np.nan, 20.0, 107.0, np.nan],
+        "fit_rotation_error_deg_median": [np.nan, 20.0, 107.0, np.nan], "gap_to_training_mm": [3.0, np.nan, np.nan, np.nan],
     })  # fmt: skip
     return pd.concat([frame.assign(rung=np.nan), ladder], ignore_index=True)
 
@@ -124,7 +124,8 @@ def test_ladder_section_lists_rungs_in_order_and_only_when_measured():
     assert section.startswith("<h2>Learning ladder</h2>")
     positions = [section.index(method_label(m)) for m in ("cvae_recon", "cvae_recon_post", "cvae_prior_train")]
     assert positions == sorted(positions) and section.index("1 · fit") < section.index("2 · in distribution") < section.index("3 · held out")
-    assert "palm rotation error deg" in section and ">107<" in section  # a column only the ladder fills
+    assert "palm rotation error (°, median)" in section and ">107<" in section  # the fit rung's own column, readable
+    assert "gap to training mm" in section  # any other column only the ladder fills, by its name
     assert headline_rows(metrics)["method"].tolist() == ["cvae_post", "random_post", "cvae_raw", "seed"]  # cvae_raw once
     assert ladder_html(_run_metrics()) == "" and ladder_html(_run_metrics().assign(rung=np.nan)) == ""
 
@@ -210,3 +211,23 @@ def test_metrics_without_or_with_empty_ladder_column_render(column):
     for frame in (_run_metrics(), _run_metrics().assign(**{column: ""})):
         page = build_report_html(ReportInputs(metrics=frame, per_object=None, convergence=None, history=None, simulated=None))
         assert "Learning ladder" not in page and "17.5%" in page
+
+
+def test_lenient_test_column_only_when_measured():
+    lenient = _run_metrics().assign(seed_protocol_lift_success_rate=[0.7, 0.1, 0.4, 0.45], seed_protocol_lift_success_ci95_low=0.3,
+                                    seed_protocol_lift_success_ci95_high=0.8)  # fmt: skip
+    table = compact_table_html(headline_rows(lenient))
+    assert "lift, DexLite's test" in table and "<td class='rate lenient'><b>40.0%</b> <small>(30–80)</small></td>" in table
+    assert "DexLite's test" not in compact_table_html(headline_rows(_run_metrics()))
+    assert "DexLite's test" not in compact_table_html(headline_rows(_run_metrics().assign(seed_protocol_lift_success_rate=np.nan)))
+
+
+def test_budget_plot_only_with_budget_rows():
+    budget = pd.DataFrame({"method": ["cvae_post"] * 3 + ["random_post"] * 3, "iteration": [0, 100, 200] * 2,
+                           "lift_success_rate": [0.05, 0.1, 0.2, 0.0, 0.1, 0.21], "lift_ci95_low": 0.0, "lift_ci95_high": 0.4})  # fmt: skip
+    inputs = dict(metrics=_run_metrics(), per_object=None, convergence=None, history=None, simulated=None)
+    with_budget = build_report_html(ReportInputs(**inputs, budget=budget))
+    without = build_report_html(ReportInputs(**inputs))
+    title = "<h2>Lift success against the post-optimization budget"
+    assert title in with_budget and title not in without
+    assert with_budget.count("data:image/png") == without.count("data:image/png") + 1

@@ -52,8 +52,17 @@ TABLE_COLUMNS = (
     "six_dir_success_ci95_low", "six_dir_success_ci95_high", "six_dir_success_boot_ci95_low", "six_dir_success_boot_ci95_high",
     "penetration_mean_mm", "penetration_p95_mm", "contact_distance_mean_mm", "E_fc_mean", "energy_threshold_pass_rate",
     "joint_entropy_bits", "pca_explained_variance_k1", "pca_explained_variance_k3", "seconds_per_grasp",
-    "E_post_median_final", "iterations_to_random_final_E_post", "threshold_reached_fraction",
+    "E_post_median_final", "iterations_to_random_final_E_post", "threshold_reached_fraction", "convergence_ratio",
+    "seed_protocol_lift_success_rate", "seed_protocol_lift_success_ci95_low", "seed_protocol_lift_success_ci95_high",
+    "fit_rotation_error_deg_median", "fit_translation_error_mm_median", "fit_joint_error_rad_mean",
 )  # fmt: skip
+# Readable headers of the ladder's own columns (the fit rung's pose errors against the grasps it reconstructs).
+LADDER_COLUMN_LABELS = {
+    "fit_rotation_error_deg_median": "palm rotation error (°, median)",
+    "fit_translation_error_mm_median": "palm position error (mm, median)",
+    "fit_joint_error_rad_mean": "joint error (rad, mean)",
+}
+LENIENT = "seed_protocol_lift_success"  # the same grasps under DexLite's more lenient lift test (evaluate.seed_protocol)
 # The methods of the main comparison, in the order the compact table lists them.
 HEADLINE_METHODS = ("cvae_post", "random_post", "cvae_raw", "seed", "dexgraspnet")
 HEADLINE_METHOD = "cvae_post"  # the pipeline's product: the sentence leads with it when present
@@ -64,7 +73,7 @@ HISTOGRAMS = (("E_fc", "E_fc"), ("penetration_mm", "penetration (mm)"), ("contac
 # Bars of the success chart: (rate column, legend); the per-object rate is a small marker instead.
 SUCCESS_BARS = (("lift_success_rate", "lift test"), ("six_dir_success_rate", "six-direction test"))
 OBJECT_MARKER_LABEL = "objects with ≥ 1 lifted grasp"
-CSV_FILES = ("metrics.csv", "per_object.csv", "convergence.csv")
+CSV_FILES = ("metrics.csv", "per_object.csv", "convergence.csv", "budget.csv")
 # The run's key settings: (label, path in the config). Training steps actually run come from the history.
 KEY_SETTINGS = (
     ("seed", ("seed",)),
@@ -110,6 +119,7 @@ class ReportInputs:
     config: Mapping = field(default_factory=dict)  # the whole run config, shown in the page
     title: str = "DexLite evaluation"
     csv_links: Mapping[str, str] = field(default_factory=dict)  # CSV file name -> link relative to the page
+    budget: object | None = None  # budget.csv: lift success after each post-optimization budget (optional)
     seed: int = 0  # seeds the random choice of pictured grasps
 
 
@@ -274,6 +284,26 @@ def convergence_plot(curves) -> str | None:
         ax.set_yscale("log")
     ax.set_xlabel("post-optimization iteration")
     ax.set_ylabel(energy)
+    ax.legend(fontsize=7)
+    return figure_png_base64(fig)
+
+
+def budget_plot(budget) -> str | None:
+    """Lift success after each post-optimization budget (iterations), per method, with Wilson 95% bands."""
+    if budget is None or not len(budget) or not {"method", "iteration", "lift_success_rate"} <= set(budget.columns):
+        return None
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(5.5, 3.2))
+    for method, group in budget.groupby("method", sort=False):
+        group = group.sort_values("iteration")
+        rate = group["lift_success_rate"].astype(float) * 100
+        line = ax.plot(group["iteration"], rate, marker="o", ms=3, label=method_label(str(method)))[0]
+        if {"lift_ci95_low", "lift_ci95_high"} <= set(group.columns):
+            ax.fill_between(group["iteration"], group["lift_ci95_low"].astype(float) * 100, group["lift_ci95_high"].astype(float) * 100,
+                            color=line.get_color(), alpha=0.15)  # fmt: skip
+    ax.set_xlabel("post-optimization iterations")
+    ax.set_ylabel("held in lift test (%)")
+    ax.set_ylim(0, 100)
     ax.legend(fontsize=7)
     return figure_png_base64(fig)
 
@@ -475,15 +505,15 @@ def _interval_columns(row, name: str) -> tuple[object, object]:
     return None, None
 
 
-def _rate_cell(row, name: str) -> str:
+def _rate_cell(row, name: str, css: str = "") -> str:
     """A rate as "17.5%" in bold with its 95% interval in small type."""
     value = row.get(f"{name}_rate")
     text = percent_text(value)
     if text == "not run":
-        return "<td class='rate na'>not run</td>"
+        return f"<td class='rate na {css}'>not run</td>"
     interval = interval_text(*_interval_columns(row, name))
     small = f" <small>({interval})</small>" if interval else ""
-    return f"<td class='rate'><b>{text}</b>{small}</td>"
+    return f"<td class='rate {css}'><b>{text}</b>{small}</td>"
 
 
 def _grasps_cell(row) -> str:
@@ -502,14 +532,24 @@ def _grasps_cell(row) -> str:
     return f"<td>{text}</td>"
 
 
-def compact_table_html(frame, first_column: str = "method") -> str:
+def has_lenient(frame) -> bool:
+    """Whether the rows carry the lift rate under DexLite's lenient test (evaluate.seed_protocol)."""
+    column = f"{LENIENT}_rate"
+    return frame is not None and column in frame.columns and np.isfinite(frame[column].astype(float)).any()
+
+
+LENIENT_HEADER = "<th class='lenient'>lift, DexLite's test</th>"
+
+
+def compact_table_html(frame) -> str:
     """The headline table: readable names, grasps, lift and six-direction rates with intervals, a few quality columns."""
     if frame is None or not len(frame):
         return "<p>No method was evaluated.</p>"
     several_splits = "split" in frame.columns and frame["split"].nunique() > 1
+    lenient = has_lenient(frame)
     head = (
         "<tr><th>method</th>" + ("<th>objects</th>" if several_splits else "") + "<th>grasps on objects</th>"
-        "<th>held: lift test</th><th>held: six pushes</th><th>penetration (mm)</th>"
+        "<th>held: lift test</th><th>held: six pushes</th>" + (LENIENT_HEADER if lenient else "") + "<th>penetration (mm)</th>"
         "<th>contact dist. (mm)</th><th>time / grasp</th></tr>"
     )
     body = []
@@ -518,8 +558,10 @@ def compact_table_html(frame, first_column: str = "method") -> str:
         cells = [f"<td class='name'>{html.escape(method_label(method))} <span class='id'>{html.escape(method)}</span></td>"]
         if several_splits:
             cells.append(f"<td>{html.escape(split_label(row['split']))}</td>")
+        cells += [_grasps_cell(row), _rate_cell(row, "lift_success"), _rate_cell(row, "six_dir_success")]
+        if lenient:
+            cells.append(_rate_cell(row, LENIENT, "lenient"))
         cells += [
-            _grasps_cell(row), _rate_cell(row, "lift_success"), _rate_cell(row, "six_dir_success"),
             f"<td>{_number(row.get('penetration_mean_mm'))}</td>", f"<td>{_number(row.get('contact_distance_mean_mm'))}</td>",
             f"<td>{seconds_text(row.get('seconds_per_grasp'))}</td>",
         ]  # fmt: skip
@@ -532,10 +574,12 @@ def _ladder_extra_columns(metrics_df, ladder) -> list[str]:
     import pandas as pd
 
     others = metrics_df.drop(index=ladder.index)
-    known = set(TABLE_COLUMNS) | {"rung"}
+    known = (set(TABLE_COLUMNS) - set(LADDER_COLUMN_LABELS)) | {"rung"}
     extra = []
-    for column in metrics_df.columns:
-        if column in known or not pd.api.types.is_numeric_dtype(metrics_df[column]):
+    for column in [*LADDER_COLUMN_LABELS, *metrics_df.columns]:
+        if column not in metrics_df.columns or column in extra:
+            continue
+        if column in known or column.startswith(LENIENT) or not pd.api.types.is_numeric_dtype(metrics_df[column]):
             continue
         if ladder[column].notna().any() and (not len(others) or others[column].isna().all()):
             extra.append(column)
@@ -548,9 +592,11 @@ def ladder_html(metrics_df) -> str:
     if ladder is None:
         return ""
     extra = _ladder_extra_columns(metrics_df, ladder)
+    lenient = has_lenient(ladder)
     head = (
         "<tr><th>rung</th><th class='name'>method</th><th>grasps on objects</th><th>held: lift test</th><th>held: six pushes</th>"
-        + "".join(f"<th class='wrap'>{html.escape(c.replace('_', ' '))}</th>" for c in extra) + "</tr>"
+        + (LENIENT_HEADER if lenient else "")
+        + "".join(f"<th class='wrap'>{html.escape(LADDER_COLUMN_LABELS.get(c, c.replace('_', ' ')))}</th>" for c in extra) + "</tr>"
     )
     body = []
     previous = None
@@ -564,6 +610,8 @@ def ladder_html(metrics_df) -> str:
         method = str(row["method"])
         cells += [f"<td class='name'>{html.escape(method_label(method))} <span class='id'>{html.escape(method)}</span></td>",
                   _grasps_cell(row), _rate_cell(row, "lift_success"), _rate_cell(row, "six_dir_success")]  # fmt: skip
+        if lenient:
+            cells.append(_rate_cell(row, LENIENT, "lenient"))
         cells += [f"<td>{_format(row[c])}</td>" for c in extra]
         body.append("<tr>" + "".join(cells) + "</tr>")
     return (
@@ -708,7 +756,8 @@ table{border-collapse:collapse;font-size:12px;margin:.6em 0}th,td{border:1px sol
 th{background:#f0f0f0}td:first-child,th:first-child{text-align:left}
 table.compact{font-size:14px}table.compact td,table.compact th{padding:5px 9px}table.compact td.name{text-align:left;white-space:nowrap}
 table.compact th{white-space:nowrap}table.compact th.wrap{white-space:normal;max-width:9em}table.compact th.name{text-align:left}
-td.rate b{font-size:15px}td.rate small{color:#555}td.na{color:#888}.id{color:#888;font-size:11px;font-family:monospace}
+td.rate b{font-size:15px}td.rate small{color:#555}td.na{color:#888}td.lenient,th.lenient{color:#666;background:#fafafa}
+td.lenient b{font-size:13px;font-weight:600}.id{color:#888;font-size:11px;font-family:monospace}
 table.text td,table.text th{text-align:left;max-width:34em}
 .gallery{display:flex;flex-wrap:wrap;gap:10px}figure{margin:0;border:1px solid #ddd;padding:4px;width:300px}
 figcaption{font-size:11px;color:#444}img{max-width:100%}.note{font-size:12px;color:#555;max-width:1150px}
@@ -774,15 +823,21 @@ def build_report_html(inputs: ReportInputs) -> str:
     sections.append(
         "<p class='note'>Both tests count with equal weight: “lift test” = the object rose with the hand; "
         "“six pushes” = it stayed put under a push of about its own weight along each of ±x, ±y, ±z in turn. "
-        "Small numbers: object-level bootstrap 95% interval (objects resampled). Definitions and every column: end of the page.</p>"
+        "Small numbers: object-level bootstrap 95% interval (objects resampled)"
+        + ("; “lift, DexLite's test”: the same grasps under DexLite's more lenient lift test (Wilson interval), for comparison "
+           "with its published numbers" if has_lenient(headline) else "")
+        + ". Definitions and every column: end of the page.</p>"
     )
     sections.append(ladder_html(inputs.metrics))
     for title, image in (
         ("Success per method", success_plot(inputs.metrics)),
         ("Energies and penetration", histogram_plot(inputs.simulated)),
         ("Post-optimization convergence (median, interquartile band)", convergence_plot(inputs.convergence)),
+        ("Lift success against the post-optimization budget (Wilson 95% band)", budget_plot(inputs.budget)),
         ("CVAE training curves", training_plot(inputs.history)),
     ):
+        if image is None and title.startswith("Lift success against"):
+            continue  # only runs that lift-test post-optimization budgets have this plot
         sections.append(f"<h2>{html.escape(title)}</h2>" + (_img(image, title) if image else "<p>Not available in this run.</p>"))
         if title.startswith("Post-optimization convergence"):
             sections.append(convergence_note(inputs.metrics, inputs.convergence))

@@ -54,6 +54,8 @@ def run(args: argparse.Namespace) -> int:
     history = None
     if args.history and Path(args.history).is_file():
         history = pd.read_csv(args.history)
+    budget_path = eval_dir / "budget.csv"
+    budget = pd.read_csv(budget_path) if budget_path.is_file() and budget_path.stat().st_size else None
     inputs = ReportInputs(
         metrics=pd.read_csv(eval_dir / "metrics.csv"),
         per_object=pd.read_csv(eval_dir / "per_object.csv"),
@@ -66,6 +68,7 @@ def run(args: argparse.Namespace) -> int:
         config=config,
         csv_links=csv_links(eval_dir, Path(args.out).parent),
         seed=int(config.get("seed") or 0),
+        budget=budget,
     )
     write_text_atomic(args.out, build_report_html(inputs))
     n_rendered = 0 if simulated is None else len(set(np.asarray(simulated.arrays.get("method", [])).tolist()))
