@@ -754,7 +754,8 @@ h1{font-size:22px;margin:0 0 .4em}h2{font-size:18px;margin:1.4em 0 .4em}h3{font-
 p.result{font-size:17px;line-height:1.45;max-width:1150px;margin:.3em 0 .6em}
 table{border-collapse:collapse;font-size:12px;margin:.6em 0}th,td{border:1px solid #ccc;padding:3px 6px;text-align:right}
 th{background:#f0f0f0}td:first-child,th:first-child{text-align:left}
-table.compact{font-size:14px}table.compact td,table.compact th{padding:5px 9px}table.compact td.name{text-align:left;white-space:nowrap}
+table.compact{font-size:14px}table.compact td,table.compact th{padding:4px 8px}table.compact td.name{text-align:left}
+table.compact td.name .id{display:block}
 table.compact th{white-space:nowrap}table.compact th.wrap{white-space:normal;max-width:9em}table.compact th.name{text-align:left}
 td.rate b{font-size:15px}td.rate small{color:#555}td.na{color:#888}td.lenient,th.lenient{color:#666;background:#fafafa}
 td.lenient b{font-size:13px;font-weight:600}.id{color:#888;font-size:11px;font-family:monospace}
