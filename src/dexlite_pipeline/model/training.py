@@ -97,9 +97,9 @@ class TrainConfig:
     epochs: int = 100000
     max_steps: int = 8000
     batch_size: int = 64
-    clouds_per_batch: int = 1
+    clouds_per_batch: int = 4
     points_per_cloud: int = 512
-    learning_rate: float = 1e-3
+    learning_rate: float = 2e-3
     validation_fraction: float = 0.1
     min_grasps: int = 8
     energy_object_points: int = 512
@@ -111,7 +111,7 @@ class TrainConfig:
     grad_clip_norm: float = 1.0
     energy_warmup_fraction: float = 0.3
     weight_recon: float = 1.0
-    weight_kl: float = 0.001
+    weight_kl: float = 1e-5
     weight_fc: float = 0.0
     weight_dis: float = 0.0
     weight_pen: float = 0.0
@@ -244,6 +244,8 @@ def train_cvae(
     step = 0
     start = time.perf_counter()
     for epoch in range(1, epochs + 1):
+        if step >= planned_steps:
+            break
         model.train()
         rows = []
         for chunks in cloud_batches(data.cloud_key, train_index, config.batch_size, config.clouds_per_batch, batch_rng):
