@@ -64,9 +64,11 @@ def load_checkpoint(path: str | os.PathLike, device: torch.device | str = "cpu")
     model = GraspCVAE(ModelConfig.from_dict(payload["model_config"])).to(device)
     state = dict(payload["state_dict"])
     empty = torch.zeros(0, model.config.latent_dim)
-    model.set_latent_codes(state.pop("codes_mu", empty), state.pop("codes_log_var", empty), state.pop("codes_local_feature", None))
+    model.set_latent_codes(
+        state.pop("codes_mu", empty), state.pop("codes_log_var", empty), state.pop("codes_condition", None), state.pop("codes_cloud", None)
+    )
     model.load_state_dict(state, strict=False)
-    missing = set(model.state_dict()) - set(state) - {"codes_mu", "codes_log_var", "codes_local_feature"}
+    missing = set(model.state_dict()) - set(state) - {"codes_mu", "codes_log_var", "codes_condition", "codes_cloud"}
     unexpected = set(state) - set(model.state_dict())
     if missing or unexpected:
         raise CheckpointError(f"{p}: weights do not match the model config (missing {sorted(missing)[:3]}, unexpected {sorted(unexpected)[:3]})")

@@ -142,15 +142,21 @@ class GraspCVAE(nn.Module):
         # training so that sampling can draw from their aggregate (``sampling.sample_latents``).
         self.register_buffer("codes_mu", torch.zeros(0, config.latent_dim))
         self.register_buffer("codes_log_var", torch.zeros(0, config.latent_dim))
-        self.register_buffer("codes_local_feature", torch.zeros(0, config.pointnet_widths[-1]))
+        self.register_buffer("codes_condition", torch.zeros(0, config.condition_dim))
+        self.register_buffer("codes_cloud", torch.zeros(0, dtype=torch.long))
 
-    def set_latent_codes(self, mu: torch.Tensor, log_var: torch.Tensor, local_feature: torch.Tensor | None = None) -> None:
-        """Store the training grasps' codes (N, latent) each and the local feature (N, F) of each grasp's associated point."""
-        self.codes_mu = mu.detach().to(self.codes_mu.device).clone()
-        self.codes_log_var = log_var.detach().to(self.codes_log_var.device).clone()
-        if local_feature is None:
-            local_feature = torch.zeros(0, self.config.pointnet_widths[-1])
-        self.codes_local_feature = local_feature.detach().to(self.codes_mu.device).clone()
+    def set_latent_codes(
+        self, mu: torch.Tensor, log_var: torch.Tensor, condition: torch.Tensor | None = None, cloud: torch.Tensor | None = None
+    ) -> None:
+        """Store the training grasps' codes (N, latent) each, their conditions (N, 2F: the cloud's global feature and the
+        associated point's local feature) and which training cloud (object and scale) each grasp is on (N,)."""
+        device = self.codes_mu.device
+        self.codes_mu = mu.detach().to(device).clone()
+        self.codes_log_var = log_var.detach().to(device).clone()
+        condition = torch.zeros(0, self.config.condition_dim) if condition is None else condition
+        cloud = torch.zeros(0, dtype=torch.long) if cloud is None else cloud
+        self.codes_condition = condition.detach().to(device).clone()
+        self.codes_cloud = torch.as_tensor(cloud, dtype=torch.long).to(device).clone()
 
     @property
     def latent_codes(self) -> tuple[torch.Tensor, torch.Tensor]:

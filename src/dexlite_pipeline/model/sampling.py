@@ -30,7 +30,7 @@ EXPAND_LATENT = "cvae_expand_latent"
 EXPAND_POINT = "cvae_expand_point"
 RECONSTRUCTION = "cvae_recon"  # learning ladder, fit rung: encoder-mean reconstructions of the training grasps
 PRIOR_ON_TRAINING = "cvae_prior_train"  # learning ladder, in-distribution rung: pure synthesis on training objects
-LATENT_PRIORS = ("standard", "aggregate")
+LATENT_PRIORS = ("standard", "aggregate", "neighbours")
 ANCHOR_RULES = ("uniform", "matched")
 
 
@@ -46,13 +46,16 @@ class SampleConfig:
     expansion_point_neighbours: int = 16  # the moved point is one of this many nearest cloud points
     points_per_cloud: int = 0  # 0 = the value the model was trained with
     ladder: bool = True  # also sample the learning ladder's rows on training objects (reconstructions, prior samples)
-    latent_prior: str = "aggregate"  # where synthesis draws latents: standard N(0, I) or the training codes' aggregate
+    latent_prior: str = "neighbours"  # where synthesis draws latents: standard N(0, I), the training codes' aggregate or its nearest clouds' codes
     latent_temperature: float = 1.0  # scale of the latent noise
-    anchor_rule: str = "uniform"  # associated points of pure synthesis: uniform, or matched to each latent's training grasp
+    anchor_rule: str = "matched"  # associated points of pure synthesis: uniform, or matched to each latent's training grasp
+    neighbour_clouds: int = 1  # latent prior ``neighbours``: codes of this many nearest training clouds
 
     def __post_init__(self) -> None:
         if not self.scales or min(self.scales) <= 0:
             raise ValueError("sample.scales must be a non-empty list of positive scales")
+        if self.neighbour_clouds < 1:
+            raise ValueError(f"sample.neighbour_clouds must be >= 1, got {self.neighbour_clouds}")
         if self.anchor_rule not in ANCHOR_RULES:
             raise ValueError(f"sample.anchor_rule {self.anchor_rule!r} is not one of {', '.join(ANCHOR_RULES)}")
         if self.latent_prior not in LATENT_PRIORS:
@@ -76,29 +79,57 @@ def _clouds_for(
 
 
 def sample_latents(
-    model: GraspCVAE, count: int, generator: torch.Generator, prior: str = "standard", temperature: float = 1.0
+    model: GraspCVAE,
+    count: int,
+    generator: torch.Generator,
+    prior: str = "standard",
+    temperature: float = 1.0,
+    global_feature: torch.Tensor | None = None,
+    neighbour_clouds: int = 1,
 ) -> tuple[torch.Tensor, torch.Tensor | None]:
-    """(count, latent) latents for new grasps.
+    """(count, latent) latents for new grasps, and which training code each came from (None for ``standard``).
 
     - ``standard``: z ~ N(0, I), the VAE's nominal prior;
     - ``aggregate``: z ~ q(z) = mean_i N(mu_i, sigma_i^2) over the training grasps' codes
-      (stored with the model, ``latent_codes``): the codes of a CVAE trained with a small KL
-      weight do not fill N(0, I), so nominal-prior latents decode to poses unlike any grasp,
-      while the aggregate posterior is where the decoder was trained.
-    ``temperature`` scales the noise (of the prior, or of each code's posterior). Also returns
-    which training code each latent came from (None for the standard prior).
+      (stored with the model): a CVAE trained with a small KL weight keeps a distinct code per
+      grasp, and those codes do not fill N(0, I), so nominal-prior latents decode to poses
+      unlike any grasp, while the aggregate posterior is where the decoder was trained;
+    - ``neighbours``: the aggregate over the codes of the training clouds (object and scale)
+      whose global feature is nearest the new cloud's (``global_feature`` (count, F), the
+      ``neighbour_clouds`` nearest): a conditional prior p(z | object) read off the training
+      data. On a training object it draws that object's own grasps' codes.
+    ``temperature`` scales the noise (of the prior, or of each code's posterior).
     """
     device = next(model.parameters()).device
     if prior == "standard":
         return torch.randn(count, model.config.latent_dim, generator=generator).to(device) * temperature, None
-    if prior != "aggregate":
+    if prior not in LATENT_PRIORS:
         raise ValueError(f"latent prior {prior!r} is not one of {', '.join(LATENT_PRIORS)}")
     codes_mu, codes_log_var = model.latent_codes
-    if codes_mu is None or len(codes_mu) == 0:
-        raise ValueError("latent prior 'aggregate' needs a model saved with its training codes (train again with this version)")
-    pick = torch.randint(len(codes_mu), (count,), generator=generator).to(device)
+    if len(codes_mu) == 0:
+        raise ValueError(f"latent prior {prior!r} needs a model saved with its training codes (train it with this version)")
+    if prior == "neighbours":
+        weights = neighbour_weights(model, global_feature, neighbour_clouds)
+    else:
+        weights = torch.ones(count, len(codes_mu), device=device)
+    pick = torch.multinomial(weights.cpu(), 1, generator=generator)[:, 0].to(device)
     noise = torch.randn(count, model.config.latent_dim, generator=generator).to(device)
     return codes_mu[pick] + temperature * torch.exp(0.5 * codes_log_var[pick]) * noise, pick
+
+
+def neighbour_weights(model: GraspCVAE, global_feature: torch.Tensor | None, neighbour_clouds: int) -> torch.Tensor:
+    """(B, N) 1 for the codes on the ``neighbour_clouds`` training clouds nearest each new cloud's global feature, else 0."""
+    if global_feature is None or len(model.codes_condition) != len(model.codes_mu) or len(model.codes_cloud) != len(model.codes_mu):
+        raise ValueError("latent prior 'neighbours' needs a model saved with its codes' conditions and clouds")
+    width = model.config.pointnet_widths[-1]
+    clouds, code_cloud = torch.unique(model.codes_cloud, return_inverse=True)
+    cloud_feature = torch.zeros(len(clouds), width, device=global_feature.device).index_add_(
+        0, code_cloud, model.codes_condition[:, :width]
+    ) / torch.bincount(code_cloud, minlength=len(clouds)).clamp(min=1)[:, None].to(global_feature.dtype)
+    distance = torch.cdist(global_feature, cloud_feature)  # (B, clouds)
+    nearest = distance.topk(min(neighbour_clouds, len(clouds)), dim=1, largest=False).indices  # (B, k)
+    chosen = torch.zeros_like(distance).scatter_(1, nearest, 1.0)
+    return chosen[:, code_cloud]
 
 
 def matched_points(model: GraspCVAE, per_point: torch.Tensor, cloud_index: torch.Tensor, code_index: torch.Tensor) -> torch.Tensor:
@@ -109,7 +140,7 @@ def matched_points(model: GraspCVAE, per_point: torch.Tensor, cloud_index: torch
     object has the most similar patch (by the network's own local feature) places it where
     a grasp of that kind fits, instead of at a uniformly random point.
     """
-    wanted = model.codes_local_feature[code_index]  # (B, F)
+    wanted = model.codes_condition[code_index, model.config.pointnet_widths[-1] :]  # (B, F)
     distance = (per_point[cloud_index] - wanted[:, None, :]).pow(2).sum(-1)  # (B, N)
     return distance.argmin(dim=1)
 
@@ -154,6 +185,7 @@ def synthesize(
     temperature: float = 1.0,
     fixed_clouds: bool = True,
     anchor_rule: str = "uniform",
+    neighbour_clouds: int = 1,
 ) -> torch.Tensor:
     """(B, 28) decoded poses for grasps on (object_index, scale) pairs, from the latent ``prior`` (``sample_latents``).
 
@@ -162,11 +194,13 @@ def synthesize(
     """
     if anchor_rule not in ANCHOR_RULES:
         raise ValueError(f"anchor rule {anchor_rule!r} is not one of {', '.join(ANCHOR_RULES)}")
-    if anchor_rule == "matched" and (prior != "aggregate" or len(model.codes_local_feature) == 0):
-        raise ValueError("anchor rule 'matched' needs latent prior 'aggregate' and a model saved with its codes' local features")
+    if anchor_rule == "matched" and (prior == "standard" or len(model.codes_condition) == 0):
+        raise ValueError("anchor rule 'matched' needs a latent prior drawn from the training codes and a model saved with their conditions")
     drawn, cloud_index = _clouds_for(clouds, object_index, scale, points, generator, fixed_clouds)
     features = model.pointnet(drawn)
-    latent, code_index = sample_latents(model, len(object_index), generator, prior, temperature)
+    latent, code_index = sample_latents(
+        model, len(object_index), generator, prior, temperature, features[0][cloud_index], neighbour_clouds
+    )
     if anchor_rule == "matched":
         point_index = matched_points(model, features[1], cloud_index, code_index)
     else:
@@ -236,7 +270,8 @@ def synthesis_rows(
     obj = np.repeat([clouds.index_of[o] for o in object_ids], count)
     scale = np.tile(np.resize(np.asarray(config.scales, np.float32), count), len(object_ids))
     pose = synthesize(
-        model, clouds, obj, scale, points, generator, config.latent_prior, config.latent_temperature, fixed_clouds, config.anchor_rule
+        model, clouds, obj, scale, points, generator, config.latent_prior, config.latent_temperature, fixed_clouds, config.anchor_rule,
+        config.neighbour_clouds,
     )
     return SampledRows(hand_pose=pose, object_id=[clouds.object_ids[i] for i in obj], scale=scale, method=[label] * len(obj))
 

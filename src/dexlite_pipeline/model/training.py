@@ -95,7 +95,7 @@ class TrainConfig:
 
     profile: str = "default"
     epochs: int = 100000
-    max_steps: int = 8000
+    max_steps: int = 4000
     batch_size: int = 64
     clouds_per_batch: int = 4
     points_per_cloud: int = 512
@@ -296,8 +296,8 @@ def evaluate_loss(
 def encode_training_grasps(
     model: GraspCVAE, data: TrainingData, index: np.ndarray, config: TrainConfig
 ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
-    """Posterior (mu, log sigma^2), the encoder-mean reconstruction (features, object frame) and the associated point's
-    local feature of grasps ``index``.
+    """Posterior (mu, log sigma^2), the encoder-mean reconstruction (features, object frame) and the condition
+    (global and local feature) of grasps ``index``.
 
     Eval mode, each grasp on the cloud it was trained on (the fixed subset, or the first
     ``points_per_cloud`` samples when clouds were drawn at random) and at its associated point.
@@ -320,13 +320,13 @@ def encode_training_grasps(
         log_vars.append(log_var)
         decoded.append(model.decode(mu, condition, anchor))
         grasp_ids.append(batch.grasp_index)
-        local.append(condition[:, model.config.pointnet_widths[-1] :])
+        local.append(condition)
     # batches group grasps by cloud: put the rows back in the order of ``index``
     row_of = {int(g): r for r, g in enumerate(np.concatenate(grasp_ids))} if grasp_ids else {}
     take = torch.as_tensor([row_of[int(g)] for g in np.asarray(index)], dtype=torch.long)
     if not grasp_ids:
         empty = torch.zeros(0, model.config.latent_dim)
-        return empty, empty, torch.zeros(0, data.pose_features.shape[1]), torch.zeros(0, model.config.pointnet_widths[-1])
+        return empty, empty, torch.zeros(0, data.pose_features.shape[1]), torch.zeros(0, model.config.condition_dim)
     return torch.cat(mus)[take], torch.cat(log_vars)[take], torch.cat(decoded)[take], torch.cat(local)[take]
 
 
@@ -336,8 +336,8 @@ def fit_training_codes(model: GraspCVAE, data: TrainingData, index: np.ndarray, 
     The errors are those of the encoder-mean reconstructions of grasps ``index``: median
     palm rotation error (deg), median palm translation error (mm), mean joint error (rad).
     """
-    mu, log_var, decoded, local = encode_training_grasps(model, data, index, config)
-    model.set_latent_codes(mu, log_var, local)
+    mu, log_var, decoded, condition = encode_training_grasps(model, data, index, config)
+    model.set_latent_codes(mu, log_var, condition, torch.as_tensor(data.cloud_key[np.asarray(index)], dtype=torch.long))
     rotation, translation, joints = pose_errors(features_to_pose(decoded), features_to_pose(data.pose_features[torch.as_tensor(index)]))
     return {
         "grasps": int(len(index)),
