@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+import torch
 
 from dexlite_pipeline.model.data import build_training_data
 from dexlite_pipeline.model.training import TrainConfig, fit_training_codes, train_cvae
@@ -33,6 +34,14 @@ def test_training_reaches_the_fit_rung_on_a_tiny_fixed_dataset(fixed_dataset, sm
     assert fit["joint_error_rad_mean"] < 0.05, fit
     # the codes are stored for aggregate-prior sampling, one per training grasp
     assert result.model.latent_codes[0].shape == (len(grasps), small_model_config.latent_dim)
+    # PointNet still tells the clouds apart (a dead layer gives every cloud one feature, and the model ignores the object)
+    global_feature = result.model.codes_condition[:, : small_model_config.pointnet_widths[-1]]
+    clouds = torch.as_tensor(data.cloud_key)
+    first_of_cloud = torch.stack([torch.nonzero(clouds == c)[0, 0] for c in torch.unique(clouds)])
+    features = global_feature[first_of_cloud]
+    distance = torch.cdist(features, features, compute_mode="donot_use_mm_for_euclid_dist")
+    off_diagonal = distance[~torch.eye(len(features), dtype=torch.bool)]
+    assert off_diagonal.min() > 1e-3 * features.norm(dim=1).mean(), off_diagonal.min()
 
 
 def test_the_former_recipe_misses_the_fit_rung(fixed_dataset, small_model_config):

@@ -2,7 +2,7 @@
 
 - PointNet: shared 1-D convolutions 3 -> 64 -> 128 -> 1024 -> 256 (6 input channels with
   ``point_normals``: each point's outward normal beside its position), each followed by a
-  normalization and ReLU except the last; max-pooling over points gives the global
+  normalization and a leaky ReLU except the last; max-pooling over points gives the global
   feature, and the last layer's per-point features give the *local* feature of the
   grasp's associated point. Condition c = [global, local] (512 in the reference sizes).
 - Encoder: [pose features, c] -> hidden layers -> (mu, log sigma^2) of the latent.
@@ -45,6 +45,10 @@ from dexlite_pipeline.model.pose import POSE_FEATURE_DIM, TRANSLATION_UNIT_M, fe
 
 NORMALIZATIONS = ("batch", "none")
 POSE_FRAMES = ("object", "point", "surface", "hand")
+# PointNet's hidden activations leak a little below zero: with plain ReLU and no normalization the
+# 1024-wide layer can die during training (every unit negative for every point), after which every
+# cloud gets the same global and local feature and the model ignores the object.
+POINTNET_NEGATIVE_SLOPE = 0.01
 LATERAL_AXIS = 0  # column of the palm rotation across the knuckles, little finger -> first finger
 
 
@@ -102,7 +106,7 @@ class PointNet(nn.Module):
             if i < len(widths) - 1:
                 if normalization == "batch":
                     layers.append(nn.BatchNorm1d(width))
-                layers.append(nn.ReLU())
+                layers.append(nn.LeakyReLU(POINTNET_NEGATIVE_SLOPE))
             channels = width
         self.layers = nn.Sequential(*layers)
 

@@ -126,7 +126,9 @@ def neighbour_weights(model: GraspCVAE, global_feature: torch.Tensor | None, nei
     cloud_feature = torch.zeros(len(clouds), width, device=global_feature.device).index_add_(
         0, code_cloud, model.codes_condition[:, :width]
     ) / torch.bincount(code_cloud, minlength=len(clouds)).clamp(min=1)[:, None].to(global_feature.dtype)
-    distance = torch.cdist(global_feature, cloud_feature)  # (B, clouds)
+    # exact differences: the matrix-product form of cdist cancels catastrophically for features this large, and
+    # a training cloud must find itself at distance 0
+    distance = torch.cdist(global_feature, cloud_feature, compute_mode="donot_use_mm_for_euclid_dist")  # (B, clouds)
     nearest = distance.topk(min(neighbour_clouds, len(clouds)), dim=1, largest=False).indices  # (B, k)
     chosen = torch.zeros_like(distance).scatter_(1, nearest, 1.0)
     return chosen[:, code_cloud]
