@@ -95,10 +95,10 @@ class TrainConfig:
 
     profile: str = "default"
     epochs: int = 100000
-    max_steps: int = 4000
+    max_steps: int = 8000
     batch_size: int = 64
     clouds_per_batch: int = 4
-    points_per_cloud: int = 512
+    points_per_cloud: int = 256
     learning_rate: float = 2e-3
     validation_fraction: float = 0.1
     min_grasps: int = 8
