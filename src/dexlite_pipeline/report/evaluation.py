@@ -331,8 +331,10 @@ def simulate(
         return GraspSet(arrays, dict(selected.attrs))
     simulated_count = max(1, len(selected) - int(metrics.invalid_flags(arrays).sum()))
     start = time.perf_counter()
+    log.info("energies of %d grasps (batches of %d) ...", len(selected), energy_batch_size)
     energies = evaluate_grasp_energies(selected, objects_dirs, device=device, batch_size=energy_batch_size, config=energy_cfg)
     energy_s = time.perf_counter() - start
+    log.info("energies of %d grasps in %.1f s (%.1f grasps/s)", len(selected), energy_s, len(selected) / max(energy_s, 1e-9))
     arrays.update(energies)
     start = time.perf_counter()
     arrays.update(run_lift_tests(selected, objects_dirs, lift_cfg, threads))
