@@ -1,4 +1,4 @@
-"""The five grasp energy terms, one small class each (DexGraspNet's definitions, DESIGN.md).
+"""The five grasp energy terms, one small class each (DexGraspNet's definitions; docs/design.md).
 
 Each term only computes its value per grasp, (B,) in SI units (metres for distances);
 weighting is held apart (``energy.grasp_energy.EnergyWeights``), so the seed optimizer,

@@ -1,7 +1,7 @@
 """The ``lift`` config section: every physical constant of the MuJoCo lift and six-direction tests.
 
 The values are pinned because each of them moves measured success rates by several
-points (DESIGN.md, "Physics tests"); they are echoed into every output's attributes.
+points (docs/design.md, "Physics tests"); they are echoed into every output's attributes.
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """MuJoCo lift test (and DexGraspBench's six-direction test) of grasps, parallel over cores.
 
-Per grasp (DESIGN.md, "Physics tests"):
+Per grasp (docs/design.md, "Physics tests"):
 
 1. Initial penetration: the larger of the deepest hand surface point inside the object's
    SDF and the deepest hand-object contact MuJoCo finds at the grasp pose; deeper than

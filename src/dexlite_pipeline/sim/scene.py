@@ -4,7 +4,7 @@ One model is compiled per (object, scale) and reused for all of that object's gr
 friction, object mass and finger gains are written into the compiled model in place
 (``LiftScene.configure``), so a config change never needs a recompile.
 
-Choices that move measured success rates (DESIGN.md, "Physics tests"):
+Choices that move measured success rates (docs/design.md, "Physics tests"):
 - the palm is a free body welded to a mocap body (a body hung directly under a mocap
   body has no velocity, so friction could not act on it);
 - gravity compensation on every hand body, so the weld and the finger actuators carry
