@@ -1,6 +1,6 @@
 """MuJoCo lift-test throughput on real grasps: grasps/s on N worker threads.
 
-    python benchmarks/bench_lift.py                          # the DexGraspNet sample grasps (SAMPLE below), 2 workers
+    DEXLITE_DEXGRASPNET_ROOT=DIR python benchmarks/bench_lift.py   # real DexGraspNet grasps in DIR, 2 workers
     python benchmarks/bench_lift.py --count 128 --six-directions
     python benchmarks/bench_lift.py --grasps G.zarr --objects DIR   # any grasp store
     python benchmarks/bench_lift.py --single-contact         # lift.multi_contact off (~15% faster)
@@ -29,7 +29,8 @@ from pathlib import Path
 
 import numpy as np
 
-SAMPLE = Path(__file__).resolve().parents[2] / "shared" / "dexgraspnet_sample"
+# a DexGraspNet download (dataset/, meshdata/) to read real grasps from; none by default
+SAMPLE = Path(os.environ.get("DEXLITE_DEXGRASPNET_ROOT", "/nonexistent-dexgraspnet-root"))
 
 
 def _own_cpu_s() -> float:
