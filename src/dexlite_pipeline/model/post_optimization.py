@@ -1,19 +1,17 @@
 """Post-optimization: a short run of the annealed optimizer on E_post from given (CVAE) poses.
 
 E_post = E_fc + 100 E_dis + 100 E_pen + 10 E_spen + E_joints (weights in config). The
-optimizer is the seed's (``optim.annealing.optimize``) with its constants from config
+optimizer is DexGraspNet's (``optim.annealing.optimize``) with its constants from config
 section ``post_optimize``. A CVAE grasp starts from contacts where it already touches
 (``start_contacts="surface"``: the best of ``start_contact_samples`` near-surface pad
 4-sets, or the four nearest pads), a random start from uniform contacts (DexGraspNet's);
 with ``final_contact_samples`` the best contact set for the final pose is searched once
 at the end, so the reported E_post is that of the pose, not of a random contact walk.
 With ``keep_best`` (default) each grasp ends in the lowest-E_post state it visited: at
-the seed's T0 = 18 nearly every step is accepted, and 200 steps of that walk from the 581
-lift-validated training grasps of a 160-object run left 39.2% of them holding, 99.0% with
-``keep_best``; from CVAE samples and random starts on held-out objects it made no
-difference beyond noise (18.5% vs 19.6%, 17.9% vs 18.8% of 352). The random-init
-baseline uses the same budget from ``optim.init.initial_poses`` (convex-hull start) for
-the same objects and scales.
+DexLite's T0 = 18 nearly every step is accepted, and the last state of that walk is often
+worse than the start. The pose after each of ``budget_iterations`` is kept for the budget
+curve. The random-init baseline uses the same budget from ``optim.init.initial_poses``
+(convex-hull start) for the same objects and scales.
 """
 
 from __future__ import annotations

@@ -1,22 +1,19 @@
-"""CVAE training: reconstruction + KL + grasp energies of the decoded pose.
+"""CVAE training: reconstruction + KL, optionally grasp energies of the decoded pose.
 
 Loss per batch = w_recon recon + w_KL KL + w_fc E_fc + w_dis E_dis + w_pen E_pen +
 w_spen E_spen + w_joints E_joints, each term the mean over the batch's grasps (recon is
-the squared error summed over the pose's components, ``pose.reconstruction_error``); the
-energies are evaluated through differentiable forward kinematics of the *decoded*
-pose (``energy_terms``), so the model learns poses that touch the object without
-penetrating it, not only poses that are close to the data in joint space.
+the squared error summed over the pose's components, ``pose.reconstruction_error``). The
+energies, when weighted, are evaluated through differentiable forward kinematics of the
+*decoded* pose (``energy_terms``); at weight 0 (the default) they are not computed, since
+at the optimizer's weights they dominate the loss and the model stops fitting its data
+(docs/learning.md). Weighted energies ramp from 0 to their values over the first
+``energy_warmup_fraction`` of the steps; logged totals use the full weights.
 
-The energy weights ramp linearly from 0 to their values over the first
-``energy_warmup_fraction`` of the steps, so the first steps shape the latent space by
-reconstruction before the energies take over. Logged totals always use the full
-weights, so train and validation curves compare.
-
-Measured on a 160-object run (581 training grasps of 47 objects; all 352 samples on 11
-held-out objects lift-tested after 200 post-optimization steps, training seeds 0 / 1 / 2):
-12.2 / 30.7 / 26.4% hold, random starts post-optimized alike 18.8 / 19.6 / 15.1%; raw
-samples 3-5%. The reconstruction error stays at ~6 with the energies (~0.6 without them
-in the ``hand`` pose frame, whose samples hold no better): README, "Measured".
+Each cloud is a fixed farthest-point subset (``fixed_clouds``), batches hold
+``clouds_per_batch`` clouds, Adam runs on a cosine schedule after a linear warm-up, and
+gradients are clipped to ``grad_clip_norm``. After training, ``fit_training_codes``
+stores each training grasp's code and condition in the model (what sampling draws from)
+and returns the learning ladder's fit errors.
 
 Deterministic for a seed: the weights are initialized from it, and batches, point
 draws and latent noise come from seeded generators.
