@@ -20,43 +20,24 @@ near-duplicate of one already kept, and the cap keeps the best-ranked survivors.
 
 Imported DexGraspNet grasps (``origin`` 'dexgraspnet') are held only to the thresholds of
 ``imported_thresholded_terms`` (default E_dis). Their makers filtered them with their own
-contact points, which the dataset does not store, and a one-way penetration sum; with
-the four pad points nearest the surface as contacts (the least E_dis any contact choice
-gives, so E_dis stays a fair test), 2.0% of the 494 real sample grasps have E_fc < 0.3
-(39.5% with the best of 200 random near-surface contact sets, which trade E_dis for it)
-and 50.0% have E_pen (both ways, summed) < 1 mm, although their deepest penetration has
-a median of 0.72 mm (73% below 1 mm); 97.6% have E_dis < 5 mm. The half that fails E_pen
-still lifts in MuJoCo almost as often as the rest (74% against 79%); E_fc would keep 10
-grasps. (Imported at the default 96³ grid, default energy config.) All their energies
-are still computed, stored and used to rank them for the near-duplicate and cap steps.
+contact points, which the dataset does not store, and a one-way penetration sum, so our
+E_fc and E_pen of real grasps are far above the thresholds even for grasps that hold,
+while E_dis (scored at the four pads nearest the surface, the least any contact choice
+gives) stays a fair test. All their energies are still computed, stored and used to rank
+them for the near-duplicate and cap steps.
 
 Force closure of the actual contacts (``dexlite_pipeline.force_closure``): every hand link
 within ``force_closure_contact_distance_m`` of the object is a contact with a friction
 cone (``force_closure_friction``); ε is the largest wrench, in every direction, they
 resist per newton of total normal force. Why: E_fc is scored on four contact candidates
-that seed synthesis picks after the fact, as the set whose normals cancel best among
-1024, with unit normals and no friction, and its torque term (contact points in metres)
-is about 1/scale² weaker than with torques over the object's radius (curated seed
-grasps: median 0.007 against 0.73), so E_fc < 0.3 says little about how the hand presses.
-
-Measured on the default run (seed 0, 264 curated seed grasps, 53% lifted in MuJoCo at
-friction 0.6): 111 of the 123 failures had lost all contact with the object before the
-lift began, during the close and hold; with gravity off, the squeeze alone pushed the
-object more than 2 cm for 33% of the grasps (DexGraspNet sample: 11%). With contacts
-within 1 mm at friction 0.6, ε = 0 (no force closure) for 58% of those grasps
-(DexGraspNet sample: 25%), and the lifted fraction rises with ε (seed 0: 43% of the
-grasps with ε = 0, 68% of those with ε > 0, 73% with ε > 0.01; DexGraspNet sample: 50%,
-85%, 87%; a second synthesis seed, not used to choose the values, seed 1 shard 0 with
-102 curated grasps, 48% lifted: 25%, 78%, 78%). Grasps with 0 < ε <= 0.01 (nearly flat
-wrench hulls, links at the edge of the contact band) lift about like those without
-closure: 23 of 44 over the three sets, against 43% with ε = 0 and 84% with ε > 0.01;
-hence the default minimum 0.01. The cost: on the seed sets the check drops 61-65% of the
-grasps that meet the energy thresholds, and with them 37-52% of those that would have
-lifted. A penetration limit is no substitute: curated seed grasps with penetration_mm
-<= 1 lift no more often than the rest (seed 0: 50% vs 54%; seed 1: 47% vs 48%). The
-contact distance is the energy thresholds' own scale (E_dis < 5 mm over four contacts is
-1.25 mm each; DexGraspNet's 1 mm penetration filter). The check applies to imported
-grasps too: it uses no stored contacts.
+that seed synthesis picks after the fact, with unit normals and no friction, and its
+torque term (contact points in metres) is about 1/scale² weaker than with torques over
+the object's radius, so E_fc < 0.3 says little about how the hand presses. Grasps whose
+contacts are not in force closure (or only barely, ε <= 0.01) lift far less often; a
+penetration limit is no substitute. The contact distance is the energy thresholds' own
+scale (E_dis < 5 mm over four contacts is 1.25 mm each). The check applies to imported
+grasps too: it uses no stored contacts. The measurements behind these choices are in
+docs/results.md ("Curation").
 """
 
 from __future__ import annotations
