@@ -5,30 +5,10 @@ grasps of the shard are optimized together in batches of ``batch_size`` (one bat
 objects, so the CPU runs few, large steps). Each grasp keeps every energy term and a
 ``passes_energy_thresholds`` flag (DexGraspNet's E_fc < 0.3, E_dis < 5 mm, E_pen < 1 mm).
 
-The default schedule (config.yaml) was retuned and measured here on 3 pybullet_data
-objects x 3 scales, 144 grasps (48 for the first row), one thread; "per CPU hour" is
-threshold-passing grasps per hour of this process's CPU time (the machine was shared):
-
-====================================================  =====  ================
-schedule                                              pass   passing / CPU h
-====================================================  =====  ================
-DexGraspNet: 6000 it, palm 0.2-0.3 m out              42 %   ~500
-1500 it, periods 8/12, 0.1-0.15 m                     13 %
-  + best of 1024 contact sets after the last step     19 %
-  + E_pen without double-counted sphere depth         25 %   ~1,600
-2000 it, periods 10/17, final contact search          37 %   ~1,800
-  palm 0.05-0.1 m out instead                         26 %   ~1,400
-  + contact search every 100 iterations (default)     44 %   ~2,200
-  + contact search every 50 iterations                47 %   ~2,250
-1500 it, periods 8/12, contact search every 100       33 %   ~2,200
-====================================================  =====  ================
-
-Those rates were measured with the first energy implementation (~0.3 ms per
-grasp-iteration). With the culled energy step (``energy.terms``, same values),
-``benchmarks/bench_energy.py`` runs the default on 4 other objects (384 grasps) at
-0.098 ms per grasp-iteration: 50 % pass, ~9,400 passing grasps per CPU hour (2 cores,
-idle). The 2000-step default keeps the most passing grasps per start at the same
-rate as the shorter ones.
+The default schedule (config.yaml) is DexGraspNet's compressed to 2,000 iterations (step
+size and temperature decaying every 17 and 10 iterations), starting 0.1-0.15 m out, with a
+contact search every 100 iterations: of the schedules measured it keeps the most
+threshold-passing grasps per CPU hour (docs/results.md, "Seed synthesis schedule").
 """
 
 from __future__ import annotations
