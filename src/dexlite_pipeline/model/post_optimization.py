@@ -9,7 +9,9 @@ with ``final_contact_samples`` the best contact set for the final pose is search
 at the end, so the reported E_post is that of the pose, not of a random contact walk.
 With ``keep_best`` (default) each grasp ends in the lowest-E_post state it visited: at
 DexLite's T0 = 18 nearly every step is accepted, and the last state of that walk is often
-worse than the start. The pose after each of ``budget_iterations`` is kept for the budget
+worse than the start. CVAE starts are already close to a grasp, so they run a close-start
+schedule (``learned_start_temperature``, ``learned_start_step_size``: T0 0.5, step 0.002 by
+default; 18 and 0.005 give DexLite's); random starts keep DexGraspNet's exploring one. The pose after each of ``budget_iterations`` is kept for the budget
 curve. The random-init baseline uses the same budget from ``optim.init.initial_poses``
 (convex-hull start) for the same objects and scales.
 """
@@ -56,21 +58,24 @@ class PostOptimizeConfig:
     start_contact_samples: int = 64  # sampled grasps start from the best of this many near-surface 4-sets (0: nearest pads)
     final_contact_samples: int = 64  # after the last step, keep the best of this many contact sets (0: off)
     keep_best: bool = True  # return each grasp's lowest-E_post visited state instead of the last one
+    learned_start_temperature: float = 0.5  # T0 for CVAE starts, which are already close: few uphill moves accepted
+    learned_start_step_size: float = 0.002  # step size at iteration 0 for CVAE starts
     budget_iterations: tuple[int, ...] = (0, 25, 50, 100, 200)  # poses kept after these iterations for the budget curve
     batch_size: int = 1024  # grasps per optimizer batch (a shard is cut into batches of this size)
     random_baseline: bool = True  # also run the random-init baseline (held-out objects' grasps)
     random_init: InitConfig = field(default_factory=InitConfig)
 
-    def annealing(self) -> AnnealingConfig:
+    def annealing(self, learned_start: bool = False) -> AnnealingConfig:
+        """The optimizer schedule: DexGraspNet's for random starts, the close-start one for learned (CVAE) starts."""
         return AnnealingConfig(
             iterations=self.iterations,
-            step_size=self.step_size,
+            step_size=self.learned_start_step_size if learned_start else self.step_size,
             step_size_decay=self.step_size_decay,
             step_size_period=self.step_size_period,
             rmsprop_mu=self.rmsprop_mu,
             rmsprop_eps=self.rmsprop_eps,
             contact_switch_probability=self.contact_switch_probability,
-            starting_temperature=self.starting_temperature,
+            starting_temperature=self.learned_start_temperature if learned_start else self.starting_temperature,
             temperature_decay=self.temperature_decay,
             temperature_period=self.temperature_period,
             trace_every=1,
@@ -126,7 +131,7 @@ def refine(
     """
     if start_contacts not in ("surface", "random"):
         raise ValueError(f"start_contacts must be 'surface' or 'random', not {start_contacts!r}")
-    annealing = config.annealing()
+    annealing = config.annealing(learned_start=start_contacts == "surface")
     chunks: list[dict[str, np.ndarray]] = []
     seconds = 0.0
     trace_iterations = np.arange(config.iterations + 1)
