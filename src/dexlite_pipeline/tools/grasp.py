@@ -189,7 +189,15 @@ def synthesize_with_model(assets, scales: dict, n: int, config: dict, model_path
         log.warning("scales %s are far from the training scales %s: expect fewer grasps that hold", outside, trained)
     generator = torch.Generator().manual_seed(int(seed) * 1000 + 77)
     log.info("sampling %d grasps from %s", len(object_index), model_path)
-    poses = synthesize(model, clouds, object_index, scale, points, generator)
+    prior, anchor_rule = sample_config.latent_prior, sample_config.anchor_rule
+    if len(model.codes_mu) == 0 or len(model.codes_condition) == 0:  # a model saved without its training codes
+        log.warning("%s holds no training codes: sampling from N(0, I) at uniform points instead of %s / %s", model_path, prior, anchor_rule)
+        prior, anchor_rule = "standard", "uniform"
+    fixed = bool(checkpoint["train_config"].get("fixed_clouds", False))
+    poses = synthesize(
+        model, clouds, object_index, scale, points, generator, prior, sample_config.latent_temperature, fixed, anchor_rule,
+        sample_config.neighbour_clouds,
+    )
     hand = ShadowHand(device)
     energy = GraspEnergy.from_assets(
         hand, assets, EnergyConfig(weights=post_config.weights(), object_points=post_config.energy_object_points, self_penetration_margin_m=margin)
