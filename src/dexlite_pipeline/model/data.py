@@ -94,6 +94,14 @@ class ObjectClouds:
         rows = object_index[:, None]
         return torch.cat([self.surface[rows, choice] * scale[:, None, None], self.normals[rows, choice]], dim=2)
 
+    def clouds(
+        self, object_index: torch.Tensor, scale: torch.Tensor, points: int, fixed: bool, generator: torch.Generator | None
+    ) -> torch.Tensor:
+        """(C, points, 6) clouds: each object's ``fixed_subset`` when ``fixed``, else a ``draw`` with ``generator``."""
+        if fixed:
+            return self.draw_fixed(object_index, scale, points)
+        return self.draw(object_index, scale, points, generator)
+
     def draw(self, object_index: torch.Tensor, scale: torch.Tensor, points: int, generator: torch.Generator | None) -> torch.Tensor:
         """(C, points, 6) clouds: [xyz in metres, outward unit normal] of a random subset (or the first ``points`` when no generator)."""
         total = self.samples_per_object

@@ -71,10 +71,7 @@ def _clouds_for(
     first = np.array([np.flatnonzero(keys == k)[0] for k in range(keys.max() + 1)]) if len(keys) else np.zeros(0, int)
     cloud_object = torch.as_tensor(object_index[first], device=clouds.device)
     cloud_scale = torch.as_tensor(scale[first], dtype=torch.float32, device=clouds.device)
-    if fixed:
-        drawn = clouds.draw_fixed(cloud_object, cloud_scale, points)
-    else:
-        drawn = clouds.draw(cloud_object, cloud_scale, points, generator)
+    drawn = clouds.clouds(cloud_object, cloud_scale, points, fixed, generator)
     return drawn, torch.as_tensor(keys, device=clouds.device)
 
 

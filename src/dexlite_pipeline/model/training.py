@@ -156,10 +156,7 @@ def batch_loss(
     the object's SDF in its own frame.
     """
     device = data.pose_features.device
-    if fixed_clouds:
-        clouds = data.clouds.draw_fixed(batch.cloud_object, batch.cloud_scale, points)
-    else:
-        clouds = data.clouds.draw(batch.cloud_object, batch.cloud_scale, points, generator)
+    clouds = data.clouds.clouds(batch.cloud_object, batch.cloud_scale, points, fixed_clouds, generator)
     index = torch.as_tensor(batch.grasp_index, device=device)
     target = data.pose_features[index]
     ray_origin, ray_direction = data.ray_origin[index], data.ray_direction[index]
@@ -303,10 +300,7 @@ def encode_training_grasps(
     mus, log_vars, decoded, grasp_ids, local = [], [], [], [], []
     for chunks in cloud_batches(data.cloud_key, np.asarray(index), config.batch_size, config.clouds_per_batch, None):
         batch = make_batch(chunks, data.cloud_key, data.object_index, data.scale, data.pose_features.device)
-        if config.fixed_clouds:
-            clouds = data.clouds.draw_fixed(batch.cloud_object, batch.cloud_scale, config.points_per_cloud)
-        else:
-            clouds = data.clouds.draw(batch.cloud_object, batch.cloud_scale, config.points_per_cloud, None)
+        clouds = data.clouds.clouds(batch.cloud_object, batch.cloud_scale, config.points_per_cloud, config.fixed_clouds, None)
         rows = torch.as_tensor(batch.grasp_index, device=clouds.device)
         target = data.pose_features[rows]
         point_index = nearest_to_ray(clouds[batch.cloud_index], data.ray_origin[rows], data.ray_direction[rows])
