@@ -308,3 +308,33 @@ def test_batch_with_nothing_near_the_object(sphere_energy):
     (grad,) = torch.autograd.grad(result.total.sum(), x)
     assert result.terms["E_pen"].tolist() == [0.0, 0.0, 0.0] and result.penetration_mm.tolist() == [0.0, 0.0, 0.0]
     assert torch.isfinite(grad).all() and grad.abs().sum() > 0
+
+
+def test_total_is_the_weighted_sum_of_the_named_terms(sphere_energy):
+    """Terms are named objects weighted by their key; one more object in the list is one more weighted term."""
+    import copy
+    from dataclasses import fields
+
+    from dexlite_pipeline.energy import TERM_NAMES, EnergyWeights
+    from dexlite_pipeline.energy.terms import EnergyTerm
+
+    assert tuple(term.name for term in sphere_energy.terms) == TERM_NAMES
+    assert {term.weight_key for term in sphere_energy.terms} <= {f.name for f in fields(EnergyWeights)}
+
+    class PalmHeight(EnergyTerm):
+        name = "E_height"
+        weight_key = "dis"
+
+        def evaluate(self, context):
+            return context.frames.translation[:, 0, 2].abs()
+
+    pose = _poses_near_sphere(6, seed=11)
+    index, scale = torch.zeros(6, dtype=torch.long), torch.full((6,), SCALE)
+    base = sphere_energy(pose, object_index=index, scale=scale)
+    assert torch.equal(base.total, sphere_energy.weights.combine(base.terms))
+    extended = copy.copy(sphere_energy)
+    extended.terms = [*sphere_energy.terms, PalmHeight()]
+    result = extended(pose, object_index=index, scale=scale, contact_index=base.contact_index)
+    assert set(result.terms) == {*TERM_NAMES, "E_height"}
+    expected = base.total + sphere_energy.weights.dis * pose[:, 2].abs()
+    assert torch.allclose(result.total, expected, rtol=1e-6)

@@ -9,12 +9,15 @@ from dexlite_pipeline.energy.grasp_energy import (
     EnergyWeights,
     GraspEnergy,
 )
+from dexlite_pipeline.energy.terms import EnergyContext, EnergyTerm
 
 __all__ = [
     "CONTACT_COUNT",
     "TERM_NAMES",
     "EnergyConfig",
+    "EnergyContext",
     "EnergyResult",
+    "EnergyTerm",
     "EnergyWeights",
     "GraspEnergy",
     "evaluate_grasp_energies",

@@ -2,12 +2,15 @@
 
 ``GraspEnergy`` holds the hand, the objects' SDF grids and surface points on one device
 and evaluates every term for grasps given as stored 28-vectors or as (palm rotation
-matrix, palm translation, joints), so 6D-rotation optimizers use it directly. Weights
-live apart in ``EnergyWeights`` (config section ``energy.weights``).
+matrix, palm translation, joints), so 6D-rotation optimizers use it directly. The energy
+is Σ w_k·E_k over a list of named terms (``energy.terms.EnergyTerm``) evaluated on one
+shared ``EnergyContext``; weights live apart in ``EnergyWeights`` (config section
+``energy.weights``), looked up by each term's ``weight_key``.
 """
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -16,6 +19,8 @@ import torch
 from dexlite_pipeline.energy.link_map import LinkFrameMap
 from dexlite_pipeline.energy.terms import (
     ContactDistanceTerm,
+    EnergyContext,
+    EnergyTerm,
     ForceClosureTerm,
     JointLimitTerm,
     PenetrationTerm,
@@ -24,7 +29,10 @@ from dexlite_pipeline.energy.terms import (
 from dexlite_pipeline.hand.model import JOINTS, HandFrames, ShadowHand
 from dexlite_pipeline.objects.assets import ObjectAsset, SdfBank
 
-TERM_NAMES = ("E_fc", "E_dis", "E_pen", "E_spen", "E_joints")
+# The terms of the grasp energy, in the order of ``EnergyResult.terms`` and of the weighted sum.
+TERM_CLASSES: tuple[type[EnergyTerm], ...] = (ForceClosureTerm, ContactDistanceTerm, PenetrationTerm, SelfPenetrationTerm, JointLimitTerm)
+TERM_NAMES = tuple(term.name for term in TERM_CLASSES)  # ("E_fc", "E_dis", "E_pen", "E_spen", "E_joints")
+TERM_WEIGHT_KEYS: dict[str, str] = {term.name: term.weight_key for term in TERM_CLASSES}  # "E_fc" -> "fc", ...
 # DexGraspNet's success criteria: a grasp passes when each term is below its value (E_dis, E_pen in metres).
 DEXGRASPNET_THRESHOLDS: dict[str, float] = {"E_fc": 0.3, "E_dis": 0.005, "E_pen": 0.001}
 CONTACT_COUNT = 4
@@ -40,15 +48,20 @@ class EnergyWeights:
     spen: float = 10.0
     joints: float = 1.0
 
-    def combine(self, terms: dict[str, torch.Tensor]) -> torch.Tensor:
-        """Σ w_k E_k over the five terms, (B,)."""
-        return (
-            self.fc * terms["E_fc"]
-            + self.dis * terms["E_dis"]
-            + self.pen * terms["E_pen"]
-            + self.spen * terms["E_spen"]
-            + self.joints * terms["E_joints"]
-        )
+    def combine(self, terms: Mapping[str, torch.Tensor]) -> torch.Tensor:
+        """Σ w_k E_k over the five terms (``TERM_NAMES``), (B,)."""
+        return weighted_sum(self, terms, TERM_WEIGHT_KEYS.items())
+
+
+def weighted_sum(weights, terms: Mapping[str, torch.Tensor], name_and_key: Iterable[tuple[str, str]]) -> torch.Tensor:
+    """Σ weights.<key>·terms[name] over the (name, weight key) pairs, added left to right, (B,)."""
+    total = None
+    for name, key in name_and_key:
+        part = getattr(weights, key) * terms[name]
+        total = part if total is None else total + part
+    if total is None:
+        raise ValueError("weighted_sum needs at least one term")
+    return total
 
 
 @dataclass(frozen=True)
@@ -72,7 +85,12 @@ class EnergyResult:
 
 
 class GraspEnergy:
-    """Batched, differentiable E_fc, E_dis, E_pen, E_spen, E_joints for grasps on bank objects."""
+    """Batched, differentiable E_fc, E_dis, E_pen, E_spen, E_joints for grasps on bank objects.
+
+    ``terms`` lists the term objects summed into the total (one per ``TERM_CLASSES``); a new
+    term is a new ``EnergyTerm`` subclass appended there, weighted by the ``EnergyWeights``
+    field its ``weight_key`` names.
+    """
 
     def __init__(
         self,
@@ -92,6 +110,7 @@ class GraspEnergy:
         self.self_penetration = SelfPenetrationTerm(hand, self_penetration_margin_m)
         self.candidate_map = LinkFrameMap.for_points(hand.contact_points_local, hand.contact_link, len(hand.link_names))
         self.penetration = PenetrationTerm(hand, sdf_bank, object_points.to(self.device, hand.dtype))
+        self.terms: list[EnergyTerm] = [self.force_closure, self.contact_distance, self.penetration, self.self_penetration, self.joint_limits]
 
     @classmethod
     def from_assets(cls, hand: ShadowHand, assets: list[ObjectAsset], config: EnergyConfig = EnergyConfig()) -> "GraspEnergy":
@@ -160,6 +179,47 @@ class GraspEnergy:
             return draws[torch.arange(batch, device=self.device), best]
 
     # -------------------------------------------------------------------- energy
+    def context(
+        self,
+        hand_pose: torch.Tensor | None = None,
+        *,
+        object_index: torch.Tensor,
+        scale: torch.Tensor,
+        contact_index: torch.Tensor | None = None,
+        palm_rot: torch.Tensor | None = None,
+        palm_t: torch.Tensor | None = None,
+        joints: torch.Tensor | None = None,
+    ) -> EnergyContext:
+        """The shared quantities the terms read, for the same arguments as ``__call__``.
+
+        Computes the link frames, the contact points (chosen or, with ``contact_index`` None,
+        the four candidates nearest the surface) with their signed distances and normals, and
+        the penetration result, each once for all terms.
+        """
+        if hand_pose is not None:
+            frames = self.hand.forward(hand_pose)
+            joints = hand_pose[:, JOINTS]
+        else:
+            if palm_rot is None or palm_t is None or joints is None:
+                raise ValueError("GraspEnergy needs hand_pose or all of palm_rot, palm_t, joints")
+            frames = self.hand.forward_parts(palm_rot, palm_t, joints)
+        scale = scale.to(self.hand.dtype)
+        if contact_index is None:
+            contact_index = self.nearest_contacts(frames, object_index, scale)
+        points = self.contact_points(frames, contact_index)
+        distance, normal = self.bank.signed_distance(points, object_index[:, None], scale[:, None])
+        return EnergyContext(
+            frames=frames,
+            joints=joints,
+            object_index=object_index,
+            scale=scale,
+            contact_index=contact_index,
+            contact_points=points,
+            contact_distance=distance,
+            contact_normal=normal,
+            penetration=self.penetration(frames, object_index, scale),
+        )
+
     def __call__(
         self,
         hand_pose: torch.Tensor | None = None,
@@ -175,31 +235,16 @@ class GraspEnergy:
 
         ``contact_index`` None chooses the four candidates nearest the surface.
         """
-        if hand_pose is not None:
-            frames = self.hand.forward(hand_pose)
-            joints = hand_pose[:, JOINTS]
-        else:
-            if palm_rot is None or palm_t is None or joints is None:
-                raise ValueError("GraspEnergy needs hand_pose or all of palm_rot, palm_t, joints")
-            frames = self.hand.forward_parts(palm_rot, palm_t, joints)
-        scale = scale.to(self.hand.dtype)
-        if contact_index is None:
-            contact_index = self.nearest_contacts(frames, object_index, scale)
-        points = self.contact_points(frames, contact_index)
-        distance, normal = self.bank.signed_distance(points, object_index[:, None], scale[:, None])
-        penetration = self.penetration(frames, object_index, scale)
-        terms = {
-            "E_fc": self.force_closure(points, normal),
-            "E_dis": self.contact_distance(distance),
-            "E_pen": penetration.energy,
-            "E_spen": self.self_penetration(frames),
-            "E_joints": self.joint_limits(joints),
-        }
+        context = self.context(
+            hand_pose, object_index=object_index, scale=scale, contact_index=contact_index, palm_rot=palm_rot, palm_t=palm_t, joints=joints
+        )
+        terms = {term.name: term.evaluate(context) for term in self.terms}
+        penetration = context.penetration
         deepest = torch.maximum(penetration.object_in_hand_max_m, penetration.hand_in_object_max_m)
         return EnergyResult(
             terms=terms,
-            total=self.weights.combine(terms),
-            contact_index=contact_index,
+            total=weighted_sum(self.weights, terms, ((term.name, term.weight_key) for term in self.terms)),
+            contact_index=context.contact_index,
             penetration_mm=deepest * 1000.0,
-            contact_distance_mm=distance.detach().abs().mean(dim=1) * 1000.0,
+            contact_distance_mm=context.contact_distance.detach().abs().mean(dim=1) * 1000.0,
         )

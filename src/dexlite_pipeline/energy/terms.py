@@ -1,14 +1,22 @@
 """The five grasp energy terms, one small class each (DexGraspNet's definitions; docs/design.md).
 
-Each term only computes its value per grasp, (B,) in SI units (metres for distances);
-weighting is held apart (``energy.grasp_energy.EnergyWeights``), so the seed optimizer,
-post-optimization and the CVAE's training loss share the same terms with their own weights.
-All terms are differentiable in the points and frames they receive.
+Each term is an ``EnergyTerm``: it carries its result name (``name``, e.g. "E_fc"), the
+field of ``EnergyWeights`` that weights it (``weight_key``, e.g. "fc"), and
+``evaluate(context)``, its value per grasp, (B,) in SI units (metres for distances,
+radians for joint angles), read from the ``EnergyContext`` that ``GraspEnergy`` builds once
+per evaluation (link frames, joints, contact points with their signed distances and
+normals, the penetration result). ``GraspEnergy`` sums weight·value over its list of terms,
+so a new term is one subclass here plus one entry in that list. Weighting is held apart
+from the terms, so the seed optimizer, post-optimization and the CVAE's training loss share
+the same terms with their own weights. All terms are differentiable in the points and
+frames they receive. Each class is also callable on its own inputs (``__call__``), for
+callers that have those without a context (``GraspEnergy.best_contacts``, tests).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
 import torch
 
@@ -27,8 +35,52 @@ from dexlite_pipeline.energy.spheres import build_hand_spheres
 from dexlite_pipeline.objects.assets import SdfBank
 
 
-class ForceClosureTerm:
+@dataclass
+class PenetrationResult:
+    """E_pen per grasp and the deepest penetration each way (metres, detached)."""
+
+    energy: torch.Tensor
+    object_in_hand_max_m: torch.Tensor
+    hand_in_object_max_m: torch.Tensor
+
+
+@dataclass
+class EnergyContext:
+    """What the terms of one evaluation share, computed once per batch of B grasps.
+
+    Positions are in the object frame, in metres (the object scaled by ``scale``).
+    """
+
+    frames: HandFrames  # link rotations (B, L, 3, 3) and translations (B, L, 3)
+    joints: torch.Tensor  # (B, 22) joint angles, radians
+    object_index: torch.Tensor  # (B,) bank index of each grasp's object
+    scale: torch.Tensor  # (B,) metres per normalized object unit
+    contact_index: torch.Tensor  # (B, 4) chosen contact candidates
+    contact_points: torch.Tensor  # (B, 4, 3) positions of the chosen candidates
+    contact_distance: torch.Tensor  # (B, 4) their signed distances to the surface (positive outside)
+    contact_normal: torch.Tensor  # (B, 4, 3) unit surface normals at them
+    penetration: PenetrationResult  # E_pen and the deepest penetration each way
+
+
+class EnergyTerm:
+    """One named term of the grasp energy; ``GraspEnergy`` adds weight·``evaluate(context)``."""
+
+    name: ClassVar[str]  # key in ``EnergyResult.terms`` (and in stored arrays)
+    weight_key: ClassVar[str]  # field of ``EnergyWeights`` holding its weight
+
+    def evaluate(self, context: EnergyContext) -> torch.Tensor:
+        """The term per grasp, (B,), differentiable in the context's frames, joints and points."""
+        raise NotImplementedError
+
+
+class ForceClosureTerm(EnergyTerm):
     """E_fc = ‖Σ n_i‖² + ‖Σ x_i × n_i‖²: the net wrench of unit contact normals (‖nᵀG‖²)."""
+
+    name = "E_fc"
+    weight_key = "fc"
+
+    def evaluate(self, context: EnergyContext) -> torch.Tensor:
+        return self(context.contact_points, context.contact_normal)
 
     def __call__(self, contact_points: torch.Tensor, contact_normals: torch.Tensor) -> torch.Tensor:
         force = contact_normals.sum(dim=1)
@@ -36,37 +88,55 @@ class ForceClosureTerm:
         return force.square().sum(-1) + torque.square().sum(-1)
 
 
-class ContactDistanceTerm:
-    """E_dis = Σ |d(x_i)|: contacts should lie on the object surface."""
+class ContactDistanceTerm(EnergyTerm):
+    """E_dis = Σ |d(x_i)| (metres): contacts should lie on the object surface."""
+
+    name = "E_dis"
+    weight_key = "dis"
+
+    def evaluate(self, context: EnergyContext) -> torch.Tensor:
+        return self(context.contact_distance)
 
     def __call__(self, contact_signed_distance: torch.Tensor) -> torch.Tensor:
         return contact_signed_distance.abs().sum(dim=1)
 
 
-class JointLimitTerm:
-    """E_joints = Σ max(0, q − q⁺) + max(0, q⁻ − q)."""
+class JointLimitTerm(EnergyTerm):
+    """E_joints = Σ max(0, q − q⁺) + max(0, q⁻ − q) (radians) over the 22 joints."""
+
+    name = "E_joints"
+    weight_key = "joints"
 
     def __init__(self, joint_limits: torch.Tensor) -> None:
         self.lower = joint_limits[:, 0]
         self.upper = joint_limits[:, 1]
 
+    def evaluate(self, context: EnergyContext) -> torch.Tensor:
+        return self(context.joints)
+
     def __call__(self, joints: torch.Tensor) -> torch.Tensor:
         return (torch.relu(joints - self.upper) + torch.relu(self.lower - joints)).sum(dim=-1)
 
 
-class SelfPenetrationTerm:
-    """E_spen = Σ over keypoint pairs on different, non-adjacent links of max(0, margin − ‖p_i − p_j‖).
+class SelfPenetrationTerm(EnergyTerm):
+    """E_spen = Σ over keypoint pairs on different, non-adjacent links of max(0, margin − ‖p_i − p_j‖) (metres).
 
     Each unordered pair counts once (DexGraspNet sums the full symmetric matrix, i.e. twice).
     All pair distances are found without autograd; only the pairs closer than the margin
     (the only ones with a nonzero value or gradient) are evaluated again with gradients.
     """
 
+    name = "E_spen"
+    weight_key = "spen"
+
     def __init__(self, hand: ShadowHand, margin_m: float = 0.02) -> None:
         self.hand = hand
         self.margin_m = margin_m
         self.pairs = torch.triu(hand.keypoint_pair_mask, diagonal=1).nonzero(as_tuple=True)
         self.keypoint_map = LinkFrameMap.for_points(hand.keypoints_local, hand.keypoint_link, len(hand.link_names))
+
+    def evaluate(self, context: EnergyContext) -> torch.Tensor:
+        return self(context.frames)
 
     def __call__(self, frames: HandFrames) -> torch.Tensor:
         first, second = self.pairs
@@ -85,17 +155,8 @@ class SelfPenetrationTerm:
         return torch.relu(margin_m - distance)
 
 
-@dataclass
-class PenetrationResult:
-    """E_pen per grasp and the deepest penetration each way (metres, detached)."""
-
-    energy: torch.Tensor
-    object_in_hand_max_m: torch.Tensor
-    hand_in_object_max_m: torch.Tensor
-
-
-class PenetrationTerm:
-    """E_pen: depth of object surface points inside the hand, plus depth of buried hand spheres' centres.
+class PenetrationTerm(EnergyTerm):
+    """E_pen (metres): depth of object surface points inside the hand, plus depth of buried hand spheres' centres.
 
     Object points in the hand's capsules and boxes is DexGraspNet's E_pen (its 1 mm
     threshold applies to it). It is capped by a link's radius and blind to a link buried
@@ -104,6 +165,8 @@ class PenetrationTerm:
     stops growing. Near that depth both parts see the same link (object points inside
     it and its buried centres), so they overlap there rather than meeting exactly.
     ``hand_in_object_max_m`` is the full depth max(d(c) + r) (for ``penetration_mm``).
+    ``GraspEnergy`` calls it once per evaluation to fill ``EnergyContext.penetration`` (the
+    depths are diagnostics of every evaluation); ``evaluate`` reads the energy from there.
 
     Exact culling keeps it cheap. Every sphere's depth is found first without autograd; a
     shape can hold object points only if one of its spheres reaches the object within the
@@ -119,6 +182,9 @@ class PenetrationTerm:
     # Float32 slack of the culling tests, so that rounding never drops a point (only adds candidates).
     CULL_SLACK_M = 1e-6
     CULL_SLACK_RELATIVE = 1e-4
+
+    name = "E_pen"
+    weight_key = "pen"
 
     def __init__(self, hand: ShadowHand, sdf_bank: SdfBank, object_points: torch.Tensor, cluster_size: int = 8) -> None:
         self.hand = hand
@@ -136,6 +202,9 @@ class PenetrationTerm:
         link_count = len(hand.link_names)
         self.sphere_map = LinkFrameMap.for_points(self.spheres.centre_local, self.spheres.link, link_count)
         self.shape_map = LinkFrameMap.for_frames(hand.shape_rot, hand.shape_pos, hand.shape_link, link_count)
+
+    def evaluate(self, context: EnergyContext) -> torch.Tensor:
+        return context.penetration.energy
 
     def __call__(self, frames: HandFrames, object_index: torch.Tensor, scale: torch.Tensor) -> PenetrationResult:
         batch = object_index.shape[0]
