@@ -142,3 +142,24 @@ def test_an_empty_batch_gives_empty_results(setup):
     assert energy(pose, object_index=object_index, scale=scale).total.shape == (0,)
     result = optimize(energy, pose, object_index, scale, AnnealingConfig(iterations=3, final_contact_samples=4), torch.Generator().manual_seed(0))
     assert result.hand_pose.shape == (0, 28) and result.contact_index.shape == (0, 4)
+
+
+def test_acceptance_and_keep_best_pieces():
+    """Downhill proposals are always accepted; the kept-best state is each grasp's running minimum."""
+    from dexlite_pipeline.optim.annealing import KeepBest, WalkState, _Kept, metropolis_accept
+
+    generator = torch.Generator().manual_seed(0)
+    old = torch.tensor([1.0, 1.0, 1.0, 5.0])
+    assert metropolis_accept(old, old - 0.5, temperature=1e-3, generator=generator).all()
+    assert not metropolis_accept(old, old + 10.0, temperature=1e-3, generator=generator).any()
+
+    def walk(total):
+        total = torch.as_tensor(total)
+        kept = _Kept({"E_fc": total * 2}, total * 0, total * 0)
+        return WalkState(total[:, None].expand(-1, 31).clone(), torch.zeros(len(total), 4, dtype=torch.long), total, kept, torch.zeros(len(total), 31))
+
+    best = KeepBest(walk([3.0, 1.0, 2.0]))
+    for totals in ([2.0, 4.0, 2.0], [5.0, 0.5, 1.0]):
+        best.update(walk(totals))
+    assert best.best.total.tolist() == [2.0, 0.5, 1.0] and best.best.grad is None
+    assert best.best.state[:, 0].tolist() == [2.0, 0.5, 1.0] and best.best.result.terms["E_fc"].tolist() == [4.0, 1.0, 2.0]

@@ -1,20 +1,26 @@
 """DexGraspNet's annealed grasp optimizer, batched over every grasp at once.
 
-Each iteration proposes a new state for every grasp: a gradient step scaled RMSProp-style
-(DexGraspNet's variant, kept on purpose: the running mean puts weight ``mu`` on the NEW
-squared gradient, averaged over the batch — measured here to beat the standard form, 0.50
-vs 0.34 pass fraction on one object), plus each contact index re-drawn with probability
-``contact_switch_probability``. The proposal is accepted with Metropolis probability
-exp((E_old − E_new)/T), T = T0·decay^⌊k/period⌋; a rejected grasp keeps its old pose,
-contacts and gradient. Optionally (``final_contact_samples``), a last search over many
-contact sets for the final poses picks the best (``GraspEnergy.best_contacts``): the
-random walk over contact indices rarely lands on the best set once T is low. With
-``contact_search_every`` the same search also runs during the run, so the gradient then
-pulls the best contacts found onto the surface (it never raises the energy). With
-``keep_best`` each grasp ends in the lowest-energy state it visited rather than the last
-one: at a high temperature the walk accepts almost every proposal, and 200 steps of it
-at T0 = 18 turn grasps that hold into ones that mostly do not (see ``post_optimization``).
-The palm rotation is optimized in the 6D form; results come back as the stored 28-vector.
+Each iteration of ``optimize`` has three parts, each its own piece here:
+
+* step (``RMSPropProposal``): a gradient step on the state [palm translation (m), palm
+  rotation in 6D form, joint angles (rad)] scaled RMSProp-style, plus each contact index
+  re-drawn with probability ``contact_switch_probability``, and the energy of the result.
+  It is DexGraspNet's variant of RMSProp, kept on purpose because it gives more passing
+  grasps than the standard form: the running mean puts weight ``mu`` on the NEW squared
+  gradient, averaged over the batch.
+* accept (``metropolis_accept``, ``WalkState.where``, ``KeepBest``): each proposal is
+  accepted with Metropolis probability exp((E_old − E_new)/T), T = T0·decay^⌊k/period⌋; a
+  rejected grasp keeps its old pose, contacts and gradient. With ``keep_best`` each grasp
+  ends in the lowest-energy state it visited rather than the last one, because at a high
+  temperature the walk accepts almost every proposal and can leave a good grasp.
+* track (``Tracker``): the energy trace of the kept state, its terms, pose snapshots at
+  chosen iterations and the acceptance counts.
+
+Optionally (``final_contact_samples``), a last search over many contact sets for the final
+poses picks the best (``GraspEnergy.best_contacts``): the random walk over contact indices
+rarely lands on the best set once T is low. With ``contact_search_every`` the same search
+also runs during the run, so the gradient then pulls the best contacts found onto the
+surface (it never raises the energy). Results come back as the stored 28-vector pose.
 """
 
 from __future__ import annotations
@@ -22,11 +28,11 @@ from __future__ import annotations
 import logging
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import torch
 
-from dexlite_pipeline.energy.grasp_energy import CONTACT_COUNT, TERM_NAMES, GraspEnergy
+from dexlite_pipeline.energy.grasp_energy import CONTACT_COUNT, EnergyResult, GraspEnergy
 from dexlite_pipeline.hand.model import JOINTS, ROTATION, TRANSLATION
 from dexlite_pipeline.hand.rotation import euler_xyz_to_matrix, matrix_to_euler_xyz, matrix_to_rot6d, rot6d_to_matrix
 
@@ -98,6 +104,134 @@ def random_contacts(batch: int, candidate_count: int, generator: torch.Generator
     return torch.randint(candidate_count, (batch, CONTACT_COUNT), generator=generator).to(device)
 
 
+class StateEnergy:
+    """The energy of optimizer states (B, 31) at given contacts, with its gradient w.r.t. the state."""
+
+    def __init__(self, energy: GraspEnergy, object_index: torch.Tensor, scale: torch.Tensor) -> None:
+        self.energy = energy
+        self.object_index = object_index
+        self.scale = scale
+
+    def __call__(self, state: torch.Tensor, contacts: torch.Tensor) -> "WalkState":
+        """Evaluate at ``state``; NaN and ±inf in the gradient become 0, as one grasp's NaN would otherwise
+        reach every grasp through the batch-shared RMSProp mean."""
+        x = state.detach().requires_grad_(True)
+        result = self.energy(
+            palm_rot=rot6d_to_matrix(x[:, _R6]), palm_t=x[:, _T], joints=x[:, _Q],
+            object_index=self.object_index, scale=self.scale, contact_index=contacts,
+        )
+        (grad,) = torch.autograd.grad(result.total.sum(), x)
+        return WalkState(state, contacts, result.total.detach(), result, torch.nan_to_num(grad, nan=0.0, posinf=0.0, neginf=0.0))
+
+
+@dataclass
+class WalkState:
+    """One state per grasp of the walk: where it is, its energy and (for the walking chain) its gradient."""
+
+    state: torch.Tensor  # (B, 31) [palm translation (m), palm rotation 6D, joints (rad)]
+    contacts: torch.Tensor  # (B, 4) contact candidate indices
+    total: torch.Tensor  # (B,) total energy, detached
+    result: EnergyResult | _Kept  # the terms and diagnostics at this state
+    grad: torch.Tensor | None = None  # (B, 31) d total / d state; None where no step is taken from it
+
+    def where(self, mask: torch.Tensor, other: "WalkState") -> "WalkState":
+        """Per grasp, ``other`` where ``mask`` (B,) is True, else this state."""
+        grad = None if self.grad is None or other.grad is None else torch.where(mask[:, None], other.grad, self.grad)
+        return WalkState(
+            torch.where(mask[:, None], other.state, self.state),
+            torch.where(mask[:, None], other.contacts, self.contacts),
+            torch.where(mask, other.total, self.total),
+            _select(mask, other.result, self.result),
+            grad,
+        )
+
+
+class RMSPropProposal:
+    """The proposal step: an RMSProp-scaled gradient step plus random contact switches, evaluated.
+
+    The running mean of the squared gradient is one value per state coordinate, shared by
+    the batch (the mean over grasps), and weights the NEW value by ``rmsprop_mu``.
+    """
+
+    def __init__(self, config: AnnealingConfig, evaluate: StateEnergy, candidate_count: int, generator: torch.Generator, like: torch.Tensor) -> None:
+        self.config = config
+        self.evaluate = evaluate
+        self.candidate_count = candidate_count
+        self.generator = generator
+        self.square_avg = torch.zeros(like.shape[1], dtype=like.dtype, device=like.device)
+
+    def __call__(self, walk: WalkState, iteration: int) -> WalkState:
+        """The proposal for ``iteration`` (1-based) from ``walk``; draws the switch mask, then the new indices."""
+        config = self.config
+        batch, device = walk.state.shape[0], walk.state.device
+        self.square_avg = config.rmsprop_mu * walk.grad.square().mean(0) + (1 - config.rmsprop_mu) * self.square_avg
+        step = config.step_size_at(iteration - 1) * walk.grad / (self.square_avg.sqrt() + config.rmsprop_eps)
+        proposal = walk.state - step
+        switch = (torch.rand(batch, CONTACT_COUNT, generator=self.generator) < config.contact_switch_probability).to(device)
+        redrawn = random_contacts(batch, self.candidate_count, self.generator, device)
+        return self.evaluate(proposal, torch.where(switch, redrawn, walk.contacts))
+
+
+def metropolis_accept(old_total: torch.Tensor, new_total: torch.Tensor, temperature: float, generator: torch.Generator) -> torch.Tensor:
+    """(B,) bool: accept each proposal with probability min(1, exp((E_old − E_new)/T)); one uniform draw per grasp."""
+    uniform = torch.rand(old_total.shape[0], generator=generator).to(old_total.device)
+    return uniform < torch.exp((old_total - new_total) / temperature)
+
+
+class KeepBest:
+    """The lowest-energy state each grasp has visited (ties keep the earlier one)."""
+
+    def __init__(self, start: WalkState) -> None:
+        self.best = replace(start, grad=None)
+
+    def update(self, walk: WalkState) -> None:
+        self.best = self.best.where(walk.total < self.best.total, replace(walk, grad=None))
+
+
+def search_contacts(energy: GraspEnergy, walk: WalkState, evaluate: StateEnergy, samples: int, generator: torch.Generator) -> WalkState:
+    """The walk re-evaluated at the best of ``samples`` contact sets per grasp for its current poses (never worse).
+
+    Run every ``contact_search_every`` iterations, so the next gradient steps pull the chosen contacts onto the surface.
+    """
+    contacts = energy.best_contacts(state_to_pose(walk.state), evaluate.object_index, evaluate.scale, walk.contacts, samples, generator)
+    return evaluate(walk.state, contacts)
+
+
+class Tracker:
+    """What ``optimize`` reports besides the final state: energy and term traces, snapshots, acceptance counts."""
+
+    def __init__(self, config: AnnealingConfig, start: WalkState, init_pose: torch.Tensor, snapshot_iterations: tuple[int, ...]) -> None:
+        self.config = config
+        self.snapshot_iterations = snapshot_iterations
+        self.accepted = torch.zeros(start.total.shape[0], dtype=torch.long, device=start.total.device)
+        self.trace = [start.total.clone()]
+        self.trace_iterations = [0]
+        self.term_traces = {name: [value.detach().clone()] for name, value in start.result.terms.items()}
+        self.snapshots = {0: init_pose.detach().to(start.state.device, start.state.dtype).clone()} if 0 in snapshot_iterations else {}
+
+    def count(self, accept: torch.Tensor) -> None:
+        self.accepted += accept.long()
+
+    def record(self, iteration: int, kept: WalkState) -> None:
+        """After ``iteration``: a trace row every ``trace_every`` iterations and at the last, a snapshot if asked."""
+        if iteration % self.config.trace_every == 0 or iteration == self.config.iterations:
+            self.trace.append(kept.total.clone())
+            self.trace_iterations.append(iteration)
+            for name, value in kept.result.terms.items():
+                self.term_traces[name].append(value.detach().clone())
+        if iteration in self.snapshot_iterations:
+            self.snapshots[iteration] = state_to_pose(kept.state).detach()
+
+    def replace_last(self, total: torch.Tensor, terms: dict[str, torch.Tensor]) -> None:
+        """Overwrite the last trace row (after the final contact search changed the final state's energy)."""
+        self.trace[-1] = total.clone()
+        for name, value in terms.items():
+            self.term_traces[name][-1] = value.detach().clone()
+
+    def acceptance_rate(self, dtype: torch.dtype) -> torch.Tensor:
+        return self.accepted.to(dtype) / max(self.config.iterations, 1)
+
+
 def optimize(
     energy: GraspEnergy,
     init_pose: torch.Tensor,
@@ -114,7 +248,8 @@ def optimize(
 
     ``contact_index`` None draws the initial contacts uniformly (DexGraspNet's start);
     ``generator`` (a CPU ``torch.Generator``) makes the run deterministic for a seed.
-    ``progress(iteration, total_energy)`` is called every ``progress_every`` iterations.
+    ``progress(iteration, total_energy)`` is called every ``progress_every`` iterations
+    with the walking chain's energy.
     ``snapshot_iterations``: also return the kept pose (the best so far with ``keep_best``)
     after each of these iterations, for budget curves.
     """
@@ -122,91 +257,50 @@ def optimize(
     device = energy.device
     batch = init_pose.shape[0]
     candidate_count = len(energy.hand.contact_link)
+    evaluate = StateEnergy(energy, object_index, scale)
     state = pose_to_state(init_pose.to(device, energy.hand.dtype)).detach()
     contacts = random_contacts(batch, candidate_count, generator, device) if contact_index is None else contact_index.to(device)
 
-    def evaluate(x: torch.Tensor, c: torch.Tensor):
-        x = x.detach().requires_grad_(True)
-        result = energy(
-            palm_rot=rot6d_to_matrix(x[:, _R6]), palm_t=x[:, _T], joints=x[:, _Q],
-            object_index=object_index, scale=scale, contact_index=c,
-        )
-        (grad,) = torch.autograd.grad(result.total.sum(), x)
-        return result, torch.nan_to_num(grad, nan=0.0, posinf=0.0, neginf=0.0)
-
-    current, grad = evaluate(state, contacts)
-    total = current.total.detach()
-    square_avg = torch.zeros(state.shape[1], dtype=state.dtype, device=device)
-    accepted = torch.zeros(batch, dtype=torch.long, device=device)
-    best_state, best_contacts, best_total, best = state, contacts, total, current
-    trace = [total.clone()]
-    trace_iterations = [0]
-    term_traces = {name: [value.detach().clone()] for name, value in current.terms.items()}
-    snapshots = {0: init_pose.detach().to(device, energy.hand.dtype).clone()} if 0 in snapshot_iterations else {}
+    walk = evaluate(state, contacts)
+    propose = RMSPropProposal(config, evaluate, candidate_count, generator, like=state)
+    best = KeepBest(walk) if config.keep_best else None
+    tracker = Tracker(config, walk, init_pose, snapshot_iterations)
+    searching = config.final_contact_samples and config.contact_search_every
     for iteration in range(1, config.iterations + 1):
-        square_avg = config.rmsprop_mu * grad.square().mean(0) + (1 - config.rmsprop_mu) * square_avg
-        step = config.step_size_at(iteration - 1) * grad / (square_avg.sqrt() + config.rmsprop_eps)
-        proposal = state - step
-        switch = (torch.rand(batch, CONTACT_COUNT, generator=generator) < config.contact_switch_probability).to(device)
-        redrawn = random_contacts(batch, candidate_count, generator, device)
-        proposal_contacts = torch.where(switch, redrawn, contacts)
-
-        candidate, candidate_grad = evaluate(proposal, proposal_contacts)
-        new_total = candidate.total.detach()
-        temperature = config.temperature_at(iteration)
-        uniform = torch.rand(batch, generator=generator).to(device)
-        accept = uniform < torch.exp((total - new_total) / temperature)
-        accepted += accept.long()
-        state = torch.where(accept[:, None], proposal, state)
-        contacts = torch.where(accept[:, None], proposal_contacts, contacts)
-        grad = torch.where(accept[:, None], candidate_grad, grad)
-        total = torch.where(accept, new_total, total)
-        current = _select(accept, candidate, current)
-        if config.final_contact_samples and config.contact_search_every and iteration % config.contact_search_every == 0 and iteration < config.iterations:
-            contacts = energy.best_contacts(state_to_pose(state), object_index, scale, contacts, config.final_contact_samples, generator)
-            current, grad = evaluate(state, contacts)
-            total = current.total.detach()
-        if config.keep_best:
-            improved = total < best_total
-            best_state = torch.where(improved[:, None], state, best_state)
-            best_contacts = torch.where(improved[:, None], contacts, best_contacts)
-            best_total = torch.where(improved, total, best_total)
-            best = _select(improved, current, best)
-        if iteration % config.trace_every == 0 or iteration == config.iterations:
-            kept_total, kept = (best_total, best) if config.keep_best else (total, current)
-            trace.append(kept_total.clone())
-            trace_iterations.append(iteration)
-            for name, value in kept.terms.items():
-                term_traces[name].append(value.detach().clone())
-        if iteration in snapshot_iterations:
-            snapshots[iteration] = state_to_pose(best_state if config.keep_best else state).detach()
+        proposal = propose(walk, iteration)
+        accept = metropolis_accept(walk.total, proposal.total, config.temperature_at(iteration), generator)
+        tracker.count(accept)
+        walk = walk.where(accept, proposal)
+        if searching and iteration % config.contact_search_every == 0 and iteration < config.iterations:
+            walk = search_contacts(energy, walk, evaluate, config.final_contact_samples, generator)
+        if best is not None:
+            best.update(walk)
+        tracker.record(iteration, walk if best is None else best.best)
         if progress is not None and iteration % progress_every == 0:
-            progress(iteration, total)
+            progress(iteration, walk.total)
 
-    if config.keep_best:
-        state, contacts, total, current = best_state, best_contacts, best_total, best
-    hand_pose = state_to_pose(state).detach()
+    final = walk if best is None else best.best
+    hand_pose = state_to_pose(final.state).detach()
+    contacts, total, result = final.contacts, final.total, final.result
     if config.final_contact_samples > 0:
         contacts = energy.best_contacts(hand_pose, object_index, scale, contacts, config.final_contact_samples, generator)
         with torch.no_grad():
-            current = energy(hand_pose, object_index=object_index, scale=scale, contact_index=contacts)
-        total = current.total.detach()
-        trace[-1] = total.clone()
-        for name, value in current.terms.items():
-            term_traces[name][-1] = value.detach().clone()
+            result = energy(hand_pose, object_index=object_index, scale=scale, contact_index=contacts)
+        total = result.total.detach()
+        tracker.replace_last(total, result.terms)
     return OptimizationResult(
         hand_pose=hand_pose,
         contact_index=contacts,
-        terms={k: v.detach() for k, v in current.terms.items()},
+        terms={k: v.detach() for k, v in result.terms.items()},
         total=total,
-        penetration_mm=current.penetration_mm,
-        contact_distance_mm=current.contact_distance_mm,
-        trace=torch.stack(trace),
-        trace_iterations=torch.as_tensor(trace_iterations),
-        term_traces={name: torch.stack(values) for name, values in term_traces.items()},
-        acceptance_rate=accepted.to(state.dtype) / max(config.iterations, 1),
+        penetration_mm=result.penetration_mm,
+        contact_distance_mm=result.contact_distance_mm,
+        trace=torch.stack(tracker.trace),
+        trace_iterations=torch.as_tensor(tracker.trace_iterations),
+        term_traces={name: torch.stack(values) for name, values in tracker.term_traces.items()},
+        acceptance_rate=tracker.acceptance_rate(final.state.dtype),
         seconds=time.perf_counter() - started,
-        snapshots=snapshots,
+        snapshots=tracker.snapshots,
     )
 
 
@@ -220,7 +314,8 @@ class _Kept:
 
 
 def _select(accept: torch.Tensor, new, old) -> _Kept:
-    terms = {k: torch.where(accept, new.terms[k].detach(), old.terms[k].detach()) for k in TERM_NAMES}
+    """Terms and diagnostics of ``new`` where ``accept`` (B,) is True, else of ``old`` (detached)."""
+    terms = {k: torch.where(accept, new.terms[k].detach(), old.terms[k].detach()) for k in new.terms}
     return _Kept(
         terms,
         torch.where(accept, new.penetration_mm, old.penetration_mm),
