@@ -4,7 +4,9 @@ The kinematic tree is read once from the palm-rooted MuJoCo model (``hand.mjcf``
 flat tensors; forward kinematics then runs over a batch of 28-vectors with no Python
 work per grasp. pytorch-kinematics 0.10 cannot parse MJCF under mujoco 4 (its joint-type
 table is keyed by enum members), so the chain is built here from the compiled MjModel,
-and ``tests/hand`` checks it against MuJoCo's own forward kinematics.
+and ``tests/hand`` checks it against MuJoCo's own forward kinematics and against
+pytorch-kinematics on the same chain (``hand.pk_chain``), which is 1.9-3.7x slower at the
+optimizers' batches of 512-1024 poses on CPU (``benchmarks/bench_kinematics.py``).
 
 Frames: ``hand_pose`` = [t (3, m), static-xyz Euler (3, rad), 22 joints (rad)] is the pose
 of ``robot0:palm`` in the object frame. Every point set below is returned in the object frame.
