@@ -44,19 +44,20 @@ def measure(assets, batches, iterations: int, sample_grasps: int) -> list[dict]:
     from dexlite_pipeline.model.demo_grasps import facing_grasps
     from dexlite_pipeline.model.network import GraspCVAE, ModelConfig
     from dexlite_pipeline.model.post_optimization import PostOptimizeConfig, refine
+    from dexlite_pipeline.optim.annealing import AnnealingSchedule
     from dexlite_pipeline.model.sampling import synthesize
 
     ids = [a.object_id for a in assets]
     hand = ShadowHand()
-    config = PostOptimizeConfig(iterations=iterations)
-    energy = GraspEnergy.from_assets(hand, assets, EnergyConfig(weights=config.weights(), object_points=config.energy_object_points))
+    config = PostOptimizeConfig(annealing=AnnealingSchedule(iterations=iterations))
+    energy = GraspEnergy.from_assets(hand, assets, EnergyConfig(weights=config.energy_weights, object_points=config.energy_object_points))
     rows = []
     for batch in batches:
         grasps = facing_grasps(hand, ids, batch, seed=batch)
         started, cpu_started = time.perf_counter(), time.process_time()
         result = refine(
             energy, torch.as_tensor(grasps.hand_pose), energy.object_index(grasps.object_id), torch.as_tensor(grasps.scale),
-            PostOptimizeConfig(iterations=iterations, batch_size=batch), torch.Generator().manual_seed(0),
+            PostOptimizeConfig(annealing=AnnealingSchedule(iterations=iterations), batch_size=batch), torch.Generator().manual_seed(0),
         )
         seconds, cpu_seconds = time.perf_counter() - started, time.process_time() - cpu_started
         before, after = np.median(result.arrays["raw_E_post"]), np.median(result.arrays["E_post"])

@@ -12,32 +12,11 @@ import pytest
 import yaml
 
 from dexlite_pipeline.config import ConfigError, from_section, load_config, load_schema, validate_config
-from dexlite_pipeline.curate import CurateConfig
-from dexlite_pipeline.energy.grasp_energy import EnergyConfig
-from dexlite_pipeline.io.dexgraspnet import DexGraspNetConfig
-from dexlite_pipeline.model.post_optimization import PostOptimizeConfig
-from dexlite_pipeline.model.sampling import SampleConfig
-from dexlite_pipeline.model.training import TrainConfig
-from dexlite_pipeline.objects.prepare import ObjectsConfig
-from dexlite_pipeline.objects.stability import StabilityConfig
-from dexlite_pipeline.optim.seed import SeedConfig
-from dexlite_pipeline.report.evaluation import EvaluateConfig
-from dexlite_pipeline.sim.config import LiftConfig
+from dexlite_pipeline.settings import PipelineConfig, build_config
 
 ROOT = Path(__file__).resolve().parents[1]
-SECTIONS = {
-    "objects": ObjectsConfig,
-    "dexgraspnet": DexGraspNetConfig,
-    "stability": StabilityConfig,
-    "curate": CurateConfig,
-    "energy": EnergyConfig,
-    "lift": LiftConfig,
-    "evaluate": EvaluateConfig,
-    "train": TrainConfig,
-    "sample": SampleConfig,
-    "post_optimize": PostOptimizeConfig,
-    "seed_grasps": SeedConfig,
-}
+# section name -> its settings class, as the root of the typed tree holds them
+SECTIONS = {name: hint for name, hint in typing.get_type_hints(PipelineConfig).items() if dataclasses.is_dataclass(hint)}
 
 
 def _field_tree(cls) -> dict:
@@ -76,28 +55,62 @@ def test_every_setting_is_in_config_yaml_and_builds(config, name):
     from_section(SECTIONS[name], config[name], f"config.{name}")
 
 
-def _schema_tree(schema: dict) -> dict | None:
-    """Property names of an object schema, nested object schemas as sub-trees."""
+def _schema_tree(schema: dict, root: dict) -> dict | None:
+    """Property names of an object schema (``$ref`` to ``#/$defs/...`` followed), nested object schemas as sub-trees."""
+    if "$ref" in schema:
+        schema = root["$defs"][schema["$ref"].removeprefix("#/$defs/")]
     if schema.get("type") != "object" or "properties" not in schema:
         return None
-    return {k: _schema_tree(v) for k, v in schema["properties"].items()}
+    return {k: _schema_tree(v, root) for k, v in schema["properties"].items()}
+
+
+def _json_ready(value):
+    """A settings tree as the mapping config.yaml would spell it (tuples as lists)."""
+    if isinstance(value, dict):
+        return {k: _json_ready(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_json_ready(v) for v in value]
+    return value
 
 
 def test_schema_describes_exactly_the_keys_of_config_yaml(config):
-    schema = _schema_tree(load_schema())
-    assert _key_tree(config, schema) == schema
+    schema = load_schema()
+    tree = _schema_tree(schema, schema)
+    assert _key_tree(config, tree) == tree
+
+
+def test_defaults_schema_and_config_yaml_agree(config):
+    """One set of defaults: the settings classes' defaults are config.yaml's values, key for key,
+    and they satisfy the schema (types and ranges); the whole file builds the same typed tree."""
+    defaults = PipelineConfig()
+    assert build_config(config) == defaults
+    as_mapping = _json_ready(dataclasses.asdict(defaults))
+    assert as_mapping == config
+    validate_config(as_mapping, "settings defaults")
+
+
+def test_a_shared_shape_is_one_type_wherever_it_appears():
+    from dexlite_pipeline.energy.grasp_energy import EnergyWeights
+    from dexlite_pipeline.energy.thresholds import EnergyThresholds
+    from dexlite_pipeline.optim.annealing import AnnealingSchedule
+    from dexlite_pipeline.optim.init import InitConfig
+
+    hints = {name: typing.get_type_hints(cls) for name, cls in SECTIONS.items()}
+    assert hints["energy"]["weights"] is hints["train"]["energy_weights"] is hints["post_optimize"]["energy_weights"] is EnergyWeights
+    assert hints["seed_grasps"]["annealing"] is hints["post_optimize"]["annealing"] is AnnealingSchedule
+    assert hints["seed_grasps"]["thresholds"] is hints["curate"]["thresholds"] is EnergyThresholds
+    assert hints["seed_grasps"]["init"] is hints["post_optimize"]["random_init"] is InitConfig
 
 
 @pytest.mark.parametrize("profile", sorted(p.name for p in (ROOT / "config" / "profiles").glob("*.yaml")))
 def test_profiles_over_the_default_config_validate_and_build(config, profile):
     merged = _merged(config, yaml.safe_load((ROOT / "config" / "profiles" / profile).read_text()))
     validate_config(merged, profile)
-    for name, cls in SECTIONS.items():
-        from_section(cls, merged[name], f"{profile}: {name}")
+    build_config(merged, profile)
 
 
 def test_schema_rejects_unknown_keys_and_wrong_types(config):
-    unknown = _merged(config, {"post_optimize": {"iteratons": 100}})
+    unknown = _merged(config, {"post_optimize": {"annealing": {"iteratons": 100}}})
     with pytest.raises(ConfigError, match="post_optimize"):
         validate_config(unknown)
     wrong_type = _merged(config, {"lift": {"friction": "high"}})
@@ -109,7 +122,7 @@ def test_a_string_where_a_list_is_expected_is_one_clear_error(tmp_path, capsys):
     from dexlite_pipeline.cli import main
 
     cfg = json.dumps({"objects": {"builtin_count": 0, "mesh_dirs": str(tmp_path)}})
-    assert main(["prepare-objects", "--config-json", cfg, "--out-dir", str(tmp_path / "out")]) == 2
+    assert main(["prepare-objects", "--config-json", cfg, "--catalog", str(tmp_path / "out" / "catalog.parquet"), "--record", str(tmp_path / "out" / "prepare_config.json")]) == 2
     error = capsys.readouterr().err.strip()
     assert error == f'dexlite prepare-objects: error: --config-json: objects.mesh_dirs: expected a list (array), got a string "{tmp_path}"'
     assert not (tmp_path / "out").exists()

@@ -67,7 +67,7 @@ def rule_names() -> set[str]:
 
 def stage_options(subcommand: str) -> set[str]:
     """Option strings the subcommand's parser accepts (as the CLI builds it)."""
-    module = importlib.import_module(f"dexlite_pipeline.stages.{COMMANDS[subcommand][0]}")
+    module = importlib.import_module(f"dexlite_pipeline.{COMMANDS[subcommand][0]}")
     parser = argparse.ArgumentParser()
     parser.add_argument("--threads")
     module.add_arguments(parser)

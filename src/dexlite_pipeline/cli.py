@@ -1,6 +1,7 @@
 """The ``dexlite`` command: one subcommand per pipeline stage plus user tools.
 
-Each subcommand lives in ``dexlite_pipeline.stages.<module>`` and exposes
+Each pipeline stage's command lives in ``dexlite_pipeline.stages.<module>``, each user tool's in
+``dexlite_pipeline.commands.<module>``; both expose
 ``add_arguments(parser)`` and ``run(args) -> int``; modules are imported only when
 their command runs, so ``dexlite --help`` is fast and one stage's heavy dependencies
 never slow another.
@@ -17,23 +18,24 @@ import sys
 
 from dexlite_pipeline import __version__
 
+# Pipeline stages (``stages``) and user tools (``commands``): command -> (module, help).
 COMMANDS: dict[str, tuple[str, str]] = {
-    "prepare-objects": ("prepare_objects", "normalize meshes, decompose, build SDF grids and point clouds"),
-    "stability-filter": ("stability_filter", "PyBullet table-stability test of prepared objects"),
-    "seed-grasps": ("seed_grasps", "synthesize seed grasps by energy optimization (one shard)"),
-    "import-dexgraspnet": ("import_dexgraspnet", "import a DexGraspNet download as a grasp store plus object assets"),
-    "export-dexgraspnet": ("export_dexgraspnet", "write a grasp store back in the DexGraspNet layout"),
-    "curate": ("curate", "filter seed/imported grasps by stability, energy thresholds and duplicates"),
-    "energy": ("energy", "per-grasp energy terms and penetration depth of a grasp store"),
-    "lift-test": ("lift_test", "MuJoCo lift test (and optional six-direction test) of every grasp in a store"),
-    "lift-validate": ("lift_validate", "pipeline stage: lift-test one shard of curated grasps"),
-    "train-cvae": ("train_cvae", "train the PointNet + CVAE grasp model"),
-    "sample-grasps": ("sample_grasps", "sample grasps from the trained CVAE"),
-    "post-optimize": ("post_optimize", "refine sampled grasps by annealed energy optimization"),
-    "evaluate": ("evaluate", "simulate and measure every method on held-out objects"),
-    "report": ("report", "build results/eval/report.html from the evaluation outputs"),
-    "render": ("render", "render one grasp (hand and object) to a PNG"),
-    "grasp": ("grasp", "grasps that hold for your own meshes: prepare, synthesize, test, export, summarize"),
+    "prepare-objects": ("stages.prepare_objects", "normalize meshes, decompose, build SDF grids and point clouds"),
+    "stability-filter": ("stages.stability_filter", "PyBullet table-stability test of prepared objects"),
+    "seed-grasps": ("stages.seed_grasps", "synthesize seed grasps by energy optimization (one shard)"),
+    "import-dexgraspnet": ("stages.import_dexgraspnet", "import a DexGraspNet download as a grasp store plus object assets"),
+    "curate": ("stages.curate", "filter seed/imported grasps by stability, energy thresholds and duplicates"),
+    "lift-validate": ("stages.lift_validate", "pipeline stage: lift-test one shard of curated grasps"),
+    "train-cvae": ("stages.train_cvae", "train the PointNet + CVAE grasp model"),
+    "sample-grasps": ("stages.sample_grasps", "sample grasps from the trained CVAE"),
+    "post-optimize": ("stages.post_optimize", "refine sampled grasps by annealed energy optimization"),
+    "evaluate": ("stages.evaluate", "simulate and measure every method on held-out objects"),
+    "report": ("stages.report", "build results/eval/report.html from the evaluation outputs"),
+    "grasp": ("commands.grasp", "grasps that hold for your own meshes: prepare, synthesize, test, export, summarize"),
+    "lift-test": ("commands.lift_test", "MuJoCo lift test (and optional six-direction test) of every grasp in a store"),
+    "energy": ("commands.energy", "per-grasp energy terms and penetration depth of a grasp store"),
+    "render": ("commands.render", "render one grasp (hand and object) to a PNG"),
+    "export-dexgraspnet": ("commands.export_dexgraspnet", "write a grasp store back in the DexGraspNet layout"),
 }
 
 
@@ -65,7 +67,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     top, rest = parser.parse_known_args(argv)
     module_name, help_text = COMMANDS[top.command]
-    module = importlib.import_module(f"dexlite_pipeline.stages.{module_name}")
+    module = importlib.import_module(f"dexlite_pipeline.{module_name}")
     stage_parser = argparse.ArgumentParser(prog=f"dexlite {top.command}", description=help_text)
     stage_parser.add_argument("--threads", type=int, default=None, help="torch/worker threads (Snakemake passes the rule's threads)")
     module.add_arguments(stage_parser)

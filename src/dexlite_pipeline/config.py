@@ -17,6 +17,9 @@ from typing import Any, TypeVar
 import yaml
 
 SCHEMA_PATH = Path(__file__).parent / "schemas" / "config.schema.yaml"
+# The keys of config section ``objects`` a DexGraspNet import uses (its meshes bring their own
+# convex pieces); here, not in io.dexgraspnet, because the workflow reads it while parsing.
+IMPORT_ASSET_KEYS = ("sdf_resolution", "sdf_padding", "surface_points")
 
 T = TypeVar("T")
 
@@ -164,9 +167,21 @@ def _check_type(value: Any, hint: Any, key: str) -> None:
         raise ConfigError(f"{key}: expected {_type_label(expected)}, got {JSON_TYPE_NAMES.get(_json_type_of(value), 'a value')} {shown}")
 
 
+def config_subset(config: dict, *names: str) -> dict:
+    """The named sections of ``config``; a dotted name (``energy.self_penetration_margin_m``) takes one key of a section."""
+    subset: dict = {}
+    for name in names:
+        section, _, key = name.partition(".")
+        if not key:
+            subset[section] = config.get(section)
+        elif isinstance(config.get(section), dict) and key in config[section]:
+            subset.setdefault(section, {})[key] = config[section][key]
+    return subset
+
+
 def section_json(config: dict, *names: str) -> str:
-    """The named sections as canonical JSON (sorted keys): a rule's ``params`` value."""
-    return json.dumps({n: config.get(n) for n in names}, sort_keys=True, separators=(",", ":"))
+    """The named sections (or dotted keys, ``config_subset``) as canonical JSON (sorted keys): a rule's ``params`` value."""
+    return json.dumps(config_subset(config, *names), sort_keys=True, separators=(",", ":"))
 
 
 CONFIG_FILE_SUFFIXES = (".json", ".yaml", ".yml")
@@ -206,3 +221,20 @@ def _parse_json(text: str, where: str):
         return json.loads(text)
     except json.JSONDecodeError as exc:
         raise ConfigError(f"{where}: not valid JSON: {exc}") from exc
+
+
+def json_ready(value: Any, nan_as_none: bool = False) -> Any:
+    """A settings object (dataclass), mapping or value as plain JSON values, recursively: dataclasses
+    as dicts, tuples as lists, numpy scalars unwrapped, and with ``nan_as_none`` NaN as null (what a
+    stage records of its config and results in its outputs' attributes)."""
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        value = dataclasses.asdict(value)
+    if isinstance(value, dict):
+        return {str(k): json_ready(v, nan_as_none) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [json_ready(v, nan_as_none) for v in value]
+    if hasattr(value, "item") and not isinstance(value, (str, bytes)):
+        value = value.item()
+    if nan_as_none and isinstance(value, float) and value != value:
+        return None
+    return value

@@ -1,8 +1,18 @@
-"""Deterministic assignment of objects to shards (object groups) for the grasp-heavy stages."""
+"""Deterministic assignment of objects to shards (object groups), and each shard's random stream."""
 
 from __future__ import annotations
 
 from collections.abc import Iterable
+
+# Random streams of the sharded stages: stream name -> the generator seed as a function of the
+# global seed and the shard number. The constants are the ones the stages have always used, so
+# that a given seed keeps reproducing the same grasps.
+STREAM_SEEDS = {
+    "seed_grasps": lambda seed, shard: seed * 1_000_003 + 7919 * (shard + 1),
+    "sample_grasps": lambda seed, shard: seed * 1000 + shard,
+    "post_optimize": lambda seed, shard: seed * 1000 + shard + 500,
+    "grasp_tool_post_optimize": lambda seed, shard: seed * 1000 + 77,
+}
 
 
 def shard_objects(object_ids: Iterable[str], shard: int, shard_count: int) -> list[str]:
@@ -14,3 +24,12 @@ def shard_objects(object_ids: Iterable[str], shard: int, shard_count: int) -> li
         raise ValueError(f"shard {shard} out of range for {shard_count} shards")
     ordered = sorted(set(str(o) for o in object_ids))
     return ordered[shard::shard_count]
+
+
+def shard_generator(stream: str, seed: int, shard: int):
+    """A CPU ``torch.Generator`` for ``stream`` (a key of ``STREAM_SEEDS``) of ``shard`` under the global ``seed``."""
+    import torch
+
+    if stream not in STREAM_SEEDS:
+        raise ValueError(f"unknown random stream {stream!r} (known: {', '.join(sorted(STREAM_SEEDS))})")
+    return torch.Generator().manual_seed(STREAM_SEEDS[stream](int(seed), int(shard)))

@@ -162,7 +162,7 @@ def test_a_crashed_file_counts_its_grasps_from_the_header_or_says_unknown(layout
 
     monkeypatch.setattr(dexgraspnet, "read_grasp_file", crash)
     out = tmp_path / "grasps.zarr"
-    code = dexlite(["import-dexgraspnet", str(layout["root"]), "--out", str(out), "--objects-out", str(tmp_path / "objects"), "--threads", "1"])
+    code = dexlite(["import-dexgraspnet", str(layout["root"]), "--out", str(out), *_import_outputs(tmp_path / "objects", tmp_path / "grasps.import_report.csv"), "--threads", "1"])
     assert code == 0
     report = pd.read_csv(tmp_path / "grasps.import_report.csv").set_index("file")
     assert set(report["kind"]) == {"import_failed"}
@@ -195,10 +195,15 @@ def test_export_then_import_round_trip(layout, tmp_path):
     np.testing.assert_allclose(load_asset(tmp_path / "objects2", "box").sdf, load_asset(tmp_path / "objects", "box").sdf, atol=1e-5)
 
 
+def _import_outputs(objects_dir, report):
+    """The import's catalog (assets beside it) and report options."""
+    return ["--catalog", str(objects_dir / "catalog.parquet"), "--report", str(report)]
+
+
 def test_cli_writes_store_catalog_and_report(layout, tmp_path):
     config = '{"seed": 3, "objects": {"sdf_resolution": 24, "surface_points": 256}, "dexgraspnet": {"heldout_object_codes": ["box"]}}'
     out = tmp_path / "res" / "grasps.zarr"
-    code = dexlite(["import-dexgraspnet", str(layout["root"]), "--out", str(out), "--objects-out", str(tmp_path / "res" / "objects"), "--config-json", config])
+    code = dexlite(["import-dexgraspnet", str(layout["root"]), "--out", str(out), *_import_outputs(tmp_path / "res" / "objects", tmp_path / "res" / "grasps.import_report.csv"), "--config-json", config])
     assert code == 0
     grasps = read_grasp_store(out)
     assert len(grasps) == 3 and grasps.attrs["grasps_imported"] == 3 and grasps.attrs["config"]["seed"] == 3
@@ -237,7 +242,7 @@ def test_exporting_an_empty_store_fails(tmp_path, capsys):
 
 
 def test_missing_dataset_folder_is_a_clear_error(tmp_path, capsys):
-    code = dexlite(["import-dexgraspnet", str(tmp_path), "--out", str(tmp_path / "g.zarr"), "--objects-out", str(tmp_path / "o")])
+    code = dexlite(["import-dexgraspnet", str(tmp_path), "--out", str(tmp_path / "g.zarr"), *_import_outputs(tmp_path / "o", tmp_path / "r.csv")])
     assert code == 2 and "dataset: no such folder" in capsys.readouterr().err
 
 
@@ -296,7 +301,7 @@ def test_real_sample_grasps_barely_penetrate(imported_sample):
 
 def test_real_sample_force_closure_on_threads_equals_serial(imported_sample):
     """Real grasps give a mix of closing and open contact sets, and the threaded hull step changes nothing."""
-    from dexlite_pipeline.force_closure import evaluate_force_closure
+    from dexlite_pipeline.curation.force_closure import evaluate_force_closure
 
     result, objects = imported_sample
     grasps = result.grasps.select(np.arange(0, 494, 12))

@@ -7,6 +7,7 @@ import torch
 
 from dexlite_pipeline.energy.grasp_energy import EnergyConfig, GraspEnergy
 from dexlite_pipeline.model.post_optimization import PostOptimizeConfig, refine
+from dexlite_pipeline.optim.annealing import AnnealingSchedule
 
 
 def test_post_optimization_lowers_e_post(hand, tiny_assets, make_grasps):
@@ -15,8 +16,8 @@ def test_post_optimization_lowers_e_post(hand, tiny_assets, make_grasps):
     pose = grasps.hand_pose.copy()
     pose[:, :3] += rng.normal(scale=0.005, size=(12, 3))
     pose[:, 6:] += rng.normal(scale=0.1, size=(12, 22))
-    config = PostOptimizeConfig(iterations=80, batch_size=8)  # two optimizer batches
-    energy = GraspEnergy.from_assets(hand, tiny_assets, EnergyConfig(weights=config.weights(), object_points=128))
+    config = PostOptimizeConfig(annealing=AnnealingSchedule(iterations=80), batch_size=8)  # two optimizer batches
+    energy = GraspEnergy.from_assets(hand, tiny_assets, EnergyConfig(weights=config.energy_weights, object_points=128))
     refined = refine(
         energy, torch.as_tensor(pose, dtype=torch.float32), energy.object_index(grasps.object_id),
         torch.as_tensor(grasps.scale), config, torch.Generator().manual_seed(0),
@@ -38,8 +39,8 @@ def test_post_optimization_lowers_e_post(hand, tiny_assets, make_grasps):
 
 def test_post_optimization_config_maps_to_the_optimizer():
     config = PostOptimizeConfig()
-    annealing = config.annealing()
+    annealing = config.optimizer_config()
     assert (annealing.iterations, annealing.step_size, annealing.rmsprop_mu) == (200, 0.005, 0.98)
     assert (annealing.starting_temperature, annealing.temperature_decay, annealing.temperature_period) == (18.0, 0.95, 30)
     assert annealing.contact_switch_probability == 0.5
-    assert dataclasses.astuple(config.weights()) == (1.0, 100.0, 100.0, 10.0, 1.0)
+    assert dataclasses.astuple(config.energy_weights) == (1.0, 100.0, 100.0, 10.0, 1.0)

@@ -21,9 +21,14 @@ CONFIG = {
         "model": {"pointnet_widths": [16, 32, 64, 32], "encoder_hidden": [32], "decoder_hidden": [32], "latent_dim": 8, "normalization": "batch"},
     },
     "sample": {"synthesis_grasps_per_object": 5, "expansion_grasps_per_object": 6, "scales": [0.08, 0.1]},
-    "post_optimize": {"iterations": 10, "energy_object_points": 64, "batch_size": 4},
+    "post_optimize": {"annealing": {"iterations": 10}, "energy_object_points": 64, "batch_size": 4},
     "energy": {"self_penetration_margin_m": 0.015},
 }
+
+
+def _model_outputs(folder):
+    """The train-cvae output options for a model folder."""
+    return ["--model", str(folder / "cvae.pt"), "--history", str(folder / "history.csv"), "--curves", str(folder / "training_curves.png")]
 
 
 @pytest.fixture
@@ -43,7 +48,7 @@ def pipeline_inputs(tmp_path, hand, tiny_objects, make_grasps):
 def test_train_sample_post_optimize(pipeline_inputs):
     root, objects = pipeline_inputs
     cfg = json.dumps(CONFIG)
-    assert main(["train-cvae", "--config-json", cfg, "--lift", str(root / "lift.zarr"), *objects, "--out-dir", str(root / "model")]) == 0
+    assert main(["train-cvae", "--config-json", cfg, "--lift", str(root / "lift.zarr"), *objects, *_model_outputs(root / "model")]) == 0
     history = pd.read_csv(root / "model" / "history.csv")
     assert len(history) == 3 and {"train_recon", "val_recon", "train_pen", "val_kl"} <= set(history.columns)
     assert (root / "model" / "training_curves.png").stat().st_size > 0
@@ -90,13 +95,13 @@ def test_train_sample_post_optimize(pipeline_inputs):
 def test_training_refuses_too_few_grasps(pipeline_inputs, capsys):
     root, objects = pipeline_inputs
     cfg = json.dumps({**CONFIG, "train": {**CONFIG["train"], "min_grasps": 100}})
-    assert main(["train-cvae", "--config-json", cfg, "--lift", str(root / "lift.zarr"), *objects, "--out-dir", str(root / "model")]) == 2
+    assert main(["train-cvae", "--config-json", cfg, "--lift", str(root / "lift.zarr"), *objects, *_model_outputs(root / "model")]) == 2
     assert "train.min_grasps is 100" in capsys.readouterr().err
     assert not (root / "model" / "cvae.pt").exists()
 
 
 def test_lift_shards_keep_seed_contacts_and_drop_imported_ones(tmp_path, hand, make_grasps):
-    from dexlite_pipeline.stages.train_cvae import read_lift_shards
+    from dexlite_pipeline.model.trainer import read_lift_shards
 
     grasps = make_grasps(hand, 4, seed=3)
     grasps.arrays["lift_success"] = np.ones(4, bool)

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 import torch
 
-from dexlite_pipeline.energy.grasp_energy import EnergyConfig, GraspEnergy
+from dexlite_pipeline.energy.grasp_energy import EnergyConfig, EnergyWeights, GraspEnergy
 from dexlite_pipeline.hand.rotation import euler_xyz_to_matrix
 from dexlite_pipeline.model.checkpoint import CheckpointError, load_checkpoint, save_checkpoint
 from dexlite_pipeline.model.data import build_training_data, select_training_grasps, split_validation
@@ -22,7 +22,7 @@ def setup(hand, tiny_assets, request):
     return grasps, data, grasp_energy_terms(energy)
 
 
-SEED_ENERGY_WEIGHTS = dict(weight_fc=1.0, weight_dis=100.0, weight_pen=100.0, weight_spen=10.0, weight_joints=1.0)  # DexLite's
+SEED_ENERGY_WEIGHTS = dict(energy_weights=EnergyWeights(fc=1.0, dis=100.0, pen=100.0, spen=10.0, joints=1.0))  # DexLite's
 
 
 def _config(small_model_config, **overrides):
@@ -40,7 +40,7 @@ def test_loss_falls_when_overfitting_a_handful_of_grasps(setup, small_model_conf
     assert last["train_total"] < 0.5 * first["train_total"]
     assert all(np.isfinite(last[f"train_{k}"]) for k in ("fc", "dis", "pen", "spen", "joints", "kl"))
     # Reconstruction alone (energy weights 0): the decoder learns to reproduce these grasps.
-    no_energy = _config(small_model_config, epochs=100, rotation_augmentation=False, weight_fc=0.0, weight_dis=0.0, weight_pen=0.0, weight_spen=0.0, weight_joints=0.0)
+    no_energy = _config(small_model_config, epochs=100, rotation_augmentation=False, energy_weights=EnergyWeights(0.0, 0.0, 0.0, 0.0, 0.0))
     result = train_cvae(data, everything, np.zeros(0, np.int64), no_energy, energy_terms, seed=0)
     assert result.history[-1]["train_recon"] < 0.3 * result.history[0]["train_recon"]
     # energies that are not weighted are not computed (they log as NaN)

@@ -170,7 +170,7 @@ def test_cli_stops_at_once_on_a_missing_folder(tmp_path, capsys):
     from dexlite_pipeline.cli import main
 
     cfg = json.dumps({"seed": 0, "objects": {"builtin_count": 0, "mesh_dirs": [str(tmp_path / "gone")], "heldout_mesh_dirs": []}})
-    assert main(["prepare-objects", "--config-json", cfg, "--out-dir", str(tmp_path / "out")]) == 2
+    assert main(["prepare-objects", "--config-json", cfg, "--catalog", str(tmp_path / "out" / "catalog.parquet"), "--record", str(tmp_path / "out" / "prepare_config.json")]) == 2
     assert "gone" in capsys.readouterr().err
     assert not (tmp_path / "out" / "catalog.parquet").exists()
 
@@ -184,6 +184,6 @@ def test_cli_fails_when_no_object_could_be_prepared(tmp_path, capsys, caplog):
         (meshes / name).write_text(text)
     objects = {**TINY.__dict__, "mesh_dirs": [str(meshes)]}
     cfg = json.dumps({"seed": 0, "objects": objects})
-    assert main(["prepare-objects", "--config-json", cfg, "--out-dir", str(tmp_path / "out"), "--threads", "1"]) == 1
+    assert main(["prepare-objects", "--config-json", cfg, "--catalog", str(tmp_path / "out" / "catalog.parquet"), "--record", str(tmp_path / "out" / "prepare_config.json"), "--threads", "1"]) == 1
     assert "prepared 0/3 objects" in capsys.readouterr().out
     assert "none of the 3 objects could be prepared" in caplog.text

@@ -100,7 +100,7 @@ def test_table_carries_rejected_objects_and_stage_writes_it(tmp_path):
 
     out = tmp_path / "stability" / "stability.parquet"
     cfg = json.dumps({"seed": 0, "stability": {"duration_s": 1.0}})
-    assert main(["stability-filter", "--config-json", cfg, "--objects", str(objects), "--out", str(out), "--threads", "1"]) == 0
+    assert main(["stability-filter", "--config-json", cfg, "--objects", str(objects), "--out", str(out), "--record", str(out.parent / "stability_config.json"), "--threads", "1"]) == 0
     written = pd.read_parquet(out)
     assert list(written.columns) == STABILITY_COLUMNS
     assert written.set_index("object_id")["stable"].to_dict() == {"broken": False, "cone_on_tip": False, "cube": True}
@@ -132,7 +132,7 @@ def test_stage_refuses_a_catalog_without_status_in_one_line(tmp_path, capsys):
     objects = tmp_path / "objects"
     objects.mkdir()
     pd.DataFrame({"object_id": ["cube"], "split": ["train"]}).to_parquet(objects / "catalog.parquet")
-    assert main(["stability-filter", "--objects", str(objects), "--out", str(tmp_path / "stability.parquet"), "--threads", "1"]) == 2
+    assert main(["stability-filter", "--objects", str(objects), "--out", str(tmp_path / "stability.parquet"), "--record", str(tmp_path / "record.json"), "--threads", "1"]) == 2
     error = capsys.readouterr().err.strip()
     assert len(error.splitlines()) == 1 and "catalog.parquet" in error and "status" in error
     assert not (tmp_path / "stability.parquet").exists()
@@ -144,7 +144,7 @@ def test_stability_filter_fails_when_no_object_was_prepared(tmp_path, caplog):
     objects = tmp_path / "objects"
     objects.mkdir()
     pd.DataFrame({"object_id": ["a", "b"], "status": ["rejected", "rejected"], "reason": ["empty mesh", "flat"]}).to_parquet(objects / "catalog.parquet")
-    assert main(["stability-filter", "--objects", str(objects), "--out", str(tmp_path / "stability.parquet"), "--threads", "1"]) == 1
+    assert main(["stability-filter", "--objects", str(objects), "--out", str(tmp_path / "stability.parquet"), "--record", str(tmp_path / "record.json"), "--threads", "1"]) == 1
     assert "no prepared object to test" in caplog.text
     assert not (tmp_path / "stability.parquet").exists()
 

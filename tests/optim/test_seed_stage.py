@@ -11,7 +11,7 @@ import pytest
 
 from dexlite_pipeline.cli import main
 from dexlite_pipeline.io.grasp_store import read_grasp_store
-from dexlite_pipeline.optim.seed import EnergyThresholds
+from dexlite_pipeline.energy.thresholds import EnergyThresholds
 
 CONFIG = {
     "seed": 3,
@@ -24,7 +24,7 @@ CONFIG = {
         "batch_size": 8,
         "progress_every": 5,
         "init": {"distance_m": [0.05, 0.08]},
-        "annealing": {"iterations": 10, "trace_every": 5},
+        "annealing": {"iterations": 10}, "trace_every": 5,
     },
 }
 

@@ -10,7 +10,7 @@ from dexlite_pipeline.report.html import (
     OBJECT_MARKER_LABEL, ReportInputs, build_report_html, compact_table_html, headline_rows, headline_sentence, ladder_html,
     outcome_of, pick_examples, run_settings_html, success_figure, training_run_text,
 )  # fmt: skip
-from dexlite_pipeline.report.metrics import method_label, percent_text, seconds_text
+from dexlite_pipeline.evaluation.metrics import method_label, percent_text, seconds_text
 
 
 def _metrics(six_dir_rate: float) -> pd.DataFrame:

@@ -1,4 +1,4 @@
-"""An `evaluate` setting reruns only the evaluation steps that read it (report.steps), after a complete run.
+"""An `evaluate` setting reruns only the evaluation steps that read it (evaluation.step_keys), after a complete run.
 
 evaluate_simulate (the MuJoCo shards) tracks what chooses and measures the grasps; the
 aggregate step (rule `evaluate`) what metrics.csv holds; the report the whole config.

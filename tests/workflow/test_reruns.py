@@ -38,7 +38,7 @@ UPSTREAM_OF_POST = UPSTREAM_OF_TRAINING | {"train_cvae", "sample_grasps"}
 @dataclass(frozen=True)
 class ConfigChange:
     section: str  # the config section changed
-    key: str  # the numeric key changed in it
+    key: str  # the numeric key changed in it (dotted for a nested key)
     stage: str  # the rule that reads it
     must_rerun: frozenset[str]
     must_not_rerun: frozenset[str]
@@ -46,7 +46,7 @@ class ConfigChange:
 
 CHANGES = [
     # a post-optimization setting: post_optimize and the evaluation, nothing upstream
-    ConfigChange("post_optimize", "iterations", "post_optimize", frozenset({"post_optimize", "evaluate"}), frozenset(UPSTREAM_OF_POST)),
+    ConfigChange("post_optimize", "annealing.iterations", "post_optimize", frozenset({"post_optimize", "evaluate"}), frozenset(UPSTREAM_OF_POST)),
     # a lift-test constant: the lift stages and everything that depends on them
     ConfigChange("lift", "friction", "lift_validate", frozenset({"lift_validate", "train_cvae", "evaluate"}), frozenset(UPSTREAM_OF_LIFT)),
     # a training setting: training and everything downstream of it
@@ -77,11 +77,20 @@ def _numeric_variants(value):
     return []
 
 
+def _with_value(mapping: dict, path: list[str], value) -> dict:
+    """A copy of ``mapping`` with the nested key ``path`` set to ``value``."""
+    head, *rest = path
+    return {**mapping, head: _with_value(mapping[head], rest, value) if rest else value}
+
+
 def changed_config(config: dict, section: str, key: str) -> tuple[str, dict]:
-    """``config`` with ``section.key`` changed to another value the schema accepts."""
-    value = config[section][key]
+    """``config`` with ``section.key`` (``key`` may be dotted) changed to another value the schema accepts."""
+    path = [section, *key.split(".")]
+    value = config
+    for part in path:
+        value = value[part]
     for variant in _numeric_variants(value):
-        candidate = {**config, section: {**config[section], key: variant}}
+        candidate = _with_value(config, path, variant)
         try:
             validate_config(candidate)
         except ConfigError:
@@ -113,6 +122,19 @@ def test_config_change_reruns_exactly_the_affected_stages(complete_run, scratch_
     assert planned == downstream(graph, {change.stage}), description
     assert change.must_rerun <= planned, description
     assert not (planned & change.must_not_rerun), description
+
+
+def test_energy_weights_change_only_the_stages_that_read_them(complete_run, scratch_copy):
+    """Training and post-optimization read one key of `energy` (the self-penetration margin) and track
+    only that key: new `energy.weights` change the params of the stages that weigh energies with them
+    (seed synthesis, the evaluation's energies), not those of training or post-optimization."""
+    description, config = changed_config(complete_run.config, "energy", "weights.dis")
+    write_config(scratch_copy, config)
+
+    changed = run_snakemake(scratch_copy, "--list-changes", "params")
+
+    assert "results/seed/shard_000.zarr" in changed, description
+    assert "results/model/cvae.pt" not in changed and "results/post/" not in changed, (description, changed)
 
 
 @pytest.mark.parametrize(("section", "key", "rule"), RESULT_NEUTRAL_KEYS, ids=lambda name: name)

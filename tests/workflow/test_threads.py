@@ -4,7 +4,6 @@
 from __future__ import annotations
 
 import shutil
-from pathlib import Path
 
 import pytest
 from workflow_harness import DEXGRASPNET_SAMPLE, checkout, option_value, planned_commands, run_snakemake, tiny_config, write_config

@@ -48,7 +48,7 @@ TINY_OVERRIDES: dict = {
         "scales": [0.1],
         "batch_size": 16,
         "progress_every": 10,
-        "annealing": {"iterations": 20, "trace_every": 5},
+        "annealing": {"iterations": 20}, "trace_every": 5,
     },
     "curate": {"max_grasps_per_object": 4},
     "energy": {"object_points": 256},
@@ -66,7 +66,7 @@ TINY_OVERRIDES: dict = {
         },
     },
     "sample": {"synthesis_grasps_per_object": 4, "expansion_grasps_per_object": 2},
-    "post_optimize": {"iterations": 8, "batch_size": 64, "energy_object_points": 64},
+    "post_optimize": {"annealing": {"iterations": 8}, "batch_size": 64, "energy_object_points": 64},
     "evaluate": {"grasps_per_object": 2, "rendered_per_method": 1, "pca_components": [1, 2]},
 }
 

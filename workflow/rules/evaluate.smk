@@ -1,9 +1,9 @@
 # Evaluation on held-out objects: simulate each shard of every method's grasps, then tabulate,
 # then build the HTML report. Which methods are read comes from config.evaluate.methods.
 # learning_objects_dirs / learning_cli_options come from train_cvae.smk (included before).
-# Each step tracks only the evaluate keys it reads (report.steps): a report-only setting
+# Each step tracks only the evaluate keys it reads (evaluation.step_keys): a report-only setting
 # reruns the report, a metric setting the aggregate step and the report, not the simulation.
-from dexlite_pipeline.report.steps import AGGREGATE_KEYS, SIMULATE_KEYS, with_evaluate_keys
+from dexlite_pipeline.evaluation.step_keys import AGGREGATE_KEYS, SIMULATE_KEYS, SOURCE_OPTIONS, sources_of, with_evaluate_keys
 
 
 def evaluate_step_params(keys, *sections):
@@ -11,39 +11,41 @@ def evaluate_step_params(keys, *sections):
     return stage_params("evaluate", *sections, source=with_evaluate_keys(config, keys))
 
 
+# Where each grasp source's store of a shard is (the method -> source map is step_keys.METHOD_SOURCES).
+SOURCE_STORES = {
+    "seed": f"{RESULTS}/seed/shard_{{shard}}.zarr",
+    "sample": f"{RESULTS}/sample/shard_{{shard}}.zarr",
+    "post": f"{RESULTS}/post/shard_{{shard}}.zarr",
+    "random_post": f"{RESULTS}/post/random_shard_{{shard}}.zarr",
+    "dexgraspnet": f"{RESULTS}/dexgraspnet/grasps.zarr",
+}
+
+
 def _evaluate_sources(shard):
-    """Grasp stores of one shard per CLI option (--seed, --sample, ...), for the configured methods."""
-    methods = (config.get("evaluate") or {}).get("methods", ["seed", "cvae_raw", "cvae_post", "random_post", "dexgraspnet"])
-    sources = {}
-    if "seed" in methods:
-        sources["seed"] = f"{RESULTS}/seed/shard_{shard}.zarr"
-    if any(m.startswith("cvae_") for m in methods):
-        sources["sample"] = f"{RESULTS}/sample/shard_{shard}.zarr"
-    if any(m.startswith("cvae_") and m.endswith("_post") for m in methods):
-        sources["post"] = f"{RESULTS}/post/shard_{shard}.zarr"
-    if "random_post" in methods:
-        sources["random-post"] = f"{RESULTS}/post/random_shard_{shard}.zarr"
-    if "dexgraspnet" in methods and config["dexgraspnet"]["root"]:
-        sources["dexgraspnet"] = f"{RESULTS}/dexgraspnet/grasps.zarr"
-    return sources
+    """Grasp store of one shard per source the configured methods read (dexgraspnet only when configured)."""
+    sources = sources_of(config["evaluate"]["methods"])
+    return {
+        source: SOURCE_STORES[source].format(shard=shard)
+        for source in sources
+        if source != "dexgraspnet" or config["dexgraspnet"]["root"]
+    }
 
 
-def _post_stores(prefix):
-    methods = (config.get("evaluate") or {}).get("methods", ["cvae_post", "random_post"])
-    wanted = "cvae_post" if prefix == "shard" else "random_post"
-    return expand(f"{RESULTS}/post/{prefix}_{{shard}}.zarr", shard=SHARDS) if wanted in methods else []
+def _post_stores(source):
+    """Every shard's store of a post-optimization source, when a configured method reads it (its traces make convergence.csv)."""
+    return expand(SOURCE_STORES[source], shard=SHARDS) if source in sources_of(config["evaluate"]["methods"]) else []
 
 
 rule evaluate_simulate:
     input:
-        unpack(lambda wc: {"catalog": f"{RESULTS}/objects/catalog.parquet", **{k.replace("-", "_"): v for k, v in _evaluate_sources(wc.shard).items()}}),
+        unpack(lambda wc: {"catalog": f"{RESULTS}/objects/catalog.parquet", **_evaluate_sources(wc.shard)}),
     output:
         directory(f"{RESULTS}/eval/sim/shard_{{shard}}.zarr"),
     threads: SHARD_THREADS
     params:
         cfg=evaluate_step_params(SIMULATE_KEYS, "seed", "device", "shards", "lift", "energy"),
         code=code_hash("evaluate"),
-        sources=lambda wc: " ".join(f"--{k} {v}" for k, v in _evaluate_sources(wc.shard).items()),
+        sources=lambda wc: " ".join(f"--{SOURCE_OPTIONS[k]} {v}" for k, v in _evaluate_sources(wc.shard).items()),
         objects=learning_cli_options("objects", learning_objects_dirs()),
     conda:
         CONDA_ENV
@@ -59,13 +61,14 @@ rule evaluate_simulate:
 rule evaluate:
     input:
         sims=expand(f"{RESULTS}/eval/sim/shard_{{shard}}.zarr", shard=SHARDS),
-        post=_post_stores("shard"),
-        random_post=_post_stores("random_shard"),
+        post=_post_stores("post"),
+        random_post=_post_stores("random_post"),
     output:
         metrics=f"{RESULTS}/eval/metrics.csv",
         per_object=f"{RESULTS}/eval/per_object.csv",
         convergence=f"{RESULTS}/eval/convergence.csv",
-        summary=f"{RESULTS}/eval/evaluation.json",
+        budget=f"{RESULTS}/eval/budget.csv",
+        record=f"{RESULTS}/eval/evaluation.json",
     threads: 1
     params:
         cfg=evaluate_step_params(AGGREGATE_KEYS, "seed"),
@@ -81,7 +84,8 @@ rule evaluate:
         f"{LOGS}/benchmarks/evaluate.tsv"
     shell:
         "dexlite evaluate --step aggregate --config-json {params.cfg:q} {params.sims} {params.post} {params.objects} "
-        "--out-dir {RESULTS}/eval > {log} 2>&1"
+        "--metrics {output.metrics} --per-object {output.per_object} --convergence {output.convergence} "
+        "--budget {output.budget} --record {output.record} > {log} 2>&1"
 
 
 rule report:
@@ -89,7 +93,8 @@ rule report:
         metrics=f"{RESULTS}/eval/metrics.csv",
         per_object=f"{RESULTS}/eval/per_object.csv",
         convergence=f"{RESULTS}/eval/convergence.csv",
-        summary=f"{RESULTS}/eval/evaluation.json",
+        budget=f"{RESULTS}/eval/budget.csv",
+        record=f"{RESULTS}/eval/evaluation.json",
         sims=expand(f"{RESULTS}/eval/sim/shard_{{shard}}.zarr", shard=SHARDS),
         history=f"{RESULTS}/model/history.csv",
     output:
@@ -107,5 +112,6 @@ rule report:
     benchmark:
         f"{LOGS}/benchmarks/report.tsv"
     shell:
-        "dexlite report --config-json {params.cfg:q} --eval-dir {RESULTS}/eval {params.sims} --history {input.history} "
+        "dexlite report --config-json {params.cfg:q} --metrics {input.metrics} --per-object {input.per_object} "
+        "--convergence {input.convergence} --budget {input.budget} --record {input.record} {params.sims} --history {input.history} "
         "{params.objects} --out {output} > {log} 2>&1"

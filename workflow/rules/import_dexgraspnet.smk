@@ -1,6 +1,6 @@
 # DexGraspNet import: grasps plus object assets in the dataset's own frame. Requested by
 # curate and evaluate only when config dexgraspnet.root is set.
-from dexlite_pipeline.stages.import_dexgraspnet import ASSET_CONFIG_KEYS
+from dexlite_pipeline.config import IMPORT_ASSET_KEYS
 
 DEXGRASPNET_ROOT = config["dexgraspnet"]["root"]
 DEXGRASPNET_OBJECTS = f"{RESULTS}/dexgraspnet/objects"
@@ -8,7 +8,7 @@ DEXGRASPNET_OBJECTS = f"{RESULTS}/dexgraspnet/objects"
 
 def import_params():
     """Like stage_params, with only the asset keys of `objects` (others never rerun the import)."""
-    objects = {k: v for k, v in config["objects"].items() if k in ASSET_CONFIG_KEYS}
+    objects = {k: v for k, v in config["objects"].items() if k in IMPORT_ASSET_KEYS}
     sections = {"seed": config["seed"], "objects": objects, "dexgraspnet": config["dexgraspnet"]}
     return json.dumps(sections, sort_keys=True, separators=(",", ":"))
 
@@ -33,4 +33,4 @@ rule import_dexgraspnet:
         f"{LOGS}/benchmarks/import_dexgraspnet.tsv"
     shell:
         "dexlite import-dexgraspnet {params.root:q} --config-json {params.cfg:q} --out {output.grasps} "
-        "--objects-out {DEXGRASPNET_OBJECTS} --report {output.report} --threads {threads} > {log} 2>&1"
+        "--catalog {output.catalog} --report {output.report} --threads {threads} > {log} 2>&1"

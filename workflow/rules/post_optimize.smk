@@ -9,7 +9,7 @@ rule post_optimize:
         post=directory(f"{RESULTS}/post/shard_{{shard}}.zarr"),
         random=directory(f"{RESULTS}/post/random_shard_{{shard}}.zarr"),
     params:
-        cfg=stage_params("seed", "device", "energy", "post_optimize"),
+        cfg=stage_params("seed", "device", "post_optimize", "energy.self_penetration_margin_m"),
         code=code_hash("post_optimize"),
         objects=learning_cli_options("objects", learning_objects_dirs()),
     threads: SHARD_THREADS

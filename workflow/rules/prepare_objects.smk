@@ -15,4 +15,4 @@ rule prepare_objects:
     benchmark:
         f"{LOGS}/benchmarks/prepare_objects.tsv"
     shell:
-        "dexlite prepare-objects --config-json {params.cfg:q} --out-dir {RESULTS}/objects --threads {threads} > {log} 2>&1"
+        "dexlite prepare-objects --config-json {params.cfg:q} --catalog {output.catalog} --record {output.config} --threads {threads} > {log} 2>&1"

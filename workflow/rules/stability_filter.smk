@@ -27,5 +27,5 @@ rule stability_filter:
     benchmark:
         f"{LOGS}/benchmarks/stability_filter.tsv"
     shell:
-        "dexlite stability-filter --config-json {params.cfg:q} {params.objects} --out {output.table} "
+        "dexlite stability-filter --config-json {params.cfg:q} {params.objects} --out {output.table} --record {output.config} "
         "--threads {threads} > {log} 2>&1"

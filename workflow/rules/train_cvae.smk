@@ -22,7 +22,7 @@ rule train_cvae:
         history=f"{RESULTS}/model/history.csv",
         curves=f"{RESULTS}/model/training_curves.png",
     params:
-        cfg=stage_params("seed", "device", "energy", "train"),
+        cfg=stage_params("seed", "device", "train", "energy.self_penetration_margin_m"),
         code=code_hash("train_cvae"),
         lift=lambda wc, input: learning_cli_options("lift", input.lift),
         objects=learning_cli_options("objects", learning_objects_dirs()),
@@ -35,4 +35,4 @@ rule train_cvae:
         f"{LOGS}/benchmarks/train_cvae.tsv"
     shell:
         "dexlite train-cvae --config-json {params.cfg:q} {params.lift} {params.objects} "
-        "--out-dir {RESULTS}/model --threads {threads} > {log} 2>&1"
+        "--model {output.model} --history {output.history} --curves {output.curves} --threads {threads} > {log} 2>&1"

@@ -1,6 +1,6 @@
 """Grasp energies (force closure, contact distance, penetration, self-penetration, joint limits)."""
 
-from dexlite_pipeline.energy.evaluate import evaluate_grasp_energies
+from dexlite_pipeline.energy.per_grasp import evaluate_grasp_energies
 from dexlite_pipeline.energy.grasp_energy import (
     CONTACT_COUNT,
     TERM_NAMES,

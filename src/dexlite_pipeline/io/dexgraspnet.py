@@ -424,3 +424,43 @@ def export_dexgraspnet(grasps: GraspSet, out_dir: str | os.PathLike, objects_dir
             pieces = sorted((directory / "convex").glob("*.obj")) or [directory / "mesh.obj"]
             _write_decomposed_obj(pieces, out_dir / MESHDATA_DIR / object_id / MESH_RELATIVE_PATH)
     return {"objects": len(set(object_ids)), "grasps": len(object_ids), "missing_assets": missing_assets}
+
+
+def import_download(root: str, grasps_out: str, catalog_path: str, report_path: str, seed: int, objects: dict,
+                    section: DexGraspNetConfig, workers: int = 1) -> dict:
+    """Import the download at ``root``: the grasp store, the object assets beside ``catalog_path``
+    (``assets/``) with the catalog, and the import report CSV; returns the import's counts.
+
+    ``objects``: the config section ``objects``, of which ``config.IMPORT_ASSET_KEYS`` set the SDF
+    grid and surface samples (equal to the pipeline's, so that grids match).
+    """
+    from dexlite_pipeline.config import IMPORT_ASSET_KEYS, json_ready
+    from dexlite_pipeline.io.grasp_store import write_grasp_store
+    from dexlite_pipeline.objects.assets import CATALOG_NAME
+    from dexlite_pipeline.objects.build import AssetBuildSettings
+
+    if Path(catalog_path).name != CATALOG_NAME:
+        raise ValueError(f"{catalog_path}: the object catalog must be named {CATALOG_NAME} (readers find it beside assets/)")
+    settings = AssetBuildSettings(**{k: objects[k] for k in IMPORT_ASSET_KEYS if k in objects}, seed=seed)
+    objects_dir = Path(catalog_path).parent
+    result = import_dexgraspnet(root, objects_dir, settings, section, seed, workers=workers)
+    write_table_atomic(result.catalog, CATALOG_COLUMNS, catalog_path)
+    write_table_atomic(problem_rows(result.problems), REPORT_COLUMNS, report_path)
+    counts = {
+        "objects_imported": sum(row["status"] == "ok" for row in result.catalog),
+        "objects": len(result.catalog),
+        "grasps_imported": len(result.grasps),
+        "grasps_not_imported": sum(p.grasps_affected for p in result.problems if p.grasps_affected != UNKNOWN_GRASP_COUNT),
+        "files_not_read": sum(p.grasp_index == -1 and p.grasps_affected == 0 for p in result.problems),
+        "failed_files_with_unknown_grasp_count": sum(p.grasps_affected == UNKNOWN_GRASP_COUNT for p in result.problems),
+        "problems": len(result.problems),
+    }
+    attrs = {
+        "stage": "import_dexgraspnet",
+        "source": "dexgraspnet",
+        "source_root": str(Path(root).resolve()),
+        "config": {"seed": seed, "dexgraspnet": json_ready(section), "asset_settings": json_ready(settings)},
+        **{k: v for k, v in counts.items() if k not in ("objects", "problems")},
+    }
+    write_grasp_store(grasps_out, result.grasps, attrs)
+    return counts

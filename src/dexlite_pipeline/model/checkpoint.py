@@ -6,7 +6,6 @@ Everything in the file is tensors, numbers, strings, lists and dicts, so it load
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import os
 from pathlib import Path
@@ -15,6 +14,7 @@ import torch
 
 from dexlite_pipeline.io.atomic import atomic_path
 from dexlite_pipeline.model.network import GraspCVAE, ModelConfig
+from dexlite_pipeline.config import json_ready
 
 CHECKPOINT_FORMAT = "dexlite-cvae-1"
 
@@ -36,7 +36,7 @@ def save_checkpoint(
         "format": CHECKPOINT_FORMAT,
         "state_dict": {k: v.detach().cpu() for k, v in model.state_dict().items()},
         "model_config": model.config.to_dict(),
-        "train_config": json.loads(json.dumps(dataclasses.asdict(train_config))),
+        "train_config": json_ready(train_config),
         **json.loads(json.dumps(extra)),
     }
     if training_grasps is not None:

@@ -36,12 +36,13 @@ Point coordinates enter in tenths of a metre (``pose.TRANSLATION_UNIT_M``).
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 
 import torch
 from torch import nn
 
 from dexlite_pipeline.model.pose import POSE_FEATURE_DIM, TRANSLATION_UNIT_M, features_to_parts, parts_to_features, shift_translation
+from dexlite_pipeline.config import json_ready
 
 NORMALIZATIONS = ("batch", "none")
 POSE_FRAMES = ("object", "point", "surface", "hand")
@@ -82,7 +83,7 @@ class ModelConfig:
         return 3 if self.pose_frame == "hand" else 0
 
     def to_dict(self) -> dict:
-        return {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(self).items()}
+        return json_ready(self)
 
     @staticmethod
     def from_dict(values: dict) -> "ModelConfig":

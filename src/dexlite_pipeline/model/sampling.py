@@ -253,6 +253,21 @@ class SampledRows:
     method: list[str]
     reference_pose: np.ndarray | None = None  # (B, 28) the known grasp a row reconstructs, NaN for other rows
 
+    def references(self) -> np.ndarray:
+        """``reference_pose``, or all NaN when the rows reconstruct no known grasp."""
+        return self.reference_pose if self.reference_pose is not None else np.full((len(self.method), 28), np.nan, np.float32)
+
+    @classmethod
+    def concatenate(cls, parts: list[SampledRows], device) -> SampledRows:
+        """The parts' rows in order (no parts: zero rows on ``device``)."""
+        return cls(
+            hand_pose=torch.cat([p.hand_pose for p in parts]) if parts else torch.zeros(0, 28, device=device),
+            object_id=[o for p in parts for o in p.object_id],
+            scale=np.concatenate([p.scale for p in parts]) if parts else np.zeros(0, np.float32),
+            method=[m for p in parts for m in p.method],
+            reference_pose=np.concatenate([p.references() for p in parts]) if parts else np.zeros((0, 28), np.float32),
+        )
+
 
 def synthesis_rows(
     model: GraspCVAE,
@@ -294,7 +309,7 @@ def ladder_rows(
       per training object, by the same rule as on held-out objects (``synthesize``).
     """
     wanted = set(object_ids)
-    poses, ids, scales, methods, references = [], [], [], [], []
+    parts = []
     known_ids = np.asarray(training_grasps["object_id"], dtype=object)
     rows = np.flatnonzero([str(o) in wanted and str(o) in clouds.index_of for o in known_ids])
     if len(rows):
@@ -302,24 +317,10 @@ def ladder_rows(
         scale = np.asarray(training_grasps["scale"], dtype=np.float32)[rows]
         obj = np.array([clouds.index_of[str(o)] for o in known_ids[rows]])
         origin, direction = grasp_rays(hand, known)
-        poses.append(reconstruct(model, clouds, known, origin, direction, obj, scale, points, fixed_clouds, generator))
-        references.append(known.cpu().numpy())
-        ids += [str(o) for o in known_ids[rows]]
-        scales.append(scale)
-        methods += [RECONSTRUCTION] * len(rows)
+        pose = reconstruct(model, clouds, known, origin, direction, obj, scale, points, fixed_clouds, generator)
+        parts.append(SampledRows(pose, [str(o) for o in known_ids[rows]], scale, [RECONSTRUCTION] * len(rows), known.cpu().numpy()))
     present = [o for o in object_ids if o in clouds.index_of]
     if present and config.synthesis_grasps_per_object > 0:
-        synthesized = synthesis_rows(model, clouds, present, config, points, generator, fixed_clouds, PRIOR_ON_TRAINING)
-        poses.append(synthesized.hand_pose)
-        ids += synthesized.object_id
-        scales.append(synthesized.scale)
-        methods += synthesized.method
-        references.append(np.full((len(synthesized.method), 28), np.nan, np.float32))
-    return SampledRows(
-        hand_pose=torch.cat(poses) if poses else torch.zeros(0, 28, device=clouds.device),
-        object_id=ids,
-        scale=np.concatenate(scales) if scales else np.zeros(0, np.float32),
-        method=methods,
-        reference_pose=np.concatenate(references) if references else np.zeros((0, 28), np.float32),
-    )
+        parts.append(synthesis_rows(model, clouds, present, config, points, generator, fixed_clouds, PRIOR_ON_TRAINING))
+    return SampledRows.concatenate(parts, clouds.device)
 

@@ -21,6 +21,7 @@ draws and latent noise come from seeded generators.
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import math
 import time
@@ -30,7 +31,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import torch
 
-from dexlite_pipeline.energy.grasp_energy import GraspEnergy
+from dexlite_pipeline.energy.grasp_energy import EnergyWeights, GraspEnergy
 from dexlite_pipeline.hand.rotation import matrix_to_euler_xyz
 from dexlite_pipeline.model.data import Batch, TrainingData, cloud_batches, make_batch
 from dexlite_pipeline.model.association import nearest_to_ray
@@ -109,11 +110,7 @@ class TrainConfig:
     energy_warmup_fraction: float = 0.3
     weight_recon: float = 1.0
     weight_kl: float = 1e-5
-    weight_fc: float = 0.0
-    weight_dis: float = 0.0
-    weight_pen: float = 0.0
-    weight_spen: float = 0.0
-    weight_joints: float = 0.0
+    energy_weights: EnergyWeights = field(default_factory=lambda: EnergyWeights(fc=0.0, dis=0.0, pen=0.0, spen=0.0, joints=0.0))
     model: ModelConfig = field(default_factory=lambda: ModelConfig(normalization="none"))
 
     def __post_init__(self) -> None:
@@ -125,7 +122,9 @@ class TrainConfig:
             raise ValueError("train: BatchNorm needs clouds_per_batch >= 2 (one cloud per batch erases object size); use model.normalization: none")
 
     def weights(self) -> dict[str, float]:
-        return {term: getattr(self, f"weight_{term}") for term in LOSS_TERMS}
+        """Loss term -> weight: recon and kl, then the energy terms (fc, dis, pen, spen, joints)."""
+        weights = {"recon": self.weight_recon, "kl": self.weight_kl, **dataclasses.asdict(self.energy_weights)}
+        return {term: weights[term] for term in LOSS_TERMS}
 
 
 @dataclass

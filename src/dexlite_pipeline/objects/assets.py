@@ -19,6 +19,7 @@ its signed distance is d_s(x) = s * d_1(x / s). One grid per object serves every
 from __future__ import annotations
 
 import json
+import logging
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -26,6 +27,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+log = logging.getLogger(__name__)
 CATALOG_NAME = "catalog.parquet"
 ASSETS_DIR = "assets"
 
@@ -157,6 +159,45 @@ def ok_object_ids(objects_dirs) -> set[str]:
         catalog = read_catalog(d)
         ids |= set(catalog.loc[catalog["status"] == "ok", "object_id"].astype(str))
     return ids
+
+
+def object_splits(objects_dirs, ok_only: bool = True) -> dict[str, str]:
+    """Object id -> split (``train`` / ``heldout``) from the catalogs (the first catalog naming an object wins).
+
+    ``ok_only``: only objects whose status is ok (what training and sampling may use); False
+    also maps rejected objects (the evaluation reports every object it was asked about). A dir
+    without a catalog, or a catalog without a split column, is logged and skipped: its objects
+    count as of unknown split.
+    """
+    dirs = [objects_dirs] if isinstance(objects_dirs, (str, os.PathLike)) else list(objects_dirs)
+    splits: dict[str, str] = {}
+    for d in dirs:
+        if not (Path(d) / CATALOG_NAME).exists():
+            log.warning("%s: no object catalog, its objects count as of unknown split", d)
+            continue
+        catalog = read_catalog(d)
+        if "split" not in catalog.columns:
+            log.warning("%s: the object catalog has no split column, its objects count as of unknown split", d)
+            continue
+        rows = catalog[catalog["status"] == "ok"] if ok_only else catalog
+        for object_id, split in zip(rows["object_id"].astype(str), rows["split"].astype(str)):
+            splits.setdefault(object_id, split)
+    return splits
+
+
+def split_by_sdf_grid(assets: list[ObjectAsset]) -> tuple[list[ObjectAsset], dict[str, str]]:
+    """The assets whose SDF grid has the most common shape, and the others with their reason.
+
+    One ``SdfBank`` stacks its objects' grids, so they must share one grid size; objects
+    prepared at another ``sdf_resolution`` are set aside with a reason, never dropped silently.
+    """
+    if not assets:
+        return [], {}
+    shapes = [a.sdf.shape for a in assets]
+    common = max(set(shapes), key=lambda shape: (shapes.count(shape), shape))
+    kept = [a for a in assets if a.sdf.shape == common]
+    set_aside = {a.object_id: f"SDF grid {a.sdf.shape} differs from the shard's {common}" for a in assets if a.sdf.shape != common}
+    return kept, set_aside
 
 
 def available_object_ids(objects_dirs) -> set[str]:

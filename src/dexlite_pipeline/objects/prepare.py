@@ -25,6 +25,7 @@ import numpy as np
 from dexlite_pipeline.objects.assets import ASSETS_DIR, CATALOG_NAME, asset_dir
 from dexlite_pipeline.objects.build import AssetBuildSettings, write_asset
 from dexlite_pipeline.objects.sources import MeshSource, pybullet_data_dir
+from dexlite_pipeline.config import json_ready
 
 log = logging.getLogger(__name__)
 
@@ -361,8 +362,15 @@ def prepare_objects(
     config: ObjectsConfig,
     seed: int,
     workers: int,
+    catalog_path: str | Path | None = None,
+    record_path: str | Path | None = None,
 ):
-    """Prepare every source in parallel, split, write the catalog atomically; returns it."""
+    """Prepare every source in parallel into ``objects_dir/assets``, split, write the catalog atomically; returns it.
+
+    The catalog goes to ``catalog_path`` (default ``objects_dir/catalog.parquet``; it must be in
+    ``objects_dir``, where readers look for it) and the settings used to ``record_path``
+    (default ``objects_dir/prepare_config.json``).
+    """
     import pandas as pd
 
     from dexlite_pipeline.io.atomic import atomic_path
@@ -370,6 +378,10 @@ def prepare_objects(
     from dexlite_pipeline.progress import ProgressLog
 
     objects_dir = Path(objects_dir)
+    catalog_path = Path(catalog_path) if catalog_path is not None else objects_dir / CATALOG_NAME
+    record_path = Path(record_path) if record_path is not None else objects_dir / CONFIG_RECORD_NAME
+    if catalog_path.parent.resolve() != objects_dir.resolve() or catalog_path.name != CATALOG_NAME:
+        raise ValueError(f"{catalog_path}: the object catalog must be {objects_dir / CATALOG_NAME} (readers find it beside assets/)")
     ids = [s.object_id for s in sources]
     if len(set(ids)) != len(ids):
         raise ValueError(f"duplicate object ids among sources: {sorted({i for i in ids if ids.count(i) > 1})}")
@@ -385,8 +397,8 @@ def prepare_objects(
     catalog = assign_split(catalog, config.heldout_fraction, seed, {s.object_id for s in sources if s.always_heldout})
     catalog = catalog[CATALOG_COLUMNS].sort_values("object_id", kind="stable").reset_index(drop=True)
     remove_stale_assets(objects_dir, set(catalog.loc[catalog["status"] == "ok", "object_id"]))
-    with atomic_path(objects_dir / CONFIG_RECORD_NAME) as tmp:
-        tmp.write_text(json.dumps({"seed": seed, "objects": dataclasses.asdict(config)}, indent=2, sort_keys=True))
-    with atomic_path(objects_dir / CATALOG_NAME) as tmp:
+    with atomic_path(record_path) as tmp:
+        tmp.write_text(json.dumps({"seed": seed, "objects": json_ready(config)}, indent=2, sort_keys=True))
+    with atomic_path(catalog_path) as tmp:
         catalog.to_parquet(tmp, index=False)
     return catalog

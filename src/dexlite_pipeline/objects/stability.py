@@ -67,7 +67,7 @@ class StabilityConfig:
 
     scale: float = 0.1
     duration_s: float = 2.0
-    time_step_s: float = 1.0 / 240.0
+    time_step_s: float = 0.004166667
     tilt_deg: float = 3.0
     max_lateral_m: float = 0.05
     max_rotation_deg: float = 7.0
@@ -252,3 +252,22 @@ def stable_object_ids(path: str | Path) -> set[str]:
     """Ids of the objects a stability table marks stable."""
     table = read_stability_table(path)
     return set(table.loc[table["stable"].to_numpy(dtype=bool, na_value=False), "object_id"].astype(str))
+
+
+class NoObjectToTest(ValueError):
+    """Catalogs without a single prepared (ok) object: nothing to test."""
+
+
+def stability_filter(objects_dirs: list[str], seed: int, config: StabilityConfig, workers: int):
+    """The stability table of every object in the catalogs of ``objects_dirs`` (first catalog naming an object wins).
+
+    Raises ``NoObjectToTest`` when no catalog holds a prepared object.
+    """
+    import pandas as pd
+
+    from dexlite_pipeline.objects.assets import read_catalog
+
+    catalog = pd.concat([read_catalog(d) for d in objects_dirs], ignore_index=True).drop_duplicates("object_id", keep="first")
+    if not (catalog["status"] == "ok").any():
+        raise NoObjectToTest(f"{', '.join(map(str, objects_dirs))}: no prepared object to test ({len(catalog)} in the catalogs, all rejected)")
+    return stability_table(catalog, objects_dirs, config, seed, workers)

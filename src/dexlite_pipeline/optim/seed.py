@@ -16,52 +16,52 @@ from __future__ import annotations
 import logging
 import time
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 import torch
 
-from dexlite_pipeline.energy.grasp_energy import DEXGRASPNET_THRESHOLDS, TERM_NAMES, EnergyConfig, GraspEnergy
+from dexlite_pipeline.energy.grasp_energy import TERM_NAMES, EnergyConfig, GraspEnergy
+from dexlite_pipeline.energy.thresholds import EnergyThresholds
 from dexlite_pipeline.hand.model import ShadowHand
 from dexlite_pipeline.io.grasp_store import GraspSet
 from dexlite_pipeline.objects.assets import ObjectAsset
-from dexlite_pipeline.optim.annealing import AnnealingConfig, optimize
+from dexlite_pipeline.optim.annealing import AnnealingConfig, AnnealingSchedule, optimize
 from dexlite_pipeline.optim.init import HullSampler, InitConfig, initial_poses
+
+if TYPE_CHECKING:
+    from dexlite_pipeline.settings import PipelineConfig
 
 log = logging.getLogger(__name__)
 
 
-@dataclass(frozen=True)
-class EnergyThresholds:
-    """A grasp passes when every term is below its threshold (DexGraspNet's success criteria)."""
-
-    max_E_fc: float = DEXGRASPNET_THRESHOLDS["E_fc"]
-    max_E_dis_m: float = DEXGRASPNET_THRESHOLDS["E_dis"]
-    max_E_pen_m: float = DEXGRASPNET_THRESHOLDS["E_pen"]
-
-    def passes(self, terms: dict) -> np.ndarray:
-        return (
-            (np.asarray(terms["E_fc"]) < self.max_E_fc)
-            & (np.asarray(terms["E_dis"]) < self.max_E_dis_m)
-            & (np.asarray(terms["E_pen"]) < self.max_E_pen_m)
-        )
+# The default seed-synthesis schedule: DexGraspNet's shortened to 2000 steps from 0.1-0.15 m, its
+# periods scaled to match (why: docs/results.md); DexGraspNet's own is config/profiles/dexgraspnet_schedule.yaml.
+SEED_SCHEDULE = AnnealingSchedule(iterations=2000, step_size_period=17, temperature_period=10)
 
 
 @dataclass(frozen=True)
 class SeedConfig:
     """Config section ``seed_grasps``."""
 
-    grasps_per_object: int = 16  # per object and scale
-    scales: tuple[float, ...] = (0.08, 0.1, 0.12)
-    batch_size: int = 512
+    grasps_per_object: int = 32  # starts per object and scale
+    scales: tuple[float, ...] = (0.08, 0.1, 0.12)  # object scales, about the object radius in metres
+    batch_size: int = 512  # grasps optimized together (changes results: the step uses batch statistics)
     progress_every: int = 100  # iterations between progress lines in the log
     thresholds: EnergyThresholds = field(default_factory=EnergyThresholds)
-    init: InitConfig = field(default_factory=InitConfig)
-    annealing: AnnealingConfig = field(default_factory=AnnealingConfig)
+    init: InitConfig = field(default_factory=lambda: InitConfig(distance_m=(0.1, 0.15)))
+    annealing: AnnealingSchedule = SEED_SCHEDULE
+    trace_every: int = 10  # iterations between rows of the energy trace
+    final_contact_samples: int = 1024  # contact sets searched per grasp after the last step (0: off, DexGraspNet)
+    contact_search_every: int = 100  # also search every this many iterations (0: only after the last step)
+    keep_best: bool = False  # end in the last accepted state (DexGraspNet); true: the lowest-energy visited state
 
-
-def seed_generator(seed: int, shard: int) -> torch.Generator:
-    """The shard's random stream: a fixed function of the global seed and the shard."""
-    return torch.Generator().manual_seed(int(seed) * 1_000_003 + 7919 * (shard + 1))
+    def optimizer_config(self) -> AnnealingConfig:
+        """The optimizer's settings for one run: the schedule with this section's run options."""
+        return AnnealingConfig.from_schedule(
+            self.annealing, trace_every=self.trace_every, final_contact_samples=self.final_contact_samples,
+            contact_search_every=self.contact_search_every, keep_best=self.keep_best,
+        )
 
 
 def synthesize(
@@ -95,7 +95,7 @@ def synthesize(
                 batch_number, batches, iteration, config.annealing.iterations, float(energy_now.median()), time.perf_counter() - batch_started,
             )
 
-        result = optimize(energy, init, obj, sc, config.annealing, generator, progress=progress, progress_every=config.progress_every)
+        result = optimize(energy, init, obj, sc, config.optimizer_config(), generator, progress=progress, progress_every=config.progress_every)
         outputs["hand_pose"].append(result.hand_pose.cpu().numpy())
         outputs["init_pose"].append(init.cpu().numpy())
         outputs["contact_index"].append(result.contact_index.cpu().numpy().astype(np.int16))
@@ -121,3 +121,69 @@ def synthesize(
         "seconds_per_grasp": seconds / total if total else 0.0,
     }
     return GraspSet(arrays), stats
+
+
+def empty_seed_grasps() -> GraspSet:
+    """A zero-row shard with every array ``synthesize`` writes (dtypes and trailing shapes alike).
+
+    A shard without usable objects must still carry the energy arrays: curation keeps only
+    the arrays all its inputs have, and E_fc, E_dis and E_pen are what it filters on.
+    """
+    from dexlite_pipeline.energy.grasp_energy import CONTACT_COUNT
+    from dexlite_pipeline.hand.model import POSE_DIM
+    from dexlite_pipeline.io.grasp_store import empty_grasp_set
+
+    grasps = empty_grasp_set()
+    grasps.arrays["init_pose"] = np.zeros((0, POSE_DIM), np.float32)
+    grasps.arrays["contact_index"] = np.zeros((0, CONTACT_COUNT), np.int16)
+    for name in ("acceptance_rate", "penetration_mm", "contact_distance_mm", "E_total", *TERM_NAMES):
+        grasps.arrays[name] = np.zeros(0, np.float32)
+    grasps.arrays["passes_energy_thresholds"] = np.zeros(0, bool)
+    return grasps
+
+
+def seed_shard(objects_dirs: list[str], stability_path: str, shard: int, config: PipelineConfig) -> tuple[GraspSet, dict]:
+    """Seed grasps of one shard: the stable, prepared objects dealt to ``shard`` (train and held-out).
+
+    Returns the grasps and the store attributes: the settings used, the objects synthesized,
+    the objects that could not be used with their reason, and the run statistics.
+    """
+    from dexlite_pipeline.config import json_ready
+    from dexlite_pipeline.device import resolve_device
+    from dexlite_pipeline.objects.assets import ObjectAssetError, load_asset, ok_object_ids, split_by_sdf_grid
+    from dexlite_pipeline.objects.stability import stable_object_ids
+    from dexlite_pipeline.sharding import shard_generator, shard_objects
+
+    settings = config.seed_grasps
+    device = resolve_device(config.device)
+    object_ids = shard_objects(sorted(ok_object_ids(objects_dirs) & stable_object_ids(stability_path)), shard, config.shards)
+    assets, failed = [], {}
+    for object_id in object_ids:
+        try:
+            assets.append(load_asset(objects_dirs, object_id))
+        except ObjectAssetError as exc:
+            failed[object_id] = f"asset unusable: {exc}"
+    assets, set_aside = split_by_sdf_grid(assets)
+    failed.update(set_aside)
+    for object_id, reason in failed.items():
+        log.warning("object %s skipped: %s", object_id, reason)
+    log.info(
+        "shard %03d: %d stable objects (%d usable), %d grasps each (%d scales), %d iterations, device %s",
+        shard, len(object_ids), len(assets), settings.grasps_per_object * len(settings.scales), len(settings.scales),
+        settings.annealing.iterations, device,
+    )
+    if assets:
+        grasps, stats = synthesize(assets, settings, config.energy, shard_generator("seed_grasps", config.seed, shard), device)
+    else:
+        grasps, stats = empty_seed_grasps(), {"grasps": 0, "passing": 0, "pass_fraction": 0.0, "seconds": 0.0, "seconds_per_grasp": 0.0}
+    attrs = {
+        "stage": "seed_grasps",
+        "shard": f"{shard:03d}",
+        "seed": config.seed,
+        "config": {"seed_grasps": json_ready(settings), "energy": json_ready(config.energy)},
+        "objects": [a.object_id for a in assets],
+        "failed_objects": failed,
+        **stats,
+        "passing_per_hour": stats["passing"] / stats["seconds"] * 3600 if stats["seconds"] else 0.0,
+    }
+    return grasps, attrs

@@ -1,1 +1,1 @@
-"""Evaluation metrics, plots, rendering and the HTML report."""
+"""The HTML report: tables, plots and rendered grasps of an evaluation (the numbers come from ``evaluation``)."""

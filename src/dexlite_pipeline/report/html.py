@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from dexlite_pipeline.io.grasp_store import GraspSet
-from dexlite_pipeline.report.metrics import (
+from dexlite_pipeline.evaluation.metrics import (
     interval_text, invalid_flags, method_label, percent_text, rung_label, seconds_text, split_label,
 )  # fmt: skip
 
@@ -95,7 +95,7 @@ KEY_SETTINGS = (
     ("training steps (max_steps)", ("train", "max_steps")),
     ("training batch size", ("train", "batch_size")),
     ("CVAE syntheses per held-out object", ("sample", "synthesis_grasps_per_object")),
-    ("post-optimization iterations", ("post_optimize", "iterations")),
+    ("post-optimization iterations", ("post_optimize", "annealing", "iterations")),
     ("post-optimization keep_best", ("post_optimize", "keep_best")),
     ("random-init baseline", ("post_optimize", "random_baseline")),
     ("evaluated splits", ("evaluate", "splits")),
@@ -863,3 +863,54 @@ def build_report_html(inputs: ReportInputs) -> str:
         + "<details><summary>metrics.csv, every method and column</summary>" + full_table_html(inputs.metrics) + "</details>"
     )  # fmt: skip
     return f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{html.escape(inputs.title)}</title><style>{STYLE}</style></head><body>{''.join(sections)}</body></html>"
+
+
+@dataclass(frozen=True)
+class EvaluationFiles:
+    """The evaluation's outputs the report reads (budget and record may be absent or empty)."""
+
+    metrics: str
+    per_object: str
+    convergence: str
+    budget: str | None = None
+    record: str | None = None
+
+    def tables(self) -> dict[str, str]:
+        """Link name (the file name) -> path of each table that exists."""
+        paths = (self.metrics, self.per_object, self.convergence, self.budget)
+        return {Path(p).name: p for p in paths if p and Path(p).is_file()}
+
+
+def load_report_inputs(files: EvaluationFiles, sim_paths: list[str], history_path: str | None, objects_dirs: list[str],
+                       config: dict, page_path: str) -> ReportInputs:
+    """Everything the page shows, read from the evaluation's files; CSV links relative to the page's folder."""
+    import json
+    import os
+
+    import pandas as pd
+
+    from dexlite_pipeline.evaluation.protocol import concatenate_shards, evaluate_config_from
+    from dexlite_pipeline.evaluation.step_keys import REPORT_KEYS
+    from dexlite_pipeline.io.grasp_store import read_grasp_store
+
+    for path in (files.metrics, files.per_object, files.convergence):
+        if not Path(path).is_file():
+            raise FileNotFoundError(f"{path}: evaluation output missing (run dexlite evaluate --step aggregate)")
+    record = json.loads(Path(files.record).read_text()) if files.record and Path(files.record).is_file() else {}
+    budget = pd.read_csv(files.budget) if files.budget and Path(files.budget).is_file() and Path(files.budget).stat().st_size else None
+    history = pd.read_csv(history_path) if history_path and Path(history_path).is_file() else None
+    page_dir = Path(page_path).parent
+    return ReportInputs(
+        metrics=pd.read_csv(files.metrics),
+        per_object=pd.read_csv(files.per_object),
+        convergence=pd.read_csv(files.convergence),
+        history=history,
+        simulated=concatenate_shards([read_grasp_store(p) for p in sim_paths]),
+        lift_config=record.get("lift_config") or {},
+        objects_dirs=objects_dirs,
+        rendered_per_method=evaluate_config_from(config, REPORT_KEYS).rendered_per_method,
+        config=config,
+        csv_links={name: Path(os.path.relpath(path, page_dir)).as_posix() for name, path in files.tables().items()},
+        seed=int(config.get("seed") or 0),
+        budget=budget,
+    )

@@ -181,3 +181,27 @@ def render_grasp_png(
         with atomic_path(out) as tmp:
             Path(tmp).write_bytes(data)
     return data
+
+
+def render_store_row(grasps_path: str, index: int, objects_dirs: list[str], out: str, size_px: int = 400) -> None:
+    """Render row ``index`` of the grasp store at ``grasps_path`` (hand and object) to the PNG ``out``.
+
+    Raises ``RenderError`` naming the store and row for an index out of range, a pose that is
+    not finite or a scale that is not positive.
+    """
+    from dexlite_pipeline.hand import ShadowHand
+    from dexlite_pipeline.io.grasp_store import read_grasp_store
+
+    grasps = read_grasp_store(grasps_path)
+    if not 0 <= index < len(grasps):
+        raise RenderError(f"{grasps_path}: index {index} out of range (store has {len(grasps)} grasps)")
+    object_id, scale = str(grasps.object_id[index]), float(grasps.scale[index])
+    bad = [i for i, v in enumerate(np.asarray(grasps.hand_pose[index], dtype=np.float64)) if not np.isfinite(v)]
+    if bad:
+        raise RenderError(f"{grasps_path}: row {index} ({object_id}): hand_pose is not finite at position(s) {', '.join(map(str, bad))}")
+    if not np.isfinite(scale) or scale <= 0:
+        raise RenderError(f"{grasps_path}: row {index} ({object_id}): scale {scale} is not a positive number")
+    title = f"{object_id}  scale {scale:.3f}  grasp {index}"
+    if "lift_success" in grasps.arrays:
+        title += "  lift " + ("success" if bool(grasps.arrays["lift_success"][index]) else "failure")
+    render_grasp_png(ShadowHand(), grasps.hand_pose[index], object_id, scale, objects_dirs, out=out, title=title, size_px=size_px)

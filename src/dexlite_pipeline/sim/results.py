@@ -6,14 +6,18 @@ grasp (invalid ones flagged, never dropped) and record the physical constants us
 
 from __future__ import annotations
 
+import logging
 import time
 from collections import Counter
+from pathlib import Path
 
 import numpy as np
 
 from dexlite_pipeline.io.grasp_store import GraspSet
 from dexlite_pipeline.sim.config import LiftConfig
 from dexlite_pipeline.sim.lift import DIRECTIONS, run_lift_tests
+
+log = logging.getLogger(__name__)
 
 
 def summarize(results: dict[str, np.ndarray]) -> dict:
@@ -82,3 +86,45 @@ def lift_grasp_set(grasps: GraspSet, objects_dirs, config: LiftConfig, threads: 
     if config.six_directions:
         attrs["six_dir_directions"] = list(DIRECTIONS)
     return GraspSet(arrays, attrs), summary
+
+
+def check_objects_dirs(dirs: list[str]) -> None:
+    """Every objects folder must exist and one at least hold prepared objects (an id missing from them is flagged per grasp)."""
+    from dexlite_pipeline.objects.assets import ASSETS_DIR, available_object_ids
+
+    for d in dirs:
+        if not Path(d).is_dir():
+            raise FileNotFoundError(f"{d}: objects folder not found")
+    if not available_object_ids(dirs):
+        raise FileNotFoundError(
+            f"{', '.join(map(str, dirs))}: no prepared objects (expected {ASSETS_DIR}/<object id>/ as written by prepare-objects)"
+        )
+
+
+def nothing_simulated(grasps_path: str, summary: dict) -> bool:
+    """True (and an error line) when the store had grasps but none could be simulated."""
+    if summary["n_grasps"] and not summary["n_simulated"]:
+        log.error("%s: none of the %d grasps could be simulated (see the reasons above)", grasps_path, summary["n_grasps"])
+        return True
+    return False
+
+
+def report_invalid(grasps_path: str, failure_reason) -> None:
+    """One warning line per kind of invalid grasp, so a user sees what was not simulated."""
+    counts = Counter(r for r in failure_reason if str(r).startswith("invalid_grasp"))
+    for reason, count in sorted(counts.items()):
+        log.warning("%s: %d grasp(s) not simulated: %s", grasps_path, count, reason)
+
+
+def lift_test_store(grasps_path: str, objects_dirs: list[str], config: LiftConfig, threads: int) -> tuple[GraspSet, dict]:
+    """Lift-test every grasp of the store at ``grasps_path``: its grasps with the results, and the summary.
+
+    Raises FileNotFoundError when no objects folder holds prepared objects; invalid grasps
+    are kept, flagged and counted in the log.
+    """
+    from dexlite_pipeline.io.grasp_store import read_grasp_store
+
+    check_objects_dirs(objects_dirs)
+    result, summary = lift_grasp_set(read_grasp_store(grasps_path), objects_dirs, config, threads)
+    report_invalid(grasps_path, result.arrays["failure_reason"])
+    return result, summary

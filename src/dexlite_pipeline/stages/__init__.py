@@ -1,1 +1,1 @@
-"""Command-line stages: thin argument parsing around library calls (see ``cli.COMMANDS``)."""
+"""The pipeline stages' commands: each parses its arguments and calls one library function (see ``cli.COMMANDS``)."""

@@ -23,19 +23,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from dexlite_pipeline.config import parse_config_json
-    from dexlite_pipeline.io.grasp_store import read_grasp_store, write_grasp_store
-    from dexlite_pipeline.sim.config import lift_config_from
-    from dexlite_pipeline.sim.results import format_summary, lift_grasp_set
-    from dexlite_pipeline.stages.lift_test import check_objects_dirs, nothing_simulated, report_invalid
+    from dexlite_pipeline.io.grasp_store import write_grasp_store
+    from dexlite_pipeline.settings import stage_config
+    from dexlite_pipeline.sim.results import format_summary, lift_test_store, nothing_simulated
 
-    sections = parse_config_json(args.config_json)
-    config = lift_config_from(sections)
-    check_objects_dirs(args.objects)
-    grasps = read_grasp_store(args.grasps)
-    result, summary = lift_grasp_set(grasps, args.objects, config, args.threads or 1)
-    report_invalid(args.grasps, result.arrays["failure_reason"])
-    attrs = {"stage": "lift_validate", "shard": args.shard, "source": str(args.grasps), "config": {"seed": sections.get("seed"), "lift": config.as_dict()}}
+    settings = stage_config(args.config_json)
+    config = settings.lift
+    result, summary = lift_test_store(args.grasps, args.objects, config, args.threads or 1)
+    attrs = {"stage": "lift_validate", "shard": args.shard, "source": str(args.grasps), "config": {"seed": settings.seed, "lift": config.as_dict()}}
     write_grasp_store(args.out, result, attrs)
     for line in format_summary(summary, config).splitlines():
         log.info("shard %s: %s", args.shard, line)

@@ -1,10 +1,10 @@
-"""``dexlite prepare-objects --config-json JSON --out-dir results/objects``: build every object asset.
+"""``dexlite prepare-objects --catalog results/objects/catalog.parquet --record ...``: build every object asset.
 
-Config sections ``seed`` and ``objects``. Writes ``OUT/assets/<id>/`` per usable object,
-``OUT/catalog.parquet`` (every object, ok or rejected with the reason, with its split) and
-``OUT/prepare_config.json`` (the config used). A configured folder that does not exist stops
-the run at once; a bad mesh is only a rejected row, but a run in which every object is
-rejected exits with status 1.
+Config sections ``seed`` and ``objects``. Writes ``assets/<id>/`` beside the catalog per
+usable object, the catalog (every object, ok or rejected with the reason, with its split)
+and the record of the config used. A configured folder that does not exist stops the run at
+once; a bad mesh is only a rejected row, but a run in which every object is rejected exits
+with status 1.
 """
 
 from __future__ import annotations
@@ -19,29 +19,31 @@ log = logging.getLogger(__name__)
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--config-json", default="{}", help="config sections seed and objects as JSON (defaults otherwise)")
-    parser.add_argument("--out-dir", required=True, help="objects dir to write (assets/, catalog.parquet)")
+    parser.add_argument("--catalog", required=True, help="output catalog (DIR/catalog.parquet; the assets go to DIR/assets/)")
+    parser.add_argument("--record", required=True, help="output record of the settings used (.json)")
 
 
 def run(args: argparse.Namespace) -> int:
-    from dexlite_pipeline.config import from_section, parse_config_json
-    from dexlite_pipeline.objects.prepare import ObjectsConfig, prepare_objects
-    from dexlite_pipeline.objects.sources import collect_sources
+    from pathlib import Path
 
-    config = parse_config_json(args.config_json)
-    seed = int(config.get("seed", 0))
-    section = from_section(ObjectsConfig, config.get("objects"), "config.objects")
-    sources = collect_sources(section.builtin_count, section.mesh_dirs, section.heldout_mesh_dirs, seed)
+    from dexlite_pipeline.objects.prepare import prepare_objects
+    from dexlite_pipeline.objects.sources import collect_sources
+    from dexlite_pipeline.settings import stage_config
+
+    config = stage_config(args.config_json)
+    section = config.objects
+    sources = collect_sources(section.builtin_count, section.mesh_dirs, section.heldout_mesh_dirs, config.seed)
     workers = args.threads or os.cpu_count() or 1
     log.info("preparing %d objects with %d worker(s)", len(sources), workers)
     start = time.perf_counter()
-    catalog = prepare_objects(sources, args.out_dir, section, seed, workers)
+    catalog = prepare_objects(sources, Path(args.catalog).parent, section, config.seed, workers, args.catalog, args.record)
     ok = catalog["status"] == "ok"
     for row in catalog[~ok].itertuples():
         log.warning("rejected %s (%s): %s", row.object_id, row.file, row.reason)
     counts = catalog.loc[ok, "split"].value_counts()
     print(
         f"prepared {int(ok.sum())}/{len(catalog)} objects ({counts.get('train', 0)} train, {counts.get('heldout', 0)} heldout, "
-        f"{int((~ok).sum())} rejected) in {time.perf_counter() - start:.1f} s -> {args.out_dir}"
+        f"{int((~ok).sum())} rejected) in {time.perf_counter() - start:.1f} s -> {args.catalog}"
     )
     if len(catalog) and not ok.any():
         log.error("none of the %d objects could be prepared (reasons above)", len(catalog))

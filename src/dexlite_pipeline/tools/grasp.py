@@ -33,6 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from dexlite_pipeline.config import from_section, validate_config
+from dexlite_pipeline.sharding import shard_generator
 
 log = logging.getLogger("dexlite.grasp")
 
@@ -141,11 +142,11 @@ def synthesize_from_scratch(assets, scales: dict, n: int, config: dict, device, 
     """``n`` grasps per object by energy optimization from convex-hull starts (section ``seed_grasps``)."""
     from dexlite_pipeline.energy.grasp_energy import EnergyConfig
     from dexlite_pipeline.io.grasp_store import GraspSet
-    from dexlite_pipeline.optim.seed import SeedConfig, seed_generator, synthesize
+    from dexlite_pipeline.optim.seed import SeedConfig, synthesize
 
     base = from_section(SeedConfig, config.get("seed_grasps"), "config.seed_grasps")
     energy_config = from_section(EnergyConfig, config.get("energy"), "config.energy")
-    generator = seed_generator(seed, 0)
+    generator = shard_generator("seed_grasps", seed, 0)
     parts = []
     for number, asset in enumerate(assets, start=1):
         object_scales = scales[asset.object_id]
@@ -187,7 +188,7 @@ def synthesize_with_model(assets, scales: dict, n: int, config: dict, model_path
     outside = sorted({round(float(s), 4) for s in scale if not min(trained) * 0.8 <= s <= max(trained) * 1.25})
     if outside:
         log.warning("scales %s are far from the training scales %s: expect fewer grasps that hold", outside, trained)
-    generator = torch.Generator().manual_seed(int(seed) * 1000 + 77)
+    generator = shard_generator("grasp_tool_post_optimize", seed, 0)
     log.info("sampling %d grasps from %s", len(object_index), model_path)
     prior, anchor_rule = sample_config.latent_prior, sample_config.anchor_rule
     if len(model.codes_mu) == 0 or len(model.codes_condition) == 0:  # a model saved without its training codes
@@ -200,9 +201,9 @@ def synthesize_with_model(assets, scales: dict, n: int, config: dict, model_path
     )
     hand = ShadowHand(device)
     energy = GraspEnergy.from_assets(
-        hand, assets, EnergyConfig(weights=post_config.weights(), object_points=post_config.energy_object_points, self_penetration_margin_m=margin)
+        hand, assets, EnergyConfig(weights=post_config.energy_weights, object_points=post_config.energy_object_points, self_penetration_margin_m=margin)
     )
-    log.info("post-optimizing %d grasps, %d iterations", len(object_index), post_config.iterations)
+    log.info("post-optimizing %d grasps, %d iterations", len(object_index), post_config.annealing.iterations)
     refined = refine(
         energy, poses, torch.as_tensor(object_index, device=device), torch.as_tensor(scale, device=device), post_config, generator, "surface"
     )

@@ -13,8 +13,8 @@ import pytest
 
 from dexlite_pipeline.cli import main
 from dexlite_pipeline.io.grasp_store import GraspSet
-from dexlite_pipeline.report.evaluation import EvaluateConfig, method_grasps, sample_rows_of, select_grasps, stage_seconds_per_grasp
-from dexlite_pipeline.stages.evaluate import METHOD_SOURCES
+from dexlite_pipeline.evaluation.protocol import EvaluateConfig, method_grasps, sample_rows_of, select_grasps, stage_seconds_per_grasp
+from dexlite_pipeline.evaluation.step_keys import METHOD_SOURCES
 
 from report_synthetic import OBJECT_ID, post_store, simulated_shard
 
@@ -133,6 +133,12 @@ def test_seed_method_keeps_passing_grasps_and_costs_per_passing_grasp():
     assert stage_seconds_per_grasp("seed", {"seed": [none_pass]}, seed_passing_only=True) == {"seed": math.inf}
 
 
+
+def _evaluation_files(eval_dir):
+    """The aggregate step's output options (and the report's inputs) in ``eval_dir``."""
+    names = {"metrics": "metrics.csv", "per-object": "per_object.csv", "convergence": "convergence.csv", "budget": "budget.csv", "record": "evaluation.json"}
+    return [arg for option, name in names.items() for arg in (f"--{option}", str(eval_dir / name))]
+
 @pytest.fixture(scope="module")
 def tiny_run(tmp_path_factory, tiny_objects):
     rng = np.random.default_rng(0)
@@ -149,19 +155,20 @@ def tiny_run(tmp_path_factory, tiny_objects):
     post = post_store(root / "post.zarr", 6, 21, rng, decay=0.2)  # E_fc < 0.3 from t = 7 (iteration 70)
     random_post = post_store(root / "random.zarr", 6, 21, rng, decay=0.045)  # from t = 27: never within 21
     eval_dir = root / "eval"
+    eval_dir.mkdir()
     evaluate = {"methods": ["seed", "cvae_post", "random_post", "dexgraspnet"], "rendered_per_method": 1}
     aggregate_cfg = json.dumps({"seed": 0, "evaluate": evaluate})
     run_config = {
         "seed": 7, "shards": 2, "objects": {"builtin_count": 40, "mesh_dirs": []}, "lift": lift_config, "evaluate": evaluate,
-        "train": {"profile": "default", "max_steps": 2000}, "post_optimize": {"iterations": 200, "keep_best": True},
+        "train": {"profile": "default", "max_steps": 2000}, "post_optimize": {"annealing": {"iterations": 200}, "keep_best": True},
     }  # fmt: skip
     objects = ["--objects", str(tiny_objects)]
     assert main(["evaluate", "--step", "aggregate", "--sim", str(shard0), "--sim", str(shard1), "--post", str(post), "--random-post", str(random_post),
-                 "--out-dir", str(eval_dir), *objects, "--config-json", aggregate_cfg]) == 0  # fmt: skip
+                 *_evaluation_files(eval_dir), *objects, "--config-json", aggregate_cfg]) == 0  # fmt: skip
     history = root / "history.csv"
     pd.DataFrame({"step": np.arange(20), "loss": np.linspace(2, 1, 20), "kl": np.linspace(0, 1, 20)}).to_csv(history, index=False)
     report = root / "report.html"
-    assert main(["report", "--eval-dir", str(eval_dir), "--sim", str(shard0), "--sim", str(shard1), "--history", str(history), "--out", str(report),
+    assert main(["report", *_evaluation_files(eval_dir), "--sim", str(shard0), "--sim", str(shard1), "--history", str(history), "--out", str(report),
                  *objects, "--config-json", json.dumps(run_config)]) == 0  # fmt: skip
     return eval_dir, report
 
@@ -272,8 +279,8 @@ def test_splits_are_the_catalog_split_names():
 def test_every_evaluate_setting_belongs_to_a_step_and_steps_read_only_theirs():
     from dataclasses import fields
 
-    from dexlite_pipeline.report.evaluation import evaluate_config_from
-    from dexlite_pipeline.report.steps import AGGREGATE_KEYS, REPORT_KEYS, SIMULATE_KEYS
+    from dexlite_pipeline.evaluation.protocol import evaluate_config_from
+    from dexlite_pipeline.evaluation.step_keys import AGGREGATE_KEYS, REPORT_KEYS, SIMULATE_KEYS
 
     assert {f.name for f in fields(EvaluateConfig)} == set(SIMULATE_KEYS) | set(AGGREGATE_KEYS) | set(REPORT_KEYS)
     cfg = evaluate_config_from({"evaluate": {"grasps_per_object": 5, "rendered_per_method": 7}}, SIMULATE_KEYS)

@@ -1,4 +1,6 @@
-"""Which ``evaluate`` settings each evaluation step reads, so that changing one reruns only the steps that read it.
+"""Which ``evaluate`` settings each evaluation step reads, and which grasp stores each method comes from.
+
+Changing a setting reruns only the steps that read it.
 
 The workflow passes each step only its keys of the ``evaluate`` section (Snakemake tracks a
 rule's params), and the steps themselves drop every other key before reading the section,
@@ -26,3 +28,25 @@ def with_evaluate_keys(config: Mapping, keys: Sequence[str]) -> dict:
     """``config`` with its ``evaluate`` section cut down to ``keys`` (the other sections as they are)."""
     section = config.get("evaluate") or {}
     return {**config, "evaluate": {key: section[key] for key in keys if key in section}}
+
+
+# Grasp stores the evaluation reads: source -> its CLI option of ``dexlite evaluate``.
+SOURCE_OPTIONS = {"seed": "seed", "sample": "sample", "post": "post", "random_post": "random-post", "dexgraspnet": "dexgraspnet"}
+# Method (row of metrics.csv) -> the store its grasps are read from.
+METHOD_SOURCES = {
+    "seed": "seed", "random_post": "random_post", "dexgraspnet": "dexgraspnet",
+    "cvae_raw": "sample", "cvae_recon": "sample", "cvae_prior_train": "sample",
+    "cvae_post": "post", "cvae_recon_post": "post", "cvae_prior_train_post": "post",
+}  # fmt: skip
+
+
+def sources_of(methods: Sequence[str]) -> list[str]:
+    """The stores (keys of ``SOURCE_OPTIONS``) that ``methods`` read, in ``SOURCE_OPTIONS`` order.
+
+    Post-optimized CVAE methods also read the sampled store: their rows are chosen among the
+    sampled rows, and the ladder's reference poses are kept there.
+    """
+    needed = {METHOD_SOURCES[m] for m in methods if m in METHOD_SOURCES}
+    if "post" in needed:
+        needed.add("sample")
+    return [source for source in SOURCE_OPTIONS if source in needed]

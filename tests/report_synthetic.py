@@ -71,3 +71,16 @@ def post_store(path, n: int, iterations: int, rng, decay: float):
     }
     write_grasp_store(path, GraspSet(arrays), {"trace_iterations": (t * 10).tolist(), "seconds_per_grasp": 0.5})
     return path
+
+
+def write_heldout_box(root):
+    """One prepared object (a box, normalized size) under ``root``, with a catalog marking it held out; returns ``root``."""
+    import pandas as pd
+    import trimesh
+
+    from dexlite_pipeline.objects.build import AssetBuildSettings, write_asset
+
+    mesh = trimesh.creation.box(extents=(1.2, 0.8, 0.6))
+    write_asset(mesh, OBJECT_ID, root, AssetBuildSettings(sdf_resolution=16, surface_points=128), {"source": "test"}, convex_pieces=[mesh])
+    pd.DataFrame({"object_id": [OBJECT_ID, "train_obj"], "split": ["heldout", "train"], "status": ["ok", "ok"]}).to_parquet(root / "catalog.parquet")
+    return root

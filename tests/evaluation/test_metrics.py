@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from dexlite_pipeline.report import metrics
+from dexlite_pipeline.evaluation import metrics
 
 LIMITS = np.tile(np.array([[0.0, 1.0]]), (22, 1))
 

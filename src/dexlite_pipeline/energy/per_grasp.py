@@ -90,3 +90,34 @@ def evaluate_grasp_energies(
             out["contact_distance_mm"][idx] = result.contact_distance_mm.cpu().numpy()
             out["contact_index"][idx] = result.contact_index.cpu().numpy()
     return out
+
+
+def energy_summary_lines(arrays: dict) -> list[str]:
+    """Human-readable medians and the threshold pass fraction over the evaluated grasps."""
+    evaluated = arrays["energy_failure_reason"] == ""
+    lines = [f"grasps: {len(evaluated)}, evaluated: {int(evaluated.sum())}"]
+    if evaluated.any():
+        for name in ("E_fc", "E_dis", "E_pen", "E_spen", "E_joints", "penetration_mm", "contact_distance_mm"):
+            values = arrays[name][evaluated]
+            lines.append(f"{name:>20}: median {np.median(values):.4g}  p90 {np.percentile(values, 90):.4g}")
+        lines.append(f"pass energy thresholds: {100 * arrays['passes_energy_thresholds'][evaluated].mean():.1f}%")
+    return lines
+
+
+def store_energies(grasps_path: str, objects_dirs: list[str], energy_config, thresholds, device="cpu", batch_size: int = 256, contact_samples: int = 0):
+    """The grasps of a store with their energy terms, ``passes_energy_thresholds`` (``thresholds``:
+    an ``EnergyThresholds``) and ``energy_failure_reason`` added, and the attributes recording how."""
+    from dexlite_pipeline.config import json_ready
+    from dexlite_pipeline.device import resolve_device
+    from dexlite_pipeline.io.grasp_store import read_grasp_store
+
+    if batch_size < 1:
+        raise ValueError(f"--batch-size must be positive, got {batch_size}")
+    grasps = read_grasp_store(grasps_path)
+    arrays = evaluate_grasp_energies(
+        grasps, objects_dirs, device=resolve_device(device), batch_size=batch_size, config=energy_config, contact_samples=contact_samples
+    )
+    arrays["passes_energy_thresholds"] = thresholds.passes(arrays) & (arrays["energy_failure_reason"] == "")
+    grasps.arrays.update(arrays)
+    attrs = {"energy": {"source": str(grasps_path), "config": json_ready(energy_config), "thresholds": json_ready(thresholds), "contact_samples": contact_samples}}
+    return grasps, attrs

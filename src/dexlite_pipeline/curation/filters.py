@@ -26,7 +26,7 @@ while E_dis (scored at the four pads nearest the surface, the least any contact 
 gives) stays a fair test. All their energies are still computed, stored and used to rank
 them for the near-duplicate and cap steps.
 
-Force closure of the actual contacts (``dexlite_pipeline.force_closure``): every hand link
+Force closure of the actual contacts (``dexlite_pipeline.curation.force_closure``): every hand link
 within ``force_closure_contact_distance_m`` of the object is a contact with a friction
 cone (``force_closure_friction``); ε is the largest wrench, in every direction, they
 resist per newton of total normal force. Why: E_fc is scored on four contact candidates
@@ -44,14 +44,14 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
 import torch
 
-from dexlite_pipeline.energy.grasp_energy import DEXGRASPNET_THRESHOLDS
-from dexlite_pipeline.force_closure import ForceClosureResult
+from dexlite_pipeline.energy.thresholds import EnergyThresholds
+from dexlite_pipeline.curation.force_closure import ForceClosureResult
 from dexlite_pipeline.hand.model import JOINTS, ROTATION, TRANSLATION
 from dexlite_pipeline.hand.rotation import euler_xyz_to_matrix
 from dexlite_pipeline.io.grasp_store import GraspSet, invalid_grasp_reasons
@@ -78,25 +78,20 @@ IMPORTED_ORIGIN = "dexgraspnet"  # ``origin`` of grasps read from a DexGraspNet 
 class CurateConfig:
     """Config section ``curate``."""
 
-    max_e_fc: float = DEXGRASPNET_THRESHOLDS["E_fc"]  # force-closure threshold
-    max_e_dis_m: float = DEXGRASPNET_THRESHOLDS["E_dis"]  # contact-distance threshold Σ|d| in metres
-    max_e_pen_m: float = DEXGRASPNET_THRESHOLDS["E_pen"]  # penetration threshold in metres
+    thresholds: EnergyThresholds = field(default_factory=EnergyThresholds)  # keep grasps below every threshold
     duplicate_translation_m: float = 0.005  # palm positions closer than this ...
     duplicate_rotation_deg: float = 10.0  # ... and palm orientations closer than this ...
     duplicate_joint_rad: float = 0.1  # ... and every joint closer than this: near-duplicates
     max_grasps_per_object: int = 200  # cap per object after deduplication (0 = no cap)
     imported_thresholded_terms: tuple[str, ...] = ("E_dis",)  # thresholds applied to imported DexGraspNet grasps
     energy_batch_size: int = 256  # grasps per batch when computing energies of imported grasps
-    force_closure: bool = False  # check the force closure of the actual contacts (off: DexGraspNet's curation)
+    force_closure: bool = True  # check the force closure of the actual contacts (off: DexGraspNet's curation)
     force_closure_min_epsilon: float = 0.01  # keep grasps whose Ferrari–Canny epsilon exceeds this (0: any force closure)
     force_closure_contact_distance_m: float = 0.001  # hand links this close to the object are contacts
     force_closure_friction: float = 0.6  # friction coefficient of the contacts' cones
     force_closure_cone_edges: int = 8  # edges of the linearized friction cones
 
     def __post_init__(self) -> None:
-        for name in ("max_e_fc", "max_e_dis_m", "max_e_pen_m"):
-            if not getattr(self, name) > 0:
-                raise ValueError(f"config.curate.{name} must be positive, got {getattr(self, name)}")
         unknown = sorted(set(self.imported_thresholded_terms) - set(THRESHOLDED_TERMS))
         if unknown:
             raise ValueError(f"config.curate.imported_thresholded_terms: unknown term(s) {', '.join(unknown)}")
@@ -160,7 +155,7 @@ def threshold_reasons(grasps: GraspSet, config: CurateConfig) -> np.ndarray:
     values = {t: np.asarray(grasps.arrays[t], np.float64) for t in THRESHOLDED_TERMS}
     reasons[~np.all([np.isfinite(v) for v in values.values()], axis=0)] = "invalid_grasp"
     imported = np.asarray(grasps.arrays.get("origin", np.full(n, "", dtype=object)) == IMPORTED_ORIGIN, bool)
-    limits = {"E_fc": ("e_fc", config.max_e_fc), "E_dis": ("e_dis", config.max_e_dis_m), "E_pen": ("e_pen", config.max_e_pen_m)}
+    limits = {name: (name.lower(), limit) for name, limit in config.thresholds.limits().items()}
     for term, (reason, limit) in limits.items():
         checked = np.ones(n, bool) if term in config.imported_thresholded_terms else ~imported
         reasons[checked & (reasons == "") & ~(values[term] < limit)] = reason
@@ -168,12 +163,12 @@ def threshold_reasons(grasps: GraspSet, config: CurateConfig) -> np.ndarray:
 
 
 def quality_score(grasps: GraspSet, config: CurateConfig) -> np.ndarray:
-    """E_fc/max_e_fc + E_dis/max_e_dis_m + E_pen/max_e_pen_m (lower is better); < 3 for every kept grasp."""
+    """E_fc/max_e_fc + E_dis/max_e_dis_m + E_pen/max_e_pen_m over ``curate.thresholds`` (lower is better); < 3 for every kept grasp."""
     a = grasps.arrays
     return (
-        np.asarray(a["E_fc"], np.float64) / config.max_e_fc
-        + np.asarray(a["E_dis"], np.float64) / config.max_e_dis_m
-        + np.asarray(a["E_pen"], np.float64) / config.max_e_pen_m
+        np.asarray(a["E_fc"], np.float64) / config.thresholds.max_e_fc
+        + np.asarray(a["E_dis"], np.float64) / config.thresholds.max_e_dis_m
+        + np.asarray(a["E_pen"], np.float64) / config.thresholds.max_e_pen_m
     )
 
 

@@ -8,11 +8,11 @@ import pandas as pd
 import pytest
 
 from dexlite_pipeline.cli import main as dexlite
-from dexlite_pipeline.curate import DROP_REASONS, CurateConfig, ObjectFacts, curate_grasps, near_duplicates, summarize
-from dexlite_pipeline.force_closure import ForceClosureResult
-from dexlite_pipeline.hand.qpos import ROTATION_KEYS
+from dexlite_pipeline.energy.thresholds import EnergyThresholds
+from dexlite_pipeline.curation.filters import DROP_REASONS, CurateConfig, ObjectFacts, curate_grasps, near_duplicates, summarize
+from dexlite_pipeline.curation.force_closure import ForceClosureResult
 from dexlite_pipeline.io.grasp_store import GraspSet, empty_grasp_set, read_grasp_store, write_grasp_store
-from dexlite_pipeline.stages.curate import _common_arrays, _tag
+from dexlite_pipeline.curation.shard import _common_arrays, tag_origin as _tag
 
 GOOD = {"E_fc": 0.05, "E_dis": 0.001, "E_pen": 0.0002}
 
@@ -60,7 +60,7 @@ def test_each_grasp_gets_the_first_reason_that_applies():
         ("nowhere", _pose(), 0.1, GOOD),
         ("held", _pose(), 0.1, {**GOOD, "E_fc": 0.9}),  # object reasons come before energies
     ]
-    reasons = curate_grasps(_grasp_set(rows), FACTS, CurateConfig())
+    reasons = curate_grasps(_grasp_set(rows), FACTS, CurateConfig(force_closure=False))
     assert list(reasons) == [
         "", "e_fc", "e_dis", "e_pen", "e_fc", "invalid_grasp", "invalid_grasp",
         "not_train", "unstable", "object_not_ok", "no_stability_result", "object_not_ok", "not_train",
@@ -69,12 +69,12 @@ def test_each_grasp_gets_the_first_reason_that_applies():
 
 def test_thresholds_are_strict_and_configurable():
     rows = [("a", _pose(t=(0.05 * i, 0, 0.1)), 0.1, {**GOOD, "E_fc": fc}) for i, fc in enumerate([0.29, 0.3, 0.31])]
-    assert list(curate_grasps(_grasp_set(rows), FACTS, CurateConfig())) == ["", "e_fc", "e_fc"]
-    assert list(curate_grasps(_grasp_set(rows), FACTS, CurateConfig(max_e_fc=0.305))) == ["", "", "e_fc"]
+    assert list(curate_grasps(_grasp_set(rows), FACTS, CurateConfig(force_closure=False))) == ["", "e_fc", "e_fc"]
+    assert list(curate_grasps(_grasp_set(rows), FACTS, CurateConfig(force_closure=False, thresholds=EnergyThresholds(max_e_fc=0.305)))) == ["", "", "e_fc"]
 
 
 def test_near_duplicate_needs_all_three_tolerances():
-    config = CurateConfig(duplicate_translation_m=0.005, duplicate_rotation_deg=10.0, duplicate_joint_rad=0.1)
+    config = CurateConfig(force_closure=False, duplicate_translation_m=0.005, duplicate_rotation_deg=10.0, duplicate_joint_rad=0.1)
     best = _pose()
     close_joint = _pose(joint=0.39)
     poses = [
@@ -102,22 +102,22 @@ def test_deduplication_keeps_the_better_grasp_and_only_within_one_scale():
         ("a", _pose(), 0.1, GOOD),
         ("a", _pose(), 0.12, worse),  # same pose, other object size: not a duplicate
     ]
-    assert list(curate_grasps(_grasp_set(rows), FACTS, CurateConfig())) == ["duplicate", "", ""]
+    assert list(curate_grasps(_grasp_set(rows), FACTS, CurateConfig(force_closure=False))) == ["duplicate", "", ""]
 
 
 def test_cap_keeps_the_best_grasps_of_each_object():
     rows = [("a", _pose(t=(0.02 * i, 0, 0.1)), 0.06 + 0.02 * (i % 2), {**GOOD, "E_fc": 0.25 - 0.05 * i}) for i in range(5)]
     rows.append(("untested", _pose(), 0.1, GOOD))
-    reasons = curate_grasps(_grasp_set(rows), FACTS, CurateConfig(max_grasps_per_object=2))
+    reasons = curate_grasps(_grasp_set(rows), FACTS, CurateConfig(force_closure=False, max_grasps_per_object=2))
     assert list(reasons) == ["cap", "cap", "cap", "", "", "no_stability_result"]
-    assert list(curate_grasps(_grasp_set(rows), FACTS, CurateConfig(max_grasps_per_object=0)))[:5] == [""] * 5
+    assert list(curate_grasps(_grasp_set(rows), FACTS, CurateConfig(force_closure=False, max_grasps_per_object=0)))[:5] == [""] * 5
 
 
 def test_summary_counts_add_up_per_object_and_origin():
     rows = [("a", _pose(t=(0.05 * i, 0, 0.1)), 0.1, {**GOOD, "E_pen": 0.0004 * i}) for i in range(4)] + [("held", _pose(), 0.1, GOOD)]
     grasps = _grasp_set(rows)
     grasps.arrays["origin"] = np.array(["seed", "seed", "dexgraspnet", "dexgraspnet", "seed"], dtype=object)
-    config = CurateConfig(imported_thresholded_terms=("E_fc", "E_dis", "E_pen"))
+    config = CurateConfig(force_closure=False, imported_thresholded_terms=("E_fc", "E_dis", "E_pen"))
     table = summarize(grasps, curate_grasps(grasps, FACTS, config), FACTS).set_index(["object_id", "origin"])
     assert table.loc[("a", "seed"), "n_kept"] == 2 and table.loc[("a", "dexgraspnet"), "n_kept"] == 1
     assert table.loc[("a", "dexgraspnet"), "dropped_e_pen"] == 1
@@ -131,8 +131,8 @@ def test_imported_grasps_are_held_to_the_configured_terms_only():
     rows = [("a", _pose(t=(0.05 * i, 0, 0.1)), 0.1, e) for i, e in enumerate(failing * 2)]
     grasps = _grasp_set(rows)
     grasps.arrays["origin"] = np.array(["seed"] * 3 + ["dexgraspnet"] * 3, dtype=object)
-    assert list(curate_grasps(grasps, FACTS, CurateConfig())) == ["e_fc", "e_dis", "e_pen", "", "e_dis", ""]
-    only_pen = CurateConfig(imported_thresholded_terms=("E_pen",))
+    assert list(curate_grasps(grasps, FACTS, CurateConfig(force_closure=False))) == ["e_fc", "e_dis", "e_pen", "", "e_dis", ""]
+    only_pen = CurateConfig(force_closure=False, imported_thresholded_terms=("E_pen",))
     assert list(curate_grasps(grasps, FACTS, only_pen)) == ["e_fc", "e_dis", "e_pen", "", "", "e_pen"]
 
 
@@ -179,13 +179,13 @@ def test_empty_input_sets_do_not_decide_the_shared_arrays():
     merged = _common_arrays([empty_seed, _tag(imported, "dexgraspnet")])
     assert set(merged.arrays) == {"hand_pose", "object_id", "scale", "E_fc", "E_dis", "E_pen", "source_index", "origin", "origin_index"}
     np.testing.assert_array_equal(merged.arrays["E_pen"], imported.arrays["E_pen"])
-    assert list(curate_grasps(merged, FACTS, CurateConfig())) == ["", ""]  # imported: held to E_dis only
-    assert len(_common_arrays([empty_seed])) == 0 and list(curate_grasps(_common_arrays([empty_seed]), FACTS, CurateConfig())) == []
+    assert list(curate_grasps(merged, FACTS, CurateConfig(force_closure=False))) == ["", ""]  # imported: held to E_dis only
+    assert len(_common_arrays([empty_seed])) == 0 and list(curate_grasps(_common_arrays([empty_seed]), FACTS, CurateConfig(force_closure=False))) == []
 
 
 def test_config_rejects_nonsense():
     with pytest.raises(ValueError, match="max_e_fc"):
-        CurateConfig(max_e_fc=0)
+        CurateConfig(thresholds=EnergyThresholds(max_e_fc=0))
     with pytest.raises(ValueError, match="E_foo"):
         CurateConfig(imported_thresholded_terms=("E_foo",))
     with pytest.raises(ValueError, match="force_closure_min_epsilon"):
@@ -230,7 +230,7 @@ def workspace(tmp_path_factory):
 
 def test_cli_curates_a_shard_with_imported_grasps_and_aggregates(workspace):
     root = workspace
-    config = json.dumps({"shards": 2, "device": "cpu", "curate": {"max_e_fc": 100.0}})  # E_fc never binds: far hands fail on E_dis
+    config = json.dumps({"shards": 2, "device": "cpu", "curate": {"thresholds": {"max_e_fc": 100.0}, "force_closure": False}})  # E_fc never binds: far hands fail on E_dis
     summaries = []
     for shard in (0, 1):
         args = ["curate", "--step", "curate", "--shard", str(shard), "--config-json", config, "--stability", str(root / "stability.parquet"),
@@ -290,7 +290,7 @@ def test_cli_empty_seed_shard_keeps_the_imported_grasps_and_their_energies(works
     """An empty seed shard (as the seed stage wrote one without usable objects) no longer strips E_* from imported grasps."""
     root = workspace
     write_grasp_store(root / "seed_empty.zarr", empty_grasp_set())
-    config = {"shards": 1, "device": "cpu", "curate": {"max_e_dis_m": 100.0}}  # imported grasps are held to E_dis only
+    config = {"shards": 1, "device": "cpu", "curate": {"thresholds": {"max_e_dis_m": 100.0}, "force_closure": False}}  # imported grasps are held to E_dis only
     assert dexlite(_curate_args(root, "from_empty_seed", config, seed=root / "seed_empty.zarr", imported=root / "imported.zarr")) == 0
     kept = read_grasp_store(root / "from_empty_seed.zarr")
     assert len(kept) == 1 and kept.arrays["origin"][0] == "dexgraspnet"

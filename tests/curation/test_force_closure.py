@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import torch
 
-from dexlite_pipeline.force_closure import ContactModel, contact_wrenches, epsilon_quality, evaluate_force_closure, link_contacts
+from dexlite_pipeline.curation.force_closure import ContactModel, contact_wrenches, epsilon_quality, evaluate_force_closure, link_contacts
 from dexlite_pipeline.io.grasp_store import GraspSet
 
 

@@ -35,8 +35,8 @@ import numpy as np
 
 from dexlite_pipeline.config import from_section
 from dexlite_pipeline.io.grasp_store import GraspSet, invalid_grasp_reasons
-from dexlite_pipeline.report import metrics
-from dexlite_pipeline.report.steps import with_evaluate_keys
+from dexlite_pipeline.evaluation import metrics
+from dexlite_pipeline.evaluation.step_keys import with_evaluate_keys
 
 log = logging.getLogger(__name__)
 
@@ -98,7 +98,7 @@ class EvaluateConfig:
 
     methods: tuple[str, ...] = METHODS  # methods to evaluate (missing inputs are reported, not invented)
     splits: tuple[str, ...] = ("heldout",)  # object splits to evaluate (catalog column ``split``)
-    grasps_per_object: int = 8  # cap per (method, object) on simulated grasps
+    grasps_per_object: int = 16  # cap per (method, object) on simulated grasps
     six_directions: bool = True  # also run the six-direction disturbance test
     seed_passing_only: bool = True  # seed method = grasps passing the energy thresholds (the seed's dataset)
     entropy_bins: int = metrics.JOINT_ENTROPY_BINS  # bins per joint of the joint-angle entropy
@@ -140,7 +140,7 @@ def rung_of(method: str, split: str) -> str:
 def evaluate_config_from(config: Mapping | None, keys: Sequence[str] | None = None) -> EvaluateConfig:
     """The ``evaluate`` section as a dataclass; with ``keys``, only those keys are read (the others keep defaults).
 
-    A step passes the keys it tracks (``report.steps``), so it computes the same from the
+    A step passes the keys it tracks (``evaluation.step_keys``), so it computes the same from the
     rule's cut-down section as from a whole section given on the command line.
     """
     config = config or {}

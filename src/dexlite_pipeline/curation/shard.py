@@ -1,0 +1,145 @@
+"""Curating one shard: the ``curate`` stage's work.
+
+Reads the shard's seed grasps (with their energy terms) and, optionally, the imported
+DexGraspNet grasps of the shard's objects (their energies are computed here); keeps the
+grasps ``curation.filters`` admits; returns the curated grasps (``origin`` seed/dexgraspnet
+and ``origin_index``, the row in its input), their store attributes and a per-object summary
+of kept and dropped counts. Grasps whose force closure could not be computed (an unreadable
+object asset) are dropped as ``force_closure_unknown`` and counted by reason.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections import Counter
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+import pandas as pd
+
+from dexlite_pipeline.curation.filters import (
+    DROP_REASONS,
+    IMPORTED_ORIGIN,
+    CurateConfig,
+    ObjectFacts,
+    curate_grasps,
+    merge_summaries,
+    object_reasons,
+    summarize,
+)
+from dexlite_pipeline.io.grasp_store import GraspSet, read_grasp_store
+
+if TYPE_CHECKING:
+    from dexlite_pipeline.settings import PipelineConfig
+
+log = logging.getLogger(__name__)
+
+SEED_ORIGIN = "seed"  # ``origin`` of grasps from seed synthesis
+# Fill values of energy arrays for imported grasps dropped before their energies are computed.
+NOT_EVALUATED = {"f": np.nan, "i": -1, "b": False, "O": ""}
+
+
+def tag_origin(grasps: GraspSet, origin: str) -> GraspSet:
+    """``grasps`` with ``origin`` (where they come from) and ``origin_index`` (their row there)."""
+    grasps.arrays["origin"] = np.full(len(grasps), origin, dtype=object)
+    grasps.arrays["origin_index"] = np.arange(len(grasps), dtype=np.int64)
+    return grasps
+
+
+def imported_with_energies(imported_path: str, objects_dirs: list[str], shard: int, config: PipelineConfig, facts: ObjectFacts) -> GraspSet:
+    """This shard's imported grasps, with energies for those that pass the object checks."""
+    from dexlite_pipeline.device import resolve_device
+    from dexlite_pipeline.energy import evaluate_grasp_energies
+    from dexlite_pipeline.sharding import shard_objects
+
+    imported = tag_origin(read_grasp_store(imported_path), IMPORTED_ORIGIN)
+    ids = np.asarray([str(o) for o in imported.object_id])
+    imported = imported.select(np.isin(ids, shard_objects(ids, shard, config.shards)))
+    candidates = object_reasons(imported, facts) == ""
+    log.info("imported grasps of shard %d: %d, energies computed for %d", shard, len(imported), int(candidates.sum()))
+    energies = evaluate_grasp_energies(
+        imported.select(candidates), objects_dirs, device=resolve_device(config.device),
+        batch_size=config.curate.energy_batch_size, config=config.energy,
+    )
+    for name, values in energies.items():
+        full = np.full((len(imported), *values.shape[1:]), NOT_EVALUATED[values.dtype.kind], dtype=values.dtype)
+        full[candidates] = values
+        imported.arrays[name] = full
+    return imported
+
+
+def _common_arrays(sets: list[GraspSet]) -> GraspSet:
+    """Concatenate sets keeping the arrays all of them with rows have (provenance arrays always exist)."""
+    grasps, left_out = GraspSet.concatenate_common(sets)
+    if left_out:
+        log.info("arrays not present in every input, left out of the curated store: %s", ", ".join(left_out))
+    return grasps
+
+
+def force_closure_evaluator(objects_dirs: list[str], settings: CurateConfig, threads: int):
+    """grasps -> Ferrari–Canny ε of their actual contacts (``ForceClosureResult``), with the contact model of ``settings``."""
+    from dexlite_pipeline.curation.force_closure import ContactModel, evaluate_force_closure
+
+    model = ContactModel(
+        contact_distance_m=settings.force_closure_contact_distance_m,
+        friction=settings.force_closure_friction,
+        cone_edges=settings.force_closure_cone_edges,
+    )
+
+    def evaluate(grasps):
+        result = evaluate_force_closure(grasps, objects_dirs, model, threads=threads)
+        epsilon = result.epsilon[np.isfinite(result.epsilon)]
+        log.info(
+            "force closure of %d grasps: %d evaluated, epsilon median %.4f, %.1f%% above %g",
+            len(grasps), len(epsilon), float(np.median(epsilon)) if len(epsilon) else math.nan,
+            100 * float((epsilon > settings.force_closure_min_epsilon).mean()) if len(epsilon) else 0.0, settings.force_closure_min_epsilon,
+        )
+        return result
+
+    return evaluate
+
+
+def curate_shard(
+    seed_paths: list[str], imported_path: str | None, stability_paths: list[str], objects_dirs: list[str],
+    shard: int, config: PipelineConfig, threads: int = 1,
+) -> tuple[GraspSet, dict, pd.DataFrame]:
+    """The curated grasps of one shard, their store attributes and the per-object summary.
+
+    Reads ``shards``, ``device``, ``curate`` and (for imported grasps) ``energy`` of ``config``.
+    """
+    from dexlite_pipeline.config import json_ready
+    from dexlite_pipeline.objects.assets import CATALOG_NAME, read_catalog
+    from dexlite_pipeline.objects.stability import read_stability_table
+
+    settings = config.curate
+    catalogs = [read_catalog(d) for d in objects_dirs if (Path(d) / CATALOG_NAME).exists()]
+    facts = ObjectFacts.from_tables(catalogs, [read_stability_table(p) for p in stability_paths])
+    sets = [tag_origin(read_grasp_store(p), SEED_ORIGIN) for p in seed_paths]
+    if imported_path:
+        sets.append(imported_with_energies(imported_path, objects_dirs, shard, config, facts))
+    if not sets:
+        raise ValueError("curate needs seed grasps and/or imported grasps")
+    grasps = _common_arrays(sets)
+    reasons = curate_grasps(grasps, facts, settings, force_closure_evaluator(objects_dirs, settings, threads))
+    # Reported in the attributes and the log, not stored: it is '' for every kept grasp.
+    failure_reason = grasps.arrays.pop("force_closure_failure_reason", np.full(len(grasps), "", dtype=object))
+    force_closure_failures = Counter(failure_reason[failure_reason != ""].tolist())
+    kept = grasps.select(reasons == "")
+    attrs = {
+        "stage": "curate",
+        "shard": shard,
+        "config": {"curate": json_ready(settings), "energy": json_ready(config.energy) if imported_path else None},
+        "inputs": {"seed": list(seed_paths), "imported": imported_path, "stability": list(stability_paths)},
+        "n_input": len(grasps),
+        "n_kept": len(kept),
+        "dropped": {r: int((reasons == r).sum()) for r in DROP_REASONS},
+        "force_closure_failures": dict(force_closure_failures),
+    }
+    return kept, attrs, summarize(grasps, reasons, facts)
+
+
+def merge_summary_files(paths: list[str]) -> pd.DataFrame:
+    """The per-shard summary CSVs as one per-object table."""
+    return merge_summaries([pd.read_csv(p, keep_default_na=False) for p in paths])

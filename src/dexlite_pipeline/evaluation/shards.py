@@ -1,0 +1,223 @@
+"""The two evaluation steps: simulate one shard of every method's grasps, then tabulate all shards.
+
+- ``simulate_shard``: the shard's grasps of every method on the evaluated objects (the CVAE
+  methods and the random baseline on the same sampled rows), energies recomputed, lift
+  (+ six-direction) tested, with ``method``, ``split``, ``sample_row`` and ``invalid_reason``
+  columns: invalid grasps stay in as failures.
+- ``aggregate_evaluation``: every simulated shard plus the post-optimization traces make
+  ``metrics.csv`` (one row per method and split), ``per_object.csv``, ``convergence.csv``
+  (E_post quartiles per iteration), ``budget.csv`` and ``evaluation.json``.
+
+Each step reads only its keys of the ``evaluate`` section (``evaluation.step_keys``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import logging
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from dexlite_pipeline.evaluation.step_keys import AGGREGATE_KEYS, METHOD_SOURCES, SIMULATE_KEYS, SOURCE_OPTIONS
+from dexlite_pipeline.config import json_ready
+from dexlite_pipeline.io.grasp_store import GraspSet, read_grasp_store
+from dexlite_pipeline.objects.assets import object_splits
+
+log = logging.getLogger(__name__)
+
+BUDGET_METHODS = ("cvae_post", "random_post")  # methods whose post-optimization budget curve is simulated
+
+
+def _sampled_reference(stores) -> np.ndarray | None:
+    """The sampled stores' ``reference_hand_pose`` concatenated in order (rows as ``sample_row``); None when absent."""
+    if not stores or not all("reference_hand_pose" in s.arrays for s in stores):
+        return None
+    return np.concatenate([np.asarray(s.arrays["reference_hand_pose"], np.float32).reshape(len(s), 28) for s in stores])
+
+
+def _budget_iterations(stores) -> list[int]:
+    """The budget iterations recorded by the post-optimization stores (attribute ``budget_iterations``)."""
+    for store in stores:
+        found = store.attrs.get("budget_iterations")
+        if found:
+            return [int(i) for i in found]
+    return []
+
+
+def simulate_shard(source_paths: dict[str, list[str]], objects_dirs: list[str], shard: int, config: dict, threads: int = 1) -> tuple[GraspSet, dict]:
+    """Choose, simulate and measure the shard's grasps of every configured method.
+
+    ``source_paths``: store paths per source (keys of ``step_keys.SOURCE_OPTIONS``). ``config``:
+    the config mapping (sections seed, device, shards, lift, energy and the simulate keys of
+    evaluate). Returns the simulated grasps and their store attributes.
+    """
+    from dexlite_pipeline.config import from_section
+    from dexlite_pipeline.device import resolve_device
+    from dexlite_pipeline.energy.grasp_energy import EnergyConfig
+    from dexlite_pipeline.evaluation.protocol import (
+        BUDGET_POSES, BUDGET_SUCCESS, evaluate_config_from, fit_error_arrays, method_grasps, require_split_objects, sample_rows_of,
+        select_grasps, simulate, simulate_budget, stage_seconds_per_grasp,
+    )  # fmt: skip
+    from dexlite_pipeline.objects.assets import available_object_ids
+    from dexlite_pipeline.sharding import shard_objects
+    from dexlite_pipeline.sim.config import lift_config_from
+
+    cfg = evaluate_config_from(config, SIMULATE_KEYS)
+    lift_cfg = lift_config_from(config, six_directions=cfg.six_directions)
+    energy_cfg = from_section(EnergyConfig, config.get("energy"), "config.energy")
+    seed = int(config.get("seed") or 0)
+    split_of = object_splits(objects_dirs, ok_only=False)
+    require_split_objects(split_of, cfg.splits, objects_dirs)
+    known_object_ids = available_object_ids(objects_dirs)
+    sources = {key: [read_grasp_store(p) for p in source_paths.get(key, [])] for key in SOURCE_OPTIONS}
+    if sources["dexgraspnet"]:  # one store for all shards: take this shard's objects
+        shard_count = int(config.get("shards") or 1)
+        mine = set()
+        for store in sources["dexgraspnet"]:
+            mine |= set(shard_objects([str(o) for o in store.object_id], shard, shard_count))
+        sources["dexgraspnet"] = [s.select(np.isin([str(o) for o in s.object_id], sorted(mine))) for s in sources["dexgraspnet"]]
+
+    sampled_reference = _sampled_reference(sources["sample"])
+    parts, seconds, invalid, missing = [], {}, {}, []
+    budget_iterations: list[int] = []
+    for method in cfg.methods:
+        method_sources = sources[METHOD_SOURCES[method]]
+        if not method_sources:
+            missing.append(method)
+            continue
+        grasps = method_grasps(method, method_sources, cfg.seed_passing_only)
+        selected = select_grasps(grasps, method, split_of, cfg, seed, sample_rows_of(method, sources, known_object_ids))
+        arrays = dict(selected.arrays)
+        arrays.update(fit_error_arrays(selected, method, sampled_reference))
+        budget_poses = arrays.pop(BUDGET_POSES, None)
+        if budget_poses is not None and method in BUDGET_METHODS and len(selected):
+            budget_iterations = budget_iterations or _budget_iterations(method_sources)
+            arrays[BUDGET_SUCCESS] = simulate_budget(selected, objects_dirs, lift_cfg, threads)
+            log.info("evaluate shard %s: %s: budget curve over iterations %s simulated", shard, method, budget_iterations)
+        parts.append(GraspSet(arrays, {}))
+        invalid[method] = selected.attrs["invalid_reasons"]
+        seconds[method] = stage_seconds_per_grasp(method, sources, cfg.seed_passing_only)
+        n_invalid = sum(invalid[method].values())
+        log.info("evaluate shard %s: %s: %d grasps (%d invalid) on %d objects", shard, method, len(selected), n_invalid, len(set(selected.object_id)))
+    width = max((p.arrays[BUDGET_SUCCESS].shape[1] for p in parts if BUDGET_SUCCESS in p.arrays), default=0)
+    if width:  # methods without a budget curve get NaN rows, so the shards concatenate
+        for part in parts:
+            part.arrays.setdefault(BUDGET_SUCCESS, np.full((len(part), width), np.nan))
+    selected_all = GraspSet.concatenate(parts, attrs={})
+    if "method" not in selected_all.arrays:
+        for name, dtype in (("method", object), ("split", object), ("source_row", np.int64), ("sample_row", np.int64), ("invalid_reason", object)):
+            selected_all.arrays[name] = np.zeros(0, dtype=dtype)
+    device = resolve_device(config.get("device") or "auto")
+    result = simulate(selected_all, objects_dirs, lift_cfg, energy_cfg, device, threads, cfg.energy_batch_size, cfg.seed_protocol)
+    attrs = {
+        "stage": "evaluate",
+        "shard": shard,
+        "config": config,
+        "lift_config": lift_cfg.as_dict(),
+        "method_seconds_per_grasp": seconds,
+        "invalid_reasons": invalid,
+        "methods_without_input": missing,
+        "budget_iterations": budget_iterations,
+        **{k: v for k, v in result.attrs.items() if k not in ("invalid_reasons",)},
+    }
+    return result, json_ready(attrs, nan_as_none=True)
+
+
+@dataclass
+class EvaluationTables:
+    """What the aggregate step writes: the tables and the JSON record."""
+
+    metrics: pd.DataFrame
+    per_object: pd.DataFrame
+    convergence: pd.DataFrame
+    budget: pd.DataFrame
+    record: dict
+
+
+def _weighted_method_seconds(shards) -> dict[str, dict[str, float]]:
+    """Stage seconds per grasp of each method, averaged over shards weighted by their grasp counts."""
+    totals: dict[str, dict[str, list[float]]] = {}
+    for shard in shards:
+        methods = np.asarray([str(m) for m in shard.arrays.get("method", [])])
+        for method, stages in (shard.attrs.get("method_seconds_per_grasp") or {}).items():
+            weight = max(int((methods == method).sum()), 1)
+            for stage, value in stages.items():
+                if value is not None:
+                    acc = totals.setdefault(method, {}).setdefault(stage, [0.0, 0.0])
+                    acc[0] += float(value) * weight
+                    acc[1] += weight
+    return {m: {s: v[0] / v[1] for s, v in stages.items()} for m, stages in totals.items()}
+
+
+def aggregate_evaluation(sim_paths: list[str], post_paths: list[str], random_post_paths: list[str], objects_dirs: list[str], config: dict) -> EvaluationTables:
+    """Metrics, per-object table, convergence curves and budget curve over all simulated shards.
+
+    ``config``: the config mapping (seed and the aggregate keys of evaluate).
+    """
+    from dexlite_pipeline.evaluation.metrics import BOOTSTRAP_RESAMPLES
+    from dexlite_pipeline.evaluation.protocol import (
+        budget_rows, concatenate_shards, convergence_ratio, convergence_rows, evaluate_config_from, iterations_to_reach, metrics_tables,
+        require_split_objects,
+    )  # fmt: skip
+    from dexlite_pipeline.hand import ShadowHand
+    from dexlite_pipeline.io.grasp_store import empty_grasp_set
+
+    cfg = evaluate_config_from(config, AGGREGATE_KEYS)
+    shards = [read_grasp_store(p) for p in sim_paths]
+    # A method with no input in any shard (e.g. dexgraspnet when not configured) gets no row.
+    absent = set.intersection(*(set(s.attrs.get("methods_without_input") or []) for s in shards))
+    cfg = dataclasses.replace(cfg, methods=tuple(m for m in cfg.methods if m not in absent))
+    simulated = concatenate_shards(shards)
+    if simulated is None:
+        simulated = empty_grasp_set()
+    seconds = _weighted_method_seconds(shards)
+    sim_counts = [(s.attrs.get("simulation_seconds_per_grasp"), len(s)) for s in shards if len(s)]
+    sim_total = sum(n for t, n in sim_counts if t is not None)
+    sim_seconds = sum(t * n for t, n in sim_counts if t is not None) / sim_total if sim_total else math.nan
+
+    split_of = object_splits(objects_dirs, ok_only=False)
+    require_split_objects(split_of, cfg.splits, objects_dirs)
+    convergence, curve_rows = {}, []
+    for method, paths in (("cvae_post", post_paths), ("random_post", random_post_paths)):
+        if method in cfg.methods and paths:
+            rows, summary = convergence_rows(method, [read_grasp_store(p) for p in paths], split_of, cfg.splits)
+            curve_rows += rows
+            convergence[method] = summary
+    curves = pd.DataFrame(curve_rows, columns=["method", "energy", "iteration", "q25", "median", "q75"])
+    baseline_final = convergence.get("random_post", {}).get("E_post_median_final", math.nan)
+    for method, summary in convergence.items():
+        summary["iterations_to_random_final_E_post"] = iterations_to_reach(curves, method, baseline_final)
+    random_needs = convergence.get("random_post", {}).get("iterations_to_random_final_E_post", math.nan)
+    for method, summary in convergence.items():
+        summary["convergence_ratio"] = convergence_ratio(random_needs, summary["iterations_to_random_final_E_post"])
+    joint_limits = ShadowHand().joint_limits.cpu().numpy()
+    bootstrap_seed = int(config.get("seed") or 0)
+    metrics_df, per_object_df = metrics_tables(simulated, joint_limits, cfg, seconds, convergence, sim_seconds, bootstrap_seed)
+    budget_iterations = next((s.attrs.get("budget_iterations") for s in shards if s.attrs.get("budget_iterations")), [])
+    budget = pd.DataFrame(
+        budget_rows(simulated, budget_iterations, BUDGET_METHODS),
+        columns=["method", "iteration", "n_grasps", "lift_success_rate", "lift_ci95_low", "lift_ci95_high"],
+    )
+    record = {
+        "config": config,
+        "evaluated_methods": list(cfg.methods),
+        "bootstrap": {"resamples": BOOTSTRAP_RESAMPLES, "seed": bootstrap_seed, "cluster": "object"},
+        "lift_config": next((s.attrs.get("lift_config") for s in shards if s.attrs.get("lift_config")), {}),
+        "shards": [str(p) for p in sim_paths],
+    }
+    return EvaluationTables(metrics_df, per_object_df, curves, budget, json_ready(record, nan_as_none=True))
+
+
+def write_evaluation(tables: EvaluationTables, metrics_path, per_object_path, convergence_path, budget_path, record_path) -> None:
+    """Each table to its CSV and the record to its JSON file, atomically."""
+    from dexlite_pipeline.io.atomic import atomic_path
+
+    for frame, path in ((tables.metrics, metrics_path), (tables.per_object, per_object_path), (tables.convergence, convergence_path), (tables.budget, budget_path)):
+        with atomic_path(path) as tmp:
+            frame.to_csv(tmp, index=False, float_format="%.6g")
+    with atomic_path(record_path) as tmp:
+        tmp.write_text(json.dumps(tables.record, indent=2, sort_keys=True))

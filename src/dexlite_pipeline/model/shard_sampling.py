@@ -1,0 +1,135 @@
+"""CVAE grasps for one shard of objects: the ``sample_grasps`` stage's work.
+
+Held-out objects get pure synthesis (method ``cvae_raw``); training objects get dataset
+expansion from their lift-validated grasps (``cvae_expand_latent`` / ``cvae_expand_point``)
+and, with ``sample.ladder``, the learning ladder's rows (``cvae_recon``: reconstructions of
+the grasps the model was trained on; ``cvae_prior_train``: pure synthesis on training
+objects). Objects are dealt to shards as in the other grasp stages (``sharding.shard_objects``
+over the stable objects of the catalogs). Objects that get no grasps are listed with their
+reason in the ``skipped_objects`` attribute.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from typing import TYPE_CHECKING
+
+import numpy as np
+import torch
+
+from dexlite_pipeline.io.grasp_store import GraspSet, read_grasp_store
+from dexlite_pipeline.model.sampling import EXPAND_LATENT, EXPAND_POINT, SYNTHESIS, SampledRows
+
+if TYPE_CHECKING:
+    from dexlite_pipeline.settings import PipelineConfig
+
+log = logging.getLogger(__name__)
+
+
+def known_grasps(paths: list[str], object_ids: set[str]) -> GraspSet:
+    """Lift-successful grasps with finite poses of ``object_ids`` from the lift shards (the expansion seeds)."""
+    sets = []
+    for path in paths:
+        grasps = read_grasp_store(path)
+        if not len(grasps):
+            continue
+        keep = np.asarray(grasps.arrays["lift_success"], bool) & np.isin(grasps.object_id.astype(str), list(object_ids))
+        keep &= np.isfinite(grasps.hand_pose).all(axis=1)
+        sets.append(GraspSet({k: grasps.arrays[k][keep] for k in ("hand_pose", "object_id", "scale")}, {}))
+    return GraspSet.concatenate(sets)
+
+
+def expansion_picks(seeds: GraspSet, per_object: int) -> np.ndarray:
+    """Rows of ``seeds`` to expand: ``per_object`` per object (sorted by id), cycling through its grasps in order."""
+    object_ids = sorted(set(seeds.object_id.tolist()))
+    return np.concatenate([
+        np.flatnonzero(seeds.object_id == oid)[np.arange(per_object) % int((seeds.object_id == oid).sum())]
+        for oid in object_ids
+    ]) if object_ids else np.zeros(0, np.int64)
+
+
+def sample_shard(
+    model_path: str, objects_dirs: list[str], stability_path: str, lift_paths: list[str], shard: int, config: PipelineConfig
+) -> tuple[GraspSet, dict]:
+    """Every CVAE grasp of ``shard``: syntheses on held-out objects, expansions and ladder rows on training objects.
+
+    Returns the grasps (``hand_pose``, ``object_id``, ``scale``, ``method`` and, for ladder
+    reconstructions, the ``reference_hand_pose`` they reproduce; NaN elsewhere) and the
+    store attributes. Reads ``seed``, ``device``, ``shards`` and ``sample`` of ``config``.
+    """
+    from dexlite_pipeline.config import json_ready
+    from dexlite_pipeline.device import resolve_device
+    from dexlite_pipeline.hand import ShadowHand
+    from dexlite_pipeline.model.association import grasp_rays
+    from dexlite_pipeline.model.checkpoint import load_checkpoint
+    from dexlite_pipeline.model.data import ObjectClouds
+    from dexlite_pipeline.model.sampling import expand, ladder_rows, synthesis_rows
+    from dexlite_pipeline.objects.assets import available_object_ids, load_asset, object_splits
+    from dexlite_pipeline.objects.stability import stable_object_ids
+    from dexlite_pipeline.sharding import shard_generator, shard_objects
+
+    settings = config.sample
+    device = resolve_device(config.device)
+    model, checkpoint = load_checkpoint(model_path, device)
+    points = settings.points_per_cloud or int(checkpoint["train_config"]["points_per_cloud"])
+
+    splits = object_splits(objects_dirs)
+    ids = shard_objects(sorted(stable_object_ids(stability_path) & set(splits)), shard, config.shards)
+    available = available_object_ids(objects_dirs)
+    skipped = {oid: "no prepared asset" for oid in ids if oid not in available}
+    ids = [oid for oid in ids if oid in available]
+    heldout = [oid for oid in ids if splits[oid] == "heldout"]
+    seeds = known_grasps(lift_paths, {oid for oid in ids if splits[oid] == "train"})
+    seeded = set(seeds.object_id.tolist())
+    skipped.update({oid: "training object without lift-validated grasps to expand" for oid in ids if splits[oid] == "train" and oid not in seeded})
+    model_train_ids = set(checkpoint.get("train_object_ids") or [])
+    ladder_ids = sorted(oid for oid in ids if splits[oid] == "train" and oid in model_train_ids) if settings.ladder else []
+    fixed_clouds = bool(checkpoint["train_config"].get("fixed_clouds", False))
+    targets = sorted(set(heldout) | seeded | set(ladder_ids))
+    generator = shard_generator("sample_grasps", config.seed, shard)
+    started = time.perf_counter()
+    parts: list[SampledRows] = []
+    if targets:
+        clouds = ObjectClouds([load_asset(objects_dirs, oid) for oid in targets], device)
+        if heldout and settings.synthesis_grasps_per_object > 0:
+            parts.append(synthesis_rows(model, clouds, heldout, settings, points, generator, fixed_clouds, SYNTHESIS))
+        if len(seeds) and settings.expansion_grasps_per_object > 0:
+            pick = expansion_picks(seeds, settings.expansion_grasps_per_object)
+            known = torch.as_tensor(seeds.hand_pose[pick], dtype=torch.float32, device=device)
+            origin, direction = grasp_rays(ShadowHand(device), known)
+            obj = np.array([clouds.index_of[o] for o in seeds.object_id[pick]])
+            scale = seeds.scale[pick].astype(np.float32)
+            move_point = torch.rand(len(pick), generator=generator) < settings.expansion_point_fraction
+            pose = expand(model, clouds, known, origin, direction, obj, scale, move_point.to(device), settings, points, generator, fixed_clouds)
+            methods = [EXPAND_POINT if m else EXPAND_LATENT for m in move_point.tolist()]
+            parts.append(SampledRows(pose, [clouds.object_ids[i] for i in obj], scale, methods))
+        if ladder_ids and "training_grasps" in checkpoint:
+            parts.append(ladder_rows(model, checkpoint["training_grasps"], clouds, ladder_ids, settings, points, generator, ShadowHand(device), fixed_clouds))
+        elif ladder_ids:
+            log.warning("%s: the model file holds no training grasps, so the learning ladder's rows are not sampled", model_path)
+    rows = SampledRows.concatenate(parts, device)
+    seconds = time.perf_counter() - started
+    count = len(rows.method)
+    arrays = {
+        "hand_pose": rows.hand_pose.cpu().numpy(),
+        "object_id": np.asarray(rows.object_id, dtype=object),
+        "scale": rows.scale,
+        "method": np.asarray(rows.method, dtype=object),
+        # the known grasp each ladder reconstruction reproduces (NaN for other rows): the fit rung's pose errors
+        "reference_hand_pose": rows.reference_pose,
+    }
+    attrs = {
+        "stage": "sample_grasps",
+        "shard": f"{shard:03d}",
+        "config": {"seed": config.seed, "sample": json_ready(settings), "points_per_cloud": points},
+        "model_seed": checkpoint.get("seed"),
+        "model_steps": checkpoint.get("steps"),
+        "seconds_per_grasp": seconds / count if count else None,
+        "skipped_objects": skipped,
+    }
+    log.info(
+        "shard %03d: %d grasps (%d synthesized on %d held-out objects, %d others on %d training objects) in %.2fs; skipped %d objects",
+        shard, count, rows.method.count(SYNTHESIS), len(heldout), count - rows.method.count(SYNTHESIS), len(seeded | set(ladder_ids)), seconds, len(skipped),
+    )
+    return GraspSet(arrays, {}), attrs

@@ -1,0 +1,166 @@
+"""Training a grasp model from the pipeline's data: the ``train_cvae`` stage's work.
+
+Takes the lift-validated grasps of training objects from the lift shards, builds the
+training data (clouds, associated points), trains the PointNet + CVAE (``model.training``),
+measures the learning ladder's fit rung on the training grasps, and writes the model file
+(``cvae.pt``), the per-epoch history (CSV) and a plot of the loss curves.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+import pandas as pd
+
+from dexlite_pipeline.curation.filters import IMPORTED_ORIGIN
+from dexlite_pipeline.io.atomic import atomic_path
+from dexlite_pipeline.io.grasp_store import GraspSet, read_grasp_store
+from dexlite_pipeline.model.training import LOSS_TERMS, TrainingResult
+
+if TYPE_CHECKING:
+    from dexlite_pipeline.settings import PipelineConfig
+
+log = logging.getLogger(__name__)
+
+
+def read_lift_shards(paths: list[str]) -> GraspSet:
+    """All lift shards as one set (only the arrays training needs, so shards may differ in extras).
+
+    ``contact_index`` (the contacts seed synthesis made) is kept for seed grasps and set to
+    -1 for imported ones, so the loss searches contacts for those: an imported grasp's
+    ``contact_index`` is the four pads nearest the surface that curation scored it at, not
+    contacts it was made with.
+    """
+    keep = ("hand_pose", "object_id", "scale", "lift_success")
+    sets = []
+    for path in paths:
+        grasps = read_grasp_store(path)
+        if len(grasps) and "lift_success" not in grasps.arrays:
+            raise ValueError(f"{path}: grasp store has no lift_success array (not a lift_validate output)")
+        if len(grasps):
+            arrays = {k: grasps.arrays[k] for k in keep}
+            contacts = np.array(grasps.arrays.get("contact_index", np.full((len(grasps), 4), -1)), dtype=np.int64)
+            imported = np.asarray(grasps.arrays.get("origin", np.full(len(grasps), "", dtype=object)) == IMPORTED_ORIGIN, bool)
+            contacts[imported] = -1
+            arrays["contact_index"] = contacts
+            sets.append(GraspSet(arrays, {}))
+    return GraspSet.concatenate(sets)
+
+
+@dataclass
+class TrainedModel:
+    """A trained model with what its file records: the run's facts and the grasps it was fitted to."""
+
+    result: TrainingResult
+    facts: dict  # seed, steps, grasp counts, object ids, exclusions, fit rung, versions (JSON-ready)
+    training_grasps: dict  # hand_pose (N, 28), object_id (N,), scale (N,) of the training split
+    config: PipelineConfig
+
+
+def _log_epoch(row: dict) -> None:
+    val = f" val {row['val_total']:.4g} (recon {row['val_recon']:.4g})" if "val_total" in row else ""
+    log.info(
+        "epoch %d step %d %.1fs: train %.4g (recon %.4g kl %.4g fc %.4g dis %.4g pen %.4g spen %.4g joints %.4g)%s",
+        row["epoch"], row["step"], row["seconds"], row["train_total"], row["train_recon"], row["train_kl"],
+        row["train_fc"], row["train_dis"], row["train_pen"], row["train_spen"], row["train_joints"], val,
+    )
+
+
+def train_from_lift_shards(lift_paths: list[str], objects_dirs: list[str], config: PipelineConfig) -> TrainedModel:
+    """Train on the lift-successful grasps of the training objects in ``lift_paths``.
+
+    Raises ``TrainingDataError`` naming the shards when fewer than ``train.min_grasps`` remain.
+    Reads ``seed``, ``device``, ``train`` and ``energy.self_penetration_margin_m`` of ``config``.
+    """
+    import torch
+
+    from dexlite_pipeline.device import resolve_device
+    from dexlite_pipeline.energy.grasp_energy import EnergyConfig, GraspEnergy
+    from dexlite_pipeline.hand import ShadowHand
+    from dexlite_pipeline.model.data import TrainingDataError, build_training_data, select_training_grasps, split_validation
+    from dexlite_pipeline.model.training import fit_training_codes, grasp_energy_terms, train_cvae
+    from dexlite_pipeline.objects.assets import available_object_ids, load_asset, object_splits
+
+    settings = config.train
+    device = resolve_device(config.device)
+    train_ids = {oid for oid, split in object_splits(objects_dirs).items() if split == "train"}
+    grasps, excluded = select_training_grasps(read_lift_shards(lift_paths), train_ids, available_object_ids(objects_dirs))
+    if len(grasps) < settings.min_grasps:
+        raise TrainingDataError(
+            f"{', '.join(lift_paths)}: {len(grasps)} lift-successful grasps of training objects, "
+            f"train.min_grasps is {settings.min_grasps} (excluded: {excluded or 'none'})"
+        )
+    object_ids = sorted(set(grasps.object_id.tolist()))
+    assets = [load_asset(objects_dirs, oid) for oid in object_ids]
+    hand = ShadowHand(device)
+    data = build_training_data(grasps, assets, hand, device)
+    margin_m = config.energy.self_penetration_margin_m
+    energy = GraspEnergy.from_assets(hand, assets, EnergyConfig(object_points=settings.energy_object_points, self_penetration_margin_m=margin_m))
+    train_index, val_index = split_validation(len(grasps), settings.validation_fraction, config.seed)
+    energy_terms = grasp_energy_terms(energy, settings.contact_samples, config.seed)
+    result = train_cvae(data, train_index, val_index, settings, energy_terms, config.seed, on_epoch=_log_epoch)
+    fit = fit_training_codes(result.model, data, train_index, settings)
+    log.info(
+        "fit rung (encoder-mean reconstructions of the %d training grasps): median palm rotation error %.2f deg, "
+        "translation %.2f mm, mean joint error %.4f rad",
+        len(train_index), fit["rotation_error_deg_median"], fit["translation_error_mm_median"], fit["joint_error_rad_mean"],
+    )
+    facts = {
+        "seed": config.seed,
+        "self_penetration_margin_m": margin_m,
+        "steps": result.steps,
+        "train_grasps": int(len(train_index)),
+        "validation_grasps": int(len(val_index)),
+        "train_object_ids": object_ids,
+        "excluded_grasps": excluded,
+        "torch_version": torch.__version__,
+        "fit": fit,
+    }
+    training_grasps = {"hand_pose": grasps.hand_pose[train_index], "object_id": grasps.object_id[train_index], "scale": grasps.scale[train_index]}
+    return TrainedModel(result=result, facts=facts, training_grasps=training_grasps, config=config)
+
+
+def plot_history(history: pd.DataFrame, path: Path) -> None:
+    """One panel per loss term (and the total), train and validation against the epoch (PNG, written atomically)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    names = ("total", *LOSS_TERMS)
+    fig, axes = plt.subplots(3, 3, figsize=(12, 9), sharex=True)
+    for ax, name in zip(axes.flat, names):
+        for split, style in (("train", "-"), ("val", "--")):
+            column = f"{split}_{name}"
+            if column in history.columns:
+                ax.plot(history["epoch"], history[column], style, label=split)
+        ax.set_title(name)
+        if (history.filter(like=f"_{name}") > 0).all().all():
+            ax.set_yscale("log")
+        ax.legend(fontsize=8)
+    for ax in axes.flat[len(names):]:
+        ax.axis("off")
+    for ax in axes[-1]:
+        ax.set_xlabel("epoch")
+    fig.suptitle("CVAE training (per-epoch means)")
+    fig.tight_layout()
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=90, format="png")
+    plt.close(fig)
+
+
+def write_trained_model(trained: TrainedModel, model_path: str | Path, history_path: str | Path, curves_path: str | Path) -> None:
+    """The model file (weights, configs, facts, training grasps), the history CSV and the loss-curve plot."""
+    from dexlite_pipeline.model.checkpoint import save_checkpoint
+
+    history = pd.DataFrame(trained.result.history)
+    for path in (model_path, history_path, curves_path):
+        Path(path).parent.mkdir(parents=True, exist_ok=True)
+    with atomic_path(history_path) as tmp:
+        history.to_csv(tmp, index=False)
+    plot_history(history, Path(curves_path))
+    save_checkpoint(model_path, trained.result.model, trained.config.train, trained.facts, training_grasps=trained.training_grasps)

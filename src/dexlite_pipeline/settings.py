@@ -1,0 +1,61 @@
+"""The typed configuration tree: one class per section of ``config.yaml``, one root that holds them.
+
+``PipelineConfig`` mirrors the file section by section; each section's class lives with the
+component it configures (``objects.prepare.ObjectsConfig``, ``sim.config.LiftConfig``, ...)
+and shared shapes are one type wherever they appear: ``EnergyWeights`` (``energy.weights``,
+``train.energy_weights``, ``post_optimize.energy_weights``), ``AnnealingSchedule``
+(``seed_grasps.annealing``, ``post_optimize.annealing``), ``EnergyThresholds``
+(``seed_grasps.thresholds``, ``curate.thresholds``) and ``InitConfig`` (``seed_grasps.init``,
+``post_optimize.random_init``). The dataclass defaults are the defaults: ``config.yaml`` lists
+the same values so that the file documents every key (``tests/test_config.py`` holds the
+classes, the schema and the file to each other).
+
+This module imports every component, so Snakemake's parse-time code uses ``config`` instead.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from dexlite_pipeline.config import from_section, parse_config_json
+from dexlite_pipeline.curation.filters import CurateConfig
+from dexlite_pipeline.energy.grasp_energy import EnergyConfig
+from dexlite_pipeline.io.dexgraspnet import DexGraspNetConfig
+from dexlite_pipeline.model.post_optimization import PostOptimizeConfig
+from dexlite_pipeline.model.sampling import SampleConfig
+from dexlite_pipeline.model.training import TrainConfig
+from dexlite_pipeline.objects.prepare import ObjectsConfig
+from dexlite_pipeline.objects.stability import StabilityConfig
+from dexlite_pipeline.optim.seed import SeedConfig
+from dexlite_pipeline.evaluation.protocol import EvaluateConfig
+from dexlite_pipeline.sim.config import LiftConfig
+
+
+@dataclass(frozen=True)
+class PipelineConfig:
+    """The whole of ``config.yaml``."""
+
+    seed: int = 0  # global random seed; every stage derives its own from it
+    device: str = "auto"  # auto (CUDA when present, else CPU), cpu, cuda, cuda:N
+    shards: int = 2  # grasp-heavy stages split objects into this many groups
+    objects: ObjectsConfig = field(default_factory=ObjectsConfig)
+    dexgraspnet: DexGraspNetConfig = field(default_factory=DexGraspNetConfig)
+    stability: StabilityConfig = field(default_factory=StabilityConfig)
+    curate: CurateConfig = field(default_factory=CurateConfig)
+    energy: EnergyConfig = field(default_factory=EnergyConfig)
+    lift: LiftConfig = field(default_factory=LiftConfig)
+    evaluate: EvaluateConfig = field(default_factory=EvaluateConfig)
+    train: TrainConfig = field(default_factory=TrainConfig)
+    sample: SampleConfig = field(default_factory=SampleConfig)
+    post_optimize: PostOptimizeConfig = field(default_factory=PostOptimizeConfig)
+    seed_grasps: SeedConfig = field(default_factory=SeedConfig)
+
+
+def build_config(mapping: dict | None, where: str = "config") -> PipelineConfig:
+    """The typed tree of a config mapping; absent sections and keys take their defaults."""
+    return from_section(PipelineConfig, mapping, where)
+
+
+def stage_config(text: str, option: str = "--config-json") -> PipelineConfig:
+    """A stage's ``--config-json`` (inline JSON or a file; the sections it reads) as the typed tree."""
+    return build_config(parse_config_json(text, option), option)
