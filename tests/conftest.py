@@ -1,10 +1,12 @@
 """Shared fixtures: the hand model (built once per session) and the optional DexGraspNet sample."""
 
+import os
 from pathlib import Path
 
 import pytest
 
-SHARED_SAMPLE = Path(__file__).resolve().parents[1].parent / "shared" / "dexgraspnet_sample"
+# A DexGraspNet download (dataset/, meshdata/) to test against real grasps; those tests skip without it.
+SAMPLE_VARIABLE = "DEXLITE_DEXGRASPNET_SAMPLE"
 
 
 @pytest.fixture(scope="session")
@@ -16,7 +18,8 @@ def hand():
 
 @pytest.fixture(scope="session")
 def dexgraspnet_sample() -> Path:
-    """The two real DexGraspNet objects in ../shared, or skip where they are absent."""
-    if not (SHARED_SAMPLE / "dataset").is_dir():
-        pytest.skip(f"DexGraspNet sample not present at {SHARED_SAMPLE}")
-    return SHARED_SAMPLE
+    """The DexGraspNet download named by $DEXLITE_DEXGRASPNET_SAMPLE, or skip where it is not set or absent."""
+    sample = Path(os.environ.get(SAMPLE_VARIABLE, "")).expanduser()
+    if not os.environ.get(SAMPLE_VARIABLE) or not (sample / "dataset").is_dir():
+        pytest.skip(f"no DexGraspNet sample: set {SAMPLE_VARIABLE} to a download with dataset/ and meshdata/")
+    return sample

@@ -54,8 +54,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 # OpenMP threads that spin while they wait for each other make torch at 2 threads several
-# times slower than at 1 whenever the cores are shared (measured: an energy step at batch
-# 256 took 186 ms instead of 33 ms under load); waiting passively costs nothing when idle.
+# times slower than at 1 whenever the cores are shared; waiting passively costs nothing when idle.
 # It must be set before torch starts its OpenMP runtime, so before any stage is imported.
 OPENMP_ENVIRONMENT = {"OMP_WAIT_POLICY": "PASSIVE"}
 

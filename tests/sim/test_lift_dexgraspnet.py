@@ -1,4 +1,4 @@
-"""The lift test on real DexGraspNet grasps (../shared sample; skipped where absent).
+"""The lift test on real DexGraspNet grasps (a DexGraspNet download named by $DEXLITE_DEXGRASPNET_SAMPLE; skipped without it).
 
 These grasps were made and validated by another system. A prototype of this protocol
 passed 79% of such grasps at friction 0.6 (88% at 1.0) and 0% once moved away; the full
