@@ -23,8 +23,8 @@ def curate_options(input):
     return options
 
 
-# The energy section matters only for imported grasps (their energies are computed here).
-CURATE_SECTIONS = ("seed", "device", "shards", "curate") + (("energy",) if config["dexgraspnet"]["root"] else ())
+# Device, shards and energy matter only for imported grasps (dealt to shards here, their energies computed here).
+CURATE_SECTIONS = ("curate",) + (("device", "shards", "energy") if config["dexgraspnet"]["root"] else ())
 
 
 rule curate:

@@ -9,7 +9,7 @@ rule lift_validate:
     output:
         directory(f"{RESULTS}/lift/shard_{{shard}}.zarr"),
     params:
-        cfg=stage_params("seed", "device", "lift"),
+        cfg=stage_params("seed", "lift"),
         code=code_hash("lift_validate"),
         objects=learning_cli_options("objects", learning_objects_dirs()),
     threads: SHARD_THREADS

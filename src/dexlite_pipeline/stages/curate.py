@@ -14,7 +14,7 @@ import argparse
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--step", choices=("curate", "aggregate"), required=True)
-    parser.add_argument("--config-json", default="{}", help="config sections (seed, device, shards, curate, energy) as JSON")
+    parser.add_argument("--config-json", default="{}", help="config section curate, and for imported grasps device, shards and energy, as JSON")
     parser.add_argument("--shard", type=int, default=None, help="curate: shard index (selects the imported objects of this shard)")
     parser.add_argument("--seed-grasps", action="append", default=[], help="curate: seed grasp store(s) of this shard (repeatable)")
     parser.add_argument("--imported", default=None, help="curate: imported DexGraspNet grasp store (all objects; this shard's are used)")

@@ -15,7 +15,7 @@ log = logging.getLogger("dexlite.lift_validate")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--config-json", required=True, help="config sections seed, device, lift (canonical JSON)")
+    parser.add_argument("--config-json", required=True, help="config sections seed and lift (canonical JSON)")
     parser.add_argument("--grasps", required=True, help="curated grasp shard (curate output)")
     parser.add_argument("--objects", action="append", required=True, help="prepared objects dir (repeatable)")
     parser.add_argument("--shard", required=True, help="shard id, e.g. 000")
