@@ -1,7 +1,7 @@
 """Stage ``sample_grasps`` (one shard): CVAE grasps for the shard's stable objects.
 
 Held-out objects get pure synthesis (``cvae_raw``), training objects dataset expansion and
-the learning ladder's rows (``model.shard_sampling.sample_shard``).
+the learning ladder's rows (``model.sample_shard``).
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from dexlite_pipeline.io.grasp_store import write_grasp_store
-    from dexlite_pipeline.model.shard_sampling import sample_shard
+    from dexlite_pipeline.model.sample_shard import sample_shard
     from dexlite_pipeline.settings import stage_config
 
     grasps, attrs = sample_shard(args.model, args.objects, args.stability, args.lift, args.shard, stage_config(args.config_json))

@@ -5,7 +5,7 @@ stable (train and held-out alike), dealt to shards by ``sharding.shard_objects``
 ``--out`` (grasp store) with every energy term, ``passes_energy_thresholds``, the initial
 pose and the optimizer's acceptance rate per grasp; attributes hold the config,
 ``seconds_per_grasp``, the pass fraction and any object that could not be used, with its
-reason (``optim.seed.seed_shard``).
+reason (``optim.seed_shard``).
 """
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from dexlite_pipeline.io.grasp_store import write_grasp_store
-    from dexlite_pipeline.optim.seed import seed_shard
+    from dexlite_pipeline.optim.seed_shard import seed_shard
     from dexlite_pipeline.settings import stage_config
 
     grasps, attrs = seed_shard(args.objects, args.stability, args.shard, stage_config(args.config_json))

@@ -1,0 +1,88 @@
+"""Seed synthesis for one shard of objects: the ``seed_grasps`` stage's work.
+
+The stable, prepared objects are dealt to shards (``sharding.shard_objects``); objects whose
+asset cannot be used, or whose SDF grid differs from the shard's, are recorded with their
+reason; the rest get grasps from ``optim.seed.synthesize``.
+"""
+
+from __future__ import annotations
+
+import logging
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from dexlite_pipeline.energy.grasp_energy import TERM_NAMES
+from dexlite_pipeline.io.grasp_store import GraspSet
+from dexlite_pipeline.optim.seed import synthesize
+
+if TYPE_CHECKING:
+    from dexlite_pipeline.settings import PipelineConfig
+
+log = logging.getLogger(__name__)
+
+
+def empty_seed_grasps() -> GraspSet:
+    """A zero-row shard with every array ``synthesize`` writes (dtypes and trailing shapes alike).
+
+    A shard without usable objects must still carry the energy arrays: curation keeps only
+    the arrays all its inputs have, and E_fc, E_dis and E_pen are what it filters on.
+    """
+    from dexlite_pipeline.energy.grasp_energy import CONTACT_COUNT
+    from dexlite_pipeline.hand.model import POSE_DIM
+    from dexlite_pipeline.io.grasp_store import empty_grasp_set
+
+    grasps = empty_grasp_set()
+    grasps.arrays["init_pose"] = np.zeros((0, POSE_DIM), np.float32)
+    grasps.arrays["contact_index"] = np.zeros((0, CONTACT_COUNT), np.int16)
+    for name in ("acceptance_rate", "penetration_mm", "contact_distance_mm", "E_total", *TERM_NAMES):
+        grasps.arrays[name] = np.zeros(0, np.float32)
+    grasps.arrays["passes_energy_thresholds"] = np.zeros(0, bool)
+    return grasps
+
+
+def seed_shard(objects_dirs: list[str], stability_path: str, shard: int, config: PipelineConfig) -> tuple[GraspSet, dict]:
+    """Seed grasps of one shard: the stable, prepared objects dealt to ``shard`` (train and held-out).
+
+    Returns the grasps and the store attributes: the settings used, the objects synthesized,
+    the objects that could not be used with their reason, and the run statistics.
+    """
+    from dexlite_pipeline.config import json_ready
+    from dexlite_pipeline.device import resolve_device
+    from dexlite_pipeline.objects.assets import ObjectAssetError, load_asset, ok_object_ids, split_by_sdf_grid
+    from dexlite_pipeline.objects.stability import stable_object_ids
+    from dexlite_pipeline.sharding import shard_generator, shard_objects
+
+    settings = config.seed_grasps
+    device = resolve_device(config.device)
+    object_ids = shard_objects(sorted(ok_object_ids(objects_dirs) & stable_object_ids(stability_path)), shard, config.shards)
+    assets, failed = [], {}
+    for object_id in object_ids:
+        try:
+            assets.append(load_asset(objects_dirs, object_id))
+        except ObjectAssetError as exc:
+            failed[object_id] = f"asset unusable: {exc}"
+    assets, set_aside = split_by_sdf_grid(assets)
+    failed.update(set_aside)
+    for object_id, reason in failed.items():
+        log.warning("object %s skipped: %s", object_id, reason)
+    log.info(
+        "shard %03d: %d stable objects (%d usable), %d grasps each (%d scales), %d iterations, device %s",
+        shard, len(object_ids), len(assets), settings.grasps_per_object * len(settings.scales), len(settings.scales),
+        settings.annealing.iterations, device,
+    )
+    if assets:
+        grasps, stats = synthesize(assets, settings, config.energy, shard_generator("seed_grasps", config.seed, shard), device)
+    else:
+        grasps, stats = empty_seed_grasps(), {"grasps": 0, "passing": 0, "pass_fraction": 0.0, "seconds": 0.0, "seconds_per_grasp": 0.0}
+    attrs = {
+        "stage": "seed_grasps",
+        "shard": f"{shard:03d}",
+        "seed": config.seed,
+        "config": {"seed_grasps": json_ready(settings), "energy": json_ready(config.energy)},
+        "objects": [a.object_id for a in assets],
+        "failed_objects": failed,
+        **stats,
+        "passing_per_hour": stats["passing"] / stats["seconds"] * 3600 if stats["seconds"] else 0.0,
+    }
+    return grasps, attrs
