@@ -51,6 +51,19 @@ def read_lift_shards(paths: list[str]) -> GraspSet:
     return GraspSet.concatenate(sets)
 
 
+def training_object_subset(object_ids: set[str], count: int, seed: int) -> set[str]:
+    """A seeded choice of ``count`` of ``object_ids`` (all of them when ``count`` is 0 or not smaller).
+
+    The choice for a smaller count is contained in the choice for a larger one (one seeded
+    order, cut at ``count``), so a learning curve adds objects without swapping any.
+    """
+    ordered = sorted(object_ids)
+    if count <= 0 or count >= len(ordered):
+        return set(ordered)
+    order = np.random.default_rng([seed, 0x0B1EC75]).permutation(len(ordered))
+    return {ordered[i] for i in order[:count]}
+
+
 @dataclass
 class TrainedModel:
     """A trained model with what its file records: the run's facts and the grasps it was fitted to."""
@@ -87,8 +100,12 @@ def train_from_lift_shards(lift_paths: list[str], objects_dirs: list[str], confi
 
     settings = config.train
     device = resolve_device(config.device)
+    lifted = read_lift_shards(lift_paths)
     train_ids = {oid for oid, split in object_splits(objects_dirs).items() if split == "train"}
-    grasps, excluded = select_training_grasps(read_lift_shards(lift_paths), train_ids, available_object_ids(objects_dirs))
+    if settings.max_training_objects > 0:  # the learning curve: a seeded subset of the objects with lift-successful grasps
+        held = set(lifted.object_id[np.asarray(lifted.arrays["lift_success"], bool)].tolist()) if len(lifted) else set()
+        train_ids = training_object_subset(train_ids & held, settings.max_training_objects, config.seed)
+    grasps, excluded = select_training_grasps(lifted, train_ids, available_object_ids(objects_dirs))
     if len(grasps) < settings.min_grasps:
         raise TrainingDataError(
             f"{', '.join(lift_paths)}: {len(grasps)} lift-successful grasps of training objects, "

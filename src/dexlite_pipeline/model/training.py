@@ -100,6 +100,7 @@ class TrainConfig:
     learning_rate: float = 2e-3
     validation_fraction: float = 0.1
     min_grasps: int = 8
+    max_training_objects: int = 0  # train on a seeded subset of this many training objects (0 = all): the learning curve
     energy_object_points: int = 512
     contact_samples: int = 32
     rotation_augmentation: bool = False

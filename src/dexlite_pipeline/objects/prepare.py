@@ -48,6 +48,7 @@ class ObjectsConfig:
     """Config section ``objects`` (see config.yaml for the meaning of each key)."""
 
     builtin_count: int = 40
+    benchmark_heldout: bool = True  # embedded objects of the benchmark split are always held out (never trained on)
     mesh_dirs: tuple[str, ...] = ()
     heldout_mesh_dirs: tuple[str, ...] = ()
     heldout_fraction: float = 0.2

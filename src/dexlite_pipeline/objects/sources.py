@@ -14,6 +14,7 @@ import hashlib
 import os
 import re
 import xml.etree.ElementTree as ET
+import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -118,6 +119,11 @@ def random_pybullet_paths() -> list[Path]:
     return sorted(p for p in root.glob("*/*.urdf") if p.stem == p.parent.name)
 
 
+def pybullet_random_source(path: Path) -> MeshSource:
+    """The procedural pybullet_data object of ``random_urdfs/NNN/NNN.urdf`` (id ``pb-random-NNN``)."""
+    return _pybullet_source(f"pb-random-{path.stem}", "pybullet_random", path)
+
+
 def builtin_sources(count: int, seed: int) -> list[MeshSource]:
     """``count`` embedded objects chosen by a seeded draw: about a quarter named, the rest procedural."""
     if count <= 0:
@@ -129,8 +135,7 @@ def builtin_sources(count: int, seed: int) -> list[MeshSource]:
     randoms = random_pybullet_paths()
     n_random = min(len(randoms), count - n_named)
     for i in sorted(rng.choice(len(randoms), size=n_random, replace=False)):
-        path = randoms[i]
-        chosen.append(_pybullet_source(f"pb-random-{path.stem}", "pybullet_random", path))
+        chosen.append(pybullet_random_source(randoms[i]))
     return chosen
 
 
@@ -168,10 +173,30 @@ def _make_ids_unique(sources: list[MeshSource]) -> list[MeshSource]:
     return unique
 
 
-def collect_sources(builtin_count: int, mesh_dirs, heldout_mesh_dirs, seed: int) -> list[MeshSource]:
-    """Every object to prepare: embedded default, user folders, always-held-out folders."""
+# The benchmark split: embedded objects that every profile holds out, so that every model is
+# compared on the same objects (made by workflow/scripts/make_benchmark_split.py).
+BENCHMARK_SPLIT_FILE = Path(__file__).with_name("benchmark_split.yaml")
+
+
+def benchmark_object_ids() -> frozenset[str]:
+    """Ids of the benchmark split's objects (``BENCHMARK_SPLIT_FILE``)."""
+    import yaml
+
+    record = yaml.safe_load(BENCHMARK_SPLIT_FILE.read_text()) or {}
+    return frozenset(str(o) for o in record.get("object_ids") or [])
+
+
+def collect_sources(builtin_count: int, mesh_dirs, heldout_mesh_dirs, seed: int, benchmark_heldout: bool = False) -> list[MeshSource]:
+    """Every object to prepare: embedded default, user folders, always-held-out folders.
+
+    ``benchmark_heldout``: embedded objects of the benchmark split are always held out.
+    """
     # A file listed twice (a folder repeated, or in both lists) is one object; held out wins.
     user: dict[str, MeshSource] = {}
     for s in folder_sources(mesh_dirs, heldout=False) + folder_sources(heldout_mesh_dirs, heldout=True):
         user[os.path.realpath(s.file)] = s
-    return _make_ids_unique(builtin_sources(builtin_count, seed) + list(user.values()))
+    builtin = builtin_sources(builtin_count, seed)
+    if benchmark_heldout:
+        benchmark = benchmark_object_ids()
+        builtin = [dataclasses.replace(s, always_heldout=True) if s.object_id in benchmark else s for s in builtin]
+    return _make_ids_unique(builtin + list(user.values()))
