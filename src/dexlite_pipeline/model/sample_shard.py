@@ -49,6 +49,29 @@ def expansion_picks(seeds: GraspSet, per_object: int) -> np.ndarray:
     ]) if object_ids else np.zeros(0, np.int64)
 
 
+def shard_targets(
+    objects_dirs: list[str], stability_path: str, lift_paths: list[str], shard: int, shard_count: int, model_train_ids: set[str], ladder: bool
+) -> tuple[list[str], GraspSet, list[str], dict[str, str]]:
+    """What the shard samples on: its held-out objects, the known grasps of its training objects
+    (the expansion seeds), its training objects the model was fitted to (the ladder's, when
+    ``ladder``), and the objects that get nothing, with why."""
+    from dexlite_pipeline.objects.assets import available_object_ids, object_splits
+    from dexlite_pipeline.objects.stability import stable_object_ids
+    from dexlite_pipeline.sharding import shard_objects
+
+    splits = object_splits(objects_dirs)
+    ids = shard_objects(sorted(stable_object_ids(stability_path) & set(splits)), shard, shard_count)
+    available = available_object_ids(objects_dirs)
+    skipped = {oid: "no prepared asset" for oid in ids if oid not in available}
+    ids = [oid for oid in ids if oid in available]
+    heldout = [oid for oid in ids if splits[oid] == "heldout"]
+    seeds = known_grasps(lift_paths, {oid for oid in ids if splits[oid] == "train"})
+    seeded = set(seeds.object_id.tolist())
+    skipped.update({oid: "training object without lift-validated grasps to expand" for oid in ids if splits[oid] == "train" and oid not in seeded})
+    ladder_ids = sorted(oid for oid in ids if splits[oid] == "train" and oid in model_train_ids) if ladder else []
+    return heldout, seeds, ladder_ids, skipped
+
+
 def sample_shard(
     model_path: str, objects_dirs: list[str], stability_path: str, lift_paths: list[str], shard: int, config: PipelineConfig
 ) -> tuple[GraspSet, dict]:
@@ -65,26 +88,18 @@ def sample_shard(
     from dexlite_pipeline.model.checkpoint import load_checkpoint
     from dexlite_pipeline.model.data import ObjectClouds
     from dexlite_pipeline.model.sampling import expand, ladder_rows, synthesis_rows
-    from dexlite_pipeline.objects.assets import available_object_ids, load_asset, object_splits
-    from dexlite_pipeline.objects.stability import stable_object_ids
-    from dexlite_pipeline.sharding import shard_generator, shard_objects
+    from dexlite_pipeline.objects.assets import load_asset
+    from dexlite_pipeline.sharding import shard_generator
 
     settings = config.sample
     device = resolve_device(config.device)
     model, checkpoint = load_checkpoint(model_path, device)
     points = settings.points_per_cloud or int(checkpoint["train_config"]["points_per_cloud"])
 
-    splits = object_splits(objects_dirs)
-    ids = shard_objects(sorted(stable_object_ids(stability_path) & set(splits)), shard, config.shards)
-    available = available_object_ids(objects_dirs)
-    skipped = {oid: "no prepared asset" for oid in ids if oid not in available}
-    ids = [oid for oid in ids if oid in available]
-    heldout = [oid for oid in ids if splits[oid] == "heldout"]
-    seeds = known_grasps(lift_paths, {oid for oid in ids if splits[oid] == "train"})
+    heldout, seeds, ladder_ids, skipped = shard_targets(
+        objects_dirs, stability_path, lift_paths, shard, config.shards, set(checkpoint.get("train_object_ids") or []), settings.ladder
+    )
     seeded = set(seeds.object_id.tolist())
-    skipped.update({oid: "training object without lift-validated grasps to expand" for oid in ids if splits[oid] == "train" and oid not in seeded})
-    model_train_ids = set(checkpoint.get("train_object_ids") or [])
-    ladder_ids = sorted(oid for oid in ids if splits[oid] == "train" and oid in model_train_ids) if settings.ladder else []
     fixed_clouds = bool(checkpoint["train_config"].get("fixed_clouds", False))
     targets = sorted(set(heldout) | seeded | set(ladder_ids))
     generator = shard_generator("sample_grasps", config.seed, shard)
