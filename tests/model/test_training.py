@@ -101,6 +101,14 @@ def test_selection_keeps_lift_successes_of_training_objects_only(hand, make_gras
     assert excluded == {"failed the lift test": 1, "non-finite hand_pose": 1, "object not in the training split": 1}
 
 
+def test_no_lifted_grasps_is_zero_training_grasps_not_a_format_error():
+    """Empty lift shards (nothing curated) hold no arrays: that is too little data, which the min_grasps check names."""
+    from dexlite_pipeline.io.grasp_store import GraspSet
+
+    kept, excluded = select_training_grasps(GraspSet.concatenate([]), {"box"}, {"box"})
+    assert len(kept) == 0 and excluded == {}
+
+
 def test_loss_energies_use_the_contacts_a_grasp_was_made_with(hand, tiny_assets, make_grasps):
     energy = GraspEnergy.from_assets(hand, tiny_assets, EnergyConfig(object_points=128))
     terms = grasp_energy_terms(energy, contact_samples=8)

@@ -31,6 +31,8 @@ class TrainingDataError(ValueError):
 def select_training_grasps(lifted: GraspSet, train_object_ids: set[str], known_object_ids: set[str]) -> tuple[GraspSet, dict[str, int]]:
     """Lift-successful, valid grasps of training objects; also the count excluded per reason."""
     n = len(lifted)
+    if n == 0:  # every lift shard empty (nothing curated): zero grasps, for the caller's min_grasps check
+        return lifted, {}
     if "lift_success" not in lifted.arrays:
         raise TrainingDataError("the lift-validated grasps have no lift_success array")
     reasons = invalid_grasp_reasons(lifted, known_object_ids)
