@@ -19,6 +19,9 @@ import sys
 from collections import Counter
 from pathlib import Path
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # tests/: the shared sample_data module
+from sample_data import dexgraspnet_sample_dir  # noqa: E402
+
 import yaml
 
 REPO = Path(__file__).resolve().parents[2]
@@ -26,9 +29,9 @@ CHECKOUT_PARTS = ("Snakefile", "config.yaml", "config", "workflow", "profiles", 
 _checkout: Path | None = None
 BIN_DIR = Path(sys.executable).parent
 # Real grasps to train on: a tiny seed run finds none that hold, so the tiny config imports
-# the two-object DexGraspNet sample beside the repository (the bottle trains; the mug, which
-# tips over in its file orientation, is held out).
-DEXGRASPNET_SAMPLE = REPO.parent / "shared" / "dexgraspnet_sample"
+# the two-object DexGraspNet sample (sample_data: $DEXLITE_DEXGRASPNET_SAMPLE or the team's copy;
+# the bottle trains; the mug, which tips over in its file orientation, is held out).
+DEXGRASPNET_SAMPLE = dexgraspnet_sample_dir()
 HELDOUT_SAMPLE_OBJECT = "core-mug-8570d9a8d24cb0acbebd3c0c0c70fb03"
 
 # The smallest settings that still exercise every stage. Keys of sections that are not in
