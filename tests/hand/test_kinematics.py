@@ -4,20 +4,11 @@ import mujoco
 import numpy as np
 import pytest
 import torch
+from hand_poses import random_poses
 
 from dexlite_pipeline.hand import JOINT_NAMES
 from dexlite_pipeline.hand.mjcf import hand_mjcf_string
 from dexlite_pipeline.hand.rotation import euler_xyz_to_matrix
-
-
-def _random_poses(hand, count, seed):
-    rng = np.random.default_rng(seed)
-    limits = hand.joint_limits.numpy().astype(np.float64)
-    pose = np.zeros((count, 28))
-    pose[:, :3] = rng.normal(scale=0.2, size=(count, 3))
-    pose[:, 3:6] = rng.uniform(-np.pi, np.pi, size=(count, 3))
-    pose[:, 6:] = rng.uniform(limits[:, 0], limits[:, 1], size=(count, 22))
-    return pose
 
 
 def test_joint_order_and_limits(hand):
@@ -33,7 +24,7 @@ def test_joint_order_and_limits(hand):
 def test_forward_kinematics_matches_mujoco(hand):
     model = mujoco.MjModel.from_xml_string(hand_mjcf_string(free_root=True))
     data = mujoco.MjData(model)
-    poses = _random_poses(hand, 32, seed=1)
+    poses = random_poses(hand, 32, seed=1)
     frames = hand.forward(torch.tensor(poses, dtype=torch.float32))
     rot = euler_xyz_to_matrix(torch.tensor(poses[:, 3:6])).numpy()
     for i, pose in enumerate(poses):
@@ -50,7 +41,7 @@ def test_forward_kinematics_matches_mujoco(hand):
 
 
 def test_link_poses_dict_and_gradients(hand):
-    pose = torch.tensor(_random_poses(hand, 4, seed=2), dtype=torch.float32, requires_grad=True)
+    pose = torch.tensor(random_poses(hand, 4, seed=2), dtype=torch.float32, requires_grad=True)
     poses = hand.link_poses(pose)
     assert set(poses) == set(hand.link_names)
     assert poses["robot0:ffdistal"].shape == (4, 4, 4)

@@ -3,20 +3,14 @@
 import numpy as np
 import pytest
 import torch
+from hand_poses import random_poses
 
 from dexlite_pipeline.hand import JOINT_NAMES, ShadowHand
 from dexlite_pipeline.hand.pk_chain import PALM_JOINTS, PkShadowHand, build_pk_chain
 
 
 def _random_poses(hand, count, seed, dtype=torch.float32):
-    """Palm within ~0.2 m of the origin in any orientation, joints uniform within their limits."""
-    rng = np.random.default_rng(seed)
-    limits = hand.joint_limits.numpy().astype(np.float64)
-    pose = np.zeros((count, 28))
-    pose[:, :3] = rng.normal(scale=0.2, size=(count, 3))
-    pose[:, 3:6] = rng.uniform(-np.pi, np.pi, size=(count, 3))
-    pose[:, 6:] = rng.uniform(limits[:, 0], limits[:, 1], size=(count, 22))
-    return torch.tensor(pose, dtype=dtype)
+    return torch.tensor(random_poses(hand, count, seed), dtype=dtype)
 
 
 @pytest.fixture(scope="module", params=[False, True], ids=["palm-rooted", "floating-palm"])
