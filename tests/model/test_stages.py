@@ -72,6 +72,16 @@ def test_train_sample_post_optimize(pipeline_inputs):
     assert set(sample.object_id[prior]) == {"box"} and prior.sum() == 5
     assert set(method) == {"cvae_raw", "cvae_expand_latent", "cvae_expand_point", "cvae_recon", "cvae_prior_train"}
     assert sample.attrs["seconds_per_grasp"] > 0 and np.isfinite(sample.hand_pose).all()
+    # sample.ladder_grasps_per_object caps both ladder rungs per training object: a choice among the grasps trained on
+    capped_cfg = json.dumps({**CONFIG, "sample": {**CONFIG["sample"], "ladder_grasps_per_object": 2}})
+    assert main(["sample-grasps", "--config-json", capped_cfg, "--model", str(root / "model" / "cvae.pt"), "--stability", str(root / "stability.parquet"),
+                 "--lift", str(root / "lift.zarr"), *common, "--out", str(root / "capped.zarr")]) == 0
+    capped = read_grasp_store(root / "capped.zarr")
+    capped_method = capped.arrays["method"]
+    assert (capped_method == "cvae_recon").sum() == 2 and (capped_method == "cvae_prior_train").sum() == 2
+    trained_on = {tuple(p) for p in np.asarray(checkpoint["training_grasps"]["hand_pose"], np.float32)}
+    assert {tuple(p) for p in capped.arrays["reference_hand_pose"][capped_method == "cvae_recon"]} <= trained_on
+    assert (capped_method == "cvae_raw").sum() == 5  # held-out synthesis is not capped
 
     assert main(["post-optimize", "--config-json", cfg, "--sample", str(root / "sample.zarr"), *common,
                  "--out", str(root / "post.zarr"), "--random-out", str(root / "random.zarr")]) == 0

@@ -46,6 +46,7 @@ class SampleConfig:
     expansion_point_neighbours: int = 16  # the moved point is one of this many nearest cloud points
     points_per_cloud: int = 0  # 0 = the value the model was trained with
     ladder: bool = True  # also sample the learning ladder's rows on training objects (reconstructions, prior samples)
+    ladder_grasps_per_object: int = 0  # ladder rows per training object and rung (0: every training grasp, synthesis_grasps_per_object prior samples)
     latent_prior: str = "neighbours"  # where synthesis draws latents: standard N(0, I), the training codes' aggregate or its nearest clouds' codes
     latent_temperature: float = 1.0  # scale of the latent noise
     anchor_rule: str = "matched"  # associated points of pure synthesis: uniform, or matched to each latent's training grasp
@@ -278,9 +279,11 @@ def synthesis_rows(
     generator: torch.Generator,
     fixed_clouds: bool,
     label: str,
+    count: int | None = None,
 ) -> SampledRows:
-    """``synthesis_grasps_per_object`` pure syntheses per object (scales dealt in turn from ``config.scales``), labelled ``label``."""
-    count = config.synthesis_grasps_per_object
+    """``count`` (default ``synthesis_grasps_per_object``) pure syntheses per object (scales dealt in turn
+    from ``config.scales``), labelled ``label``."""
+    count = config.synthesis_grasps_per_object if count is None else count
     obj = np.repeat([clouds.index_of[o] for o in object_ids], count)
     scale = np.tile(np.resize(np.asarray(config.scales, np.float32), count), len(object_ids))
     pose = synthesize(
@@ -307,11 +310,21 @@ def ladder_rows(
       trained on (``training_grasps`` from the checkpoint), on its own cloud and associated point;
     - ``cvae_prior_train`` (in-distribution): ``synthesis_grasps_per_object`` pure syntheses
       per training object, by the same rule as on held-out objects (``synthesize``).
+
+    ``config.ladder_grasps_per_object`` > 0 caps both per object: a seeded choice of that many of
+    its training grasps, and that many prior samples (a large run's ladder then costs what its
+    evaluation simulates, not a post-optimization of every training grasp).
     """
     wanted = set(object_ids)
     parts = []
     known_ids = np.asarray(training_grasps["object_id"], dtype=object)
     rows = np.flatnonzero([str(o) in wanted and str(o) in clouds.index_of for o in known_ids])
+    cap = config.ladder_grasps_per_object
+    if cap and len(rows):
+        rows = np.sort(np.concatenate([
+            np.asarray(group)[torch.randperm(len(group), generator=generator)[:cap].numpy()]
+            for group in (rows[known_ids[rows] == oid] for oid in sorted(set(known_ids[rows].tolist())))
+        ]))  # fmt: skip
     if len(rows):
         known = torch.as_tensor(training_grasps["hand_pose"], dtype=torch.float32)[rows].to(clouds.device)
         scale = np.asarray(training_grasps["scale"], dtype=np.float32)[rows]
@@ -320,7 +333,8 @@ def ladder_rows(
         pose = reconstruct(model, clouds, known, origin, direction, obj, scale, points, fixed_clouds, generator)
         parts.append(SampledRows(pose, [str(o) for o in known_ids[rows]], scale, [RECONSTRUCTION] * len(rows), known.cpu().numpy()))
     present = [o for o in object_ids if o in clouds.index_of]
-    if present and config.synthesis_grasps_per_object > 0:
-        parts.append(synthesis_rows(model, clouds, present, config, points, generator, fixed_clouds, PRIOR_ON_TRAINING))
+    prior_count = cap or config.synthesis_grasps_per_object
+    if present and prior_count > 0:
+        parts.append(synthesis_rows(model, clouds, present, config, points, generator, fixed_clouds, PRIOR_ON_TRAINING, prior_count))
     return SampledRows.concatenate(parts, clouds.device)
 
