@@ -1,5 +1,6 @@
 """The benchmark split: a fixed, recorded set of embedded objects that every profile holds out."""
 
+import pytest
 import yaml
 
 from dexlite_pipeline.objects.sources import (
@@ -32,3 +33,17 @@ def test_the_default_run_draws_none_of_them():
     """The split was drawn outside the default run's objects (40 objects, seeds 0-2), so that run keeps its split."""
     for seed in (0, 1, 2):
         assert not {s.object_id for s in builtin_sources(40, seed)} & benchmark_object_ids()
+
+
+def test_benchmark_objects_adds_the_first_objects_of_the_split_held_out():
+    from dexlite_pipeline.objects.sources import ObjectSourceError, benchmark_object_list
+
+    first = benchmark_object_list()[:3]
+    added = collect_sources(40, [], [], seed=0, benchmark_heldout=True, benchmark_objects=3)
+    assert [s.object_id for s in added[-3:]] == first and all(s.always_heldout for s in added[-3:])
+    assert len(added) == 43 and len({s.object_id for s in added}) == 43
+    # an object the draw already holds is not added twice
+    everything = collect_sources(2000, [], [], seed=0, benchmark_heldout=True, benchmark_objects=3)
+    assert len(everything) == len({s.object_id for s in everything}) == len(collect_sources(2000, [], [], seed=0, benchmark_heldout=True))
+    with pytest.raises(ObjectSourceError, match="objects.benchmark_objects"):
+        collect_sources(0, [], [], seed=0, benchmark_objects=len(benchmark_object_list()) + 1)

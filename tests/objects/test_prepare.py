@@ -24,7 +24,7 @@ from dexlite_pipeline.objects.sources import MeshSource, collect_sources
 
 # Small grids, few samples and a light CoACD search keep these tests at a second or two.
 TINY = ObjectsConfig(
-    builtin_count=0, sdf_resolution=20, sdf_exact_band=0.2, surface_points=128,
+    builtin_count=0, benchmark_objects=0, sdf_resolution=20, sdf_exact_band=0.2, surface_points=128,
     coacd_mcts_iterations=10, coacd_mcts_nodes=5, coacd_mcts_max_depth=1, coacd_resolution=300,
 )
 

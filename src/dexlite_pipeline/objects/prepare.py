@@ -49,6 +49,7 @@ class ObjectsConfig:
 
     builtin_count: int = 40
     benchmark_heldout: bool = True  # embedded objects of the benchmark split are always held out (never trained on)
+    benchmark_objects: int = 4  # the first this many benchmark-split objects are added to the run, held out
     mesh_dirs: tuple[str, ...] = ()
     heldout_mesh_dirs: tuple[str, ...] = ()
     heldout_fraction: float = 0.2

@@ -178,18 +178,43 @@ def _make_ids_unique(sources: list[MeshSource]) -> list[MeshSource]:
 BENCHMARK_SPLIT_FILE = Path(__file__).with_name("benchmark_split.yaml")
 
 
-def benchmark_object_ids() -> frozenset[str]:
-    """Ids of the benchmark split's objects (``BENCHMARK_SPLIT_FILE``)."""
+def benchmark_object_list() -> list[str]:
+    """Ids of the benchmark split's objects (``BENCHMARK_SPLIT_FILE``), in the split's order."""
     import yaml
 
     record = yaml.safe_load(BENCHMARK_SPLIT_FILE.read_text()) or {}
-    return frozenset(str(o) for o in record.get("object_ids") or [])
+    return [str(o) for o in record.get("object_ids") or []]
 
 
-def collect_sources(builtin_count: int, mesh_dirs, heldout_mesh_dirs, seed: int, benchmark_heldout: bool = False) -> list[MeshSource]:
+def benchmark_object_ids() -> frozenset[str]:
+    """Ids of the benchmark split's objects, as a set."""
+    return frozenset(benchmark_object_list())
+
+
+def benchmark_sources(count: int) -> list[MeshSource]:
+    """The first ``count`` objects of the benchmark split (procedural pybullet_data objects), always held out."""
+    ids = benchmark_object_list()
+    if count > len(ids):
+        raise ObjectSourceError(f"objects.benchmark_objects: {count} asked, the benchmark split ({BENCHMARK_SPLIT_FILE.name}) has {len(ids)}")
+    root = pybullet_data_dir() / RANDOM_URDF_DIR
+    sources = []
+    for object_id in ids[:count]:
+        number = object_id.removeprefix("pb-random-")
+        path = root / number / f"{number}.urdf"
+        if not path.is_file():
+            raise ObjectSourceError(f"{BENCHMARK_SPLIT_FILE.name}: {object_id} has no {path} in the installed pybullet_data")
+        sources.append(dataclasses.replace(pybullet_random_source(path), always_heldout=True))
+    return sources
+
+
+def collect_sources(
+    builtin_count: int, mesh_dirs, heldout_mesh_dirs, seed: int, benchmark_heldout: bool = False, benchmark_objects: int = 0
+) -> list[MeshSource]:
     """Every object to prepare: embedded default, user folders, always-held-out folders.
 
     ``benchmark_heldout``: embedded objects of the benchmark split are always held out.
+    ``benchmark_objects``: the first this many objects of the benchmark split are added (held
+    out), so that a small run is also measured on objects that no model ever trains on.
     """
     # A file listed twice (a folder repeated, or in both lists) is one object; held out wins.
     user: dict[str, MeshSource] = {}
@@ -199,4 +224,6 @@ def collect_sources(builtin_count: int, mesh_dirs, heldout_mesh_dirs, seed: int,
     if benchmark_heldout:
         benchmark = benchmark_object_ids()
         builtin = [dataclasses.replace(s, always_heldout=True) if s.object_id in benchmark else s for s in builtin]
+    drawn = {s.object_id for s in builtin}
+    builtin += [s for s in benchmark_sources(benchmark_objects) if s.object_id not in drawn]
     return _make_ids_unique(builtin + list(user.values()))

@@ -32,7 +32,7 @@ def run(args: argparse.Namespace) -> int:
 
     config = stage_config(args.config_json)
     section = config.objects
-    sources = collect_sources(section.builtin_count, section.mesh_dirs, section.heldout_mesh_dirs, config.seed, section.benchmark_heldout)
+    sources = collect_sources(section.builtin_count, section.mesh_dirs, section.heldout_mesh_dirs, config.seed, section.benchmark_heldout, section.benchmark_objects)
     workers = args.threads or os.cpu_count() or 1
     log.info("preparing %d objects with %d worker(s)", len(sources), workers)
     start = time.perf_counter()
