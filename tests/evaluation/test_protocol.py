@@ -121,6 +121,23 @@ def test_method_grasps_takes_only_pure_cvae_samples():
     assert len(method_grasps("seed", [sample])) == 3
 
 
+def test_shipped_methods_read_the_shipped_models_rows_paired_raw_and_refined():
+    """shipped_raw / shipped_post: the rows labelled shipped_raw of the sampled and post-optimized stores, drawn alike."""
+    labels = np.asarray(["cvae_raw", "shipped_raw", "cvae_raw", "shipped_raw", "shipped_raw"], dtype=object)
+    sample = _set(["a", "a", "b", "b", "b"], {"method": labels})
+    post = _set(["a", "a", "b", "b", "b"], {"method": labels})
+    assert METHOD_SOURCES["shipped_raw"] == "sample" and METHOD_SOURCES["shipped_post"] == "post"
+    assert method_grasps("shipped_raw", [sample]).object_id.tolist() == ["a", "b", "b"]
+    assert method_grasps("shipped_post", [post]).object_id.tolist() == ["a", "b", "b"]
+    sources = {"sample": [sample], "post": [post]}
+    np.testing.assert_array_equal(sample_rows_of("shipped_raw", sources, {"a", "b"}), [1, 3, 4])
+    np.testing.assert_array_equal(sample_rows_of("shipped_post", sources, {"a", "b"}), [1, 3, 4])
+    cfg = EvaluateConfig(methods=("shipped_raw", "shipped_post"), grasps_per_object=1)
+    chosen = [select_grasps(method_grasps(m, sources[METHOD_SOURCES[m]]), m, {"a": "heldout", "b": "heldout"}, cfg, 0,
+                            sample_rows_of(m, sources, {"a", "b"})) for m in cfg.methods]  # fmt: skip
+    assert chosen[0].arrays["sample_row"].tolist() == chosen[1].arrays["sample_row"].tolist()  # the same samples, raw and refined
+
+
 def test_seed_method_keeps_passing_grasps_and_costs_per_passing_grasp():
     seed = _set(["a", "a", "a", "a"], {"passes_energy_thresholds": np.array([True, False, False, True])})
     seed.attrs.update({"seconds_per_grasp": 2.0, "seconds": 8.0, "passing": 2})

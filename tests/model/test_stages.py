@@ -83,6 +83,17 @@ def test_train_sample_post_optimize(pipeline_inputs):
     assert {tuple(p) for p in capped.arrays["reference_hand_pose"][capped_method == "cvae_recon"]} <= trained_on
     assert (capped_method == "cvae_raw").sum() == 5  # held-out synthesis is not capped
 
+    # a shipped model adds its own syntheses (rows shipped_raw) on held-out objects it never trained on (here: the sphere),
+    # after the run's own rows, which stay as they were
+    shipped_cfg = json.dumps({**CONFIG, "sample": {**CONFIG["sample"], "shipped_model": str(root / "model" / "cvae.pt")}})
+    assert main(["sample-grasps", "--config-json", shipped_cfg, "--model", str(root / "model" / "cvae.pt"), "--stability", str(root / "stability.parquet"),
+                 "--lift", str(root / "lift.zarr"), *common, "--out", str(root / "shipped.zarr")]) == 0
+    with_shipped = read_grasp_store(root / "shipped.zarr")
+    shipped_mask = with_shipped.arrays["method"] == "shipped_raw"
+    assert shipped_mask.sum() == 5 and set(with_shipped.object_id[shipped_mask]) == {"sphere"}
+    np.testing.assert_array_equal(with_shipped.hand_pose[~shipped_mask], sample.hand_pose)
+    assert with_shipped.attrs["shipped_skipped_objects"] == {}
+
     assert main(["post-optimize", "--config-json", cfg, "--sample", str(root / "sample.zarr"), *common,
                  "--out", str(root / "post.zarr"), "--random-out", str(root / "random.zarr")]) == 0
     post = read_grasp_store(root / "post.zarr")
@@ -100,6 +111,22 @@ def test_train_sample_post_optimize(pipeline_inputs):
     assert baseline.arrays["trace_E_post"].shape == (5, 11)
     # Random starts are 0.2-0.3 m away: their palms start far from the object.
     assert np.linalg.norm(baseline.arrays["raw_hand_pose"][:, :3], axis=1).min() > 0.15
+
+
+@pytest.mark.slow
+def test_the_shipped_model_skips_held_out_objects_it_trained_on(pipeline_inputs, tiny_assets):
+    """An object in the shipped model's training set is not a test of generalization: left out, with the reason."""
+    from dexlite_pipeline.model.data import ObjectClouds
+    from dexlite_pipeline.model.sample_shard import shipped_rows
+    from dexlite_pipeline.model.sampling import SampleConfig
+
+    root, objects = pipeline_inputs
+    assert main(["train-cvae", "--config-json", json.dumps(CONFIG), "--lift", str(root / "lift.zarr"), *objects, *_model_outputs(root / "model")]) == 0
+    clouds = ObjectClouds(tiny_assets)
+    rows, left_out = shipped_rows(str(root / "model" / "cvae.pt"), ["box", "sphere"], clouds, SampleConfig(synthesis_grasps_per_object=3),
+                                  torch.Generator().manual_seed(0), "cpu")  # fmt: skip
+    assert left_out == {"box": "the shipped model was trained on it"}
+    assert rows.object_id == ["sphere"] * 3 and rows.method == ["shipped_raw"] * 3
 
 
 def test_training_refuses_too_few_grasps(pipeline_inputs, capsys):

@@ -37,7 +37,7 @@ def meshes(tmp_path_factory):
 def grasp_run(meshes, tmp_path_factory):
     out = tmp_path_factory.mktemp("grasp") / "out"
     code = main(["grasp", str(meshes), "--out", str(out), "--n", "2", "--real-size", "--renders", "1", "--threads", "2",
-                 "--config-json", json.dumps(TINY)])  # fmt: skip
+                 "--from-scratch", "--config-json", json.dumps(TINY)])  # fmt: skip
     return code, out
 
 
@@ -98,6 +98,29 @@ def test_grasp_with_a_model_samples_and_post_optimizes(grasp_run, meshes, tmp_pa
     assert "raw_hand_pose" in every.arrays and np.isfinite(every.hand_pose).all()
     assert sorted(set(np.round(every.scale, 3))) == [0.08, 0.1, 0.12]
     assert code == (0 if every.arrays["lift_success"].any() else 1)
+
+
+@pytest.mark.slow
+def test_grasp_uses_the_shipped_model_when_no_model_is_given(meshes, tmp_path, monkeypatch):
+    """Without --model (and without --from-scratch) the checkout's shipped model samples the grasps."""
+    from dexlite_pipeline.model import shipped
+    from dexlite_pipeline.model.checkpoint import save_checkpoint
+    from dexlite_pipeline.model.network import GraspCVAE, ModelConfig
+
+    @dataclasses.dataclass
+    class Trained:
+        points_per_cloud: int = 64
+
+    stand_in = tmp_path / "models" / "cvae.pt"
+    stand_in.parent.mkdir()
+    small = ModelConfig(pointnet_widths=(16, 32), encoder_hidden=(32,), decoder_hidden=(32,), latent_dim=8, normalization="none")
+    save_checkpoint(stand_in, GraspCVAE(small), Trained(), {"seed": 0})
+    monkeypatch.setattr(shipped, "SHIPPED_MODEL_PATH", stand_in)
+    out = tmp_path / "shipped"
+    main(["grasp", str(meshes / "box.obj"), "--out", str(out), "--n", "1", "--renders", "0", "--threads", "1", "--config-json", json.dumps(TINY)])
+    assert set(read_grasp_store(out / "all_grasps.zarr").arrays["method"]) == {"cvae_post"}
+    assert f"model: {stand_in}" in (out / "summary.md").read_text()
+    assert main(["grasp", str(meshes / "box.obj"), "--out", str(out), "--model", str(stand_in), "--from-scratch"]) == 2
 
 
 def test_grasp_input_errors_are_one_line_with_exit_status_2(tmp_path, capsys):

@@ -25,7 +25,7 @@ from sample_data import dexgraspnet_sample_dir  # noqa: E402
 import yaml
 
 REPO = Path(__file__).resolve().parents[2]
-CHECKOUT_PARTS = ("Snakefile", "config.yaml", "config", "workflow", "profiles", "envs", "src", "pyproject.toml")
+CHECKOUT_PARTS = ("Snakefile", "config.yaml", "config", "workflow", "profiles", "envs", "src", "models", "pyproject.toml")
 _checkout: Path | None = None
 BIN_DIR = Path(sys.executable).parent
 # Real grasps to train on: a tiny seed run finds none that hold, so the tiny config imports
@@ -44,6 +44,7 @@ TINY_OVERRIDES: dict = {
         "sdf_resolution": 32,
         "surface_points": 256,
         "coacd_max_convex_hull": 4,
+        "benchmark_objects": 1,  # one object no model trained on: the shipped model's rows
     },
     "dexgraspnet": {"root": str(DEXGRASPNET_SAMPLE), "heldout_object_codes": [HELDOUT_SAMPLE_OBJECT]},
     "seed_grasps": {

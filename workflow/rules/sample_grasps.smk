@@ -1,8 +1,27 @@
-# Learning: CVAE grasps per shard (pure synthesis on held-out objects, expansion on training objects).
+# Learning: CVAE grasps per shard (pure synthesis on held-out objects, expansion on training objects, and the
+# shipped model's syntheses on held-out objects it never trained on).
+
+
+import shlex
+
+
+SHIPPED_METHODS = {"shipped_raw", "shipped_post"}
+if SHIPPED_METHODS & set(config["evaluate"]["methods"]) and not config["sample"].get("shipped_model"):
+    raise WorkflowError('evaluate.methods: shipped_raw and shipped_post need sample.shipped_model (the pretrained model file); drop them or set it')
+if config["sample"].get("shipped_model") and not (Path(workflow.basedir) / config["sample"]["shipped_model"]).is_file():
+    raise WorkflowError(f'sample.shipped_model: {config["sample"]["shipped_model"]} is not a file in {workflow.basedir} (set it to "" to run without it)')
+
+
+def shipped_model_input(wildcards):
+    """The shipped model file (sample.shipped_model, relative to this checkout) when configured: an input, so
+    replacing it reruns sampling."""
+    path = config["sample"].get("shipped_model") or ""
+    return {"shipped": str(Path(workflow.basedir) / path)} if path else {}
 
 
 rule sample_grasps:
     input:
+        unpack(shipped_model_input),
         model=f"{RESULTS}/model/cvae.pt",
         stability=f"{RESULTS}/stability/stability.parquet",
         lift=expand(f"{RESULTS}/lift/shard_{{shard}}.zarr", shard=SHARDS),
@@ -14,6 +33,7 @@ rule sample_grasps:
         code=code_hash("sample_grasps"),
         lift=lambda wc, input: learning_cli_options("lift", input.lift),
         objects=learning_cli_options("objects", learning_objects_dirs()),
+        shipped=lambda wc, input: f"--shipped-model {shlex.quote(input.shipped)}" if "shipped" in input.keys() else '--shipped-model ""',
     threads: SHARD_THREADS
     conda:
         CONDA_ENV
@@ -23,4 +43,4 @@ rule sample_grasps:
         f"{LOGS}/benchmarks/sample_grasps_{{shard}}.tsv"
     shell:
         "dexlite sample-grasps --config-json {params.cfg:q} --model {input.model} --stability {input.stability} "
-        "{params.lift} {params.objects} --shard {wildcards.shard} --out {output} --threads {threads} > {log} 2>&1"
+        "{params.lift} {params.objects} {params.shipped} --shard {wildcards.shard} --out {output} --threads {threads} > {log} 2>&1"

@@ -1,6 +1,7 @@
 """``dexlite grasp MESH [MESH ...] --out DIR``: grasps that hold for your own meshes, in one command.
 
-Prepares the meshes (a folder of .obj/.stl files works too), synthesizes grasps, keeps those
+Prepares the meshes (a folder of .obj/.stl files works too), synthesizes grasps (with the
+shipped model when the checkout has it, else or with ``--from-scratch`` by optimization), keeps those
 that pass the lift test and writes ``DIR/grasps.zarr``, ``DIR/dexgraspnet/``,
 ``DIR/renders/`` and ``DIR/summary.md`` (``dexlite_pipeline.tools.grasp``). Exit status 0
 when some grasp held, 1 when none did (the outputs are written all the same), 2 for
@@ -23,7 +24,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--n", type=int, default=DEFAULT_GRASPS_PER_OBJECT, help="grasps synthesized per object (default %(default)s)")
     parser.add_argument("--real-size", action="store_true", help="keep each mesh's own size, its units read as metres (default: the configured scales)")
     parser.add_argument("--device", default=None, help="auto, cpu, cuda or cuda:N (default: the config's device)")
-    parser.add_argument("--model", default=None, help="trained model (cvae.pt): sample and post-optimize instead of optimizing from scratch")
+    parser.add_argument("--model", default=None, help="trained model (cvae.pt) to sample and post-optimize with (default: the shipped "
+                        "model, models/shadow-hand-large/cvae.pt, when this checkout has it)")
+    parser.add_argument("--from-scratch", action="store_true", help="energy optimization from scratch instead of a model (slower per grasp)")
     parser.add_argument("--config-json", default="{}", help="config sections over config.yaml, as inline JSON or a .json/.yaml file")
     parser.add_argument("--renders", type=int, default=DEFAULT_RENDERS_PER_OBJECT, help="pictures per object (default %(default)s)")
 
@@ -32,11 +35,19 @@ def run(args: argparse.Namespace) -> int:
     import os
 
     from dexlite_pipeline.config import parse_config_json
+    from dexlite_pipeline.model.shipped import shipped_model_path
     from dexlite_pipeline.tools.grasp import GraspRequest, run_grasp_tool
 
+    if args.from_scratch and args.model:
+        log.error("--from-scratch and --model exclude each other")
+        return 2
+    shipped = shipped_model_path()
+    model = None if args.from_scratch else (args.model or (str(shipped) if shipped else None))
+    if model is None and not args.from_scratch:
+        log.info("no model given and no shipped model in this checkout: optimizing from scratch")
     request = GraspRequest(
         meshes=args.meshes, out_dir=args.out, grasps_per_object=args.n, real_size=args.real_size, device=args.device,
-        model=args.model, config=parse_config_json(args.config_json), threads=args.threads or os.cpu_count() or 1,
+        model=model, config=parse_config_json(args.config_json), threads=args.threads or os.cpu_count() or 1,
         renders_per_object=args.renders,
     )  # fmt: skip
     outcome = run_grasp_tool(request)

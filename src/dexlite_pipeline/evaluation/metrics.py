@@ -319,6 +319,8 @@ METHOD_LABELS = {
     "cvae_recon_post": "CVAE reconstructions + post-optimization",
     "cvae_prior_train": "CVAE samples on training objects, raw",
     "cvae_prior_train_post": "CVAE samples on training objects + post-optimization",
+    "shipped_raw": "Shipped model's samples, raw",
+    "shipped_post": "Shipped model's samples + post-optimization",
 }
 SPLIT_LABELS = {"heldout": "held-out objects", "train": "training objects"}
 # The learning ladder's rungs (metrics.csv column ``rung``), in the order they are read.

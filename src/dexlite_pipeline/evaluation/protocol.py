@@ -7,7 +7,10 @@ Methods (rows of ``metrics.csv``), each read from the pipeline's own outputs:
 - ``cvae_post``    CVAE samples after post-optimization, ``results/post/shard_*.zarr``;
 - ``random_post``  random initialization + the same post-optimization budget,
                    ``results/post/random_shard_*.zarr``;
-- ``dexgraspnet``  imported DexGraspNet grasps (when configured).
+- ``dexgraspnet``  imported DexGraspNet grasps (when configured);
+- ``shipped_raw`` / ``shipped_post``  the shipped (pretrained) model's samples on held-out
+                   objects it never trained on, raw and post-optimized (rows ``shipped_raw`` of
+                   the sampled and post-optimized stores).
 
 Every method goes through the same measurement: energies recomputed by one code path
 (contacts = the four candidates nearest the surface, so no method is judged by its own
@@ -42,7 +45,7 @@ log = logging.getLogger(__name__)
 
 METHODS = (
     "seed", "cvae_raw", "cvae_post", "random_post", "dexgraspnet",
-    "cvae_recon", "cvae_recon_post", "cvae_prior_train", "cvae_prior_train_post",
+    "cvae_recon", "cvae_recon_post", "cvae_prior_train", "cvae_prior_train_post", "shipped_raw", "shipped_post",
 )  # fmt: skip
 SPLITS = ("train", "heldout")  # the values of the object catalogs' ``split`` column
 PURE_SYNTHESIS = "cvae_raw"  # the sampled stores' method label of pure syntheses on held-out objects
@@ -54,6 +57,8 @@ SAMPLED_METHODS = {
     "cvae_recon_post": ("cvae_recon", "post"),
     "cvae_prior_train": ("cvae_prior_train", "sample"),
     "cvae_prior_train_post": ("cvae_prior_train", "post"),
+    "shipped_raw": ("shipped_raw", "sample"),
+    "shipped_post": ("shipped_raw", "post"),
 }
 PAIRED_METHODS = (*SAMPLED_METHODS, "random_post")  # rows correspond to rows of the sampled store
 PAIRED_DRAW = "sampled_rows"  # name of the draw these methods share
@@ -96,7 +101,7 @@ class SeedProtocolConfig:
 class EvaluateConfig:
     """Config section ``evaluate``."""
 
-    methods: tuple[str, ...] = METHODS  # methods to evaluate (missing inputs are reported, not invented)
+    methods: tuple[str, ...] = tuple(m for m in METHODS if not m.startswith("shipped_"))  # methods to evaluate (missing inputs are reported, not invented)
     splits: tuple[str, ...] = ("heldout",)  # object splits to evaluate (catalog column ``split``)
     grasps_per_object: int = 16  # cap per (method, object) on simulated grasps
     six_directions: bool = True  # also run the six-direction disturbance test

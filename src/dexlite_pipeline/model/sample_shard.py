@@ -72,10 +72,32 @@ def shard_targets(
     return heldout, seeds, ladder_ids, skipped
 
 
+def shipped_rows(shipped_path: str, heldout: list[str], clouds, settings, generator: torch.Generator, device) -> tuple:
+    """Pure syntheses of the shipped (pretrained) model on the held-out objects it never trained on.
+
+    Returns the rows (``SampledRows`` or None) and the held-out objects left out, with why:
+    an object in the shipped model's training set would measure recall, not generalization.
+    """
+    from dexlite_pipeline.model.checkpoint import load_checkpoint
+    from dexlite_pipeline.model.sampling import SHIPPED_SYNTHESIS, synthesis_rows
+
+    model, checkpoint = load_checkpoint(shipped_path, device)
+    trained_on = set(checkpoint.get("train_object_ids") or [])
+    unseen = [oid for oid in heldout if oid not in trained_on]
+    left_out = {oid: "the shipped model was trained on it" for oid in heldout if oid in trained_on}
+    if not unseen or settings.synthesis_grasps_per_object <= 0:
+        return None, left_out
+    points = settings.points_per_cloud or int(checkpoint["train_config"]["points_per_cloud"])
+    fixed = bool(checkpoint["train_config"].get("fixed_clouds", False))
+    return synthesis_rows(model, clouds, unseen, settings, points, generator, fixed, SHIPPED_SYNTHESIS), left_out
+
+
 def sample_shard(
-    model_path: str, objects_dirs: list[str], stability_path: str, lift_paths: list[str], shard: int, config: PipelineConfig
+    model_path: str, objects_dirs: list[str], stability_path: str, lift_paths: list[str], shard: int, config: PipelineConfig,
+    shipped_model: str | None = None,
 ) -> tuple[GraspSet, dict]:
-    """Every CVAE grasp of ``shard``: syntheses on held-out objects, expansions and ladder rows on training objects.
+    """Every CVAE grasp of ``shard``: syntheses on held-out objects, expansions and ladder rows on training objects
+    and, with ``shipped_model`` (a pretrained model file), its syntheses on held-out objects (``shipped_rows``).
 
     Returns the grasps (``hand_pose``, ``object_id``, ``scale``, ``method`` and, for ladder
     reconstructions, the ``reference_hand_pose`` they reproduce; NaN elsewhere) and the
@@ -105,6 +127,7 @@ def sample_shard(
     generator = shard_generator("sample_grasps", config.seed, shard)
     started = time.perf_counter()
     parts: list[SampledRows] = []
+    shipped_left_out: dict[str, str] = {}
     if targets:
         clouds = ObjectClouds([load_asset(objects_dirs, oid) for oid in targets], device)
         if heldout and settings.synthesis_grasps_per_object > 0:
@@ -123,6 +146,9 @@ def sample_shard(
             parts.append(ladder_rows(model, checkpoint["training_grasps"], clouds, ladder_ids, settings, points, generator, ShadowHand(device), fixed_clouds))
         elif ladder_ids:
             log.warning("%s: the model file holds no training grasps, so the learning ladder's rows are not sampled", model_path)
+        if shipped_model and heldout:
+            shipped, shipped_left_out = shipped_rows(shipped_model, heldout, clouds, settings, generator, device)
+            parts += [shipped] if shipped is not None else []
     rows = SampledRows.concatenate(parts, device)
     seconds = time.perf_counter() - started
     count = len(rows.method)
@@ -142,6 +168,8 @@ def sample_shard(
         "model_steps": checkpoint.get("steps"),
         "seconds_per_grasp": seconds / count if count else None,
         "skipped_objects": skipped,
+        "shipped_model": str(shipped_model) if shipped_model else None,
+        "shipped_skipped_objects": shipped_left_out,
     }
     log.info(
         "shard %03d: %d grasps (%d synthesized on %d held-out objects, %d others on %d training objects) in %.2fs; skipped %d objects",

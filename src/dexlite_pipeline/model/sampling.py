@@ -30,6 +30,7 @@ EXPAND_LATENT = "cvae_expand_latent"
 EXPAND_POINT = "cvae_expand_point"
 RECONSTRUCTION = "cvae_recon"  # learning ladder, fit rung: encoder-mean reconstructions of the training grasps
 PRIOR_ON_TRAINING = "cvae_prior_train"  # learning ladder, in-distribution rung: pure synthesis on training objects
+SHIPPED_SYNTHESIS = "shipped_raw"  # pure synthesis by the shipped (pretrained) model on held-out objects it never trained on
 LATENT_PRIORS = ("standard", "aggregate", "neighbours")
 ANCHOR_RULES = ("uniform", "matched")
 
@@ -47,6 +48,7 @@ class SampleConfig:
     points_per_cloud: int = 0  # 0 = the value the model was trained with
     ladder: bool = True  # also sample the learning ladder's rows on training objects (reconstructions, prior samples)
     ladder_grasps_per_object: int = 0  # ladder rows per training object and rung (0: every training grasp, synthesis_grasps_per_object prior samples)
+    shipped_model: str = ""  # pretrained model (path in the checkout) also sampled on held-out objects (rows shipped_raw); "" = none
     latent_prior: str = "neighbours"  # where synthesis draws latents: standard N(0, I), the training codes' aggregate or its nearest clouds' codes
     latent_temperature: float = 1.0  # scale of the latent noise
     anchor_rule: str = "matched"  # associated points of pure synthesis: uniform, or matched to each latent's training grasp

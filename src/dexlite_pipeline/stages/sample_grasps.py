@@ -11,7 +11,9 @@ import argparse
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--config-json", required=True, help="config sections seed, device, shards, sample (canonical JSON)")
-    parser.add_argument("--model", required=True, help="trained model (cvae.pt)")
+    parser.add_argument("--model", default=None, help="trained model (cvae.pt; default: the shipped model, models/shadow-hand-large/cvae.pt)")
+    parser.add_argument("--shipped-model", default=None, help="pretrained model also sampled on held-out objects it never trained on "
+                        "(rows shipped_raw; default: sample.shipped_model, \"\" = none)")
     parser.add_argument("--objects", action="append", required=True, help="prepared objects dir with catalog.parquet (repeatable)")
     parser.add_argument("--stability", required=True, help="stability.parquet of the stability_filter stage")
     parser.add_argument("--lift", action="append", default=[], help="lift-validated grasp shard, the expansion seeds (repeatable)")
@@ -22,8 +24,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from dexlite_pipeline.io.grasp_store import write_grasp_store
     from dexlite_pipeline.model.sample_shard import sample_shard
+    from dexlite_pipeline.model.shipped import model_or_shipped
     from dexlite_pipeline.settings import stage_config
 
-    grasps, attrs = sample_shard(args.model, args.objects, args.stability, args.lift, args.shard, stage_config(args.config_json))
+    config = stage_config(args.config_json)
+    shipped = args.shipped_model if args.shipped_model is not None else config.sample.shipped_model
+    grasps, attrs = sample_shard(str(model_or_shipped(args.model)), args.objects, args.stability, args.lift, args.shard, config, shipped or None)
     write_grasp_store(args.out, grasps, attrs)
     return 0
