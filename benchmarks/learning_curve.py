@@ -1,0 +1,218 @@
+"""The learning curve: how held-out success grows with the number of training objects.
+
+Takes a large run whose data stages are done (``results/lift`` complete; see
+``config/profiles/large.yaml``) and, for each object count and training seed, trains a model on
+a seeded subset of that many of the run's training objects (``train.max_training_objects``;
+subsets of one seed are nested) and evaluates it on the run's held-out objects — the benchmark
+split — with the run's own rules and budget: ``sample.synthesis_grasps_per_object`` syntheses per
+object, ``evaluate.grasps_per_object`` of them simulated, ``post_optimize.annealing.iterations``
+post-optimization steps. Every point is a directory ``<run>/curve/n<count>_seed<seed>/`` holding
+hard links of the run's data stages (``results/objects``, ``stability``, ``seed``, ``curate``,
+``lift``) in which Snakemake runs the workflow from ``train_cvae`` on (``--rerun-triggers mtime``:
+the linked outputs are kept as they are). The run's own model is the curve's "all objects" point.
+Random init + post-optimization does not depend on the model: it is read from the run.
+
+    python benchmarks/learning_curve.py --run RUN --counts 10 40 160 --seeds 0      # train and evaluate the points
+    python benchmarks/learning_curve.py --run RUN --tabulate --out docs/learning_curve  # table and plot only
+
+``--out`` gets ``<out>.csv`` (one row per point and method) and ``<out>.png``; the Markdown table
+is printed. Each point's Snakemake log is ``<point>/curve.log``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pandas as pd
+
+DATA_STAGES = ("objects", "stability", "seed", "curate", "lift")
+CURVE_METHODS = ("cvae_raw", "cvae_post")
+BASELINE_METHOD = "random_post"
+RATE_COLUMNS = (
+    "lift_success_rate", "lift_success_ci95_low", "lift_success_ci95_high",
+    "six_dir_success_rate", "six_dir_success_ci95_low", "six_dir_success_ci95_high",
+)  # fmt: skip
+
+
+def point_dir(run: Path, count: int, seed: int) -> Path:
+    return run / "curve" / f"n{count}_seed{seed}"
+
+
+def link_data_stages(run: Path, point: Path) -> None:
+    """Hard links of the run's data-stage outputs in ``point/results`` (timestamps kept, so they count as done)."""
+    for stage in DATA_STAGES:
+        source, target = run / "results" / stage, point / "results" / stage
+        if source.exists() and not target.exists():
+            target.parent.mkdir(parents=True, exist_ok=True)
+            subprocess.run(["cp", "-al", str(source), str(target)], check=True)
+
+
+def point_overlay(count: int, seed: int) -> dict:
+    """Config on top of the run's: the subset, the training seed, held-out CVAE rows only."""
+    return {
+        "seed": seed,
+        "train": {"max_training_objects": count},
+        "sample": {"ladder": False, "expansion_grasps_per_object": 0},
+        "post_optimize": {"random_baseline": False},
+        "evaluate": {"methods": list(CURVE_METHODS)},
+    }
+
+
+def run_point(run: Path, configfiles: list[str], count: int, seed: int, cores: int, dry_run: bool = False) -> None:
+    """Train and evaluate one point with the run's workflow (its Snakefile and package source)."""
+    point = point_dir(run, count, seed)
+    point.mkdir(parents=True, exist_ok=True)
+    link_data_stages(run, point)
+    overlay = point / "curve.yaml"
+    overlay.write_text(json.dumps(point_overlay(count, seed), indent=1))  # JSON is YAML
+    command = [
+        "snakemake", "--snakefile", str(run / "Snakefile"), "--directory", str(point), "--cores", str(cores),
+        "--configfile", *[str(run / c) for c in configfiles], str(overlay),
+        "--rerun-triggers", "mtime", *(["--dry-run"] if dry_run else []), "--", "results/eval/metrics.csv",
+    ]  # fmt: skip
+    started = time.perf_counter()
+    with open(point / "curve.log", "w") as log:
+        subprocess.run(command, check=True, stdout=log, stderr=subprocess.STDOUT)
+    print(f"{point.name}: done in {time.perf_counter() - started:.0f} s", flush=True)
+
+
+def _training_cpu_seconds(folder: Path) -> float:
+    """CPU seconds of the point's train_cvae job (Snakemake's benchmark file), NaN if absent."""
+    path = folder / "logs" / "benchmarks" / "train_cvae.tsv"
+    return float(pd.read_csv(path, sep="\t")["cpu_time"].iloc[0]) if path.exists() else float("nan")
+
+
+def _model_facts(folder: Path) -> dict:
+    import torch
+
+    checkpoint = torch.load(folder / "results" / "model" / "cvae.pt", map_location="cpu", weights_only=True)
+    return {"training_objects": len(checkpoint.get("train_object_ids") or []), "training_grasps": int(checkpoint.get("train_grasps", 0))}
+
+
+def curve_table(run: Path) -> pd.DataFrame:
+    """One row per (point, method): the points under ``run/curve`` and the run itself (all objects), plus random init."""
+    folders = sorted((run / "curve").glob("n*_seed*")) if (run / "curve").exists() else []
+    rows = []
+    for folder, is_run in [(run, True), *[(f, False) for f in folders]]:
+        metrics_path = folder / "results" / "eval" / "metrics.csv"
+        if not metrics_path.exists():
+            print(f"{folder}: no metrics.csv yet, skipped", file=sys.stderr)
+            continue
+        metrics = pd.read_csv(metrics_path)
+        seed = json.loads((folder / "curve.yaml").read_text())["seed"] if not is_run else _run_seed(run)
+        facts = {"point": "all" if is_run else folder.name, "seed": seed, **_model_facts(folder), "training_cpu_s": _training_cpu_seconds(folder)}
+        for method in CURVE_METHODS:
+            row = metrics[(metrics.method == method) & (metrics.split == "heldout")]
+            if len(row):
+                rows.append({**facts, "method": method, "n_grasps": int(row.n_grasps.iloc[0]),
+                             **{c: float(row[c].iloc[0]) for c in RATE_COLUMNS}, "seconds_per_grasp": float(row.seconds_per_grasp.iloc[0])})
+    table = pd.DataFrame(rows)
+    baseline = pd.read_csv(run / "results" / "eval" / "metrics.csv")
+    baseline = baseline[(baseline.method == BASELINE_METHOD) & (baseline.split == "heldout")]
+    if len(baseline):
+        extra = {"point": "random init", "seed": _run_seed(run), "training_objects": 0, "training_grasps": 0, "training_cpu_s": 0.0,
+                 "method": BASELINE_METHOD, "n_grasps": int(baseline.n_grasps.iloc[0]), **{c: float(baseline[c].iloc[0]) for c in RATE_COLUMNS},
+                 "seconds_per_grasp": float(baseline.seconds_per_grasp.iloc[0])}  # fmt: skip
+        table = pd.concat([table, pd.DataFrame([extra])], ignore_index=True)
+    return table
+
+
+def _run_seed(run: Path) -> int:
+    record = run / "results" / "eval" / "evaluation.json"
+    return int(json.loads(record.read_text()).get("config", {}).get("seed", 0)) if record.exists() else 0
+
+
+def break_even_grasps(training_cpu_s: float, cvae_rate: float, cvae_s: float, random_rate: float, random_s: float) -> float:
+    """Grasps generated after which CVAE + post-optimization, training included, costs fewer CPU-seconds per
+    lift-successful grasp than random init + post-optimization (inf when it never does).
+
+    Per successful grasp: CVAE (T + N·c)/(N·p), random r/q; solving (T + N·c)/(N·p) = r/q gives N = T / (p·r/q - c).
+    """
+    margin = cvae_rate * random_s / random_rate - cvae_s if random_rate > 0 else float("inf")
+    return training_cpu_s / margin if margin > 0 else float("inf")
+
+
+def markdown(table: pd.DataFrame) -> str:
+    lines = ["| point | seed | training objects / grasps | method | lift (Wilson 95%) | six-direction (95%) | s/grasp |", "|---|---|---|---|---|---|---|"]
+    for r in table.itertuples():
+        lines.append(
+            f"| {r.point} | {r.seed} | {r.training_objects} / {r.training_grasps} | {r.method} | "
+            f"{100 * r.lift_success_rate:.1f}% ({100 * r.lift_success_ci95_low:.1f}–{100 * r.lift_success_ci95_high:.1f}) | "
+            f"{100 * r.six_dir_success_rate:.1f}% ({100 * r.six_dir_success_ci95_low:.1f}–{100 * r.six_dir_success_ci95_high:.1f}) | "
+            f"{r.seconds_per_grasp:.3f} |"
+        )
+    return "\n".join(lines)
+
+
+def plot(table: pd.DataFrame, path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 2, figsize=(10, 4), sharey=True)
+    for ax, prefix, title in ((axes[0], "lift_success", "lift test"), (axes[1], "six_dir_success", "six-direction test")):
+        for method, colour in (("cvae_raw", "tab:blue"), ("cvae_post", "tab:orange")):
+            rows = table[table.method == method].sort_values("training_objects")
+            if not len(rows):
+                continue
+            rate = 100 * rows[f"{prefix}_rate"]
+            error = [rate - 100 * rows[f"{prefix}_ci95_low"], 100 * rows[f"{prefix}_ci95_high"] - rate]
+            ax.errorbar(rows.training_objects, rate, yerr=error, marker="o", capsize=3, color=colour, label=method.replace("_", " "), linestyle="none")
+            means = rows.groupby("training_objects")[f"{prefix}_rate"].mean() * 100
+            ax.plot(means.index, means.values, color=colour, alpha=0.6)
+        baseline = table[table.method == BASELINE_METHOD]
+        if len(baseline):
+            level = 100 * float(baseline[f"{prefix}_rate"].iloc[0])
+            low, high = 100 * float(baseline[f"{prefix}_ci95_low"].iloc[0]), 100 * float(baseline[f"{prefix}_ci95_high"].iloc[0])
+            ax.axhline(level, color="grey", linestyle="--", label="random init + post")
+            ax.axhspan(low, high, color="grey", alpha=0.15)
+        ax.set_xscale("log")
+        ax.set_xlabel("training objects")
+        ax.set_title(f"held-out (benchmark split): {title}")
+        ax.grid(alpha=0.3)
+    axes[0].set_ylabel("success rate (%), Wilson 95%")
+    axes[0].legend(loc="upper left")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--run", required=True, type=Path, help="directory of a large run (a checkout with results/)")
+    parser.add_argument("--configfile", nargs="+", default=["config.yaml", "config/profiles/large.yaml"], help="the run's config files, relative to --run")
+    parser.add_argument("--counts", nargs="*", type=int, default=[10, 40, 160], help="training-object counts")
+    parser.add_argument("--seeds", nargs="*", type=int, default=[0], help="training seeds")
+    parser.add_argument("--cores", type=int, default=2)
+    parser.add_argument("--tabulate", action="store_true", help="only tabulate the points already run")
+    parser.add_argument("--dry-run", action="store_true", help="plan every point's jobs (Snakemake --dry-run, in each point's curve.log) and stop")
+    parser.add_argument("--out", type=Path, default=Path("docs/learning_curve"), help="output prefix: <out>.csv and <out>.png")
+    args = parser.parse_args(argv)
+    run = args.run.resolve()
+    if not args.tabulate:
+        if not (run / "results" / "lift").exists():
+            parser.error(f"{run}/results/lift: missing; run the large profile's data stages first")
+        for seed in args.seeds:
+            for count in args.counts:
+                run_point(run, args.configfile, count, seed, args.cores, args.dry_run)
+        if args.dry_run:
+            return 0
+    table = curve_table(run)
+    if table.empty:
+        print(f"{run}: no evaluated points", file=sys.stderr)
+        return 1
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    table.to_csv(args.out.with_suffix(".csv"), index=False)
+    plot(table, args.out.with_suffix(".png"))
+    print(markdown(table))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
