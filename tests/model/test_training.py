@@ -6,7 +6,7 @@ import torch
 
 from dexlite_pipeline.energy.grasp_energy import EnergyConfig, EnergyWeights, GraspEnergy
 from dexlite_pipeline.hand.rotation import euler_xyz_to_matrix
-from dexlite_pipeline.model.checkpoint import CheckpointError, load_checkpoint, save_checkpoint
+from dexlite_pipeline.model.checkpoint import CheckpointError, load_checkpoint, save_checkpoint, save_half_precision_copy
 from dexlite_pipeline.model.data import build_training_data, select_training_grasps, split_validation
 from dexlite_pipeline.model.network import anchor_at
 from dexlite_pipeline.model.pose import features_to_pose
@@ -86,6 +86,14 @@ def test_checkpoint_round_trip_loads_weights_only(tmp_path, setup, small_model_c
         expected = features_to_pose(model.decode(latent, model.condition(clouds, cloud_index, point_index), anchor))
         got = features_to_pose(loaded.decode(latent, loaded.condition(clouds, cloud_index, point_index), anchor))
     assert torch.equal(expected, got)
+    # the half-precision copy (how the shipped model is stored): about half the bytes, float32 when loaded, outputs close
+    half = save_half_precision_copy(path, tmp_path / "half.pt")
+    assert half.stat().st_size < 0.6 * path.stat().st_size and torch.load(half, weights_only=True)["stored_dtype"] == "float16"
+    loaded_half, _ = load_checkpoint(half)
+    assert all(p.dtype == torch.float32 for p in loaded_half.parameters())
+    with torch.no_grad():
+        got_half = features_to_pose(loaded_half.decode(latent, loaded_half.condition(clouds, cloud_index, point_index), anchor))
+    assert torch.allclose(expected, got_half, atol=0.02) and not torch.equal(expected, got_half)
     (tmp_path / "bad.pt").write_bytes(b"not a checkpoint")
     with pytest.raises(CheckpointError, match="bad.pt"):
         load_checkpoint(tmp_path / "bad.pt")

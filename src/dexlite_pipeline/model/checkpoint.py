@@ -50,6 +50,17 @@ def save_checkpoint(
     return Path(path)
 
 
+def save_half_precision_copy(source: str | os.PathLike, destination: str | os.PathLike) -> Path:
+    """A copy of a checkpoint whose weights and latent codes are stored as float16 (about half the
+    size: the shipped model). ``load_checkpoint`` restores float32; the training grasps stay float32."""
+    payload = torch.load(source, map_location="cpu", weights_only=True)
+    payload["state_dict"] = {k: v.half() if v.is_floating_point() else v for k, v in payload["state_dict"].items()}
+    payload["stored_dtype"] = "float16"
+    with atomic_path(destination) as tmp:
+        torch.save(payload, tmp)
+    return Path(destination)
+
+
 def load_checkpoint(path: str | os.PathLike, device: torch.device | str = "cpu") -> tuple[GraspCVAE, dict]:
     """The model in eval mode on ``device`` and the checkpoint's other entries."""
     p = Path(path)
@@ -62,7 +73,7 @@ def load_checkpoint(path: str | os.PathLike, device: torch.device | str = "cpu")
     if not isinstance(payload, dict) or payload.get("format") != CHECKPOINT_FORMAT:
         raise CheckpointError(f"{p}: not a {CHECKPOINT_FORMAT} checkpoint")
     model = GraspCVAE(ModelConfig.from_dict(payload["model_config"])).to(device)
-    state = dict(payload["state_dict"])
+    state = {k: v.float() if v.dtype == torch.float16 else v for k, v in payload["state_dict"].items()}  # a half-precision copy
     empty = torch.zeros(0, model.config.latent_dim)
     model.set_latent_codes(
         state.pop("codes_mu", empty), state.pop("codes_log_var", empty), state.pop("codes_condition", None), state.pop("codes_cloud", None)
