@@ -30,9 +30,9 @@ from pathlib import Path
 
 import pandas as pd
 
+from dexlite_pipeline.report.learning_curve import BASELINE_METHOD, CURVE_METHODS, curve_markdown, save_curve_figure
+
 DATA_STAGES = ("objects", "stability", "seed", "curate", "lift")
-CURVE_METHODS = ("cvae_raw", "cvae_post")
-BASELINE_METHOD = "random_post"
 RATE_COLUMNS = (
     "lift_success_rate", "lift_success_ci95_low", "lift_success_ci95_high",
     "six_dir_success_rate", "six_dir_success_ci95_low", "six_dir_success_ci95_high",
@@ -137,52 +137,6 @@ def break_even_grasps(training_cpu_s: float, cvae_rate: float, cvae_s: float, ra
     return training_cpu_s / margin if margin > 0 else float("inf")
 
 
-def markdown(table: pd.DataFrame) -> str:
-    lines = ["| point | seed | training objects / grasps | method | lift (Wilson 95%) | six-direction (95%) | s/grasp |", "|---|---|---|---|---|---|---|"]
-    for r in table.itertuples():
-        lines.append(
-            f"| {r.point} | {r.seed} | {r.training_objects} / {r.training_grasps} | {r.method} | "
-            f"{100 * r.lift_success_rate:.1f}% ({100 * r.lift_success_ci95_low:.1f}–{100 * r.lift_success_ci95_high:.1f}) | "
-            f"{100 * r.six_dir_success_rate:.1f}% ({100 * r.six_dir_success_ci95_low:.1f}–{100 * r.six_dir_success_ci95_high:.1f}) | "
-            f"{r.seconds_per_grasp:.3f} |"
-        )
-    return "\n".join(lines)
-
-
-def plot(table: pd.DataFrame, path: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(1, 2, figsize=(10, 4), sharey=True)
-    for ax, prefix, title in ((axes[0], "lift_success", "lift test"), (axes[1], "six_dir_success", "six-direction test")):
-        for method, colour in (("cvae_raw", "tab:blue"), ("cvae_post", "tab:orange")):
-            rows = table[table.method == method].sort_values("training_objects")
-            if not len(rows):
-                continue
-            rate = 100 * rows[f"{prefix}_rate"]
-            error = [rate - 100 * rows[f"{prefix}_ci95_low"], 100 * rows[f"{prefix}_ci95_high"] - rate]
-            ax.errorbar(rows.training_objects, rate, yerr=error, marker="o", capsize=3, color=colour, label=method.replace("_", " "), linestyle="none")
-            means = rows.groupby("training_objects")[f"{prefix}_rate"].mean() * 100
-            ax.plot(means.index, means.values, color=colour, alpha=0.6)
-        baseline = table[table.method == BASELINE_METHOD]
-        if len(baseline):
-            level = 100 * float(baseline[f"{prefix}_rate"].iloc[0])
-            low, high = 100 * float(baseline[f"{prefix}_ci95_low"].iloc[0]), 100 * float(baseline[f"{prefix}_ci95_high"].iloc[0])
-            ax.axhline(level, color="grey", linestyle="--", label="random init + post")
-            ax.axhspan(low, high, color="grey", alpha=0.15)
-        ax.set_xscale("log")
-        ax.set_xlabel("training objects")
-        ax.set_title(f"held-out (benchmark split): {title}")
-        ax.grid(alpha=0.3)
-    axes[0].set_ylabel("success rate (%), Wilson 95%")
-    axes[0].legend(loc="upper left")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-
-
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--run", required=True, type=Path, help="directory of a large run (a checkout with results/)")
@@ -209,8 +163,8 @@ def main(argv: list[str] | None = None) -> int:
         return 1
     args.out.parent.mkdir(parents=True, exist_ok=True)
     table.to_csv(args.out.with_suffix(".csv"), index=False)
-    plot(table, args.out.with_suffix(".png"))
-    print(markdown(table))
+    save_curve_figure(table, args.out.with_suffix(".png"))
+    print(curve_markdown(table))
     return 0
 
 

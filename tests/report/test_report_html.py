@@ -231,3 +231,20 @@ def test_budget_plot_only_with_budget_rows():
     title = "<h2>Lift success against the post-optimization budget"
     assert title in with_budget and title not in without
     assert with_budget.count("data:image/png") == without.count("data:image/png") + 1
+
+
+def test_learning_curve_section_only_with_a_curve():
+    rows = []
+    for point, objects in (("n10_seed0", 10), ("all", 600)):
+        for method, rate in (("cvae_raw", 0.05), ("cvae_post", 0.2)):
+            rows.append({"point": point, "seed": 0, "training_objects": objects, "training_grasps": 10 * objects, "method": method, "n_grasps": 768,
+                         "lift_success_rate": rate, "lift_success_ci95_low": rate / 2, "lift_success_ci95_high": rate * 1.5,
+                         "six_dir_success_rate": rate, "six_dir_success_ci95_low": rate / 2, "six_dir_success_ci95_high": rate * 1.5,
+                         "seconds_per_grasp": 0.1})  # fmt: skip
+    rows.append({**rows[0], "point": "random init", "training_objects": 0, "training_grasps": 0, "method": "random_post"})
+    inputs = dict(metrics=_run_metrics(), per_object=None, convergence=None, history=None, simulated=None)
+    with_curve = build_report_html(ReportInputs(**inputs, learning_curve=pd.DataFrame(rows)))
+    without = build_report_html(ReportInputs(**inputs))
+    title = "<h2>Learning curve of the shipped model's run</h2>"
+    assert title in with_curve and title not in without
+    assert with_curve.count("data:image/png") == without.count("data:image/png") + 1 and "n10_seed0" in with_curve

@@ -11,6 +11,7 @@
 # the profiles (profiles/local, profiles/slurm) may override them and hold the other resources.
 import json
 import os
+import shlex
 import sys
 from pathlib import Path
 

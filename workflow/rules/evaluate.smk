@@ -88,8 +88,13 @@ rule evaluate:
         "--budget {output.budget} --record {output.record} > {log} 2>&1"
 
 
+# The shipped model's learning curve, shown in the report when the checkout has it.
+LEARNING_CURVE = Path(workflow.basedir) / "docs" / "learning_curve.csv"
+
+
 rule report:
     input:
+        unpack(lambda wc: {"learning_curve": str(LEARNING_CURVE)} if LEARNING_CURVE.is_file() else {}),
         metrics=f"{RESULTS}/eval/metrics.csv",
         per_object=f"{RESULTS}/eval/per_object.csv",
         convergence=f"{RESULTS}/eval/convergence.csv",
@@ -105,6 +110,7 @@ rule report:
         code=code_hash("report"),
         sims=lambda wc, input: learning_cli_options("sim", input.sims),
         objects=learning_cli_options("objects", learning_objects_dirs()),
+        curve=lambda wc, input: f"--learning-curve {shlex.quote(input.learning_curve)}" if "learning_curve" in input.keys() else "",
     conda:
         CONDA_ENV
     log:
@@ -114,4 +120,4 @@ rule report:
     shell:
         "dexlite report --config-json {params.cfg:q} --metrics {input.metrics} --per-object {input.per_object} "
         "--convergence {input.convergence} --budget {input.budget} --record {input.record} {params.sims} --history {input.history} "
-        "{params.objects} --out {output} > {log} 2>&1"
+        "{params.objects} {params.curve} --out {output} > {log} 2>&1"

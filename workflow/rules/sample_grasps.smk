@@ -2,9 +2,6 @@
 # shipped model's syntheses on held-out objects it never trained on).
 
 
-import shlex
-
-
 SHIPPED_METHODS = {"shipped_raw", "shipped_post"}
 if SHIPPED_METHODS & set(config["evaluate"]["methods"]) and not config["sample"].get("shipped_model"):
     raise WorkflowError('evaluate.methods: shipped_raw and shipped_post need sample.shipped_model (the pretrained model file); drop them or set it')

@@ -121,6 +121,7 @@ class ReportInputs:
     csv_links: Mapping[str, str] = field(default_factory=dict)  # CSV file name -> link relative to the page
     budget: object | None = None  # budget.csv: lift success after each post-optimization budget (optional)
     seed: int = 0  # seeds the random choice of pictured grasps
+    learning_curve: object | None = None  # the shipped model's learning curve (docs/learning_curve.csv; optional)
 
 
 def figure_png_base64(fig) -> str:
@@ -815,6 +816,21 @@ def csv_links_html(links: Mapping[str, str]) -> str:
     return f"<p>Full tables: {items}</p>"
 
 
+def learning_curve_html(curve) -> str:
+    """The shipped model's learning curve (its large run): plot and table."""
+    from dexlite_pipeline.report.learning_curve import curve_figure
+
+    columns = ["point", "seed", "training_objects", "training_grasps", "method", "n_grasps", "lift_success_rate", "lift_success_ci95_low",
+               "lift_success_ci95_high", "six_dir_success_rate", "seconds_per_grasp"]  # fmt: skip
+    table = curve[[c for c in columns if c in curve.columns]].to_html(index=False, float_format=lambda v: f"{v:.3g}", na_rep="—")
+    return (
+        "<h2>Learning curve of the shipped model's run</h2><p class='note'>Held-out success on the benchmark split against the number of "
+        "training objects (nested subsets of the large run's objects, same sampling and post-optimization budget; Wilson 95%). From "
+        "docs/learning_curve.csv of this checkout: it describes the shipped model's training, not this run's.</p>"
+        + _img(figure_png_base64(curve_figure(curve)), "learning curve") + f"<details><summary>table</summary>{table}</details>"
+    )
+
+
 def build_report_html(inputs: ReportInputs) -> str:
     """The whole page as a string."""
     headline = headline_rows(inputs.metrics)
@@ -842,6 +858,8 @@ def build_report_html(inputs: ReportInputs) -> str:
         sections.append(f"<h2>{html.escape(title)}</h2>" + (_img(image, title) if image else "<p>Not available in this run.</p>"))
         if title.startswith("Post-optimization convergence"):
             sections.append(convergence_note(inputs.metrics, inputs.convergence))
+    if inputs.learning_curve is not None and len(inputs.learning_curve):
+        sections.append(learning_curve_html(inputs.learning_curve))
     ref_rows = "".join(f"<tr><td>{html.escape(a)}</td><td>{html.escape(b)}</td><td>{html.escape(c)}</td></tr>" for a, b, c in REFERENCE_ROWS)
     sections.append(
         "<h2>Published numbers, for context</h2><p class='note'>Measured with other tests and other data: none of them is "
@@ -882,7 +900,7 @@ class EvaluationFiles:
 
 
 def load_report_inputs(files: EvaluationFiles, sim_paths: list[str], history_path: str | None, objects_dirs: list[str],
-                       config: dict, page_path: str) -> ReportInputs:
+                       config: dict, page_path: str, learning_curve_path: str | None = None) -> ReportInputs:
     """Everything the page shows, read from the evaluation's files; CSV links relative to the page's folder."""
     import json
     import os
@@ -913,4 +931,5 @@ def load_report_inputs(files: EvaluationFiles, sim_paths: list[str], history_pat
         csv_links={name: Path(os.path.relpath(path, page_dir)).as_posix() for name, path in files.tables().items()},
         seed=int(config.get("seed") or 0),
         budget=budget,
+        learning_curve=pd.read_csv(learning_curve_path) if learning_curve_path else None,
     )

@@ -21,6 +21,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--sim", action="append", default=[], help="simulated shard store(s) of the evaluation (for histograms and pictures)")
     parser.add_argument("--history", default=None, help="CVAE training history CSV (optional)")
     parser.add_argument("--objects", action="append", default=[], help="prepared objects dir (repeatable), for the pictures")
+    parser.add_argument("--learning-curve", default=None, help="the shipped model's learning curve (docs/learning_curve.csv; optional)")
     parser.add_argument("--out", required=True, help="output HTML file")
 
 
@@ -30,7 +31,7 @@ def run(args: argparse.Namespace) -> int:
     from dexlite_pipeline.report.html import EvaluationFiles, build_report_html, load_report_inputs
 
     files = EvaluationFiles(args.metrics, args.per_object, args.convergence, args.budget, args.record)
-    inputs = load_report_inputs(files, args.sim, args.history, args.objects, parse_config_json(args.config_json), args.out)
+    inputs = load_report_inputs(files, args.sim, args.history, args.objects, parse_config_json(args.config_json), args.out, args.learning_curve)
     write_text_atomic(args.out, build_report_html(inputs))
     print(f"wrote {args.out}")
     return 0

@@ -1,0 +1,67 @@
+"""The learning curve's table and plot: held-out success against the number of training objects.
+
+Rows come from ``benchmarks/learning_curve.py`` (one per point and method: ``point``, ``seed``,
+``training_objects``, ``training_grasps``, ``method``, ``n_grasps``, the lift and six-direction
+rates with Wilson 95% bounds, ``seconds_per_grasp``); the report shows the checked-in curve
+(``docs/learning_curve.csv``) of the shipped model's run.
+"""
+
+from __future__ import annotations
+
+CURVE_METHODS = ("cvae_raw", "cvae_post")
+BASELINE_METHOD = "random_post"
+
+
+def curve_markdown(table) -> str:
+    """The curve as a Markdown table (one row per point and method)."""
+    lines = ["| point | seed | training objects / grasps | method | lift (Wilson 95%) | six-direction (95%) | s/grasp |", "|---|---|---|---|---|---|---|"]
+    for r in table.itertuples():
+        lines.append(
+            f"| {r.point} | {r.seed} | {r.training_objects} / {r.training_grasps} | {r.method} | "
+            f"{100 * r.lift_success_rate:.1f}% ({100 * r.lift_success_ci95_low:.1f}–{100 * r.lift_success_ci95_high:.1f}) | "
+            f"{100 * r.six_dir_success_rate:.1f}% ({100 * r.six_dir_success_ci95_low:.1f}–{100 * r.six_dir_success_ci95_high:.1f}) | "
+            f"{r.seconds_per_grasp:.3f} |"
+        )
+    return "\n".join(lines)
+
+
+def curve_figure(table):
+    """Held-out lift and six-direction success against training objects (log axis), Wilson 95% bars; random init as a band."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 2, figsize=(10, 4), sharey=True)
+    for ax, prefix, title in ((axes[0], "lift_success", "lift test"), (axes[1], "six_dir_success", "six-direction test")):
+        for method, colour in (("cvae_raw", "tab:blue"), ("cvae_post", "tab:orange")):
+            rows = table[table.method == method].sort_values("training_objects")
+            if not len(rows):
+                continue
+            rate = 100 * rows[f"{prefix}_rate"]
+            error = [rate - 100 * rows[f"{prefix}_ci95_low"], 100 * rows[f"{prefix}_ci95_high"] - rate]
+            ax.errorbar(rows.training_objects, rate, yerr=error, marker="o", capsize=3, color=colour, label=method.replace("_", " "), linestyle="none")
+            means = rows.groupby("training_objects")[f"{prefix}_rate"].mean() * 100
+            ax.plot(means.index, means.values, color=colour, alpha=0.6)
+        baseline = table[table.method == BASELINE_METHOD]
+        if len(baseline):
+            level = 100 * float(baseline[f"{prefix}_rate"].iloc[0])
+            low, high = 100 * float(baseline[f"{prefix}_ci95_low"].iloc[0]), 100 * float(baseline[f"{prefix}_ci95_high"].iloc[0])
+            ax.axhline(level, color="grey", linestyle="--", label="random init + post")
+            ax.axhspan(low, high, color="grey", alpha=0.15)
+        ax.set_xscale("log")
+        ax.set_xlabel("training objects")
+        ax.set_title(f"held-out (benchmark split): {title}")
+        ax.grid(alpha=0.3)
+    axes[0].set_ylabel("success rate (%), Wilson 95%")
+    axes[0].legend(loc="upper left")
+    fig.tight_layout()
+    return fig
+
+
+def save_curve_figure(table, path) -> None:
+    import matplotlib.pyplot as plt
+
+    fig = curve_figure(table)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
