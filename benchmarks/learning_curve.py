@@ -10,7 +10,10 @@ post-optimization steps. Every point is a directory ``<run>/curve/n<count>_seed<
 hard links of the run's data stages (``results/objects``, ``stability``, ``seed``, ``curate``,
 ``lift``) in which Snakemake runs the workflow from ``train_cvae`` on (``--rerun-triggers mtime``:
 the linked outputs are kept as they are). The run's own model is the curve's "all objects" point.
-Random init + post-optimization does not depend on the model: it is read from the run.
+Random init + post-optimization and optimization from scratch (``seed``) do not depend on the
+model: they are read from the run. For CVAE + post-optimization each point also gets the number of
+generated grasps after which it, training CPU time included, costs fewer CPU-seconds per
+lift-successful grasp than each of them (``break_even_grasps``; inf: never).
 
     python benchmarks/learning_curve.py --run RUN --counts 10 40 160 --seeds 0      # train and evaluate the points
     python benchmarks/learning_curve.py --run RUN --tabulate --out docs/learning_curve  # table and plot only
@@ -30,7 +33,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from dexlite_pipeline.report.learning_curve import BASELINE_METHOD, CURVE_METHODS, curve_markdown, save_curve_figure
+from dexlite_pipeline.report.learning_curve import BASELINES, CURVE_METHODS, curve_markdown, save_curve_figure
 
 DATA_STAGES = ("objects", "stability", "seed", "curate", "lift")
 RATE_COLUMNS = (
@@ -95,7 +98,8 @@ def _model_facts(folder: Path) -> dict:
 
 
 def curve_table(run: Path) -> pd.DataFrame:
-    """One row per (point, method): the points under ``run/curve`` and the run itself (all objects), plus random init."""
+    """One row per (point, method): the points under ``run/curve`` and the run itself (all objects), then the
+    run's model-free baselines (``BASELINES``); CVAE + post-optimization rows get their break-even grasp counts."""
     folders = sorted((run / "curve").glob("n*_seed*")) if (run / "curve").exists() else []
     rows = []
     for folder, is_run in [(run, True), *[(f, False) for f in folders]]:
@@ -112,13 +116,24 @@ def curve_table(run: Path) -> pd.DataFrame:
                 rows.append({**facts, "method": method, "n_grasps": int(row.n_grasps.iloc[0]),
                              **{c: float(row[c].iloc[0]) for c in RATE_COLUMNS}, "seconds_per_grasp": float(row.seconds_per_grasp.iloc[0])})
     table = pd.DataFrame(rows)
-    baseline = pd.read_csv(run / "results" / "eval" / "metrics.csv")
-    baseline = baseline[(baseline.method == BASELINE_METHOD) & (baseline.split == "heldout")]
-    if len(baseline):
-        extra = {"point": "random init", "seed": _run_seed(run), "training_objects": 0, "training_grasps": 0, "training_cpu_s": 0.0,
-                 "method": BASELINE_METHOD, "n_grasps": int(baseline.n_grasps.iloc[0]), **{c: float(baseline[c].iloc[0]) for c in RATE_COLUMNS},
-                 "seconds_per_grasp": float(baseline.seconds_per_grasp.iloc[0])}  # fmt: skip
-        table = pd.concat([table, pd.DataFrame([extra])], ignore_index=True)
+    run_metrics = pd.read_csv(run / "results" / "eval" / "metrics.csv")
+    for method, (label, _) in BASELINES.items():
+        baseline = run_metrics[(run_metrics.method == method) & (run_metrics.split == "heldout")]
+        if len(baseline):
+            extra = {"point": label, "seed": _run_seed(run), "training_objects": 0, "training_grasps": 0, "training_cpu_s": 0.0,
+                     "method": method, "n_grasps": int(baseline.n_grasps.iloc[0]), **{c: float(baseline[c].iloc[0]) for c in RATE_COLUMNS},
+                     "seconds_per_grasp": float(baseline.seconds_per_grasp.iloc[0])}  # fmt: skip
+            table = pd.concat([table, pd.DataFrame([extra])], ignore_index=True)
+    for method in BASELINES:
+        reference = table[table.method == method]
+        column = f"break_even_grasps_vs_{method}"
+        table[column] = float("nan")
+        if len(reference):
+            rate, seconds = float(reference.lift_success_rate.iloc[0]), float(reference.seconds_per_grasp.iloc[0])
+            post = table.method == "cvae_post"
+            table.loc[post, column] = [
+                break_even_grasps(r.training_cpu_s, r.lift_success_rate, r.seconds_per_grasp, rate, seconds) for r in table[post].itertuples()
+            ]
     return table
 
 
@@ -165,6 +180,9 @@ def main(argv: list[str] | None = None) -> int:
     table.to_csv(args.out.with_suffix(".csv"), index=False)
     save_curve_figure(table, args.out.with_suffix(".png"))
     print(curve_markdown(table))
+    for row in table[table.method == "cvae_post"].itertuples():
+        print(f"{row.point}: CVAE + post-optimization, training included, costs fewer CPU-seconds per lift-successful grasp than "
+              + "; ".join(f"{m} after {getattr(row, f'break_even_grasps_vs_{m}'):.0f} grasps" for m in BASELINES))
     return 0
 
 

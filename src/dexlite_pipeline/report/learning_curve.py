@@ -9,7 +9,8 @@ rates with Wilson 95% bounds, ``seconds_per_grasp``); the report shows the check
 from __future__ import annotations
 
 CURVE_METHODS = ("cvae_raw", "cvae_post")
-BASELINE_METHOD = "random_post"
+# Methods that do not depend on the model (read from the run, drawn as bands): label, colour.
+BASELINES = {"random_post": ("random init + post", "grey"), "seed": ("optimization from scratch", "tab:green")}
 
 
 def curve_markdown(table) -> str:
@@ -43,13 +44,17 @@ def curve_figure(table):
             ax.errorbar(rows.training_objects, rate, yerr=error, marker="o", capsize=3, color=colour, label=method.replace("_", " "), linestyle="none")
             means = rows.groupby("training_objects")[f"{prefix}_rate"].mean() * 100
             ax.plot(means.index, means.values, color=colour, alpha=0.6)
-        baseline = table[table.method == BASELINE_METHOD]
-        if len(baseline):
-            level = 100 * float(baseline[f"{prefix}_rate"].iloc[0])
-            low, high = 100 * float(baseline[f"{prefix}_ci95_low"].iloc[0]), 100 * float(baseline[f"{prefix}_ci95_high"].iloc[0])
-            ax.axhline(level, color="grey", linestyle="--", label="random init + post")
-            ax.axhspan(low, high, color="grey", alpha=0.15)
+        for method, (label, colour) in BASELINES.items():
+            baseline = table[table.method == method]
+            if len(baseline):
+                level = 100 * float(baseline[f"{prefix}_rate"].iloc[0])
+                low, high = 100 * float(baseline[f"{prefix}_ci95_low"].iloc[0]), 100 * float(baseline[f"{prefix}_ci95_high"].iloc[0])
+                ax.axhline(level, color=colour, linestyle="--", label=label)
+                ax.axhspan(low, high, color=colour, alpha=0.12)
         ax.set_xscale("log")
+        counts = sorted({int(c) for c in table.training_objects if c > 0})
+        ax.set_xticks(counts, [str(c) for c in counts])
+        ax.minorticks_off()
         ax.set_xlabel("training objects")
         ax.set_title(f"held-out (benchmark split): {title}")
         ax.grid(alpha=0.3)
