@@ -153,6 +153,24 @@ def percent(value) -> str:
     return "–" if value is None or (isinstance(value, float) and np.isnan(value)) else f"{100 * float(value):.1f}%"
 
 
+def throughput_lines(card: dict) -> list[str]:
+    """Objects and grasps per hour of each data stage (wall clock of its jobs / CPU time)."""
+    times, counts = card["stage_times"], card["data"]
+    out = []
+
+    def rate(count, rule, key):
+        seconds = times.get(rule, {}).get(key, 0.0)
+        return count / seconds * 3600 if seconds else float("nan")
+
+    out.append(f"{rate(counts['objects_listed'], 'prepare_objects', 'wall_s'):.0f} objects prepared per hour")
+    out.append(f"{rate(counts['seed_grasps'], 'seed_grasps', 'cpu_s'):.0f} seed grasps per CPU-hour")
+    out.append(f"{rate(counts['lift_tested_grasps'], 'lift_validate', 'cpu_s'):.0f} grasps lift-tested per CPU-hour")
+    cpu_hours = sum(times.get(r, {}).get("cpu_s", 0.0) for r in ("prepare_objects", "stability_filter", "seed_grasps", "curate", "lift_validate")) / 3600
+    if cpu_hours:
+        out.append(f"{counts['lift_successful_grasps'] / cpu_hours:.0f} lift-validated grasps per CPU-hour of the whole data pipeline")
+    return out
+
+
 def card_markdown(card: dict) -> str:
     counts, training, check = card["data"], card["training"], card["check"]
     lines = [
@@ -213,6 +231,14 @@ def card_markdown(card: dict) -> str:
         f"(float32 original: {check['float32']['heldout_raw']['lift_successes']}/{check['float32']['heldout_raw']['grasps']}).",
         "",
     ]
+    times = card["stage_times"]
+    if times:
+        total_cpu = sum(t["cpu_s"] for t in times.values())
+        lines += ["## Where the time goes", "", "Snakemake's per-job benchmark files, summed per rule (jobs of one rule ran two at a time):", "",
+                  "| rule | jobs | wall (min) | CPU (min) | share of CPU |", "| --- | ---: | ---: | ---: | ---: |"]  # fmt: skip
+        for rule, t in sorted(times.items(), key=lambda item: -item[1]["cpu_s"]):
+            lines.append(f"| {rule} | {t['jobs']} | {t['wall_s'] / 60:.1f} | {t['cpu_s'] / 60:.1f} | {100 * t['cpu_s'] / total_cpu:.0f}% |")
+        lines += ["", "Throughput: " + "; ".join(throughput_lines(card)) + ".", ""]
     if card.get("learning_curve"):
         lines += ["## Learning curve", "", "See `docs/learning_curve.md` (table and plot).", ""]
     lines += [
