@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import subprocess
 import sys
 import time
@@ -79,8 +80,9 @@ def run_point(run: Path, configfiles: list[str], count: int, seed: int, cores: i
         "--rerun-triggers", "mtime", *(["--dry-run"] if dry_run else []), "--", "results/eval/metrics.csv",
     ]  # fmt: skip
     started = time.perf_counter()
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(run / "src"), os.environ.get("PYTHONPATH")]))}  # the run's own code
     with open(point / "curve.log", "w") as log:
-        subprocess.run(command, check=True, stdout=log, stderr=subprocess.STDOUT)
+        subprocess.run(command, check=True, stdout=log, stderr=subprocess.STDOUT, env=env)
     print(f"{point.name}: done in {time.perf_counter() - started:.0f} s", flush=True)
 
 
@@ -116,7 +118,8 @@ def curve_table(run: Path) -> pd.DataFrame:
                 rows.append({**facts, "method": method, "n_grasps": int(row.n_grasps.iloc[0]),
                              **{c: float(row[c].iloc[0]) for c in RATE_COLUMNS}, "seconds_per_grasp": float(row.seconds_per_grasp.iloc[0])})
     table = pd.DataFrame(rows)
-    run_metrics = pd.read_csv(run / "results" / "eval" / "metrics.csv")
+    run_metrics_path = run / "results" / "eval" / "metrics.csv"
+    run_metrics = pd.read_csv(run_metrics_path) if run_metrics_path.exists() else pd.DataFrame(columns=["method", "split"])
     for method, (label, _) in BASELINES.items():
         baseline = run_metrics[(run_metrics.method == method) & (run_metrics.split == "heldout")]
         if len(baseline):
