@@ -7,7 +7,7 @@ Reads from the run: the model (``results/model/cvae.pt``), its config files, the
 the stability table, seed / curated / lift-validated shards (counts), the evaluation
 (``results/eval/metrics.csv``, ``per_object.csv``) and Snakemake's per-job benchmark files
 (time per stage). Writes to ``--out``: ``cvae.pt`` (weights and codes in float16, loads with
-``torch.load(..., weights_only=True)``), ``card.json`` (everything the card says, machine
+``torch.load(..., weights_only=True)``), ``training_grasps.zarr`` (the grasps it was trained on), ``card.json`` (everything the card says, machine
 readable; the shipped-model test reads its ``check`` block) and ``MODEL_CARD.md``.
 
 The ``check`` block is the learning ladder on a few objects, measured on the shipped copy
@@ -32,7 +32,7 @@ import pandas as pd
 import torch
 import yaml
 
-from dexlite_pipeline.io.grasp_store import read_grasp_store
+from dexlite_pipeline.io.grasp_store import GraspSet, read_grasp_store, write_grasp_store
 from dexlite_pipeline.model.checkpoint import save_half_precision_copy
 from dexlite_pipeline.model.shipped import shipped_model_check
 from dexlite_pipeline.settings import build_config
@@ -197,8 +197,8 @@ def card_markdown(card: dict) -> str:
         f"curated {counts['curated_grasps']}; lift-tested {counts['lift_tested_grasps']}, **{counts['lift_successful_grasps']} hold** "
         f"on {counts['objects_with_lift_successes']} objects.",
         f"- Trained on {training['train_grasps']} grasps of {training['train_objects']} objects ({training['validation_grasps']} grasps held for the validation curve).",
-        "- The training grasps themselves (pose, object id, scale) are inside `cvae.pt` (`training_grasps`); the objects are pybullet_data's and "
-        "are rebuilt by the command above (prepare_objects), so the dataset is the file plus that command.",
+        "- The training grasps (pose, object id, scale) are beside the model in `training_grasps.zarr` (the pipeline's grasp-store format) "
+        "and inside `cvae.pt` (`training_grasps`); the objects are pybullet_data's, rebuilt by the command above (its prepare_objects stage).",
         "",
         "## Training",
         "",
@@ -270,6 +270,10 @@ def main() -> None:
     checkpoint = torch.load(source, map_location="cpu", weights_only=True)
     args.out.mkdir(parents=True, exist_ok=True)
     shipped = save_half_precision_copy(source, args.out / "cvae.pt")
+    training = checkpoint["training_grasps"]
+    write_grasp_store(args.out / "training_grasps.zarr", GraspSet({
+        "hand_pose": training["hand_pose"].numpy(), "object_id": np.asarray(training["object_id"], dtype=object), "scale": training["scale"].numpy(),
+    }), {"description": "the grasps the shipped model was trained on (lift-validated seed grasps of the large run)", "code_version": git_version(run)})  # fmt: skip
     raw_config = merged_config(run, args.configfile)
     config = build_config(raw_config)
     train_ids, heldout_ids = check_objects(run, checkpoint, args.check_train_objects, args.check_heldout_objects)
