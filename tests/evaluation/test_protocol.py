@@ -266,7 +266,8 @@ def test_simulate_step_on_tiny_object(tmp_path, tiny_objects):
     assert result.attrs["invalid_reasons"]["seed"] == {"non-finite hand_pose": 1}
     assert result.attrs["lift_config"]["six_directions"] is False
     assert result.attrs["method_seconds_per_grasp"] == {"seed": {"seed": 2.0}}
-    without_input = {"cvae_raw", "cvae_post", "random_post", "dexgraspnet", "cvae_recon", "cvae_recon_post", "cvae_prior_train", "cvae_prior_train_post"}
+    without_input = {"cvae_raw", "cvae_post", "random_post", "dexgraspnet", "cvae_recon", "cvae_recon_post", "cvae_prior_train", "cvae_prior_train_post",
+                     "shipped_raw", "shipped_post"}
     assert set(result.attrs["methods_without_input"]) == without_input
 
 

@@ -101,7 +101,7 @@ class SeedProtocolConfig:
 class EvaluateConfig:
     """Config section ``evaluate``."""
 
-    methods: tuple[str, ...] = tuple(m for m in METHODS if not m.startswith("shipped_"))  # methods to evaluate (missing inputs are reported, not invented)
+    methods: tuple[str, ...] = METHODS  # methods to evaluate (missing inputs are reported, not invented)
     splits: tuple[str, ...] = ("heldout",)  # object splits to evaluate (catalog column ``split``)
     grasps_per_object: int = 16  # cap per (method, object) on simulated grasps
     six_directions: bool = True  # also run the six-direction disturbance test

@@ -24,6 +24,7 @@ from dexlite_pipeline.model.association import grasp_rays, nearest_to_ray, rando
 from dexlite_pipeline.model.data import ObjectClouds, cloud_keys
 from dexlite_pipeline.model.network import GraspCVAE, anchor_at, condition_at
 from dexlite_pipeline.model.pose import features_to_pose, pose_to_features
+from dexlite_pipeline.model.shipped import SHIPPED_MODEL_RELATIVE
 
 SYNTHESIS = "cvae_raw"
 EXPAND_LATENT = "cvae_expand_latent"
@@ -48,7 +49,7 @@ class SampleConfig:
     points_per_cloud: int = 0  # 0 = the value the model was trained with
     ladder: bool = True  # also sample the learning ladder's rows on training objects (reconstructions, prior samples)
     ladder_grasps_per_object: int = 0  # ladder rows per training object and rung (0: every training grasp, synthesis_grasps_per_object prior samples)
-    shipped_model: str = ""  # pretrained model (path in the checkout) also sampled on held-out objects (rows shipped_raw); "" = none
+    shipped_model: str = str(SHIPPED_MODEL_RELATIVE)  # pretrained model (path in the checkout) also sampled on held-out objects (rows shipped_raw); "" = none
     latent_prior: str = "neighbours"  # where synthesis draws latents: standard N(0, I), the training codes' aggregate or its nearest clouds' codes
     latent_temperature: float = 1.0  # scale of the latent noise
     anchor_rule: str = "matched"  # associated points of pure synthesis: uniform, or matched to each latent's training grasp

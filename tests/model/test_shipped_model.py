@@ -1,0 +1,80 @@
+"""The shipped model (models/shadow-hand-large): it loads weights-only, its card describes it, and on a
+few freshly prepared objects its learning ladder agrees with the card within sampling noise."""
+
+import json
+import math
+
+import pytest
+import torch
+
+from dexlite_pipeline.model.shipped import SHIPPED_MODEL_PATH, shipped_model_check, shipped_model_path
+
+CARD_PATH = SHIPPED_MODEL_PATH.with_name("card.json")
+
+
+@pytest.fixture(scope="module")
+def card():
+    assert shipped_model_path() is not None, f"{SHIPPED_MODEL_PATH} is missing: the repository ships it"
+    return json.loads(CARD_PATH.read_text())
+
+
+def test_shipped_model_loads_weights_only_and_matches_its_card(card):
+    from dexlite_pipeline.model.checkpoint import load_checkpoint
+
+    payload = torch.load(SHIPPED_MODEL_PATH, map_location="cpu", weights_only=True)
+    assert payload["format"] == "dexlite-cvae-1" and payload["stored_dtype"] == "float16"
+    assert SHIPPED_MODEL_PATH.stat().st_size / 1e6 == pytest.approx(card["file_megabytes"], rel=1e-6)
+    assert SHIPPED_MODEL_PATH.stat().st_size < 20e6  # a few MB: it lives in the repository
+    training = card["training"]
+    assert payload["train_grasps"] == training["train_grasps"] and payload["steps"] == training["steps"]
+    assert len(payload["train_object_ids"]) == training["train_objects"] and len(payload["training_grasps"]["object_id"]) == training["train_grasps"]
+    from dexlite_pipeline.objects.sources import benchmark_object_ids
+
+    assert not set(payload["train_object_ids"]) & benchmark_object_ids()  # never trained on the benchmark split
+    model, _ = load_checkpoint(SHIPPED_MODEL_PATH)
+    assert all(p.dtype == torch.float32 for p in model.parameters()) and len(model.codes_mu) == training["train_grasps"]
+    from dexlite_pipeline.io.grasp_store import read_grasp_store
+
+    dataset = read_grasp_store(SHIPPED_MODEL_PATH.with_name("training_grasps.zarr"))  # the training data, beside the model
+    assert dataset.hand_pose.tolist() == payload["training_grasps"]["hand_pose"].tolist()
+    assert dataset.object_id.tolist() == payload["training_grasps"]["object_id"]
+
+
+def _within_sampling_noise(successes_a: int, successes_b: int, count: int) -> bool:
+    """Two lift-success counts of ``count`` grasps each agree within 3 standard deviations of their difference."""
+    pooled = (successes_a + successes_b) / (2 * count)
+    spread = math.sqrt(2 * pooled * (1 - pooled) / count)
+    return abs(successes_a - successes_b) / count <= 3 * spread + 1 / count
+
+
+@pytest.mark.slow
+def test_shipped_model_repeats_its_card_on_freshly_prepared_objects(card, tmp_path):
+    """Fit errors on training objects and raw lift success on benchmark objects, as the card's check measured them."""
+    from pathlib import Path
+
+    from dexlite_pipeline.objects.prepare import ObjectsConfig
+    from dexlite_pipeline.objects.prepare import prepare_objects
+    from dexlite_pipeline.objects.sources import pybullet_random_source
+    from dexlite_pipeline.objects.sources import pybullet_data_dir
+    from dexlite_pipeline.config import from_section
+    from dexlite_pipeline.settings import build_config
+
+    expected = card["check"]["shipped"]
+    train_ids, heldout_ids = expected["fit"]["objects"], expected["heldout_raw"]["objects"]
+    config = build_config(card["config"])
+    root = Path(pybullet_data_dir()) / "random_urdfs"
+    sources = [pybullet_random_source(root / oid.removeprefix("pb-random-") / f"{oid.removeprefix('pb-random-')}.urdf") for oid in [*train_ids, *heldout_ids]]
+    objects = from_section(ObjectsConfig, card["config"].get("objects"), "card.objects")
+    catalog = prepare_objects(sources, tmp_path, objects, config.seed, workers=2)
+    assert (catalog["status"] == "ok").all()
+
+    got = shipped_model_check(SHIPPED_MODEL_PATH, [str(tmp_path)], train_ids, heldout_ids, config, expected["heldout_raw"]["grasps_per_object"],
+                              threads=card["check"]["threads"], seed=card["check"]["seed"])  # fmt: skip
+    fit, card_fit = got["fit"], expected["fit"]
+    assert fit["grasps"] == card_fit["grasps"]
+    assert fit["rotation_error_deg_median"] == pytest.approx(card_fit["rotation_error_deg_median"], rel=0.1, abs=0.3)
+    assert fit["translation_error_mm_median"] == pytest.approx(card_fit["translation_error_mm_median"], rel=0.1, abs=0.5)
+    assert fit["joint_error_rad_mean"] == pytest.approx(card_fit["joint_error_rad_mean"], rel=0.1, abs=0.005)
+    raw, card_raw = got["heldout_raw"], expected["heldout_raw"]
+    assert raw["grasps"] == card_raw["grasps"]
+    assert _within_sampling_noise(raw["lift_successes"], card_raw["lift_successes"], raw["grasps"]), (raw, card_raw)
