@@ -50,20 +50,15 @@ def _within_sampling_noise(successes_a: int, successes_b: int, count: int) -> bo
 @pytest.mark.slow
 def test_shipped_model_repeats_its_card_on_freshly_prepared_objects(card, tmp_path):
     """Fit errors on training objects and raw lift success on benchmark objects, as the card's check measured them."""
-    from pathlib import Path
-
-    from dexlite_pipeline.objects.prepare import ObjectsConfig
-    from dexlite_pipeline.objects.prepare import prepare_objects
-    from dexlite_pipeline.objects.sources import pybullet_random_source
-    from dexlite_pipeline.objects.sources import pybullet_data_dir
     from dexlite_pipeline.config import from_section
+    from dexlite_pipeline.objects.prepare import ObjectsConfig, prepare_objects
+    from dexlite_pipeline.objects.sources import pybullet_random_source_of
     from dexlite_pipeline.settings import build_config
 
     expected = card["check"]["shipped"]
     train_ids, heldout_ids = expected["fit"]["objects"], expected["heldout_raw"]["objects"]
     config = build_config(card["config"])
-    root = Path(pybullet_data_dir()) / "random_urdfs"
-    sources = [pybullet_random_source(root / oid.removeprefix("pb-random-") / f"{oid.removeprefix('pb-random-')}.urdf") for oid in [*train_ids, *heldout_ids]]
+    sources = [pybullet_random_source_of(oid) for oid in [*train_ids, *heldout_ids]]
     objects = from_section(ObjectsConfig, card["config"].get("objects"), "card.objects")
     catalog = prepare_objects(sources, tmp_path, objects, config.seed, workers=2)
     assert (catalog["status"] == "ok").all()

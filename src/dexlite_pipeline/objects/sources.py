@@ -191,20 +191,21 @@ def benchmark_object_ids() -> frozenset[str]:
     return frozenset(benchmark_object_list())
 
 
+def pybullet_random_source_of(object_id: str) -> MeshSource:
+    """The procedural pybullet_data object with id ``pb-random-NNN`` (its ``random_urdfs/NNN/NNN.urdf``)."""
+    number = object_id.removeprefix("pb-random-")
+    path = pybullet_data_dir() / RANDOM_URDF_DIR / number / f"{number}.urdf"
+    if not path.is_file():
+        raise ObjectSourceError(f"{object_id}: no {path} in the installed pybullet_data")
+    return pybullet_random_source(path)
+
+
 def benchmark_sources(count: int) -> list[MeshSource]:
     """The first ``count`` objects of the benchmark split (procedural pybullet_data objects), always held out."""
     ids = benchmark_object_list()
     if count > len(ids):
         raise ObjectSourceError(f"objects.benchmark_objects: {count} asked, the benchmark split ({BENCHMARK_SPLIT_FILE.name}) has {len(ids)}")
-    root = pybullet_data_dir() / RANDOM_URDF_DIR
-    sources = []
-    for object_id in ids[:count]:
-        number = object_id.removeprefix("pb-random-")
-        path = root / number / f"{number}.urdf"
-        if not path.is_file():
-            raise ObjectSourceError(f"{BENCHMARK_SPLIT_FILE.name}: {object_id} has no {path} in the installed pybullet_data")
-        sources.append(dataclasses.replace(pybullet_random_source(path), always_heldout=True))
-    return sources
+    return [dataclasses.replace(pybullet_random_source_of(object_id), always_heldout=True) for object_id in ids[:count]]
 
 
 def collect_sources(
