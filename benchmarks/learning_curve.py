@@ -43,8 +43,9 @@ RATE_COLUMNS = (
 )  # fmt: skip
 
 
-def point_dir(run: Path, count: int, seed: int) -> Path:
-    return run / "curve" / f"n{count}_seed{seed}"
+def point_dir(run: Path, count: int, seed: int, max_steps: int = 0) -> Path:
+    """``<run>/curve/n<count>_seed<seed>[_steps<max_steps>]``; count 0 is every training object (``nall``)."""
+    return run / "curve" / (f"n{count or 'all'}_seed{seed}" + (f"_steps{max_steps}" if max_steps else ""))
 
 
 def link_data_stages(run: Path, point: Path) -> None:
@@ -56,24 +57,24 @@ def link_data_stages(run: Path, point: Path) -> None:
             subprocess.run(["cp", "-al", str(source), str(target)], check=True)
 
 
-def point_overlay(count: int, seed: int) -> dict:
-    """Config on top of the run's: the subset, the training seed, held-out CVAE rows only."""
+def point_overlay(count: int, seed: int, max_steps: int = 0) -> dict:
+    """Config on top of the run's: the subset, the training seed (and step budget, when given), held-out CVAE rows only."""
     return {
         "seed": seed,
-        "train": {"max_training_objects": count},
+        "train": {"max_training_objects": count, **({"max_steps": max_steps} if max_steps else {})},
         "sample": {"ladder": False, "expansion_grasps_per_object": 0},
         "post_optimize": {"random_baseline": False},
         "evaluate": {"methods": list(CURVE_METHODS)},
     }
 
 
-def run_point(run: Path, configfiles: list[str], count: int, seed: int, cores: int, dry_run: bool = False) -> None:
+def run_point(run: Path, configfiles: list[str], count: int, seed: int, cores: int, dry_run: bool = False, max_steps: int = 0) -> None:
     """Train and evaluate one point with the run's workflow (its Snakefile and package source)."""
-    point = point_dir(run, count, seed)
+    point = point_dir(run, count, seed, max_steps)
     point.mkdir(parents=True, exist_ok=True)
     link_data_stages(run, point)
     overlay = point / "curve.yaml"
-    overlay.write_text(json.dumps(point_overlay(count, seed), indent=1))  # JSON is YAML
+    overlay.write_text(json.dumps(point_overlay(count, seed, max_steps), indent=1))  # JSON is YAML
     command = [
         "snakemake", "--snakefile", str(run / "Snakefile"), "--directory", str(point), "--cores", str(cores),
         "--configfile", *[str(run / c) for c in configfiles], str(overlay),
@@ -96,7 +97,8 @@ def _model_facts(folder: Path) -> dict:
     import torch
 
     checkpoint = torch.load(folder / "results" / "model" / "cvae.pt", map_location="cpu", weights_only=True)
-    return {"training_objects": len(checkpoint.get("train_object_ids") or []), "training_grasps": int(checkpoint.get("train_grasps", 0))}
+    return {"training_objects": len(checkpoint.get("train_object_ids") or []), "training_grasps": int(checkpoint.get("train_grasps", 0)),
+            "training_steps": int(checkpoint.get("steps") or 0)}
 
 
 def curve_table(run: Path) -> pd.DataFrame:
@@ -159,7 +161,8 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--run", required=True, type=Path, help="directory of a large run (a checkout with results/)")
     parser.add_argument("--configfile", nargs="+", default=["config.yaml", "config/profiles/large.yaml"], help="the run's config files, relative to --run")
-    parser.add_argument("--counts", nargs="*", type=int, default=[10, 40, 160], help="training-object counts")
+    parser.add_argument("--counts", nargs="*", type=int, default=[10, 40, 160], help="training-object counts (0: all of them)")
+    parser.add_argument("--max-steps", type=int, default=0, help="training step budget of these points (0: the run's train.max_steps)")
     parser.add_argument("--seeds", nargs="*", type=int, default=[0], help="training seeds")
     parser.add_argument("--cores", type=int, default=2)
     parser.add_argument("--tabulate", action="store_true", help="only tabulate the points already run")
@@ -172,7 +175,7 @@ def main(argv: list[str] | None = None) -> int:
             parser.error(f"{run}/results/lift: missing; run the large profile's data stages first")
         for seed in args.seeds:
             for count in args.counts:
-                run_point(run, args.configfile, count, seed, args.cores, args.dry_run)
+                run_point(run, args.configfile, count, seed, args.cores, args.dry_run, args.max_steps)
         if args.dry_run:
             return 0
     table = curve_table(run)

@@ -85,3 +85,10 @@ def load_checkpoint(path: str | os.PathLike, device: torch.device | str = "cpu")
         raise CheckpointError(f"{p}: weights do not match the model config (missing {sorted(missing)[:3]}, unexpected {sorted(unexpected)[:3]})")
     model.eval()
     return model, {k: v for k, v in payload.items() if k != "state_dict"}
+
+
+def cloud_reading(checkpoint: dict, points_per_cloud: int = 0) -> tuple[int, bool]:
+    """How a model reads object clouds: points per cloud (``points_per_cloud``, or as trained when 0) and
+    whether each object's cloud is one fixed farthest-point subset (as trained)."""
+    trained = checkpoint["train_config"]
+    return points_per_cloud or int(trained["points_per_cloud"]), bool(trained.get("fixed_clouds", False))

@@ -78,7 +78,7 @@ def shipped_rows(shipped_path: str, heldout: list[str], clouds, settings, genera
     Returns the rows (``SampledRows`` or None) and the held-out objects left out, with why:
     an object in the shipped model's training set would measure recall, not generalization.
     """
-    from dexlite_pipeline.model.checkpoint import load_checkpoint
+    from dexlite_pipeline.model.checkpoint import cloud_reading, load_checkpoint
     from dexlite_pipeline.model.sampling import SHIPPED_SYNTHESIS, synthesis_rows
 
     model, checkpoint = load_checkpoint(shipped_path, device)
@@ -87,8 +87,7 @@ def shipped_rows(shipped_path: str, heldout: list[str], clouds, settings, genera
     left_out = {oid: "the shipped model was trained on it" for oid in heldout if oid in trained_on}
     if not unseen or settings.synthesis_grasps_per_object <= 0:
         return None, left_out
-    points = settings.points_per_cloud or int(checkpoint["train_config"]["points_per_cloud"])
-    fixed = bool(checkpoint["train_config"].get("fixed_clouds", False))
+    points, fixed = cloud_reading(checkpoint, settings.points_per_cloud)
     return synthesis_rows(model, clouds, unseen, settings, points, generator, fixed, SHIPPED_SYNTHESIS), left_out
 
 
@@ -107,7 +106,7 @@ def sample_shard(
     from dexlite_pipeline.device import resolve_device
     from dexlite_pipeline.hand import ShadowHand
     from dexlite_pipeline.model.association import grasp_rays
-    from dexlite_pipeline.model.checkpoint import load_checkpoint
+    from dexlite_pipeline.model.checkpoint import cloud_reading, load_checkpoint
     from dexlite_pipeline.model.data import ObjectClouds
     from dexlite_pipeline.model.sampling import expand, ladder_rows, synthesis_rows
     from dexlite_pipeline.objects.assets import load_asset
@@ -116,13 +115,12 @@ def sample_shard(
     settings = config.sample
     device = resolve_device(config.device)
     model, checkpoint = load_checkpoint(model_path, device)
-    points = settings.points_per_cloud or int(checkpoint["train_config"]["points_per_cloud"])
+    points, fixed_clouds = cloud_reading(checkpoint, settings.points_per_cloud)
 
     heldout, seeds, ladder_ids, skipped = shard_targets(
         objects_dirs, stability_path, lift_paths, shard, config.shards, set(checkpoint.get("train_object_ids") or []), settings.ladder
     )
     seeded = set(seeds.object_id.tolist())
-    fixed_clouds = bool(checkpoint["train_config"].get("fixed_clouds", False))
     targets = sorted(set(heldout) | seeded | set(ladder_ids))
     generator = shard_generator("sample_grasps", config.seed, shard)
     started = time.perf_counter()

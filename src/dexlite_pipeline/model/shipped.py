@@ -63,7 +63,7 @@ def shipped_model_check(
 
     from dexlite_pipeline.hand import ShadowHand
     from dexlite_pipeline.io.grasp_store import GraspSet
-    from dexlite_pipeline.model.checkpoint import load_checkpoint
+    from dexlite_pipeline.model.checkpoint import cloud_reading, load_checkpoint
     from dexlite_pipeline.model.data import ObjectClouds
     from dexlite_pipeline.model.pose import pose_errors
     from dexlite_pipeline.model.sampling import SHIPPED_SYNTHESIS, ladder_rows, synthesis_rows
@@ -73,8 +73,7 @@ def shipped_model_check(
     if not train_ids or not heldout_ids:
         raise ValueError(f"the check needs training and held-out objects (got {len(train_ids)} and {len(heldout_ids)})")
     model, checkpoint = load_checkpoint(model_path, "cpu")
-    points = int(checkpoint["train_config"]["points_per_cloud"])
-    fixed = bool(checkpoint["train_config"].get("fixed_clouds", False))
+    points, fixed = cloud_reading(checkpoint)
     clouds = ObjectClouds([load_asset(objects_dirs, oid) for oid in [*train_ids, *heldout_ids]])
     generator = torch.Generator().manual_seed(seed)
     with torch.no_grad():

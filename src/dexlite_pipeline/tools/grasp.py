@@ -168,7 +168,7 @@ def synthesize_with_model(assets, scales: dict, n: int, config: dict, model_path
     from dexlite_pipeline.energy.grasp_energy import EnergyConfig, GraspEnergy
     from dexlite_pipeline.hand import ShadowHand
     from dexlite_pipeline.io.grasp_store import GraspSet
-    from dexlite_pipeline.model.checkpoint import load_checkpoint
+    from dexlite_pipeline.model.checkpoint import cloud_reading, load_checkpoint
     from dexlite_pipeline.model.data import ObjectClouds
     from dexlite_pipeline.model.post_optimization import PostOptimizeConfig, refine
     from dexlite_pipeline.model.sampling import SampleConfig, synthesize
@@ -180,7 +180,7 @@ def synthesize_with_model(assets, scales: dict, n: int, config: dict, model_path
         model, checkpoint = load_checkpoint(model_path, device)
     except ValueError as exc:
         raise GraspToolError(str(exc)) from None
-    points = sample_config.points_per_cloud or int(checkpoint["train_config"]["points_per_cloud"])
+    points, fixed = cloud_reading(checkpoint, sample_config.points_per_cloud)
     clouds = ObjectClouds(assets, device)
     object_index = np.repeat(np.arange(len(assets)), n)
     scale = np.concatenate([np.resize(np.asarray(scales[a.object_id], np.float32), n) for a in assets])
@@ -194,7 +194,6 @@ def synthesize_with_model(assets, scales: dict, n: int, config: dict, model_path
     if len(model.codes_mu) == 0 or len(model.codes_condition) == 0:  # a model saved without its training codes
         log.warning("%s holds no training codes: sampling from N(0, I) at uniform points instead of %s / %s", model_path, prior, anchor_rule)
         prior, anchor_rule = "standard", "uniform"
-    fixed = bool(checkpoint["train_config"].get("fixed_clouds", False))
     poses = synthesize(
         model, clouds, object_index, scale, points, generator, prior, sample_config.latent_temperature, fixed, anchor_rule,
         sample_config.neighbour_clouds,
