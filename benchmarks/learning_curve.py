@@ -129,6 +129,8 @@ def curve_table(run: Path) -> pd.DataFrame:
                      "method": method, "n_grasps": int(baseline.n_grasps.iloc[0]), **{c: float(baseline[c].iloc[0]) for c in RATE_COLUMNS},
                      "seconds_per_grasp": float(baseline.seconds_per_grasp.iloc[0])}  # fmt: skip
             table = pd.concat([table, pd.DataFrame([extra])], ignore_index=True)
+    if "training_steps" in table:
+        table["training_steps"] = table["training_steps"].astype("Int64")  # baselines have none
     for method in BASELINES:
         reference = table[table.method == method]
         column = f"break_even_grasps_vs_{method}"

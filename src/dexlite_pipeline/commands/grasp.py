@@ -1,8 +1,8 @@
 """``dexlite grasp MESH [MESH ...] --out DIR``: grasps that hold for your own meshes, in one command.
 
 Prepares the meshes (a folder of .obj/.stl files works too), synthesizes grasps (with the
-shipped model when the checkout has it, else or with ``--from-scratch`` by optimization), keeps those
-that pass the lift test and writes ``DIR/grasps.zarr``, ``DIR/dexgraspnet/``,
+shipped model when the checkout has it; by optimization from scratch without one or with
+``--from-scratch``), keeps those that pass the lift test and writes ``DIR/grasps.zarr``, ``DIR/dexgraspnet/``,
 ``DIR/renders/`` and ``DIR/summary.md`` (``dexlite_pipeline.tools.grasp``). Exit status 0
 when some grasp held, 1 when none did (the outputs are written all the same), 2 for
 unusable input.
