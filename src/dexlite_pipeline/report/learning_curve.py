@@ -48,7 +48,7 @@ def curve_figure(table):
     import matplotlib.pyplot as plt
 
     budget, steps = curve_budget(table), _steps(table)
-    fig, axes = plt.subplots(1, 2, figsize=(10, 4), sharey=True)
+    fig, axes = plt.subplots(1, 2, figsize=(10, 4.8), sharey=True)
     for ax, prefix, title in ((axes[0], "lift_success", "lift test"), (axes[1], "six_dir_success", "six-direction test")):
         for method, colour in (("cvae_raw", "tab:blue"), ("cvae_post", "tab:orange")):
             for at_budget in (True, False):
@@ -78,8 +78,9 @@ def curve_figure(table):
         ax.set_title(f"held-out (benchmark split): {title}")
         ax.grid(alpha=0.3)
     axes[0].set_ylabel("success rate (%), Wilson 95%")
-    axes[0].legend(loc="upper left")
-    fig.tight_layout()
+    handles, labels = axes[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="lower center", ncol=3, frameon=False)  # below the plots, clear of the points
+    fig.tight_layout(rect=(0, 0.16, 1, 1))
     return fig
 
 
