@@ -98,8 +98,8 @@ def test_headline_sentence_gives_both_rates_of_the_product_and_the_comparisons()
     # a row measured on fewer objects (the shipped model samples only objects it never trained on) says so
     shipped = _run_metrics().iloc[[2]].assign(method="shipped_post", n_objects=2, n_grasps=32, lift_success_rate=0.4)
     with_shipped = headline_sentence(headline_rows(pd.concat([_run_metrics(), shipped], ignore_index=True)), {})
-    assert "shipped model's samples + post-optimization 40.0% / 13.8% (on 2 of the objects)" in with_shipped
-    assert with_shipped.count("of the objects") == 1
+    assert "shipped model's samples + post-optimization 40.0% / 13.8% (on 2 objects)" in with_shipped
+    assert with_shipped.count("objects)") == 1
 
 
 def test_compact_table_shows_percentages_with_intervals_and_readable_names():

@@ -655,8 +655,9 @@ def headline_sentence(frame, lift_config: Mapping) -> str:
     for _, row in rows[rows["method"] != lead_method].iterrows():
         pair = percent_text(row["lift_success_rate"]) + (f" / {percent_text(row['six_dir_success_rate'])}" if six_run else "")
         row_objects = int(row["n_objects"]) if math.isfinite(float(row.get("n_objects", math.nan))) else n_objects
-        fewer = f" (on {row_objects} of the objects)" if n_objects is not None and row_objects != n_objects else ""  # e.g. the shipped model's rows
-        others.append(f"{_in_sentence(method_label(str(row['method'])))} {pair}{fewer}")
+        # a row measured on another number of objects says so (the shipped model samples only objects it never trained on)
+        on_other_objects = f" (on {row_objects} objects)" if n_objects is not None and row_objects != n_objects else ""
+        others.append(f"{_in_sentence(method_label(str(row['method'])))} {pair}{on_other_objects}")
     tail = f"; for comparison, {', '.join(others)}" if others else ""
     return f"{where}{grasps}, {result}{tail}."
 
