@@ -628,6 +628,12 @@ def _in_sentence(label: str) -> str:
     return label[:1].lower() + label[1:] if len(label) > 1 and label[1].islower() else label
 
 
+def _object_count(row) -> int | None:
+    """A metrics row's ``n_objects``, None when absent or NaN."""
+    value = row.get("n_objects", math.nan)
+    return int(value) if value is not None and math.isfinite(float(value)) else None
+
+
 def headline_sentence(frame, lift_config: Mapping) -> str:
     """One sentence with the result: the product's two rates and the comparison methods', on the held-out objects."""
     if frame is None or not len(frame):
@@ -640,7 +646,7 @@ def headline_sentence(frame, lift_config: Mapping) -> str:
     lead_method = HEADLINE_METHOD if (rows["method"] == HEADLINE_METHOD).any() else str(rows["method"].iloc[0])
     lead = rows[rows["method"] == lead_method].iloc[0]
     six_run = math.isfinite(float(lead.get("six_dir_success_rate", math.nan)))
-    n_objects = int(lead["n_objects"]) if math.isfinite(float(lead.get("n_objects", math.nan))) else None
+    n_objects = _object_count(lead)
     objects = split_label(split)
     if n_objects == 1 and objects.endswith("objects"):
         objects = objects[:-1]
@@ -654,9 +660,9 @@ def headline_sentence(frame, lift_config: Mapping) -> str:
     others = []
     for _, row in rows[rows["method"] != lead_method].iterrows():
         pair = percent_text(row["lift_success_rate"]) + (f" / {percent_text(row['six_dir_success_rate'])}" if six_run else "")
-        row_objects = int(row["n_objects"]) if math.isfinite(float(row.get("n_objects", math.nan))) else n_objects
         # a row measured on another number of objects says so (the shipped model samples only objects it never trained on)
-        on_other_objects = f" (on {row_objects} objects)" if n_objects is not None and row_objects != n_objects else ""
+        row_objects = _object_count(row)
+        on_other_objects = f" (on {row_objects} objects)" if None not in (n_objects, row_objects) and row_objects != n_objects else ""
         others.append(f"{_in_sentence(method_label(str(row['method'])))} {pair}{on_other_objects}")
     tail = f"; for comparison, {', '.join(others)}" if others else ""
     return f"{where}{grasps}, {result}{tail}."

@@ -17,7 +17,9 @@ BASELINES = {"random_post": ("random init + post", "grey"), "seed": ("optimizati
 
 def _steps(table):
     """Training steps per row (0 where unknown: baselines, or a table written before the column existed)."""
-    return table["training_steps"].fillna(0).astype(int) if "training_steps" in table else table["training_objects"] * 0
+    import pandas as pd
+
+    return table["training_steps"].fillna(0).astype(int) if "training_steps" in table else pd.Series(0, index=table.index)
 
 
 def curve_budget(table) -> int:
