@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 from dexlite_pipeline.config import from_section, parse_config_json
 from dexlite_pipeline.curation.filters import CurateConfig
 from dexlite_pipeline.energy.grasp_energy import EnergyConfig
+from dexlite_pipeline.evaluation.diversity import DiversityConfig
 from dexlite_pipeline.io.dexgraspnet import DexGraspNetConfig
 from dexlite_pipeline.model.post_optimization import PostOptimizeConfig
 from dexlite_pipeline.model.sampling import SampleConfig
@@ -40,6 +41,7 @@ class PipelineConfig:
     shards: int = 2  # grasp-heavy stages split objects into this many groups
     objects: ObjectsConfig = field(default_factory=ObjectsConfig)
     dexgraspnet: DexGraspNetConfig = field(default_factory=DexGraspNetConfig)
+    diversity: DiversityConfig = field(default_factory=DiversityConfig)
     stability: StabilityConfig = field(default_factory=StabilityConfig)
     curate: CurateConfig = field(default_factory=CurateConfig)
     energy: EnergyConfig = field(default_factory=EnergyConfig)

@@ -1,0 +1,95 @@
+"""Distinct grasps: how many different grasps a set really holds.
+
+A success rate cannot tell sixteen different grasps from one grasp returned sixteen times.
+Two grasps of the same object and scale are *the same grasp* when their palms are within
+``translation_m`` of each other (distance between palm origins, metres) **and** within
+``rotation_deg`` (angle of the relative palm rotation, degrees); otherwise they are distinct.
+Grasps are clustered greedily in the order given (callers pass the better grasps first, so a
+cluster is represented by its best member): each grasp joins the first cluster whose
+representative it matches, else it starts a new one. The number of clusters of an object is
+its count of distinct grasps. Joint angles are not compared: a hand at the same palm pose with
+other finger angles touches the object in the same place.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+
+@dataclass(frozen=True)
+class DiversityConfig:
+    """Section ``diversity`` of config.yaml: when two grasps count as one."""
+
+    distinct_translation_m: float = 0.02  # palms closer than this (m) ...
+    distinct_rotation_deg: float = 30.0  # ... and turned less than this (deg) from each other are one grasp
+
+    def __post_init__(self):
+        if self.distinct_translation_m <= 0 or self.distinct_rotation_deg <= 0:
+            raise ValueError("config.diversity: distinct_translation_m and distinct_rotation_deg must be > 0")
+
+
+def palm_rotations(hand_pose: np.ndarray) -> np.ndarray:
+    """(N, 3, 3) palm rotation matrices of (N, 28) hand poses (static-axis xyz Euler, R = Rz Ry Rx)."""
+    return Rotation.from_euler("xyz", np.asarray(hand_pose, dtype=np.float64)[:, 3:6]).as_matrix()
+
+
+def distinct_grasp_labels(
+    hand_pose: np.ndarray,
+    groups: np.ndarray | None = None,
+    translation_m: float = DiversityConfig.distinct_translation_m,
+    rotation_deg: float = DiversityConfig.distinct_rotation_deg,
+) -> np.ndarray:
+    """Cluster index (N,) of each grasp, numbered from 0 in order of first appearance.
+
+    ``groups`` (N,) keys grasps that may share a cluster (an object id, or an (object, scale)
+    string); grasps of different groups never do. ``None``: all grasps belong to one group.
+    """
+    poses = np.asarray(hand_pose, dtype=np.float64).reshape(-1, 28)
+    n = len(poses)
+    labels = np.full(n, -1, dtype=np.int64)
+    if n == 0:
+        return labels
+    keys = np.zeros(n, dtype=np.int64) if groups is None else np.unique(np.asarray(groups).astype(str), return_inverse=True)[1]
+    translations = poses[:, :3]
+    rotations = palm_rotations(poses)
+    # cos of the relative angle: (trace(Ra^T Rb) - 1) / 2 >= cos(threshold) means within the threshold
+    min_cos = np.cos(np.deg2rad(rotation_deg))
+    next_label = 0
+    representatives: dict[int, list[int]] = {}
+    for i in range(n):
+        reps = representatives.setdefault(int(keys[i]), [])
+        if reps:
+            idx = np.asarray(reps)
+            near = np.linalg.norm(translations[idx] - translations[i], axis=1) <= translation_m
+            traces = np.einsum("kab,ab->k", rotations[idx], rotations[i])
+            aligned = (traces - 1.0) / 2.0 >= min_cos - 1e-12
+            match = np.flatnonzero(near & aligned)
+            if match.size:
+                labels[i] = labels[idx[match[0]]]
+                continue
+        labels[i] = next_label
+        next_label += 1
+        reps.append(i)
+    return labels
+
+
+def count_distinct_grasps(
+    hand_pose: np.ndarray,
+    translation_m: float = DiversityConfig.distinct_translation_m,
+    rotation_deg: float = DiversityConfig.distinct_rotation_deg,
+) -> int:
+    """Number of distinct grasps among grasps of one object and scale."""
+    labels = distinct_grasp_labels(hand_pose, None, translation_m, rotation_deg)
+    return int(labels.max() + 1) if labels.size else 0
+
+
+def first_of_each_cluster(labels: np.ndarray) -> np.ndarray:
+    """Indices of the first grasp of each cluster (its representative), in cluster order."""
+    labels = np.asarray(labels)
+    if labels.size == 0:
+        return np.zeros(0, dtype=np.int64)
+    _, first = np.unique(labels, return_index=True)
+    return np.sort(first)
