@@ -9,8 +9,8 @@ them in the rule graph (``snakemake --rulegraph`` of the real Snakefile). That i
 reruns a job whose recorded params differ from the current ones; the ``cfg`` params are JSON of
 the config, which did not change; the ``code`` trigger covers the rule's own shell/run text in
 the .smk files, which did not change either; and a planned job's outputs are newer than what
-consumes them, so Snakemake plans every consumer, transitively. tests/workflow/test_reruns.py
-checks the same edits with a real ``snakemake -n`` on a finished tiny run.
+consumes them, so Snakemake plans every consumer, transitively. The slow test at the end checks
+the same edits with a real ``snakemake -n`` on the finished tiny run (``complete_run``).
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
-from workflow_harness import checkout, downstream, rule_code_modules, rule_graph, tiny_config, write_config, write_tiny_meshes
+from workflow_harness import checkout, downstream, planned_rules, rule_code_modules, rule_graph, tiny_config, write_config, write_tiny_meshes
 
 from dexlite_pipeline.codehash import code_hash
 
@@ -96,3 +96,23 @@ def test_code_edit_plans_the_stages_that_run_it_and_downstream_only(graph, tmp_p
 
     edited.write_text(original)  # the edit undone: nothing is planned
     assert planned(graph, before, rule_hashes(package)) == (set(), set())
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", list(EDITS))
+def test_snakemake_plans_the_same_on_a_finished_run(complete_run, tmp_path, name):
+    """The real ``snakemake -n`` on the finished tiny run, with the edited copy first on PYTHONPATH."""
+    edit = EDITS[name]
+    source = tmp_path / "src"
+    shutil.copytree(checkout() / "src" / "dexlite_pipeline", source / "dexlite_pipeline", ignore=shutil.ignore_patterns("__pycache__"))
+    edited = source / "dexlite_pipeline" / edit.module_file
+    original = edited.read_text()
+
+    edited.write_text(original + "\nCODE_CHANGE_PROBE = 1\n")
+    plan = planned_rules(complete_run.workdir, env={"PYTHONPATH": str(source)})
+
+    assert plan == downstream(complete_run.graph, set(edit.first_planned))
+    assert not plan & edit.not_planned, sorted(plan & edit.not_planned)
+
+    edited.write_text(original)
+    assert planned_rules(complete_run.workdir, env={"PYTHONPATH": str(source)}) == set()
