@@ -233,7 +233,7 @@ class _FileTask:
     path: Path
     root: Path
     objects_out: Path
-    settings: object  # objects.build.AssetBuildSettings
+    settings: object  # objects.config.AssetBuildSettings
     split: str
 
 
@@ -303,7 +303,7 @@ def import_dexgraspnet(
 ) -> ImportResult:
     """Read a DexGraspNet download; write object assets under ``objects_out``; return grasps, catalog, problems.
 
-    ``settings`` is an ``objects.build.AssetBuildSettings`` (use the pipeline's, so SDF grids
+    ``settings`` is an ``objects.config.AssetBuildSettings`` (use the pipeline's, so SDF grids
     match the other objects'). Only objects with at least one usable grasp get an asset.
     Files are imported on ``workers`` processes (1: in this process); the result is in
     file order whatever the number of workers, and a file whose worker crashes is
