@@ -61,7 +61,6 @@ LOSS_TERMS = ("recon", "kl", *ENERGY_TERMS)
 LR_SCHEDULES = ("constant", "cosine")
 
 
-
 @dataclass(frozen=True)
 class TrainConfig:
     """Config section ``train`` (two documented profiles: the default and ``config/profiles/seed_gpu.yaml``)."""
