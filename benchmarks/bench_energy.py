@@ -41,7 +41,8 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def build_objects(directory: Path, count: int, seed: int, resolution: int) -> list[str]:
     """Prepare ``count`` embedded pybullet_data meshes (skipping ones that fail the mesh checks)."""
-    from dexlite_pipeline.objects.build import AssetBuildSettings, write_asset
+    from dexlite_pipeline.objects.build import write_asset
+    from dexlite_pipeline.objects.config import AssetBuildSettings
     from dexlite_pipeline.objects.prepare import check_mesh, load_source_mesh, normalize_mesh, repair_mesh
     from dexlite_pipeline.objects.sources import builtin_sources
 
@@ -63,8 +64,8 @@ def build_objects(directory: Path, count: int, seed: int, resolution: int) -> li
 
 def _seed_config(quick: bool):
     from dexlite_pipeline.config import from_section, load_config
-    from dexlite_pipeline.energy import EnergyConfig
-    from dexlite_pipeline.optim.seed import SeedConfig
+    from dexlite_pipeline.energy.config import EnergyConfig
+    from dexlite_pipeline.optim.config import SeedConfig
 
     config = load_config(ROOT / "config.yaml")
     seed = from_section(SeedConfig, config.get("seed_grasps"), "config.seed_grasps")
@@ -76,7 +77,9 @@ def _seed_config(quick: bool):
 
 def poses_at_object(energy, hulls, seed_config, count: int, generator):
     """Poses touching the objects: a short, fast-cooling optimization from close starts."""
-    from dexlite_pipeline.optim import AnnealingConfig, InitConfig, initial_poses, optimize
+    from dexlite_pipeline.optim.annealing import optimize
+    from dexlite_pipeline.optim.config import AnnealingConfig, InitConfig
+    from dexlite_pipeline.optim.init import initial_poses
 
     object_index = torch.arange(count) % len(energy.object_ids)
     scale = torch.tensor(seed_config.scales, dtype=torch.float32)[torch.arange(count) % len(seed_config.scales)]
@@ -153,10 +156,10 @@ def seed_throughput(assets, seed_config, energy_config, generator) -> list[dict]
 
 
 def run(quick: bool = False, objects_dir: str | None = None, object_count: int = 4) -> list[dict]:
-    from dexlite_pipeline.energy import GraspEnergy
+    from dexlite_pipeline.energy.grasp_energy import GraspEnergy
     from dexlite_pipeline.hand import ShadowHand
     from dexlite_pipeline.objects.assets import available_object_ids, load_asset
-    from dexlite_pipeline.optim import HullSampler
+    from dexlite_pipeline.optim.init import HullSampler
 
     torch.set_num_threads(1)
     seed_config, energy_config, resolution = _seed_config(quick)

@@ -40,8 +40,9 @@ def _own_cpu_s() -> float:
 
 def sample_grasps(workdir: Path):
     """The DexGraspNet sample's grasps and the folder its objects were prepared into."""
-    from dexlite_pipeline.io.dexgraspnet import DexGraspNetConfig, import_dexgraspnet
-    from dexlite_pipeline.objects.build import AssetBuildSettings
+    from dexlite_pipeline.io.config import DexGraspNetConfig
+    from dexlite_pipeline.io.dexgraspnet import import_dexgraspnet
+    from dexlite_pipeline.objects.config import AssetBuildSettings
 
     objects = workdir / "objects"
     result = import_dexgraspnet(SAMPLE, objects, AssetBuildSettings(sdf_resolution=64), DexGraspNetConfig(), seed=0)

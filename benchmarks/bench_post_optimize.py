@@ -23,7 +23,8 @@ import torch
 def prepare_primitives(root: str) -> list[str]:
     import trimesh
 
-    from dexlite_pipeline.objects.build import AssetBuildSettings, write_asset
+    from dexlite_pipeline.objects.build import write_asset
+    from dexlite_pipeline.objects.config import AssetBuildSettings
 
     meshes = {
         "sphere": trimesh.creation.icosphere(subdivisions=3, radius=1 / 1.03),
@@ -38,13 +39,16 @@ def prepare_primitives(root: str) -> list[str]:
 
 def measure(assets, batches, iterations: int, sample_grasps: int) -> list[dict]:
     """Rows (benchmark, size, value, unit, note): post-optimization per batch size, then CVAE sampling."""
-    from dexlite_pipeline.energy.grasp_energy import EnergyConfig, GraspEnergy
+    from dexlite_pipeline.energy.config import EnergyConfig
+    from dexlite_pipeline.energy.grasp_energy import GraspEnergy
     from dexlite_pipeline.hand import ShadowHand
     from dexlite_pipeline.model.data import ObjectClouds
     from dexlite_pipeline.model.demo_grasps import facing_grasps
-    from dexlite_pipeline.model.network import GraspCVAE, ModelConfig
-    from dexlite_pipeline.model.post_optimization import PostOptimizeConfig, refine
-    from dexlite_pipeline.optim.annealing import AnnealingSchedule
+    from dexlite_pipeline.model.config import ModelConfig
+    from dexlite_pipeline.model.network import GraspCVAE
+    from dexlite_pipeline.model.config import PostOptimizeConfig
+    from dexlite_pipeline.model.post_optimization import refine
+    from dexlite_pipeline.optim.config import AnnealingSchedule
     from dexlite_pipeline.model.sampling import synthesize
 
     ids = [a.object_id for a in assets]

@@ -40,8 +40,8 @@ def _children_cpu_s() -> float:
 
 def _config_sections(quick: bool):
     from dexlite_pipeline.config import from_section, load_config
-    from dexlite_pipeline.objects.prepare import ObjectsConfig
-    from dexlite_pipeline.objects.stability import StabilityConfig
+    from dexlite_pipeline.objects.config import ObjectsConfig
+    from dexlite_pipeline.objects.config import StabilityConfig
 
     config = load_config(ROOT / "config.yaml")
     objects = from_section(ObjectsConfig, config["objects"], "config.objects")

@@ -37,9 +37,11 @@ def main() -> None:
     from dexlite_pipeline.hand import ShadowHand
     from dexlite_pipeline.model.data import build_training_data
     from dexlite_pipeline.model.demo_grasps import facing_grasps
-    from dexlite_pipeline.model.training import TrainConfig, train_cvae
+    from dexlite_pipeline.model.config import TrainConfig
+    from dexlite_pipeline.model.training import train_cvae
     from dexlite_pipeline.objects.assets import load_asset
-    from dexlite_pipeline.objects.build import AssetBuildSettings, write_asset
+    from dexlite_pipeline.objects.build import write_asset
+    from dexlite_pipeline.objects.config import AssetBuildSettings
 
     config_path = Path(__file__).resolve().parents[1] / "config.yaml"
     section = yaml.safe_load(config_path.read_text())["train"]

@@ -58,7 +58,8 @@ class Context:
         """Ids of ``count`` synthetic objects prepared under ``workdir/objects`` (built once each)."""
         import trimesh
 
-        from dexlite_pipeline.objects.build import AssetBuildSettings, write_asset
+        from dexlite_pipeline.objects.build import write_asset
+        from dexlite_pipeline.objects.config import AssetBuildSettings
 
         self._objects = self._objects or {}
         settings = AssetBuildSettings(sdf_resolution=32 if self.quick else 64, surface_points=512 if self.quick else 2048)
@@ -122,7 +123,7 @@ def _grasps(object_ids: list[str], per_object: int, scale: float = 0.08):
 
 def bench_object_scaling(ctx: Context) -> list[Row]:
     """Wall time of energy evaluation and of the lift test for a fixed number of grasps per object, vs objects."""
-    from dexlite_pipeline.energy import evaluate_grasp_energies
+    from dexlite_pipeline.energy.per_grasp import evaluate_grasp_energies
 
     try:
         from dexlite_pipeline.sim.config import LiftConfig

@@ -78,7 +78,8 @@ def write_heldout_box(root):
     import pandas as pd
     import trimesh
 
-    from dexlite_pipeline.objects.build import AssetBuildSettings, write_asset
+    from dexlite_pipeline.objects.build import write_asset
+    from dexlite_pipeline.objects.config import AssetBuildSettings
 
     mesh = trimesh.creation.box(extents=(1.2, 0.8, 0.6))
     write_asset(mesh, OBJECT_ID, root, AssetBuildSettings(sdf_resolution=16, surface_points=128), {"source": "test"}, convex_pieces=[mesh])

@@ -90,10 +90,10 @@ def test_defaults_schema_and_config_yaml_agree(config):
 
 
 def test_a_shared_shape_is_one_type_wherever_it_appears():
-    from dexlite_pipeline.energy.grasp_energy import EnergyWeights
-    from dexlite_pipeline.energy.thresholds import EnergyThresholds
-    from dexlite_pipeline.optim.annealing import AnnealingSchedule
-    from dexlite_pipeline.optim.init import InitConfig
+    from dexlite_pipeline.energy.config import EnergyWeights
+    from dexlite_pipeline.energy.config import EnergyThresholds
+    from dexlite_pipeline.optim.config import AnnealingSchedule
+    from dexlite_pipeline.optim.config import InitConfig
 
     hints = {name: typing.get_type_hints(cls) for name, cls in SECTIONS.items()}
     assert hints["energy"]["weights"] is hints["train"]["energy_weights"] is hints["post_optimize"]["energy_weights"] is EnergyWeights

@@ -5,13 +5,18 @@ the named modules and every ``dexlite_pipeline`` module they import, directly or
 other modules (found statically from the source, so nothing is imported), plus the
 ``__init__`` of each package on the way. It hashes the parsed syntax tree, not the text:
 comments and formatting do not trigger reruns, any change of behaviour does.
+
+``python -m dexlite_pipeline.codehash --markdown`` prints each stage's closure as the
+Markdown list in docs/design.md ("Code hashes"); a test holds the two to each other.
 """
 
 from __future__ import annotations
 
+import argparse
 import ast
 import hashlib
 import importlib.util
+import pkgutil
 from functools import lru_cache
 from pathlib import Path
 
@@ -102,3 +107,46 @@ def code_hash(*modules: str, root: Path | None = None) -> str:
     for name, path in module_closure(*modules, root=root).items():
         digest.update(f"{name}\0{_parse(path, name)[0]}\0".encode())
     return digest.hexdigest()[:16]
+
+
+def stage_modules(root: Path | None = None) -> list[str]:
+    """Every stage module (``dexlite_pipeline.stages.<stage>``), sorted."""
+    root = package_root() if root is None else root
+    return sorted(f"{PACKAGE}.stages.{info.name}" for info in pkgutil.iter_modules([str(root / "stages")]))
+
+
+def closure_markdown(root: Path | None = None) -> str:
+    """Each stage's closure as Markdown: the config tree (``settings`` and what it imports) once,
+    then one item per stage with its module count and the modules beyond that tree. Names are
+    relative to ``dexlite_pipeline``; the ``__init__`` of each package on the way is in the count
+    but not listed."""
+    root = package_root() if root is None else root
+    config_tree = module_closure(f"{PACKAGE}.settings", root=root)
+
+    def listed(names) -> str:
+        modules = [n for n in names if module_file(n, root).name != "__init__.py"]
+        return ", ".join(f"`{n.removeprefix(PACKAGE + '.')}`" for n in modules)
+
+    lines = [f"- config tree ({len(config_tree)} modules): {listed(config_tree)}"]
+    for stage in stage_modules(root):
+        closure = module_closure(stage, root=root)
+        reads_config = f"{PACKAGE}.settings" in closure
+        own = [n for n in closure if not (reads_config and n in config_tree)]
+        prefix = "the config tree and " if reads_config else ""
+        lines.append(f"- `{stage.removeprefix(PACKAGE + '.stages.')}` ({len(closure)} modules): {prefix}{listed(own)}")
+    return "\n".join(lines) + "\n"
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(prog="python -m dexlite_pipeline.codehash", description=__doc__.splitlines()[0])
+    parser.add_argument("--markdown", action="store_true", help="print each stage's closure as a Markdown list")
+    args = parser.parse_args(argv)
+    if args.markdown:
+        print(closure_markdown(), end="")
+    else:
+        for stage in stage_modules():
+            print(f"{stage.removeprefix(f'{PACKAGE}.stages.')} {code_hash(stage)} {len(module_closure(stage))}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,7 +1,7 @@
 """The typed configuration tree: one class per section of ``config.yaml``, one root that holds them.
 
 ``PipelineConfig`` mirrors the file section by section; each section's class lives with the
-component it configures (``objects.prepare.ObjectsConfig``, ``sim.config.LiftConfig``, ...)
+component it configures (``objects.config.ObjectsConfig``, ``sim.config.LiftConfig``, ...)
 and shared shapes are one type wherever they appear: ``EnergyWeights`` (``energy.weights``,
 ``train.energy_weights``, ``post_optimize.energy_weights``), ``AnnealingSchedule``
 (``seed_grasps.annealing``, ``post_optimize.annealing``), ``EnergyThresholds``
@@ -10,7 +10,10 @@ and shared shapes are one type wherever they appear: ``EnergyWeights`` (``energy
 the same values so that the file documents every key (``tests/test_config.py`` holds the
 classes, the schema and the file to each other).
 
-This module imports every component, so Snakemake's parse-time code uses ``config`` instead.
+The section classes live in leaf modules (each component's ``config`` module, and
+``evaluation.diversity``) that import no pipeline code but ``dexlite_pipeline.config`` and each
+other: a stage imports this tree without importing other components' code, so its code hash
+(``codehash``) covers only the code it runs (docs/design.md, "Code hashes").
 """
 
 from __future__ import annotations
@@ -18,17 +21,14 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from dexlite_pipeline.config import from_section, parse_config_json
-from dexlite_pipeline.curation.filters import CurateConfig
-from dexlite_pipeline.energy.grasp_energy import EnergyConfig
+from dexlite_pipeline.curation.config import CurateConfig
+from dexlite_pipeline.energy.config import EnergyConfig
+from dexlite_pipeline.evaluation.config import EvaluateConfig
 from dexlite_pipeline.evaluation.diversity import DiversityConfig
-from dexlite_pipeline.io.dexgraspnet import DexGraspNetConfig
-from dexlite_pipeline.model.post_optimization import PostOptimizeConfig
-from dexlite_pipeline.model.sampling import SampleConfig
-from dexlite_pipeline.model.training import TrainConfig
-from dexlite_pipeline.objects.prepare import ObjectsConfig
-from dexlite_pipeline.objects.stability import StabilityConfig
-from dexlite_pipeline.optim.seed import SeedConfig
-from dexlite_pipeline.evaluation.protocol import EvaluateConfig
+from dexlite_pipeline.io.config import DexGraspNetConfig
+from dexlite_pipeline.model.config import PostOptimizeConfig, SampleConfig, TrainConfig
+from dexlite_pipeline.objects.config import ObjectsConfig, StabilityConfig
+from dexlite_pipeline.optim.config import SeedConfig
 from dexlite_pipeline.sim.config import LiftConfig
 
 

@@ -8,8 +8,9 @@ import pandas as pd
 import pytest
 
 from dexlite_pipeline.cli import main as dexlite
-from dexlite_pipeline.energy.thresholds import EnergyThresholds
-from dexlite_pipeline.curation.filters import DROP_REASONS, CurateConfig, ObjectFacts, curate_grasps, near_duplicates, summarize
+from dexlite_pipeline.energy.config import EnergyThresholds
+from dexlite_pipeline.curation.config import CurateConfig
+from dexlite_pipeline.curation.filters import DROP_REASONS, ObjectFacts, curate_grasps, near_duplicates, summarize
 from dexlite_pipeline.curation.force_closure import ForceClosureResult
 from dexlite_pipeline.io.grasp_store import GraspSet, empty_grasp_set, read_grasp_store, write_grasp_store
 from dexlite_pipeline.curation.shard import _common_arrays, tag_origin as _tag
@@ -197,7 +198,8 @@ def workspace(tmp_path_factory):
     """Two prepared box objects (catalog, stability), a seed shard, and imported grasps."""
     import trimesh
 
-    from dexlite_pipeline.objects.build import AssetBuildSettings, write_asset
+    from dexlite_pipeline.objects.build import write_asset
+    from dexlite_pipeline.objects.config import AssetBuildSettings
 
     root = tmp_path_factory.mktemp("curate")
     settings = AssetBuildSettings(sdf_resolution=24, sdf_padding=0.3, surface_points=256)

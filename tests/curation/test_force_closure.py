@@ -56,7 +56,8 @@ def test_point_contacts_without_closure_give_zero():
 def sphere_dir(tmp_path_factory):
     import trimesh
 
-    from dexlite_pipeline.objects.build import AssetBuildSettings, write_asset
+    from dexlite_pipeline.objects.build import write_asset
+    from dexlite_pipeline.objects.config import AssetBuildSettings
 
     root = tmp_path_factory.mktemp("force_closure_objects")
     mesh = trimesh.creation.icosphere(subdivisions=3, radius=1.0)

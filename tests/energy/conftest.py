@@ -7,7 +7,8 @@ import pytest
 
 def build_assets(objects_dir, meshes: dict, resolution: int = 40, surface_points: int = 1500) -> None:
     """Write one asset per (id -> trimesh) with its own mesh as the only convex piece."""
-    from dexlite_pipeline.objects.build import AssetBuildSettings, write_asset
+    from dexlite_pipeline.objects.build import write_asset
+    from dexlite_pipeline.objects.config import AssetBuildSettings
 
     settings = AssetBuildSettings(sdf_resolution=resolution, sdf_padding=0.3, surface_points=surface_points)
     for object_id, mesh in meshes.items():

@@ -9,7 +9,9 @@ import numpy as np
 import pytest
 import torch
 
-from dexlite_pipeline.energy import EnergyConfig, GraspEnergy, evaluate_grasp_energies
+from dexlite_pipeline.energy.config import EnergyConfig
+from dexlite_pipeline.energy.grasp_energy import GraspEnergy, combined_energy
+from dexlite_pipeline.energy.per_grasp import evaluate_grasp_energies
 from dexlite_pipeline.energy.terms import (
     ContactDistanceTerm,
     ForceClosureTerm,
@@ -275,7 +277,7 @@ def test_energy_and_gradient_equal_the_dense_reference(hand, sphere_energy):
     (grad,) = torch.autograd.grad(result.total.sum(), x)
     y = pose.clone().requires_grad_(True)
     reference = _dense_reference_terms(sphere_energy, hand, y, object_index, scale, contacts)
-    (reference_grad,) = torch.autograd.grad(weights.combine(reference).sum(), y)
+    (reference_grad,) = torch.autograd.grad(combined_energy(weights, reference).sum(), y)
 
     assert (reference["E_pen"] > 1e-4).sum() >= 10 and (reference["E_spen"] > 0).sum() >= 5, "the poses should exercise both terms"
     for name, value in reference.items():
@@ -315,7 +317,8 @@ def test_total_is_the_weighted_sum_of_the_named_terms(sphere_energy):
     import copy
     from dataclasses import fields
 
-    from dexlite_pipeline.energy import TERM_NAMES, EnergyWeights
+    from dexlite_pipeline.energy.config import EnergyWeights
+    from dexlite_pipeline.energy.grasp_energy import TERM_NAMES
     from dexlite_pipeline.energy.terms import EnergyTerm
 
     assert tuple(term.name for term in sphere_energy.terms) == TERM_NAMES
@@ -331,7 +334,7 @@ def test_total_is_the_weighted_sum_of_the_named_terms(sphere_energy):
     pose = _poses_near_sphere(6, seed=11)
     index, scale = torch.zeros(6, dtype=torch.long), torch.full((6,), SCALE)
     base = sphere_energy(pose, object_index=index, scale=scale)
-    assert torch.equal(base.total, sphere_energy.weights.combine(base.terms))
+    assert torch.equal(base.total, combined_energy(sphere_energy.weights, base.terms))
     extended = copy.copy(sphere_energy)
     extended.terms = [*sphere_energy.terms, PalmHeight()]
     result = extended(pose, object_index=index, scale=scale, contact_index=base.contact_index)

@@ -9,9 +9,8 @@ import torch
 from dexlite_pipeline.hand.rotation import euler_xyz_to_matrix, matrix_to_euler_xyz
 from dexlite_pipeline.io.grasp_store import GraspSet
 from dexlite_pipeline.model.pose import pose_errors
-from dexlite_pipeline.evaluation.protocol import (
-    BUDGET_SUCCESS, EvaluateConfig, budget_rows, convergence_ratio, metrics_tables, rung_of,
-)  # fmt: skip
+from dexlite_pipeline.evaluation.config import EvaluateConfig
+from dexlite_pipeline.evaluation.protocol import BUDGET_SUCCESS, budget_rows, convergence_ratio, metrics_tables, rung_of
 
 
 def _poses(count: int, seed: int = 0) -> torch.Tensor:

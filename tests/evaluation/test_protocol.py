@@ -13,7 +13,8 @@ import pytest
 
 from dexlite_pipeline.cli import main
 from dexlite_pipeline.io.grasp_store import GraspSet
-from dexlite_pipeline.evaluation.protocol import EvaluateConfig, method_grasps, sample_rows_of, select_grasps, stage_seconds_per_grasp
+from dexlite_pipeline.evaluation.config import EvaluateConfig
+from dexlite_pipeline.evaluation.protocol import method_grasps, sample_rows_of, select_grasps, stage_seconds_per_grasp
 from dexlite_pipeline.evaluation.step_keys import METHOD_SOURCES
 
 from report_synthetic import OBJECT_ID, post_store, simulated_shard

@@ -11,10 +11,11 @@ from numpy.lib import format as npy_format
 from dexlite_pipeline.cli import main as dexlite
 from dexlite_pipeline.hand import JOINT_NAMES
 from dexlite_pipeline.hand.qpos import qpos_from_hand_pose
-from dexlite_pipeline.io.dexgraspnet import DexGraspNetConfig, import_dexgraspnet, load_decomposed_mesh, object_split
+from dexlite_pipeline.io.config import DexGraspNetConfig
+from dexlite_pipeline.io.dexgraspnet import import_dexgraspnet, load_decomposed_mesh, object_split
 from dexlite_pipeline.io.grasp_store import read_grasp_store
 from dexlite_pipeline.objects.assets import load_asset, read_catalog
-from dexlite_pipeline.objects.build import AssetBuildSettings
+from dexlite_pipeline.objects.config import AssetBuildSettings
 
 SMALL_ASSETS = AssetBuildSettings(sdf_resolution=24, sdf_padding=0.2, surface_points=256)
 # Two overlapping convex boxes whose union is the box [-0.5, 0.5] x [-0.3, 0.3] x [-0.2, 0.2].
@@ -285,7 +286,7 @@ def test_real_sample_imports_whole_with_correct_sdf_sign(dexgraspnet_sample, imp
 
 def test_real_sample_grasps_barely_penetrate(imported_sample):
     """The makers filtered these grasps at 1 mm: a frame or conversion error shows up as deep penetration."""
-    from dexlite_pipeline.energy import evaluate_grasp_energies
+    from dexlite_pipeline.energy.per_grasp import evaluate_grasp_energies
 
     result, objects = imported_sample
     penetration_mm = evaluate_grasp_energies(result.grasps, [objects])["penetration_mm"]

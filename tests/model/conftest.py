@@ -23,7 +23,8 @@ def tiny_objects(tmp_path_factory):
     """A sphere and a box as prepared assets (coarse SDF grid, few surface samples)."""
     import trimesh
 
-    from dexlite_pipeline.objects.build import AssetBuildSettings, write_asset
+    from dexlite_pipeline.objects.build import write_asset
+    from dexlite_pipeline.objects.config import AssetBuildSettings
 
     root = tmp_path_factory.mktemp("objects")
     settings = AssetBuildSettings(sdf_resolution=24, surface_points=SURFACE_POINTS)
@@ -50,7 +51,7 @@ def make_grasps():
 
 @pytest.fixture
 def small_model_config():
-    from dexlite_pipeline.model.network import ModelConfig
+    from dexlite_pipeline.model.config import ModelConfig
 
     return ModelConfig(pointnet_widths=(16, 32, 64, 32), encoder_hidden=(64, 64), decoder_hidden=(64, 64), latent_dim=8, normalization="none")
 

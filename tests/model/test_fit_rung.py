@@ -5,7 +5,8 @@ import pytest
 import torch
 
 from dexlite_pipeline.model.data import build_training_data
-from dexlite_pipeline.model.training import TrainConfig, fit_training_codes, train_cvae
+from dexlite_pipeline.model.config import TrainConfig
+from dexlite_pipeline.model.training import fit_training_codes, train_cvae
 
 FIT_ROTATION_DEG = 3.0  # the ladder's fit targets: median palm rotation and translation error
 FIT_TRANSLATION_MM = 5.0

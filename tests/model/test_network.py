@@ -10,7 +10,8 @@ import torch
 from dexlite_pipeline.hand.rotation import euler_xyz_to_matrix, rot6d_to_matrix
 from dexlite_pipeline.model.association import grasp_rays, nearest_to_ray
 from dexlite_pipeline.model.data import cloud_batches, cloud_keys, make_batch, split_validation
-from dexlite_pipeline.model.network import GraspCVAE, ModelConfig, kl_divergence
+from dexlite_pipeline.model.config import ModelConfig
+from dexlite_pipeline.model.network import GraspCVAE, kl_divergence
 from dexlite_pipeline.model.pose import (
     POSE_FEATURE_DIM,
     features_to_pose,
@@ -19,7 +20,8 @@ from dexlite_pipeline.model.pose import (
     rotate_features,
     shift_translation,
 )
-from dexlite_pipeline.model.training import TrainConfig, vertical_turns
+from dexlite_pipeline.model.config import TrainConfig
+from dexlite_pipeline.model.training import vertical_turns
 
 
 def test_reference_sizes_give_the_seed_shapes(random_clouds):

@@ -5,9 +5,11 @@ import dataclasses
 import numpy as np
 import torch
 
-from dexlite_pipeline.energy.grasp_energy import EnergyConfig, GraspEnergy
-from dexlite_pipeline.model.post_optimization import PostOptimizeConfig, refine
-from dexlite_pipeline.optim.annealing import AnnealingSchedule
+from dexlite_pipeline.energy.config import EnergyConfig
+from dexlite_pipeline.energy.grasp_energy import GraspEnergy
+from dexlite_pipeline.model.config import PostOptimizeConfig
+from dexlite_pipeline.model.post_optimization import refine
+from dexlite_pipeline.optim.config import AnnealingSchedule
 
 
 def test_post_optimization_lowers_e_post(hand, tiny_assets, make_grasps):

@@ -7,7 +7,8 @@ import math
 import pytest
 import torch
 
-from dexlite_pipeline.model.shipped import SHIPPED_MODEL_PATH, shipped_model_check, shipped_model_path
+from dexlite_pipeline.model.shipped import SHIPPED_MODEL_PATH, shipped_model_path
+from dexlite_pipeline.model.shipped_check import shipped_model_check
 
 CARD_PATH = SHIPPED_MODEL_PATH.with_name("card.json")
 
@@ -51,7 +52,8 @@ def _within_sampling_noise(successes_a: int, successes_b: int, count: int) -> bo
 def test_shipped_model_repeats_its_card_on_freshly_prepared_objects(card, tmp_path):
     """Fit errors on training objects and raw lift success on benchmark objects, as the card's check measured them."""
     from dexlite_pipeline.config import from_section
-    from dexlite_pipeline.objects.prepare import ObjectsConfig, prepare_objects
+    from dexlite_pipeline.objects.config import ObjectsConfig
+    from dexlite_pipeline.objects.prepare import prepare_objects
     from dexlite_pipeline.objects.sources import pybullet_random_source_of
     from dexlite_pipeline.settings import build_config
 

@@ -119,7 +119,7 @@ def test_the_shipped_model_skips_held_out_objects_it_trained_on(pipeline_inputs,
     """An object in the shipped model's training set is not a test of generalization: left out, with the reason."""
     from dexlite_pipeline.model.data import ObjectClouds
     from dexlite_pipeline.model.sample_shard import shipped_rows
-    from dexlite_pipeline.model.sampling import SampleConfig
+    from dexlite_pipeline.model.config import SampleConfig
 
     root, objects = pipeline_inputs
     assert main(["train-cvae", "--config-json", json.dumps(CONFIG), "--lift", str(root / "lift.zarr"), *objects, *_model_outputs(root / "model")]) == 0

@@ -4,13 +4,15 @@ import numpy as np
 import pytest
 import torch
 
-from dexlite_pipeline.energy.grasp_energy import EnergyConfig, EnergyWeights, GraspEnergy
+from dexlite_pipeline.energy.config import EnergyConfig, EnergyWeights
+from dexlite_pipeline.energy.grasp_energy import GraspEnergy
 from dexlite_pipeline.hand.rotation import euler_xyz_to_matrix
 from dexlite_pipeline.model.checkpoint import CheckpointError, load_checkpoint, save_checkpoint, save_half_precision_copy
 from dexlite_pipeline.model.data import build_training_data, select_training_grasps, split_validation
 from dexlite_pipeline.model.network import anchor_at
 from dexlite_pipeline.model.pose import features_to_pose
-from dexlite_pipeline.model.training import TrainConfig, grasp_energy_terms, train_cvae
+from dexlite_pipeline.model.config import TrainConfig
+from dexlite_pipeline.model.training import grasp_energy_terms, train_cvae
 
 
 @pytest.fixture(scope="module")

@@ -8,7 +8,8 @@ import pytest
 import trimesh
 
 from dexlite_pipeline.objects.assets import ObjectAssetError, load_asset, ok_object_ids, read_catalog
-from dexlite_pipeline.objects.build import AssetBuildSettings, write_asset
+from dexlite_pipeline.objects.build import write_asset
+from dexlite_pipeline.objects.config import AssetBuildSettings
 
 
 @pytest.fixture(scope="module")

@@ -9,17 +9,8 @@ import pandas as pd
 import pytest
 import trimesh
 
-from dexlite_pipeline.objects.prepare import (
-    CATALOG_COLUMNS,
-    ObjectsConfig,
-    MeshRejected,
-    assign_split,
-    check_mesh,
-    normalize_mesh,
-    prepare_object,
-    prepare_objects,
-    repair_mesh,
-)
+from dexlite_pipeline.objects.config import ObjectsConfig
+from dexlite_pipeline.objects.prepare import CATALOG_COLUMNS, MeshRejected, assign_split, check_mesh, normalize_mesh, prepare_object, prepare_objects, repair_mesh
 from dexlite_pipeline.objects.sources import MeshSource, collect_sources
 
 # Small grids, few samples and a light CoACD search keep these tests at a second or two.

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 import trimesh
 
-from dexlite_pipeline.objects.prepare import ObjectsConfig, check_mesh, prepare_object, repair_mesh
+from dexlite_pipeline.objects.config import ObjectsConfig
+from dexlite_pipeline.objects.prepare import check_mesh, prepare_object, repair_mesh
 from dexlite_pipeline.objects.sources import MeshSource
 
 TINY = ObjectsConfig(

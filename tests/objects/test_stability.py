@@ -12,9 +12,11 @@ import pandas as pd
 import pytest
 import trimesh
 
-from dexlite_pipeline.objects.build import AssetBuildSettings, write_asset
+from dexlite_pipeline.objects.build import write_asset
+from dexlite_pipeline.objects.config import AssetBuildSettings
 from dexlite_pipeline.objects.prepare import normalize_mesh
-from dexlite_pipeline.objects.stability import STABILITY_COLUMNS, StabilityConfig, simulate_object, stability_table, tilt_rotation
+from dexlite_pipeline.objects.config import StabilityConfig
+from dexlite_pipeline.objects.stability import STABILITY_COLUMNS, simulate_object, stability_table, tilt_rotation
 
 CONFIG = StabilityConfig()
 

@@ -11,7 +11,8 @@ def optim_objects(tmp_path_factory):
     import pandas as pd
     import trimesh
 
-    from dexlite_pipeline.objects.build import AssetBuildSettings, write_asset
+    from dexlite_pipeline.objects.build import write_asset
+    from dexlite_pipeline.objects.config import AssetBuildSettings
 
     root = tmp_path_factory.mktemp("optim_objects")
     settings = AssetBuildSettings(sdf_resolution=32, sdf_padding=0.3, surface_points=800)

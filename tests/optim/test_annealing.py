@@ -7,10 +7,13 @@ import math
 import pytest
 import torch
 
-from dexlite_pipeline.energy import EnergyConfig, GraspEnergy
+from dexlite_pipeline.energy.config import EnergyConfig
+from dexlite_pipeline.energy.grasp_energy import GraspEnergy
 from dexlite_pipeline.hand.rotation import euler_xyz_to_matrix
 from dexlite_pipeline.objects.assets import load_asset
-from dexlite_pipeline.optim import AnnealingConfig, HullSampler, InitConfig, initial_poses, optimize, pose_to_state, state_to_pose
+from dexlite_pipeline.optim.annealing import optimize, pose_to_state, state_to_pose
+from dexlite_pipeline.optim.config import AnnealingConfig, InitConfig
+from dexlite_pipeline.optim.init import HullSampler, initial_poses
 from dexlite_pipeline.optim.init import PALM_APPROACH
 
 SHORT = AnnealingConfig(iterations=60, step_size_period=10, temperature_period=5, trace_every=10)

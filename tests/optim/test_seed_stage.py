@@ -11,7 +11,7 @@ import pytest
 
 from dexlite_pipeline.cli import main
 from dexlite_pipeline.io.grasp_store import read_grasp_store
-from dexlite_pipeline.energy.thresholds import EnergyThresholds
+from dexlite_pipeline.energy.config import EnergyThresholds
 
 CONFIG = {
     "seed": 3,

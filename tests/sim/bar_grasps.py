@@ -34,7 +34,8 @@ def write_bars(root) -> None:
     """A round and a square bar, 2 x 0.5 (x 0.5) normalized units along x, as prepared assets under ``root``."""
     import trimesh
 
-    from dexlite_pipeline.objects.build import AssetBuildSettings, write_asset
+    from dexlite_pipeline.objects.build import write_asset
+    from dexlite_pipeline.objects.config import AssetBuildSettings
 
     settings = AssetBuildSettings(sdf_resolution=40, surface_points=1024)
     along_x = trimesh.transformations.rotation_matrix(math.pi / 2, [0, 1, 0])

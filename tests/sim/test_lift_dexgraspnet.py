@@ -28,8 +28,9 @@ PASS_TOLERANCE = 2
 @pytest.fixture(scope="module")
 def sample(dexgraspnet_sample, tmp_path_factory):
     """The sample imported by the project's importer (restricted unpickler) at a coarse grid, and a seeded subset."""
-    from dexlite_pipeline.io.dexgraspnet import DexGraspNetConfig, import_dexgraspnet
-    from dexlite_pipeline.objects.build import AssetBuildSettings
+    from dexlite_pipeline.io.config import DexGraspNetConfig
+    from dexlite_pipeline.io.dexgraspnet import import_dexgraspnet
+    from dexlite_pipeline.objects.config import AssetBuildSettings
 
     objects = tmp_path_factory.mktemp("dexgraspnet_objects")
     settings = AssetBuildSettings(sdf_resolution=48, surface_points=2048)

@@ -81,7 +81,8 @@ def test_real_size_keeps_the_mesh_units_as_metres(grasp_run):
 def test_grasp_with_a_model_samples_and_post_optimizes(grasp_run, meshes, tmp_path):
     """A trained model's path (here untrained weights: the test is of the plumbing, not the grasps)."""
     from dexlite_pipeline.model.checkpoint import save_checkpoint
-    from dexlite_pipeline.model.network import GraspCVAE, ModelConfig
+    from dexlite_pipeline.model.config import ModelConfig
+    from dexlite_pipeline.model.network import GraspCVAE
 
     @dataclasses.dataclass
     class Trained:
@@ -105,7 +106,8 @@ def test_grasp_uses_the_shipped_model_when_no_model_is_given(meshes, tmp_path, m
     """Without --model (and without --from-scratch) the checkout's shipped model samples the grasps."""
     from dexlite_pipeline.model import shipped
     from dexlite_pipeline.model.checkpoint import save_checkpoint
-    from dexlite_pipeline.model.network import GraspCVAE, ModelConfig
+    from dexlite_pipeline.model.config import ModelConfig
+    from dexlite_pipeline.model.network import GraspCVAE
 
     @dataclasses.dataclass
     class Trained:

@@ -68,3 +68,32 @@ def test_real_package_closure_is_exact():
     """On the installed package: a module importing nothing from it has just itself and the root."""
     assert list(module_closure("dexlite_pipeline.codehash")) == ["dexlite_pipeline", "dexlite_pipeline.codehash"]
     assert len(code_hash("dexlite_pipeline.codehash")) == 16
+
+
+REPO = Path(__file__).resolve().parents[2]
+PACKAGE_ROOT = REPO / "src" / "dexlite_pipeline"
+# Light modules the config tree may import besides the config modules: a section class that lives
+# in its light component module (diversity), and where the shipped model is (sample.shipped_model).
+CONFIG_TREE_LEAVES = {"dexlite_pipeline.evaluation.diversity", "dexlite_pipeline.model.shipped"}
+
+
+def test_config_tree_imports_only_config_modules():
+    """settings.PipelineConfig and every section class import no component code (only config modules),
+    so a stage that reads the typed tree hashes no other component's code. The closure includes
+    each package ``__init__`` on the way and what it imports, so a heavy ``__init__`` fails too."""
+    closure = module_closure("dexlite_pipeline.settings", root=PACKAGE_ROOT)
+    modules = {name for name, path in closure.items() if path.name != "__init__.py"}
+    assert {"dexlite_pipeline.energy.config", "dexlite_pipeline.model.config"} <= modules
+    for name in modules:
+        assert name.rsplit(".", 1)[-1] in ("config", "settings") or name in CONFIG_TREE_LEAVES, f"the config tree imports {name}"
+
+
+def test_design_doc_lists_each_stage_closure():
+    """docs/design.md's list of what each stage's code hash covers is the generated one."""
+    from dexlite_pipeline.codehash import closure_markdown
+
+    text = (REPO / "docs" / "design.md").read_text()
+    start, end = "<!-- stage closures: start -->\n", "<!-- stage closures: end -->"
+    assert start in text and end in text, "docs/design.md lost its stage closure markers"
+    listed = text.split(start, 1)[1].split(end, 1)[0]
+    assert listed == closure_markdown(PACKAGE_ROOT), "docs/design.md is stale: paste `python -m dexlite_pipeline.codehash --markdown`"

@@ -19,9 +19,11 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from dexlite_pipeline.objects.prepare import ObjectsConfig, prepare_objects
+from dexlite_pipeline.objects.config import ObjectsConfig
+from dexlite_pipeline.objects.prepare import prepare_objects
 from dexlite_pipeline.objects.sources import builtin_sources, pybullet_random_source, random_pybullet_paths
-from dexlite_pipeline.objects.stability import StabilityConfig, stability_table
+from dexlite_pipeline.objects.config import StabilityConfig
+from dexlite_pipeline.objects.stability import stability_table
 
 SPLIT_SEED = 20261201
 DEFAULT_RUN_SEEDS = (0, 1, 2)

@@ -11,7 +11,7 @@ the stability table, seed / curated / lift-validated shards (counts), the evalua
 readable; the shipped-model test reads its ``check`` block) and ``MODEL_CARD.md``.
 
 The ``check`` block is the learning ladder on a few objects, measured on the shipped copy
-with ``model.shipped.shipped_model_check`` (and on the float32 original, for comparison): fit
+with ``model.shipped_check.shipped_model_check`` (and on the float32 original, for comparison): fit
 errors on training objects and raw lift success on benchmark objects. A test repeats it on
 freshly prepared objects and compares within sampling noise.
 """
@@ -34,7 +34,7 @@ import yaml
 
 from dexlite_pipeline.io.grasp_store import GraspSet, read_grasp_store, write_grasp_store
 from dexlite_pipeline.model.checkpoint import save_half_precision_copy
-from dexlite_pipeline.model.shipped import shipped_model_check
+from dexlite_pipeline.model.shipped_check import shipped_model_check
 from dexlite_pipeline.settings import build_config
 
 CARD_METHODS = ("cvae_raw", "cvae_post", "random_post", "cvae_recon", "cvae_recon_post", "cvae_prior_train", "cvae_prior_train_post")

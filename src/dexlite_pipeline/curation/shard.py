@@ -21,14 +21,13 @@ import pandas as pd
 
 from dexlite_pipeline.curation.filters import (
     DROP_REASONS,
-    IMPORTED_ORIGIN,
-    CurateConfig,
     ObjectFacts,
     curate_grasps,
     merge_summaries,
     object_reasons,
     summarize,
 )
+from dexlite_pipeline.curation.config import IMPORTED_ORIGIN, CurateConfig
 from dexlite_pipeline.io.grasp_store import GraspSet, read_grasp_store
 
 if TYPE_CHECKING:
@@ -51,7 +50,7 @@ def tag_origin(grasps: GraspSet, origin: str) -> GraspSet:
 def imported_with_energies(imported_path: str, objects_dirs: list[str], shard: int, config: PipelineConfig, facts: ObjectFacts) -> GraspSet:
     """This shard's imported grasps, with energies for those that pass the object checks."""
     from dexlite_pipeline.device import resolve_device
-    from dexlite_pipeline.energy import evaluate_grasp_energies
+    from dexlite_pipeline.energy.per_grasp import evaluate_grasp_energies
     from dexlite_pipeline.sharding import shard_objects
 
     imported = tag_origin(read_grasp_store(imported_path), IMPORTED_ORIGIN)

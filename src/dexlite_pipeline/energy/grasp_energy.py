@@ -11,11 +11,12 @@ shared ``EnergyContext``; weights live apart in ``EnergyWeights`` (config sectio
 from __future__ import annotations
 
 from collections.abc import Iterable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 import torch
 
+from dexlite_pipeline.energy.config import EnergyConfig, EnergyWeights
 from dexlite_pipeline.energy.link_map import LinkFrameMap
 from dexlite_pipeline.energy.terms import (
     ContactDistanceTerm,
@@ -33,24 +34,7 @@ from dexlite_pipeline.objects.assets import ObjectAsset, SdfBank
 TERM_CLASSES: tuple[type[EnergyTerm], ...] = (ForceClosureTerm, ContactDistanceTerm, PenetrationTerm, SelfPenetrationTerm, JointLimitTerm)
 TERM_NAMES = tuple(term.name for term in TERM_CLASSES)  # ("E_fc", "E_dis", "E_pen", "E_spen", "E_joints")
 TERM_WEIGHT_KEYS: dict[str, str] = {term.name: term.weight_key for term in TERM_CLASSES}  # "E_fc" -> "fc", ...
-# DexGraspNet's success criteria: a grasp passes when each term is below its value (E_dis, E_pen in metres).
-DEXGRASPNET_THRESHOLDS: dict[str, float] = {"E_fc": 0.3, "E_dis": 0.005, "E_pen": 0.001}
 CONTACT_COUNT = 4
-
-
-@dataclass(frozen=True)
-class EnergyWeights:
-    """Weights of the terms in the total energy (defaults: DexGraspNet's and E_post's)."""
-
-    fc: float = 1.0
-    dis: float = 100.0
-    pen: float = 100.0
-    spen: float = 10.0
-    joints: float = 1.0
-
-    def combine(self, terms: Mapping[str, torch.Tensor]) -> torch.Tensor:
-        """Σ w_k E_k over the five terms (``TERM_NAMES``), (B,)."""
-        return weighted_sum(self, terms, TERM_WEIGHT_KEYS.items())
 
 
 def weighted_sum(weights, terms: Mapping[str, torch.Tensor], name_and_key: Iterable[tuple[str, str]]) -> torch.Tensor:
@@ -64,13 +48,9 @@ def weighted_sum(weights, terms: Mapping[str, torch.Tensor], name_and_key: Itera
     return total
 
 
-@dataclass(frozen=True)
-class EnergyConfig:
-    """Config section ``energy``: term weights and how the terms are sampled."""
-
-    weights: EnergyWeights = field(default_factory=EnergyWeights)
-    object_points: int = 2000  # object surface points for E_pen (DexGraspNet: 2000)
-    self_penetration_margin_m: float = 0.02  # E_spen distance below which keypoint pairs are penalized
+def combined_energy(weights: EnergyWeights, terms: Mapping[str, torch.Tensor]) -> torch.Tensor:
+    """Σ w_k E_k over the five terms (``TERM_NAMES``) with ``weights`` (``EnergyWeights``), (B,)."""
+    return weighted_sum(weights, terms, TERM_WEIGHT_KEYS.items())
 
 
 @dataclass

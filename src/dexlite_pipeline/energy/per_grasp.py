@@ -8,7 +8,8 @@ import logging
 import numpy as np
 import torch
 
-from dexlite_pipeline.energy.grasp_energy import CONTACT_COUNT, TERM_NAMES, EnergyConfig, EnergyWeights, GraspEnergy
+from dexlite_pipeline.energy.config import EnergyConfig, EnergyWeights
+from dexlite_pipeline.energy.grasp_energy import CONTACT_COUNT, TERM_NAMES, GraspEnergy
 from dexlite_pipeline.hand.model import ShadowHand
 from dexlite_pipeline.io.grasp_store import GraspSet, invalid_grasp_reasons
 from dexlite_pipeline.objects.assets import ObjectAssetError, load_asset

@@ -46,10 +46,9 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from dexlite_pipeline.energy.grasp_energy import DEXGRASPNET_THRESHOLDS
+from dexlite_pipeline.energy.config import DEXGRASPNET_THRESHOLDS
+from dexlite_pipeline.evaluation.config import JOINT_ENTROPY_BINS, PCA_COMPONENTS
 
-JOINT_ENTROPY_BINS = 100
-PCA_COMPONENTS = (1, 2, 3, 5)
 BOOTSTRAP_RESAMPLES = 4000
 
 

@@ -32,22 +32,17 @@ import math
 import time
 from collections import Counter
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
 
 import numpy as np
 
 from dexlite_pipeline.config import from_section
 from dexlite_pipeline.io.grasp_store import GraspSet, invalid_grasp_reasons
 from dexlite_pipeline.evaluation import metrics
+from dexlite_pipeline.evaluation.config import LADDER_RUNGS, EvaluateConfig, SeedProtocolConfig
 from dexlite_pipeline.evaluation.step_keys import with_evaluate_keys
 
 log = logging.getLogger(__name__)
 
-METHODS = (
-    "seed", "cvae_raw", "cvae_post", "random_post", "dexgraspnet",
-    "cvae_recon", "cvae_recon_post", "cvae_prior_train", "cvae_prior_train_post", "shipped_raw", "shipped_post",
-)  # fmt: skip
-SPLITS = ("train", "heldout")  # the values of the object catalogs' ``split`` column
 PURE_SYNTHESIS = "cvae_raw"  # the sampled stores' method label of pure syntheses on held-out objects
 # Methods read from the sampled / post-optimized stores: method -> (the stores' row label, stage of the store).
 SAMPLED_METHODS = {
@@ -62,13 +57,6 @@ SAMPLED_METHODS = {
 }
 PAIRED_METHODS = (*SAMPLED_METHODS, "random_post")  # rows correspond to rows of the sampled store
 PAIRED_DRAW = "sampled_rows"  # name of the draw these methods share
-# The learning ladder: rung of each method. Fit and in-distribution rows are measured on the
-# training objects whatever ``evaluate.splits`` says; held-out rows are the other methods'.
-LADDER_RUNGS = {
-    "cvae_recon": "fit", "cvae_recon_post": "fit",
-    "cvae_prior_train": "in_distribution", "cvae_prior_train_post": "in_distribution",
-}  # fmt: skip
-LADDER_SPLIT = "train"
 SELECTED_ARRAYS = ("hand_pose", "object_id", "scale")
 BUDGET_POSES = "budget_hand_pose"  # (N, S, 28) post-optimized poses after each budget iteration (post stores)
 SEED_PROTOCOL_SUCCESS = "seed_protocol_lift_success"  # lift success under ``evaluate.seed_protocol``'s physics
@@ -77,60 +65,6 @@ CONVERGENCE_COLUMNS = (
     "threshold_reached_fraction", "threshold_iteration_median", "E_post_median_initial", "E_post_median_final",
     "iterations_to_random_final_E_post", "convergence_ratio",
 )  # fmt: skip
-
-
-@dataclass(frozen=True)
-class SeedProtocolConfig:
-    """Config ``evaluate.seed_protocol``: DexLite's own lift test, a second, lenient measure beside ours.
-
-    Its physics differs from ours in these constants (lift test only); everything else is ours.
-    """
-
-    enabled: bool = True
-    friction: float = 2.0
-    preclose_rad: float = 0.07
-    contact_condim: int = 6
-    success_lift_ratio: float = 0.7
-
-    def lift_overrides(self) -> dict:
-        return {"friction": self.friction, "preclose_rad": self.preclose_rad, "contact_condim": self.contact_condim,
-                "success_lift_ratio": self.success_lift_ratio, "six_directions": False}
-
-
-@dataclass(frozen=True)
-class EvaluateConfig:
-    """Config section ``evaluate``."""
-
-    methods: tuple[str, ...] = METHODS  # methods to evaluate (missing inputs are reported, not invented)
-    splits: tuple[str, ...] = ("heldout",)  # object splits to evaluate (catalog column ``split``)
-    grasps_per_object: int = 16  # cap per (method, object) on simulated grasps
-    six_directions: bool = True  # also run the six-direction disturbance test
-    seed_passing_only: bool = True  # seed method = grasps passing the energy thresholds (the seed's dataset)
-    entropy_bins: int = metrics.JOINT_ENTROPY_BINS  # bins per joint of the joint-angle entropy
-    pca_components: tuple[int, ...] = metrics.PCA_COMPONENTS  # k of the cumulative PCA explained variance columns
-    energy_batch_size: int = 256  # grasps per energy evaluation batch
-    rendered_per_method: int = 2  # successes and failures pictured per method in the report
-    ladder_grasps_per_object: int = 8  # cap per (ladder method, training object) on simulated grasps
-    seed_protocol: SeedProtocolConfig = field(default_factory=SeedProtocolConfig)  # DexLite's lenient test beside ours
-
-    def __post_init__(self) -> None:
-        unknown = sorted(set(self.methods) - set(METHODS))
-        if unknown:
-            raise ValueError(f"config.evaluate.methods: unknown method(s) {', '.join(unknown)} (known: {', '.join(METHODS)})")
-        unknown = sorted(set(self.splits) - set(SPLITS))
-        if unknown:
-            raise ValueError(f"config.evaluate.splits: unknown split(s) {', '.join(unknown)} (known: {', '.join(SPLITS)})")
-        if self.grasps_per_object < 1 or self.ladder_grasps_per_object < 1 or self.entropy_bins < 2 or self.energy_batch_size < 1 or self.rendered_per_method < 0:
-            raise ValueError(
-                "config.evaluate: grasps_per_object, ladder_grasps_per_object, energy_batch_size >= 1, entropy_bins >= 2, rendered_per_method >= 0"
-            )
-
-    def splits_of(self, method: str) -> tuple[str, ...]:
-        """The object splits a method is evaluated on: the training objects for the ladder's rungs, else ``splits``."""
-        return (LADDER_SPLIT,) if method in LADDER_RUNGS else self.splits
-
-    def cap_of(self, method: str) -> int:
-        return self.ladder_grasps_per_object if method in LADDER_RUNGS else self.grasps_per_object
 
 
 def rung_of(method: str, split: str) -> str:
@@ -328,7 +262,7 @@ def simulate(
     Invalid grasps (``invalid_reason``) pass through both with NaN results and a failed
     lift; the seconds per grasp are per simulated (valid) grasp.
     """
-    from dexlite_pipeline.energy import evaluate_grasp_energies
+    from dexlite_pipeline.energy.per_grasp import evaluate_grasp_energies
     from dexlite_pipeline.sim.lift import run_lift_tests
 
     arrays = dict(selected.arrays)

@@ -57,7 +57,7 @@ def simulate_shard(source_paths: dict[str, list[str]], objects_dirs: list[str], 
     """
     from dexlite_pipeline.config import from_section
     from dexlite_pipeline.device import resolve_device
-    from dexlite_pipeline.energy.grasp_energy import EnergyConfig
+    from dexlite_pipeline.energy.config import EnergyConfig
     from dexlite_pipeline.evaluation.protocol import (
         BUDGET_POSES, BUDGET_SUCCESS, evaluate_config_from, fit_error_arrays, method_grasps, require_split_objects, sample_rows_of,
         select_grasps, simulate, simulate_budget, stage_seconds_per_grasp,

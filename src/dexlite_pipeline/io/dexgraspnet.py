@@ -37,6 +37,7 @@ from numpy.lib import format as npy_format
 from dexlite_pipeline.hand.model import JOINT_NAMES
 from dexlite_pipeline.hand.qpos import QPOS_KEYS, ROTATION_KEYS, TRANSLATION_KEYS, QposError, hand_pose_from_qpos, qpos_from_hand_pose
 from dexlite_pipeline.io.atomic import atomic_path
+from dexlite_pipeline.io.config import DexGraspNetConfig
 from dexlite_pipeline.io.grasp_store import GraspSet, empty_grasp_set
 from dexlite_pipeline.io.safe_pickle import NpyReadError, RefusedPickleError, load_npy_restricted
 
@@ -51,15 +52,6 @@ REPORT_COLUMNS = ("file", "object_id", "grasp_index", "grasps_affected", "kind",
 UNKNOWN_GRASP_COUNT = -1  # grasps_affected of a failed file whose header does not say how many grasps it holds
 # DexGraspNet writes the joints first, then the palm rotation and translation.
 EXPORT_KEY_ORDER = (*JOINT_NAMES, *ROTATION_KEYS, *TRANSLATION_KEYS)
-
-
-@dataclass(frozen=True)
-class DexGraspNetConfig:
-    """Config section ``dexgraspnet``: where the download is and how its objects are split."""
-
-    root: str = ""  # a DexGraspNet download (dataset/, meshdata/); empty = not used
-    heldout_fraction: float = 0.0  # share of imported objects held out for evaluation (seeded, per object code)
-    heldout_object_codes: tuple[str, ...] = ()  # object codes always held out
 
 
 @dataclass
@@ -241,7 +233,7 @@ class _FileTask:
     path: Path
     root: Path
     objects_out: Path
-    settings: object  # objects.build.AssetBuildSettings
+    settings: object  # objects.config.AssetBuildSettings
     split: str
 
 
@@ -311,7 +303,7 @@ def import_dexgraspnet(
 ) -> ImportResult:
     """Read a DexGraspNet download; write object assets under ``objects_out``; return grasps, catalog, problems.
 
-    ``settings`` is an ``objects.build.AssetBuildSettings`` (use the pipeline's, so SDF grids
+    ``settings`` is an ``objects.config.AssetBuildSettings`` (use the pipeline's, so SDF grids
     match the other objects'). Only objects with at least one usable grasp get an asset.
     Files are imported on ``workers`` processes (1: in this process); the result is in
     file order whatever the number of workers, and a file whose worker crashes is
@@ -437,7 +429,7 @@ def import_download(root: str, grasps_out: str, catalog_path: str, report_path: 
     from dexlite_pipeline.config import IMPORT_ASSET_KEYS, json_ready
     from dexlite_pipeline.io.grasp_store import write_grasp_store
     from dexlite_pipeline.objects.assets import CATALOG_NAME
-    from dexlite_pipeline.objects.build import AssetBuildSettings
+    from dexlite_pipeline.objects.config import AssetBuildSettings
 
     if Path(catalog_path).name != CATALOG_NAME:
         raise ValueError(f"{catalog_path}: the object catalog must be named {CATALOG_NAME} (readers find it beside assets/)")

@@ -13,7 +13,8 @@ from pathlib import Path
 import torch
 
 from dexlite_pipeline.io.atomic import atomic_path
-from dexlite_pipeline.model.network import GraspCVAE, ModelConfig
+from dexlite_pipeline.model.config import ModelConfig
+from dexlite_pipeline.model.network import GraspCVAE
 from dexlite_pipeline.config import json_ready
 
 CHECKPOINT_FORMAT = "dexlite-cvae-1"

@@ -36,58 +36,17 @@ Point coordinates enter in tenths of a metre (``pose.TRANSLATION_UNIT_M``).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import torch
 from torch import nn
 
 from dexlite_pipeline.model.pose import POSE_FEATURE_DIM, TRANSLATION_UNIT_M, features_to_parts, parts_to_features, shift_translation
-from dexlite_pipeline.config import json_ready
+from dexlite_pipeline.model.config import ModelConfig
 
-NORMALIZATIONS = ("batch", "none")
-POSE_FRAMES = ("object", "point", "surface", "hand")
 # PointNet's hidden activations leak a little below zero: with plain ReLU and no normalization the
 # 1024-wide layer can die during training (every unit negative for every point), after which every
 # cloud gets the same global and local feature and the model ignores the object.
 POINTNET_NEGATIVE_SLOPE = 0.01
 LATERAL_AXIS = 0  # column of the palm rotation across the knuckles, little finger -> first finger
-
-
-@dataclass(frozen=True)
-class ModelConfig:
-    """Network sizes (the reference values are the seed's), the pose frame and PointNet's inputs."""
-
-    pointnet_widths: tuple[int, ...] = (64, 128, 1024, 256)
-    encoder_hidden: tuple[int, ...] = (256, 512, 256)
-    decoder_hidden: tuple[int, ...] = (256, 512, 256)
-    latent_dim: int = 256
-    normalization: str = "batch"
-    pose_frame: str = "surface"
-    point_normals: bool = True
-
-    def __post_init__(self) -> None:
-        if self.normalization not in NORMALIZATIONS:
-            raise ValueError(f"model normalization {self.normalization!r} is not one of {', '.join(NORMALIZATIONS)}")
-        if self.pose_frame not in POSE_FRAMES:
-            raise ValueError(f"model pose_frame {self.pose_frame!r} is not one of {', '.join(POSE_FRAMES)}")
-        if not self.pointnet_widths or min(self.pointnet_widths) < 1 or self.latent_dim < 1:
-            raise ValueError("model sizes must be positive")
-
-    @property
-    def condition_dim(self) -> int:
-        return 2 * self.pointnet_widths[-1]
-
-    @property
-    def frame_input_dim(self) -> int:
-        """Extra network inputs that describe the pose frame: the vertical in the ``hand`` frame."""
-        return 3 if self.pose_frame == "hand" else 0
-
-    def to_dict(self) -> dict:
-        return json_ready(self)
-
-    @staticmethod
-    def from_dict(values: dict) -> "ModelConfig":
-        return ModelConfig(**{k: tuple(v) if isinstance(v, list) else v for k, v in values.items()})
 
 
 class PointNet(nn.Module):

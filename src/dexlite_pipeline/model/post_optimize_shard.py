@@ -60,10 +60,10 @@ def post_optimize_shard(sample_path: str, objects_dirs: list[str], shard: int, c
     """
     from dexlite_pipeline.config import json_ready
     from dexlite_pipeline.device import resolve_device
-    from dexlite_pipeline.energy.grasp_energy import EnergyConfig
+    from dexlite_pipeline.energy.config import EnergyConfig
     from dexlite_pipeline.hand import ShadowHand
     from dexlite_pipeline.io.grasp_store import GraspSet, invalid_grasp_reasons, read_grasp_store
-    from dexlite_pipeline.model.sampling import SYNTHESIS
+    from dexlite_pipeline.model.methods import SYNTHESIS
     from dexlite_pipeline.objects.assets import available_object_ids, load_asset
     from dexlite_pipeline.optim.init import HullSampler, initial_poses
     from dexlite_pipeline.sharding import shard_generator

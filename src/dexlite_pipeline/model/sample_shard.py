@@ -19,7 +19,8 @@ import numpy as np
 import torch
 
 from dexlite_pipeline.io.grasp_store import GraspSet, read_grasp_store
-from dexlite_pipeline.model.sampling import EXPAND_LATENT, EXPAND_POINT, SYNTHESIS, SampledRows
+from dexlite_pipeline.model.methods import EXPAND_LATENT, EXPAND_POINT, SYNTHESIS
+from dexlite_pipeline.model.sampling import SampledRows
 
 if TYPE_CHECKING:
     from dexlite_pipeline.settings import PipelineConfig
@@ -79,7 +80,8 @@ def shipped_rows(shipped_path: str, heldout: list[str], clouds, settings, genera
     an object in the shipped model's training set would measure recall, not generalization.
     """
     from dexlite_pipeline.model.checkpoint import cloud_reading, load_checkpoint
-    from dexlite_pipeline.model.sampling import SHIPPED_SYNTHESIS, synthesis_rows
+    from dexlite_pipeline.model.methods import SHIPPED_SYNTHESIS
+    from dexlite_pipeline.model.sampling import synthesis_rows
 
     model, checkpoint = load_checkpoint(shipped_path, device)
     trained_on = set(checkpoint.get("train_object_ids") or [])

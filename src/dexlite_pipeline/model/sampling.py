@@ -21,49 +21,11 @@ import numpy as np
 import torch
 
 from dexlite_pipeline.model.association import grasp_rays, nearest_to_ray, random_points
+from dexlite_pipeline.model.config import ANCHOR_RULES, LATENT_PRIORS, SampleConfig
 from dexlite_pipeline.model.data import ObjectClouds, cloud_keys
+from dexlite_pipeline.model.methods import PRIOR_ON_TRAINING, RECONSTRUCTION
 from dexlite_pipeline.model.network import GraspCVAE, anchor_at, condition_at
 from dexlite_pipeline.model.pose import features_to_pose, pose_to_features
-from dexlite_pipeline.model.shipped import SHIPPED_MODEL_RELATIVE
-
-SYNTHESIS = "cvae_raw"
-EXPAND_LATENT = "cvae_expand_latent"
-EXPAND_POINT = "cvae_expand_point"
-RECONSTRUCTION = "cvae_recon"  # learning ladder, fit rung: encoder-mean reconstructions of the training grasps
-PRIOR_ON_TRAINING = "cvae_prior_train"  # learning ladder, in-distribution rung: pure synthesis on training objects
-SHIPPED_SYNTHESIS = "shipped_raw"  # pure synthesis by the shipped (pretrained) model on held-out objects it never trained on
-LATENT_PRIORS = ("standard", "aggregate", "neighbours")
-ANCHOR_RULES = ("uniform", "matched")
-
-
-@dataclass(frozen=True)
-class SampleConfig:
-    """Config section ``sample``."""
-
-    synthesis_grasps_per_object: int = 32  # held-out objects: pure synthesis
-    expansion_grasps_per_object: int = 16  # training objects with lift-validated grasps
-    scales: tuple[float, ...] = (0.08, 0.10, 0.12)  # synthesis scales, dealt in turn (those of the training grasps)
-    expansion_latent_std: float = 0.5  # sigma of the latent perturbation
-    expansion_point_fraction: float = 0.5  # share of expansions that move the associated point instead
-    expansion_point_neighbours: int = 16  # the moved point is one of this many nearest cloud points
-    points_per_cloud: int = 0  # 0 = the value the model was trained with
-    ladder: bool = True  # also sample the learning ladder's rows on training objects (reconstructions, prior samples)
-    ladder_grasps_per_object: int = 0  # ladder rows per training object and rung (0: every training grasp, synthesis_grasps_per_object prior samples)
-    shipped_model: str = str(SHIPPED_MODEL_RELATIVE)  # pretrained model (path in the checkout) also sampled on held-out objects (rows shipped_raw); "" = none
-    latent_prior: str = "neighbours"  # where synthesis draws latents: standard N(0, I), the training codes' aggregate or its nearest clouds' codes
-    latent_temperature: float = 1.0  # scale of the latent noise
-    anchor_rule: str = "matched"  # associated points of pure synthesis: uniform, or matched to each latent's training grasp
-    neighbour_clouds: int = 1  # latent prior ``neighbours``: codes of this many nearest training clouds
-
-    def __post_init__(self) -> None:
-        if not self.scales or min(self.scales) <= 0:
-            raise ValueError("sample.scales must be a non-empty list of positive scales")
-        if self.neighbour_clouds < 1:
-            raise ValueError(f"sample.neighbour_clouds must be >= 1, got {self.neighbour_clouds}")
-        if self.anchor_rule not in ANCHOR_RULES:
-            raise ValueError(f"sample.anchor_rule {self.anchor_rule!r} is not one of {', '.join(ANCHOR_RULES)}")
-        if self.latent_prior not in LATENT_PRIORS:
-            raise ValueError(f"sample.latent_prior {self.latent_prior!r} is not one of {', '.join(LATENT_PRIORS)}")
 
 
 def _clouds_for(

@@ -16,10 +16,11 @@ from typing import TYPE_CHECKING
 import numpy as np
 import pandas as pd
 
-from dexlite_pipeline.curation.filters import IMPORTED_ORIGIN
+from dexlite_pipeline.curation.config import IMPORTED_ORIGIN
 from dexlite_pipeline.io.atomic import atomic_path
 from dexlite_pipeline.io.grasp_store import GraspSet, read_grasp_store
-from dexlite_pipeline.model.training import LOSS_TERMS, TrainingResult
+from dexlite_pipeline.model.config import LOSS_TERMS
+from dexlite_pipeline.model.training import TrainingResult
 
 if TYPE_CHECKING:
     from dexlite_pipeline.settings import PipelineConfig
@@ -92,7 +93,8 @@ def train_from_lift_shards(lift_paths: list[str], objects_dirs: list[str], confi
     import torch
 
     from dexlite_pipeline.device import resolve_device
-    from dexlite_pipeline.energy.grasp_energy import EnergyConfig, GraspEnergy
+    from dexlite_pipeline.energy.config import EnergyConfig
+    from dexlite_pipeline.energy.grasp_energy import GraspEnergy
     from dexlite_pipeline.hand import ShadowHand
     from dexlite_pipeline.model.data import TrainingDataError, build_training_data, select_training_grasps, split_validation
     from dexlite_pipeline.model.training import fit_training_codes, grasp_energy_terms, train_cvae

@@ -21,28 +21,24 @@ draws and latent noise come from seeded generators.
 
 from __future__ import annotations
 
-import dataclasses
 import logging
 import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 import torch
 
-from dexlite_pipeline.energy.grasp_energy import EnergyWeights, GraspEnergy
+from dexlite_pipeline.energy.grasp_energy import GraspEnergy
 from dexlite_pipeline.hand.rotation import matrix_to_euler_xyz
 from dexlite_pipeline.model.data import Batch, TrainingData, cloud_batches, make_batch
 from dexlite_pipeline.model.association import nearest_to_ray
-from dexlite_pipeline.model.network import GraspCVAE, ModelConfig, anchor_at, kl_divergence
+from dexlite_pipeline.model.config import ENERGY_TERMS, LOSS_TERMS, TrainConfig
+from dexlite_pipeline.model.network import GraspCVAE, anchor_at, kl_divergence
 from dexlite_pipeline.model.pose import features_to_parts, features_to_pose, pose_errors, reconstruction_error, rotate_features
 
 log = logging.getLogger(__name__)
-
-ENERGY_TERMS = ("fc", "dis", "pen", "spen", "joints")
-LOSS_TERMS = ("recon", "kl", *ENERGY_TERMS)
-LR_SCHEDULES = ("constant", "cosine")
 
 # (palm_rot (B,3,3), palm_t (B,3), joints (B,22), object_index (B,), scale (B,), dataset contacts (B,4), -1 = none)
 #   -> {term: (B,)}
@@ -85,47 +81,6 @@ def vertical_turns(count: int, generator: torch.Generator, device: torch.device)
     angle = torch.rand(count, generator=generator).to(device) * (2 * math.pi)
     cos, sin, zero, one = angle.cos(), angle.sin(), torch.zeros_like(angle), torch.ones_like(angle)
     return torch.stack([cos, -sin, zero, sin, cos, zero, zero, zero, one], dim=1).reshape(count, 3, 3)
-
-
-@dataclass(frozen=True)
-class TrainConfig:
-    """Config section ``train`` (two documented profiles: the default and ``config/profiles/seed_gpu.yaml``)."""
-
-    profile: str = "default"
-    epochs: int = 100000
-    max_steps: int = 8000
-    batch_size: int = 64
-    clouds_per_batch: int = 4
-    points_per_cloud: int = 256
-    learning_rate: float = 2e-3
-    validation_fraction: float = 0.1
-    min_grasps: int = 8
-    max_training_objects: int = 0  # train on a seeded subset of this many training objects (0 = all): the learning curve
-    energy_object_points: int = 512
-    contact_samples: int = 32
-    rotation_augmentation: bool = False
-    fixed_clouds: bool = True
-    lr_schedule: str = "cosine"
-    lr_warmup_steps: int = 200
-    grad_clip_norm: float = 1.0
-    energy_warmup_fraction: float = 0.3
-    weight_recon: float = 1.0
-    weight_kl: float = 1e-5
-    energy_weights: EnergyWeights = field(default_factory=lambda: EnergyWeights(fc=0.0, dis=0.0, pen=0.0, spen=0.0, joints=0.0))
-    model: ModelConfig = field(default_factory=lambda: ModelConfig(normalization="none"))
-
-    def __post_init__(self) -> None:
-        if self.batch_size < 1 or self.clouds_per_batch < 1 or self.points_per_cloud < 1 or self.epochs < 1:
-            raise ValueError("train: batch_size, clouds_per_batch, points_per_cloud and epochs must be positive")
-        if self.lr_schedule not in LR_SCHEDULES:
-            raise ValueError(f"train.lr_schedule {self.lr_schedule!r} is not one of {', '.join(LR_SCHEDULES)}")
-        if self.model.normalization == "batch" and self.clouds_per_batch < 2:
-            raise ValueError("train: BatchNorm needs clouds_per_batch >= 2 (one cloud per batch erases object size); use model.normalization: none")
-
-    def weights(self) -> dict[str, float]:
-        """Loss term -> weight: recon and kl, then the energy terms (fc, dis, pen, spen, joints)."""
-        weights = {"recon": self.weight_recon, "kl": self.weight_kl, **dataclasses.asdict(self.energy_weights)}
-        return {term: weights[term] for term in LOSS_TERMS}
 
 
 @dataclass

@@ -8,13 +8,13 @@ from __future__ import annotations
 
 import json
 import logging
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from dexlite_pipeline.io.atomic import atomic_path
 from dexlite_pipeline.objects.assets import asset_dir
+from dexlite_pipeline.objects.config import AssetBuildSettings
 
 
 def _not_short_sample_warning(record: logging.LogRecord) -> bool:
@@ -23,28 +23,6 @@ def _not_short_sample_warning(record: logging.LogRecord) -> bool:
 
 
 logging.getLogger("trimesh.sample").addFilter(_not_short_sample_warning)
-
-
-@dataclass(frozen=True)
-class AssetBuildSettings:
-    """How an asset's arrays are made (the relevant part of the ``objects`` config)."""
-
-    sdf_resolution: int = 96
-    sdf_padding: float = 0.25
-    surface_points: int = 4096
-    coacd_threshold: float = 0.08
-    coacd_max_convex_hull: int = 16
-    # CoACD search effort (its defaults: 150 iterations, 20 nodes, depth 3, 2000 samples):
-    # lower values trade a slightly less tight decomposition for a several-fold speed-up.
-    coacd_mcts_iterations: int = 150
-    coacd_mcts_nodes: int = 20
-    coacd_mcts_max_depth: int = 3
-    coacd_resolution: int = 2000
-    # Grid points whose distance may be within this band of the surface (normalized units)
-    # get the exact distance; the rest are interpolated from a 4x coarser exact grid
-    # (sign exact, error at most one coarse cell diagonal). None: exact everywhere.
-    sdf_exact_band: float | None = None
-    seed: int = 0
 
 
 def _igl_signed_distance(points: np.ndarray, mesh) -> np.ndarray:

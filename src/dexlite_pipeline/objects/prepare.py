@@ -17,13 +17,13 @@ import hashlib
 import json
 import logging
 import shutil
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from dexlite_pipeline.objects.assets import ASSETS_DIR, CATALOG_NAME, asset_dir
-from dexlite_pipeline.objects.build import AssetBuildSettings, write_asset
+from dexlite_pipeline.objects.build import write_asset
+from dexlite_pipeline.objects.config import AssetBuildSettings, ObjectsConfig
 from dexlite_pipeline.objects.sources import MeshSource, pybullet_data_dir
 from dexlite_pipeline.config import json_ready
 
@@ -41,33 +41,6 @@ MIN_NORMALIZED_VOLUME = 1e-4
 # Vertices closer than this fraction of the bounding-box diagonal are one vertex (welded seams):
 # 14 µm on a 14 cm object, far below the SDF grid and the surface sampling.
 WELD_TOLERANCE = 1e-4
-
-
-@dataclass(frozen=True)
-class ObjectsConfig:
-    """Config section ``objects`` (see config.yaml for the meaning of each key)."""
-
-    builtin_count: int = 40
-    benchmark_heldout: bool = True  # embedded objects of the benchmark split are always held out (never trained on)
-    benchmark_objects: int = 4  # the first this many benchmark-split objects are added to the run, held out
-    mesh_dirs: tuple[str, ...] = ()
-    heldout_mesh_dirs: tuple[str, ...] = ()
-    heldout_fraction: float = 0.2
-    sdf_resolution: int = 96
-    sdf_padding: float = 0.25
-    sdf_exact_band: float = 0.2
-    surface_points: int = 4096
-    coacd_threshold: float = 0.08
-    coacd_max_convex_hull: int = 16
-    coacd_mcts_iterations: int = 60
-    coacd_mcts_nodes: int = 10
-    coacd_mcts_max_depth: int = 2
-    coacd_resolution: int = 1000
-
-    def build_settings(self, seed: int) -> AssetBuildSettings:
-        """The asset build settings this section implies (same-named fields)."""
-        names = {f.name for f in dataclasses.fields(AssetBuildSettings)} - {"seed"}
-        return AssetBuildSettings(**{n: getattr(self, n) for n in names}, seed=seed)
 
 
 class MeshRejected(Exception):

@@ -25,6 +25,8 @@ from pathlib import Path
 
 import numpy as np
 
+from dexlite_pipeline.objects.config import StabilityConfig
+
 STABILITY_COLUMNS = ["object_id", "lateral_displacement_m", "rotation_deg", "stable", "reason"]
 STABILITY_REQUIRED_COLUMNS = ("object_id", "stable")  # what the stages that read the table use
 GRAVITY_M_S2 = 9.81
@@ -59,22 +61,6 @@ def import_pybullet():
             os.close(copy)
         os.close(devnull)
     return pybullet
-
-
-@dataclass(frozen=True)
-class StabilityConfig:
-    """Config section ``stability`` (see config.yaml for each key)."""
-
-    scale: float = 0.1
-    duration_s: float = 2.0
-    time_step_s: float = 0.004166667
-    tilt_deg: float = 3.0
-    max_lateral_m: float = 0.05
-    max_rotation_deg: float = 7.0
-    friction: float = 0.5
-    density_kg_m3: float = 500.0
-    solver_iterations: int = 50
-    collision_margin_m: float = 0.0005
 
 
 @dataclass(frozen=True)

@@ -1,16 +1,4 @@
-"""The annealed RMSProp-style grasp optimizer (seed synthesis and post-optimization)."""
+"""The annealed RMSProp-style grasp optimizer (seed synthesis and post-optimization).
 
-from dexlite_pipeline.optim.annealing import AnnealingConfig, AnnealingSchedule, OptimizationResult, optimize, pose_to_state, state_to_pose
-from dexlite_pipeline.optim.init import HullSampler, InitConfig, initial_poses
-
-__all__ = [
-    "AnnealingConfig",
-    "AnnealingSchedule",
-    "HullSampler",
-    "InitConfig",
-    "OptimizationResult",
-    "initial_poses",
-    "optimize",
-    "pose_to_state",
-    "state_to_pose",
-]
+Importing the package is light (``optim.config`` is a leaf of the config tree): import the
+optimizer from ``optim.annealing``, the start poses from ``optim.init``."""

@@ -25,7 +25,6 @@ surface (it never raises the energy). Results come back as the stored 28-vector 
 
 from __future__ import annotations
 
-import dataclasses
 import logging
 import time
 from collections.abc import Callable
@@ -36,48 +35,11 @@ import torch
 from dexlite_pipeline.energy.grasp_energy import CONTACT_COUNT, EnergyResult, GraspEnergy
 from dexlite_pipeline.hand.model import JOINTS, ROTATION, TRANSLATION
 from dexlite_pipeline.hand.rotation import euler_xyz_to_matrix, matrix_to_euler_xyz, matrix_to_rot6d, rot6d_to_matrix
+from dexlite_pipeline.optim.config import AnnealingConfig
 
 log = logging.getLogger(__name__)
 
 _T, _R6, _Q = slice(0, 3), slice(3, 9), slice(9, 31)
-
-
-@dataclass(frozen=True)
-class AnnealingSchedule:
-    """The annealing schedule: step size, temperature and their decay (config ``seed_grasps.annealing``,
-    ``post_optimize.annealing``). Defaults: DexGraspNet's constants (6000 steps from scratch)."""
-
-    iterations: int = 6000
-    step_size: float = 0.005  # scaled-gradient step at iteration 0
-    step_size_decay: float = 0.95  # step size × this every step_size_period iterations
-    step_size_period: int = 50
-    rmsprop_mu: float = 0.98  # weight of the NEW batch-mean squared gradient (DexGraspNet)
-    rmsprop_eps: float = 1e-8
-    contact_switch_probability: float = 0.5  # per contact and iteration
-    starting_temperature: float = 18.0  # Metropolis T0 (energy units)
-    temperature_decay: float = 0.95  # T × this every temperature_period iterations
-    temperature_period: int = 30
-
-
-@dataclass(frozen=True)
-class AnnealingConfig(AnnealingSchedule):
-    """Everything one optimizer run needs: the schedule plus what the run records and how it ends."""
-
-    trace_every: int = 1  # record the energy trace every this many iterations
-    final_contact_samples: int = 0  # after the last step, search this many contact sets per grasp (0: off, DexGraspNet)
-    contact_search_every: int = 0  # also run that search every this many iterations (0: only after the last step)
-    keep_best: bool = False  # end in each grasp's lowest-energy visited state (False: the last state, DexGraspNet)
-
-    @classmethod
-    def from_schedule(cls, schedule: AnnealingSchedule, **run_options) -> "AnnealingConfig":
-        """``schedule``'s values with the given run options (trace_every, final_contact_samples, ...)."""
-        return cls(**{f.name: getattr(schedule, f.name) for f in dataclasses.fields(AnnealingSchedule)}, **run_options)
-
-    def step_size_at(self, iteration: int) -> float:
-        return self.step_size * self.step_size_decay ** (iteration // self.step_size_period)
-
-    def temperature_at(self, iteration: int) -> float:
-        return self.starting_temperature * self.temperature_decay ** (iteration // self.temperature_period)
 
 
 @dataclass

@@ -11,14 +11,13 @@ with a uniformly random roll about a; the joints drawn around a mean open pose w
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
-
 import numpy as np
 import torch
 
 from dexlite_pipeline.hand.model import JOINT_NAMES, ShadowHand
 from dexlite_pipeline.hand.rotation import matrix_to_euler_xyz
 from dexlite_pipeline.objects.assets import ObjectAsset
+from dexlite_pipeline.optim.config import InitConfig
 
 # A relaxed, open hand: slight spread, middle joints a little bent, thumb opposed.
 MEAN_OPEN_POSE = {
@@ -27,15 +26,6 @@ MEAN_OPEN_POSE = {
 }
 # Approach direction in the palm frame: the palmar normal (−y) tilted 30° toward the fingers (+z).
 PALM_APPROACH = (0.0, -math.cos(math.radians(30.0)), math.sin(math.radians(30.0)))
-
-
-@dataclass(frozen=True)
-class InitConfig:
-    """Where optimization from scratch starts (DexGraspNet: palm 0.2–0.3 m out, ±30°, σ 10%)."""
-
-    distance_m: tuple[float, float] = (0.2, 0.3)  # palm origin distance from the hull point
-    jitter_deg: float = 30.0  # tilt of the approach away from the inward normal
-    joint_sigma_fraction: float = 0.1  # joint noise σ as a fraction of the joint range
 
 
 def mean_open_joints(hand: ShadowHand) -> torch.Tensor:

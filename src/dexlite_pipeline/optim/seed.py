@@ -15,49 +15,19 @@ from __future__ import annotations
 
 import logging
 import time
-from dataclasses import dataclass, field
-
 import numpy as np
 import torch
 
-from dexlite_pipeline.energy.grasp_energy import TERM_NAMES, EnergyConfig, GraspEnergy
-from dexlite_pipeline.energy.thresholds import EnergyThresholds
+from dexlite_pipeline.energy.config import EnergyConfig
+from dexlite_pipeline.energy.grasp_energy import TERM_NAMES, GraspEnergy
 from dexlite_pipeline.hand.model import ShadowHand
 from dexlite_pipeline.io.grasp_store import GraspSet
 from dexlite_pipeline.objects.assets import ObjectAsset
-from dexlite_pipeline.optim.annealing import AnnealingConfig, AnnealingSchedule, optimize
-from dexlite_pipeline.optim.init import HullSampler, InitConfig, initial_poses
+from dexlite_pipeline.optim.annealing import optimize
+from dexlite_pipeline.optim.config import SeedConfig
+from dexlite_pipeline.optim.init import HullSampler, initial_poses
 
 log = logging.getLogger(__name__)
-
-
-# The default seed-synthesis schedule: DexGraspNet's shortened to 2000 steps from 0.1-0.15 m, its
-# periods scaled to match (why: docs/results.md); DexGraspNet's own is config/profiles/dexgraspnet_schedule.yaml.
-SEED_SCHEDULE = AnnealingSchedule(iterations=2000, step_size_period=17, temperature_period=10)
-
-
-@dataclass(frozen=True)
-class SeedConfig:
-    """Config section ``seed_grasps``."""
-
-    grasps_per_object: int = 32  # starts per object and scale
-    scales: tuple[float, ...] = (0.08, 0.1, 0.12)  # object scales, about the object radius in metres
-    batch_size: int = 512  # grasps optimized together (changes results: the step uses batch statistics)
-    progress_every: int = 100  # iterations between progress lines in the log
-    thresholds: EnergyThresholds = field(default_factory=EnergyThresholds)
-    init: InitConfig = field(default_factory=lambda: InitConfig(distance_m=(0.1, 0.15)))
-    annealing: AnnealingSchedule = SEED_SCHEDULE
-    trace_every: int = 10  # iterations between rows of the energy trace
-    final_contact_samples: int = 1024  # contact sets searched per grasp after the last step (0: off, DexGraspNet)
-    contact_search_every: int = 100  # also search every this many iterations (0: only after the last step)
-    keep_best: bool = False  # end in the last accepted state (DexGraspNet); true: the lowest-energy visited state
-
-    def optimizer_config(self) -> AnnealingConfig:
-        """The optimizer's settings for one run: the schedule with this section's run options."""
-        return AnnealingConfig.from_schedule(
-            self.annealing, trace_every=self.trace_every, final_contact_samples=self.final_contact_samples,
-            contact_search_every=self.contact_search_every, keep_best=self.keep_best,
-        )
 
 
 def synthesize(

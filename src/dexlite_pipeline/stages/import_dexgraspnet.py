@@ -23,7 +23,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from dexlite_pipeline.config import from_section, parse_config_json
-    from dexlite_pipeline.io.dexgraspnet import DexGraspNetConfig, import_download
+    from dexlite_pipeline.io.config import DexGraspNetConfig
+    from dexlite_pipeline.io.dexgraspnet import import_download
 
     config = parse_config_json(args.config_json)
     section = from_section(DexGraspNetConfig, config.get("dexgraspnet"), "config.dexgraspnet")

@@ -140,9 +140,10 @@ def _balanced_rows(per_scale: int, scale_count: int, wanted: int) -> np.ndarray:
 
 def synthesize_from_scratch(assets, scales: dict, n: int, config: dict, device, seed: int):
     """``n`` grasps per object by energy optimization from convex-hull starts (section ``seed_grasps``)."""
-    from dexlite_pipeline.energy.grasp_energy import EnergyConfig
+    from dexlite_pipeline.energy.config import EnergyConfig
     from dexlite_pipeline.io.grasp_store import GraspSet
-    from dexlite_pipeline.optim.seed import SeedConfig, synthesize
+    from dexlite_pipeline.optim.config import SeedConfig
+    from dexlite_pipeline.optim.seed import synthesize
 
     base = from_section(SeedConfig, config.get("seed_grasps"), "config.seed_grasps")
     energy_config = from_section(EnergyConfig, config.get("energy"), "config.energy")
@@ -165,13 +166,15 @@ def synthesize_with_model(assets, scales: dict, n: int, config: dict, model_path
     """``n`` CVAE samples per object, refined by post-optimization (sections ``sample``, ``post_optimize``)."""
     import torch
 
-    from dexlite_pipeline.energy.grasp_energy import EnergyConfig, GraspEnergy
+    from dexlite_pipeline.energy.config import EnergyConfig
+    from dexlite_pipeline.energy.grasp_energy import GraspEnergy
     from dexlite_pipeline.hand import ShadowHand
     from dexlite_pipeline.io.grasp_store import GraspSet
     from dexlite_pipeline.model.checkpoint import cloud_reading, load_checkpoint
     from dexlite_pipeline.model.data import ObjectClouds
-    from dexlite_pipeline.model.post_optimization import PostOptimizeConfig, refine
-    from dexlite_pipeline.model.sampling import SampleConfig, synthesize
+    from dexlite_pipeline.model.config import PostOptimizeConfig, SampleConfig
+    from dexlite_pipeline.model.post_optimization import refine
+    from dexlite_pipeline.model.sampling import synthesize
 
     sample_config = from_section(SampleConfig, config.get("sample"), "config.sample")
     post_config = from_section(PostOptimizeConfig, config.get("post_optimize"), "config.post_optimize")
@@ -312,8 +315,9 @@ def run_grasp_tool(request: GraspRequest) -> GraspOutcome:
     from dexlite_pipeline.io.dexgraspnet import export_dexgraspnet
     from dexlite_pipeline.io.grasp_store import write_grasp_store
     from dexlite_pipeline.objects.assets import load_asset
-    from dexlite_pipeline.objects.prepare import ObjectsConfig, prepare_objects
-    from dexlite_pipeline.optim.seed import SeedConfig
+    from dexlite_pipeline.objects.config import ObjectsConfig
+    from dexlite_pipeline.objects.prepare import prepare_objects
+    from dexlite_pipeline.optim.config import SeedConfig
     from dexlite_pipeline.sim.config import lift_config_from
     from dexlite_pipeline.sim.results import lift_grasp_set
 

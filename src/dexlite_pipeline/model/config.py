@@ -1,0 +1,170 @@
+"""The model's config types: the network (``train.model``), sections ``train``, ``sample`` and ``post_optimize``.
+
+A leaf of the config tree (``settings``): it imports no model code, so a stage's code hash
+(``codehash``) covers these shapes without the network, training, sampling or
+post-optimization code.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+
+from dexlite_pipeline.config import json_ready
+from dexlite_pipeline.energy.config import EnergyWeights
+from dexlite_pipeline.model.shipped import SHIPPED_MODEL_RELATIVE
+from dexlite_pipeline.optim.config import AnnealingConfig, AnnealingSchedule, InitConfig
+
+NORMALIZATIONS = ("batch", "none")
+POSE_FRAMES = ("object", "point", "surface", "hand")
+
+
+@dataclass(frozen=True)
+class ModelConfig:
+    """Network sizes (the reference values are the seed's), the pose frame and PointNet's inputs."""
+
+    pointnet_widths: tuple[int, ...] = (64, 128, 1024, 256)
+    encoder_hidden: tuple[int, ...] = (256, 512, 256)
+    decoder_hidden: tuple[int, ...] = (256, 512, 256)
+    latent_dim: int = 256
+    normalization: str = "batch"
+    pose_frame: str = "surface"
+    point_normals: bool = True
+
+    def __post_init__(self) -> None:
+        if self.normalization not in NORMALIZATIONS:
+            raise ValueError(f"model normalization {self.normalization!r} is not one of {', '.join(NORMALIZATIONS)}")
+        if self.pose_frame not in POSE_FRAMES:
+            raise ValueError(f"model pose_frame {self.pose_frame!r} is not one of {', '.join(POSE_FRAMES)}")
+        if not self.pointnet_widths or min(self.pointnet_widths) < 1 or self.latent_dim < 1:
+            raise ValueError("model sizes must be positive")
+
+    @property
+    def condition_dim(self) -> int:
+        return 2 * self.pointnet_widths[-1]
+
+    @property
+    def frame_input_dim(self) -> int:
+        """Extra network inputs that describe the pose frame: the vertical in the ``hand`` frame."""
+        return 3 if self.pose_frame == "hand" else 0
+
+    def to_dict(self) -> dict:
+        return json_ready(self)
+
+    @staticmethod
+    def from_dict(values: dict) -> "ModelConfig":
+        return ModelConfig(**{k: tuple(v) if isinstance(v, list) else v for k, v in values.items()})
+
+
+ENERGY_TERMS = ("fc", "dis", "pen", "spen", "joints")
+LOSS_TERMS = ("recon", "kl", *ENERGY_TERMS)
+LR_SCHEDULES = ("constant", "cosine")
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """Config section ``train`` (two documented profiles: the default and ``config/profiles/seed_gpu.yaml``)."""
+
+    profile: str = "default"
+    epochs: int = 100000
+    max_steps: int = 8000
+    batch_size: int = 64
+    clouds_per_batch: int = 4
+    points_per_cloud: int = 256
+    learning_rate: float = 2e-3
+    validation_fraction: float = 0.1
+    min_grasps: int = 8
+    max_training_objects: int = 0  # train on a seeded subset of this many training objects (0 = all): the learning curve
+    energy_object_points: int = 512
+    contact_samples: int = 32
+    rotation_augmentation: bool = False
+    fixed_clouds: bool = True
+    lr_schedule: str = "cosine"
+    lr_warmup_steps: int = 200
+    grad_clip_norm: float = 1.0
+    energy_warmup_fraction: float = 0.3
+    weight_recon: float = 1.0
+    weight_kl: float = 1e-5
+    energy_weights: EnergyWeights = field(default_factory=lambda: EnergyWeights(fc=0.0, dis=0.0, pen=0.0, spen=0.0, joints=0.0))
+    model: ModelConfig = field(default_factory=lambda: ModelConfig(normalization="none"))
+
+    def __post_init__(self) -> None:
+        if self.batch_size < 1 or self.clouds_per_batch < 1 or self.points_per_cloud < 1 or self.epochs < 1:
+            raise ValueError("train: batch_size, clouds_per_batch, points_per_cloud and epochs must be positive")
+        if self.lr_schedule not in LR_SCHEDULES:
+            raise ValueError(f"train.lr_schedule {self.lr_schedule!r} is not one of {', '.join(LR_SCHEDULES)}")
+        if self.model.normalization == "batch" and self.clouds_per_batch < 2:
+            raise ValueError("train: BatchNorm needs clouds_per_batch >= 2 (one cloud per batch erases object size); use model.normalization: none")
+
+    def weights(self) -> dict[str, float]:
+        """Loss term -> weight: recon and kl, then the energy terms (fc, dis, pen, spen, joints)."""
+        weights = {"recon": self.weight_recon, "kl": self.weight_kl, **dataclasses.asdict(self.energy_weights)}
+        return {term: weights[term] for term in LOSS_TERMS}
+
+
+LATENT_PRIORS = ("standard", "aggregate", "neighbours")
+ANCHOR_RULES = ("uniform", "matched")
+
+
+@dataclass(frozen=True)
+class SampleConfig:
+    """Config section ``sample``."""
+
+    synthesis_grasps_per_object: int = 32  # held-out objects: pure synthesis
+    expansion_grasps_per_object: int = 16  # training objects with lift-validated grasps
+    scales: tuple[float, ...] = (0.08, 0.10, 0.12)  # synthesis scales, dealt in turn (those of the training grasps)
+    expansion_latent_std: float = 0.5  # sigma of the latent perturbation
+    expansion_point_fraction: float = 0.5  # share of expansions that move the associated point instead
+    expansion_point_neighbours: int = 16  # the moved point is one of this many nearest cloud points
+    points_per_cloud: int = 0  # 0 = the value the model was trained with
+    ladder: bool = True  # also sample the learning ladder's rows on training objects (reconstructions, prior samples)
+    ladder_grasps_per_object: int = 0  # ladder rows per training object and rung (0: every training grasp, synthesis_grasps_per_object prior samples)
+    shipped_model: str = str(SHIPPED_MODEL_RELATIVE)  # pretrained model (path in the checkout) also sampled on held-out objects (rows shipped_raw); "" = none
+    latent_prior: str = "neighbours"  # where synthesis draws latents: standard N(0, I), the training codes' aggregate or its nearest clouds' codes
+    latent_temperature: float = 1.0  # scale of the latent noise
+    anchor_rule: str = "matched"  # associated points of pure synthesis: uniform, or matched to each latent's training grasp
+    neighbour_clouds: int = 1  # latent prior ``neighbours``: codes of this many nearest training clouds
+
+    def __post_init__(self) -> None:
+        if not self.scales or min(self.scales) <= 0:
+            raise ValueError("sample.scales must be a non-empty list of positive scales")
+        if self.neighbour_clouds < 1:
+            raise ValueError(f"sample.neighbour_clouds must be >= 1, got {self.neighbour_clouds}")
+        if self.anchor_rule not in ANCHOR_RULES:
+            raise ValueError(f"sample.anchor_rule {self.anchor_rule!r} is not one of {', '.join(ANCHOR_RULES)}")
+        if self.latent_prior not in LATENT_PRIORS:
+            raise ValueError(f"sample.latent_prior {self.latent_prior!r} is not one of {', '.join(LATENT_PRIORS)}")
+
+
+# DexLite's post-optimization schedule: DexGraspNet's constants over 200 iterations.
+POST_SCHEDULE = AnnealingSchedule(iterations=200)
+
+
+@dataclass(frozen=True)
+class PostOptimizeConfig:
+    """Config section ``post_optimize`` (the seed's post-optimization)."""
+
+    annealing: AnnealingSchedule = POST_SCHEDULE  # the random starts' schedule (DexGraspNet's, 200 steps)
+    energy_weights: EnergyWeights = field(default_factory=EnergyWeights)  # E_post = Σ weight · term
+    energy_object_points: int = 2000  # object surface points for E_pen
+    start_contact_samples: int = 64  # sampled grasps start from the best of this many near-surface 4-sets (0: nearest pads)
+    final_contact_samples: int = 64  # after the last step, keep the best of this many contact sets (0: off)
+    keep_best: bool = True  # return each grasp's lowest-E_post visited state instead of the last one
+    learned_start_temperature: float = 0.5  # T0 for CVAE starts, which are already close: few uphill moves accepted
+    learned_start_step_size: float = 0.002  # step size at iteration 0 for CVAE starts
+    budget_iterations: tuple[int, ...] = (0, 25, 50, 100, 200)  # poses kept after these iterations for the budget curve
+    batch_size: int = 1024  # grasps per optimizer batch (a shard is cut into batches of this size)
+    random_baseline: bool = True  # also run the random-init baseline (held-out objects' grasps)
+    random_init: InitConfig = field(default_factory=InitConfig)
+
+    def optimizer_config(self, learned_start: bool = False) -> AnnealingConfig:
+        """The optimizer's settings: ``annealing`` for random starts; for learned (CVAE) starts the same
+        with the close-start temperature and step size. The energy is traced at every iteration."""
+        schedule = self.annealing
+        if learned_start:
+            schedule = dataclasses.replace(schedule, starting_temperature=self.learned_start_temperature, step_size=self.learned_start_step_size)
+        return AnnealingConfig.from_schedule(schedule, trace_every=1, final_contact_samples=self.final_contact_samples, keep_best=self.keep_best)
+
+    def budget(self) -> tuple[int, ...]:
+        """The budget-curve iterations within this run's length."""
+        return tuple(sorted(i for i in set(self.budget_iterations) if 0 <= i <= self.annealing.iterations))
