@@ -71,7 +71,7 @@ rule evaluate:
         record=f"{RESULTS}/eval/evaluation.json",
     threads: 1
     params:
-        cfg=evaluate_step_params(AGGREGATE_KEYS, "seed"),
+        cfg=evaluate_step_params(AGGREGATE_KEYS, "seed", "diversity"),
         code=code_hash("evaluate"),
         sims=lambda wc, input: learning_cli_options("sim", input.sims),
         post=lambda wc, input: learning_cli_options("post", input.post) + " " + learning_cli_options("random-post", input.random_post),
