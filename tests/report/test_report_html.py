@@ -90,15 +90,15 @@ def test_headline_sentence_gives_both_rates_of_the_product_and_the_comparisons()
     sentence = headline_sentence(headline_rows(_run_metrics()), {})
     assert sentence.startswith("On 5 held-out objects (80 grasps), 17.5% of CVAE samples + post-optimization held the object in the lift test")
     assert "13.8% against pushes from all six directions" in sentence
-    assert "; for comparison, random start + post-optimization 21.2% / 8.8%, CVAE samples, raw 6.2% / 0.0%," in sentence
-    assert sentence.endswith(", optimization from scratch (seed grasps) 55.0% / 50.0%.")
+    assert "; for comparison, random start + post-optimization 21.2% / 8.8% per attempt; CVAE samples, raw 6.2% / 0.0% per attempt;" in sentence
+    assert sentence.endswith("; optimization from scratch (seed grasps) 55.0% / 50.0% per attempt.")
     assert sentence.count(".") == sentence.count("%") + 1  # one sentence: the only other full stops are decimal points
     no_six = _run_metrics().assign(six_dir_success_rate=np.nan)
     assert "(six-direction test not run)" in headline_sentence(headline_rows(no_six), {})
     # a row measured on fewer objects (the shipped model samples only objects it never trained on) says so
     shipped = _run_metrics().iloc[[2]].assign(method="shipped_post", n_objects=2, n_grasps=32, lift_success_rate=0.4)
     with_shipped = headline_sentence(headline_rows(pd.concat([_run_metrics(), shipped], ignore_index=True)), {})
-    assert "shipped model's samples + post-optimization 40.0% / 13.8% (on 2 objects)" in with_shipped
+    assert "shipped model's samples + post-optimization 40.0% / 13.8% per attempt (on 2 objects)" in with_shipped
     assert with_shipped.count("objects)") == 1
 
 
