@@ -298,3 +298,27 @@ def test_every_evaluate_setting_belongs_to_a_step_and_steps_read_only_theirs():
     assert {f.name for f in fields(EvaluateConfig)} == set(SIMULATE_KEYS) | set(AGGREGATE_KEYS) | set(REPORT_KEYS)
     cfg = evaluate_config_from({"evaluate": {"grasps_per_object": 5, "rendered_per_method": 7}}, SIMULATE_KEYS)
     assert cfg.grasps_per_object == 5 and cfg.rendered_per_method == EvaluateConfig().rendered_per_method
+
+
+def test_coverage_arrays_touch_the_box_only_where_the_hand_is(tiny_objects):
+    """Forward kinematics and the SDF: a hand on the box touches patches, one a metre away or invalid touches none."""
+    from report_synthetic import grasp_poses
+
+    from dexlite_pipeline.evaluation.diversity import DiversityConfig
+    from dexlite_pipeline.evaluation.metrics import COVERAGE_PATCHES, TOUCHED_PATCHES
+    from dexlite_pipeline.evaluation.protocol import coverage_arrays
+
+    poses = grasp_poses(4, np.random.default_rng(0))
+    poses[1, 2] = 1.0  # palm 1 m above the box
+    poses[2] = np.nan
+    grasps = GraspSet({
+        "hand_pose": poses, "object_id": np.asarray([OBJECT_ID] * 3 + ["no_such_object"], dtype=object), "scale": np.full(4, 0.06, np.float32),
+        "invalid_reason": np.asarray(["", "", "non-finite hand_pose", ""], dtype=object),
+    })  # fmt: skip
+    out = coverage_arrays(grasps, [tiny_objects], DiversityConfig(coverage_patches=16))
+    assert out[COVERAGE_PATCHES].tolist() == [16, 16, 16, 0]  # the box has 128 surface samples; the unknown object none
+    touched = out[TOUCHED_PATCHES]
+    assert touched.shape == (4, 16) and touched[0].any() and not touched[1:].any()
+    # a contact distance of a micrometre: the same grasp touches fewer patches or none
+    tight = coverage_arrays(grasps, [tiny_objects], DiversityConfig(coverage_patches=16, coverage_contact_m=1e-6))[TOUCHED_PATCHES]
+    assert tight[0].sum() < touched[0].sum()
