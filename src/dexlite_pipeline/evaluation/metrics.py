@@ -369,13 +369,9 @@ def summarize_grasps(
     passing = filter_flags(arrays, thresholds)
     out["energy_threshold_pass_rate"] = rate(passing) if passing is not None else math.nan
     out["filtered_n_grasps"] = int(passing.sum()) if passing is not None else math.nan
-    kept = {name: np.asarray(value)[passing] for name, value in arrays.items()} if passing is not None else None
-
-    def kept_column(name: str) -> np.ndarray | None:
-        return kept[name] if kept is not None and name in kept else None
-
-    out.update(_rate_columns("filtered_lift_success", kept_column("lift_success"), object_ids[passing] if passing is not None else object_ids, bootstrap_seed))
-    out.update(_rate_columns("filtered_six_dir_success", kept_column("six_dir_success"), object_ids[passing] if passing is not None else object_ids, bootstrap_seed))
+    for name, flags in (("lift_success", lift), ("six_dir_success", six)):  # the same rates on the passing grasps only
+        kept = flags[passing] if flags is not None and passing is not None else None
+        out.update(_rate_columns(f"filtered_{name}", kept, object_ids[passing] if kept is not None else object_ids, bootstrap_seed))
     if passing is not None and lift is not None:
         out.update(diversity_columns(arrays, held & passing, diversity, "filtered_"))
     else:
