@@ -266,7 +266,8 @@ def per_object_diversity(arrays: Mapping[str, np.ndarray], flags: np.ndarray, di
     if rows.size:
         scales = np.asarray(arrays["scale"], dtype=np.float64)[rows].astype(str) if "scale" in arrays else np.full(rows.size, "")
         groups = np.char.add(np.char.add(object_ids[rows], "|"), scales)
-        labels[rows] = distinct_grasp_labels(np.asarray(arrays["hand_pose"])[rows], groups, diversity.distinct_translation_m, diversity.distinct_rotation_deg)
+        poses = np.asarray(arrays["hand_pose"])[rows]
+        labels[rows] = distinct_grasp_labels(poses, groups, diversity.distinct_translation_m, diversity.distinct_rotation_deg)
     touched = np.asarray(arrays[TOUCHED_PATCHES], dtype=bool) if TOUCHED_PATCHES in arrays else None
     patches = np.asarray(arrays[COVERAGE_PATCHES], dtype=np.int64) if COVERAGE_PATCHES in arrays else None
     out = {}
@@ -282,7 +283,9 @@ def per_object_diversity(arrays: Mapping[str, np.ndarray], flags: np.ndarray, di
     return out
 
 
-def diversity_columns(arrays: Mapping[str, np.ndarray], flags: np.ndarray, diversity: DiversityConfig = DiversityConfig(), prefix: str = "") -> dict[str, float]:
+def diversity_columns(
+    arrays: Mapping[str, np.ndarray], flags: np.ndarray, diversity: DiversityConfig = DiversityConfig(), prefix: str = ""
+) -> dict[str, float]:
     """Held count, distinct held grasps (total, mean per object, per attempt) and mean coverage of the flagged grasps.
 
     Means are over every object of ``arrays`` (one with no flagged grasp counts 0 distinct,

@@ -2,14 +2,14 @@
 
 Read from the top, the page answers in this order: the run's facts (date, code commit, wall
 time, machine); one sentence with the result and a compact table (readable method names,
-lift and six-direction rates side by side with their 95% intervals, each beside the
-distinct held grasps per object and the surface coverage, per attempt and after the equal
-energy filter, and the CPU-seconds per distinct held grasp); the learning ladder when the evaluation measured it; plots
-(success per method, energies, post-optimization convergence, training curves);
-published numbers for context; pictures of grasps drawn at random among each method's
-successes and failures, with their contacts marked and the outcome in large type; and
-last the run's settings, the physical constants and links to the full CSV tables. It
-opens from disk, no server.
+lift and six-direction rates side by side with their 95% intervals, the lift rate beside
+the distinct held grasps per object and the surface coverage, per attempt and after the
+equal energy filter, and the CPU-seconds per distinct held grasp); the learning ladder
+when the evaluation measured it; plots (success per method, energies, post-optimization
+convergence, training curves); published numbers for context; pictures of grasps drawn at
+random among each method's successes and failures, with their contacts marked and the
+outcome in large type; and last the run's settings, the physical constants and links to
+the full CSV tables. It opens from disk, no server.
 """
 
 from __future__ import annotations
@@ -919,7 +919,8 @@ def definitions_html(lift_config: Mapping) -> str:
         "energy_threshold_pass_rate = passing attempts / attempts, filtered_* = the measures on the passing grasps only. "
         "seconds_per_grasp sums the stages that made the method's grasps, per attempt, on this machine (one-thread jobs: "
         "CPU-seconds on a CPU run; training, preparation and the evaluation itself not included); cpu_seconds_per_held_grasp "
-        "and cpu_seconds_per_distinct_held_grasp divide all attempts' seconds by the held (distinct held) grasps they gave. cvae_raw, cvae_post and random_post are evaluated on the same sampled rows (same "
+        "and cpu_seconds_per_distinct_held_grasp divide all attempts' seconds by the held (distinct held) grasps they gave. "
+        "cvae_raw, cvae_post and random_post are evaluated on the same sampled rows (same "
         "objects and scales). Intervals: ci95 = Wilson (grasps taken as independent); boot_ci95 = object-level bootstrap "
         "(objects resampled with replacement: wider when success depends on the object, rough with few objects), the one the "
         "compact table and the error bars show.</p>"
