@@ -97,6 +97,8 @@ def test_summarize_grasps_columns():
         "penetration_mm": np.array([1.0, 2.0, 3.0, 4.0]),
         "E_fc": np.array([0.1, 0.2, 0.3, 0.4]),
         "E_dis": np.array([0.001, 0.001, 0.01, 0.001]),
+        "filter_E_fc": np.array([0.1, 0.2, 0.3, 0.4]),  # the filter's energies (its contact search)
+        "filter_E_dis": np.array([0.001, 0.001, 0.01, 0.001]),
         "E_pen": np.zeros(n),
     }
     out = metrics.summarize_grasps(arrays, LIMITS, entropy_bins=4)
@@ -191,8 +193,10 @@ def _held_table():
         "scale": np.full(6, 0.1),
         "lift_success": np.array([True, True, True, True, False, False]),
         "six_dir_success": np.array([True, False, True, False, False, False]),
-        "E_fc": np.array([0.1, 0.1, 0.5, 0.1, 0.1, np.nan]),
+        "E_fc": np.full(6, 2.0),  # the nearest-four contacts' energies: not what the filter reads
         "E_dis": np.full(6, 0.001),
+        "filter_E_fc": np.array([0.1, 0.1, 0.5, 0.1, 0.1, np.nan]),
+        "filter_E_dis": np.full(6, 0.001),
         "E_pen": np.zeros(6),
         "invalid_reason": np.array(["", "", "", "", "", "non-finite hand_pose"], dtype=object),
         metrics.TOUCHED_PATCHES: touched,
@@ -232,7 +236,7 @@ def test_filter_thresholds_are_a_setting():
 
 
 def test_without_energies_or_patches_the_columns_are_nan_not_zero():
-    table = {k: v for k, v in _held_table().items() if k not in ("E_fc", metrics.TOUCHED_PATCHES)}
+    table = {k: v for k, v in _held_table().items() if k not in ("filter_E_fc", metrics.TOUCHED_PATCHES)}
     out = metrics.summarize_grasps(table, LIMITS, entropy_bins=4)
     assert out["distinct_held_total"] == 3  # needs only poses and outcomes
     for column in ("surface_coverage_mean", "energy_threshold_pass_rate", "filtered_lift_success_rate", "filtered_distinct_held_total"):

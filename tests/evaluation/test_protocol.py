@@ -253,7 +253,7 @@ def test_simulate_step_on_tiny_object(tmp_path, tiny_objects):
     assert main(["evaluate", "--step", "simulate", "--shard", "0", "--config-json", cfg, "--seed", str(seed_store), "--objects", str(tiny_objects), "--out", str(out)]) == 0
     result = read_grasp_store(out)
     assert len(result) == 3 and set(result.object_id) == {OBJECT_ID}
-    for name in ("lift_success", "failure_reason", "E_fc", "penetration_mm", "contact_distance_mm"):
+    for name in ("lift_success", "failure_reason", "E_fc", "penetration_mm", "contact_distance_mm", "filter_E_fc", "filter_E_dis"):
         assert name in result.arrays
     invalid = result.arrays["source_row"] == 1
     assert result.arrays["invalid_reason"][invalid].tolist() == ["non-finite hand_pose"] and not result.arrays["lift_success"][invalid].any()
@@ -322,3 +322,29 @@ def test_coverage_arrays_touch_the_box_only_where_the_hand_is(tiny_objects):
     # a contact distance of a micrometre: the same grasp touches fewer patches or none
     tight = coverage_arrays(grasps, [tiny_objects], DiversityConfig(coverage_patches=16, coverage_contact_m=1e-6))[TOUCHED_PATCHES]
     assert tight[0].sum() < touched[0].sum()
+
+
+def test_filter_contact_search_is_per_grasp_and_never_worse_than_the_nearest_four(tiny_objects):
+    """The equal filter's contacts: the same for a grasp alone or in a batch; its score at most the nearest four's."""
+    from report_synthetic import grasp_poses
+
+    from dexlite_pipeline.energy import evaluate_grasp_energies
+    from dexlite_pipeline.energy.grasp_energy import EnergyWeights
+    from dexlite_pipeline.evaluation.filter_energy import FILTER_CONTACTS, filter_energy_arrays
+
+    poses = grasp_poses(6, np.random.default_rng(3))
+    poses[4] = np.nan
+    grasps = GraspSet({
+        "hand_pose": poses, "object_id": np.asarray([OBJECT_ID] * 5 + ["no_such_object"], dtype=object), "scale": np.full(6, 0.06, np.float32),
+        "invalid_reason": np.asarray([""] * 4 + ["non-finite hand_pose", ""], dtype=object),
+    })  # fmt: skip
+    weights = EnergyWeights()
+    together = filter_energy_arrays(grasps, [tiny_objects], weights, batch_size=64)
+    alone = filter_energy_arrays(grasps, [tiny_objects], weights, batch_size=1)
+    for name, value in together.items():
+        np.testing.assert_array_equal(value, alone[name], err_msg=name)
+    assert np.isfinite(together["filter_E_fc"][:4]).all() and np.isnan(together["filter_E_fc"][4:]).all()
+    assert (together[FILTER_CONTACTS][4:] == -1).all()
+    nearest = evaluate_grasp_energies(grasps.select(np.arange(4)), [tiny_objects])
+    searched = weights.fc * together["filter_E_fc"][:4] + weights.dis * together["filter_E_dis"][:4]
+    assert (searched <= weights.fc * nearest["E_fc"] + weights.dis * nearest["E_dis"] + 1e-5).all()

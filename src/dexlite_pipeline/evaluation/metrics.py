@@ -49,8 +49,9 @@ outside the pipeline. Conventions (stated once, used in the CSV column names):
 
 - **equal filtering**: every method is also counted after one energy filter, the thresholds
   of ``evaluate.filter_thresholds`` (by default the curation's and the seed synthesis's:
-  E_fc < 0.3, E_dis < 5 mm, E_pen < 1 mm) applied to the evaluation's own energies (one
-  code path for every method). ``energy_threshold_pass_rate`` is the share of attempts
+  E_fc < 0.3, E_dis < 5 mm, E_pen < 1 mm) applied to the evaluation's own energies, E_fc and
+  E_dis with the contacts of one deterministic search for every method (``filter_E_fc``,
+  ``filter_E_dis``: ``evaluation.filter_energy``). ``energy_threshold_pass_rate`` is the share of attempts
   that pass (``filtered_n_grasps`` of ``n_grasps``; invalid grasps do not pass);
   ``filtered_*`` columns are the same measures on the passing grasps only, so a method's
   ``filtered_lift_success_rate`` is held / passing, and ``filtered_distinct_held_*`` and
@@ -242,14 +243,23 @@ def held_flags(arrays: Mapping[str, np.ndarray]) -> np.ndarray:
     return np.asarray(arrays["lift_success"], dtype=bool) & ~invalid_flags(arrays)
 
 
+# The equal filter reads E_fc and E_dis with the contacts its own search chose (evaluation.filter_energy),
+# the same for every method; E_pen does not depend on the contacts.
+FILTER_ARRAYS = {"E_fc": "filter_E_fc", "E_dis": "filter_E_dis", "E_pen": "E_pen"}
+
+
 def filter_flags(arrays: Mapping[str, np.ndarray], thresholds: Mapping[str, float] = DEXGRASPNET_THRESHOLDS) -> np.ndarray | None:
-    """Per grasp, True where every energy of ``thresholds`` is below its limit (NaN: fails); None when not computed."""
-    if not all(name in arrays for name in thresholds):
+    """Per grasp, True where every energy of ``thresholds`` (read from ``FILTER_ARRAYS``) is below its limit (NaN: fails).
+
+    None when the filter's energies were not computed.
+    """
+    names = {name: FILTER_ARRAYS.get(name, name) for name in thresholds}
+    if not all(array in arrays for array in names.values()):
         return None
     passing = ~invalid_flags(arrays)
     for name, limit in thresholds.items():
         with np.errstate(invalid="ignore"):
-            passing &= np.asarray(arrays[name], dtype=np.float64) < limit
+            passing &= np.asarray(arrays[names[name]], dtype=np.float64) < limit
     return passing
 
 

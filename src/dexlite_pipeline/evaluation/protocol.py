@@ -332,12 +332,14 @@ def simulate(
     energy_batch_size: int,
     seed_protocol: SeedProtocolConfig | None = None,
 ) -> GraspSet:
-    """Energies and lift (+ six-direction) results for every selected grasp, as one grasp set.
+    """Energies, the equal filter's energies (``evaluation.filter_energy``) and lift (+ six-direction) results for every
+    selected grasp, as one grasp set.
 
     Invalid grasps (``invalid_reason``) pass through both with NaN results and a failed
     lift; the seconds per grasp are per simulated (valid) grasp.
     """
     from dexlite_pipeline.energy import evaluate_grasp_energies
+    from dexlite_pipeline.evaluation.filter_energy import filter_energy_arrays
     from dexlite_pipeline.sim.lift import run_lift_tests
 
     arrays = dict(selected.arrays)
@@ -350,6 +352,9 @@ def simulate(
     energy_s = time.perf_counter() - start
     log.info("energies of %d grasps in %.1f s (%.1f grasps/s)", len(selected), energy_s, len(selected) / max(energy_s, 1e-9))
     arrays.update(energies)
+    start = time.perf_counter()
+    arrays.update(filter_energy_arrays(selected, objects_dirs, energy_cfg.weights, device))
+    log.info("the equal filter's contact search of %d grasps in %.1f s", len(selected), time.perf_counter() - start)
     start = time.perf_counter()
     arrays.update(run_lift_tests(selected, objects_dirs, lift_cfg, threads))
     lift_s = time.perf_counter() - start
