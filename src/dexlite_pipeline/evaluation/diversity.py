@@ -14,7 +14,7 @@ Surface coverage: the share of an object's surface patches that a set of grasps 
 The patches are fixed per object from its stored surface samples (uniform over the area):
 ``coverage_patches`` centres chosen by farthest-point sampling, each sample belonging to its
 nearest centre, so the patches are of about equal area and scale with the object (a sphere of
-10 cm radius in 64 patches: patches ~5 cm across, two to three finger pads). A grasp touches a
+10 cm radius in 256 patches: patches ~2.5 cm across, about a finger pad). A grasp touches a
 patch when one of the hand's contact candidates (the palmar finger points the energies choose
 contacts from) lies within ``coverage_contact_m`` of the surface (|signed distance|) and its
 nearest surface sample is in that patch. Coverage = touched patches / patches, in [0, 1].
@@ -34,7 +34,7 @@ class DiversityConfig:
 
     distinct_translation_m: float = 0.02  # palms closer than this (m) ...
     distinct_rotation_deg: float = 30.0  # ... and turned less than this (deg) from each other are one grasp
-    coverage_patches: int = 64  # surface patches per object for the coverage share (farthest-point centres)
+    coverage_patches: int = 256  # surface patches per object for the coverage share (farthest-point centres)
     coverage_contact_m: float = 0.005  # a hand contact candidate this close to the surface (m) touches its patch
 
     def __post_init__(self):
