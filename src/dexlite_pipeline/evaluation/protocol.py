@@ -24,8 +24,9 @@ failure (``invalid_reason``), so emitting NaN poses cannot raise a method's rate
 
 Equal filtering: every method is drawn from all its attempts (the seed method too: all its
 optimized grasps, not only those its synthesis flagged as passing) and reported twice, per
-attempt and after one energy filter (``evaluate.filter_thresholds``) applied by the aggregate
-step to the evaluation's own energies; no method is filtered while another is not. The cost
+attempt and after one energy filter: the simulate step computes every grasp's filter energies
+with one contact search (``evaluation.filter_energy``), the aggregate step applies
+``evaluate.filter_thresholds`` to them; no method is filtered while another is not. The cost
 columns divide the seconds of the stages that generated a method's attempts (see
 ``stage_seconds_per_grasp``) by what those attempts gave: held grasps, distinct held grasps,
 and the same after the filter.
