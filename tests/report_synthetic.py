@@ -50,6 +50,8 @@ def simulated_shard(path, methods_success: dict[str, list[bool | None]], rng, at
         "contact_distance_mm": measured(rng.uniform(0, 3, n)),
         "E_fc": measured(rng.uniform(0, 1, n)),
         "E_dis": measured(np.full(n, 0.002)),
+        "filter_E_fc": measured(rng.uniform(0, 0.6, n)),  # the equal filter's energies (its own contact search)
+        "filter_E_dis": measured(np.full(n, 0.002)),
         "E_pen": measured(np.zeros(n)),
     }
     write_grasp_store(path, GraspSet(arrays), attrs or {})

@@ -1,4 +1,4 @@
-"""Distinct grasps: identical grasps count once, grasps apart in palm position or rotation count apart."""
+"""Distinct grasps: identical grasps count once, grasps apart in palm position or rotation count apart; surface coverage."""
 
 import numpy as np
 import pytest
@@ -9,6 +9,9 @@ from dexlite_pipeline.evaluation.diversity import (
     count_distinct_grasps,
     distinct_grasp_labels,
     first_of_each_cluster,
+    surface_coverage,
+    surface_patch_labels,
+    touched_patches,
 )
 
 
@@ -72,3 +75,42 @@ def test_representatives_are_first_members():
     assert labels.tolist() == [0, 0, 1, 0]
     assert first_of_each_cluster(labels).tolist() == [0, 2]
     assert count_distinct_grasps(np.zeros((0, 28))) == 0
+
+
+# ---------------------------------------------------------------- surface coverage
+
+# Six surface samples on the axes (a unit octahedron's vertices): with six patches, each its own.
+AXES = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], dtype=float)
+
+
+def test_patches_are_farthest_point_centres_with_nearest_assignment():
+    assert sorted(surface_patch_labels(AXES, 6).tolist()) == list(range(6))
+    # two tight clusters far apart: two patches, one per cluster, whatever the order of the samples
+    rng = np.random.default_rng(0)
+    left, right = rng.normal([-1, 0, 0], 0.01, (20, 3)), rng.normal([1, 0, 0], 0.01, (30, 3))
+    labels = surface_patch_labels(np.concatenate([left, right]), 2)
+    assert len(set(labels[:20])) == 1 and len(set(labels[20:])) == 1 and labels[0] != labels[-1]
+    assert sorted(surface_patch_labels(AXES[:3], 64).tolist()) == [0, 1, 2]  # fewer samples than patches: one patch each
+    assert np.array_equal(surface_patch_labels(AXES, 6), surface_patch_labels(AXES, 6))  # deterministic
+
+
+def test_coverage_of_a_known_case():
+    labels = surface_patch_labels(AXES, 6)
+    # grasp 0: one candidate 1 mm off +x (touches), one 1 cm off +y (too far); grasp 1: a candidate on -x, one on +x
+    points = np.array([[[1.001, 0, 0], [0, 1.01, 0]], [[-1.0, 0, 0], [1.0, 0, 0]]])
+    distance_m = np.array([[0.001, 0.01], [0.0, -0.004]])  # a candidate pressed 4 mm in still touches
+    touched = touched_patches(points, distance_m, AXES, labels, contact_m=0.005)
+    assert touched.shape == (2, 6) and touched.sum(axis=1).tolist() == [1, 2]
+    assert touched[0, labels[0]] and touched[1, labels[0]] and touched[1, labels[1]]
+    assert surface_coverage(touched[:1]) == pytest.approx(1 / 6)
+    assert surface_coverage(touched) == pytest.approx(2 / 6)  # +x counted once
+    assert surface_coverage(np.zeros((0, 6), bool)) == 0.0
+    # NaN distances (unusable grasps) touch nothing
+    assert not touched_patches(points, np.full((2, 2), np.nan), AXES, labels).any()
+
+
+def test_coverage_settings_are_checked():
+    with pytest.raises(ValueError, match="coverage_patches"):
+        DiversityConfig(coverage_patches=0)
+    with pytest.raises(ValueError, match="coverage_contact_m"):
+        DiversityConfig(coverage_contact_m=0.0)

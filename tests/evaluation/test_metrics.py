@@ -97,6 +97,8 @@ def test_summarize_grasps_columns():
         "penetration_mm": np.array([1.0, 2.0, 3.0, 4.0]),
         "E_fc": np.array([0.1, 0.2, 0.3, 0.4]),
         "E_dis": np.array([0.001, 0.001, 0.01, 0.001]),
+        "filter_E_fc": np.array([0.1, 0.2, 0.3, 0.4]),  # the filter's energies (its contact search)
+        "filter_E_dis": np.array([0.001, 0.001, 0.01, 0.001]),
         "E_pen": np.zeros(n),
     }
     out = metrics.summarize_grasps(arrays, LIMITS, entropy_bins=4)
@@ -170,3 +172,102 @@ def test_summary_has_bootstrap_columns_beside_wilson():
     assert (out["lift_success_boot_ci95_low"], out["lift_success_boot_ci95_high"]) == metrics.cluster_bootstrap_interval(ids, flags, seed=0)
     assert out["lift_success_ci95_high"] < out["lift_success_boot_ci95_high"]
     assert math.isnan(out["six_dir_success_boot_ci95_low"])  # not measured: no interval either
+
+
+def _held_table():
+    """Six attempts of one method on two objects, with known held grasps, palms, energies and touched patches.
+
+    Object a: three held grasps, two identical and one 3 cm away (2 distinct); object b: one held, one dropped.
+    The energy filter passes a0, a1 (identical), b0 and b1; a2 fails E_fc. Four surface patches per object.
+    """
+    pose = np.zeros((6, 28))
+    pose[:, 2] = 0.1
+    pose[2, 0] = 0.03  # a2: 3 cm from a0 and a1
+    pose[4, 1] = 0.05  # b1
+    touched = np.zeros((6, 4), bool)
+    for row, patches in ((0, [0]), (1, [0]), (2, [1]), (3, [2, 3]), (4, [0, 1])):
+        touched[row, patches] = True
+    return {
+        "hand_pose": pose,
+        "object_id": np.array(["a", "a", "a", "b", "b", "b"], dtype=object),
+        "scale": np.full(6, 0.1),
+        "lift_success": np.array([True, True, True, True, False, False]),
+        "six_dir_success": np.array([True, False, True, False, False, False]),
+        "E_fc": np.full(6, 2.0),  # the nearest-four contacts' energies: not what the filter reads
+        "E_dis": np.full(6, 0.001),
+        "filter_E_fc": np.array([0.1, 0.1, 0.5, 0.1, 0.1, np.nan]),
+        "filter_E_dis": np.full(6, 0.001),
+        "E_pen": np.zeros(6),
+        "invalid_reason": np.array(["", "", "", "", "", "non-finite hand_pose"], dtype=object),
+        metrics.TOUCHED_PATCHES: touched,
+        metrics.COVERAGE_PATCHES: np.full(6, 4),
+    }
+
+
+def test_rows_carry_distinct_held_grasps_coverage_and_the_equal_filter():
+    out = metrics.summarize_grasps(_held_table(), LIMITS, entropy_bins=4)
+    # per attempt: 4 held; a: identical grasps once, 3 cm apart twice -> 2; b: 1
+    assert (out["n_held"], out["distinct_held_total"], out["distinct_held_per_object_mean"]) == (4, 3, 1.5)
+    assert out["distinct_held_per_attempt"] == pytest.approx(3 / 6)
+    assert out["surface_coverage_mean"] == pytest.approx((2 / 4 + 2 / 4) / 2)  # a: patches 0, 1; b: 2, 3 (b1 dropped)
+    # the filter: a2 fails E_fc, the invalid grasp passes nothing -> 4 of 6 pass; 3 of them held
+    assert out["energy_threshold_pass_rate"] == pytest.approx(4 / 6) and out["filtered_n_grasps"] == 4
+    assert out["filtered_lift_success_rate"] == pytest.approx(3 / 4) and out["filtered_six_dir_success_rate"] == pytest.approx(1 / 4)
+    assert out["filtered_lift_success_ci95_low"] < 0.75 < out["filtered_lift_success_ci95_high"]
+    assert (out["filtered_n_held"], out["filtered_distinct_held_total"], out["filtered_distinct_held_per_object_mean"]) == (3, 2, 1.0)
+    assert out["filtered_surface_coverage_mean"] == pytest.approx((1 / 4 + 2 / 4) / 2)
+    rows = {r["object_id"]: r for r in metrics.per_object_rows(_held_table())}
+    assert [rows["a"][k] for k in ("n_held", "n_distinct_held", "surface_coverage")] == [3, 2, 0.5]
+    assert [rows["b"][k] for k in ("n_held", "n_distinct_held", "surface_coverage")] == [1, 1, 0.5]
+    assert [rows["a"][k] for k in ("filtered_n_grasps", "filtered_n_held", "filtered_n_distinct_held", "filtered_surface_coverage")] == [2, 2, 1, 0.25]
+    assert [rows["b"][k] for k in ("filtered_n_grasps", "filtered_n_held", "filtered_n_distinct_held")] == [2, 1, 1]
+
+
+def test_distinct_grasps_of_other_scales_are_other_grasps():
+    table = _held_table()
+    table["scale"] = np.array([0.1, 0.12, 0.1, 0.1, 0.1, 0.1])  # a1: the same palm pose on the object at another size
+    assert metrics.summarize_grasps(table, LIMITS, entropy_bins=4)["distinct_held_total"] == 4
+
+
+def test_filter_thresholds_are_a_setting():
+    strict = metrics.summarize_grasps(_held_table(), LIMITS, entropy_bins=4, thresholds={"E_fc": 0.05, "E_dis": 0.005, "E_pen": 0.001})
+    assert strict["energy_threshold_pass_rate"] == 0.0 and strict["filtered_n_grasps"] == 0 and math.isnan(strict["filtered_lift_success_rate"])
+    assert strict["filtered_distinct_held_total"] == 0
+
+
+def test_without_energies_or_patches_the_columns_are_nan_not_zero():
+    table = {k: v for k, v in _held_table().items() if k not in ("filter_E_fc", metrics.TOUCHED_PATCHES)}
+    out = metrics.summarize_grasps(table, LIMITS, entropy_bins=4)
+    assert out["distinct_held_total"] == 3  # needs only poses and outcomes
+    for column in ("surface_coverage_mean", "energy_threshold_pass_rate", "filtered_lift_success_rate", "filtered_distinct_held_total"):
+        assert math.isnan(out[column]), column
+
+
+def test_seconds_per_outcome():
+    assert metrics.seconds_per_outcome(2.0, 6, 4) == 3.0
+    assert metrics.seconds_per_outcome(2.0, 6, 0) == math.inf
+    assert math.isnan(metrics.seconds_per_outcome(math.nan, 6, 4)) and math.isnan(metrics.seconds_per_outcome(2.0, 0, 0))
+
+
+def test_metrics_tables_give_cost_per_held_and_distinct_held_grasp_for_every_method():
+    """Two methods, the same synthetic table: each has both per-attempt and after-filter columns (none filtered alone)."""
+    from dexlite_pipeline.evaluation.protocol import EvaluateConfig, metrics_tables
+    from dexlite_pipeline.io.grasp_store import GraspSet
+
+    one = _held_table()
+    both = {k: np.concatenate([v, v]) for k, v in one.items()}
+    both["method"] = np.array(["seed"] * 6 + ["cvae_post"] * 6, dtype=object)
+    both["split"] = np.full(12, "heldout", dtype=object)
+    cfg = EvaluateConfig(methods=("seed", "cvae_post"), entropy_bins=4)
+    table, per_object = metrics_tables(GraspSet(both), LIMITS, cfg, {"seed": {"seed": 2.0}, "cvae_post": {"sample": 0.5, "post": 1.5}}, {})
+    table = table.set_index("method")
+    for method in ("seed", "cvae_post"):
+        row = table.loc[method]
+        assert row["seconds_per_grasp"] == 2.0 and row["lift_success_rate"] == pytest.approx(4 / 6)
+        assert row["filtered_lift_success_rate"] == pytest.approx(3 / 4)
+        assert row["cpu_seconds_per_held_grasp"] == pytest.approx(12 / 4)  # 6 attempts x 2 s over 4 held
+        assert row["cpu_seconds_per_distinct_held_grasp"] == pytest.approx(12 / 3)
+        assert row["filtered_cpu_seconds_per_held_grasp"] == pytest.approx(12 / 3)
+        assert row["filtered_cpu_seconds_per_distinct_held_grasp"] == pytest.approx(12 / 2)
+    assert per_object.groupby("method")["n_distinct_held"].sum().to_dict() == {"cvae_post": 3, "seed": 3}
+    assert {"n_held", "n_distinct_held", "surface_coverage", "filtered_n_held", "filtered_surface_coverage"} <= set(per_object.columns)

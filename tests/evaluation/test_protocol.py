@@ -2,7 +2,6 @@
 
 import base64
 import json
-import math
 import re
 from collections import Counter
 from pathlib import Path
@@ -139,16 +138,12 @@ def test_shipped_methods_read_the_shipped_models_rows_paired_raw_and_refined():
     assert chosen[0].arrays["sample_row"].tolist() == chosen[1].arrays["sample_row"].tolist()  # the same samples, raw and refined
 
 
-def test_seed_method_keeps_passing_grasps_and_costs_per_passing_grasp():
+def test_seed_method_keeps_every_attempt_and_costs_per_attempt():
+    """No method is filtered before the evaluation: the seed's failing attempts are drawn too, and its cost is per attempt."""
     seed = _set(["a", "a", "a", "a"], {"passes_energy_thresholds": np.array([True, False, False, True])})
     seed.attrs.update({"seconds_per_grasp": 2.0, "seconds": 8.0, "passing": 2})
-    assert len(method_grasps("seed", [seed], seed_passing_only=True)) == 2
-    assert len(method_grasps("seed", [seed], seed_passing_only=False)) == 4
-    assert stage_seconds_per_grasp("seed", {"seed": [seed]}, seed_passing_only=True) == {"seed": 4.0}
-    assert stage_seconds_per_grasp("seed", {"seed": [seed]}, seed_passing_only=False) == {"seed": 2.0}
-    none_pass = _set(["a"], {"passes_energy_thresholds": np.array([False])})
-    none_pass.attrs.update({"seconds_per_grasp": 2.0, "seconds": 2.0, "passing": 0})
-    assert stage_seconds_per_grasp("seed", {"seed": [none_pass]}, seed_passing_only=True) == {"seed": math.inf}
+    assert len(method_grasps("seed", [seed])) == 4
+    assert stage_seconds_per_grasp("seed", {"seed": [seed]}) == {"seed": 2.0}
 
 
 
@@ -259,7 +254,7 @@ def test_simulate_step_on_tiny_object(tmp_path, tiny_objects):
     assert main(["evaluate", "--step", "simulate", "--shard", "0", "--config-json", cfg, "--seed", str(seed_store), "--objects", str(tiny_objects), "--out", str(out)]) == 0
     result = read_grasp_store(out)
     assert len(result) == 3 and set(result.object_id) == {OBJECT_ID}
-    for name in ("lift_success", "failure_reason", "E_fc", "penetration_mm", "contact_distance_mm"):
+    for name in ("lift_success", "failure_reason", "E_fc", "penetration_mm", "contact_distance_mm", "filter_E_fc", "filter_E_dis"):
         assert name in result.arrays
     invalid = result.arrays["source_row"] == 1
     assert result.arrays["invalid_reason"][invalid].tolist() == ["non-finite hand_pose"] and not result.arrays["lift_success"][invalid].any()
@@ -304,3 +299,53 @@ def test_every_evaluate_setting_belongs_to_a_step_and_steps_read_only_theirs():
     assert {f.name for f in fields(EvaluateConfig)} == set(SIMULATE_KEYS) | set(AGGREGATE_KEYS) | set(REPORT_KEYS)
     cfg = evaluate_config_from({"evaluate": {"grasps_per_object": 5, "rendered_per_method": 7}}, SIMULATE_KEYS)
     assert cfg.grasps_per_object == 5 and cfg.rendered_per_method == EvaluateConfig().rendered_per_method
+
+
+def test_coverage_arrays_touch_the_box_only_where_the_hand_is(tiny_objects):
+    """Forward kinematics and the SDF: a hand on the box touches patches, one a metre away or invalid touches none."""
+    from report_synthetic import grasp_poses
+
+    from dexlite_pipeline.evaluation.diversity import DiversityConfig
+    from dexlite_pipeline.evaluation.metrics import COVERAGE_PATCHES, TOUCHED_PATCHES
+    from dexlite_pipeline.evaluation.protocol import coverage_arrays
+
+    poses = grasp_poses(4, np.random.default_rng(0))
+    poses[1, 2] = 1.0  # palm 1 m above the box
+    poses[2] = np.nan
+    grasps = GraspSet({
+        "hand_pose": poses, "object_id": np.asarray([OBJECT_ID] * 3 + ["no_such_object"], dtype=object), "scale": np.full(4, 0.06, np.float32),
+        "invalid_reason": np.asarray(["", "", "non-finite hand_pose", ""], dtype=object),
+    })  # fmt: skip
+    out = coverage_arrays(grasps, [tiny_objects], DiversityConfig(coverage_patches=16))
+    assert out[COVERAGE_PATCHES].tolist() == [16, 16, 16, 0]  # the box has 128 surface samples; the unknown object none
+    touched = out[TOUCHED_PATCHES]
+    assert touched.shape == (4, 16) and touched[0].any() and not touched[1:].any()
+    # a contact distance of a micrometre: the same grasp touches fewer patches or none
+    tight = coverage_arrays(grasps, [tiny_objects], DiversityConfig(coverage_patches=16, coverage_contact_m=1e-6))[TOUCHED_PATCHES]
+    assert tight[0].sum() < touched[0].sum()
+
+
+def test_filter_contact_search_is_per_grasp_and_never_worse_than_the_nearest_four(tiny_objects):
+    """The equal filter's contacts: the same for a grasp alone or in a batch; its score at most the nearest four's."""
+    from report_synthetic import grasp_poses
+
+    from dexlite_pipeline.energy.per_grasp import evaluate_grasp_energies
+    from dexlite_pipeline.energy.config import EnergyWeights
+    from dexlite_pipeline.evaluation.filter_energy import FILTER_CONTACTS, filter_energy_arrays
+
+    poses = grasp_poses(6, np.random.default_rng(3))
+    poses[4] = np.nan
+    grasps = GraspSet({
+        "hand_pose": poses, "object_id": np.asarray([OBJECT_ID] * 5 + ["no_such_object"], dtype=object), "scale": np.full(6, 0.06, np.float32),
+        "invalid_reason": np.asarray([""] * 4 + ["non-finite hand_pose", ""], dtype=object),
+    })  # fmt: skip
+    weights = EnergyWeights()
+    together = filter_energy_arrays(grasps, [tiny_objects], weights, batch_size=64)
+    alone = filter_energy_arrays(grasps, [tiny_objects], weights, batch_size=1)
+    for name, value in together.items():
+        np.testing.assert_array_equal(value, alone[name], err_msg=name)
+    assert np.isfinite(together["filter_E_fc"][:4]).all() and np.isnan(together["filter_E_fc"][4:]).all()
+    assert (together[FILTER_CONTACTS][4:] == -1).all()
+    nearest = evaluate_grasp_energies(grasps.select(np.arange(4)), [tiny_objects])
+    searched = weights.fc * together["filter_E_fc"][:4] + weights.dis * together["filter_E_dis"][:4]
+    assert (searched <= weights.fc * nearest["E_fc"] + weights.dis * nearest["E_dis"] + 1e-5).all()

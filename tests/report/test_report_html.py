@@ -90,15 +90,15 @@ def test_headline_sentence_gives_both_rates_of_the_product_and_the_comparisons()
     sentence = headline_sentence(headline_rows(_run_metrics()), {})
     assert sentence.startswith("On 5 held-out objects (80 grasps), 17.5% of CVAE samples + post-optimization held the object in the lift test")
     assert "13.8% against pushes from all six directions" in sentence
-    assert "; for comparison, random start + post-optimization 21.2% / 8.8%, CVAE samples, raw 6.2% / 0.0%," in sentence
-    assert sentence.endswith(", optimization from scratch (seed grasps) 55.0% / 50.0%.")
+    assert "; for comparison, random start + post-optimization 21.2% / 8.8% per attempt; CVAE samples, raw 6.2% / 0.0% per attempt;" in sentence
+    assert sentence.endswith("; optimization from scratch (seed grasps) 55.0% / 50.0% per attempt.")
     assert sentence.count(".") == sentence.count("%") + 1  # one sentence: the only other full stops are decimal points
     no_six = _run_metrics().assign(six_dir_success_rate=np.nan)
     assert "(six-direction test not run)" in headline_sentence(headline_rows(no_six), {})
     # a row measured on fewer objects (the shipped model samples only objects it never trained on) says so
     shipped = _run_metrics().iloc[[2]].assign(method="shipped_post", n_objects=2, n_grasps=32, lift_success_rate=0.4)
     with_shipped = headline_sentence(headline_rows(pd.concat([_run_metrics(), shipped], ignore_index=True)), {})
-    assert "shipped model's samples + post-optimization 40.0% / 13.8% (on 2 objects)" in with_shipped
+    assert "shipped model's samples + post-optimization 40.0% / 13.8% per attempt (on 2 objects)" in with_shipped
     assert with_shipped.count("objects)") == 1
 
 
@@ -253,3 +253,50 @@ def test_learning_curve_section_only_with_a_curve():
     title = "<h2>Learning curve of the shipped model's run</h2>"
     assert title in with_curve and title not in without
     assert with_curve.count("data:image/png") == without.count("data:image/png") + 1 and "n10_seed0" in with_curve
+
+
+def _with_diversity(frame: pd.DataFrame) -> pd.DataFrame:
+    return frame.assign(
+        distinct_held_per_object_mean=2.5, surface_coverage_mean=0.31, energy_threshold_pass_rate=0.4, filtered_n_grasps=32,
+        filtered_lift_success_rate=0.5, filtered_distinct_held_per_object_mean=1.2, filtered_surface_coverage_mean=0.2,
+        cpu_seconds_per_distinct_held_grasp=5.2, filtered_cpu_seconds_per_distinct_held_grasp=np.inf,
+    )  # fmt: skip
+
+
+def test_diversity_beside_each_rate_per_attempt_and_after_the_filter():
+    frame = _with_diversity(_run_metrics())
+    table = compact_table_html(headline_rows(frame))
+    assert table.count("<td class='diversity'>2.5</td><td class='diversity'>31.0%</td>") == 4  # beside the per-attempt rate
+    assert table.count("<td class='diversity'>1.2</td><td class='diversity'>20.0%</td>") == 4  # beside the after-filter rate
+    assert "<td>40.0% <small>(32)</small></td>" in table and "<b>50.0%</b>" in table and "5.2 s / ∞" in table
+    sentence = headline_sentence(headline_rows(frame), {})
+    assert ("against pushes from all six directions per attempt (2.5 distinct held grasps per object, 31.0% of the surface touched); "
+            "after the energy filter every method goes through (40.0% of attempts pass), 50.0% held in the lift test "
+            "(1.2 distinct held grasps per object, 20.0% of the surface touched); for comparison,") in sentence
+    assert "random start + post-optimization 21.2% / 8.8% per attempt, 50.0% after the filter;" in sentence
+    none_pass = frame.assign(filtered_n_grasps=0, filtered_lift_success_rate=np.nan, energy_threshold_pass_rate=0.0)
+    assert compact_table_html(headline_rows(none_pass)).count("none pass") == 4
+    assert "optimization from scratch (seed grasps) 55.0% / 50.0% per attempt, none passing after the filter." in headline_sentence(headline_rows(none_pass), {})
+
+
+def test_run_facts_at_the_top(tmp_path):
+    import datetime as dt
+    import os
+
+    from dexlite_pipeline.report.run_facts import run_facts
+
+    benchmarks = tmp_path / "benchmarks"
+    benchmarks.mkdir()
+    for name, seconds, cpu, end in (("seed_grasps_000.tsv", 10.0, 9.0, 1000.0), ("evaluate.tsv", 20.0, 18.0, 1100.0)):
+        (benchmarks / name).write_text(f"s\th:m:s\tcpu_time\n{seconds}\t0:00:{int(seconds):02d}\t{cpu}\n")
+        os.utime(benchmarks / name, (end, end))
+    facts = dict(run_facts({"device": "cpu"}, benchmarks, checkout=tmp_path, now=dt.datetime(2026, 12, 2, 9, 30, tzinfo=dt.timezone.utc)))
+    assert facts["report date"] == "2026-12-02 09:30 UTC"
+    assert facts["code commit"] == "unknown"  # not a git checkout
+    # the first job started at 1000 - 10 s, the last ended at 1100: 110 s
+    assert facts["wall time of the run"] == "1.8 min from the first job's start to the last job's end (2 jobs: 30 s of job wall time, 27 s CPU)"
+    assert "logical cores" in facts["machine"] and facts["machine"].endswith("torch device cpu")
+    assert dict(run_facts({"device": "cpu"}, tmp_path / "absent"))["wall time of the run"].startswith("not measurable")
+    page = build_report_html(ReportInputs(metrics=_run_metrics(), per_object=None, convergence=None, history=None, simulated=None,
+                                          run_facts=list(facts.items())))  # fmt: skip
+    assert page.index("<td>code commit</td><td>unknown</td>") < page.index("<p class='result'>")

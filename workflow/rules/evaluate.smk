@@ -71,7 +71,7 @@ rule evaluate:
         record=f"{RESULTS}/eval/evaluation.json",
     threads: 1
     params:
-        cfg=evaluate_step_params(AGGREGATE_KEYS, "seed"),
+        cfg=evaluate_step_params(AGGREGATE_KEYS, "seed", "diversity"),
         code=code_hash("evaluate"),
         sims=lambda wc, input: learning_cli_options("sim", input.sims),
         post=lambda wc, input: learning_cli_options("post", input.post) + " " + learning_cli_options("random-post", input.random_post),
@@ -111,6 +111,7 @@ rule report:
         sims=lambda wc, input: learning_cli_options("sim", input.sims),
         objects=learning_cli_options("objects", learning_objects_dirs()),
         curve=lambda wc, input: f"--learning-curve {shlex.quote(input.learning_curve)}" if "learning_curve" in input.keys() else "",
+        benchmarks=f"{LOGS}/benchmarks",  # the jobs' benchmark files: the run's wall time at the top of the report
     conda:
         CONDA_ENV
     log:
@@ -120,4 +121,4 @@ rule report:
     shell:
         "dexlite report --config-json {params.cfg:q} --metrics {input.metrics} --per-object {input.per_object} "
         "--convergence {input.convergence} --budget {input.budget} --record {input.record} {params.sims} --history {input.history} "
-        "{params.objects} {params.curve} --out {output} > {log} 2>&1"
+        "{params.objects} {params.curve} --benchmarks {params.benchmarks} --out {output} > {log} 2>&1"

@@ -8,6 +8,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from dexlite_pipeline.energy.config import EnergyThresholds
+
 JOINT_ENTROPY_BINS = 100  # default bins per joint of the joint-angle entropy (evaluation.metrics)
 PCA_COMPONENTS = (1, 2, 3, 5)  # default k of the cumulative PCA explained variance (evaluation.metrics)
 METHODS = (
@@ -50,7 +52,7 @@ class EvaluateConfig:
     splits: tuple[str, ...] = ("heldout",)  # object splits to evaluate (catalog column ``split``)
     grasps_per_object: int = 16  # cap per (method, object) on simulated grasps
     six_directions: bool = True  # also run the six-direction disturbance test
-    seed_passing_only: bool = True  # seed method = grasps passing the energy thresholds (the seed's dataset)
+    filter_thresholds: EnergyThresholds = field(default_factory=EnergyThresholds)  # the energy filter every method is also counted after
     entropy_bins: int = JOINT_ENTROPY_BINS  # bins per joint of the joint-angle entropy
     pca_components: tuple[int, ...] = PCA_COMPONENTS  # k of the cumulative PCA explained variance columns
     energy_batch_size: int = 256  # grasps per energy evaluation batch

@@ -9,6 +9,15 @@ cluster is represented by its best member): each grasp joins the first cluster w
 representative it matches, else it starts a new one. The number of clusters of an object is
 its count of distinct grasps. Joint angles are not compared: a hand at the same palm pose with
 other finger angles touches the object in the same place.
+
+Surface coverage: the share of an object's surface patches that a set of grasps touches.
+The patches are fixed per object from its stored surface samples (uniform over the area):
+``coverage_patches`` centres chosen by farthest-point sampling, each sample belonging to its
+nearest centre, so the patches are of about equal area and scale with the object (a sphere of
+10 cm radius in 256 patches: patches ~2.5 cm across, about a finger pad). A grasp touches a
+patch when one of the hand's contact candidates (the palmar finger points the energies choose
+contacts from) lies within ``coverage_contact_m`` of the surface (|signed distance|) and its
+nearest surface sample is in that patch. Coverage = touched patches / patches, in [0, 1].
 """
 
 from __future__ import annotations
@@ -25,10 +34,14 @@ class DiversityConfig:
 
     distinct_translation_m: float = 0.02  # palms closer than this (m) ...
     distinct_rotation_deg: float = 30.0  # ... and turned less than this (deg) from each other are one grasp
+    coverage_patches: int = 256  # surface patches per object for the coverage share (farthest-point centres)
+    coverage_contact_m: float = 0.005  # a hand contact candidate this close to the surface (m) touches its patch
 
     def __post_init__(self):
         if self.distinct_translation_m <= 0 or self.distinct_rotation_deg <= 0:
             raise ValueError("config.diversity: distinct_translation_m and distinct_rotation_deg must be > 0")
+        if self.coverage_patches < 1 or self.coverage_contact_m <= 0:
+            raise ValueError("config.diversity: coverage_patches must be >= 1 and coverage_contact_m > 0")
 
 
 def palm_rotations(hand_pose: np.ndarray) -> np.ndarray:
@@ -93,3 +106,61 @@ def first_of_each_cluster(labels: np.ndarray) -> np.ndarray:
         return np.zeros(0, dtype=np.int64)
     _, first = np.unique(labels, return_index=True)
     return np.sort(first)
+
+
+def surface_patch_labels(surface_points: np.ndarray, patches: int) -> np.ndarray:
+    """Patch index (P,) of each surface sample: nearest of ``patches`` farthest-point centres.
+
+    Deterministic: the first centre is the sample farthest from the samples' centroid (lowest
+    index on ties), each next one the sample farthest from the centres so far. With fewer
+    samples than ``patches`` every sample is its own patch. Patch ids are 0..K-1, K = min(patches, P).
+    """
+    points = np.asarray(surface_points, dtype=np.float64).reshape(-1, 3)
+    count = min(int(patches), len(points))
+    if count == 0:
+        return np.zeros(0, dtype=np.int64)
+    centres = [int(np.argmax(np.linalg.norm(points - points.mean(axis=0), axis=1)))]
+    nearest = np.linalg.norm(points - points[centres[0]], axis=1)
+    for _ in range(count - 1):
+        centres.append(int(np.argmax(nearest)))
+        nearest = np.minimum(nearest, np.linalg.norm(points - points[centres[-1]], axis=1))
+    centre_points = points[centres]
+    return np.argmin(np.linalg.norm(points[:, None, :] - centre_points[None, :, :], axis=2), axis=1).astype(np.int64)
+
+
+def touched_patches(
+    contact_points: np.ndarray,
+    contact_distance_m: np.ndarray,
+    surface_points: np.ndarray,
+    patch_labels: np.ndarray,
+    contact_m: float = DiversityConfig.coverage_contact_m,
+) -> np.ndarray:
+    """(N, K) bool: which patches each grasp touches.
+
+    ``contact_points`` (N, C, 3): the hand's contact candidates of N grasps in the frame of
+    ``surface_points`` (P, 3); ``contact_distance_m`` (N, C): each candidate's distance to the
+    surface in metres (sign ignored: a candidate pressed in by less than ``contact_m`` touches
+    too). A candidate within ``contact_m`` touches the patch of its nearest surface sample.
+    """
+    from scipy.spatial import cKDTree
+
+    labels = np.asarray(patch_labels, dtype=np.int64)
+    count = int(labels.max()) + 1 if labels.size else 0
+    points = np.asarray(contact_points, dtype=np.float64)
+    n = points.shape[0]
+    touched = np.zeros((n, count), dtype=bool)
+    close = np.abs(np.asarray(contact_distance_m, dtype=np.float64)) <= contact_m  # NaN: not close
+    if n == 0 or count == 0 or not close.any():
+        return touched
+    grasp, candidate = np.nonzero(close)
+    _, nearest = cKDTree(np.asarray(surface_points, dtype=np.float64)).query(points[grasp, candidate])
+    touched[grasp, labels[nearest]] = True
+    return touched
+
+
+def surface_coverage(touched: np.ndarray) -> float:
+    """Share of patches touched by at least one of the grasps of ``touched`` (N, K); 0 with no grasps, NaN with no patches."""
+    touched = np.asarray(touched, dtype=bool)
+    if touched.ndim != 2 or touched.shape[1] == 0:
+        return float("nan")
+    return float(touched.any(axis=0).mean())

@@ -34,6 +34,28 @@ outside the pipeline. Conventions (stated once, used in the CSV column names):
     by the first k components. Lower means the variation is spread over more directions
     (more diverse); data on a line gives 1.0 at k = 1.
 
+  * **distinct held grasps** (``evaluation.diversity``): the held grasps (lift success) of
+    each object and scale clustered by palm pose (config ``diversity``: 2 cm / 30°); an
+    object's count is its clusters summed over its scales. Rows give the total, the mean
+    over the row's objects (objects with no held grasp count 0) and the total per attempt
+    (per grasp of ``n_grasps``: what a user gets per grasp generated).
+  * **surface coverage**: per object, the share of its surface patches that its held grasps
+    touch (``evaluation.diversity``); rows give the mean over objects. It needs the
+    ``touched_patches`` (N, K) and ``coverage_patches`` (N,) arrays the aggregate step
+    computes from the poses; without them the columns are NaN.
+  * ``held_joint_entropy_bits``: the joint-angle entropy of the held grasps only
+    (DexGraspNet computes it over its successful grasps); ``joint_entropy_bits`` is over
+    all valid grasps.
+
+- **equal filtering**: every method is also counted after one energy filter, the thresholds
+  of ``evaluate.filter_thresholds`` (by default the curation's and the seed synthesis's:
+  E_fc < 0.3, E_dis < 5 mm, E_pen < 1 mm) applied to the evaluation's own energies, E_fc and
+  E_dis with the contacts of one deterministic search for every method (``filter_E_fc``,
+  ``filter_E_dis``: ``evaluation.filter_energy``). ``energy_threshold_pass_rate`` is the share of attempts
+  that pass (``filtered_n_grasps`` of ``n_grasps``; invalid grasps do not pass);
+  ``filtered_*`` columns are the same measures on the passing grasps only, so a method's
+  ``filtered_lift_success_rate`` is held / passing, and ``filtered_distinct_held_*`` and
+  ``filtered_surface_coverage_mean`` count only held grasps that pass.
 - **convergence**: the DexGraspNet success thresholds (E_fc < 0.3, E_dis < 5 mm,
   E_pen < 1 mm, energies in metres) are checked per grasp per iteration of a post-
   optimization trace; a grasp "converges" at the first iteration where all hold.
@@ -48,6 +70,10 @@ import numpy as np
 
 from dexlite_pipeline.energy.config import DEXGRASPNET_THRESHOLDS
 from dexlite_pipeline.evaluation.config import JOINT_ENTROPY_BINS, PCA_COMPONENTS
+from dexlite_pipeline.evaluation.diversity import DiversityConfig, distinct_grasp_labels
+
+TOUCHED_PATCHES = "touched_patches"  # (N, K) bool: surface patches each grasp touches (aggregate step)
+COVERAGE_PATCHES = "coverage_patches"  # (N,) patches of each grasp's object (0: coverage not measured)
 
 BOOTSTRAP_RESAMPLES = 4000
 
@@ -208,19 +234,113 @@ def convergence_summary(first_iterations: np.ndarray, iteration_of_column: np.nd
     }
 
 
+def held_flags(arrays: Mapping[str, np.ndarray]) -> np.ndarray:
+    """Per grasp, True where it held (lift success); all False when the lift test was not run."""
+    n = int(np.asarray(arrays["hand_pose"]).shape[0])
+    if "lift_success" not in arrays:
+        return np.zeros(n, dtype=bool)
+    return np.asarray(arrays["lift_success"], dtype=bool) & ~invalid_flags(arrays)
+
+
+# The equal filter reads E_fc and E_dis with the contacts its own search chose (evaluation.filter_energy),
+# the same for every method; E_pen does not depend on the contacts.
+FILTER_ARRAYS = {"E_fc": "filter_E_fc", "E_dis": "filter_E_dis", "E_pen": "E_pen"}
+
+
+def filter_flags(arrays: Mapping[str, np.ndarray], thresholds: Mapping[str, float] = DEXGRASPNET_THRESHOLDS) -> np.ndarray | None:
+    """Per grasp, True where every energy of ``thresholds`` (read from ``FILTER_ARRAYS``) is below its limit (NaN: fails).
+
+    None when the filter's energies were not computed.
+    """
+    names = {name: FILTER_ARRAYS.get(name, name) for name in thresholds}
+    if not all(array in arrays for array in names.values()):
+        return None
+    passing = ~invalid_flags(arrays)
+    for name, limit in thresholds.items():
+        with np.errstate(invalid="ignore"):
+            passing &= np.asarray(arrays[names[name]], dtype=np.float64) < limit
+    return passing
+
+
+def per_object_diversity(arrays: Mapping[str, np.ndarray], flags: np.ndarray, diversity: DiversityConfig = DiversityConfig()) -> dict[str, dict]:
+    """Per object of ``arrays``: grasps flagged (``held``), distinct among them and the surface coverage they give.
+
+    Distinct: greedy palm clustering per (object, scale) in table order, summed over the
+    object's scales. Coverage: NaN when the patch arrays are absent or the object has none.
+    """
+    object_ids = np.asarray(arrays["object_id"]).astype(str)
+    flags = np.asarray(flags, dtype=bool)
+    rows = np.flatnonzero(flags)
+    labels = np.full(len(object_ids), -1, dtype=np.int64)
+    if rows.size:
+        scales = np.asarray(arrays["scale"], dtype=np.float64)[rows].astype(str) if "scale" in arrays else np.full(rows.size, "")
+        groups = np.char.add(np.char.add(object_ids[rows], "|"), scales)
+        poses = np.asarray(arrays["hand_pose"])[rows]
+        labels[rows] = distinct_grasp_labels(poses, groups, diversity.distinct_translation_m, diversity.distinct_rotation_deg)
+    touched = np.asarray(arrays[TOUCHED_PATCHES], dtype=bool) if TOUCHED_PATCHES in arrays else None
+    patches = np.asarray(arrays[COVERAGE_PATCHES], dtype=np.int64) if COVERAGE_PATCHES in arrays else None
+    out = {}
+    for object_id in np.unique(object_ids):
+        mine = object_ids == object_id
+        held = mine & flags
+        coverage = math.nan
+        if touched is not None and patches is not None and mine.any():
+            count = int(patches[mine].max())
+            if count > 0:
+                coverage = float(touched[held][:, :count].any(axis=0).sum() / count) if held.any() else 0.0
+        out[str(object_id)] = {"held": int(held.sum()), "distinct": int(len(np.unique(labels[held]))), "coverage": coverage}
+    return out
+
+
+def diversity_columns(
+    arrays: Mapping[str, np.ndarray], flags: np.ndarray, diversity: DiversityConfig = DiversityConfig(), prefix: str = ""
+) -> dict[str, float]:
+    """Held count, distinct held grasps (total, mean per object, per attempt) and mean coverage of the flagged grasps.
+
+    Means are over every object of ``arrays`` (one with no flagged grasp counts 0 distinct,
+    0 coverage); per attempt divides by all grasps of ``arrays``. NaN with no grasps.
+    """
+    n = int(np.asarray(arrays["hand_pose"]).shape[0])
+    per_object = per_object_diversity(arrays, flags, diversity) if n else {}
+    distinct = np.asarray([o["distinct"] for o in per_object.values()], dtype=np.float64)
+    coverage = np.asarray([o["coverage"] for o in per_object.values()], dtype=np.float64)
+    return {
+        f"{prefix}n_held": int(np.asarray(flags, dtype=bool).sum()),
+        f"{prefix}distinct_held_total": int(distinct.sum()),
+        f"{prefix}distinct_held_per_object_mean": float(distinct.mean()) if distinct.size else math.nan,
+        f"{prefix}distinct_held_per_attempt": float(distinct.sum() / n) if n else math.nan,
+        f"{prefix}surface_coverage_mean": finite_mean(coverage),
+    }
+
+
+def seconds_per_outcome(seconds_per_attempt: float, attempts: int, outcomes: int) -> float:
+    """Generation seconds per outcome (e.g. per held grasp): all attempts' seconds over the outcomes they gave.
+
+    Infinite when attempts cost time and gave none; NaN when the cost is unknown or nothing was attempted.
+    """
+    if not math.isfinite(seconds_per_attempt) or attempts <= 0:
+        return math.nan
+    total = seconds_per_attempt * attempts
+    return total / outcomes if outcomes > 0 else (math.inf if total > 0 else math.nan)
+
+
 def summarize_grasps(
     arrays: Mapping[str, np.ndarray],
     joint_limits_rad: np.ndarray,
     entropy_bins: int = JOINT_ENTROPY_BINS,
     pca_components: Sequence[int] = PCA_COMPONENTS,
     bootstrap_seed: int = 0,
+    diversity: DiversityConfig = DiversityConfig(),
+    thresholds: Mapping[str, float] = DEXGRASPNET_THRESHOLDS,
 ) -> dict[str, float]:
     """All per-set metrics of one (method, split) from its per-grasp arrays.
 
     Uses whichever of these arrays are present (absent ones give NaN columns, never a
     made-up number): lift_success, six_dir_success, penetration_mm, contact_distance_mm,
-    E_fc, E_dis, E_pen, hand_pose, object_id, invalid_reason. Invalid grasps are in
-    ``n_grasps`` and fail every success rate; joint diversity uses the valid ones.
+    E_fc, E_dis, E_pen, hand_pose, object_id, scale, invalid_reason, touched_patches,
+    coverage_patches. Invalid grasps are in ``n_grasps`` and fail every success rate and the
+    filter; joint diversity uses the valid ones. ``thresholds``: the equal energy filter
+    (energy name -> limit) behind ``energy_threshold_pass_rate`` and the ``filtered_*`` columns.
     """
     n = int(np.asarray(arrays["hand_pose"]).shape[0])
     object_ids = np.asarray(arrays["object_id"]).astype(str)
@@ -249,13 +369,31 @@ def summarize_grasps(
         "contact_distance_mean_mm": finite_mean(contact) if contact is not None else math.nan,
         "E_fc_mean": finite_mean(e_fc) if e_fc is not None else math.nan,
         "E_fc_median": float(np.nanmedian(e_fc)) if e_fc is not None and np.isfinite(e_fc).any() else math.nan,
-        "energy_threshold_pass_rate": _threshold_pass_rate(arrays),
         "joint_entropy_bits": float(np.mean(entropy)) if len(joints) else math.nan,
         "joint_entropy_std_bits": float(np.std(entropy)) if len(joints) else math.nan,
     }
+    held = held_flags(arrays)
+    held_joints = np.asarray(arrays["hand_pose"], dtype=np.float64)[held, 6:]
+    out["held_joint_entropy_bits"] = float(np.mean(joint_entropy_bits(held_joints, joint_limits_rad, entropy_bins))) if len(held_joints) else math.nan
+    out.update(diversity_columns(arrays, held, diversity) if lift is not None else _nan_diversity(""))
     for k, value in pca.items():
         out[f"pca_explained_variance_k{k}"] = value
+    passing = filter_flags(arrays, thresholds)
+    out["energy_threshold_pass_rate"] = rate(passing) if passing is not None else math.nan
+    out["filtered_n_grasps"] = int(passing.sum()) if passing is not None else math.nan
+    for name, flags in (("lift_success", lift), ("six_dir_success", six)):  # the same rates on the passing grasps only
+        kept = flags[passing] if flags is not None and passing is not None else None
+        out.update(_rate_columns(f"filtered_{name}", kept, object_ids[passing] if kept is not None else object_ids, bootstrap_seed))
+    if passing is not None and lift is not None:
+        out.update(diversity_columns(arrays, held & passing, diversity, "filtered_"))
+    else:
+        out.update(_nan_diversity("filtered_"))
     return out
+
+
+def _nan_diversity(prefix: str) -> dict[str, float]:
+    names = ("n_held", "distinct_held_total", "distinct_held_per_object_mean", "distinct_held_per_attempt", "surface_coverage_mean")
+    return {f"{prefix}{name}": math.nan for name in names}
 
 
 def _rate_columns(name: str, flags: np.ndarray | None, object_ids: np.ndarray, bootstrap_seed: int) -> dict[str, float]:
@@ -281,18 +419,22 @@ def invalid_flags(arrays: Mapping[str, np.ndarray]) -> np.ndarray:
     return np.asarray([str(r) != "" for r in arrays["invalid_reason"]], dtype=bool)
 
 
-def _threshold_pass_rate(arrays: Mapping[str, np.ndarray]) -> float:
-    """Fraction of grasps meeting all DexGraspNet thresholds on their final energies (NaN if not computed)."""
-    if not all(name in arrays for name in DEXGRASPNET_THRESHOLDS):
-        return math.nan
-    final = {name: np.asarray(arrays[name], dtype=np.float64)[:, None] for name in DEXGRASPNET_THRESHOLDS}
-    return rate(first_iteration_meeting(final) >= 0)
+PER_OBJECT_DIVERSITY = ("n_held", "n_distinct_held", "surface_coverage", "filtered_n_grasps", "filtered_n_held", "filtered_n_distinct_held",
+                        "filtered_surface_coverage")  # fmt: skip
 
 
-def per_object_rows(arrays: Mapping[str, np.ndarray]) -> list[dict]:
-    """One row per object: grasp count (invalid ones among them), lift and six-direction success rates, mean penetration."""
+def per_object_rows(
+    arrays: Mapping[str, np.ndarray], diversity: DiversityConfig = DiversityConfig(), thresholds: Mapping[str, float] = DEXGRASPNET_THRESHOLDS
+) -> list[dict]:
+    """One row per object: grasp count (invalid ones among them), lift and six-direction success rates, mean penetration,
+    held, distinct held and coverage per attempt, and the same after the energy filter (``thresholds``; NaN when not computed)."""
     object_ids = np.asarray(arrays["object_id"]).astype(str)
     invalid = invalid_flags(arrays)
+    held = held_flags(arrays)
+    passing = filter_flags(arrays, thresholds)
+    measured = "lift_success" in arrays
+    all_held = per_object_diversity(arrays, held, diversity) if measured else {}
+    kept_held = per_object_diversity(arrays, held & passing, diversity) if measured and passing is not None else {}
     rows = []
     for object_id in np.unique(object_ids):
         mask = object_ids == object_id
@@ -301,6 +443,14 @@ def per_object_rows(arrays: Mapping[str, np.ndarray]) -> list[dict]:
             row[key] = rate(np.asarray(arrays[name])[mask]) if name in arrays else math.nan
         row["any_lift_success"] = bool(np.asarray(arrays["lift_success"])[mask].any()) if "lift_success" in arrays else False
         row["penetration_mean_mm"] = finite_mean(np.asarray(arrays["penetration_mm"])[mask]) if "penetration_mm" in arrays else math.nan
+        mine, kept = all_held.get(str(object_id)), kept_held.get(str(object_id))
+        row.update({
+            "n_held": mine["held"] if mine else math.nan, "n_distinct_held": mine["distinct"] if mine else math.nan,
+            "surface_coverage": mine["coverage"] if mine else math.nan,
+            "filtered_n_grasps": int(passing[mask].sum()) if passing is not None else math.nan,
+            "filtered_n_held": kept["held"] if kept else math.nan, "filtered_n_distinct_held": kept["distinct"] if kept else math.nan,
+            "filtered_surface_coverage": kept["coverage"] if kept else math.nan,
+        })  # fmt: skip
         rows.append(row)
     return rows
 

@@ -21,6 +21,15 @@ and the random-init baseline share one draw over the sampled rows, so they are c
 on the same source rows (same objects and scales; raw and refined: the same samples).
 A chosen grasp with an unusable pose or scale is not simulated but stays in the set as a
 failure (``invalid_reason``), so emitting NaN poses cannot raise a method's rate.
+
+Equal filtering: every method is drawn from all its attempts (the seed method too: all its
+optimized grasps, not only those its synthesis flagged as passing) and reported twice, per
+attempt and after one energy filter: the simulate step computes every grasp's filter energies
+with one contact search (``evaluation.filter_energy``), the aggregate step applies
+``evaluate.filter_thresholds`` to them; no method is filtered while another is not. The cost
+columns divide the seconds of the stages that generated a method's attempts (see
+``stage_seconds_per_grasp``) by what those attempts gave: held grasps, distinct held grasps,
+and the same after the filter.
 """
 
 from __future__ import annotations
@@ -39,6 +48,7 @@ from dexlite_pipeline.config import from_section
 from dexlite_pipeline.io.grasp_store import GraspSet, invalid_grasp_reasons
 from dexlite_pipeline.evaluation import metrics
 from dexlite_pipeline.evaluation.config import LADDER_RUNGS, EvaluateConfig, SeedProtocolConfig
+from dexlite_pipeline.evaluation.diversity import DiversityConfig
 from dexlite_pipeline.evaluation.step_keys import with_evaluate_keys
 
 log = logging.getLogger(__name__)
@@ -166,22 +176,20 @@ def _labelled(store: GraspSet, label: str = PURE_SYNTHESIS) -> np.ndarray:
     return np.asarray([str(m) for m in store.arrays["method"]]) == label
 
 
-def method_grasps(method: str, sources: Sequence[GraspSet], seed_passing_only: bool = False) -> GraspSet:
+def method_grasps(method: str, sources: Sequence[GraspSet]) -> GraspSet:
     """Concatenate one method's source stores, keeping only the rows that belong to it.
 
     The sample (and post) stores hold both pure syntheses on held-out objects (``method ==
     cvae_raw``) and dataset expansion on train objects; only the former are the
-    ``cvae_raw`` method, and their refined versions the ``cvae_post`` method. With
-    ``seed_passing_only`` the seed method keeps the grasps flagged
-    ``passes_energy_thresholds`` (what optimization from scratch delivers as a dataset).
+    ``cvae_raw`` method, and their refined versions the ``cvae_post`` method. Every method
+    keeps all its attempts: the seed method's grasps that its synthesis flagged as failing
+    the thresholds too (the equal filter is applied later, to every method alike).
     """
     parts = []
     for source in sources:
         subset = source
         if method in SAMPLED_METHODS:
             subset = source.select(_labelled(source, SAMPLED_METHODS[method][0]))
-        if method == "seed" and seed_passing_only and "passes_energy_thresholds" in source.arrays:
-            subset = source.select(np.asarray(source.arrays["passes_energy_thresholds"], dtype=bool))
         kept = (*SELECTED_ARRAYS, BUDGET_POSES) if all(BUDGET_POSES in src.arrays for src in sources) else SELECTED_ARRAYS
         parts.append(GraspSet({k: subset.arrays[k] for k in kept}, subset.attrs))
     return GraspSet.concatenate(parts, attrs={})
@@ -225,21 +233,22 @@ def _rows_of(stores: Sequence[GraspSet]) -> GraspSet:
     return GraspSet.concatenate([GraspSet({k: v for k, v in s.arrays.items() if k in kept}) for s in stores], attrs={})
 
 
-def stage_seconds_per_grasp(method: str, sources: Mapping[str, Sequence[GraspSet]], seed_passing_only: bool = False) -> dict[str, float]:
-    """Seconds per grasp of each stage that made a method's grasps (grasp-weighted over shards).
+def stage_seconds_per_grasp(method: str, sources: Mapping[str, Sequence[GraspSet]]) -> dict[str, float]:
+    """Seconds per attempt of each stage that made a method's grasps (grasp-weighted over shards).
 
-    With ``seed_passing_only`` the seed's cost is per grasp that passes the thresholds
-    (its seconds per grasp divided by its pass fraction).
+    Each store records its stage's wall seconds per grasp it made (``seconds_per_grasp``):
+    seed synthesis per optimized grasp (passing or not), sampling per sampled row (model
+    loading and every kind of row in the shard included), post-optimization per refined
+    grasp. Those stages run as one-thread jobs (``SHARD_THREADS``), so on a CPU run these are
+    CPU-seconds (an upper bound when the core is shared). Not included: training, object
+    preparation, the evaluation's energies (the filter) and its simulation. DexGraspNet's
+    imported grasps carry no cost.
     """
     stages = {"seed": ("seed",), "random_post": ("random_post",), "dexgraspnet": ()}
     stages.update({m: ("sample",) if stage == "sample" else ("sample", "post") for m, (_, stage) in SAMPLED_METHODS.items()})
     out = {}
     for stage in stages[method]:
         sets = sources.get(stage, [])
-        if stage == "seed" and seed_passing_only and sets and all(s.attrs.get("seconds") is not None and "passing" in s.attrs for s in sets):
-            seconds, passing = sum(float(s.attrs["seconds"]) for s in sets), sum(int(s.attrs["passing"]) for s in sets)
-            out[stage] = seconds / passing if passing else (math.inf if seconds > 0 else math.nan)
-            continue
         weighted = [(float(s.attrs["seconds_per_grasp"]), len(s)) for s in sets if s.attrs.get("seconds_per_grasp") is not None and len(s)]
         if weighted:
             total = sum(n for _, n in weighted)
@@ -257,12 +266,14 @@ def simulate(
     energy_batch_size: int,
     seed_protocol: SeedProtocolConfig | None = None,
 ) -> GraspSet:
-    """Energies and lift (+ six-direction) results for every selected grasp, as one grasp set.
+    """Energies, the equal filter's energies (``evaluation.filter_energy``) and lift (+ six-direction) results for every
+    selected grasp, as one grasp set.
 
     Invalid grasps (``invalid_reason``) pass through both with NaN results and a failed
     lift; the seconds per grasp are per simulated (valid) grasp.
     """
     from dexlite_pipeline.energy.per_grasp import evaluate_grasp_energies
+    from dexlite_pipeline.evaluation.filter_energy import filter_energy_arrays
     from dexlite_pipeline.sim.lift import run_lift_tests
 
     arrays = dict(selected.arrays)
@@ -275,6 +286,9 @@ def simulate(
     energy_s = time.perf_counter() - start
     log.info("energies of %d grasps in %.1f s (%.1f grasps/s)", len(selected), energy_s, len(selected) / max(energy_s, 1e-9))
     arrays.update(energies)
+    start = time.perf_counter()
+    arrays.update(filter_energy_arrays(selected, objects_dirs, energy_cfg.weights, device))
+    log.info("the equal filter's contact search of %d grasps in %.1f s", len(selected), time.perf_counter() - start)
     start = time.perf_counter()
     arrays.update(run_lift_tests(selected, objects_dirs, lift_cfg, threads))
     lift_s = time.perf_counter() - start
@@ -377,9 +391,17 @@ def metrics_tables(
     convergence: Mapping[str, Mapping[str, float]],
     sim_seconds_per_grasp: float = math.nan,
     bootstrap_seed: int = 0,
+    diversity: DiversityConfig = DiversityConfig(),
 ):
-    """(metrics DataFrame: one row per (method, split); per-object DataFrame). ``bootstrap_seed`` seeds the object bootstrap."""
+    """(metrics DataFrame: one row per (method, split); per-object DataFrame). ``bootstrap_seed`` seeds the object bootstrap.
+
+    Distinct held grasps and coverage follow ``diversity``; the equal filter is ``cfg.filter_thresholds``.
+    ``cpu_seconds_per_*``: ``seconds_per_grasp`` (the generating stages, per attempt) times the
+    attempts, over the held / distinct held grasps they gave, per attempt and after the filter.
+    """
     import pandas as pd
+
+    thresholds = cfg.filter_thresholds.limits()
 
     methods = np.asarray([str(m) for m in simulated.arrays.get("method", [])])
     splits = np.asarray([str(s) for s in simulated.arrays.get("split", [])])
@@ -389,10 +411,16 @@ def metrics_tables(
             mask = (methods == method) & (splits == split)
             subset = {k: v[mask] for k, v in simulated.arrays.items()}
             row = {"method": method, "split": split, "rung": rung_of(method, split)}
-            row.update(metrics.summarize_grasps(subset, joint_limits_rad, cfg.entropy_bins, cfg.pca_components, bootstrap_seed))
+            row.update(metrics.summarize_grasps(subset, joint_limits_rad, cfg.entropy_bins, cfg.pca_components, bootstrap_seed, diversity, thresholds))
             stage_times = seconds.get(method, {})
             row["seconds_per_grasp"] = sum(stage_times.values()) if stage_times else math.nan
             row["seconds_per_grasp_by_stage"] = ";".join(f"{k}={v:.4g}" for k, v in stage_times.items())
+            for prefix in ("", "filtered_"):
+                for outcome, column in (("held", "n_held"), ("distinct_held", "distinct_held_total")):
+                    count = row[f"{prefix}{column}"]
+                    row[f"{prefix}cpu_seconds_per_{outcome}_grasp"] = (
+                        metrics.seconds_per_outcome(row["seconds_per_grasp"], row["n_grasps"], int(count)) if math.isfinite(count) else math.nan
+                    )
             row["simulation_seconds_per_grasp"] = sim_seconds_per_grasp
             for name in FIT_ERRORS:
                 values = np.asarray(subset.get(name, []), dtype=np.float64)
@@ -406,9 +434,10 @@ def metrics_tables(
                             "seed_protocol_lift_success_ci95_high": high})
             row.update({name: convergence.get(method, {}).get(name, math.nan) for name in CONVERGENCE_COLUMNS})
             rows.append(row)
-            for object_row in metrics.per_object_rows(subset) if mask.any() else []:
+            for object_row in metrics.per_object_rows(subset, diversity, thresholds) if mask.any() else []:
                 object_rows.append({"method": method, "split": split, **object_row})
-    per_object_columns = ["method", "split", "object_id", "n_grasps", "n_invalid", "lift_success_rate", "six_dir_success_rate", "any_lift_success", "penetration_mean_mm"]
+    per_object_columns = ["method", "split", "object_id", "n_grasps", "n_invalid", "lift_success_rate", "six_dir_success_rate", "any_lift_success",
+                          "penetration_mean_mm", *metrics.PER_OBJECT_DIVERSITY]  # fmt: skip
     return pd.DataFrame(rows), pd.DataFrame(object_rows, columns=per_object_columns)
 
 
@@ -482,3 +511,50 @@ def fit_error_arrays(selected: GraspSet, method: str, sampled_reference: np.ndar
             out[name][usable] = values.numpy()
     return out
 
+
+
+def coverage_arrays(simulated: GraspSet, objects_dirs, diversity: DiversityConfig) -> dict[str, np.ndarray]:
+    """The surface patches each grasp touches, for the coverage columns (``metrics.TOUCHED_PATCHES`` and ``COVERAGE_PATCHES``).
+
+    Per object: its stored surface samples split into ``diversity.coverage_patches`` patches
+    (``diversity.surface_patch_labels``, in the normalized frame, so one split serves every
+    scale); per valid grasp, the hand's 140 contact candidates placed by forward kinematics,
+    their signed distance from the object's SDF grid, and the patches touched
+    (``diversity.touched_patches``). Invalid grasps and objects whose asset cannot be read
+    touch nothing and get 0 patches (coverage NaN for such an object, with a warning).
+    """
+    import torch
+
+    from dexlite_pipeline.evaluation.diversity import surface_patch_labels, touched_patches
+    from dexlite_pipeline.hand import ShadowHand
+    from dexlite_pipeline.objects.assets import ObjectAssetError, SdfBank, load_asset
+
+    n = len(simulated)
+    touched = np.zeros((n, diversity.coverage_patches), dtype=bool)
+    patches = np.zeros(n, dtype=np.int64)
+    if n == 0:
+        return {metrics.TOUCHED_PATCHES: touched, metrics.COVERAGE_PATCHES: patches}
+    hand = ShadowHand()
+    object_ids = np.asarray([str(o) for o in simulated.object_id])
+    valid = ~metrics.invalid_flags(simulated.arrays)
+    for object_id in sorted(set(object_ids)):
+        try:
+            asset = load_asset(objects_dirs, object_id)
+        except ObjectAssetError as exc:
+            log.warning("coverage: %s: %s; its coverage is not measured", object_id, exc)
+            continue
+        labels = surface_patch_labels(asset.surface_points, diversity.coverage_patches)
+        rows = np.flatnonzero((object_ids == object_id) & valid)
+        patches[object_ids == object_id] = int(labels.max()) + 1 if labels.size else 0
+        if not rows.size or not labels.size:
+            continue
+        bank = SdfBank([asset])
+        pose = torch.as_tensor(np.asarray(simulated.hand_pose[rows], dtype=np.float32), dtype=hand.dtype)
+        scale = torch.as_tensor(np.asarray(simulated.scale[rows], dtype=np.float32), dtype=hand.dtype)
+        with torch.no_grad():
+            candidates = hand.contact_candidates(hand.forward(pose))
+            distance, _ = bank.signed_distance(candidates, torch.zeros(len(rows), dtype=torch.long), scale, with_normal=False)
+        normalized = (candidates / scale[:, None, None]).numpy()  # the surface samples' frame
+        found = touched_patches(normalized, distance.numpy(), asset.surface_points, labels, diversity.coverage_contact_m)
+        touched[rows, : found.shape[1]] = found
+    return {metrics.TOUCHED_PATCHES: touched, metrics.COVERAGE_PATCHES: patches}

@@ -5,8 +5,9 @@
   (+ six-direction) tested, with ``method``, ``split``, ``sample_row`` and ``invalid_reason``
   columns: invalid grasps stay in as failures.
 - ``aggregate_evaluation``: every simulated shard plus the post-optimization traces make
-  ``metrics.csv`` (one row per method and split), ``per_object.csv``, ``convergence.csv``
-  (E_post quartiles per iteration), ``budget.csv`` and ``evaluation.json``.
+  ``metrics.csv`` (one row per method and split, per attempt and after the equal energy
+  filter, with distinct held grasps and surface coverage), ``per_object.csv``,
+  ``convergence.csv`` (E_post quartiles per iteration), ``budget.csv`` and ``evaluation.json``.
 
 Each step reads only its keys of the ``evaluate`` section (``evaluation.step_keys``).
 """
@@ -89,7 +90,7 @@ def simulate_shard(source_paths: dict[str, list[str]], objects_dirs: list[str], 
         if not method_sources:
             missing.append(method)
             continue
-        grasps = method_grasps(method, method_sources, cfg.seed_passing_only)
+        grasps = method_grasps(method, method_sources)
         selected = select_grasps(grasps, method, split_of, cfg, seed, sample_rows_of(method, sources, known_object_ids))
         arrays = dict(selected.arrays)
         arrays.update(fit_error_arrays(selected, method, sampled_reference))
@@ -100,7 +101,7 @@ def simulate_shard(source_paths: dict[str, list[str]], objects_dirs: list[str], 
             log.info("evaluate shard %s: %s: budget curve over iterations %s simulated", shard, method, budget_iterations)
         parts.append(GraspSet(arrays, {}))
         invalid[method] = selected.attrs["invalid_reasons"]
-        seconds[method] = stage_seconds_per_grasp(method, sources, cfg.seed_passing_only)
+        seconds[method] = stage_seconds_per_grasp(method, sources)
         n_invalid = sum(invalid[method].values())
         log.info("evaluate shard %s: %s: %d grasps (%d invalid) on %d objects", shard, method, len(selected), n_invalid, len(set(selected.object_id)))
     width = max((p.arrays[BUDGET_SUCCESS].shape[1] for p in parts if BUDGET_SUCCESS in p.arrays), default=0)
@@ -156,17 +157,20 @@ def _weighted_method_seconds(shards) -> dict[str, dict[str, float]]:
 def aggregate_evaluation(sim_paths: list[str], post_paths: list[str], random_post_paths: list[str], objects_dirs: list[str], config: dict) -> EvaluationTables:
     """Metrics, per-object table, convergence curves and budget curve over all simulated shards.
 
-    ``config``: the config mapping (seed and the aggregate keys of evaluate).
+    ``config``: the config mapping (seed, diversity and the aggregate keys of evaluate).
     """
+    from dexlite_pipeline.config import from_section
+    from dexlite_pipeline.evaluation.diversity import DiversityConfig
     from dexlite_pipeline.evaluation.metrics import BOOTSTRAP_RESAMPLES
     from dexlite_pipeline.evaluation.protocol import (
-        budget_rows, concatenate_shards, convergence_ratio, convergence_rows, evaluate_config_from, iterations_to_reach, metrics_tables,
-        require_split_objects,
+        budget_rows, concatenate_shards, convergence_ratio, convergence_rows, coverage_arrays, evaluate_config_from, iterations_to_reach,
+        metrics_tables, require_split_objects,
     )  # fmt: skip
     from dexlite_pipeline.hand import ShadowHand
     from dexlite_pipeline.io.grasp_store import empty_grasp_set
 
     cfg = evaluate_config_from(config, AGGREGATE_KEYS)
+    diversity = from_section(DiversityConfig, config.get("diversity"), "config.diversity")
     shards = [read_grasp_store(p) for p in sim_paths]
     # A method with no input in any shard (e.g. dexgraspnet when not configured) gets no row.
     absent = set.intersection(*(set(s.attrs.get("methods_without_input") or []) for s in shards))
@@ -174,6 +178,7 @@ def aggregate_evaluation(sim_paths: list[str], post_paths: list[str], random_pos
     simulated = concatenate_shards(shards)
     if simulated is None:
         simulated = empty_grasp_set()
+    simulated.arrays.update(coverage_arrays(simulated, objects_dirs, diversity))
     seconds = _weighted_method_seconds(shards)
     sim_counts = [(s.attrs.get("simulation_seconds_per_grasp"), len(s)) for s in shards if len(s)]
     sim_total = sum(n for t, n in sim_counts if t is not None)
@@ -196,7 +201,7 @@ def aggregate_evaluation(sim_paths: list[str], post_paths: list[str], random_pos
         summary["convergence_ratio"] = convergence_ratio(random_needs, summary["iterations_to_random_final_E_post"])
     joint_limits = ShadowHand().joint_limits.cpu().numpy()
     bootstrap_seed = int(config.get("seed") or 0)
-    metrics_df, per_object_df = metrics_tables(simulated, joint_limits, cfg, seconds, convergence, sim_seconds, bootstrap_seed)
+    metrics_df, per_object_df = metrics_tables(simulated, joint_limits, cfg, seconds, convergence, sim_seconds, bootstrap_seed, diversity)
     budget_iterations = next((s.attrs.get("budget_iterations") for s in shards if s.attrs.get("budget_iterations")), [])
     budget = pd.DataFrame(
         budget_rows(simulated, budget_iterations, BUDGET_METHODS),
@@ -206,6 +211,8 @@ def aggregate_evaluation(sim_paths: list[str], post_paths: list[str], random_pos
         "config": config,
         "evaluated_methods": list(cfg.methods),
         "bootstrap": {"resamples": BOOTSTRAP_RESAMPLES, "seed": bootstrap_seed, "cluster": "object"},
+        "diversity": dataclasses.asdict(diversity),
+        "filter_thresholds": cfg.filter_thresholds.limits(),
         "lift_config": next((s.attrs.get("lift_config") for s in shards if s.attrs.get("lift_config")), {}),
         "shards": [str(p) for p in sim_paths],
     }

@@ -15,11 +15,11 @@ from collections.abc import Mapping, Sequence
 
 # evaluate --step simulate: which grasps are chosen and how they are measured
 SIMULATE_KEYS = (
-    "methods", "splits", "grasps_per_object", "ladder_grasps_per_object", "six_directions", "seed_passing_only", "energy_batch_size",
-    "seed_protocol",
+    "methods", "splits", "grasps_per_object", "ladder_grasps_per_object", "six_directions", "energy_batch_size", "seed_protocol",
 )  # fmt: skip
-# evaluate --step aggregate: which rows metrics.csv has and how diversity is measured
-AGGREGATE_KEYS = ("methods", "splits", "entropy_bins", "pca_components")
+# evaluate --step aggregate: which rows metrics.csv has, how diversity is measured and the equal energy filter
+# (the aggregate step also reads the config section diversity: its rule tracks that section too)
+AGGREGATE_KEYS = ("methods", "splits", "entropy_bins", "pca_components", "filter_thresholds")
 # dexlite report: pictures per method (its rule passes the whole config, which the report shows)
 REPORT_KEYS = ("rendered_per_method",)
 

@@ -1,13 +1,15 @@
 """The evaluation report: one self-contained HTML page (every image base64-embedded).
 
-Read from the top, the page answers in this order: one sentence with the result and a
-compact table (readable method names, lift and six-direction rates side by side with
-their 95% intervals); the learning ladder when the evaluation measured it; plots
-(success per method, energies, post-optimization convergence, training curves);
-published numbers for context; pictures of grasps drawn at random among each method's
-successes and failures, with their contacts marked and the outcome in large type; and
-last the run's settings, the physical constants and links to the full CSV tables. It
-opens from disk, no server.
+Read from the top, the page answers in this order: the run's facts (date, code commit, wall
+time, machine); one sentence with the result and a compact table (readable method names,
+lift and six-direction rates side by side with their 95% intervals, the lift rate beside
+the distinct held grasps per object and the surface coverage, per attempt and after the
+equal energy filter, and the CPU-seconds per distinct held grasp); the learning ladder
+when the evaluation measured it; plots (success per method, energies, post-optimization
+convergence, training curves); published numbers for context; pictures of grasps drawn at
+random among each method's successes and failures, with their contacts marked and the
+outcome in large type; and last the run's settings, the physical constants and links to
+the full CSV tables. It opens from disk, no server.
 """
 
 from __future__ import annotations
@@ -51,7 +53,12 @@ TABLE_COLUMNS = (
     "lift_success_boot_ci95_low", "lift_success_boot_ci95_high", "object_success_rate", "six_dir_success_rate",
     "six_dir_success_ci95_low", "six_dir_success_ci95_high", "six_dir_success_boot_ci95_low", "six_dir_success_boot_ci95_high",
     "penetration_mean_mm", "penetration_p95_mm", "contact_distance_mean_mm", "E_fc_mean", "energy_threshold_pass_rate",
-    "joint_entropy_bits", "pca_explained_variance_k1", "pca_explained_variance_k3", "seconds_per_grasp",
+    "joint_entropy_bits", "held_joint_entropy_bits", "pca_explained_variance_k1", "pca_explained_variance_k3",
+    "n_held", "distinct_held_total", "distinct_held_per_object_mean", "distinct_held_per_attempt", "surface_coverage_mean",
+    "filtered_n_grasps", "filtered_lift_success_rate", "filtered_lift_success_ci95_low", "filtered_lift_success_ci95_high",
+    "filtered_six_dir_success_rate", "filtered_n_held", "filtered_distinct_held_total", "filtered_distinct_held_per_object_mean",
+    "filtered_distinct_held_per_attempt", "filtered_surface_coverage_mean", "seconds_per_grasp", "cpu_seconds_per_held_grasp",
+    "cpu_seconds_per_distinct_held_grasp", "filtered_cpu_seconds_per_held_grasp", "filtered_cpu_seconds_per_distinct_held_grasp",
     "E_post_median_initial", "E_post_median_final", "iterations_to_random_final_E_post", "threshold_reached_fraction", "convergence_ratio",
     "seed_protocol_lift_success_rate", "seed_protocol_lift_success_ci95_low", "seed_protocol_lift_success_ci95_high",
     "fit_rotation_error_deg_median", "fit_translation_error_mm_median", "fit_joint_error_rad_mean",
@@ -122,6 +129,7 @@ class ReportInputs:
     budget: object | None = None  # budget.csv: lift success after each post-optimization budget (optional)
     seed: int = 0  # seeds the random choice of pictured grasps
     learning_curve: object | None = None  # the shipped model's learning curve (docs/learning_curve.csv; optional)
+    run_facts: Sequence[tuple[str, str]] = ()  # (label, value): report date, code commit, wall time, machine (report.run_facts)
 
 
 def figure_png_base64(fig) -> str:
@@ -542,15 +550,64 @@ def has_lenient(frame) -> bool:
 LENIENT_HEADER = "<th class='lenient'>lift, DexLite's test</th>"
 
 
+def _diversity_cells(row, prefix: str = "") -> list[str]:
+    """Distinct held grasps per object and the surface coverage (``prefix`` "filtered_": after the energy filter)."""
+    coverage = percent_text(row.get(f"{prefix}surface_coverage_mean"))
+    return [f"<td class='diversity'>{_number(row.get(f'{prefix}distinct_held_per_object_mean'))}</td>",
+            f"<td class='diversity'>{coverage if coverage != 'not run' else '—'}</td>"]  # fmt: skip
+
+
+def _cost_text(seconds) -> str:
+    """Seconds for a cost cell; "∞" when attempts cost time and gave nothing."""
+    try:
+        value = float(seconds)
+    except (TypeError, ValueError):
+        return "—"
+    return "∞" if value == math.inf else seconds_text(value)
+
+
+def _cpu_seconds_cell(row) -> str:
+    """CPU-seconds per distinct held grasp, per attempt and after the filter ("5.2 s / 7.1 s")."""
+    per_attempt, filtered = (row.get(f"{p}cpu_seconds_per_distinct_held_grasp") for p in ("", "filtered_"))
+    return f"<td>{_cost_text(per_attempt)} / {_cost_text(filtered)}</td>"
+
+
+def _filtered_rate_cell(row) -> str:
+    """The lift rate after the energy filter; "none pass" when no attempt passed, "—" when the filter was not measured."""
+    if not _filter_measured(row):
+        return "<td class='rate na'>—</td>"
+    if _finite(row.get("filtered_n_grasps")) and int(row["filtered_n_grasps"]) == 0:
+        return "<td class='rate na'>none pass</td>"
+    return _rate_cell(row, "filtered_lift_success")
+
+
+def _pass_cell(row) -> str:
+    """The filter's pass fraction with the passing count ("40.0% (2)"); "—" when the energies were not computed."""
+    text = percent_text(row.get("energy_threshold_pass_rate"))
+    if text == "not run":
+        return "<td>—</td>"
+    try:
+        return f"<td>{text} <small>({int(row.get('filtered_n_grasps'))})</small></td>"
+    except (TypeError, ValueError):
+        return f"<td>{text}</td>"
+
+
+DIVERSITY_HEADERS = "<th class='wrap'>distinct held / object</th><th class='wrap'>surface touched</th>"
+FILTER_HEADERS = ("<th class='wrap'>pass the energy filter</th><th class='wrap'>held after the filter: lift test</th>"
+                  "<th class='wrap'>after the filter: distinct held / object</th><th class='wrap'>after the filter: surface touched</th>")  # fmt: skip
+
+
 def compact_table_html(frame) -> str:
-    """The headline table: readable names, grasps, lift and six-direction rates with intervals, a few quality columns."""
+    """The headline table: readable names, grasps, lift and six-direction rates with intervals, the lift rate beside its
+    distinct held grasps per object and surface coverage, per attempt and after the equal energy filter; cost; quality."""
     if frame is None or not len(frame):
         return "<p>No method was evaluated.</p>"
     several_splits = "split" in frame.columns and frame["split"].nunique() > 1
     lenient = has_lenient(frame)
     head = (
         "<tr><th>method</th>" + ("<th>objects</th>" if several_splits else "") + "<th>grasps on objects</th>"
-        "<th>held: lift test</th><th>held: six pushes</th>" + (LENIENT_HEADER if lenient else "") + "<th>penetration (mm)</th>"
+        "<th>held: lift test</th>" + DIVERSITY_HEADERS + "<th>held: six pushes</th>" + (LENIENT_HEADER if lenient else "")
+        + FILTER_HEADERS + "<th class='wrap'>CPU s / distinct held grasp (per attempt / filtered)</th><th>penetration (mm)</th>"
         "<th>contact dist. (mm)</th><th>time / grasp</th></tr>"
     )
     body = []
@@ -559,9 +616,10 @@ def compact_table_html(frame) -> str:
         cells = [f"<td class='name'>{html.escape(method_label(method))} <span class='id'>{html.escape(method)}</span></td>"]
         if several_splits:
             cells.append(f"<td>{html.escape(split_label(row['split']))}</td>")
-        cells += [_grasps_cell(row), _rate_cell(row, "lift_success"), _rate_cell(row, "six_dir_success")]
+        cells += [_grasps_cell(row), _rate_cell(row, "lift_success"), *_diversity_cells(row), _rate_cell(row, "six_dir_success")]
         if lenient:
             cells.append(_rate_cell(row, LENIENT, "lenient"))
+        cells += [_pass_cell(row), _filtered_rate_cell(row), *_diversity_cells(row, "filtered_"), _cpu_seconds_cell(row)]
         cells += [
             f"<td>{_number(row.get('penetration_mean_mm'))}</td>", f"<td>{_number(row.get('contact_distance_mean_mm'))}</td>",
             f"<td>{seconds_text(row.get('seconds_per_grasp'))}</td>",
@@ -580,7 +638,7 @@ def _ladder_extra_columns(metrics_df, ladder) -> list[str]:
     for column in [*LADDER_COLUMN_LABELS, *metrics_df.columns]:
         if column not in metrics_df.columns or column in extra:
             continue
-        if column in known or column.startswith(LENIENT) or not pd.api.types.is_numeric_dtype(metrics_df[column]):
+        if column in known or column.startswith((LENIENT, "filtered_")) or not pd.api.types.is_numeric_dtype(metrics_df[column]):
             continue
         if ladder[column].notna().any() and (not len(others) or others[column].isna().all()):
             extra.append(column)
@@ -595,8 +653,8 @@ def ladder_html(metrics_df) -> str:
     extra = _ladder_extra_columns(metrics_df, ladder)
     lenient = has_lenient(ladder)
     head = (
-        "<tr><th>rung</th><th class='name'>method</th><th>grasps on objects</th><th>held: lift test</th><th>held: six pushes</th>"
-        + (LENIENT_HEADER if lenient else "")
+        "<tr><th>rung</th><th class='name'>method</th><th>grasps on objects</th><th>held: lift test</th>" + DIVERSITY_HEADERS
+        + "<th>held: six pushes</th>" + (LENIENT_HEADER if lenient else "") + FILTER_HEADERS
         + "".join(f"<th class='wrap'>{html.escape(LADDER_COLUMN_LABELS.get(c, c.replace('_', ' ')))}</th>" for c in extra) + "</tr>"
     )
     body = []
@@ -610,9 +668,10 @@ def ladder_html(metrics_df) -> str:
         previous = rung
         method = str(row["method"])
         cells += [f"<td class='name'>{html.escape(method_label(method))} <span class='id'>{html.escape(method)}</span></td>",
-                  _grasps_cell(row), _rate_cell(row, "lift_success"), _rate_cell(row, "six_dir_success")]  # fmt: skip
+                  _grasps_cell(row), _rate_cell(row, "lift_success"), *_diversity_cells(row), _rate_cell(row, "six_dir_success")]  # fmt: skip
         if lenient:
             cells.append(_rate_cell(row, LENIENT, "lenient"))
+        cells += [_pass_cell(row), _filtered_rate_cell(row), *_diversity_cells(row, "filtered_")]
         cells += [f"<td>{_format(row[c])}</td>" for c in extra]
         body.append("<tr>" + "".join(cells) + "</tr>")
     return (
@@ -657,15 +716,55 @@ def headline_sentence(frame, lift_config: Mapping) -> str:
                   f"{percent_text(lead['six_dir_success_rate'])} against pushes from all six directions")  # fmt: skip
     else:
         result = f"{percent_text(lead['lift_success_rate'])} of {method_label(lead_method)} held the object in the lift test (six-direction test not run)"
+    result += f" per attempt{_diversity_text(lead, '')}{_filter_text(lead)}"
     others = []
     for _, row in rows[rows["method"] != lead_method].iterrows():
         pair = percent_text(row["lift_success_rate"]) + (f" / {percent_text(row['six_dir_success_rate'])}" if six_run else "")
         # a row measured on another number of objects says so (the shipped model samples only objects it never trained on)
         row_objects = _object_count(row)
         on_other_objects = f" (on {row_objects} objects)" if None not in (n_objects, row_objects) and row_objects != n_objects else ""
-        others.append(f"{_in_sentence(method_label(str(row['method'])))} {pair}{on_other_objects}")
-    tail = f"; for comparison, {', '.join(others)}" if others else ""
+        after = f", {_filtered_rate_text(row)} after the filter" if _filter_measured(row) else ""
+        others.append(f"{_in_sentence(method_label(str(row['method'])))} {pair} per attempt{after}{on_other_objects}")
+    tail = f"; for comparison, {'; '.join(others)}" if others else ""
     return f"{where}{grasps}, {result}{tail}."
+
+
+def _filtered_rate_text(row) -> str:
+    """The lift rate after the filter, "none passing" when no attempt passed it."""
+    if _finite(row.get("filtered_n_grasps")) and int(row["filtered_n_grasps"]) == 0:
+        return "none passing"
+    return percent_text(row.get("filtered_lift_success_rate"))
+
+
+def _finite(value) -> bool:
+    try:
+        return value is not None and math.isfinite(float(value))
+    except (TypeError, ValueError):
+        return False
+
+
+def _filter_measured(row) -> bool:
+    """Whether a metrics row carries the equal energy filter (its pass fraction)."""
+    return _finite(row.get("energy_threshold_pass_rate"))
+
+
+def _diversity_text(row, prefix: str) -> str:
+    """" (2.5 distinct held grasps per object, 31.0% of the surface touched)"; empty when not measured."""
+    if not _finite(row.get(f"{prefix}distinct_held_per_object_mean")):
+        return ""
+    coverage = row.get(f"{prefix}surface_coverage_mean")
+    touched = f", {percent_text(coverage)} of the surface touched" if _finite(coverage) else ""
+    return f" ({_number(row[f'{prefix}distinct_held_per_object_mean'])} distinct held grasps per object{touched})"
+
+
+def _filter_text(row) -> str:
+    """The lead row after the equal energy filter; empty when the filter was not measured."""
+    if not _filter_measured(row):
+        return ""
+    if _finite(row.get("filtered_n_grasps")) and int(row["filtered_n_grasps"]) == 0:
+        return "; none of its attempts pass the energy filter every method goes through"
+    return (f"; after the energy filter every method goes through ({percent_text(row['energy_threshold_pass_rate'])} of attempts pass), "
+            f"{_filtered_rate_text(row)} held in the lift test{_diversity_text(row, 'filtered_')}")  # fmt: skip
 
 
 def full_table_html(metrics_df) -> str:
@@ -773,7 +872,7 @@ table.text td,table.text th{text-align:left;max-width:34em}
 .gallery{display:flex;flex-wrap:wrap;gap:10px}figure{margin:0;border:1px solid #ddd;padding:4px;width:300px}
 figcaption{font-size:11px;color:#444}img{max-width:100%}.note{font-size:12px;color:#555;max-width:1150px}
 .outcome{font-size:24px;font-weight:700;letter-spacing:.02em}.held{color:#1a7f37}.partial{color:#b35c00}.dropped{color:#c62828}
-.detail{font-size:12px;color:#333}.facts{font-size:11px;color:#666}
+.detail{font-size:12px;color:#333}.facts{font-size:11px;color:#666}table.facts td{text-align:left;border:none;padding:1px 8px 1px 0}
 """
 
 
@@ -810,12 +909,30 @@ def definitions_html(lift_config: Mapping) -> str:
         "a lift alone can be a palm-up carry. Rates are fractions of the evaluated grasps; n_invalid of the n_grasps had no usable "
         "pose or scale, were not simulated and count as failures. object_success_rate: share of objects with at least one lifted "
         "grasp. Joint entropy: mean per-joint histogram entropy in bits (bins over each joint's range, as in DexGraspNet); PCA: "
-        "cumulative explained variance of the 22 joint angles (lower = more diverse). seconds_per_grasp sums the stages that made "
-        "the method's grasps on this machine. cvae_raw, cvae_post and random_post are evaluated on the same sampled rows (same "
+        "cumulative explained variance of the 22 joint angles (lower = more diverse); held_joint_entropy_bits: the same over the held "
+        "grasps. Distinct held grasps: held grasps of an object and scale are one grasp when their palms are within "
+        "diversity.distinct_translation_m and diversity.distinct_rotation_deg (greedy clustering), summed over scales; per object "
+        "= mean over the row's objects, per attempt = total over n_grasps. Surface touched (surface_coverage_mean): per object, the "
+        "share of its surface patches (diversity.coverage_patches, about equal area) that a contact candidate of a held grasp "
+        "touches (within diversity.coverage_contact_m), averaged over objects. Equal filter: every method is counted per attempt "
+        "and after the same energy thresholds (evaluate.filter_thresholds) on the evaluation's own energies; "
+        "energy_threshold_pass_rate = passing attempts / attempts, filtered_* = the measures on the passing grasps only. "
+        "seconds_per_grasp sums the stages that made the method's grasps, per attempt, on this machine (one-thread jobs: "
+        "CPU-seconds on a CPU run; training, preparation and the evaluation itself not included); cpu_seconds_per_held_grasp "
+        "and cpu_seconds_per_distinct_held_grasp divide all attempts' seconds by the held (distinct held) grasps they gave. "
+        "cvae_raw, cvae_post and random_post are evaluated on the same sampled rows (same "
         "objects and scales). Intervals: ci95 = Wilson (grasps taken as independent); boot_ci95 = object-level bootstrap "
         "(objects resampled with replacement: wider when success depends on the object, rough with few objects), the one the "
         "compact table and the error bars show.</p>"
     )
+
+
+def run_facts_html(facts: Sequence[tuple[str, str]]) -> str:
+    """The run's date, code commit, wall time and machine as one small line-per-fact table."""
+    if not facts:
+        return ""
+    rows = "".join(f"<tr><td>{html.escape(label)}</td><td>{html.escape(value)}</td></tr>" for label, value in facts)
+    return f"<table class='facts'><tbody>{rows}</tbody></table>"
 
 
 def csv_links_html(links: Mapping[str, str]) -> str:
@@ -843,7 +960,7 @@ def learning_curve_html(curve) -> str:
 def build_report_html(inputs: ReportInputs) -> str:
     """The whole page as a string."""
     headline = headline_rows(inputs.metrics)
-    sections = [f"<h1>{html.escape(inputs.title)}</h1>"]
+    sections = [f"<h1>{html.escape(inputs.title)}</h1>", run_facts_html(inputs.run_facts)]
     sections.append(f"<p class='result'>{html.escape(headline_sentence(headline, inputs.lift_config))}</p>")
     sections.append(compact_table_html(headline))
     sections.append(
@@ -909,8 +1026,11 @@ class EvaluationFiles:
 
 
 def load_report_inputs(files: EvaluationFiles, sim_paths: list[str], history_path: str | None, objects_dirs: list[str],
-                       config: dict, page_path: str, learning_curve_path: str | None = None) -> ReportInputs:
-    """Everything the page shows, read from the evaluation's files; CSV links relative to the page's folder."""
+                       config: dict, page_path: str, learning_curve_path: str | None = None, benchmarks_dir: str | None = None) -> ReportInputs:
+    """Everything the page shows, read from the evaluation's files; CSV links relative to the page's folder.
+
+    ``benchmarks_dir``: the run's job benchmark files (logs/benchmarks), for the wall time at the top.
+    """
     import json
     import os
 
@@ -919,6 +1039,7 @@ def load_report_inputs(files: EvaluationFiles, sim_paths: list[str], history_pat
     from dexlite_pipeline.evaluation.protocol import concatenate_shards, evaluate_config_from
     from dexlite_pipeline.evaluation.step_keys import REPORT_KEYS
     from dexlite_pipeline.io.grasp_store import read_grasp_store
+    from dexlite_pipeline.report.run_facts import run_facts
 
     for path in (files.metrics, files.per_object, files.convergence):
         if not Path(path).is_file():
@@ -941,4 +1062,5 @@ def load_report_inputs(files: EvaluationFiles, sim_paths: list[str], history_pat
         seed=int(config.get("seed") or 0),
         budget=budget,
         learning_curve=pd.read_csv(learning_curve_path) if learning_curve_path else None,
+        run_facts=run_facts(config, benchmarks_dir),
     )

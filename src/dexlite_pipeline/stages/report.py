@@ -2,6 +2,8 @@
 
 It takes the run's whole config (``--config-json``) and shows its key settings and the
 whole of it in the page; of the ``evaluate`` section it reads ``evaluation.step_keys.REPORT_KEYS``.
+At the top: the report date, the code commit, the run's wall time (from ``--benchmarks``, the
+jobs' benchmark files) and the machine (``report.run_facts``).
 The run's ``seed`` seeds the random choice of pictured grasps; the page links the CSV
 tables relative to where it is written (``report.html.load_report_inputs``).
 """
@@ -22,6 +24,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--history", default=None, help="CVAE training history CSV (optional)")
     parser.add_argument("--objects", action="append", default=[], help="prepared objects dir (repeatable), for the pictures")
     parser.add_argument("--learning-curve", default=None, help="the shipped model's learning curve (docs/learning_curve.csv; optional)")
+    parser.add_argument("--benchmarks", default=None, help="the run's job benchmark folder (logs/benchmarks; optional): the run's wall time")
     parser.add_argument("--out", required=True, help="output HTML file")
 
 
@@ -31,7 +34,8 @@ def run(args: argparse.Namespace) -> int:
     from dexlite_pipeline.report.html import EvaluationFiles, build_report_html, load_report_inputs
 
     files = EvaluationFiles(args.metrics, args.per_object, args.convergence, args.budget, args.record)
-    inputs = load_report_inputs(files, args.sim, args.history, args.objects, parse_config_json(args.config_json), args.out, args.learning_curve)
+    inputs = load_report_inputs(files, args.sim, args.history, args.objects, parse_config_json(args.config_json), args.out, args.learning_curve,
+                                args.benchmarks)
     write_text_atomic(args.out, build_report_html(inputs))
     print(f"wrote {args.out}")
     return 0
