@@ -1,0 +1,158 @@
+"""Tabletop mode: the object rests in its stable pose on a table, and grasps must stay above it.
+
+Grasps stay in the object frame (``hand_pose`` is the palm pose in the prepared mesh frame,
+scaled by ``scale``). The table is a plane in that frame, found from the object's resting
+pose on the table (recorded by the stability stage): its upward unit normal is
+n = Rᵀ·z_world (R: the mesh frame's orientation after settling), and it passes through the
+object's lowest point along −n. With ``support_offset`` h the height of the mesh origin
+above the table per unit of scale (normalized units: h = −min over mesh vertices of v·n),
+the signed height of a point x (metres, object frame) above the table at scale s is
+
+    height(x) = n·x + s·h      (negative: below the table).
+
+Every stage needs only (n, h) per object and the grasp's scale. Gravity in the lift test
+acts along −n: the world's −z in the rested pose. The stability test lets each object settle
+from a small tilt, so n is within ``stability.max_rotation_deg`` (7°) of the file's +z for
+every stable object but rarely exactly +z: in floating mode gravity is along the object
+frame's −z as before.
+
+``scene.table: false`` (floating mode) switches all of it off: no plane exists, every stage
+runs the code it ran before tabletop mode existed.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+# Stability-table columns of the resting pose (NaN for objects that are not stable or not simulated).
+REST_QUATERNION_COLUMNS = ("rest_qx", "rest_qy", "rest_qz", "rest_qw")  # mesh frame in the world after settling (xyzw)
+SUPPORT_NORMAL_COLUMNS = ("support_nx", "support_ny", "support_nz")  # table's upward normal in the object frame
+SUPPORT_OFFSET_COLUMN = "support_offset"  # mesh origin's height above the table per unit scale (normalized units)
+REST_HEIGHT_COLUMN = "rest_height_m"  # mesh origin's height above the table after settling, at stability.scale (m)
+REST_POSE_COLUMNS = (*REST_QUATERNION_COLUMNS, *SUPPORT_NORMAL_COLUMNS, SUPPORT_OFFSET_COLUMN, REST_HEIGHT_COLUMN)
+
+# Failure reason of a grasp whose hand starts (partly) inside the table.
+HAND_IN_TABLE = "hand_in_table"
+
+
+@dataclass(frozen=True)
+class SceneConfig:
+    """Config section ``scene``: whether the object stands on a table (tabletop) or floats (DexGraspNet-style)."""
+
+    table: bool = True  # tabletop mode; false: floating objects, exactly the behaviour before tabletop mode
+
+
+@dataclass(frozen=True)
+class SupportPlane:
+    """The table under one object, in its object frame: upward unit normal and origin height per unit scale."""
+
+    normal: tuple[float, float, float]
+    offset: float  # h: height of the mesh origin above the table per unit scale (normalized units)
+
+    def offset_m(self, scale: float) -> float:
+        """Height of the object's origin above the table (m) at ``scale``."""
+        return float(self.offset) * float(scale)
+
+    def as_dict(self) -> dict:
+        return {"normal": [float(v) for v in self.normal], "offset": float(self.offset)}
+
+
+def support_plane_from_rest(vertices: np.ndarray, rest_rotation: np.ndarray) -> SupportPlane:
+    """The support plane of a mesh (normalized ``vertices``, (V, 3)) resting with orientation ``rest_rotation`` (3, 3)."""
+    normal = np.asarray(rest_rotation, dtype=np.float64).T @ np.array([0.0, 0.0, 1.0])
+    normal = normal / np.linalg.norm(normal)
+    offset = -float((np.asarray(vertices, dtype=np.float64) @ normal).min())
+    return SupportPlane(tuple(float(v) for v in normal), offset)
+
+
+def upright_plane(vertices: np.ndarray, axis: str = "+z") -> SupportPlane:
+    """The support plane of a mesh standing with its ``axis`` (one of ±x, ±y, ±z) pointing up."""
+    if len(axis) != 2 or axis[0] not in "+-" or axis[1] not in "xyz":
+        raise ValueError(f"upright axis {axis!r}: expected one of +x, -x, +y, -y, +z, -z")
+    normal = np.zeros(3)
+    normal["xyz".index(axis[1])] = 1.0 if axis[0] == "+" else -1.0
+    offset = -float((np.asarray(vertices, dtype=np.float64) @ normal).min())
+    return SupportPlane(tuple(float(v) for v in normal), offset)
+
+
+def plane_from_row(row) -> SupportPlane | None:
+    """The support plane in a stability-table row (a mapping or namedtuple); None when the row has none."""
+    get = row.get if hasattr(row, "get") else (lambda key, default=None: getattr(row, key, default))
+    values = [get(c, math.nan) for c in (*SUPPORT_NORMAL_COLUMNS, SUPPORT_OFFSET_COLUMN)]
+    if any(v is None or not math.isfinite(float(v)) for v in values):
+        return None
+    return SupportPlane(tuple(float(v) for v in values[:3]), float(values[3]))
+
+
+class MissingSupportPlane(ValueError):
+    """Tabletop mode needs an object's resting pose, and the stability table has none for it."""
+
+
+class SupportPlanes:
+    """The support planes of the objects in a stability table, by object id."""
+
+    def __init__(self, planes: dict[str, SupportPlane]) -> None:
+        self.planes = dict(planes)
+
+    @classmethod
+    def from_stability_table(cls, path: str | Path) -> "SupportPlanes":
+        from dexlite_pipeline.objects.stability import read_stability_table
+
+        table = read_stability_table(path)
+        missing = [c for c in (*SUPPORT_NORMAL_COLUMNS, SUPPORT_OFFSET_COLUMN) if c not in table.columns]
+        if missing:
+            raise MissingSupportPlane(f"{path}: stability table has no resting pose (columns {', '.join(missing)}): rerun stability_filter")
+        planes = {}
+        for row in table.to_dict("records"):
+            plane = plane_from_row(row)
+            if plane is not None:
+                planes[str(row["object_id"])] = plane
+        return cls(planes)
+
+    def __contains__(self, object_id: str) -> bool:
+        return str(object_id) in self.planes
+
+    def get(self, object_id: str) -> SupportPlane:
+        try:
+            return self.planes[str(object_id)]
+        except KeyError:
+            raise MissingSupportPlane(f"object {object_id}: no resting pose in the stability table") from None
+
+    def arrays(self, object_ids, scale) -> tuple[np.ndarray, np.ndarray]:
+        """Per grasp: support normal (N, 3) and the plane's offset in metres, n·x + offset_m ≥ 0 above (N,)."""
+        object_ids = list(object_ids)
+        normal = np.zeros((len(object_ids), 3), np.float64)
+        offset = np.zeros(len(object_ids), np.float64)
+        for i, object_id in enumerate(object_ids):
+            plane = self.get(object_id)
+            normal[i] = plane.normal
+            offset[i] = plane.offset
+        return normal, offset * np.asarray(scale, dtype=np.float64)
+
+
+def load_support_planes(table: bool, stability_path: str | Path | None) -> SupportPlanes | None:
+    """The stability table's support planes in tabletop mode, None in floating mode."""
+    if not table:
+        return None
+    if stability_path is None:
+        raise MissingSupportPlane("tabletop mode (scene.table: true) needs the stability table (--stability)")
+    return SupportPlanes.from_stability_table(stability_path)
+
+
+def heights_above(points, normal, offset_m):
+    """Signed heights (m) above the table of points (B, P, 3): n·x + offset; works on numpy arrays and torch tensors."""
+    return (points * normal[:, None, :]).sum(-1) + offset_m[:, None]
+
+
+def store_arrays(normal: np.ndarray, offset_m: np.ndarray) -> dict[str, np.ndarray]:
+    """The per-grasp arrays a grasp store records in tabletop mode (so a grasp is reproducible)."""
+    return {"support_normal": np.asarray(normal, np.float32), "support_offset_m": np.asarray(offset_m, np.float32)}
+
+
+def store_attrs(table: bool) -> dict:
+    """Root attributes recording the scene mode of a grasp store."""
+    return {"scene": {"table": bool(table)}}
