@@ -30,6 +30,7 @@ from dexlite_pipeline.objects.stability import StabilityConfig
 from dexlite_pipeline.optim.seed import SeedConfig
 from dexlite_pipeline.evaluation.protocol import EvaluateConfig
 from dexlite_pipeline.sim.config import LiftConfig
+from dexlite_pipeline.tabletop import SceneConfig
 
 
 @dataclass(frozen=True)
@@ -42,6 +43,7 @@ class PipelineConfig:
     objects: ObjectsConfig = field(default_factory=ObjectsConfig)
     dexgraspnet: DexGraspNetConfig = field(default_factory=DexGraspNetConfig)
     diversity: DiversityConfig = field(default_factory=DiversityConfig)
+    scene: SceneConfig = field(default_factory=SceneConfig)
     stability: StabilityConfig = field(default_factory=StabilityConfig)
     curate: CurateConfig = field(default_factory=CurateConfig)
     energy: EnergyConfig = field(default_factory=EnergyConfig)

@@ -156,3 +156,36 @@ def store_arrays(normal: np.ndarray, offset_m: np.ndarray) -> dict[str, np.ndarr
 def store_attrs(table: bool) -> dict:
     """Root attributes recording the scene mode of a grasp store."""
     return {"scene": {"table": bool(table)}}
+
+
+class HandTableClearance:
+    """Exact lowest point of each of the hand's collision shapes along a table normal (torch, differentiable).
+
+    A capsule along its local z (radius r, half length L) reaches n·c − L·|n·z_s| − r, a box of
+    half extents e reaches n·c − Σ e_i·|n·axis_i|: the support function of the shape, so no
+    sampled point can miss a corner. These are the shapes MuJoCo simulates.
+    """
+
+    def __init__(self, hand) -> None:
+        import torch
+
+        from dexlite_pipeline.energy.link_map import LinkFrameMap
+        from dexlite_pipeline.hand.model import CAPSULE
+
+        self.shape_map = LinkFrameMap.for_frames(hand.shape_rot, hand.shape_pos, hand.shape_link, len(hand.link_names))
+        capsule = hand.shape_kind == CAPSULE
+        size = hand.shape_size
+        zeros = torch.zeros_like(size[:, 0])
+        self.half_extent = torch.where(capsule[:, None], torch.stack([zeros, zeros, size[:, 1]], dim=1), size)  # (S, 3)
+        self.radius = torch.where(capsule, size[:, 0], zeros)  # (S,)
+
+    def lowest_heights(self, frames, normal, offset_m):
+        """(B, S) height (m) of each shape's lowest point above the table (negative: below), normal (B, 3), offset (B,)."""
+        frame = self.shape_map(frames)  # (B, S, 3, 4): [R | c]
+        along = (frame[..., :3] * normal[:, None, :, None]).sum(2)  # (B, S, 3): n·axis_i
+        centre = (frame[..., 3] * normal[:, None, :]).sum(-1) + offset_m[:, None]
+        return centre - (along.abs() * self.half_extent).sum(-1) - self.radius
+
+    def depth_below(self, frames, normal, offset_m):
+        """(B,) deepest hand point below the table (m; 0 when the hand is wholly above it)."""
+        return (-self.lowest_heights(frames, normal, offset_m)).clamp(min=0).amax(dim=1)

@@ -111,7 +111,7 @@ class TrainConfig:
     energy_warmup_fraction: float = 0.3
     weight_recon: float = 1.0
     weight_kl: float = 1e-5
-    energy_weights: EnergyWeights = field(default_factory=lambda: EnergyWeights(fc=0.0, dis=0.0, pen=0.0, spen=0.0, joints=0.0))
+    energy_weights: EnergyWeights = field(default_factory=lambda: EnergyWeights(fc=0.0, dis=0.0, pen=0.0, spen=0.0, joints=0.0, table=0.0))
     model: ModelConfig = field(default_factory=lambda: ModelConfig(normalization="none"))
 
     def __post_init__(self) -> None:
