@@ -37,6 +37,8 @@ REST_POSE_COLUMNS = (*REST_QUATERNION_COLUMNS, *SUPPORT_NORMAL_COLUMNS, SUPPORT_
 
 # Failure reason of a grasp whose hand starts (partly) inside the table.
 HAND_IN_TABLE = "hand_in_table"
+# A hand point this far below the table counts as below it (float32 rounding of the hand's kinematics, 1 µm).
+TABLE_TOLERANCE_M = 1e-6
 
 
 @dataclass(frozen=True)
@@ -189,3 +191,16 @@ class HandTableClearance:
     def depth_below(self, frames, normal, offset_m):
         """(B,) deepest hand point below the table (m; 0 when the hand is wholly above it)."""
         return (-self.lowest_heights(frames, normal, offset_m)).clamp(min=0).amax(dim=1)
+
+
+def hand_table_depth(hand, hand_pose: np.ndarray, plane: SupportPlane, scale: np.ndarray) -> np.ndarray:
+    """(B,) deepest point of the hand's collision shapes below ``plane`` (m, 0 if wholly above) for stored poses (B, 28) at ``scale`` (B,)."""
+    import torch
+
+    pose = torch.as_tensor(np.asarray(hand_pose), dtype=hand.dtype, device=hand.device)
+    scale = np.asarray(scale, dtype=np.float64)
+    with torch.no_grad():
+        frames = hand.forward(pose)
+        normal = torch.as_tensor(np.tile(plane.normal, (len(scale), 1)), dtype=hand.dtype, device=hand.device)
+        offset = torch.as_tensor(plane.offset * scale, dtype=hand.dtype, device=hand.device)
+        return HandTableClearance(hand).depth_below(frames, normal, offset).cpu().numpy().astype(np.float64)
