@@ -204,3 +204,33 @@ def hand_table_depth(hand, hand_pose: np.ndarray, plane: SupportPlane, scale: np
         normal = torch.as_tensor(np.tile(plane.normal, (len(scale), 1)), dtype=hand.dtype, device=hand.device)
         offset = torch.as_tensor(plane.offset * scale, dtype=hand.dtype, device=hand.device)
         return HandTableClearance(hand).depth_below(frames, normal, offset).cpu().numpy().astype(np.float64)
+
+
+def grasp_table_depths(grasps, planes: SupportPlanes, hand=None, batch: int = 1024) -> np.ndarray:
+    """(N,) deepest hand point below each grasp's table (m; 0: wholly above; NaN: no plane for its object or a non-finite pose)."""
+    from dexlite_pipeline.hand.model import ShadowHand
+
+    hand = hand or ShadowHand()
+    depth = np.full(len(grasps), np.nan)
+    ids = np.asarray([str(o) for o in grasps.object_id])
+    finite = np.isfinite(grasps.hand_pose).all(axis=1) & np.isfinite(grasps.scale)
+    for object_id in sorted(set(ids[finite].tolist())):
+        if object_id not in planes:
+            continue
+        rows = np.flatnonzero((ids == object_id) & finite)
+        for start in range(0, len(rows), batch):
+            part = rows[start : start + batch]
+            depth[part] = hand_table_depth(hand, grasps.hand_pose[part], planes.get(object_id), grasps.scale[part])
+    return depth
+
+
+def support_arrays(planes: SupportPlanes, object_ids, scale) -> dict[str, np.ndarray]:
+    """``store_arrays`` for grasps of these objects at these scales; NaN for an object without a support plane."""
+    object_ids = [str(o) for o in object_ids]
+    normal = np.full((len(object_ids), 3), np.nan)
+    offset = np.full(len(object_ids), np.nan)
+    for i, object_id in enumerate(object_ids):
+        if object_id in planes:
+            plane = planes.get(object_id)
+            normal[i], offset[i] = plane.normal, plane.offset * float(scale[i])
+    return store_arrays(normal, offset)
