@@ -234,3 +234,18 @@ def support_arrays(planes: SupportPlanes, object_ids, scale) -> dict[str, np.nda
             plane = planes.get(object_id)
             normal[i], offset[i] = plane.normal, plane.offset * float(scale[i])
     return store_arrays(normal, offset)
+
+
+def reachable_on_table(lift_success, table_depth_mm) -> dict[str, float]:
+    """Of the held grasps (``lift_success``), the share with no hand point below the object's table in its
+    resting pose (``table_depth_mm`` within ``TABLE_TOLERANCE_M``), and how many were held and how many
+    of them reach below it. NaN share when nothing was held or no grasp has a table."""
+    held = np.asarray(lift_success, dtype=bool)
+    depth = np.asarray(table_depth_mm, dtype=np.float64)
+    measured = held & np.isfinite(depth)
+    above = measured & (depth <= TABLE_TOLERANCE_M * 1000.0)
+    count = int(measured.sum())
+    return {
+        "held_reachable_on_table_rate": float(above.sum() / count) if count else math.nan,
+        "n_held_below_table": int(count - above.sum()),
+    }
