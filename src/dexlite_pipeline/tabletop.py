@@ -22,11 +22,14 @@ runs the code it ran before tabletop mode existed.
 
 from __future__ import annotations
 
+import logging
 import math
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+
+log = logging.getLogger(__name__)
 
 # Stability-table columns of the resting pose (NaN for objects that are not stable or not simulated).
 REST_QUATERNION_COLUMNS = ("rest_qx", "rest_qy", "rest_qz", "rest_qw")  # mesh frame in the world after settling (xyzw)
@@ -249,3 +252,50 @@ def reachable_on_table(lift_success, table_depth_mm) -> dict[str, float]:
         "held_reachable_on_table_rate": float(above.sum() / count) if count else math.nan,
         "n_held_below_table": int(count - above.sum()),
     }
+
+
+UPRIGHT_AXES = ("+x", "-x", "+y", "-y", "+z", "-z")
+
+
+def tool_support_planes(assets, table: bool, upright_axis: str | None, stability_config, seed: int) -> tuple[SupportPlanes | None, dict[str, str]]:
+    """The tables of ``dexlite grasp``'s objects, and per object a sentence saying which pose it stands in.
+
+    Floating mode (``table`` false): None. With ``upright_axis`` the mesh stands with that axis up
+    (``upright_plane``). Otherwise its stable pose: the pose it comes to rest in when set on a table
+    in its file orientation (the stability stage's simulation, ``stability_config``); if that cannot be
+    simulated, the file's +z is taken as up and the sentence says why.
+    """
+    from dexlite_pipeline.objects.stability import simulate_asset
+
+    if not table:
+        return None, {a.object_id: "no table (scene.table false): floating object, gravity along the file's -z" for a in assets}
+    planes, said = {}, {}
+    for asset in assets:
+        vertices = np.asarray(asset.load_mesh().vertices)
+        if upright_axis:
+            planes[asset.object_id] = upright_plane(vertices, upright_axis)
+            said[asset.object_id] = f"standing with its {upright_axis} axis up (--upright-axis), table under its lowest point"
+            continue
+        row = simulate_asset((asset.object_id, str(asset.directory)), stability_config, seed)
+        plane = plane_from_row(row)
+        if plane is None:
+            planes[asset.object_id] = upright_plane(vertices, "+z")
+            said[asset.object_id] = f"file orientation (+z up): its resting pose could not be simulated ({row['reason']})"
+            continue
+        planes[asset.object_id] = plane
+        tilt = math.degrees(math.acos(max(-1.0, min(1.0, plane.normal[2]))))
+        settled = "stands as in the file" if row["stable"] else f"topples from the file orientation ({row['rotation_deg']:.0f} deg)"
+        said[asset.object_id] = f"stable pose: where it comes to rest on a table (PyBullet; it {settled}), up {tilt:.1f} deg from the file's +z"
+    for object_id, sentence in said.items():
+        log.info("object %s: %s", object_id, sentence)
+    return SupportPlanes(planes), said
+
+
+def grasp_tool_tables(config: dict, assets, upright_axis: str | None, seed: int) -> tuple[SupportPlanes | None, dict[str, str]]:
+    """``tool_support_planes`` with the mode and the stability test's constants read from the config mapping."""
+    from dexlite_pipeline.config import from_section
+    from dexlite_pipeline.objects.stability import StabilityConfig
+
+    scene = from_section(SceneConfig, config.get("scene"), "config.scene")
+    stability = from_section(StabilityConfig, config.get("stability"), "config.stability")
+    return tool_support_planes(assets, scene.table, upright_axis, stability, seed)
