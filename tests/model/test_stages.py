@@ -182,3 +182,20 @@ def test_post_optimize_on_tables_raises_starts_and_keeps_random_palms_above(tmp_
     assert set(baseline.object_id) == {"box"}
     start_heights = baseline.arrays["raw_hand_pose"][:, 2] + baseline.arrays["support_offset_m"]
     assert (start_heights >= 0).all()
+
+
+def test_training_on_tables_weighs_e_table(pipeline_inputs):
+    """Tabletop mode with train.energy_weights.table > 0: E_table is a loss term (history column train_table, finite);
+    floating training has no such term."""
+    root, objects = pipeline_inputs
+    rest = {"support_nx": [0.0, 0.0], "support_ny": [0.0, 0.0], "support_nz": [1.0, 1.0], "support_offset": [0.35, 1 / 1.03]}
+    pd.DataFrame({"object_id": ["box", "sphere"], "stable": [True, True], **rest}).to_parquet(root / "tables.parquet")
+    train = {**CONFIG["train"], "epochs": 1, "energy_weights": {"table": 1.0}}
+    tabletop = json.dumps({**CONFIG, "train": train, "scene": {"table": True}})
+    args = ["train-cvae", "--lift", str(root / "lift.zarr"), *objects]
+    assert main([*args, "--config-json", tabletop, "--stability", str(root / "tables.parquet"), *_model_outputs(root / "tabletop")]) == 0
+    history = pd.read_csv(root / "tabletop" / "history.csv")
+    assert np.isfinite(history["train_table"]).all() and (history["train_table"] >= 0).all()
+    floating = json.dumps({**CONFIG, "train": train})
+    assert main([*args, "--config-json", floating, *_model_outputs(root / "floating")]) == 0
+    assert "train_table" not in pd.read_csv(root / "floating" / "history.csv").columns

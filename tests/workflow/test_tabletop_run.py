@@ -12,7 +12,7 @@ from workflow_harness import downstream, planned_commands, planned_rules, run_sn
 pytestmark = pytest.mark.slow
 
 # The rules whose params carry section `scene` (docs/design.md, "Tabletop mode").
-SCENE_RULES = {"seed_grasps", "curate", "lift_validate", "post_optimize", "evaluate_simulate", "report"}
+SCENE_RULES = {"seed_grasps", "curate", "lift_validate", "train_cvae", "post_optimize", "evaluate_simulate", "report"}
 BEFORE_SEED_SYNTHESIS = {"prepare_objects", "stability_filter", "import_dexgraspnet"}
 
 
