@@ -299,3 +299,17 @@ def grasp_tool_tables(config: dict, assets, upright_axis: str | None, seed: int)
     scene = from_section(SceneConfig, config.get("scene"), "config.scene")
     stability = from_section(StabilityConfig, config.get("stability"), "config.stability")
     return tool_support_planes(assets, scene.table, upright_axis, stability, seed)
+
+
+def planes_from_store(grasps) -> SupportPlanes | None:
+    """The support planes a grasp store recorded per grasp (``support_normal``, ``support_offset_m``), by object;
+    None when it recorded none (a floating store). Rows without a finite plane are skipped."""
+    if "support_normal" not in grasps.arrays or "support_offset_m" not in grasps.arrays:
+        return None
+    normal = np.asarray(grasps.arrays["support_normal"], dtype=np.float64)
+    offset = np.asarray(grasps.arrays["support_offset_m"], dtype=np.float64) / np.asarray(grasps.scale, dtype=np.float64)
+    planes = {}
+    for i, object_id in enumerate(str(o) for o in grasps.object_id):
+        if object_id not in planes and np.isfinite(normal[i]).all() and np.isfinite(offset[i]):
+            planes[object_id] = SupportPlane(tuple(float(v) for v in normal[i]), float(offset[i]))
+    return SupportPlanes(planes)

@@ -121,6 +121,23 @@ def test_lift_validate_on_tables_records_the_support_plane_and_rejects_hands_in_
     assert main(args) == 2  # tabletop mode without the resting poses
 
 
+def test_lift_test_reproduces_a_grasp_on_the_table_its_store_recorded(tmp_path, objects_dir, hooks, capsys):
+    """A store written on tables carries each grasp's plane: `dexlite lift-test` puts the objects back on them and
+    says so; --floating tests without them (the hook under the lying round bar then holds)."""
+    from dexlite_pipeline.tabletop import store_arrays
+
+    grasps = grasp_set([hooks["square_bar"], hooks["round_bar"]], ["square_bar", "round_bar"])
+    grasps.arrays.update(store_arrays(np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]), np.array([0.08, 0.02])))
+    source = tmp_path / "on_tables.zarr"
+    write_grasp_store(source, grasps)
+    assert main(["lift-test", str(source), "--objects", str(objects_dir), "--out", str(tmp_path / "t.zarr"), "--threads", "1"]) == 0
+    assert "on the tables recorded in the grasp store" in capsys.readouterr().out
+    assert read_grasp_store(tmp_path / "t.zarr").arrays["failure_reason"].tolist() == ["", "hand_in_table"]
+    assert main(["lift-test", str(source), "--objects", str(objects_dir), "--out", str(tmp_path / "f.zarr"), "--threads", "1", "--floating"]) == 0
+    assert "floating (--floating)" in capsys.readouterr().out
+    assert read_grasp_store(tmp_path / "f.zarr").arrays["lift_success"].tolist() == [True, True]
+
+
 def test_lift_test_on_an_objects_folder_without_objects_fails(tmp_path, hooks, capsys):
     source = tmp_path / "one.zarr"
     write_grasp_store(source, grasp_set([hooks["square_bar"]], ["square_bar"]))
