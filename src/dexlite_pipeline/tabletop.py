@@ -31,7 +31,7 @@ import numpy as np
 
 log = logging.getLogger(__name__)
 
-# Stability-table columns of the resting pose (NaN for objects that are not stable or not simulated).
+# Stability-table columns of the resting pose: where each simulated object came to rest, stable or not (NaN: not simulated).
 REST_QUATERNION_COLUMNS = ("rest_qx", "rest_qy", "rest_qz", "rest_qw")  # mesh frame in the world after settling (xyzw)
 SUPPORT_NORMAL_COLUMNS = ("support_nx", "support_ny", "support_nz")  # table's upward normal in the object frame
 SUPPORT_OFFSET_COLUMN = "support_offset"  # mesh origin's height above the table per unit scale (normalized units)
