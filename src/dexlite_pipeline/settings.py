@@ -29,7 +29,7 @@ from dexlite_pipeline.io.config import DexGraspNetConfig
 from dexlite_pipeline.model.config import PostOptimizeConfig, SampleConfig, TrainConfig
 from dexlite_pipeline.objects.config import ObjectsConfig, StabilityConfig
 from dexlite_pipeline.optim.config import SeedConfig
-from dexlite_pipeline.sim.config import LiftConfig
+from dexlite_pipeline.sim.config import LiftConfig, SceneConfig
 
 
 @dataclass(frozen=True)
@@ -42,6 +42,7 @@ class PipelineConfig:
     objects: ObjectsConfig = field(default_factory=ObjectsConfig)
     dexgraspnet: DexGraspNetConfig = field(default_factory=DexGraspNetConfig)
     diversity: DiversityConfig = field(default_factory=DiversityConfig)
+    scene: SceneConfig = field(default_factory=SceneConfig)
     stability: StabilityConfig = field(default_factory=StabilityConfig)
     curate: CurateConfig = field(default_factory=CurateConfig)
     energy: EnergyConfig = field(default_factory=EnergyConfig)

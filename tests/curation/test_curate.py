@@ -211,7 +211,9 @@ def workspace(tmp_path_factory):
          "n_convex_pieces": 1, "status": "ok", "reason": "", "split": ["train", "heldout"]}
     )
     catalog.to_parquet(root / "objects" / "catalog.parquet")
-    pd.DataFrame({"object_id": ["box0", "box1"], "lateral_displacement_m": 0.0, "rotation_deg": 0.0, "stable": True, "reason": ""}).to_parquet(
+    # Resting poses: each box lies flat, its table 0.3 below its origin per unit scale (z = -0.03 m at scale 0.1).
+    rest = {"support_nx": 0.0, "support_ny": 0.0, "support_nz": 1.0, "support_offset": 0.3}
+    pd.DataFrame({"object_id": ["box0", "box1"], "lateral_displacement_m": 0.0, "rotation_deg": 0.0, "stable": True, "reason": "", **rest}).to_parquet(
         root / "stability.parquet"
     )
     seed = _grasp_set([("box0", _pose(), 0.1, GOOD), ("box0", _pose(t=(0.05, 0, 0.1)), 0.1, {**GOOD, "E_dis": 0.01})])
@@ -326,3 +328,32 @@ def test_cli_force_closure_of_a_damaged_asset_drops_its_grasps_with_the_reason(w
     assert count == 1 and "object 'box0'" in reason and "meta.json" in reason
     assert reason in capsys.readouterr().out
     assert pd.read_csv(tmp_path / "fc.csv").loc[0, "dropped_force_closure_unknown"] == 1
+
+
+def test_cli_tabletop_drops_imported_grasps_below_the_table_with_the_reason(workspace, tmp_path):
+    """Tabletop mode (the default): an imported hand under the box (in its table) is dropped as below_table,
+    counted in the summary; floating mode curates the same input exactly as before (no such reason or column)."""
+    below = _pose(t=(0.0, 0.0, -0.2))  # 17 cm under the box's base
+    above = _pose(t=(0.0, 0.0, 0.5))
+    imported = GraspSet(
+        {
+            "hand_pose": np.stack([below, above]).astype(np.float32),
+            "object_id": np.array(["box0", "box0"], dtype=object),
+            "scale": np.full(2, 0.1, np.float32),
+        }
+    )
+    write_grasp_store(tmp_path / "imported.zarr", imported)
+    write_grasp_store(tmp_path / "seed_empty.zarr", empty_grasp_set())
+    config = {"shards": 1, "device": "cpu", "curate": {"force_closure": False}}
+    root = workspace
+    for name, scene in (("tabletop", {}), ("floating", {"scene": {"table": False}})):
+        args = _curate_args(tmp_path, name, {**config, **scene}, objects=root / "objects", seed=tmp_path / "seed_empty.zarr",
+                            imported=tmp_path / "imported.zarr", stability=root / "stability.parquet")
+        assert dexlite(args) == 0
+    tabletop = read_grasp_store(tmp_path / "tabletop.zarr")
+    assert tabletop.attrs["dropped"]["below_table"] == 1 and tabletop.attrs["scene"] == {"table": True}
+    assert pd.read_csv(tmp_path / "tabletop.csv").loc[0, "dropped_below_table"] == 1
+    floating = read_grasp_store(tmp_path / "floating.zarr")
+    assert "below_table" not in floating.attrs["dropped"] and "scene" not in floating.attrs
+    assert list(pd.read_csv(tmp_path / "floating.csv").columns) == ["object_id", "origin", "split", "stable", "n_input", "n_kept", *(f"dropped_{r}" for r in DROP_REASONS)]
+    assert floating.attrs["dropped"]["e_dis"] == 2  # both far hands fail the contact distance, as before

@@ -250,7 +250,7 @@ def test_simulate_step_on_tiny_object(tmp_path, tiny_objects):
     poses[1, 4] = np.nan
     write_grasp_store(seed_store, GraspSet({"hand_pose": poses, "object_id": np.asarray(ids, dtype=object), "scale": np.full(5, 0.06, np.float32)}), {"seconds_per_grasp": 2.0})
     out = tmp_path / "sim.zarr"
-    cfg = json.dumps({"seed": 0, "shards": 1, "device": "cpu", "evaluate": {"grasps_per_object": 3, "six_directions": False}})
+    cfg = json.dumps({"seed": 0, "shards": 1, "device": "cpu", "evaluate": {"grasps_per_object": 3, "six_directions": False}, "scene": {"table": False}})
     assert main(["evaluate", "--step", "simulate", "--shard", "0", "--config-json", cfg, "--seed", str(seed_store), "--objects", str(tiny_objects), "--out", str(out)]) == 0
     result = read_grasp_store(out)
     assert len(result) == 3 and set(result.object_id) == {OBJECT_ID}
@@ -265,6 +265,38 @@ def test_simulate_step_on_tiny_object(tmp_path, tiny_objects):
     without_input = {"cvae_raw", "cvae_post", "random_post", "dexgraspnet", "cvae_recon", "cvae_recon_post", "cvae_prior_train", "cvae_prior_train_post",
                      "shipped_raw", "shipped_post"}
     assert set(result.attrs["methods_without_input"]) == without_input
+
+
+def test_simulate_step_on_a_table_rejects_hands_in_it_and_measures_reach_in_both_modes(tmp_path, tiny_objects):
+    """Tabletop mode: a hand under the object is in its table (hand_in_table); in both modes every grasp gets its
+    reach below the table in the resting pose, and metrics give the share of held grasps that stay above it."""
+    from dexlite_pipeline.evaluation.protocol import TABLE_DEPTH
+    from dexlite_pipeline.io.grasp_store import read_grasp_store, write_grasp_store
+    from dexlite_pipeline.tabletop import reachable_on_table
+    from report_synthetic import grasp_poses
+
+    poses = grasp_poses(2, np.random.default_rng(1))
+    poses[1, :3] = [0.0, 0.0, -0.3]  # 30 cm under the object: in its table
+    seed_store = tmp_path / "seed.zarr"
+    write_grasp_store(seed_store, GraspSet({"hand_pose": poses, "object_id": np.asarray([OBJECT_ID] * 2, dtype=object), "scale": np.full(2, 0.06, np.float32)}),
+                      {"seconds_per_grasp": 2.0})
+    stability = tmp_path / "stability.parquet"
+    pd.DataFrame({"object_id": [OBJECT_ID], "stable": [True], "support_nx": [0.0], "support_ny": [0.0], "support_nz": [1.0], "support_offset": [1.0]}).to_parquet(stability)
+    results = {}
+    for name, table in (("tabletop", True), ("floating", False)):
+        cfg = json.dumps({"seed": 0, "shards": 1, "device": "cpu", "evaluate": {"grasps_per_object": 3, "six_directions": False}, "scene": {"table": table}})
+        out = tmp_path / f"{name}.zarr"
+        assert main(["evaluate", "--step", "simulate", "--shard", "0", "--config-json", cfg, "--seed", str(seed_store), "--objects", str(tiny_objects),
+                     "--stability", str(stability), "--out", str(out)]) == 0
+        results[name] = read_grasp_store(out)
+    below = results["tabletop"].arrays["source_row"] == 1
+    assert results["tabletop"].arrays["failure_reason"][below].tolist() == ["hand_in_table"]
+    assert "hand_in_table" not in results["floating"].arrays["failure_reason"].tolist()
+    for result in results.values():
+        depth = result.arrays[TABLE_DEPTH]
+        assert depth[result.arrays["source_row"] == 1][0] > 100.0 and np.isfinite(depth).all()
+    share = reachable_on_table(np.array([True, True, False]), np.array([0.0, 5.0, 0.0]))
+    assert share == {"held_reachable_on_table_rate": 0.5, "n_held_below_table": 1}
 
 
 def test_split_without_objects_fails_in_one_line(tmp_path, capsys):

@@ -45,4 +45,4 @@ def test_post_optimization_config_maps_to_the_optimizer():
     assert (annealing.iterations, annealing.step_size, annealing.rmsprop_mu) == (200, 0.005, 0.98)
     assert (annealing.starting_temperature, annealing.temperature_decay, annealing.temperature_period) == (18.0, 0.95, 30)
     assert annealing.contact_switch_probability == 0.5
-    assert dataclasses.astuple(config.energy_weights) == (1.0, 100.0, 100.0, 10.0, 1.0)
+    assert dataclasses.astuple(config.energy_weights) == (1.0, 100.0, 100.0, 10.0, 1.0, 100.0)  # E_table last (tabletop mode only)

@@ -24,6 +24,7 @@ CONFIG = {
     "sample": {"synthesis_grasps_per_object": 5, "expansion_grasps_per_object": 6, "scales": [0.08, 0.1], "shipped_model": ""},
     "post_optimize": {"annealing": {"iterations": 10}, "energy_object_points": 64, "batch_size": 4},
     "energy": {"self_penetration_margin_m": 0.015},
+    "scene": {"table": False},  # floating objects (tabletop mode: test_post_optimize_on_tables below)
 }
 
 
@@ -152,3 +153,49 @@ def test_lift_shards_keep_seed_contacts_and_drop_imported_ones(tmp_path, hand, m
     contacts = read_lift_shards([str(tmp_path / "with_origin.zarr"), str(tmp_path / "no_contacts.zarr")]).arrays["contact_index"]
     np.testing.assert_array_equal(contacts[[0, 2]], [[0, 1, 2, 3], [8, 9, 10, 11]])
     assert (contacts[[1, 3, 4, 5]] == -1).all()
+
+
+def test_post_optimize_on_tables_raises_starts_and_keeps_random_palms_above(tmp_path, hand, tiny_objects, make_grasps):
+    """Tabletop mode: sampled starts with a hand in the table are raised above it before refinement (the shift
+    recorded, the sampled pose kept as raw_hand_pose), E_post includes E_table, random palms start above the
+    table, every row records its plane; an object without a resting pose is a reason, not a crash."""
+    from dexlite_pipeline.model.methods import SYNTHESIS
+
+    grasps = make_grasps(hand, 6, seed=3)  # alternating box / sphere
+    grasps.arrays["hand_pose"][0, 2] = -0.2  # a box grasp's palm 20 cm under the box: deep in the table
+    grasps.arrays["method"] = np.full(len(grasps), SYNTHESIS, dtype=object)
+    write_grasp_store(tmp_path / "sample.zarr", grasps)
+    # The box (extents 1.2 x 0.9 x 0.7) lies flat; the sphere has no resting pose here.
+    pd.DataFrame({"object_id": ["box", "sphere"], "stable": [True, True], "support_nx": [0.0, np.nan], "support_ny": [0.0, np.nan],
+                  "support_nz": [1.0, np.nan], "support_offset": [0.35, np.nan]}).to_parquet(tmp_path / "stability.parquet")
+    cfg = json.dumps({**CONFIG, "scene": {"table": True}})
+    args = ["post-optimize", "--config-json", cfg, "--sample", str(tmp_path / "sample.zarr"), "--objects", str(tiny_objects), "--shard", "000",
+            "--stability", str(tmp_path / "stability.parquet"), "--out", str(tmp_path / "post.zarr"), "--random-out", str(tmp_path / "random.zarr")]
+    assert main(args) == 0
+    post, baseline = read_grasp_store(tmp_path / "post.zarr"), read_grasp_store(tmp_path / "random.zarr")
+    box = post.object_id == "box"
+    assert set(post.arrays["failure_reason"][~box]) == {"no resting pose (tabletop mode)"}
+    assert post.arrays["start_table_shift_m"][0] > 0.1 and np.array_equal(post.arrays["raw_hand_pose"], grasps.hand_pose)
+    assert post.arrays["budget_hand_pose"][0, 0, 2] > grasps.hand_pose[0, 2] + 0.1  # the run started from the raised pose
+    assert np.isfinite(post.arrays["E_table"][box]).all() and post.attrs["scene"] == {"table": True}
+    np.testing.assert_allclose(post.arrays["support_offset_m"][box], 0.35 * post.scale[box], rtol=1e-6)
+    assert set(baseline.object_id) == {"box"}
+    start_heights = baseline.arrays["raw_hand_pose"][:, 2] + baseline.arrays["support_offset_m"]
+    assert (start_heights >= 0).all()
+
+
+def test_training_on_tables_weighs_e_table(pipeline_inputs):
+    """Tabletop mode with train.energy_weights.table > 0: E_table is a loss term (history column train_table, finite);
+    floating training has no such term."""
+    root, objects = pipeline_inputs
+    rest = {"support_nx": [0.0, 0.0], "support_ny": [0.0, 0.0], "support_nz": [1.0, 1.0], "support_offset": [0.35, 1 / 1.03]}
+    pd.DataFrame({"object_id": ["box", "sphere"], "stable": [True, True], **rest}).to_parquet(root / "tables.parquet")
+    train = {**CONFIG["train"], "epochs": 1, "energy_weights": {"table": 1.0}}
+    tabletop = json.dumps({**CONFIG, "train": train, "scene": {"table": True}})
+    args = ["train-cvae", "--lift", str(root / "lift.zarr"), *objects]
+    assert main([*args, "--config-json", tabletop, "--stability", str(root / "tables.parquet"), *_model_outputs(root / "tabletop")]) == 0
+    history = pd.read_csv(root / "tabletop" / "history.csv")
+    assert np.isfinite(history["train_table"]).all() and (history["train_table"] >= 0).all()
+    floating = json.dumps({**CONFIG, "train": train})
+    assert main([*args, "--config-json", floating, *_model_outputs(root / "floating")]) == 0
+    assert "train_table" not in pd.read_csv(root / "floating" / "history.csv").columns

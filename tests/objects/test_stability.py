@@ -155,3 +155,35 @@ def test_pybullet_is_imported_without_its_banner():
     code = "from dexlite_pipeline.objects.stability import import_pybullet; import_pybullet(); print('done')"
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert result.stdout == "done\n" and "pybullet build time" not in result.stderr
+
+
+@pytest.mark.parametrize("name", ["cube", "squat_cylinder", "cone_on_tip"])
+def test_resting_pose_is_recorded_and_agrees_with_the_simulated_height(tmp_path, name):
+    """The recorded support plane is the table seen from the object: its normal is the world's +z
+    carried back by the resting rotation, the lowest vertex lies on it, and the mesh origin's height
+    above it (geometry: offset x scale) matches the height PyBullet settled the object at. A stable
+    shape rests within a few degrees of its file orientation; the toppled cone rests on its side."""
+    from scipy.spatial.transform import Rotation
+
+    from dexlite_pipeline.tabletop import REST_POSE_COLUMNS, plane_from_row
+
+    mesh = normalize_mesh(SHAPES[name][0])[0]
+    row = _simulate(tmp_path, name, SHAPES[name][0]).row()
+    assert all(math.isfinite(row[c]) for c in REST_POSE_COLUMNS)
+    plane = plane_from_row(row)
+    normal = np.asarray(plane.normal)
+    rotation = Rotation.from_quat([row["rest_qx"], row["rest_qy"], row["rest_qz"], row["rest_qw"]]).as_matrix()
+    np.testing.assert_allclose(rotation.T @ [0, 0, 1], normal, atol=1e-9)
+    heights = np.asarray(mesh.vertices) @ normal + plane.offset
+    assert heights.min() == pytest.approx(0.0, abs=1e-9)
+    assert row["rest_height_m"] == pytest.approx(plane.offset * CONFIG.scale, abs=0.002)
+    tilt_deg = math.degrees(math.acos(min(1.0, normal[2])))
+    assert (tilt_deg < 5.0) if SHAPES[name][1] else (tilt_deg > 45.0)
+
+
+def test_unsimulated_rows_have_no_resting_pose():
+    from dexlite_pipeline.objects.stability import StabilityResult
+    from dexlite_pipeline.tabletop import REST_POSE_COLUMNS, plane_from_row
+
+    row = StabilityResult("x", math.nan, math.nan, False, "not simulated").row()
+    assert all(math.isnan(row[c]) for c in REST_POSE_COLUMNS) and plane_from_row(row) is None

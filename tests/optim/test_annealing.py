@@ -60,6 +60,21 @@ def test_initial_poses_face_the_object_from_outside(hand, setup):
     assert ((pose[:, 6:] >= limits[:, 0] - 1e-6) & (pose[:, 6:] <= limits[:, 1] + 1e-6)).all()
 
 
+def test_starts_on_a_table_put_every_palm_above_it(hand, setup):
+    """A table through the objects' middle: half of the floating starts have the palm below it;
+    on the table every palm is above it, and with the table far below nothing is redrawn."""
+    _, hulls = setup
+    object_index, scale = _batch(64)
+    config = InitConfig(distance_m=(0.1, 0.15), jitter_deg=30.0)
+    up = torch.tensor([0.0, 0.0, 1.0]).expand(64, 3)
+    floating = initial_poses(hand, hulls, object_index, scale, config, torch.Generator().manual_seed(0))
+    assert (floating[:, 2] < 0).sum() > 10
+    tabletop = initial_poses(hand, hulls, object_index, scale, config, torch.Generator().manual_seed(0), support=(up, torch.zeros(64)))
+    assert (tabletop[:, 2] >= 0).all()
+    far_below = initial_poses(hand, hulls, object_index, scale, config, torch.Generator().manual_seed(0), support=(up, torch.full((64,), 10.0)))
+    assert torch.equal(far_below, floating)
+
+
 def test_optimizer_lowers_energy_and_records_trace(hand, setup):
     energy, hulls = setup
     object_index, scale = _batch(12)

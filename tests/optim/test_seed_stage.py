@@ -29,10 +29,15 @@ CONFIG = {
 }
 
 
+# Resting poses: the box (extents 1.2 x 0.8 x 0.6, centred) lies flat, its table 0.3 below its origin per unit scale.
+BOTH_REST = {"support_nx": [0.0, 0.0], "support_ny": [0.0, 0.0], "support_nz": [1.0, 1.0], "support_offset": [1.0, 0.3]}
+REST_POSES = {"support_nx": [np.nan, 0.0], "support_ny": [np.nan, 0.0], "support_nz": [np.nan, 1.0], "support_offset": [np.nan, 0.3]}
+
+
 @pytest.fixture(scope="module")
 def stability(optim_objects, tmp_path_factory):
     path = tmp_path_factory.mktemp("stability") / "stability.parquet"
-    pd.DataFrame({"object_id": ["sphere", "box"], "stable": [False, True], "reason": ["rolls", ""]}).to_parquet(path)
+    pd.DataFrame({"object_id": ["sphere", "box"], "stable": [False, True], "reason": ["rolls", ""], **REST_POSES}).to_parquet(path)
     return path
 
 
@@ -72,7 +77,7 @@ def test_seed_stage_missing_stability_table_is_a_clear_error(optim_objects, tmp_
 def test_shard_without_stable_objects_writes_the_full_schema(optim_objects, stability, tmp_path):
     """Curation keeps only arrays every input has: an empty shard must not lack the energy arrays."""
     nothing_stable = tmp_path / "nothing_stable.parquet"
-    pd.DataFrame({"object_id": ["sphere", "box"], "stable": [False, False]}).to_parquet(nothing_stable)
+    pd.DataFrame({"object_id": ["sphere", "box"], "stable": [False, False], **REST_POSES}).to_parquet(nothing_stable)
     assert _run(optim_objects, nothing_stable, tmp_path / "empty.zarr") == 0
     assert _run(optim_objects, stability, tmp_path / "full.zarr") == 0
     empty, full = read_grasp_store(tmp_path / "empty.zarr"), read_grasp_store(tmp_path / "full.zarr")
@@ -87,7 +92,7 @@ def test_damaged_asset_is_recorded_and_the_other_objects_synthesized(optim_objec
         if chunk.is_file():
             chunk.write_bytes(b"not zstd")  # zarr's codec raises RuntimeError
     both_stable = tmp_path / "both_stable.parquet"
-    pd.DataFrame({"object_id": ["sphere", "box"], "stable": [True, True]}).to_parquet(both_stable)
+    pd.DataFrame({"object_id": ["sphere", "box"], "stable": [True, True], **BOTH_REST}).to_parquet(both_stable)
     assert _run(objects, both_stable, tmp_path / "out.zarr") == 0
     grasps = read_grasp_store(tmp_path / "out.zarr")
     assert set(grasps.object_id) == {"sphere"}
@@ -101,3 +106,39 @@ def test_seed_stage_catalog_without_status_column_is_a_clear_error(optim_objects
     assert _run(objects, stability, tmp_path / "d.zarr") == 2
     error = capsys.readouterr().err
     assert "catalog.parquet" in error and "status" in error and len(error.strip().splitlines()) == 1
+
+
+def test_tabletop_seed_grasps_start_above_the_table_and_record_it(optim_objects, stability, tmp_path):
+    """Tabletop mode (the default): every start's palm is above the box's table, E_table is in the
+    energy and stored, and each grasp records its support plane; the store records the mode."""
+    from dexlite_pipeline.tabletop import HandTableClearance
+
+    assert _run(optim_objects, stability, tmp_path / "t.zarr") == 0
+    grasps = read_grasp_store(tmp_path / "t.zarr")
+    assert grasps.attrs["scene"] == {"table": True}
+    np.testing.assert_allclose(grasps.arrays["support_normal"], [[0.0, 0.0, 1.0]] * 6)
+    np.testing.assert_allclose(grasps.arrays["support_offset_m"], 0.3 * grasps.scale, rtol=1e-6)
+    init = grasps.arrays["init_pose"]
+    assert (init[:, 2] + grasps.arrays["support_offset_m"] >= 0).all()
+    assert np.isfinite(grasps.arrays["E_table"]).all()
+    import torch
+
+    from dexlite_pipeline.hand.model import ShadowHand
+
+    hand = ShadowHand()
+    frames = hand.forward(torch.as_tensor(grasps.hand_pose))
+    depth = HandTableClearance(hand).lowest_heights(frames, torch.as_tensor(grasps.arrays["support_normal"]), torch.as_tensor(grasps.arrays["support_offset_m"]))
+    np.testing.assert_allclose(grasps.arrays["E_table"], (-depth).clamp(min=0).sum(1).numpy(), atol=1e-6)
+
+
+def test_floating_mode_reads_no_resting_pose_and_adds_nothing(optim_objects, tmp_path):
+    """scene.table false: a stability table without resting poses serves, and the store holds
+    exactly the arrays of a floating run (no E_table, no support plane)."""
+    plain = tmp_path / "plain.parquet"
+    pd.DataFrame({"object_id": ["sphere", "box"], "stable": [False, True]}).to_parquet(plain)
+    floating = {**CONFIG, "scene": {"table": False}}
+    assert _run(optim_objects, plain, tmp_path / "f.zarr", floating) == 0
+    grasps = read_grasp_store(tmp_path / "f.zarr")
+    assert grasps.attrs["scene"] == {"table": False}
+    assert not {"E_table", "support_normal", "support_offset_m"} & set(grasps.arrays)
+    assert _run(optim_objects, plain, tmp_path / "t.zarr") == 2  # tabletop mode needs the resting poses

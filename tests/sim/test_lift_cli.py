@@ -86,7 +86,7 @@ def test_lift_test_one_line_errors(tmp_path, objects_dir, capsys):
 def test_lift_validate_stage_writes_the_shard_with_its_config(tmp_path, objects_dir, hooks):
     source = _store_with_bad_rows(tmp_path, hooks)
     out = tmp_path / "lift" / "shard_000.zarr"
-    config = {"seed": 3, "device": "cpu", "lift": {"friction": 1.0, "six_directions": False}}
+    config = {"seed": 3, "device": "cpu", "lift": {"friction": 1.0, "six_directions": False}, "scene": {"table": False}}
     code = main(["lift-validate", "--config-json", json.dumps(config), "--grasps", str(source), "--objects", str(objects_dir),
                  "--shard", "000", "--out", str(out), "--threads", "1"])
     assert code == 0
@@ -96,6 +96,46 @@ def test_lift_validate_stage_writes_the_shard_with_its_config(tmp_path, objects_
     assert result.attrs["stage"] == "lift_validate" and result.attrs["shard"] == "000"
     assert result.attrs["config"]["lift"]["friction"] == 1.0 and result.attrs["config"]["seed"] == 3
     assert "six_dir_success" not in result.arrays
+
+
+def test_lift_validate_on_tables_records_the_support_plane_and_rejects_hands_in_the_table(tmp_path, objects_dir, hooks):
+    """Tabletop mode (the default): resting poses from the stability table; the hook under the lying square bar
+    is in its table, the hook of the standing one holds; both record their plane; no table: a one-line error."""
+    import pandas as pd
+
+    stability = tmp_path / "stability.parquet"
+    pd.DataFrame({"object_id": ["square_bar", "round_bar"], "stable": [True, True], "support_nx": [1.0, 0.0], "support_ny": 0.0,
+                  "support_nz": [0.0, 1.0], "support_offset": [1.0, 0.25]}).to_parquet(stability)
+    source = tmp_path / "curated.zarr"
+    write_grasp_store(source, grasp_set([hooks["square_bar"], hooks["round_bar"]], ["square_bar", "round_bar"]))
+    out = tmp_path / "lift.zarr"
+    args = ["lift-validate", "--config-json", json.dumps({"seed": 3}), "--grasps", str(source), "--objects", str(objects_dir),
+            "--shard", "000", "--out", str(out), "--threads", "1"]
+    assert main([*args, "--stability", str(stability)]) == 0
+    result = read_grasp_store(out)
+    assert result.arrays["failure_reason"].tolist() == ["", "hand_in_table"]
+    assert result.arrays["lift_success"].tolist() == [True, False]
+    np.testing.assert_allclose(result.arrays["support_normal"], [[1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+    np.testing.assert_allclose(result.arrays["support_offset_m"], [0.08, 0.02], rtol=1e-6)
+    assert result.attrs["scene"] == {"table": True} and result.attrs["config"]["scene"] == {"table": True}
+    assert main(args) == 2  # tabletop mode without the resting poses
+
+
+def test_lift_test_reproduces_a_grasp_on_the_table_its_store_recorded(tmp_path, objects_dir, hooks, capsys):
+    """A store written on tables carries each grasp's plane: `dexlite lift-test` puts the objects back on them and
+    says so; --floating tests without them (the hook under the lying round bar then holds)."""
+    from dexlite_pipeline.tabletop import store_arrays
+
+    grasps = grasp_set([hooks["square_bar"], hooks["round_bar"]], ["square_bar", "round_bar"])
+    grasps.arrays.update(store_arrays(np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]), np.array([0.08, 0.02])))
+    source = tmp_path / "on_tables.zarr"
+    write_grasp_store(source, grasps)
+    assert main(["lift-test", str(source), "--objects", str(objects_dir), "--out", str(tmp_path / "t.zarr"), "--threads", "1"]) == 0
+    assert "on the tables recorded in the grasp store" in capsys.readouterr().out
+    assert read_grasp_store(tmp_path / "t.zarr").arrays["failure_reason"].tolist() == ["", "hand_in_table"]
+    assert main(["lift-test", str(source), "--objects", str(objects_dir), "--out", str(tmp_path / "f.zarr"), "--threads", "1", "--floating"]) == 0
+    assert "floating (--floating)" in capsys.readouterr().out
+    assert read_grasp_store(tmp_path / "f.zarr").arrays["lift_success"].tolist() == [True, True]
 
 
 def test_lift_test_on_an_objects_folder_without_objects_fails(tmp_path, hooks, capsys):

@@ -23,8 +23,9 @@ def curate_options(input):
     return options
 
 
-# Device, shards and energy matter only for imported grasps (dealt to shards here, their energies computed here).
-CURATE_SECTIONS = ("curate",) + (("device", "shards", "energy") if config["dexgraspnet"]["root"] else ())
+# Device, shards and energy matter only for imported grasps (dealt to shards here, their energies computed here);
+# scene: on a table, grasps with a hand point below it are dropped (below_table).
+CURATE_SECTIONS = ("curate", "scene") + (("device", "shards", "energy") if config["dexgraspnet"]["root"] else ())
 
 
 rule curate:

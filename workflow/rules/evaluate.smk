@@ -1,5 +1,6 @@
-# Evaluation on held-out objects: simulate each shard of every method's grasps, then tabulate,
-# then build the HTML report. Which methods are read comes from config.evaluate.methods.
+# Evaluation on held-out objects: simulate each shard of every method's grasps (on each object's
+# table in tabletop mode; in both modes the resting poses give each grasp's reach below the table),
+# then tabulate, then build the HTML report. Which methods are read comes from config.evaluate.methods.
 # learning_objects_dirs / learning_cli_options come from train_cvae.smk (included before).
 # Each step tracks only the evaluate keys it reads (evaluation.step_keys): a report-only setting
 # reruns the report, a metric setting the aggregate step and the report, not the simulation.
@@ -38,12 +39,13 @@ def _post_stores(source):
 
 rule evaluate_simulate:
     input:
-        unpack(lambda wc: {"catalog": f"{RESULTS}/objects/catalog.parquet", **_evaluate_sources(wc.shard)}),
+        unpack(lambda wc: {"catalog": f"{RESULTS}/objects/catalog.parquet", "stability": f"{RESULTS}/stability/stability.parquet",
+                           **_evaluate_sources(wc.shard)}),
     output:
         directory(f"{RESULTS}/eval/sim/shard_{{shard}}.zarr"),
     threads: SHARD_THREADS
     params:
-        cfg=evaluate_step_params(SIMULATE_KEYS, "seed", "device", "shards", "lift", "energy"),
+        cfg=evaluate_step_params(SIMULATE_KEYS, "seed", "device", "shards", "lift", "energy", "scene"),
         code=code_hash("evaluate"),
         sources=lambda wc: " ".join(f"--{SOURCE_OPTIONS[k]} {v}" for k, v in _evaluate_sources(wc.shard).items()),
         objects=learning_cli_options("objects", learning_objects_dirs()),
@@ -55,7 +57,7 @@ rule evaluate_simulate:
         f"{LOGS}/benchmarks/evaluate_simulate_{{shard}}.tsv"
     shell:
         "dexlite evaluate --step simulate --config-json {params.cfg:q} --shard {wildcards.shard} {params.sources} "
-        "{params.objects} --out {output} --threads {threads} > {log} 2>&1"
+        "--stability {input.stability} {params.objects} --out {output} --threads {threads} > {log} 2>&1"
 
 
 rule evaluate:

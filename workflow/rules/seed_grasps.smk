@@ -8,7 +8,7 @@ rule seed_grasps:
     output:
         grasps=directory(f"{RESULTS}/seed/shard_{{shard}}.zarr"),
     params:
-        cfg=stage_params("seed", "device", "shards", "energy", "seed_grasps"),
+        cfg=stage_params("seed", "device", "shards", "energy", "scene", "seed_grasps"),
         code=code_hash("seed_grasps"),
         objects=lambda wildcards, input: Path(input.catalog).parent,
     threads: SHARD_THREADS

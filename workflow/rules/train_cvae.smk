@@ -17,12 +17,13 @@ rule train_cvae:
     input:
         lift=expand(f"{RESULTS}/lift/shard_{{shard}}.zarr", shard=SHARDS),
         catalog=f"{RESULTS}/objects/catalog.parquet",
+        stability=f"{RESULTS}/stability/stability.parquet",
     output:
         model=f"{RESULTS}/model/cvae.pt",
         history=f"{RESULTS}/model/history.csv",
         curves=f"{RESULTS}/model/training_curves.png",
     params:
-        cfg=stage_params("seed", "device", "train", "energy.self_penetration_margin_m"),
+        cfg=stage_params("seed", "device", "train", "scene", "energy.self_penetration_margin_m"),
         code=code_hash("train_cvae"),
         lift=lambda wc, input: learning_cli_options("lift", input.lift),
         objects=learning_cli_options("objects", learning_objects_dirs()),
@@ -34,5 +35,5 @@ rule train_cvae:
     benchmark:
         f"{LOGS}/benchmarks/train_cvae.tsv"
     shell:
-        "dexlite train-cvae --config-json {params.cfg:q} {params.lift} {params.objects} "
+        "dexlite train-cvae --config-json {params.cfg:q} {params.lift} --stability {input.stability} {params.objects} "
         "--model {output.model} --history {output.history} --curves {output.curves} --threads {threads} > {log} 2>&1"

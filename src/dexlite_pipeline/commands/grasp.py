@@ -3,7 +3,8 @@
 Prepares the meshes (a folder of .obj/.stl files works too), synthesizes grasps (with the
 shipped model when the checkout has it; by optimization from scratch without one or with
 ``--from-scratch``), keeps those that pass the lift test and writes ``DIR/grasps.zarr``, ``DIR/dexgraspnet/``,
-``DIR/renders/`` and ``DIR/summary.md`` (``dexlite_pipeline.tools.grasp``). Exit status 0
+``DIR/renders/`` and ``DIR/summary.md`` (``dexlite_pipeline.tools.grasp``). On a table (``scene.table``,
+the default) each mesh stands in its stable pose, or with ``--upright-axis`` up; the log says which. Exit status 0
 when some grasp held, 1 when none did (the outputs are written all the same), 2 for
 unusable input.
 """
@@ -17,6 +18,7 @@ log = logging.getLogger("dexlite.grasp")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    from dexlite_pipeline.tabletop import UPRIGHT_AXES
     from dexlite_pipeline.tools.grasp import DEFAULT_GRASPS_PER_OBJECT, DEFAULT_RENDERS_PER_OBJECT
 
     parser.add_argument("meshes", nargs="+", help=".obj/.stl mesh files, or folders of them")
@@ -29,6 +31,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--from-scratch", action="store_true", help="energy optimization from scratch instead of a model (slower per grasp)")
     parser.add_argument("--config-json", default="{}", help="config sections over config.yaml, as inline JSON or a .json/.yaml file")
     parser.add_argument("--renders", type=int, default=DEFAULT_RENDERS_PER_OBJECT, help="pictures per object (default %(default)s)")
+    parser.add_argument("--upright-axis", choices=UPRIGHT_AXES, default=None, help="on a table (scene.table, the default): the mesh axis that "
+                        "points up; default: each mesh's stable pose, where it comes to rest when set down in its file orientation")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -48,7 +52,7 @@ def run(args: argparse.Namespace) -> int:
     request = GraspRequest(
         meshes=args.meshes, out_dir=args.out, grasps_per_object=args.n, real_size=args.real_size, device=args.device,
         model=model, config=parse_config_json(args.config_json), threads=args.threads or os.cpu_count() or 1,
-        renders_per_object=args.renders,
+        renders_per_object=args.renders, upright_axis=args.upright_axis,
     )  # fmt: skip
     outcome = run_grasp_tool(request)
     print(f"{outcome.held}/{outcome.total} grasps held the object in the lift test ({len(outcome.objects)} object(s), "

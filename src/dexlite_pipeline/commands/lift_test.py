@@ -7,6 +7,10 @@ assets, are kept and flagged (``failure_reason = 'invalid_grasp: ...'``); the ot
 simulated. Exit status 2 when no --objects folder holds prepared objects, 1 when the
 store has grasps but none of them could be simulated. Physical constants: ``LiftConfig`` defaults, the ``lift`` section of
 ``--config-json``, then the explicit options, in that order; all are recorded in the output.
+Tables: a store written in tabletop mode records each grasp's support plane, and the test then
+puts each object on that table (docs/design.md, "Tabletop mode"); ``--stability`` takes the
+resting poses of a stability table instead, ``--floating`` tests without a table. The summary
+says which.
 """
 
 from __future__ import annotations
@@ -23,13 +27,31 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--six-directions", action="store_true", default=None, help="also run the six-direction disturbance test")
     parser.add_argument("--friction", type=float, default=None, help="override lift.friction")
     parser.add_argument("--object-mass-kg", type=float, default=None, help="override lift.object_mass_kg")
+    table = parser.add_mutually_exclusive_group()
+    table.add_argument("--stability", default=None, help="stability table: each object on the table of its resting pose")
+    table.add_argument("--floating", action="store_true", help="no table, even if the store recorded one")
+
+
+def test_tables(grasps_path: str, stability: str | None, floating: bool):
+    """(support planes or None, a phrase saying where the objects are) for the lift test of a store."""
+    from dexlite_pipeline.io.grasp_store import read_grasp_store
+    from dexlite_pipeline.tabletop import SupportPlanes, planes_from_store
+
+    if floating:
+        return None, "floating (--floating), gravity along each object frame's -z"
+    if stability:
+        return SupportPlanes.from_stability_table(stability), f"on the tables of their resting poses ({stability})"
+    stored = planes_from_store(read_grasp_store(grasps_path))
+    if stored is None:
+        return None, "floating (the store records no table), gravity along each object frame's -z"
+    return stored, "on the tables recorded in the grasp store"
 
 
 def run(args: argparse.Namespace) -> int:
     from dexlite_pipeline.config import parse_config_json
     from dexlite_pipeline.io.grasp_store import write_grasp_store
     from dexlite_pipeline.sim.config import lift_config_from
-    from dexlite_pipeline.sim.results import format_summary, lift_test_store, nothing_simulated
+    from dexlite_pipeline.sim.results import check_objects_dirs, format_summary, lift_test_store, nothing_simulated
 
     config = lift_config_from(
         parse_config_json(args.config_json),
@@ -37,7 +59,10 @@ def run(args: argparse.Namespace) -> int:
         object_mass_kg=args.object_mass_kg,
         six_directions=args.six_directions,
     )
-    result, summary = lift_test_store(args.grasps, args.objects, config, args.threads or os.cpu_count() or 1)
-    write_grasp_store(args.out, result, {"stage": "lift_test", "source": str(args.grasps)})
+    check_objects_dirs(args.objects)  # before reading the store: the errors come in the order users fix them
+    planes, where = test_tables(args.grasps, args.stability, args.floating)
+    result, summary = lift_test_store(args.grasps, args.objects, config, args.threads or os.cpu_count() or 1, support_planes=planes)
+    write_grasp_store(args.out, result, {"stage": "lift_test", "source": str(args.grasps), "scene": {"table": planes is not None}})
+    print(f"objects: {where}", file=sys.stdout)
     print(format_summary(summary, config), file=sys.stdout)
     return 1 if nothing_simulated(args.grasps, summary) else 0

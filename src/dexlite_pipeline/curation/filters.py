@@ -70,6 +70,9 @@ DROP_REASONS = (
     "duplicate",  # near-duplicate of a better grasp of the same object and scale
     "cap",  # beyond max_grasps_per_object
 )
+# Tabletop mode (scene.table) adds one reason after "unstable"; floating curation keeps exactly the list above.
+BELOW_TABLE = "below_table"  # a hand point below the object's table in its resting pose (tabletop mode)
+TABLETOP_DROP_REASONS = (*DROP_REASONS[:4], BELOW_TABLE, *DROP_REASONS[4:])
 
 
 @dataclass(frozen=True)
@@ -172,9 +175,14 @@ def near_duplicates(hand_pose: np.ndarray, order: np.ndarray, config: CurateConf
 
 
 def curate_grasps(
-    grasps: GraspSet, facts: ObjectFacts, config: CurateConfig, force_closure_evaluator: Callable[[GraspSet], ForceClosureResult] | None = None
+    grasps: GraspSet, facts: ObjectFacts, config: CurateConfig, force_closure_evaluator: Callable[[GraspSet], ForceClosureResult] | None = None,
+    table_depth_m: np.ndarray | None = None,
 ) -> np.ndarray:
-    """Per grasp, '' if kept, else its drop reason (one of ``DROP_REASONS``).
+    """Per grasp, '' if kept, else its drop reason (one of ``DROP_REASONS``; ``TABLETOP_DROP_REASONS`` on a table).
+
+    ``table_depth_m`` (tabletop mode): per grasp the deepest hand point below its object's table
+    (``tabletop.grasp_table_depths``); grasps deeper than ``tabletop.TABLE_TOLERANCE_M`` (or with
+    no table) are dropped as ``below_table`` after the object-level checks.
 
     With ``config.force_closure``, ``force_closure_evaluator`` is called once, on the
     grasps that meet the energy thresholds, and its results are added to ``grasps`` as the
@@ -182,6 +190,10 @@ def curate_grasps(
     ``force_closure_failure_reason`` (why ε could not be computed, '' elsewhere).
     """
     reasons = object_reasons(grasps, facts)
+    if table_depth_m is not None:
+        from dexlite_pipeline.tabletop import TABLE_TOLERANCE_M
+
+        reasons[(reasons == "") & ~(np.asarray(table_depth_m) <= TABLE_TOLERANCE_M)] = BELOW_TABLE
     open_rows = reasons == ""
     if open_rows.any():
         reasons[open_rows] = threshold_reasons(grasps.select(open_rows), config)
@@ -219,20 +231,20 @@ def curate_grasps(
     return reasons
 
 
-def summarize(grasps: GraspSet, reasons: np.ndarray, facts: ObjectFacts) -> pd.DataFrame:
-    """Per object and origin: split, stability, grasps read, kept, and dropped per reason."""
+def summarize(grasps: GraspSet, reasons: np.ndarray, facts: ObjectFacts, drop_reasons: tuple[str, ...] = DROP_REASONS) -> pd.DataFrame:
+    """Per object and origin: split, stability, grasps read, kept, and dropped per reason (``drop_reasons``)."""
     origin = grasps.arrays.get("origin", np.full(len(grasps), "", dtype=object))
     frame = pd.DataFrame({"object_id": [str(o) for o in grasps.object_id], "origin": list(origin), "reason": list(reasons)})
-    columns = ["object_id", "origin", "split", "stable", "n_input", "n_kept", *(f"dropped_{r}" for r in DROP_REASONS)]
+    columns = ["object_id", "origin", "split", "stable", "n_input", "n_kept", *(f"dropped_{r}" for r in drop_reasons)]
     if frame.empty:
         return pd.DataFrame(columns=columns)
     counts = pd.crosstab([frame["object_id"], frame["origin"]], frame["reason"])
-    counts = counts.reindex(columns=["", *DROP_REASONS], fill_value=0)
+    counts = counts.reindex(columns=["", *drop_reasons], fill_value=0)
     table = pd.DataFrame(
         {
             "n_input": counts.sum(axis=1),
             "n_kept": counts[""],
-            **{f"dropped_{r}": counts[r] for r in DROP_REASONS},
+            **{f"dropped_{r}": counts[r] for r in drop_reasons},
         }
     ).reset_index()
     table["split"] = [facts.split.get(o, "") for o in table["object_id"]]

@@ -21,6 +21,7 @@ import pandas as pd
 
 from dexlite_pipeline.curation.filters import (
     DROP_REASONS,
+    TABLETOP_DROP_REASONS,
     ObjectFacts,
     curate_grasps,
     merge_summaries,
@@ -106,7 +107,9 @@ def curate_shard(
 ) -> tuple[GraspSet, dict, pd.DataFrame]:
     """The curated grasps of one shard, their store attributes and the per-object summary.
 
-    Reads ``shards``, ``device``, ``curate`` and (for imported grasps) ``energy`` of ``config``.
+    Reads ``shards``, ``device``, ``curate``, ``scene`` and (for imported grasps) ``energy`` of ``config``.
+    In tabletop mode (``scene.table``) every grasp, seed or imported, with a hand point below its
+    object's table (the first stability table's resting pose) is dropped as ``below_table``.
     """
     from dexlite_pipeline.config import json_ready
     from dexlite_pipeline.objects.assets import CATALOG_NAME, read_catalog
@@ -121,7 +124,13 @@ def curate_shard(
     if not sets:
         raise ValueError("curate needs seed grasps and/or imported grasps")
     grasps = _common_arrays(sets)
-    reasons = curate_grasps(grasps, facts, settings, force_closure_evaluator(objects_dirs, settings, threads))
+    table_depth = None
+    if config.scene.table:
+        from dexlite_pipeline.tabletop import load_support_planes, grasp_table_depths
+
+        table_depth = grasp_table_depths(grasps, load_support_planes(True, stability_paths[0]))
+    drop_reasons = TABLETOP_DROP_REASONS if config.scene.table else DROP_REASONS
+    reasons = curate_grasps(grasps, facts, settings, force_closure_evaluator(objects_dirs, settings, threads), table_depth_m=table_depth)
     # Reported in the attributes and the log, not stored: it is '' for every kept grasp.
     failure_reason = grasps.arrays.pop("force_closure_failure_reason", np.full(len(grasps), "", dtype=object))
     force_closure_failures = Counter(failure_reason[failure_reason != ""].tolist())
@@ -133,10 +142,13 @@ def curate_shard(
         "inputs": {"seed": list(seed_paths), "imported": imported_path, "stability": list(stability_paths)},
         "n_input": len(grasps),
         "n_kept": len(kept),
-        "dropped": {r: int((reasons == r).sum()) for r in DROP_REASONS},
+        "dropped": {r: int((reasons == r).sum()) for r in drop_reasons},
         "force_closure_failures": dict(force_closure_failures),
     }
-    return kept, attrs, summarize(grasps, reasons, facts)
+    if config.scene.table:
+        attrs["config"]["scene"] = {"table": True}
+        attrs["scene"] = {"table": True}
+    return kept, attrs, summarize(grasps, reasons, facts, drop_reasons)
 
 
 def merge_summary_files(paths: list[str]) -> pd.DataFrame:

@@ -51,6 +51,7 @@ class EnergyWeights:
     pen: float = 100.0
     spen: float = 10.0
     joints: float = 1.0
+    table: float = 100.0  # E_table, tabletop mode only (a term of its own, never in ``combined_energy``'s five)
 
 
 @dataclass(frozen=True)

@@ -26,6 +26,7 @@ from dexlite_pipeline.energy.terms import (
     JointLimitTerm,
     PenetrationTerm,
     SelfPenetrationTerm,
+    TableTerm,
 )
 from dexlite_pipeline.hand.model import JOINTS, HandFrames, ShadowHand
 from dexlite_pipeline.objects.assets import ObjectAsset, SdfBank
@@ -79,7 +80,10 @@ class GraspEnergy:
         object_points: torch.Tensor,
         weights: EnergyWeights = EnergyWeights(),
         self_penetration_margin_m: float = 0.02,
+        support_planes: torch.Tensor | None = None,
     ) -> None:
+        """``support_planes`` (n_objects, 4): per bank object the table's normal and offset per unit scale
+        (tabletop mode; adds E_table). None: floating objects, the five terms only."""
         self.hand = hand
         self.bank = sdf_bank
         self.weights = weights
@@ -91,14 +95,33 @@ class GraspEnergy:
         self.candidate_map = LinkFrameMap.for_points(hand.contact_points_local, hand.contact_link, len(hand.link_names))
         self.penetration = PenetrationTerm(hand, sdf_bank, object_points.to(self.device, hand.dtype))
         self.terms: list[EnergyTerm] = [self.force_closure, self.contact_distance, self.penetration, self.self_penetration, self.joint_limits]
+        self.support_planes = None
+        if support_planes is not None:
+            self.support_planes = support_planes.to(self.device, hand.dtype)
+            self.table = TableTerm(hand)
+            self.terms.append(self.table)
 
     @classmethod
-    def from_assets(cls, hand: ShadowHand, assets: list[ObjectAsset], config: EnergyConfig = EnergyConfig()) -> "GraspEnergy":
-        """Build the SDF bank and E_pen point sets (first ``config.object_points`` surface samples)."""
+    def from_assets(cls, hand: ShadowHand, assets: list[ObjectAsset], config: EnergyConfig = EnergyConfig(), support_planes=None) -> "GraspEnergy":
+        """Build the SDF bank and E_pen point sets (first ``config.object_points`` surface samples).
+
+        ``support_planes`` (``tabletop.SupportPlanes``, tabletop mode): adds E_table with each asset's table.
+        """
         bank = SdfBank(assets, device=hand.device, dtype=hand.dtype)
         count = min(config.object_points, min(len(a.surface_points) for a in assets))
         points = torch.as_tensor(np.stack([a.surface_points[:count] for a in assets]), dtype=hand.dtype)
-        return cls(hand, bank, points, config.weights, config.self_penetration_margin_m)
+        planes = None
+        if support_planes is not None:
+            rows = [(*support_planes.get(a.object_id).normal, support_planes.get(a.object_id).offset) for a in assets]
+            planes = torch.tensor(rows, dtype=torch.float64)
+        return cls(hand, bank, points, config.weights, config.self_penetration_margin_m, support_planes=planes)
+
+    def support(self, object_index: torch.Tensor, scale: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor] | tuple[None, None]:
+        """Per grasp, the table's normal (B, 3) and offset in metres (B,); (None, None) for floating objects."""
+        if self.support_planes is None:
+            return None, None
+        plane = self.support_planes[object_index]
+        return plane[:, :3], plane[:, 3] * scale.to(plane.dtype)
 
     @property
     def object_ids(self) -> list[str]:
@@ -188,7 +211,10 @@ class GraspEnergy:
             contact_index = self.nearest_contacts(frames, object_index, scale)
         points = self.contact_points(frames, contact_index)
         distance, normal = self.bank.signed_distance(points, object_index[:, None], scale[:, None])
+        support_normal, support_offset_m = self.support(object_index, scale)
         return EnergyContext(
+            support_normal=support_normal,
+            support_offset_m=support_offset_m,
             frames=frames,
             joints=joints,
             object_index=object_index,

@@ -1,4 +1,4 @@
-"""The five grasp energy terms, one small class each (DexGraspNet's definitions; docs/design.md).
+"""The five grasp energy terms, one small class each (DexGraspNet's definitions; docs/design.md), and E_table.
 
 Each term is an ``EnergyTerm``: it carries its result name (``name``, e.g. "E_fc"), the
 field of ``EnergyWeights`` that weights it (``weight_key``, e.g. "fc"), and
@@ -60,6 +60,8 @@ class EnergyContext:
     contact_distance: torch.Tensor  # (B, 4) their signed distances to the surface (positive outside)
     contact_normal: torch.Tensor  # (B, 4, 3) unit surface normals at them
     penetration: PenetrationResult  # E_pen and the deepest penetration each way
+    support_normal: torch.Tensor | None = None  # (B, 3) table's upward normal (tabletop mode; None: floating)
+    support_offset_m: torch.Tensor | None = None  # (B,) table height term: n·x + offset ≥ 0 above the table
 
 
 class EnergyTerm:
@@ -318,3 +320,26 @@ class PenetrationTerm(EnergyTerm):
             clusters.append(cluster)
         empty = pair_b.new_zeros(0)
         return (torch.cat(pairs), torch.cat(clusters)) if pairs else (empty, empty)
+
+
+class TableTerm(EnergyTerm):
+    """E_table = Σ over the hand's collision shapes of how far their lowest point lies below the table (metres).
+
+    Tabletop mode only (``scene.table``): the table is the plane n·x + offset = 0 of the object's
+    resting pose (``tabletop``); each capsule's and box's lowest point is exact
+    (``tabletop.HandTableClearance``), so a hand wholly above the table costs exactly 0.
+    """
+
+    name = "E_table"
+    weight_key = "table"
+
+    def __init__(self, hand: ShadowHand) -> None:
+        from dexlite_pipeline.tabletop import HandTableClearance
+
+        self.clearance = HandTableClearance(hand)
+
+    def evaluate(self, context: EnergyContext) -> torch.Tensor:
+        return self(context.frames, context.support_normal, context.support_offset_m)
+
+    def __call__(self, frames: HandFrames, normal: torch.Tensor, offset_m: torch.Tensor) -> torch.Tensor:
+        return torch.relu(-self.clearance.lowest_heights(frames, normal, offset_m)).sum(dim=1)

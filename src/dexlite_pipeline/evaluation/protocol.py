@@ -69,6 +69,7 @@ PAIRED_METHODS = (*SAMPLED_METHODS, "random_post")  # rows correspond to rows of
 PAIRED_DRAW = "sampled_rows"  # name of the draw these methods share
 SELECTED_ARRAYS = ("hand_pose", "object_id", "scale")
 BUDGET_POSES = "budget_hand_pose"  # (N, S, 28) post-optimized poses after each budget iteration (post stores)
+TABLE_DEPTH = "table_depth_mm"  # deepest hand point below the object's table in its resting pose (mm; both modes)
 SEED_PROTOCOL_SUCCESS = "seed_protocol_lift_success"  # lift success under ``evaluate.seed_protocol``'s physics
 BUDGET_SUCCESS = "budget_lift_success"  # (N, S) lift success of those poses (1/0; NaN where a method has none)
 CONVERGENCE_COLUMNS = (
@@ -265,12 +266,14 @@ def simulate(
     threads: int,
     energy_batch_size: int,
     seed_protocol: SeedProtocolConfig | None = None,
+    support_planes=None,
 ) -> GraspSet:
     """Energies, the equal filter's energies (``evaluation.filter_energy``) and lift (+ six-direction) results for every
     selected grasp, as one grasp set.
 
     Invalid grasps (``invalid_reason``) pass through both with NaN results and a failed
-    lift; the seconds per grasp are per simulated (valid) grasp.
+    lift; the seconds per grasp are per simulated (valid) grasp. ``support_planes`` (tabletop
+    mode): every lift test (and the seed protocol's) runs with each object on its table.
     """
     from dexlite_pipeline.energy.per_grasp import evaluate_grasp_energies
     from dexlite_pipeline.evaluation.filter_energy import filter_energy_arrays
@@ -290,13 +293,16 @@ def simulate(
     arrays.update(filter_energy_arrays(selected, objects_dirs, energy_cfg.weights, device))
     log.info("the equal filter's contact search of %d grasps in %.1f s", len(selected), time.perf_counter() - start)
     start = time.perf_counter()
-    arrays.update(run_lift_tests(selected, objects_dirs, lift_cfg, threads))
+    on_table = {} if support_planes is None else {"support_planes": support_planes}
+    lifted = run_lift_tests(selected, objects_dirs, lift_cfg, threads, **on_table)
+    lifted.pop("table_depth_mm", None)  # measured for every mode by the caller (tabletop.grasp_table_depths)
+    arrays.update(lifted)
     lift_s = time.perf_counter() - start
     if seed_protocol is not None and seed_protocol.enabled:
         lenient = dataclasses.replace(lift_cfg, **seed_protocol.lift_overrides())
         log.info("lift test of %d grasps under DexLite's protocol (friction %g, +%g rad, ratio %g)", len(selected),
                  lenient.friction, lenient.preclose_rad, lenient.success_lift_ratio)
-        arrays[SEED_PROTOCOL_SUCCESS] = run_lift_tests(selected, objects_dirs, lenient, threads)["lift_success"]
+        arrays[SEED_PROTOCOL_SUCCESS] = run_lift_tests(selected, objects_dirs, lenient, threads, **on_table)["lift_success"]
     attrs = dict(selected.attrs)
     attrs["energy_seconds_per_grasp"] = energy_s / simulated_count
     attrs["simulation_seconds_per_grasp"] = lift_s / simulated_count
@@ -433,6 +439,10 @@ def metrics_tables(
                 row.update({"seed_protocol_lift_success_rate": metrics.rate(lenient), "seed_protocol_lift_success_ci95_low": low,
                             "seed_protocol_lift_success_ci95_high": high})
             row.update({name: convergence.get(method, {}).get(name, math.nan) for name in CONVERGENCE_COLUMNS})
+            if TABLE_DEPTH in subset:  # tabletop reachability (both modes): held grasps with no hand point below the table
+                from dexlite_pipeline.tabletop import reachable_on_table
+
+                row.update(reachable_on_table(subset["lift_success"], subset[TABLE_DEPTH]))
             rows.append(row)
             for object_row in metrics.per_object_rows(subset, diversity, thresholds) if mask.any() else []:
                 object_rows.append({"method": method, "split": split, **object_row})
@@ -441,7 +451,7 @@ def metrics_tables(
     return pd.DataFrame(rows), pd.DataFrame(object_rows, columns=per_object_columns)
 
 
-def simulate_budget(selected: GraspSet, objects_dirs, lift_cfg, threads: int) -> np.ndarray:
+def simulate_budget(selected: GraspSet, objects_dirs, lift_cfg, threads: int, support_planes=None) -> np.ndarray:
     """(N, S) lift success (1.0 / 0.0, lift test only) of each selected grasp's pose after every budget iteration.
 
     The six-direction test is left out here: the budget curve asks how soon post-optimization
@@ -461,7 +471,8 @@ def simulate_budget(selected: GraspSet, objects_dirs, lift_cfg, threads: int) ->
         },
         {},
     )
-    result = run_lift_tests(flat, objects_dirs, dataclasses.replace(lift_cfg, six_directions=False), threads)
+    on_table = {} if support_planes is None else {"support_planes": support_planes}
+    result = run_lift_tests(flat, objects_dirs, dataclasses.replace(lift_cfg, six_directions=False), threads, **on_table)
     return np.asarray(result["lift_success"], dtype=np.float64).reshape(count, steps)
 
 

@@ -49,12 +49,17 @@ def _budget_iterations(stores) -> list[int]:
     return []
 
 
-def simulate_shard(source_paths: dict[str, list[str]], objects_dirs: list[str], shard: int, config: dict, threads: int = 1) -> tuple[GraspSet, dict]:
+def simulate_shard(
+    source_paths: dict[str, list[str]], objects_dirs: list[str], shard: int, config: dict, threads: int = 1, stability_path: str | None = None
+) -> tuple[GraspSet, dict]:
     """Choose, simulate and measure the shard's grasps of every configured method.
 
     ``source_paths``: store paths per source (keys of ``step_keys.SOURCE_OPTIONS``). ``config``:
-    the config mapping (sections seed, device, shards, lift, energy and the simulate keys of
-    evaluate). Returns the simulated grasps and their store attributes.
+    the config mapping (sections seed, device, shards, lift, energy, scene and the simulate keys of
+    evaluate). Returns the simulated grasps and their store attributes. With the stability table
+    (``stability_path``) every grasp gets ``table_depth_mm``, how far its hand reaches below the
+    object's table in the resting pose, in both modes (the reachability column); in tabletop mode
+    (``scene.table``, the default) the lift tests also run with each object on its table.
     """
     from dexlite_pipeline.config import from_section
     from dexlite_pipeline.device import resolve_device
@@ -67,12 +72,18 @@ def simulate_shard(source_paths: dict[str, list[str]], objects_dirs: list[str], 
     from dexlite_pipeline.sharding import shard_objects
     from dexlite_pipeline.sim.config import lift_config_from
 
+    from dexlite_pipeline.sim.config import SceneConfig
+    from dexlite_pipeline.tabletop import SupportPlanes, grasp_table_depths, load_support_planes
+
     cfg = evaluate_config_from(config, SIMULATE_KEYS)
     lift_cfg = lift_config_from(config, six_directions=cfg.six_directions)
     energy_cfg = from_section(EnergyConfig, config.get("energy"), "config.energy")
     seed = int(config.get("seed") or 0)
     split_of = object_splits(objects_dirs, ok_only=False)
     require_split_objects(split_of, cfg.splits, objects_dirs)
+    scene = from_section(SceneConfig, config.get("scene"), "config.scene")
+    planes = SupportPlanes.from_stability_table(stability_path) if stability_path else load_support_planes(scene.table, None)
+    on_table = {"support_planes": planes} if scene.table else {}
     known_object_ids = available_object_ids(objects_dirs)
     sources = {key: [read_grasp_store(p) for p in source_paths.get(key, [])] for key in SOURCE_OPTIONS}
     if sources["dexgraspnet"]:  # one store for all shards: take this shard's objects
@@ -97,7 +108,7 @@ def simulate_shard(source_paths: dict[str, list[str]], objects_dirs: list[str], 
         budget_poses = arrays.pop(BUDGET_POSES, None)
         if budget_poses is not None and method in BUDGET_METHODS and len(selected):
             budget_iterations = budget_iterations or _budget_iterations(method_sources)
-            arrays[BUDGET_SUCCESS] = simulate_budget(selected, objects_dirs, lift_cfg, threads)
+            arrays[BUDGET_SUCCESS] = simulate_budget(selected, objects_dirs, lift_cfg, threads, **on_table)
             log.info("evaluate shard %s: %s: budget curve over iterations %s simulated", shard, method, budget_iterations)
         parts.append(GraspSet(arrays, {}))
         invalid[method] = selected.attrs["invalid_reasons"]
@@ -113,7 +124,9 @@ def simulate_shard(source_paths: dict[str, list[str]], objects_dirs: list[str], 
         for name, dtype in (("method", object), ("split", object), ("source_row", np.int64), ("sample_row", np.int64), ("invalid_reason", object)):
             selected_all.arrays[name] = np.zeros(0, dtype=dtype)
     device = resolve_device(config.get("device") or "auto")
-    result = simulate(selected_all, objects_dirs, lift_cfg, energy_cfg, device, threads, cfg.energy_batch_size, cfg.seed_protocol)
+    result = simulate(selected_all, objects_dirs, lift_cfg, energy_cfg, device, threads, cfg.energy_batch_size, cfg.seed_protocol, **on_table)
+    if planes is not None:
+        result.arrays["table_depth_mm"] = grasp_table_depths(selected_all, planes) * 1000.0
     attrs = {
         "stage": "evaluate",
         "shard": shard,

@@ -58,6 +58,7 @@ class ModelConfig:
 
 ENERGY_TERMS = ("fc", "dis", "pen", "spen", "joints")
 LOSS_TERMS = ("recon", "kl", *ENERGY_TERMS)
+TABLE_TERM = "table"  # E_table, a loss term in tabletop mode only (after LOSS_TERMS)
 LR_SCHEDULES = ("constant", "cosine")
 
 
@@ -85,7 +86,7 @@ class TrainConfig:
     energy_warmup_fraction: float = 0.3
     weight_recon: float = 1.0
     weight_kl: float = 1e-5
-    energy_weights: EnergyWeights = field(default_factory=lambda: EnergyWeights(fc=0.0, dis=0.0, pen=0.0, spen=0.0, joints=0.0))
+    energy_weights: EnergyWeights = field(default_factory=lambda: EnergyWeights(fc=0.0, dis=0.0, pen=0.0, spen=0.0, joints=0.0, table=0.0))
     model: ModelConfig = field(default_factory=lambda: ModelConfig(normalization="none"))
 
     def __post_init__(self) -> None:
@@ -96,10 +97,10 @@ class TrainConfig:
         if self.model.normalization == "batch" and self.clouds_per_batch < 2:
             raise ValueError("train: BatchNorm needs clouds_per_batch >= 2 (one cloud per batch erases object size); use model.normalization: none")
 
-    def weights(self) -> dict[str, float]:
-        """Loss term -> weight: recon and kl, then the energy terms (fc, dis, pen, spen, joints)."""
+    def weights(self, table: bool = False) -> dict[str, float]:
+        """Loss term -> weight: recon and kl, then the energy terms (fc, dis, pen, spen, joints; with ``table``, E_table last)."""
         weights = {"recon": self.weight_recon, "kl": self.weight_kl, **dataclasses.asdict(self.energy_weights)}
-        return {term: weights[term] for term in LOSS_TERMS}
+        return {term: weights[term] for term in (LOSS_TERMS if not table else (*LOSS_TERMS, TABLE_TERM))}
 
 
 LATENT_PRIORS = ("standard", "aggregate", "neighbours")

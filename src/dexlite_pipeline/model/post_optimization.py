@@ -48,7 +48,7 @@ def _log_progress(iteration: int, total: torch.Tensor) -> None:
 
 
 def _energy_arrays(prefix: str, result) -> dict[str, np.ndarray]:
-    arrays = {f"{prefix}{name}": result.terms[name].detach().cpu().numpy() for name in TERM_NAMES}
+    arrays = {f"{prefix}{name}": result.terms[name].detach().cpu().numpy() for name in result.terms}  # TERM_NAMES (+ E_table on a table)
     arrays[f"{prefix}E_post"] = result.total.detach().cpu().numpy()
     arrays[f"{prefix}penetration_mm"] = result.penetration_mm.detach().cpu().numpy()
     arrays[f"{prefix}contact_distance_mm"] = result.contact_distance_mm.detach().cpu().numpy()

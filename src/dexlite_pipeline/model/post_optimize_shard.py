@@ -49,15 +49,36 @@ def _unrefined_arrays(grasps: GraspSet, reasons: np.ndarray, method: np.ndarray)
     }
 
 
-def post_optimize_shard(sample_path: str, objects_dirs: list[str], shard: int, config: PipelineConfig) -> tuple[tuple[GraspSet, dict], tuple[GraspSet, dict]]:
+def raise_above_table(grasps: GraspSet, planes) -> tuple[GraspSet, np.ndarray]:
+    """The grasps with each hand below its table moved up along the table's normal until it touches
+    it from above (a start the optimizer can repair from), and the shift of each (m, 0: unmoved)."""
+    from dexlite_pipeline.tabletop import grasp_table_depths
+
+    shift = np.nan_to_num(grasp_table_depths(grasps, planes), nan=0.0)
+    moved = GraspSet(dict(grasps.arrays), dict(grasps.attrs))
+    pose = grasps.hand_pose.copy()
+    for i in np.flatnonzero(shift > 0):
+        pose[i, :3] += np.asarray(planes.get(str(grasps.object_id[i])).normal, dtype=np.float32) * np.float32(shift[i])
+    moved.arrays["hand_pose"] = pose
+    return moved, shift
+
+
+def post_optimize_shard(
+    sample_path: str, objects_dirs: list[str], shard: int, config: PipelineConfig, stability_path: str | None = None
+) -> tuple[tuple[GraspSet, dict], tuple[GraspSet, dict]]:
     """Refine one shard's sampled grasps, and run the random-init baseline on its pure syntheses.
 
     Returns (refined grasps, attributes) and (baseline grasps, attributes). Every sampled row
     is kept: rows that cannot be optimized (invalid pose, unknown object) carry their
     ``failure_reason``. The baseline starts from convex-hull poses (``post_optimize.random_init``)
     for the same held-out objects and scales as the shard's ``cvae_raw`` rows, with the same budget.
-    Reads ``seed``, ``device``, ``post_optimize`` and ``energy.self_penetration_margin_m``.
+    Reads ``seed``, ``device``, ``post_optimize``, ``scene`` and ``energy.self_penetration_margin_m``.
+    In tabletop mode (``scene.table``; resting poses from ``stability_path``) E_post includes E_table,
+    sampled starts below the table are first raised above it (``raise_above_table``; the shift is
+    stored as ``start_table_shift_m``), the random starts come from above it, and every row records
+    its support plane. Rows of an object without a resting pose carry that reason and are not optimized.
     """
+    from dexlite_pipeline.tabletop import load_support_planes, store_attrs, support_arrays
     from dexlite_pipeline.config import json_ready
     from dexlite_pipeline.device import resolve_device
     from dexlite_pipeline.energy.config import EnergyConfig
@@ -74,6 +95,10 @@ def post_optimize_shard(sample_path: str, objects_dirs: list[str], shard: int, c
     sampled = read_grasp_store(sample_path)
     method = np.asarray(sampled.arrays.get("method", np.full(len(sampled), SYNTHESIS, dtype=object)), dtype=object)
     reasons = invalid_grasp_reasons(sampled, available_object_ids(objects_dirs))
+    planes = load_support_planes(config.scene.table, stability_path)
+    if planes is not None:
+        no_plane = np.array([oid not in planes for oid in sampled.object_id], dtype=bool)
+        reasons[(reasons == "") & no_plane] = "no resting pose (tabletop mode)"
     valid = reasons == ""
     object_ids = sorted(set(sampled.object_id[valid].tolist()))
     hand = ShadowHand(device)
@@ -85,10 +110,13 @@ def post_optimize_shard(sample_path: str, objects_dirs: list[str], shard: int, c
         "budget_iterations": list(settings.budget()),
         "sample_seconds_per_grasp": sampled.attrs.get("seconds_per_grasp"),
     }
+    if planes is not None:
+        attrs["config"]["scene"] = {"table": True}
+        attrs.update(store_attrs(True))
     if object_ids:
         assets = [load_asset(objects_dirs, oid) for oid in object_ids]
         energy_config = EnergyConfig(weights=settings.energy_weights, object_points=settings.energy_object_points, self_penetration_margin_m=margin_m)
-        energy = GraspEnergy.from_assets(hand, assets, energy_config)
+        energy = GraspEnergy.from_assets(hand, assets, energy_config, support_planes=planes)
     generator = shard_generator("post_optimize", config.seed, shard)
 
     def optimize_rows(rows: GraspSet, init_pose: torch.Tensor | None, start_contacts: str) -> RefinedGrasps:
@@ -98,7 +126,15 @@ def post_optimize_shard(sample_path: str, objects_dirs: list[str], shard: int, c
         return refine(energy, pose, obj, scale, settings, generator, start_contacts)
 
     if valid.any():
-        refined = optimize_rows(sampled.select(valid), None, "surface")
+        starts = sampled.select(valid)
+        if planes is not None:
+            starts, shift = raise_above_table(starts, planes)
+            log.info("shard %03d: %d of %d sampled starts raised above the table (median %.1f mm)", shard, int((shift > 0).sum()), len(shift),
+                     1000 * float(np.median(shift[shift > 0])) if (shift > 0).any() else 0.0)
+        refined = optimize_rows(starts, None, "surface")
+        if planes is not None:
+            refined.arrays["start_table_shift_m"] = shift.astype(np.float32)
+            refined.arrays["raw_hand_pose"] = sampled.hand_pose[valid].copy()  # the sampled pose, before the raise
         attrs["trace_iterations"] = refined.trace_iterations.tolist()
         attrs["seconds_per_grasp"] = refined.seconds / int(valid.sum())
         log.info("shard %03d: post-optimized %d grasps in %.1fs; median E_post %.3g -> %.3g", shard, int(valid.sum()), refined.seconds,
@@ -113,7 +149,8 @@ def post_optimize_shard(sample_path: str, objects_dirs: list[str], shard: int, c
     if len(targets):
         obj = energy.object_index(targets.object_id)
         scale = torch.as_tensor(targets.scale, dtype=torch.float32, device=device)
-        init = initial_poses(hand, HullSampler(assets), obj, scale, settings.random_init, generator)
+        support = energy.support(obj, scale) if planes is not None else None
+        init = initial_poses(hand, HullSampler(assets), obj, scale, settings.random_init, generator, support=support)
         baseline = optimize_rows(targets, init, "random")
         random_attrs["seconds_per_grasp"] = baseline.seconds / len(targets)
         log.info("shard %03d: random-init baseline on %d grasps in %.1fs; median E_post %.3g -> %.3g", shard, len(targets),
@@ -122,4 +159,7 @@ def post_optimize_shard(sample_path: str, objects_dirs: list[str], shard: int, c
     else:
         random_attrs["seconds_per_grasp"] = None
         random_arrays = _unrefined_arrays(targets, np.zeros(0, dtype=object), np.zeros(0, dtype=object))
+    if planes is not None:
+        arrays.update(support_arrays(planes, sampled.object_id, sampled.scale))
+        random_arrays.update(support_arrays(planes, targets.object_id, targets.scale))
     return (GraspSet(arrays, {}), attrs), (GraspSet(random_arrays, {}), random_attrs)

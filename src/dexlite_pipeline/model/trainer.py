@@ -84,12 +84,16 @@ def _log_epoch(row: dict) -> None:
     )
 
 
-def train_from_lift_shards(lift_paths: list[str], objects_dirs: list[str], config: PipelineConfig) -> TrainedModel:
+def train_from_lift_shards(lift_paths: list[str], objects_dirs: list[str], config: PipelineConfig, stability_path: str | None = None) -> TrainedModel:
     """Train on the lift-successful grasps of the training objects in ``lift_paths``.
 
     Raises ``TrainingDataError`` naming the shards when fewer than ``train.min_grasps`` remain.
-    Reads ``seed``, ``device``, ``train`` and ``energy.self_penetration_margin_m`` of ``config``.
+    Reads ``seed``, ``device``, ``train``, ``scene`` and ``energy.self_penetration_margin_m`` of ``config``.
+    In tabletop mode (``scene.table``) the loss's energy knows each object's table (resting poses
+    from ``stability_path``) and E_table is a loss term with weight ``train.energy_weights.table``.
     """
+    from dexlite_pipeline.tabletop import load_support_planes
+
     import torch
 
     from dexlite_pipeline.device import resolve_device
@@ -118,10 +122,14 @@ def train_from_lift_shards(lift_paths: list[str], objects_dirs: list[str], confi
     hand = ShadowHand(device)
     data = build_training_data(grasps, assets, hand, device)
     margin_m = config.energy.self_penetration_margin_m
-    energy = GraspEnergy.from_assets(hand, assets, EnergyConfig(object_points=settings.energy_object_points, self_penetration_margin_m=margin_m))
+    planes = load_support_planes(config.scene.table, stability_path)
+    energy = GraspEnergy.from_assets(
+        hand, assets, EnergyConfig(object_points=settings.energy_object_points, self_penetration_margin_m=margin_m), support_planes=planes
+    )
     train_index, val_index = split_validation(len(grasps), settings.validation_fraction, config.seed)
     energy_terms = grasp_energy_terms(energy, settings.contact_samples, config.seed)
-    result = train_cvae(data, train_index, val_index, settings, energy_terms, config.seed, on_epoch=_log_epoch)
+    on_table = {} if planes is None else {"table": True}
+    result = train_cvae(data, train_index, val_index, settings, energy_terms, config.seed, on_epoch=_log_epoch, **on_table)
     fit = fit_training_codes(result.model, data, train_index, settings)
     log.info(
         "fit rung (encoder-mean reconstructions of the %d training grasps): median palm rotation error %.2f deg, "

@@ -34,7 +34,7 @@ from dexlite_pipeline.energy.grasp_energy import GraspEnergy
 from dexlite_pipeline.hand.rotation import matrix_to_euler_xyz
 from dexlite_pipeline.model.data import Batch, TrainingData, cloud_batches, make_batch
 from dexlite_pipeline.model.association import nearest_to_ray
-from dexlite_pipeline.model.config import ENERGY_TERMS, LOSS_TERMS, TrainConfig
+from dexlite_pipeline.model.config import ENERGY_TERMS, LOSS_TERMS, TABLE_TERM, TrainConfig
 from dexlite_pipeline.model.network import GraspCVAE, anchor_at, kl_divergence
 from dexlite_pipeline.model.pose import features_to_parts, features_to_pose, pose_errors, reconstruction_error, rotate_features
 
@@ -71,7 +71,8 @@ def grasp_energy_terms(energy: GraspEnergy, contact_samples: int = 0, seed: int 
                     chosen = energy.best_contacts(pose, object_index, scale, chosen, contact_samples, generator)
             contacts = torch.where(known[:, None], contacts, chosen)
         result = energy(palm_rot=palm_rot, palm_t=palm_t, joints=joints, object_index=object_index, scale=scale, contact_index=contacts)
-        return {name: result.terms[f"E_{name}"] for name in ENERGY_TERMS}
+        names = ENERGY_TERMS if "E_table" not in result.terms else (*ENERGY_TERMS, TABLE_TERM)  # E_table: energy built with tables
+        return {name: result.terms[f"E_{name}"] for name in names}
 
     return terms
 
@@ -128,7 +129,9 @@ def batch_loss(
     anchor = model.pose_anchors(anchor_at(clouds, batch.cloud_index, point_index), target)
     decoded, mu, log_var = model(target, condition, anchor, noise)
     terms = {"recon": reconstruction_error(decoded, target), "kl": kl_divergence(mu, log_var)}
-    if any(weights[name] > 0 for name in ENERGY_TERMS):
+    loss_terms = tuple(weights)  # LOSS_TERMS (+ TABLE_TERM on a table)
+    energy_names = tuple(name for name in loss_terms if name not in ("recon", "kl"))
+    if any(weights[name] > 0 for name in energy_names):
         if turn_clouds:
             decoded = rotate_features(decoded, grasp_turn.transpose(1, 2))
         palm_rot, palm_t, joints = features_to_parts(decoded)
@@ -136,11 +139,11 @@ def batch_loss(
         scale = torch.as_tensor(data.scale[batch.grasp_index], dtype=torch.float32, device=device)
         terms.update(energy_terms(palm_rot, palm_t, joints, object_index, scale, data.contact_index[index]))
     else:  # all energy weights 0: the terms are not computed (they cost most of a step), and log as NaN
-        terms.update({name: torch.full_like(terms["recon"], float("nan")) for name in ENERGY_TERMS})
-    means = {name: terms[name].mean() for name in LOSS_TERMS}
-    weighted = {name: weights[name] * means[name] for name in LOSS_TERMS if weights[name] > 0 or name in ("recon", "kl")}
+        terms.update({name: torch.full_like(terms["recon"], float("nan")) for name in energy_names})
+    means = {name: terms[name].mean() for name in loss_terms}
+    weighted = {name: weights[name] * means[name] for name in loss_terms if weights[name] > 0 or name in ("recon", "kl")}
     total = sum(weighted.values())
-    loss = sum(value * (energy_scale if name in ENERGY_TERMS else 1.0) for name, value in weighted.items())
+    loss = sum(value * (energy_scale if name in energy_names else 1.0) for name, value in weighted.items())
     return loss, {"total": float(total.detach()), **{name: float(v.detach()) for name, v in means.items()}}
 
 
@@ -168,13 +171,17 @@ def train_cvae(
     energy_terms: EnergyTerms,
     seed: int,
     on_epoch: Callable[[dict], None] | None = None,
+    table: bool = False,
 ) -> TrainingResult:
-    """Train a fresh model; returns it with one history row per epoch (train and validation means)."""
+    """Train a fresh model; returns it with one history row per epoch (train and validation means).
+
+    ``table`` (tabletop mode; ``energy_terms`` built on an energy with tables): E_table is a loss term too.
+    """
     device = data.pose_features.device
     torch.manual_seed(seed)
     model = GraspCVAE(config.model).to(device)
     optimizer = torch.optim.Adam(model.parameters(), lr=config.learning_rate)
-    weights = config.weights()
+    weights = config.weights(table)
     batch_rng = np.random.default_rng(seed)
     generator = torch.Generator().manual_seed(seed + 1)
     val_generator_seed = seed + 2
@@ -217,7 +224,7 @@ def train_cvae(
         row = {"epoch": epoch, "step": step, "seconds": round(time.perf_counter() - start, 3)}
         row.update({f"train_{k}": v for k, v in _average(rows).items()})
         if len(val_index):
-            row.update({f"val_{k}": v for k, v in evaluate_loss(model, data, val_index, config, energy_terms, val_generator_seed).items()})
+            row.update({f"val_{k}": v for k, v in evaluate_loss(model, data, val_index, config, energy_terms, val_generator_seed, table).items()})
         history.append(row)
         if on_epoch is not None:
             on_epoch(row)
@@ -226,7 +233,7 @@ def train_cvae(
 
 @torch.no_grad()
 def evaluate_loss(
-    model: GraspCVAE, data: TrainingData, index: np.ndarray, config: TrainConfig, energy_terms: EnergyTerms, seed: int
+    model: GraspCVAE, data: TrainingData, index: np.ndarray, config: TrainConfig, energy_terms: EnergyTerms, seed: int, table: bool = False
 ) -> dict[str, float]:
     """Mean loss terms over ``index`` in eval mode, with the same point draws and noise every time."""
     model.eval()
@@ -235,7 +242,7 @@ def evaluate_loss(
     for chunks in cloud_batches(data.cloud_key, index, config.batch_size, config.clouds_per_batch, None):
         batch = make_batch(chunks, data.cloud_key, data.object_index, data.scale, data.pose_features.device)
         _, terms = batch_loss(
-            model, data, batch, config.points_per_cloud, energy_terms, config.weights(), generator, fixed_clouds=config.fixed_clouds
+            model, data, batch, config.points_per_cloud, energy_terms, config.weights(table), generator, fixed_clouds=config.fixed_clouds
         )
         rows.append((len(batch.grasp_index), terms))
     return _average(rows)

@@ -14,20 +14,24 @@ almost everything look stable.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import logging
 import math
 import os
 import sys
 import zlib
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from dexlite_pipeline.objects.config import StabilityConfig
+from dexlite_pipeline.tabletop import REST_POSE_COLUMNS, support_plane_from_rest
 
-STABILITY_COLUMNS = ["object_id", "lateral_displacement_m", "rotation_deg", "stable", "reason"]
+# Every row also records the object's resting pose after settling (tabletop.REST_POSE_COLUMNS; NaN
+# where not simulated): the pose later stages put the object in, with the table plane below it.
+STABILITY_COLUMNS = ["object_id", "lateral_displacement_m", "rotation_deg", "stable", "reason", *REST_POSE_COLUMNS]
 STABILITY_REQUIRED_COLUMNS = ("object_id", "stable")  # what the stages that read the table use
 GRAVITY_M_S2 = 9.81
 
@@ -70,9 +74,11 @@ class StabilityResult:
     rotation_deg: float
     stable: bool
     reason: str
+    rest_pose: dict = field(default_factory=dict)  # tabletop.REST_POSE_COLUMNS -> value (absent: NaN)
 
     def row(self) -> dict:
-        return {c: getattr(self, c) for c in STABILITY_COLUMNS}
+        base = {c: getattr(self, c) for c in STABILITY_COLUMNS if c not in REST_POSE_COLUMNS}
+        return {**base, **{c: float(self.rest_pose.get(c, math.nan)) for c in REST_POSE_COLUMNS}}
 
 
 def tilt_rotation(object_id: str, tilt_deg: float, seed: int) -> np.ndarray:
@@ -160,7 +166,28 @@ def simulate_object(
         end_pos, end_orn = pb.getBasePositionAndOrientation(body, physicsClientId=client)
     finally:
         pb.disconnect(client)
-    return judge(object_id, np.asarray(start_pos), start_orn, np.asarray(end_pos), end_orn, config)
+    result = judge(object_id, np.asarray(start_pos), start_orn, np.asarray(end_pos), end_orn, config)
+    if np.isfinite(end_pos).all() and np.isfinite(end_orn).all():
+        result = dataclasses.replace(result, rest_pose=rest_pose(mesh, np.asarray(end_pos), end_orn, com, axes))
+    return result
+
+
+def rest_pose(mesh, com_position, com_orientation, com, axes) -> dict:
+    """The mesh frame's resting pose from PyBullet's base state, and the support plane it implies.
+
+    PyBullet reports the base's inertial frame (centre of mass ``com`` with principal ``axes``
+    as its orientation), not the mesh frame: R_mesh = R_inertial·axesᵀ, origin = p − R_mesh·com.
+    """
+    from scipy.spatial.transform import Rotation
+
+    rotation = Rotation.from_quat(np.asarray(com_orientation, dtype=np.float64)).as_matrix() @ axes.T
+    origin = np.asarray(com_position, dtype=np.float64) - rotation @ com
+    plane = support_plane_from_rest(np.asarray(mesh.vertices), rotation)
+    values = dict(zip(REST_POSE_COLUMNS[:4], Rotation.from_matrix(rotation).as_quat().tolist()))
+    values.update(zip(REST_POSE_COLUMNS[4:7], plane.normal))
+    values[REST_POSE_COLUMNS[7]] = plane.offset
+    values[REST_POSE_COLUMNS[8]] = float(origin[2])
+    return values
 
 
 def judge(object_id: str, start_pos, start_orn, end_pos, end_orn, config: StabilityConfig) -> StabilityResult:

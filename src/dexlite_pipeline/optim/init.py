@@ -6,6 +6,10 @@ axis; the palm placed ``distance_m`` (uniform in the range) back from q along a,
 the object (its palmar normal, tilted toward the fingers as DexGraspNet does, along a),
 with a uniformly random roll about a; the joints drawn around a mean open pose with
 σ = ``joint_sigma_fraction`` of each joint's range, clipped to the limits.
+
+On a table (tabletop mode) a start whose palm origin would lie below the support plane is
+drawn again (hull point, tilt and distance), so every palm starts above the table; floating
+starts draw exactly what they drew before tabletop mode existed.
 """
 
 from __future__ import annotations
@@ -76,15 +80,16 @@ def _random_perpendicular(direction: torch.Tensor, generator: torch.Generator) -
             return _unit(perp)
 
 
-def initial_poses(
-    hand: ShadowHand,
-    hulls: HullSampler,
-    object_index: torch.Tensor,
-    scale: torch.Tensor,
-    config: InitConfig,
-    generator: torch.Generator,
-) -> torch.Tensor:
-    """(B, 28) stored hand poses facing each grasp's object from outside its convex hull."""
+# Redraws of starts whose palm lies below the table before giving up on a grasp's start (tabletop mode).
+MAX_TABLE_REDRAWS = 100
+
+
+class NoStartAboveTable(ValueError):
+    """An object whose convex-hull starts all put the palm below its table."""
+
+
+def _palm_origins(hulls: HullSampler, object_index, scale, config: InitConfig, generator) -> tuple[torch.Tensor, torch.Tensor]:
+    """Palm origins (B, 3) and approach directions (B, 3): a hull point, a tilted inward approach, a distance back."""
     batch = object_index.shape[0]
     point, normal = hulls.sample(object_index, generator)
     point = point * scale.cpu().double()[:, None]
@@ -93,7 +98,35 @@ def initial_poses(
     approach = _unit(torch.cos(tilt) * inward + torch.sin(tilt) * _random_perpendicular(inward, generator))
     low, high = config.distance_m
     distance = low + (high - low) * torch.rand(batch, 1, generator=generator, dtype=torch.float64)
-    palm_origin = point - distance * approach
+    return point - distance * approach, approach
+
+
+def initial_poses(
+    hand: ShadowHand,
+    hulls: HullSampler,
+    object_index: torch.Tensor,
+    scale: torch.Tensor,
+    config: InitConfig,
+    generator: torch.Generator,
+    support: tuple[torch.Tensor, torch.Tensor] | None = None,
+) -> torch.Tensor:
+    """(B, 28) stored hand poses facing each grasp's object from outside its convex hull.
+
+    ``support`` (tabletop mode): per grasp the table's normal (B, 3) and offset in metres (B,);
+    starts with the palm origin below the table are redrawn (``NoStartAboveTable`` if some
+    stay below after ``MAX_TABLE_REDRAWS`` rounds).
+    """
+    batch = object_index.shape[0]
+    palm_origin, approach = _palm_origins(hulls, object_index, scale, config, generator)
+    if support is not None:
+        normal, offset = (t.detach().cpu().double() for t in support)
+        for _ in range(MAX_TABLE_REDRAWS):
+            below = ((palm_origin * normal).sum(-1) + offset < 0).nonzero(as_tuple=True)[0]
+            if len(below) == 0:
+                break
+            palm_origin[below], approach[below] = _palm_origins(hulls, object_index.cpu()[below], scale.cpu()[below], config, generator)
+        else:
+            raise NoStartAboveTable(f"no start above the table after {MAX_TABLE_REDRAWS} redraws for {len(below)} grasps")
 
     # Rotation taking the palm-frame approach to ``approach``, with a random roll about it.
     hand_a = torch.tensor(PALM_APPROACH, dtype=torch.float64)

@@ -26,6 +26,7 @@ from dexlite_pipeline.objects.assets import ObjectAsset
 from dexlite_pipeline.optim.annealing import optimize
 from dexlite_pipeline.optim.config import SeedConfig
 from dexlite_pipeline.optim.init import HullSampler, initial_poses
+from dexlite_pipeline.tabletop import store_arrays
 
 log = logging.getLogger(__name__)
 
@@ -36,23 +37,30 @@ def synthesize(
     energy_config: EnergyConfig,
     generator: torch.Generator,
     device: torch.device | str = "cpu",
+    support_planes=None,
 ) -> tuple[GraspSet, dict]:
-    """Optimize ``grasps_per_object`` grasps per object and scale; returns the grasps and run statistics."""
+    """Optimize ``grasps_per_object`` grasps per object and scale; returns the grasps and run statistics.
+
+    ``support_planes`` (``tabletop.SupportPlanes``; tabletop mode): starts above each object's table,
+    E_table in the energy, and the grasps record E_table and their support plane. None: floating objects.
+    """
     started = time.perf_counter()
     hand = ShadowHand(device)
-    energy = GraspEnergy.from_assets(hand, assets, energy_config)
+    energy = GraspEnergy.from_assets(hand, assets, energy_config, support_planes=support_planes)
+    term_names = tuple(term.name for term in energy.terms)
     hulls = HullSampler(assets)
     per_object = config.grasps_per_object * len(config.scales)
     object_index = torch.arange(len(assets)).repeat_interleave(per_object)
     scale = torch.tensor(config.scales, dtype=hand.dtype).repeat_interleave(config.grasps_per_object).repeat(len(assets))
     total = len(object_index)
-    outputs: dict[str, list] = {k: [] for k in ("hand_pose", "init_pose", "contact_index", "acceptance_rate", "penetration_mm", "contact_distance_mm", "E_total", *TERM_NAMES)}
+    outputs: dict[str, list] = {k: [] for k in ("hand_pose", "init_pose", "contact_index", "acceptance_rate", "penetration_mm", "contact_distance_mm", "E_total", *term_names)}
     batches = max(1, -(-total // config.batch_size))
     for batch_number, start in enumerate(range(0, total, config.batch_size), start=1):
         rows = slice(start, start + config.batch_size)
         obj = object_index[rows].to(device)
         sc = scale[rows].to(device)
-        init = initial_poses(hand, hulls, obj, sc, config.init, generator)
+        support = energy.support(obj, sc) if support_planes is not None else None
+        init = initial_poses(hand, hulls, obj, sc, config.init, generator, support=support)
         batch_started = time.perf_counter()
 
         def progress(iteration: int, energy_now: torch.Tensor, batch_number=batch_number, batch_started=batch_started) -> None:
@@ -69,7 +77,7 @@ def synthesize(
         outputs["penetration_mm"].append(result.penetration_mm.cpu().numpy())
         outputs["contact_distance_mm"].append(result.contact_distance_mm.cpu().numpy())
         outputs["E_total"].append(result.total.cpu().numpy())
-        for name in TERM_NAMES:
+        for name in term_names:
             outputs[name].append(result.terms[name].cpu().numpy())
         batch_pass = config.thresholds.passes({k: result.terms[k].cpu().numpy() for k in TERM_NAMES})
         log.info("batch %d/%d done: %d grasps in %.0f s, %.1f%% pass the energy thresholds", batch_number, batches, len(obj), result.seconds, 100 * batch_pass.mean())
@@ -78,6 +86,8 @@ def synthesize(
     arrays["object_id"] = np.asarray([assets[i].object_id for i in object_index.tolist()], dtype=object)
     arrays["scale"] = scale.numpy().astype(np.float32)
     arrays["passes_energy_thresholds"] = config.thresholds.passes(arrays)
+    if support_planes is not None:
+        arrays.update(store_arrays(*support_planes.arrays(arrays["object_id"], arrays["scale"])))
     seconds = time.perf_counter() - started
     stats = {
         "grasps": total,

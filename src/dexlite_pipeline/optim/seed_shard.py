@@ -15,6 +15,7 @@ import numpy as np
 from dexlite_pipeline.energy.grasp_energy import TERM_NAMES
 from dexlite_pipeline.io.grasp_store import GraspSet
 from dexlite_pipeline.optim.seed import synthesize
+from dexlite_pipeline.tabletop import load_support_planes, store_arrays, store_attrs
 
 if TYPE_CHECKING:
     from dexlite_pipeline.settings import PipelineConfig
@@ -22,8 +23,8 @@ if TYPE_CHECKING:
 log = logging.getLogger(__name__)
 
 
-def empty_seed_grasps() -> GraspSet:
-    """A zero-row shard with every array ``synthesize`` writes (dtypes and trailing shapes alike).
+def empty_seed_grasps(table: bool = False) -> GraspSet:
+    """A zero-row shard with every array ``synthesize`` writes (dtypes and trailing shapes alike; ``table``: tabletop mode's too).
 
     A shard without usable objects must still carry the energy arrays: curation keeps only
     the arrays all its inputs have, and E_fc, E_dis and E_pen are what it filters on.
@@ -38,14 +39,19 @@ def empty_seed_grasps() -> GraspSet:
     for name in ("acceptance_rate", "penetration_mm", "contact_distance_mm", "E_total", *TERM_NAMES):
         grasps.arrays[name] = np.zeros(0, np.float32)
     grasps.arrays["passes_energy_thresholds"] = np.zeros(0, bool)
+    if table:
+        grasps.arrays["E_table"] = np.zeros(0, np.float32)
+        grasps.arrays.update(store_arrays(np.zeros((0, 3)), np.zeros(0)))
     return grasps
 
 
 def seed_shard(objects_dirs: list[str], stability_path: str, shard: int, config: PipelineConfig) -> tuple[GraspSet, dict]:
     """Seed grasps of one shard: the stable, prepared objects dealt to ``shard`` (train and held-out).
 
-    Returns the grasps and the store attributes: the settings used, the objects synthesized,
-    the objects that could not be used with their reason, and the run statistics.
+    Returns the grasps and the store attributes: the settings used (with the scene mode), the objects
+    synthesized, the objects that could not be used with their reason, and the run statistics. In
+    tabletop mode (``scene.table``) each object's support plane comes from the stability table; a
+    stable object without one is recorded as unusable.
     """
     from dexlite_pipeline.config import json_ready
     from dexlite_pipeline.device import resolve_device
@@ -56,8 +62,12 @@ def seed_shard(objects_dirs: list[str], stability_path: str, shard: int, config:
     settings = config.seed_grasps
     device = resolve_device(config.device)
     object_ids = shard_objects(sorted(ok_object_ids(objects_dirs) & stable_object_ids(stability_path)), shard, config.shards)
+    planes = load_support_planes(config.scene.table, stability_path)
     assets, failed = [], {}
     for object_id in object_ids:
+        if planes is not None and object_id not in planes:
+            failed[object_id] = "no resting pose in the stability table (tabletop mode needs one)"
+            continue
         try:
             assets.append(load_asset(objects_dirs, object_id))
         except ObjectAssetError as exc:
@@ -72,14 +82,15 @@ def seed_shard(objects_dirs: list[str], stability_path: str, shard: int, config:
         settings.annealing.iterations, device,
     )
     if assets:
-        grasps, stats = synthesize(assets, settings, config.energy, shard_generator("seed_grasps", config.seed, shard), device)
+        grasps, stats = synthesize(assets, settings, config.energy, shard_generator("seed_grasps", config.seed, shard), device, support_planes=planes)
     else:
-        grasps, stats = empty_seed_grasps(), {"grasps": 0, "passing": 0, "pass_fraction": 0.0, "seconds": 0.0, "seconds_per_grasp": 0.0}
+        grasps, stats = empty_seed_grasps(planes is not None), {"grasps": 0, "passing": 0, "pass_fraction": 0.0, "seconds": 0.0, "seconds_per_grasp": 0.0}
     attrs = {
         "stage": "seed_grasps",
         "shard": f"{shard:03d}",
         "seed": config.seed,
-        "config": {"seed_grasps": json_ready(settings), "energy": json_ready(config.energy)},
+        "config": {"seed_grasps": json_ready(settings), "energy": json_ready(config.energy), "scene": json_ready(config.scene)},
+        **store_attrs(config.scene.table),
         "objects": [a.object_id for a in assets],
         "failed_objects": failed,
         **stats,

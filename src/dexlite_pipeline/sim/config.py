@@ -1,4 +1,4 @@
-"""The ``lift`` config section: every physical constant of the MuJoCo lift and six-direction tests.
+"""The ``lift`` and ``scene`` config sections: the physical constants of the MuJoCo lift and six-direction tests, and the table.
 
 The values are pinned because each of them moves measured success rates by several
 points (docs/design.md, "Physics tests"); they are echoed into every output's attributes.
@@ -79,3 +79,10 @@ def lift_config_from(config: dict | None, **overrides) -> LiftConfig:
     section = dict((config or {}).get("lift") or {})
     section.update({k: v for k, v in overrides.items() if v is not None})
     return from_section(LiftConfig, section, "config.lift")
+
+
+@dataclass(frozen=True)
+class SceneConfig:
+    """Config section ``scene``: whether the object stands on a table (tabletop) or floats (DexGraspNet-style)."""
+
+    table: bool = True  # tabletop mode; false: floating objects, exactly the behaviour before tabletop mode

@@ -15,12 +15,21 @@ Per grasp (docs/design.md, "Physics tests"):
    object frame's -z throughout. Lift ratio r = dz_object / dz_hand at the end; success
    if r > ``success_lift_ratio``.
 
+Tabletop mode (``support_planes`` given; docs/design.md, "Tabletop mode"): the scene holds the
+table under the object's resting pose and gravity acts along its downward normal n; the object
+starts resting on it, the hand closes and rises along n, and heights are measured along n. A
+grasp with a hand shape below the table (deeper than ``tabletop.TABLE_TOLERANCE_M``) fails
+before simulation with reason ``hand_in_table``, before either test. The six pushes are
+DexGraspBench's test of the grip alone: the table's contacts are switched off for them (with
+gravity off it would only prop the object up against the -n push).
+
 An object that has provably left the hand (entirely below a sphere that holds the hand
 in any joint configuration, falling away from it, no contacts) can never touch the hand
 again, so the rest of its fall is ballistic: it is extrapolated with MuJoCo's own
 semi-implicit Euler update instead of simulated, checked before every control chunk
 from the start of the close. The outcome is that of a full simulation; dropped objects
-keep falling (there is no table), so their ratios are strongly negative, and equal the
+keep falling (there is no table; on a table they land back on it and their ratio is taken as 0), so their
+ratios are strongly negative, and equal the
 full simulation's to 0.04% (measured on the 115 dropped DexGraspNet sample grasps: at
 most 0.009 of about -33, from MuJoCo integrating a spinning body about its frame origin
 where the extrapolation follows its centre of mass exactly).
@@ -52,6 +61,7 @@ from dexlite_pipeline.objects.assets import ObjectAsset, SdfBank, available_obje
 from dexlite_pipeline.progress import ProgressLog
 from dexlite_pipeline.sim.config import LiftConfig
 from dexlite_pipeline.sim.scene import GRAVITY_MPS2, LiftScene
+from dexlite_pipeline.tabletop import HAND_IN_TABLE, TABLE_TOLERANCE_M, SupportPlane, SupportPlanes, hand_table_depth
 
 log = logging.getLogger(__name__)
 
@@ -73,10 +83,12 @@ class LiftOutcome:
     initial_penetration_mm: np.ndarray  # float32
     six_dir_translation_m: np.ndarray  # float32 (B, 6)
     six_dir_rotation_deg: np.ndarray  # float32 (B, 6)
+    table_depth_mm: np.ndarray  # float32, deepest hand point below the table (tabletop mode; NaN otherwise)
 
     @classmethod
     def empty(cls, count: int) -> "LiftOutcome":
         return cls(
+            table_depth_mm=np.full(count, np.nan, np.float32),
             lift_ratio=np.full(count, np.nan, np.float32),
             lift_success=np.zeros(count, bool),
             failure_reason=np.full(count, "", dtype=object),
@@ -217,7 +229,7 @@ class GraspSimulator:
         deepest = 0.0
         for contact in d.contact[: d.ncon]:
             bodies = {int(m.geom_bodyid[contact.geom1]), int(m.geom_bodyid[contact.geom2])}
-            if s.object_body in bodies and len(bodies) == 2:
+            if s.object_body in bodies and len(bodies) == 2 and 0 not in bodies:  # not the object on the table (world body)
                 deepest = max(deepest, -float(contact.dist))
         return deepest
 
@@ -246,6 +258,10 @@ class GraspSimulator:
         Valid in every phase, so it is checked before each control chunk.
         """
         s, d = self.scene, self.scene.data
+        if s.up is not None:  # on a table: heights and velocities along its normal
+            object_top = float(d.xipos[s.object_body] @ s.up) + s.object_radius_m
+            hand_bottom = float(d.xpos[s.palm_body] @ s.up) - s.hand_reach_m
+            return bool(object_top < hand_bottom and d.qvel[s.object_qvel][:3] @ s.up < d.qvel[s.palm_qvel][:3] @ s.up)
         object_top = d.xipos[s.object_body, 2] + s.object_radius_m
         hand_bottom = d.xpos[s.palm_body, 2] - s.hand_reach_m
         return bool(object_top < hand_bottom and d.qvel[s.object_qvel][2] < d.qvel[s.palm_qvel][2])
@@ -269,6 +285,8 @@ class GraspSimulator:
         import mujoco
 
         cfg, s, m, d = self.config, self.scene, self.scene.model, self.scene.data
+        if s.up is not None:
+            return self._lift_from_table(pose, quat, target)
         self._reset(pose, quat)
         object_z0 = float(d.xipos[s.object_body, 2])
         palm_z0 = float(d.mocap_pos[0, 2])
@@ -291,6 +309,34 @@ class GraspSimulator:
         ratio = (object_z - object_z0) / cfg.lift_height_m
         return ratio, ("" if ratio > cfg.success_lift_ratio else "dropped")
 
+    def _lift_from_table(self, pose: np.ndarray, quat: np.ndarray, target: np.ndarray) -> tuple[float, str]:
+        """``lift`` on a table: the object starts resting on it, the palm rises along its normal ``up``.
+
+        An object that has left the hand lands back on the table: its ratio is then 0 (a drop).
+        """
+        import mujoco
+
+        cfg, s, m, d = self.config, self.scene, self.scene.model, self.scene.data
+        self._reset(pose, quat)
+        object_z0 = float(d.xipos[s.object_body] @ s.up)
+        palm0 = d.mocap_pos[0].copy()
+        start = d.ctrl.copy()
+        for steps, close_fraction, lift_fraction in self.schedule:
+            if self._object_lost():
+                object_z = object_z0
+                break
+            if close_fraction is not None:
+                d.ctrl[:] = start + (target - start) * close_fraction
+            if lift_fraction is not None:
+                d.mocap_pos[0] = palm0 + s.up * (cfg.lift_height_m * 0.5 * (1.0 - math.cos(math.pi * lift_fraction)))
+            mujoco.mj_step(m, d, nstep=steps)
+        else:
+            object_z = float(d.xipos[s.object_body] @ s.up)
+        if self._unstable():
+            return float("nan"), "simulation_unstable"
+        ratio = (object_z - object_z0) / cfg.lift_height_m
+        return ratio, ("" if ratio > cfg.success_lift_ratio else "dropped")
+
     def six_directions(self, pose: np.ndarray, quat: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Per direction (6,), the object's largest translation (m) and rotation (deg) under the force.
 
@@ -304,6 +350,10 @@ class GraspSimulator:
         rotation = np.full(6, np.nan)
         gravity = m.opt.gravity.copy()
         m.opt.gravity[:] = 0.0
+        table = s.table_geom
+        if table >= 0:  # the grip alone: no table to prop the object up (restored below)
+            table_collision = int(m.geom_contype[table]), int(m.geom_conaffinity[table])
+            m.geom_contype[table] = m.geom_conaffinity[table] = 0
         try:
             self._reset(pose, quat)
             com0 = d.xipos[s.object_body].copy()
@@ -328,6 +378,8 @@ class GraspSimulator:
             d.xfrc_applied[:] = 0.0
         finally:
             m.opt.gravity[:] = gravity
+            if table >= 0:
+                m.geom_contype[table], m.geom_conaffinity[table] = table_collision
         return translation, rotation
 
 
@@ -342,6 +394,7 @@ class LiftTask:
     hand_pose: np.ndarray  # (B, 28) float64
     scale: np.ndarray  # (B,) float64
     config: LiftConfig
+    table: SupportPlane | None = None  # the object's table (tabletop mode); None: floating
 
 
 class _WorkerState:
@@ -365,10 +418,10 @@ class _WorkerState:
                 self.assets.popitem(last=False)
         return self.assets[key]
 
-    def get_simulator(self, asset: ObjectAsset, scale: float, config: LiftConfig) -> GraspSimulator:
-        key = (str(asset.directory), float(scale))
+    def get_simulator(self, asset: ObjectAsset, scale: float, config: LiftConfig, table: SupportPlane | None = None) -> GraspSimulator:
+        key = (str(asset.directory), float(scale)) if table is None else (str(asset.directory), float(scale), table)
         if key not in self.simulators:
-            self.simulators[key] = GraspSimulator(LiftScene.build(asset.convex_paths, float(scale), config), config)
+            self.simulators[key] = GraspSimulator(LiftScene.build(asset.convex_paths, float(scale), config, table), config)
             while len(self.simulators) > SCENE_CACHE:
                 self.simulators.popitem(last=False)
         self.simulators.move_to_end(key)
@@ -410,9 +463,15 @@ def run_task(task: LiftTask, state: _WorkerState) -> tuple[np.ndarray, LiftOutco
         out.failure_reason[:] = _error_reason(exc)
         return task.indices, out
     quats = _palm_quaternions(task.hand_pose)
+    table_depth = None if task.table is None else hand_table_depth(state.hand, task.hand_pose, task.table, task.scale)
     for i in np.argsort(task.scale, kind="stable"):
+        if table_depth is not None:
+            out.table_depth_mm[i] = table_depth[i] * 1000.0
+            if table_depth[i] > TABLE_TOLERANCE_M:
+                out.failure_reason[i] = HAND_IN_TABLE
+                continue
         try:
-            sim = state.get_simulator(asset, task.scale[i], cfg)
+            sim = state.get_simulator(asset, task.scale[i], cfg) if task.table is None else state.get_simulator(asset, task.scale[i], cfg, task.table)
         except Exception as exc:
             out.failure_reason[i] = _error_reason(exc)
             continue
@@ -430,7 +489,7 @@ def run_task(task: LiftTask, state: _WorkerState) -> tuple[np.ndarray, LiftOutco
     return task.indices, out
 
 
-def make_tasks(grasps: GraspSet, indices: np.ndarray, objects_dirs: list[str], config: LiftConfig) -> list[LiftTask]:
+def make_tasks(grasps: GraspSet, indices: np.ndarray, objects_dirs: list[str], config: LiftConfig, support_planes: SupportPlanes | None = None) -> list[LiftTask]:
     """Split the chosen grasps into per-object tasks of at most TASK_GRASPS, ordered by scale within an object."""
     tasks = []
     object_ids = grasps.object_id[indices]
@@ -447,13 +506,18 @@ def make_tasks(grasps: GraspSet, indices: np.ndarray, objects_dirs: list[str], c
                     hand_pose=grasps.hand_pose[part].astype(np.float64),
                     scale=grasps.scale[part].astype(np.float64),
                     config=config,
+                    table=None if support_planes is None else support_planes.get(str(object_id)),
                 )
             )
     return tasks
 
 
-def run_lift_tests(grasps: GraspSet, objects_dirs, config: LiftConfig, threads: int = 1) -> dict[str, np.ndarray]:
+def run_lift_tests(grasps: GraspSet, objects_dirs, config: LiftConfig, threads: int = 1, support_planes: SupportPlanes | None = None) -> dict[str, np.ndarray]:
     """Lift-test every grasp; per-grasp arrays aligned with ``grasps``.
+
+    ``support_planes`` (tabletop mode): each object rests on its table (module docstring); the
+    results add ``table_depth_mm``. Grasps of an object without a support plane fail with
+    ``invalid_grasp: no resting pose``. None: floating objects.
 
     Invalid grasps (non-finite pose or scale, object missing from the assets) are kept,
     flagged with ``failure_reason = 'invalid_grasp: <reason>'`` and not simulated. Work
@@ -466,13 +530,19 @@ def run_lift_tests(grasps: GraspSet, objects_dirs, config: LiftConfig, threads: 
     n = len(grasps)
     reasons = invalid_grasp_reasons(grasps, available_object_ids(dirs))
     out = LiftOutcome.empty(n)
+    if support_planes is not None:
+        no_plane = np.array([oid not in support_planes for oid in grasps.object_id], dtype=bool)
+        reasons[(reasons == "") & no_plane] = "no resting pose (tabletop mode)"
     invalid = reasons != ""
     out.failure_reason[invalid] = np.asarray([f"invalid_grasp: {r}" for r in reasons[invalid]], dtype=object)
-    tasks = make_tasks(grasps, np.flatnonzero(~invalid), dirs, config)
+    tasks = make_tasks(grasps, np.flatnonzero(~invalid), dirs, config, support_planes)
     label = "lift + six-direction test" if config.six_directions else "lift test"
     progress = ProgressLog(log, label, int((~invalid).sum()), unit="grasps")
     _collect(out, _run_threads(tasks, max(1, min(int(threads or 1), len(tasks))), progress))
-    return _as_arrays(out, config)
+    arrays = _as_arrays(out, config)
+    if support_planes is not None:
+        arrays["table_depth_mm"] = out.table_depth_mm
+    return arrays
 
 
 def _run_threads(tasks: list[LiftTask], workers: int, progress: ProgressLog | None = None) -> list[tuple[np.ndarray, LiftOutcome]]:

@@ -64,16 +64,24 @@ def format_summary(summary: dict, config: LiftConfig) -> str:
     return "\n".join(lines)
 
 
-def lift_grasp_set(grasps: GraspSet, objects_dirs, config: LiftConfig, threads: int) -> tuple[GraspSet, dict]:
-    """The input grasps with the lift-test arrays added, attributes recording constants and summary."""
+def lift_grasp_set(grasps: GraspSet, objects_dirs, config: LiftConfig, threads: int, support_planes=None) -> tuple[GraspSet, dict]:
+    """The input grasps with the lift-test arrays added, attributes recording constants and summary.
+
+    ``support_planes`` (tabletop mode): each object on its table; the grasps also record their
+    support plane (NaN for an object without one, whose grasps are flagged invalid).
+    """
     start = time.perf_counter()
-    results = run_lift_tests(grasps, objects_dirs, config, threads)
+    results = run_lift_tests(grasps, objects_dirs, config, threads) if support_planes is None else run_lift_tests(grasps, objects_dirs, config, threads, support_planes)
     seconds = time.perf_counter() - start
     arrays = dict(grasps.arrays)
     previous = arrays.pop("failure_reason", None)
     if previous is not None and any(str(r) for r in previous):
         arrays["input_failure_reason"] = previous  # an upstream stage's reasons are kept, not overwritten
     arrays.update(results)
+    if support_planes is not None:
+        from dexlite_pipeline.tabletop import support_arrays
+
+        arrays.update(support_arrays(support_planes, grasps.object_id, grasps.scale))
     summary = summarize(results)
     attrs = dict(grasps.attrs)
     attrs.update(
@@ -116,7 +124,7 @@ def report_invalid(grasps_path: str, failure_reason) -> None:
         log.warning("%s: %d grasp(s) not simulated: %s", grasps_path, count, reason)
 
 
-def lift_test_store(grasps_path: str, objects_dirs: list[str], config: LiftConfig, threads: int) -> tuple[GraspSet, dict]:
+def lift_test_store(grasps_path: str, objects_dirs: list[str], config: LiftConfig, threads: int, support_planes=None) -> tuple[GraspSet, dict]:
     """Lift-test every grasp of the store at ``grasps_path``: its grasps with the results, and the summary.
 
     Raises FileNotFoundError when no objects folder holds prepared objects; invalid grasps
@@ -125,6 +133,6 @@ def lift_test_store(grasps_path: str, objects_dirs: list[str], config: LiftConfi
     from dexlite_pipeline.io.grasp_store import read_grasp_store
 
     check_objects_dirs(objects_dirs)
-    result, summary = lift_grasp_set(read_grasp_store(grasps_path), objects_dirs, config, threads)
+    result, summary = lift_grasp_set(read_grasp_store(grasps_path), objects_dirs, config, threads, support_planes)
     report_invalid(grasps_path, result.arrays["failure_reason"])
     return result, summary

@@ -12,7 +12,10 @@ Choices that move measured success rates (docs/design.md, "Physics tests"):
 - 22 independent position actuators (no tendons: DexGraspNet's grasps break the real
   hand's J0/J1 coupling), force limits from the gym model (J0 shares J1's motor);
 - elliptic friction cones with impratio 10, 2 ms steps (sparse Jacobians: speed only);
-- the world frame is the object frame, so gravity acts along the object's -z.
+- the world frame is the object frame, so gravity acts along the object's -z; on a table
+  (tabletop mode) the scene adds the table, a plane in the object frame below the object's
+  resting pose (``tabletop.SupportPlane``), and gravity acts along its downward normal,
+  the world's -z in the resting pose.
 """
 
 from __future__ import annotations
@@ -29,6 +32,7 @@ from dexlite_pipeline.hand.model import JOINT_NAMES
 from dexlite_pipeline.sim.config import LiftConfig
 
 OBJECT_BODY = "object"
+TABLE_GEOM = "table"
 PALM_TARGET_BODY = "palm_target"
 VISUAL_CLASS = "robot0:D_Vizual"
 GRAVITY_MPS2 = 9.81
@@ -67,8 +71,12 @@ def _strip_visuals(root: ET.Element) -> None:
         asset.remove(mesh)
 
 
-def scene_mjcf(convex_paths: list[Path], scale: float, config: LiftConfig) -> str:
-    """MJCF text of the scene: hand + mocap target + free object made of ``convex_paths`` scaled by ``scale``."""
+def scene_mjcf(convex_paths: list[Path], scale: float, config: LiftConfig, table=None) -> str:
+    """MJCF text of the scene: hand + mocap target + free object made of ``convex_paths`` scaled by ``scale``.
+
+    ``table`` (a ``tabletop.SupportPlane``; tabletop mode): adds the table plane at this scale and
+    turns gravity along its downward normal. None: no table, gravity along -z (floating mode).
+    """
     if not convex_paths:
         raise SceneBuildError("object has no convex pieces")
     root = hand_mjcf(free_root=True, model_name="lift_scene")
@@ -78,7 +86,7 @@ def scene_mjcf(convex_paths: list[Path], scale: float, config: LiftConfig) -> st
         timestep=repr(config.timestep_s),
         cone="elliptic",
         impratio=repr(config.impratio),
-        gravity=f"0 0 {-GRAVITY_MPS2}",
+        gravity=f"0 0 {-GRAVITY_MPS2}" if table is None else " ".join(repr(-GRAVITY_MPS2 * float(v)) for v in table.normal),
         # Sparse constraint Jacobians: ~27% less time per step here than MuJoCo's dense
         # choice for small models, with results equal to 1e-10 (measured on real grasps).
         jacobian="sparse",
@@ -94,6 +102,21 @@ def scene_mjcf(convex_paths: list[Path], scale: float, config: LiftConfig) -> st
     for body in worldbody.iter("body"):
         body.set("gravcomp", "1")
     ET.SubElement(worldbody, "body", name=PALM_TARGET_BODY, mocap="true")
+    if table is not None:
+        normal = np.asarray(table.normal, dtype=np.float64)
+        ET.SubElement(
+            worldbody,
+            "geom",
+            name=TABLE_GEOM,
+            type="plane",
+            size="0 0 1",
+            pos=" ".join(repr(float(v)) for v in -table.offset_m(scale) * normal),
+            zaxis=" ".join(repr(float(v)) for v in normal),
+            contype="1",
+            conaffinity="1",
+            condim=str(config.contact_condim),
+            friction=f"{config.friction} 0.005 0.0001",
+        )
     obj = ET.SubElement(worldbody, "body", name=OBJECT_BODY)
     ET.SubElement(obj, "freejoint", name="object_free")
     s = repr(float(scale))
@@ -166,12 +189,14 @@ class LiftScene:
     compiled_inertia: np.ndarray
     hand_reach_m: float  # radius about the palm origin holding the hand's collision shapes in any joint configuration
     object_radius_m: float  # radius about the object's centre of mass holding its pieces
+    up: np.ndarray | None = None  # the table's upward unit normal (tabletop mode); None: floating, up is +z
+    table_geom: int = -1  # the table's geom id (tabletop mode), -1 without a table
 
     @classmethod
-    def build(cls, convex_paths: list[Path], scale: float, config: LiftConfig) -> "LiftScene":
+    def build(cls, convex_paths: list[Path], scale: float, config: LiftConfig, table=None) -> "LiftScene":
         import mujoco
 
-        xml = scene_mjcf(convex_paths, scale, config)
+        xml = scene_mjcf(convex_paths, scale, config, table)
         try:
             model = mujoco.MjModel.from_xml_string(xml)
         except ValueError as exc:
@@ -187,6 +212,7 @@ class LiftScene:
         geom_body = np.asarray(model.geom_bodyid)
         collides = (np.asarray(model.geom_contype) > 0) | (np.asarray(model.geom_conaffinity) > 0)
         hand_geoms = np.flatnonzero(collides & (geom_body != object_body) & (geom_body > 0))
+        table_geom = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, TABLE_GEOM) if table is not None else -1
         object_geoms = np.flatnonzero(geom_body == object_body)
         scene = cls(
             model=model,
@@ -204,6 +230,8 @@ class LiftScene:
             compiled_inertia=np.array(model.body_inertia[object_body]),
             hand_reach_m=_reach_from(model, hand_geoms, palm_body),
             object_radius_m=float((np.linalg.norm(model.geom_pos[object_geoms] - model.body_ipos[object_body], axis=1) + model.geom_rbound[object_geoms]).max()),
+            up=None if table is None else np.asarray(table.normal, dtype=np.float64),
+            table_geom=table_geom,
         )
         scene.configure(config)
         return scene
@@ -219,6 +247,9 @@ class LiftScene:
         m.opt.disableflags = (m.opt.disableflags & ~multi_ccd_off) | (0 if config.multi_contact else multi_ccd_off)
         m.geom_friction[self.hand_geoms, 0] = config.friction
         m.geom_friction[self.object_geoms, 0] = config.friction
+        if self.table_geom >= 0:
+            m.geom_friction[self.table_geom, 0] = config.friction
+            m.geom_condim[self.table_geom] = config.contact_condim
         m.geom_condim[self.object_geoms] = config.contact_condim  # a contact takes the larger condim of its two geoms
         m.body_mass[self.object_body] = config.object_mass_kg
         m.body_inertia[self.object_body] = self.compiled_inertia * (config.object_mass_kg / self.compiled_mass_kg)

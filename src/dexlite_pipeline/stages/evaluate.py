@@ -23,11 +23,13 @@ AGGREGATE_OUTPUTS = ("metrics", "per-object", "convergence", "budget", "record")
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--step", choices=("simulate", "aggregate"), required=True)
-    parser.add_argument("--config-json", default="{}", help="config sections (seed, device, shards, evaluate, lift, energy) as JSON")
+    parser.add_argument("--config-json", default="{}", help="config sections (seed, device, shards, evaluate, lift, energy, scene) as JSON")
     parser.add_argument("--objects", action="append", default=[], help="prepared objects dir (repeatable); their catalogs give the splits")
     for key, option in SOURCE_OPTIONS.items():
         parser.add_argument(f"--{option}", dest=key, action="append", default=[], help=f"{key} grasp store(s) (repeatable)")
     parser.add_argument("--shard", type=int, default=None, help="simulate: shard index (selects the DexGraspNet objects of this shard)")
+    parser.add_argument("--stability", help="simulate: stability table with the objects' resting poses (tables in tabletop mode; "
+                        "reachability on the table in both modes)")
     parser.add_argument("--sim", action="append", default=[], help="aggregate: simulated shard store(s)")
     parser.add_argument("--out", help="simulate: output grasp store")
     for name in AGGREGATE_OUTPUTS:
@@ -44,7 +46,7 @@ def run(args: argparse.Namespace) -> int:
     if args.step == "simulate":
         if not args.out or args.shard is None:
             raise ValueError("evaluate --step simulate needs --out and --shard")
-        result, attrs = simulate_shard({key: getattr(args, key) for key in SOURCE_OPTIONS}, args.objects, args.shard, config, args.threads or 1)
+        result, attrs = simulate_shard({key: getattr(args, key) for key in SOURCE_OPTIONS}, args.objects, args.shard, config, args.threads or 1, args.stability)
         write_grasp_store(args.out, result, attrs)
         print(f"evaluate shard {args.shard}: simulated {len(result)} grasps -> {args.out}")
         return 0

@@ -6,7 +6,9 @@ per-iteration traces (``trace_E_post`` etc., attribute ``trace_iterations``). Wi
 ``post_optimize.random_baseline`` it also writes ``--random-out``: the same optimization
 from random convex-hull starts for the same held-out objects and scales as the shard's
 pure syntheses (``cvae_raw``), the baseline for "CVAE starts converge faster"
-(``model.post_optimize_shard``).
+(``model.post_optimize_shard``). In tabletop mode (``scene.table``) E_post includes E_table,
+starts below the table are raised above it first, random starts come from above it, and
+every row records its support plane (resting poses from ``--stability``).
 """
 
 from __future__ import annotations
@@ -15,7 +17,8 @@ import argparse
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--config-json", required=True, help="config sections seed, device, post_optimize and energy.self_penetration_margin_m (JSON)")
+    parser.add_argument("--config-json", required=True, help="config sections seed, device, post_optimize, scene and energy.self_penetration_margin_m (JSON)")
+    parser.add_argument("--stability", help="stability table with the objects' resting poses (needed in tabletop mode, scene.table)")
     parser.add_argument("--sample", required=True, help="sampled grasp shard (sample_grasps output)")
     parser.add_argument("--objects", action="append", required=True, help="prepared objects dir (repeatable)")
     parser.add_argument("--shard", required=True, type=int, help="shard number, e.g. 000")
@@ -28,7 +31,7 @@ def run(args: argparse.Namespace) -> int:
     from dexlite_pipeline.model.post_optimize_shard import post_optimize_shard
     from dexlite_pipeline.settings import stage_config
 
-    (refined, attrs), (baseline, baseline_attrs) = post_optimize_shard(args.sample, args.objects, args.shard, stage_config(args.config_json))
+    (refined, attrs), (baseline, baseline_attrs) = post_optimize_shard(args.sample, args.objects, args.shard, stage_config(args.config_json), args.stability)
     write_grasp_store(args.out, refined, attrs)
     write_grasp_store(args.random_out, baseline, baseline_attrs)
     return 0

@@ -17,7 +17,7 @@ log = logging.getLogger("dexlite.seed_grasps")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--config-json", required=True, help="config sections seed, device, shards, energy, seed_grasps (canonical JSON)")
+    parser.add_argument("--config-json", required=True, help="config sections seed, device, shards, energy, scene, seed_grasps (canonical JSON)")
     parser.add_argument("--shard", required=True, type=int, help="shard number, e.g. 000")
     parser.add_argument("--stability", required=True, help="stability table (.parquet)")
     parser.add_argument("--objects", action="append", required=True, help="prepared objects dir with catalog.parquet (repeatable)")

@@ -14,7 +14,8 @@ log = logging.getLogger("dexlite.train_cvae")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--config-json", required=True, help="config sections seed, device, train and energy.self_penetration_margin_m (JSON)")
+    parser.add_argument("--config-json", required=True, help="config sections seed, device, train, scene and energy.self_penetration_margin_m (JSON)")
+    parser.add_argument("--stability", help="stability table with the objects' resting poses (needed in tabletop mode, scene.table)")
     parser.add_argument("--lift", action="append", required=True, help="a lift-validated grasp shard (repeatable)")
     parser.add_argument("--objects", action="append", required=True, help="prepared objects dir with catalog.parquet (repeatable)")
     parser.add_argument("--model", required=True, help="output model file (cvae.pt)")
@@ -26,7 +27,7 @@ def run(args: argparse.Namespace) -> int:
     from dexlite_pipeline.model.trainer import train_from_lift_shards, write_trained_model
     from dexlite_pipeline.settings import stage_config
 
-    trained = train_from_lift_shards(args.lift, args.objects, stage_config(args.config_json))
+    trained = train_from_lift_shards(args.lift, args.objects, stage_config(args.config_json), args.stability)
     write_trained_model(trained, args.model, args.history, args.curves)
     log.info("wrote %s (%d steps, %d training grasps of %d objects)", args.model, trained.facts["steps"],
              trained.facts["train_grasps"], len(trained.facts["train_object_ids"]))

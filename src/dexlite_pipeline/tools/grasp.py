@@ -60,6 +60,7 @@ class GraspRequest:
     config: dict = field(default_factory=dict)  # config sections over the defaults
     threads: int = 1
     renders_per_object: int = DEFAULT_RENDERS_PER_OBJECT
+    upright_axis: str | None = None  # tabletop mode: the mesh axis pointing up (None: the mesh's stable pose)
 
 
 @dataclass
@@ -138,7 +139,7 @@ def _balanced_rows(per_scale: int, scale_count: int, wanted: int) -> np.ndarray:
     return np.sort(order[:wanted])
 
 
-def synthesize_from_scratch(assets, scales: dict, n: int, config: dict, device, seed: int):
+def synthesize_from_scratch(assets, scales: dict, n: int, config: dict, device, seed: int, support_planes=None):
     """``n`` grasps per object by energy optimization from convex-hull starts (section ``seed_grasps``)."""
     from dexlite_pipeline.energy.config import EnergyConfig
     from dexlite_pipeline.io.grasp_store import GraspSet
@@ -155,14 +156,14 @@ def synthesize_from_scratch(assets, scales: dict, n: int, config: dict, device, 
         seed_config = dataclasses.replace(base, grasps_per_object=per_scale, scales=object_scales)
         log.info("object %d/%d %s: optimizing %d grasps, %d iterations", number, len(assets), asset.object_id,
                  per_scale * len(object_scales), seed_config.annealing.iterations)
-        grasps, _ = synthesize([asset], seed_config, energy_config, generator, device)
+        grasps, _ = synthesize([asset], seed_config, energy_config, generator, device, support_planes=support_planes)
         parts.append(grasps.select(_balanced_rows(per_scale, len(object_scales), n)))
     grasps = GraspSet.concatenate(parts)
     grasps.arrays["method"] = np.full(len(grasps), "seed", dtype=object)
     return grasps
 
 
-def synthesize_with_model(assets, scales: dict, n: int, config: dict, model_path: str, device, seed: int):
+def synthesize_with_model(assets, scales: dict, n: int, config: dict, model_path: str, device, seed: int, support_planes=None):
     """``n`` CVAE samples per object, refined by post-optimization (sections ``sample``, ``post_optimize``)."""
     import torch
 
@@ -203,7 +204,8 @@ def synthesize_with_model(assets, scales: dict, n: int, config: dict, model_path
     )
     hand = ShadowHand(device)
     energy = GraspEnergy.from_assets(
-        hand, assets, EnergyConfig(weights=post_config.energy_weights, object_points=post_config.energy_object_points, self_penetration_margin_m=margin)
+        hand, assets, EnergyConfig(weights=post_config.energy_weights, object_points=post_config.energy_object_points, self_penetration_margin_m=margin),
+        support_planes=support_planes,
     )
     log.info("post-optimizing %d grasps, %d iterations", len(object_index), post_config.annealing.iterations)
     refined = refine(
@@ -320,6 +322,7 @@ def run_grasp_tool(request: GraspRequest) -> GraspOutcome:
     from dexlite_pipeline.optim.config import SeedConfig
     from dexlite_pipeline.sim.config import lift_config_from
     from dexlite_pipeline.sim.results import lift_grasp_set
+    from dexlite_pipeline.tabletop import grasp_tool_tables
 
     if request.grasps_per_object < 1:
         raise GraspToolError(f"--n must be at least 1, got {request.grasps_per_object}")
@@ -346,6 +349,7 @@ def run_grasp_tool(request: GraspRequest) -> GraspOutcome:
     if not ok_ids:
         raise GraspToolError(f"none of the {len(sources)} mesh(es) could be prepared: " + "; ".join(f"{r['file']}: {r['reason']}" for r in rejected))
     assets = [load_asset(objects_dir, oid) for oid in ok_ids]
+    planes, support = grasp_tool_tables(config, assets, request.upright_axis, seed)  # tabletop: each object's table (None: floating)
 
     method = f"CVAE samples + post-optimization ({request.model})" if request.model else "energy optimization from scratch"
     configured = (
@@ -357,22 +361,22 @@ def run_grasp_tool(request: GraspRequest) -> GraspOutcome:
     _step(2, "synthesizing %d grasps for each of %d object(s): %s, device %s", request.grasps_per_object, len(assets), method, device)
     t = time.perf_counter()
     if request.model:
-        grasps = synthesize_with_model(assets, scales, request.grasps_per_object, config, request.model, device, seed)
+        grasps = synthesize_with_model(assets, scales, request.grasps_per_object, config, request.model, device, seed, planes)
     else:
-        grasps = synthesize_from_scratch(assets, scales, request.grasps_per_object, config, device, seed)
+        grasps = synthesize_from_scratch(assets, scales, request.grasps_per_object, config, device, seed, planes)
     times["synthesize"] = time.perf_counter() - t
 
     _step(3, "lift test and six-direction test of %d grasps on %d thread(s)", len(grasps), request.threads)
     t = time.perf_counter()
     lift_config = lift_config_from(config, six_directions=True)
-    tested, _ = lift_grasp_set(grasps, [str(objects_dir)], lift_config, max(1, request.threads))
+    tested, _ = lift_grasp_set(grasps, [str(objects_dir)], lift_config, max(1, request.threads), support_planes=planes)
     times["lift and six-direction tests"] = time.perf_counter() - t
 
     _step(4, "writing grasp stores and the DexGraspNet export")
     t = time.perf_counter()
     held_mask = np.asarray(tested.arrays["lift_success"], bool)
     held = tested.select(held_mask)
-    attrs = {"stage": "grasp", "method": method, "config": config, "real_size": request.real_size, "meshes": [s.file for s in sources]}
+    attrs = {"stage": "grasp", "method": method, "config": config, "real_size": request.real_size, "meshes": [s.file for s in sources], "support": support}
     write_grasp_store(out_dir / "all_grasps.zarr", tested, attrs)
     write_grasp_store(out_dir / "grasps.zarr", held, {**attrs, "selection": "lift_success"})
     if len(held):

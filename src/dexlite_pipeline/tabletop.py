@@ -1,0 +1,310 @@
+"""Tabletop mode: the object rests in its stable pose on a table, and grasps must stay above it.
+
+Grasps stay in the object frame (``hand_pose`` is the palm pose in the prepared mesh frame,
+scaled by ``scale``). The table is a plane in that frame, found from the object's resting
+pose on the table (recorded by the stability stage): its upward unit normal is
+n = Rᵀ·z_world (R: the mesh frame's orientation after settling), and it passes through the
+object's lowest point along −n. With ``support_offset`` h the height of the mesh origin
+above the table per unit of scale (normalized units: h = −min over mesh vertices of v·n),
+the signed height of a point x (metres, object frame) above the table at scale s is
+
+    height(x) = n·x + s·h      (negative: below the table).
+
+Every stage needs only (n, h) per object and the grasp's scale. Gravity in the lift test
+acts along −n: the world's −z in the rested pose. The stability test lets each object settle
+from a small tilt, so n is within ``stability.max_rotation_deg`` (7°) of the file's +z for
+every stable object but rarely exactly +z: in floating mode gravity is along the object
+frame's −z as before.
+
+``scene.table: false`` (floating mode) switches all of it off: no plane exists, every stage
+runs the code it ran before tabletop mode existed.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from dexlite_pipeline.sim.config import SceneConfig
+
+log = logging.getLogger(__name__)
+
+# Stability-table columns of the resting pose: where each simulated object came to rest, stable or not (NaN: not simulated).
+REST_QUATERNION_COLUMNS = ("rest_qx", "rest_qy", "rest_qz", "rest_qw")  # mesh frame in the world after settling (xyzw)
+SUPPORT_NORMAL_COLUMNS = ("support_nx", "support_ny", "support_nz")  # table's upward normal in the object frame
+SUPPORT_OFFSET_COLUMN = "support_offset"  # mesh origin's height above the table per unit scale (normalized units)
+REST_HEIGHT_COLUMN = "rest_height_m"  # mesh origin's height above the table after settling, at stability.scale (m)
+REST_POSE_COLUMNS = (*REST_QUATERNION_COLUMNS, *SUPPORT_NORMAL_COLUMNS, SUPPORT_OFFSET_COLUMN, REST_HEIGHT_COLUMN)
+
+# Failure reason of a grasp whose hand starts (partly) inside the table.
+HAND_IN_TABLE = "hand_in_table"
+# A hand point this far below the table counts as below it (float32 rounding of the hand's kinematics, 1 µm).
+TABLE_TOLERANCE_M = 1e-6
+
+
+@dataclass(frozen=True)
+class SupportPlane:
+    """The table under one object, in its object frame: upward unit normal and origin height per unit scale."""
+
+    normal: tuple[float, float, float]
+    offset: float  # h: height of the mesh origin above the table per unit scale (normalized units)
+
+    def offset_m(self, scale: float) -> float:
+        """Height of the object's origin above the table (m) at ``scale``."""
+        return float(self.offset) * float(scale)
+
+    def as_dict(self) -> dict:
+        return {"normal": [float(v) for v in self.normal], "offset": float(self.offset)}
+
+
+def support_plane_from_rest(vertices: np.ndarray, rest_rotation: np.ndarray) -> SupportPlane:
+    """The support plane of a mesh (normalized ``vertices``, (V, 3)) resting with orientation ``rest_rotation`` (3, 3)."""
+    normal = np.asarray(rest_rotation, dtype=np.float64).T @ np.array([0.0, 0.0, 1.0])
+    normal = normal / np.linalg.norm(normal)
+    offset = -float((np.asarray(vertices, dtype=np.float64) @ normal).min())
+    return SupportPlane(tuple(float(v) for v in normal), offset)
+
+
+def upright_plane(vertices: np.ndarray, axis: str = "+z") -> SupportPlane:
+    """The support plane of a mesh standing with its ``axis`` (one of ±x, ±y, ±z) pointing up."""
+    if len(axis) != 2 or axis[0] not in "+-" or axis[1] not in "xyz":
+        raise ValueError(f"upright axis {axis!r}: expected one of +x, -x, +y, -y, +z, -z")
+    normal = np.zeros(3)
+    normal["xyz".index(axis[1])] = 1.0 if axis[0] == "+" else -1.0
+    offset = -float((np.asarray(vertices, dtype=np.float64) @ normal).min())
+    return SupportPlane(tuple(float(v) for v in normal), offset)
+
+
+def plane_from_row(row) -> SupportPlane | None:
+    """The support plane in a stability-table row (a mapping or namedtuple); None when the row has none."""
+    get = row.get if hasattr(row, "get") else (lambda key, default=None: getattr(row, key, default))
+    values = [get(c, math.nan) for c in (*SUPPORT_NORMAL_COLUMNS, SUPPORT_OFFSET_COLUMN)]
+    if any(v is None or not math.isfinite(float(v)) for v in values):
+        return None
+    return SupportPlane(tuple(float(v) for v in values[:3]), float(values[3]))
+
+
+class MissingSupportPlane(ValueError):
+    """Tabletop mode needs an object's resting pose, and the stability table has none for it."""
+
+
+class SupportPlanes:
+    """The support planes of the objects in a stability table, by object id."""
+
+    def __init__(self, planes: dict[str, SupportPlane]) -> None:
+        self.planes = dict(planes)
+
+    @classmethod
+    def from_stability_table(cls, path: str | Path) -> "SupportPlanes":
+        from dexlite_pipeline.objects.stability import read_stability_table
+
+        table = read_stability_table(path)
+        missing = [c for c in (*SUPPORT_NORMAL_COLUMNS, SUPPORT_OFFSET_COLUMN) if c not in table.columns]
+        if missing:
+            raise MissingSupportPlane(f"{path}: stability table has no resting pose (columns {', '.join(missing)}): rerun stability_filter")
+        planes = {}
+        for row in table.to_dict("records"):
+            plane = plane_from_row(row)
+            if plane is not None:
+                planes[str(row["object_id"])] = plane
+        return cls(planes)
+
+    def __contains__(self, object_id: str) -> bool:
+        return str(object_id) in self.planes
+
+    def get(self, object_id: str) -> SupportPlane:
+        try:
+            return self.planes[str(object_id)]
+        except KeyError:
+            raise MissingSupportPlane(f"object {object_id}: no resting pose in the stability table") from None
+
+    def arrays(self, object_ids, scale) -> tuple[np.ndarray, np.ndarray]:
+        """Per grasp: support normal (N, 3) and the plane's offset in metres, n·x + offset_m ≥ 0 above (N,)."""
+        object_ids = list(object_ids)
+        normal = np.zeros((len(object_ids), 3), np.float64)
+        offset = np.zeros(len(object_ids), np.float64)
+        for i, object_id in enumerate(object_ids):
+            plane = self.get(object_id)
+            normal[i] = plane.normal
+            offset[i] = plane.offset
+        return normal, offset * np.asarray(scale, dtype=np.float64)
+
+
+def load_support_planes(table: bool, stability_path: str | Path | None) -> SupportPlanes | None:
+    """The stability table's support planes in tabletop mode, None in floating mode."""
+    if not table:
+        return None
+    if stability_path is None:
+        raise MissingSupportPlane("tabletop mode (scene.table: true) needs the stability table (--stability)")
+    return SupportPlanes.from_stability_table(stability_path)
+
+
+def heights_above(points, normal, offset_m):
+    """Signed heights (m) above the table of points (B, P, 3): n·x + offset; works on numpy arrays and torch tensors."""
+    return (points * normal[:, None, :]).sum(-1) + offset_m[:, None]
+
+
+def store_arrays(normal: np.ndarray, offset_m: np.ndarray) -> dict[str, np.ndarray]:
+    """The per-grasp arrays a grasp store records in tabletop mode (so a grasp is reproducible)."""
+    return {"support_normal": np.asarray(normal, np.float32), "support_offset_m": np.asarray(offset_m, np.float32)}
+
+
+def store_attrs(table: bool) -> dict:
+    """Root attributes recording the scene mode of a grasp store."""
+    return {"scene": {"table": bool(table)}}
+
+
+class HandTableClearance:
+    """Exact lowest point of each of the hand's collision shapes along a table normal (torch, differentiable).
+
+    A capsule along its local z (radius r, half length L) reaches n·c − L·|n·z_s| − r, a box of
+    half extents e reaches n·c − Σ e_i·|n·axis_i|: the support function of the shape, so no
+    sampled point can miss a corner. These are the shapes MuJoCo simulates.
+    """
+
+    def __init__(self, hand) -> None:
+        import torch
+
+        from dexlite_pipeline.energy.link_map import LinkFrameMap
+        from dexlite_pipeline.hand.model import CAPSULE
+
+        self.shape_map = LinkFrameMap.for_frames(hand.shape_rot, hand.shape_pos, hand.shape_link, len(hand.link_names))
+        capsule = hand.shape_kind == CAPSULE
+        size = hand.shape_size
+        zeros = torch.zeros_like(size[:, 0])
+        self.half_extent = torch.where(capsule[:, None], torch.stack([zeros, zeros, size[:, 1]], dim=1), size)  # (S, 3)
+        self.radius = torch.where(capsule, size[:, 0], zeros)  # (S,)
+
+    def lowest_heights(self, frames, normal, offset_m):
+        """(B, S) height (m) of each shape's lowest point above the table (negative: below), normal (B, 3), offset (B,)."""
+        frame = self.shape_map(frames)  # (B, S, 3, 4): [R | c]
+        along = (frame[..., :3] * normal[:, None, :, None]).sum(2)  # (B, S, 3): n·axis_i
+        centre = (frame[..., 3] * normal[:, None, :]).sum(-1) + offset_m[:, None]
+        return centre - (along.abs() * self.half_extent).sum(-1) - self.radius
+
+    def depth_below(self, frames, normal, offset_m):
+        """(B,) deepest hand point below the table (m; 0 when the hand is wholly above it)."""
+        return (-self.lowest_heights(frames, normal, offset_m)).clamp(min=0).amax(dim=1)
+
+
+def hand_table_depth(hand, hand_pose: np.ndarray, plane: SupportPlane, scale: np.ndarray) -> np.ndarray:
+    """(B,) deepest point of the hand's collision shapes below ``plane`` (m, 0 if wholly above) for stored poses (B, 28) at ``scale`` (B,)."""
+    import torch
+
+    pose = torch.as_tensor(np.asarray(hand_pose), dtype=hand.dtype, device=hand.device)
+    scale = np.asarray(scale, dtype=np.float64)
+    with torch.no_grad():
+        frames = hand.forward(pose)
+        normal = torch.as_tensor(np.tile(plane.normal, (len(scale), 1)), dtype=hand.dtype, device=hand.device)
+        offset = torch.as_tensor(plane.offset * scale, dtype=hand.dtype, device=hand.device)
+        return HandTableClearance(hand).depth_below(frames, normal, offset).cpu().numpy().astype(np.float64)
+
+
+def grasp_table_depths(grasps, planes: SupportPlanes, hand=None, batch: int = 1024) -> np.ndarray:
+    """(N,) deepest hand point below each grasp's table (m; 0: wholly above; NaN: no plane for its object or a non-finite pose)."""
+    from dexlite_pipeline.hand.model import ShadowHand
+
+    hand = hand or ShadowHand()
+    depth = np.full(len(grasps), np.nan)
+    ids = np.asarray([str(o) for o in grasps.object_id])
+    finite = np.isfinite(grasps.hand_pose).all(axis=1) & np.isfinite(grasps.scale)
+    for object_id in sorted(set(ids[finite].tolist())):
+        if object_id not in planes:
+            continue
+        rows = np.flatnonzero((ids == object_id) & finite)
+        for start in range(0, len(rows), batch):
+            part = rows[start : start + batch]
+            depth[part] = hand_table_depth(hand, grasps.hand_pose[part], planes.get(object_id), grasps.scale[part])
+    return depth
+
+
+def support_arrays(planes: SupportPlanes, object_ids, scale) -> dict[str, np.ndarray]:
+    """``store_arrays`` for grasps of these objects at these scales; NaN for an object without a support plane."""
+    object_ids = [str(o) for o in object_ids]
+    normal = np.full((len(object_ids), 3), np.nan)
+    offset = np.full(len(object_ids), np.nan)
+    for i, object_id in enumerate(object_ids):
+        if object_id in planes:
+            plane = planes.get(object_id)
+            normal[i], offset[i] = plane.normal, plane.offset * float(scale[i])
+    return store_arrays(normal, offset)
+
+
+def reachable_on_table(lift_success, table_depth_mm) -> dict[str, float]:
+    """Of the held grasps (``lift_success``), the share with no hand point below the object's table in its
+    resting pose (``table_depth_mm`` within ``TABLE_TOLERANCE_M``), and how many were held and how many
+    of them reach below it. NaN share when nothing was held or no grasp has a table."""
+    held = np.asarray(lift_success, dtype=bool)
+    depth = np.asarray(table_depth_mm, dtype=np.float64)
+    measured = held & np.isfinite(depth)
+    above = measured & (depth <= TABLE_TOLERANCE_M * 1000.0)
+    count = int(measured.sum())
+    return {
+        "held_reachable_on_table_rate": float(above.sum() / count) if count else math.nan,
+        "n_held_below_table": int(count - above.sum()),
+    }
+
+
+UPRIGHT_AXES = ("+x", "-x", "+y", "-y", "+z", "-z")
+
+
+def tool_support_planes(assets, table: bool, upright_axis: str | None, stability_config, seed: int) -> tuple[SupportPlanes | None, dict[str, str]]:
+    """The tables of ``dexlite grasp``'s objects, and per object a sentence saying which pose it stands in.
+
+    Floating mode (``table`` false): None. With ``upright_axis`` the mesh stands with that axis up
+    (``upright_plane``). Otherwise its stable pose: the pose it comes to rest in when set on a table
+    in its file orientation (the stability stage's simulation, ``stability_config``); if that cannot be
+    simulated, the file's +z is taken as up and the sentence says why.
+    """
+    from dexlite_pipeline.objects.stability import simulate_asset
+
+    if not table:
+        return None, {a.object_id: "no table (scene.table false): floating object, gravity along the file's -z" for a in assets}
+    planes, said = {}, {}
+    for asset in assets:
+        vertices = np.asarray(asset.load_mesh().vertices)
+        if upright_axis:
+            planes[asset.object_id] = upright_plane(vertices, upright_axis)
+            said[asset.object_id] = f"standing with its {upright_axis} axis up (--upright-axis), table under its lowest point"
+            continue
+        row = simulate_asset((asset.object_id, str(asset.directory)), stability_config, seed)
+        plane = plane_from_row(row)
+        if plane is None:
+            planes[asset.object_id] = upright_plane(vertices, "+z")
+            said[asset.object_id] = f"file orientation (+z up): its resting pose could not be simulated ({row['reason']})"
+            continue
+        planes[asset.object_id] = plane
+        tilt = math.degrees(math.acos(max(-1.0, min(1.0, plane.normal[2]))))
+        settled = "stands as in the file" if row["stable"] else f"topples from the file orientation ({row['rotation_deg']:.0f} deg)"
+        said[asset.object_id] = f"stable pose: where it comes to rest on a table (PyBullet; it {settled}), up {tilt:.1f} deg from the file's +z"
+    for object_id, sentence in said.items():
+        log.info("object %s: %s", object_id, sentence)
+    return SupportPlanes(planes), said
+
+
+def grasp_tool_tables(config: dict, assets, upright_axis: str | None, seed: int) -> tuple[SupportPlanes | None, dict[str, str]]:
+    """``tool_support_planes`` with the mode and the stability test's constants read from the config mapping."""
+    from dexlite_pipeline.config import from_section
+    from dexlite_pipeline.objects.stability import StabilityConfig
+
+    scene = from_section(SceneConfig, config.get("scene"), "config.scene")
+    stability = from_section(StabilityConfig, config.get("stability"), "config.stability")
+    return tool_support_planes(assets, scene.table, upright_axis, stability, seed)
+
+
+def planes_from_store(grasps) -> SupportPlanes | None:
+    """The support planes a grasp store recorded per grasp (``support_normal``, ``support_offset_m``), by object;
+    None when it recorded none (a floating store). Rows without a finite plane are skipped."""
+    if "support_normal" not in grasps.arrays or "support_offset_m" not in grasps.arrays:
+        return None
+    normal = np.asarray(grasps.arrays["support_normal"], dtype=np.float64)
+    offset = np.asarray(grasps.arrays["support_offset_m"], dtype=np.float64) / np.asarray(grasps.scale, dtype=np.float64)
+    planes = {}
+    for i, object_id in enumerate(str(o) for o in grasps.object_id):
+        if object_id not in planes and np.isfinite(normal[i]).all() and np.isfinite(offset[i]):
+            planes[object_id] = SupportPlane(tuple(float(v) for v in normal[i]), float(offset[i]))
+    return SupportPlanes(planes)
