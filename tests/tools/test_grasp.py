@@ -302,6 +302,7 @@ BAD_INPUTS = [
     (["{d}/box.obj", "--threads", "-2"], "--threads must be at least 1, got -2"),
     (["{d}/box.obj", "--device", "gpu"], "--device gpu: not a device (expected auto, cpu, cuda or cuda:N)"),
     (["{d}/box.obj", "--device", "cuda:x"], "--device cuda:x: not a device"),
+    (["{d}/box.obj", "--config-json", '{"device": "tpu"}'], "device: 'tpu' does not match"),
     (["{d}/box.obj", "--model", "{d}/missing.pt"], "--model {d}/missing.pt: no such file"),
     (["{d}/box.obj", "--model", "{d}/garbage.pt"], "--model {d}/garbage.pt: not a readable model file"),
     (["{d}/box.obj", "--model", "{d}/garbage.pt", "--from-scratch"], "--model and --from-scratch exclude each other"),
@@ -318,6 +319,7 @@ BAD_INPUTS = [
 ]
 if not __import__("torch").cuda.is_available():
     BAD_INPUTS.append((["{d}/box.obj", "--device", "cuda"], "--device cuda: CUDA is not available on this machine; use --device cpu"))
+    BAD_INPUTS.append((["{d}/box.obj", "--config-json", '{"device": "cuda"}'], "config device cuda: CUDA is not available"))
 
 
 @pytest.mark.parametrize("arguments, expected", BAD_INPUTS, ids=[" ".join(a).replace("{d}/", "") for a, _ in BAD_INPUTS])

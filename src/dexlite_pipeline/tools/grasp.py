@@ -225,8 +225,8 @@ def output_folder_problem(out_dir: Path, overwrite: bool, mesh_files: list[str])
     return None
 
 
-def check_device(name: str):
-    """The torch device for ``name``, or a ``GraspToolError`` naming what is wrong."""
+def check_device(name: str, where: str = "--device"):
+    """The torch device for ``name`` (given as ``where``), or a ``GraspToolError`` naming what is wrong."""
     from dexlite_pipeline.device import resolve_device
 
     try:
@@ -234,8 +234,8 @@ def check_device(name: str):
     except RuntimeError as exc:
         text = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         if "CUDA is not available" in text:
-            return _raise(f"--device {name}: CUDA is not available on this machine; use --device cpu")
-        return _raise(f"--device {name}: not a device (expected auto, cpu, cuda or cuda:N)")
+            return _raise(f"{where} {name}: CUDA is not available on this machine; use --device cpu")
+        return _raise(f"{where} {name}: not a device (expected auto, cpu, cuda or cuda:N)")
 
 
 def _raise(message: str):
@@ -505,7 +505,7 @@ def summary_markdown(
         lines.append(f"No grasp held: `grasps.zarr` is empty and no `dexgraspnet/` was written. `all_grasps.zarr` holds all {total} with their failure reasons.")
     lines += [
         "",
-        "| object | file | size (cm) | grasps | held | distinct held | six-direction held | held and six-direction | why the others failed |",
+        "| object | file | size (cm) | grasps | held | distinct held | six-direction passed | held and six-direction passed | why the others failed |",
         "| --- | --- | --- | ---: | ---: | ---: | ---: | ---: | --- |",
     ]
     for r in rows:
@@ -564,7 +564,7 @@ def check_request(request: GraspRequest) -> CheckedRequest:
     problem = output_folder_problem(out_dir, request.overwrite, [s.file for s in sources])
     if problem:
         raise GraspToolError(problem)
-    device = check_device(request.device or config.device)
+    device = check_device(request.device, "--device") if request.device else check_device(config.device, "config device")
     loaded = load_model(request.model, device) if request.model else None
     sizes, not_tried, refusals = {}, [], []
     for source in sources:
