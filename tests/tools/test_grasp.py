@@ -157,6 +157,7 @@ def test_units_mm_and_a_reused_out_folder(tmp_path, capsys):
     every = read_grasp_store(out / "all_grasps.zarr")
     assert np.allclose(every.scale, 1.03 * np.linalg.norm([0.04, 0.03, 0.05]), rtol=1e-5)
     assert every.attrs["units"] == "mm" and "| user-box_mm | box_mm.obj | 6 x 8 x 10 cm |" in (out / "summary.md").read_text()
+    assert "next: box_mm.obj: " in capsys.readouterr().out  # under 4 distinct held grasps from 1: the summary's hint, also printed
     stale = out / "renders" / "from_the_first_run.png"
     stale.parent.mkdir(exist_ok=True)
     stale.write_bytes(b"")

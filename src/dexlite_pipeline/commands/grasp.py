@@ -63,6 +63,8 @@ def run(args: argparse.Namespace) -> int:
     outcome = run_grasp_tool(request)
     print(f"{outcome.held}/{outcome.total} grasps held the object in the lift test, {outcome.distinct} distinct "
           f"({len(outcome.objects)} object(s), {outcome.seconds:.0f} s) -> {outcome.summary_path}")
+    for hint in outcome.next_steps:
+        print(f"next: {hint.replace('`', '')}")
     if not outcome.held:
         log.error("no grasp held; the summary lists why each failed and what to try: %s", outcome.summary_path)
         return 1

@@ -98,6 +98,7 @@ class GraspOutcome:
     total: int
     seconds: float
     summary_path: Path
+    next_steps: list[str] = field(default_factory=list)  # what to try next (the summary's list)
 
 
 @dataclass(frozen=True)
@@ -671,4 +672,4 @@ def run_grasp_tool(request: GraspRequest) -> GraspOutcome:
         reasons = ", ".join(f"{k} {v}" for k, v in r["failures"].items()) or "none"
         log.info("%s: held %s, %d distinct; failures: %s", r["object_id"], _share(r["lift"], r["grasps"]), r["distinct"], reasons)
     return GraspOutcome(objects=rows, rejected=rejected, held=int(held_mask.sum()), distinct=sum(r["distinct"] for r in rows),
-                        total=len(tested), seconds=seconds, summary_path=summary_path)  # fmt: skip
+                        total=len(tested), seconds=seconds, summary_path=summary_path, next_steps=next_steps(request, rows, rejected))  # fmt: skip
