@@ -246,7 +246,7 @@ def test_summary_counts_distinct_grasps_and_failure_reasons_with_a_hint_that_fit
 def test_summary_says_nothing_held_and_suggests_no_fix_when_there_is_none_to_make():
     nothing = _summary([{"object_id": "user-box", "file": "box.obj", "grasps": 8, "lift": 0, "distinct": 0, "failures": {"dropped": 8}}])
     assert "No grasp held: `grasps.zarr` is empty and no `dexgraspnet/` was written." in nothing
-    assert "hold one of each" not in nothing and "most failures are 'dropped' (8 of 8)" in nothing
+    assert "hold one of each" not in nothing and "the most common failure is 'dropped' (8 of 8)" in nothing
     fine = _summary([{"object_id": "user-box", "file": "box.obj", "grasps": 8, "lift": 8, "distinct": 5, "failures": {}}])
     assert "## What to try next" not in fine
 

@@ -465,7 +465,7 @@ def next_steps(request: GraspRequest, rows: list[dict], rejected: list[dict]) ->
             fix = f"`--from-scratch` (optimization pushes the hand out of the object) or {more}" if request.model else more
         else:
             if failed:
-                facts.append(f"most failures are '{top}' ({count} of {failed})")
+                facts.append(f"the most common failure is '{top}' ({count} of {failed})")
             fix = f"{more} or `--from-scratch` (other grasps than the model's)" if request.model else more
         hints.append(f"`{Path(r['file']).name}`: " + "; ".join(facts) + f": try {fix}.")
     for r in rejected:
