@@ -166,8 +166,13 @@ def test_units_mm_and_a_reused_out_folder(tmp_path, capsys):
     error = capsys.readouterr().err.strip()
     assert error == f"dexlite grasp: error: --out {out}: holds an earlier run's output; pass --overwrite to replace it, or choose a new folder"
     assert stale.exists()
-    main(["grasp", str(tmp_path / "box_mm.obj"), "--out", str(out), "--units", "mm", "--overwrite", *QUICK])
-    assert not stale.exists() and (out / "summary.md").is_file() and len(read_grasp_store(out / "all_grasps.zarr")) == 1
+    quick_three = [*QUICK[:1], "3", *QUICK[2:]]
+    main(["grasp", str(tmp_path / "box_mm.obj"), "--out", str(out), "--units", "mm", "--overwrite", "--no-distinct", *quick_three])
+    assert not stale.exists() and (out / "summary.md").is_file()
+    every, kept = read_grasp_store(out / "all_grasps.zarr"), read_grasp_store(out / "grasps.zarr")
+    assert len(every) == 3 and kept.attrs["selection"] == "lift_success"  # --no-distinct: every held grasp, near-duplicates too
+    assert len(kept) == int(np.asarray(every.arrays["lift_success"], bool).sum())
+    assert "distinct only: no" in (out / "summary.md").read_text()
 
 
 def _grasp_set(poses, held, six, passed, energy, object_ids=None, scale=0.1):
