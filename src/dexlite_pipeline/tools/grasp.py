@@ -583,7 +583,8 @@ def check_request(request: GraspRequest) -> CheckedRequest:
     if refusals:
         raise GraspToolError(refusals[0] + (f" (and {len(refusals) - 1} more mesh(es) like it)" if len(refusals) > 1 else ""))
     if len(not_tried) == len(sources):
-        raise GraspToolError("; ".join(f"{r['file']}: {r['reason']}" for r in not_tried))
+        raise GraspToolError("; ".join(f"{r['file']}: {r['reason']}" for r in not_tried)
+                             + f" (if a file is not in {UNIT_NAMES[request.units]}, give its unit with --units)")
     return CheckedRequest(config, mapping, device, loaded, sources, sizes, not_tried)
 
 
