@@ -134,3 +134,20 @@ def test_library_sections_check_types_without_the_schema():
     with pytest.raises(ConfigError, match=r'^config.lift.friction: expected a number, got a string "abc"$'):
         from_section(LiftConfig, {"friction": "abc"}, "config.lift")
     assert from_section(LiftConfig, {"friction": 1}, "config.lift").friction == 1
+
+
+def test_the_workflow_config_and_the_package_default_are_one_file():
+    """config.yaml at the top (the workflow's) links to the package's default config: one source of truth."""
+    from dexlite_pipeline.config import DEFAULT_CONFIG_PATH, default_config
+
+    assert (ROOT / "config.yaml").is_symlink(), "config.yaml must link to src/dexlite_pipeline/data/config.yaml"
+    assert (ROOT / "config.yaml").resolve() == DEFAULT_CONFIG_PATH.resolve()
+    assert default_config() == load_config(ROOT / "config.yaml")
+
+
+def test_the_shipped_model_path_in_the_config_is_the_package_data_file(config):
+    """sample.shipped_model (a path in this checkout, for the workflow) names the packaged model file."""
+    from dexlite_pipeline.model.shipped import SHIPPED_MODEL_PATH, SHIPPED_MODEL_RELATIVE
+
+    assert config["sample"]["shipped_model"] == str(SHIPPED_MODEL_RELATIVE)
+    assert (ROOT / SHIPPED_MODEL_RELATIVE).resolve() == SHIPPED_MODEL_PATH.resolve() and SHIPPED_MODEL_PATH.is_file()

@@ -43,6 +43,13 @@ class CliError(Exception):
     """An error to print as one line and exit with status 2."""
 
 
+class OneLineParser(argparse.ArgumentParser):
+    """A command's argument parser whose errors are one line (``dexlite COMMAND: error: ...``), exit status 2."""
+
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="dexlite", description=__doc__.splitlines()[0])
     parser.add_argument("--version", action="version", version=f"dexlite {__version__}")
@@ -67,7 +74,7 @@ def main(argv: list[str] | None = None) -> int:
     top, rest = parser.parse_known_args(argv)
     module_name, help_text = COMMANDS[top.command]
     module = importlib.import_module(f"dexlite_pipeline.{module_name}")
-    stage_parser = argparse.ArgumentParser(prog=f"dexlite {top.command}", description=help_text)
+    stage_parser = OneLineParser(prog=f"dexlite {top.command}", description=help_text)
     stage_parser.add_argument("--threads", type=int, default=None, help="torch/worker threads (Snakemake passes the rule's threads)")
     module.add_arguments(stage_parser)
     args = stage_parser.parse_args(rest)

@@ -17,6 +17,9 @@ from typing import Any, TypeVar
 import yaml
 
 SCHEMA_PATH = Path(__file__).parent / "schemas" / "config.schema.yaml"
+# The default config.yaml is package data (installed with the package); the checkout's top-level
+# config.yaml, which the workflow reads, is a link to this one file.
+DEFAULT_CONFIG_PATH = Path(__file__).parent / "data" / "config.yaml"
 # The keys of config section ``objects`` a DexGraspNet import uses (its meshes bring their own
 # convex pieces); here, not in io.dexgraspnet, because the workflow reads it while parsing.
 IMPORT_ASSET_KEYS = ("sdf_resolution", "sdf_padding", "surface_points")
@@ -111,6 +114,11 @@ def load_config(path: str | os.PathLike) -> dict:
     except yaml.YAMLError as exc:
         raise ConfigError(f"{p}: not valid YAML: {exc}") from exc
     return validate_config(config, str(p))
+
+
+def default_config() -> dict:
+    """The package's default ``config.yaml``, validated."""
+    return load_config(DEFAULT_CONFIG_PATH)
 
 
 def from_section(cls: type[T], section: dict[str, Any] | None, where: str) -> T:

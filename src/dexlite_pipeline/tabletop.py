@@ -286,16 +286,6 @@ def tool_support_planes(assets, table: bool, upright_axis: str | None, stability
     return SupportPlanes(planes), said
 
 
-def grasp_tool_tables(config: dict, assets, upright_axis: str | None, seed: int) -> tuple[SupportPlanes | None, dict[str, str]]:
-    """``tool_support_planes`` with the mode and the stability test's constants read from the config mapping."""
-    from dexlite_pipeline.config import from_section
-    from dexlite_pipeline.objects.stability import StabilityConfig
-
-    scene = from_section(SceneConfig, config.get("scene"), "config.scene")
-    stability = from_section(StabilityConfig, config.get("stability"), "config.stability")
-    return tool_support_planes(assets, scene.table, upright_axis, stability, seed)
-
-
 def planes_from_store(grasps) -> SupportPlanes | None:
     """The support planes a grasp store recorded per grasp (``support_normal``, ``support_offset_m``), by object;
     None when it recorded none (a floating store). Rows without a finite plane are skipped."""
@@ -308,3 +298,17 @@ def planes_from_store(grasps) -> SupportPlanes | None:
         if object_id not in planes and np.isfinite(normal[i]).all() and np.isfinite(offset[i]):
             planes[object_id] = SupportPlane(tuple(float(v) for v in normal[i]), float(offset[i]))
     return SupportPlanes(planes)
+
+
+def raise_above_table(grasps, planes: SupportPlanes):
+    """The grasps with each hand below its table moved up along the table's normal until it touches
+    it from above (a start the optimizer can repair from), and the shift of each (m, 0: unmoved)."""
+    from dexlite_pipeline.io.grasp_store import GraspSet
+
+    shift = np.nan_to_num(grasp_table_depths(grasps, planes), nan=0.0)
+    moved = GraspSet(dict(grasps.arrays), dict(grasps.attrs))
+    pose = grasps.hand_pose.copy()
+    for i in np.flatnonzero(shift > 0):
+        pose[i, :3] += np.asarray(planes.get(str(grasps.object_id[i])).normal, dtype=np.float32) * np.float32(shift[i])
+    moved.arrays["hand_pose"] = pose
+    return moved, shift

@@ -1,4 +1,4 @@
-"""The shipped model (models/shadow-hand-large): it loads weights-only, its card describes it, and on a
+"""The shipped model (src/dexlite_pipeline/data/shadow-hand-large): it loads weights-only, its card describes it, and on a
 few freshly prepared objects its learning ladder agrees with the card within sampling noise."""
 
 import json

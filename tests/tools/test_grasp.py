@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import logging
 
 import numpy as np
 import pytest
@@ -36,7 +37,7 @@ def meshes(tmp_path_factory):
 @pytest.fixture(scope="module")
 def grasp_run(meshes, tmp_path_factory):
     out = tmp_path_factory.mktemp("grasp") / "out"
-    code = main(["grasp", str(meshes), "--out", str(out), "--n", "2", "--real-size", "--renders", "1", "--threads", "2",
+    code = main(["grasp", str(meshes), "--out", str(out), "--n", "2", "--renders", "1", "--threads", "2",
                  "--from-scratch", "--config-json", json.dumps(TINY)])  # fmt: skip
     return code, out
 
@@ -49,9 +50,11 @@ def test_grasp_writes_every_output_for_an_obj_and_an_stl(grasp_run):
     assert sorted(set(every.object_id)) == ["user-box", "user-cup"]
     assert [int((every.object_id == o).sum()) for o in ("user-box", "user-cup")] == [2, 2]
     lifted = np.asarray(every.arrays["lift_success"], bool)
-    assert len(held) == int(lifted.sum())
+    labels = np.asarray(every.arrays["distinct_label"])
+    assert ((labels >= 0) == lifted).all()
+    assert len(held) == len({(o, int(l)) for o, l in zip(every.object_id[lifted], labels[lifted])})  # one per distinct grasp
     assert code == (0 if len(held) else 1)
-    for name in ("hand_pose", "object_id", "scale", "lift_success", "failure_reason", "six_dir_success", "six_dir_passed", "E_fc", "E_pen"):
+    for name in ("hand_pose", "object_id", "scale", "lift_success", "failure_reason", "six_dir_success", "six_dir_passed", "E_fc", "E_pen", "distinct_label"):
         assert name in held.arrays and name in every.arrays
     assert held.hand_pose.shape[1:] == (28,)
     for object_id in set(held.object_id):
@@ -60,14 +63,14 @@ def test_grasp_writes_every_output_for_an_obj_and_an_stl(grasp_run):
     renders = sorted(p.name for p in (out / "renders").glob("*.png"))
     assert [name.split("_")[0] for name in renders] == ["user-box", "user-cup"]
     summary = (out / "summary.md").read_text()
-    assert "| user-box | box.obj |" in summary and "| user-cup | cup.stl |" in summary
+    assert "| user-box | box.obj | 6 x 8 x 10 cm |" in summary and "| user-cup | cup.stl | 6.97 x 6.97 x 9 cm |" in summary
     assert f"{int(lifted.sum())}/4 (" in summary and "six-direction" in summary
     for name in renders:
         assert f"renders/{name}" in summary
 
 
 @pytest.mark.slow
-def test_real_size_keeps_the_mesh_units_as_metres(grasp_run):
+def test_grasps_are_for_the_object_at_its_real_size(grasp_run):
     _, out = grasp_run
     every = read_grasp_store(out / "all_grasps.zarr")
     # Normalized objects have radius 1 / 1.03, so the scale that restores the box is 1.03 x its half-diagonal.
@@ -93,7 +96,7 @@ def test_grasp_with_a_model_samples_and_post_optimizes(grasp_run, meshes, tmp_pa
     save_checkpoint(model, GraspCVAE(small), Trained(), {"seed": 0})
     out = tmp_path / "with_model"
     code = main(["grasp", str(meshes / "box.obj"), "--out", str(out), "--n", "3", "--renders", "0", "--threads", "1",
-                 "--model", str(model), "--config-json", json.dumps(TINY)])  # fmt: skip
+                 "--model", str(model), "--resize-to-training", "--config-json", json.dumps(TINY)])  # fmt: skip
     every = read_grasp_store(out / "all_grasps.zarr")
     assert len(every) == 3 and set(every.arrays["method"]) == {"cvae_post"}
     assert "raw_hand_pose" in every.arrays and np.isfinite(every.hand_pose).all()
@@ -122,28 +125,239 @@ def test_grasp_uses_the_shipped_model_when_no_model_is_given(meshes, tmp_path, m
     main(["grasp", str(meshes / "box.obj"), "--out", str(out), "--n", "1", "--renders", "0", "--threads", "1", "--config-json", json.dumps(TINY)])
     assert set(read_grasp_store(out / "all_grasps.zarr").arrays["method"]) == {"cvae_post"}
     assert f"model: {stand_in}" in (out / "summary.md").read_text()
-    assert main(["grasp", str(meshes / "box.obj"), "--out", str(out), "--model", str(stand_in), "--from-scratch"]) == 2
 
 
-def test_grasp_input_errors_are_one_line_with_exit_status_2(tmp_path, capsys):
-    (tmp_path / "notes.txt").write_text("not a mesh")
-    empty = tmp_path / "empty"
-    empty.mkdir()
-    for target, message in (
-        (tmp_path / "missing.obj", "no such file or folder"),
-        (tmp_path / "notes.txt", "not a mesh file"),
-        (empty, "folder has no .obj/.stl files"),
-    ):
-        assert main(["grasp", str(target), "--out", str(tmp_path / "out")]) == 2
-        error = capsys.readouterr().err.strip()
-        assert error == f"dexlite grasp: error: {target}: {message}" + (" (expected .obj or .stl)" if "mesh file" in message else "")
-    assert main(["grasp", str(tmp_path / "notes.txt"), "--out", str(tmp_path / "out"), "--config-json", '{"lift": {"friction": "high"}}']) == 2
-    assert 'lift.friction: expected a number, got a string "high"' in capsys.readouterr().err
 
 
-def test_grasp_fails_when_no_mesh_can_be_prepared(tmp_path, capsys):
-    flat = tmp_path / "flat.obj"
-    flat.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nf 1 2 3\nf 2 4 3\n")
-    assert main(["grasp", str(flat), "--out", str(tmp_path / "out"), "--threads", "1", "--config-json", json.dumps(TINY)]) == 2
+@pytest.mark.slow
+def test_the_object_frame_of_the_stores_is_the_real_object(grasp_run):
+    """README 'Grasp store layout': the prepared mesh times the row's scale is the object in metres, and
+    p / scale / normalization_factor + normalization_centre gives back the mesh file's coordinates."""
+    from dexlite_pipeline.objects.assets import load_asset
+
+    _, out = grasp_run
+    every = read_grasp_store(out / "all_grasps.zarr")
+    asset = load_asset(out / "objects", "user-box")
+    scale = float(every.scale[every.object_id == "user-box"][0])
+    vertices = np.asarray(asset.load_mesh().vertices) * scale
+    assert np.allclose(np.ptp(vertices, axis=0), [0.08, 0.06, 0.10], atol=1e-4)
+    in_file = vertices / scale / asset.meta["normalization_factor"] + np.asarray(asset.meta["normalization_centre"])
+    assert np.allclose(in_file.min(axis=0), [-0.04, -0.03, -0.05], atol=1e-4) and np.allclose(in_file.max(axis=0), [0.04, 0.03, 0.05], atol=1e-4)
+
+
+QUICK = ["--n", "1", "--renders", "0", "--threads", "1", "--from-scratch", "--config-json", json.dumps(TINY)]
+
+
+@pytest.mark.slow
+def test_units_mm_and_a_reused_out_folder(tmp_path, capsys):
+    """A mesh in millimetres with --units mm is the same object as in metres; a second run into the same
+    folder is refused, and --overwrite replaces the first run's output (no file of it is left)."""
+    box = trimesh.creation.box((80.0, 60.0, 100.0))
+    box.export(tmp_path / "box_mm.obj")
+    out = tmp_path / "out"
+    main(["grasp", str(tmp_path / "box_mm.obj"), "--out", str(out), "--units", "mm", *QUICK])
+    every = read_grasp_store(out / "all_grasps.zarr")
+    assert np.allclose(every.scale, 1.03 * np.linalg.norm([0.04, 0.03, 0.05]), rtol=1e-5)
+    assert every.attrs["units"] == "mm" and "| user-box_mm | box_mm.obj | 6 x 8 x 10 cm |" in (out / "summary.md").read_text()
+    assert "next: box_mm.obj: " in capsys.readouterr().out  # under 4 distinct held grasps from 1: the summary's hint, also printed
+    stale = out / "renders" / "from_the_first_run.png"
+    stale.parent.mkdir(exist_ok=True)
+    stale.write_bytes(b"")
+    capsys.readouterr()
+    assert main(["grasp", str(tmp_path / "box_mm.obj"), "--out", str(out), "--units", "mm", *QUICK]) == 2
     error = capsys.readouterr().err.strip()
-    assert error.startswith("dexlite grasp: error: none of the 1 mesh(es) could be prepared:") and "flat.obj: degenerate: flat" in error
+    assert error == f"dexlite grasp: error: --out {out}: holds an earlier run's output; pass --overwrite to replace it, or choose a new folder"
+    assert stale.exists()
+    quick_three = [*QUICK[:1], "3", *QUICK[2:]]
+    main(["grasp", str(tmp_path / "box_mm.obj"), "--out", str(out), "--units", "mm", "--overwrite", "--no-distinct", *quick_three])
+    assert not stale.exists() and (out / "summary.md").is_file()
+    every, kept = read_grasp_store(out / "all_grasps.zarr"), read_grasp_store(out / "grasps.zarr")
+    assert len(every) == 3 and kept.attrs["selection"] == "lift_success"  # --no-distinct: every held grasp, near-duplicates too
+    assert len(kept) == int(np.asarray(every.arrays["lift_success"], bool).sum())
+    assert "distinct only: no" in (out / "summary.md").read_text()
+
+
+def _grasp_set(poses, held, six, passed, energy, object_ids=None, scale=0.1):
+    from dexlite_pipeline.io.grasp_store import GraspSet
+
+    n = len(poses)
+    return GraspSet({
+        "hand_pose": np.asarray(poses, np.float32), "object_id": np.asarray(object_ids or ["a"] * n, dtype=object),
+        "scale": np.full(n, scale, np.float32), "lift_success": np.asarray(held, bool), "six_dir_success": np.asarray(six, bool),
+        "six_dir_passed": np.asarray([[True] * k + [False] * (6 - k) for k in passed], bool), "E_total": np.asarray(energy, np.float32),
+        "failure_reason": np.asarray(["" if h else "dropped" for h in held], dtype=object),
+    })  # fmt: skip
+
+
+def _pose(x, yaw_deg=0.0):
+    pose = np.zeros(28)
+    pose[0], pose[5] = x, np.deg2rad(yaw_deg)
+    return pose
+
+
+def test_distinct_grasps_keep_the_best_of_each_near_duplicate_group():
+    """Palms within 2 cm and 30 degrees are one grasp; its best member (six-direction, directions passed, energy) is kept."""
+    from dexlite_pipeline.settings import build_config
+    from dexlite_pipeline.tools.grasp import distinct_labels, representatives
+
+    poses = [_pose(0.0), _pose(0.01), _pose(0.015, 10), _pose(0.10), _pose(0.0, 90), _pose(0.005)]
+    grasps = _grasp_set(poses, held=[1, 1, 1, 1, 1, 0], six=[0, 1, 0, 0, 0, 0], passed=[2, 6, 5, 1, 0, 6], energy=[0.1, 0.9, 0.5, 0.2, 0.3, 0.0])
+    labels = distinct_labels(grasps, build_config({}))
+    assert labels[5] == -1  # not held: no label
+    assert labels[0] == labels[1] == labels[2] and len({labels[0], labels[3], labels[4]}) == 3
+    kept = representatives(grasps, labels)
+    assert sorted(kept.tolist()) == [1, 3, 4]  # grasp 1 passed the six-direction test: the best of its group
+    assert kept[0] == 1
+    # a stricter rule splits the group
+    strict = distinct_labels(grasps, build_config({"diversity": {"distinct_translation_m": 0.004}}))
+    assert len(set(strict[strict >= 0].tolist())) == 5
+
+
+def test_distinct_grasps_of_other_objects_never_merge():
+    from dexlite_pipeline.settings import build_config
+    from dexlite_pipeline.tools.grasp import distinct_labels
+
+    grasps = _grasp_set([_pose(0.0), _pose(0.0)], held=[1, 1], six=[0, 0], passed=[0, 0], energy=[0, 0], object_ids=["a", "b"])
+    labels = distinct_labels(grasps, build_config({}))
+    assert labels[0] != labels[1]
+
+
+def _summary(rows, rejected=(), model="cvae.pt", kept=None):
+    from dexlite_pipeline.settings import build_config
+    from dexlite_pipeline.tools.grasp import GraspRequest, MeshSize, summary_markdown
+
+    config = build_config({})
+    for r in rows:
+        r.setdefault("size", MeshSize(0.13, (0.08, 0.1, 0.125)))
+        r.setdefault("radii_m", [0.09])
+        r.setdefault("six_dir", 0)
+        r.setdefault("both", 0)
+    request = GraspRequest(meshes=[], out_dir="out", grasps_per_object=32, model=model)
+    held = sum(r["lift"] for r in rows)
+    return summary_markdown(request, rows, list(rejected), "method", {"prepare": 1.0}, [], config.lift, config.diversity,
+                            held if kept is None else kept)  # fmt: skip
+
+
+def test_summary_counts_distinct_grasps_and_failure_reasons_with_a_hint_that_fits():
+    rows = [{"object_id": "user-mug", "file": "mug.obj", "grasps": 32, "lift": 4, "distinct": 1,
+             "failures": {"initial penetration": 20, "dropped": 8}}]  # fmt: skip
+    text = _summary(rows, kept=1)
+    assert "| user-mug | mug.obj | 8 x 10 x 12.5 cm | 32 | 4/32 (12%) | 1 |" in text
+    assert "initial penetration 20, dropped 8" in text
+    assert "20 of the 28 failures start with the hand inside the object: try `--from-scratch`" in text
+    assert "its 4 held grasps are near-duplicates of 1" in text
+    assert "--units" not in text.split("## What to try next")[1].split("## Run")[0]  # the size was never in question
+    assert "`dexgraspnet/` hold one of each distinct held grasp (the best): 1 grasp(s)" in text
+
+
+def test_summary_says_nothing_held_and_suggests_no_fix_when_there_is_none_to_make():
+    nothing = _summary([{"object_id": "user-box", "file": "box.obj", "grasps": 8, "lift": 0, "distinct": 0, "failures": {"dropped": 8}}])
+    assert "No grasp held: `grasps.zarr` is empty and no `dexgraspnet/` was written." in nothing
+    assert "hold one of each" not in nothing and "the most common failure is 'dropped' (8 of 8)" in nothing
+    fine = _summary([{"object_id": "user-box", "file": "box.obj", "grasps": 8, "lift": 8, "distinct": 5, "failures": {}}])
+    assert "## What to try next" not in fine
+
+
+def test_summary_names_the_meshes_the_hand_cannot_hold():
+    rejected = [{"file": "/data/table.obj", "reason": "too large for the Shadow Hand: its thinnest side is 40 cm (the hand closes around at most 15 cm)",
+                 "kind": "hand_fit"}]  # fmt: skip
+    text = _summary([{"object_id": "user-box", "file": "box.obj", "grasps": 8, "lift": 8, "distinct": 5, "failures": {}}], rejected)
+    assert "## Meshes not tried" in text and "`/data/table.obj`: too large for the Shadow Hand" in text
+    assert "`table.obj` was not tried (too large for the Shadow Hand" in text and "give its unit with `--units`" in text
+
+
+@pytest.fixture(scope="module")
+def bad_inputs(tmp_path_factory):
+    """Files for the table of bad inputs."""
+    folder = tmp_path_factory.mktemp("bad")
+    (folder / "empty").mkdir()
+    (folder / "notes.txt").write_text("not a mesh")
+    (folder / "garbage.obj").write_text("this is not a mesh\n")
+    (folder / "garbage.pt").write_bytes(b"not a checkpoint")
+    trimesh.creation.box((0.08, 0.06, 0.10)).export(folder / "box.obj")
+    trimesh.creation.box((80.0, 60.0, 100.0)).export(folder / "box_in_mm.obj")
+    trimesh.creation.box((0.003, 0.002, 0.004)).export(folder / "speck.obj")
+    trimesh.creation.box((0.5, 0.4, 0.6)).export(folder / "crate.obj")
+    trimesh.creation.box((0.02, 0.015, 0.01)).export(folder / "bead.obj")
+    (folder / "used").mkdir()
+    (folder / "used" / "summary.md").write_text("# Grasps\n")
+    (folder / "mine").mkdir()
+    (folder / "mine" / "thesis.tex").write_text("precious")
+    (folder / "a_file").write_text("")
+    inside = folder / "used_with_mesh"
+    inside.mkdir()
+    (inside / "summary.md").write_text("# Grasps\n")
+    trimesh.creation.box((0.08, 0.06, 0.10)).export(inside / "box.obj")
+    return folder
+
+
+# (arguments with {d} for the bad-inputs folder, text the one error line must contain)
+BAD_INPUTS = [
+    (["{d}/missing.obj"], "{d}/missing.obj: no such file or folder"),
+    (["{d}/notes.txt"], "{d}/notes.txt: not a mesh file (expected .obj or .stl)"),
+    (["{d}/empty"], "{d}/empty: folder has no .obj/.stl files"),
+    (["{d}/garbage.obj"], "garbage.obj: unreadable"),
+    (["{d}/box_in_mm.obj"], "box_in_mm.obj: largest extent 100 m, implausible for a hand-held object (1 cm to 1 m); likely in mm (--units mm: 10 cm)"),
+    (["{d}/box.obj", "--units", "mm"], "box.obj: largest extent 0.1 mm (0.0001 m), implausible for a hand-held object"),
+    (["{d}/speck.obj"], "speck.obj: largest extent 0.004 m, implausible for a hand-held object (1 cm to 1 m); no unit makes it a hand-held object"),
+    (["{d}/crate.obj"], "crate.obj: too large for the Shadow Hand: its thinnest side is 40 cm"),
+    (["{d}/bead.obj"], "bead.obj: too small for the Shadow Hand: 2 cm at most"),
+    (["{d}/box.obj", "--units", "km"], "argument --units: invalid choice: 'km'"),
+    (["{d}/box.obj", "--n", "0"], "--n must be at least 1, got 0"),
+    (["{d}/box.obj", "--n", "-4"], "--n must be at least 1, got -4"),
+    (["{d}/box.obj", "--n", "many"], "argument --n: invalid int value: 'many'"),
+    (["{d}/box.obj", "--renders", "-1"], "--renders must be 0 or more, got -1"),
+    (["{d}/box.obj", "--threads", "-2"], "--threads must be at least 1, got -2"),
+    (["{d}/box.obj", "--device", "gpu"], "--device gpu: not a device (expected auto, cpu, cuda or cuda:N)"),
+    (["{d}/box.obj", "--device", "cuda:x"], "--device cuda:x: not a device"),
+    (["{d}/box.obj", "--config-json", '{"device": "tpu"}'], "device: 'tpu' does not match"),
+    (["{d}/box.obj", "--model", "{d}/missing.pt"], "--model {d}/missing.pt: no such file"),
+    (["{d}/box.obj", "--model", "{d}/garbage.pt"], "--model {d}/garbage.pt: not a readable model file"),
+    (["{d}/box.obj", "--model", "{d}/garbage.pt", "--from-scratch"], "--model and --from-scratch exclude each other"),
+    (["{d}/box.obj", "--units", "cm", "--resize-to-training"], "--units and --resize-to-training exclude each other"),
+    (["{d}/box.obj", "--config-json", '{"lift": {"friction": "high"}}'], 'lift.friction: expected a number, got a string "high"'),
+    (["{d}/box.obj", "--config-json", '{"lift": {"frictoin": 1.0}}'], "frictoin"),
+    (["{d}/box.obj", "--config-json", "{not json"], "--config-json"),
+    (["{d}/box.obj", "--out", "{d}/used"], "--out {d}/used: holds an earlier run's output; pass --overwrite to replace it"),
+    (["{d}/box.obj", "--out", "{d}/mine", "--overwrite"], "--out {d}/mine: folder is not empty and holds no earlier dexlite grasp output"),
+    (["{d}/box.obj", "--out", "{d}/a_file"], "--out {d}/a_file: exists and is not a folder"),
+    (["{d}/used_with_mesh/box.obj", "--out", "{d}/used_with_mesh", "--overwrite"], "--overwrite would delete the input mesh"),
+    (["--out", "{d}/new"], "the following arguments are required: meshes"),
+    (["{d}/box.obj", "--no-such-flag"], "unrecognized arguments: --no-such-flag"),
+]
+if not __import__("torch").cuda.is_available():
+    BAD_INPUTS.append((["{d}/box.obj", "--device", "cuda"], "--device cuda: CUDA is not available on this machine; use --device cpu"))
+    BAD_INPUTS.append((["{d}/box.obj", "--config-json", '{"device": "cuda"}'], "config device cuda: CUDA is not available"))
+
+
+@pytest.mark.parametrize("arguments, expected", BAD_INPUTS, ids=[" ".join(a).replace("{d}/", "") for a, _ in BAD_INPUTS])
+def test_every_bad_input_is_one_line_with_exit_status_2_before_any_work(bad_inputs, arguments, expected, capsys, caplog):
+    d = str(bad_inputs)
+    args = [a.replace("{d}", d) for a in arguments]
+    if "--out" not in args:
+        args += ["--out", f"{d}/new"]
+    before = sorted(p.relative_to(bad_inputs) for p in bad_inputs.rglob("*"))
+    with caplog.at_level(logging.INFO):
+        try:
+            code = main(["grasp", *args])
+        except SystemExit as exc:  # argparse's own errors
+            code = exc.code
+    error = capsys.readouterr().err
+    assert code == 2
+    assert len(error.strip().splitlines()) == 1 and error.startswith("dexlite grasp: error: ") and "Traceback" not in error
+    assert expected.replace("{d}", d) in error
+    assert sorted(p.relative_to(bad_inputs) for p in bad_inputs.rglob("*")) == before  # nothing prepared or written
+    assert not [r for r in caplog.records if r.name.startswith("dexlite") and r.levelno >= logging.INFO]  # no work started
+
+
+def test_a_mesh_rejected_in_preparation_is_reported_once_and_never_as_prepared(tmp_path, capsys, caplog):
+    flat = tmp_path / "flat.obj"
+    flat.write_text("v 0 0 0\nv 0.1 0 0\nv 0 0.1 0\nv 0.1 0.1 0\nf 1 2 3\nf 2 4 3\n")
+    with caplog.at_level(logging.INFO):
+        assert main(["grasp", str(flat), "--out", str(tmp_path / "out"), "--threads", "1", "--from-scratch", "--config-json", json.dumps(TINY)]) == 2
+    error = capsys.readouterr().err.strip()
+    assert error.startswith("dexlite grasp: error: none of the 1 mesh(es) could be used:") and "flat.obj: degenerate: flat" in error
+    assert len(error.splitlines()) == 1
+    messages = [r.getMessage() for r in caplog.records]
+    assert not [m for m in messages if "degenerate" in m]  # the reason appears once: in the error line
+    assert not [m for m in messages if "prepared" in m and "could be used" not in m]

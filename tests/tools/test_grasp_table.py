@@ -11,8 +11,8 @@ import trimesh
 from dexlite_pipeline.objects.assets import load_asset
 from dexlite_pipeline.objects.build import AssetBuildSettings, write_asset
 from dexlite_pipeline.objects.prepare import normalize_mesh
-from dexlite_pipeline.objects.stability import StabilityConfig
-from dexlite_pipeline.tabletop import UPRIGHT_AXES, grasp_tool_tables, tool_support_planes
+from dexlite_pipeline.objects.config import StabilityConfig
+from dexlite_pipeline.tabletop import UPRIGHT_AXES, tool_support_planes
 
 
 @pytest.fixture(scope="module")
@@ -40,7 +40,7 @@ def test_stable_pose_is_where_each_mesh_comes_to_rest(assets):
 def test_a_given_upright_axis_and_floating_mode(assets):
     planes, said = tool_support_planes(assets, True, "-x", StabilityConfig(), seed=0)
     assert planes.get("rod").normal == (-1.0, 0.0, 0.0) and "-x axis up" in said["rod"]
-    assert grasp_tool_tables({"scene": {"table": False}}, assets, None, 0)[0] is None
+    assert tool_support_planes(assets, False, None, StabilityConfig(), seed=0)[0] is None
     with pytest.raises(ValueError, match="upright axis"):
         tool_support_planes(assets, True, "up", StabilityConfig(), seed=0)
     assert set(UPRIGHT_AXES) == {"+x", "-x", "+y", "-y", "+z", "-z"}

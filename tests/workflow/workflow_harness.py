@@ -25,7 +25,7 @@ from sample_data import dexgraspnet_sample_dir  # noqa: E402
 import yaml
 
 REPO = Path(__file__).resolve().parents[2]
-CHECKOUT_PARTS = ("Snakefile", "config.yaml", "config", "workflow", "profiles", "envs", "src", "models", "pyproject.toml")
+CHECKOUT_PARTS = ("Snakefile", "config.yaml", "config", "workflow", "profiles", "envs", "src", "pyproject.toml")
 _checkout: Path | None = None
 BIN_DIR = Path(sys.executable).parent
 # Real grasps to train on: a tiny seed run finds none that hold, so the tiny config imports

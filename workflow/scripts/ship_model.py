@@ -1,6 +1,6 @@
 """Ship a finished large run's model: a half-precision copy, its card (MODEL_CARD.md) and card.json.
 
-    python workflow/scripts/ship_model.py --run RUN --out models/shadow-hand-large \\
+    python workflow/scripts/ship_model.py --run RUN --out src/dexlite_pipeline/data/shadow-hand-large \\
         --curve docs/learning_curve.csv --wall-log RUN.time.log
 
 Reads from the run: the model (``results/model/cvae.pt``), its config files, the object catalog,
@@ -255,7 +255,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--run", required=True, type=Path)
     parser.add_argument("--configfile", nargs="+", default=["config.yaml", "config/profiles/large.yaml"])
-    parser.add_argument("--out", type=Path, default=Path("models/shadow-hand-large"))
+    parser.add_argument("--out", type=Path, default=Path("src/dexlite_pipeline/data/shadow-hand-large"))
     parser.add_argument("--command", default="snakemake --cores 2 all --configfile config/profiles/large.yaml")
     parser.add_argument("--wall-log", type=Path, default=None, help="GNU `time -v` output of the run (its wall time)")
     parser.add_argument("--curve", type=Path, default=None, help="learning-curve table (benchmarks/learning_curve.py) to record")

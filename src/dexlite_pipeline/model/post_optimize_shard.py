@@ -49,20 +49,6 @@ def _unrefined_arrays(grasps: GraspSet, reasons: np.ndarray, method: np.ndarray)
     }
 
 
-def raise_above_table(grasps: GraspSet, planes) -> tuple[GraspSet, np.ndarray]:
-    """The grasps with each hand below its table moved up along the table's normal until it touches
-    it from above (a start the optimizer can repair from), and the shift of each (m, 0: unmoved)."""
-    from dexlite_pipeline.tabletop import grasp_table_depths
-
-    shift = np.nan_to_num(grasp_table_depths(grasps, planes), nan=0.0)
-    moved = GraspSet(dict(grasps.arrays), dict(grasps.attrs))
-    pose = grasps.hand_pose.copy()
-    for i in np.flatnonzero(shift > 0):
-        pose[i, :3] += np.asarray(planes.get(str(grasps.object_id[i])).normal, dtype=np.float32) * np.float32(shift[i])
-    moved.arrays["hand_pose"] = pose
-    return moved, shift
-
-
 def post_optimize_shard(
     sample_path: str, objects_dirs: list[str], shard: int, config: PipelineConfig, stability_path: str | None = None
 ) -> tuple[tuple[GraspSet, dict], tuple[GraspSet, dict]]:
@@ -128,6 +114,8 @@ def post_optimize_shard(
     if valid.any():
         starts = sampled.select(valid)
         if planes is not None:
+            from dexlite_pipeline.tabletop import raise_above_table
+
             starts, shift = raise_above_table(starts, planes)
             log.info("shard %03d: %d of %d sampled starts raised above the table (median %.1f mm)", shard, int((shift > 0).sum()), len(shift),
                      1000 * float(np.median(shift[shift > 0])) if (shift > 0).any() else 0.0)

@@ -1,8 +1,8 @@
-"""The pretrained model that ships with the source: where it is and which objects it was trained on.
+"""The pretrained model that ships with the package: where it is and which objects it was trained on.
 
-The model of the large run (``config/profiles/large.yaml``) lives in the repository under
-``models/shadow-hand-large/`` beside its model card (``MODEL_CARD.md``): a source checkout (and
-an editable install) has it; a wheel does not, and then ``--model`` must name a file. The
+The model of the large run (``config/profiles/large.yaml``) is package data, in
+``src/dexlite_pipeline/data/shadow-hand-large/`` beside its model card (``MODEL_CARD.md``,
+``card.json``): a checkout, an editable install, ``pip install .`` and a wheel all have it. The
 default run samples it as its own method rows (``shipped_raw`` / ``shipped_post``) on the
 held-out objects it never trained on; ``dexlite grasp`` uses it when no model is given.
 """
@@ -12,14 +12,15 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-# models/ beside src/: this file is src/dexlite_pipeline/model/shipped.py
-REPOSITORY_ROOT = Path(__file__).resolve().parents[3]
-SHIPPED_MODEL_RELATIVE = Path("models") / "shadow-hand-large" / "cvae.pt"
-SHIPPED_MODEL_PATH = REPOSITORY_ROOT / SHIPPED_MODEL_RELATIVE
+# this file is dexlite_pipeline/model/shipped.py; the model is dexlite_pipeline/data/shadow-hand-large/cvae.pt
+PACKAGE_DATA = Path(__file__).resolve().parents[1] / "data"
+SHIPPED_MODEL_PATH = PACKAGE_DATA / "shadow-hand-large" / "cvae.pt"
+# The same file as a path in a source checkout (config.yaml's sample.shipped_model, read by the workflow).
+SHIPPED_MODEL_RELATIVE = Path("src") / "dexlite_pipeline" / "data" / "shadow-hand-large" / "cvae.pt"
 
 
 def shipped_model_path() -> Path | None:
-    """The shipped model file when this checkout has it, else None."""
+    """The shipped model file, or None when the package was installed without its data."""
     return SHIPPED_MODEL_PATH if SHIPPED_MODEL_PATH.is_file() else None
 
 
@@ -30,6 +31,6 @@ def model_or_shipped(model: str | os.PathLike | None) -> Path:
     shipped = shipped_model_path()
     if shipped is None:
         raise FileNotFoundError(
-            f"no --model given and no shipped model at {SHIPPED_MODEL_PATH} (a source checkout has it under {SHIPPED_MODEL_RELATIVE.parent})"
+            f"no --model given and no shipped model at {SHIPPED_MODEL_PATH} (the package was installed without its data)"
         )
     return shipped

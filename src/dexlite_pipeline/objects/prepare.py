@@ -364,7 +364,7 @@ def prepare_objects(
     objects_dir.mkdir(parents=True, exist_ok=True)
     task = functools.partial(prepare_object, objects_dir=str(objects_dir), settings=settings, builder=builder_version())
 
-    progress = ProgressLog(log, "prepared", len(sources), unit="objects")
+    progress = ProgressLog(log, "preparation", len(sources), unit="objects")  # done, whether prepared or rejected
     rows = resilient_map(task, sources, workers, _crashed_row, lambda done, total: progress.advance())
     catalog = pd.DataFrame(rows, columns=CATALOG_COLUMNS[:-1])
     catalog["watertight"] = catalog["watertight"].astype("boolean")

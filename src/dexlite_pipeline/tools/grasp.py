@@ -2,23 +2,31 @@
 
 Steps (each logs its progress):
 
-1. prepare every mesh (repair, normalization, convex pieces, SDF) into ``DIR/objects``;
-   a mesh that cannot be used is listed with its reason, the others go on;
-2. synthesize ``n`` grasps per object: with a trained model (``cvae.pt``), CVAE samples
-   refined by post-optimization (config sections ``sample`` and ``post_optimize``);
-   without one, energy optimization from scratch (section ``seed_grasps``, the pipeline's
-   seed synthesis). Object scale: the configured scales (normalized object radius about
-   8-12 cm), or with ``real_size`` the mesh's own size, its units read as metres;
+0. check everything before any work: options, config, device, model file, every mesh file
+   (readable, a size plausible for a hand-held object in the given ``units``) and the output
+   folder; any problem is one ``GraspToolError`` and nothing is written;
+1. prepare every mesh that fits the Shadow Hand (repair, normalization, convex pieces, SDF)
+   into ``DIR/objects``; one too large or too small for the hand, or that cannot be prepared,
+   is listed with its reason and the others go on;
+2. synthesize ``n`` grasps per object, **at the object's real size** (the mesh's own size in
+   ``units``), or with ``resize_to_training`` at the training scales (object radius 8-12 cm):
+   with a trained model (``cvae.pt``), CVAE samples refined by post-optimization (config
+   sections ``sample`` and ``post_optimize``); without one, energy optimization from scratch
+   (section ``seed_grasps``, the pipeline's seed synthesis);
 3. lift test and six-direction test of every grasp with the ``lift`` section's constants
    (the pipeline's physics, unchanged);
-4. write ``DIR/grasps.zarr`` (the grasps that lift the object, same schema as the
-   pipeline's stores, with the six-direction results per grasp), ``DIR/all_grasps.zarr``
-   (every grasp with its failure reason), ``DIR/dexgraspnet/`` (DexGraspNet layout of the
-   held grasps and meshes), ``DIR/renders/*.png`` and ``DIR/summary.md``.
+4. distinct grasps among those held (``evaluation.diversity``, section ``diversity``), the
+   better grasps first; with ``distinct`` only one of each near-duplicate is kept;
+5. write ``DIR/grasps.zarr`` (the kept held grasps, same schema as the pipeline's stores),
+   ``DIR/all_grasps.zarr`` (every grasp with its failure reason and distinct-grasp label),
+   ``DIR/dexgraspnet/`` (DexGraspNet layout of the kept grasps and meshes, when any held),
+   ``DIR/renders/*.png`` (different grasps) and ``DIR/summary.md``.
 
-Settings come from the checkout's ``config.yaml`` when the package runs from a checkout
-(as ``install.sh`` installs it), overlaid by the caller's sections; the physics constants
-of the lift test are never changed here.
+Settings are the package's default ``config.yaml`` overlaid by the caller's sections, read as
+the typed tree (``settings.build_config``); the physics constants of the lift test are never
+changed here. Sizes: the store's ``scale`` is the unit (metres) per file unit divided by the
+asset's ``normalization_factor``, so the README's object-frame rule (p / scale /
+normalization_factor + normalization_centre) gives back the mesh file's coordinates.
 """
 
 from __future__ import annotations
@@ -26,25 +34,39 @@ from __future__ import annotations
 import dataclasses
 import logging
 import math
+import shutil
 import time
+from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from dexlite_pipeline.config import from_section, validate_config
 from dexlite_pipeline.sharding import shard_generator
 
 log = logging.getLogger("dexlite.grasp")
 
 DEFAULT_GRASPS_PER_OBJECT = 32
 DEFAULT_RENDERS_PER_OBJECT = 2
-CHECKOUT_CONFIG = Path(__file__).resolve().parents[3] / "config.yaml"
 STEPS = 5
+UNIT_METRES = {"mm": 0.001, "cm": 0.01, "m": 1.0}
+UNIT_NAMES = {"mm": "millimetres", "cm": "centimetres", "m": "metres"}
+# A largest extent outside this range is a unit mistake (a 95 m mug is a mug in millimetres), not an object for a hand.
+PLAUSIBLE_LARGEST_EXTENT_M = (0.01, 1.0)
+# What the Shadow Hand can hold (heuristic limits from its geometry): the thumb and finger distal links open at
+# most about 17-20 cm apart over the joint limits, less room to close, so an object whose thinnest side
+# (oriented bounding box) is wider than 15 cm has no part the hand can close around; the distal links are
+# 1.4 cm thick, so an object under 3 cm in every direction leaves no room for three of them to oppose each other.
+HAND_MAX_THINNEST_EXTENT_M = 0.15
+HAND_MIN_LARGEST_EXTENT_M = 0.03
+# The summary suggests what to try for an object with fewer distinct held grasps than this.
+WANTED_DISTINCT = 4
+# What dexlite grasp writes in its output folder: a folder holding one of these is an earlier run's output.
+OUTPUT_MARKERS = ("summary.md", "all_grasps.zarr", "grasps.zarr", "objects")
 
 
 class GraspToolError(ValueError):
-    """Input the tool cannot work with (no mesh files, every mesh rejected, a bad model file)."""
+    """Input the tool cannot work with (bad option, device, model file, mesh file or output folder)."""
 
 
 @dataclass
@@ -54,7 +76,10 @@ class GraspRequest:
     meshes: list[str]
     out_dir: str
     grasps_per_object: int = DEFAULT_GRASPS_PER_OBJECT
-    real_size: bool = False
+    units: str = "m"  # the mesh files' length unit: mm, cm or m
+    resize_to_training: bool = False  # grasp each object resized to the training scales instead of its real size
+    distinct: bool = True  # keep one grasp of each near-duplicate group in grasps.zarr
+    overwrite: bool = False  # clear an earlier run's output folder first
     device: str | None = None  # None: the config's device
     model: str | None = None  # trained cvae.pt: sample + post-optimize; None: optimization from scratch
     config: dict = field(default_factory=dict)  # config sections over the defaults
@@ -70,19 +95,19 @@ class GraspOutcome:
     objects: list[dict]
     rejected: list[dict]
     held: int
+    distinct: int
     total: int
     seconds: float
     summary_path: Path
+    next_steps: list[str] = field(default_factory=list)  # what to try next (the summary's list)
 
 
-def default_config() -> dict:
-    """The checkout's config.yaml (validated) when present, else {} (the dataclass defaults)."""
-    import yaml
+@dataclass(frozen=True)
+class MeshSize:
+    """A mesh file's size: its largest axis-aligned extent and its oriented-box extents (metres, thinnest first)."""
 
-    if not CHECKOUT_CONFIG.is_file():
-        log.warning("no config.yaml beside the package (%s): using the built-in defaults", CHECKOUT_CONFIG)
-        return {}
-    return validate_config(yaml.safe_load(CHECKOUT_CONFIG.read_text()) or {}, str(CHECKOUT_CONFIG))
+    largest_m: float
+    oriented_m: tuple[float, float, float]
 
 
 def merge_config(base: dict, overlay: dict) -> dict:
@@ -91,6 +116,20 @@ def merge_config(base: dict, overlay: dict) -> dict:
     for key, value in overlay.items():
         out[key] = merge_config(out[key], value) if isinstance(value, dict) and isinstance(out.get(key), dict) else value
     return out
+
+
+def tool_config(overlay: dict):
+    """The typed config of a run: the package's default config.yaml with ``overlay``'s sections over it.
+
+    Returns (typed tree, the merged mapping recorded in the outputs). Only the given meshes are objects.
+    """
+    from dexlite_pipeline.config import default_config, validate_config
+    from dexlite_pipeline.settings import build_config
+
+    mapping = merge_config(default_config(), overlay)
+    mapping["objects"] = {**mapping.get("objects", {}), "builtin_count": 0, "mesh_dirs": [], "heldout_mesh_dirs": []}
+    validate_config(mapping, "configuration")
+    return build_config(mapping, "configuration"), mapping
 
 
 def mesh_sources(paths: list[str]):
@@ -115,20 +154,127 @@ def mesh_sources(paths: list[str]):
     return _make_ids_unique([MeshSource(f"user-{_safe_name(p.stem)}", "user", str(p)) for p in unique])
 
 
+def _cm(metres: float) -> str:
+    return f"{100 * metres:.3g} cm"
+
+
+def _size_text(size: MeshSize) -> str:
+    """'9.5 x 8 x 10 cm' from the oriented extents."""
+    return " x ".join(f"{100 * e:.3g}" for e in size.oriented_m) + " cm"
+
+
+def likely_unit(largest_in_file_units: float) -> str | None:
+    """The unit that makes a mesh of this largest extent (in its file's units) most like a hand-held object."""
+    typical = 0.15  # m: the middle of what a hand holds, on a log scale
+    fits = [(abs(math.log(largest_in_file_units * m / typical)), u) for u, m in UNIT_METRES.items()
+            if PLAUSIBLE_LARGEST_EXTENT_M[0] <= largest_in_file_units * m <= PLAUSIBLE_LARGEST_EXTENT_M[1]]  # fmt: skip
+    return min(fits)[1] if fits else None
+
+
+def measure_mesh(source, unit_m: float) -> MeshSize:
+    """Read a mesh file (as preparation will) and measure it; an unreadable file is a ``GraspToolError``."""
+    from dexlite_pipeline.objects.prepare import MeshRejected, load_source_mesh
+
+    try:
+        mesh = load_source_mesh(source)
+    except MeshRejected as exc:
+        raise GraspToolError(f"{source.file}: {exc}") from None
+    largest = float(np.asarray(mesh.extents).max()) * unit_m
+    try:
+        oriented = sorted(float(e) * unit_m for e in mesh.bounding_box_oriented.primitive.extents)
+    except Exception:  # noqa: BLE001 - a flat or odd mesh: its axis-aligned box stands in (preparation judges the shape)
+        oriented = sorted(float(e) * unit_m for e in mesh.extents)
+    return MeshSize(largest, tuple(oriented))
+
+
+def implausible_size(file: str, size: MeshSize, units: str) -> str | None:
+    """The refusal for a mesh too large or too small to be a hand-held object in ``units``, else None."""
+    low, high = PLAUSIBLE_LARGEST_EXTENT_M
+    if low <= size.largest_m <= high:
+        return None
+    in_file_units = size.largest_m / UNIT_METRES[units]
+    unit = likely_unit(in_file_units)
+    hint = f"likely in {unit} (--units {unit}: {_cm(in_file_units * UNIT_METRES[unit])})" if unit else "no unit makes it a hand-held object"
+    in_metres = f" ({size.largest_m:g} m)" if units != "m" else ""
+    return (f"{file}: largest extent {in_file_units:g} {units}{in_metres}, implausible for a hand-held object "
+            f"({_cm(low)} to {high:g} m); {hint}")  # fmt: skip
+
+
+def hand_fit_problem(size: MeshSize) -> str | None:
+    """Why the Shadow Hand cannot hold an object of this size, or None when it may."""
+    if size.oriented_m[0] > HAND_MAX_THINNEST_EXTENT_M:
+        return (f"too large for the Shadow Hand: its thinnest side is {_cm(size.oriented_m[0])} "
+                f"(the hand closes around at most {_cm(HAND_MAX_THINNEST_EXTENT_M)})")  # fmt: skip
+    if size.largest_m < HAND_MIN_LARGEST_EXTENT_M:
+        return f"too small for the Shadow Hand: {_cm(size.largest_m)} at most (it needs {_cm(HAND_MIN_LARGEST_EXTENT_M)})"
+    return None
+
+
+def output_folder_problem(out_dir: Path, overwrite: bool, mesh_files: list[str]) -> str | None:
+    """Why ``out_dir`` cannot take this run's outputs, or None (absent, empty, or an earlier run's to clear)."""
+    if out_dir.exists() and not out_dir.is_dir():
+        return f"--out {out_dir}: exists and is not a folder"
+    if not out_dir.is_dir() or not any(out_dir.iterdir()):
+        return None
+    if not any((out_dir / name).exists() for name in OUTPUT_MARKERS):
+        return f"--out {out_dir}: folder is not empty and holds no earlier dexlite grasp output; choose an empty or new folder"
+    if not overwrite:
+        return f"--out {out_dir}: holds an earlier run's output; pass --overwrite to replace it, or choose a new folder"
+    root = out_dir.resolve()
+    inside = [f for f in mesh_files if root in Path(f).resolve().parents]
+    if inside:
+        return f"--out {out_dir}: --overwrite would delete the input mesh {inside[0]}; move it out first"
+    return None
+
+
+def check_device(name: str, where: str = "--device"):
+    """The torch device for ``name`` (given as ``where``), or a ``GraspToolError`` naming what is wrong."""
+    from dexlite_pipeline.device import resolve_device
+
+    try:
+        return resolve_device(name)
+    except RuntimeError as exc:
+        text = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        if "CUDA is not available" in text:
+            return _raise(f"{where} {name}: CUDA is not available on this machine; use --device cpu")
+        return _raise(f"{where} {name}: not a device (expected auto, cpu, cuda or cuda:N)")
+
+
+def _raise(message: str):
+    raise GraspToolError(message)
+
+
+def load_model(path: str, device):
+    """The model and checkpoint entries of ``path``, or a one-line ``GraspToolError``."""
+    from dexlite_pipeline.model.checkpoint import load_checkpoint
+
+    file = Path(path)
+    if not file.is_file():
+        raise GraspToolError(f"--model {path}: no such file")
+    try:
+        return load_checkpoint(file, device)
+    except Exception as exc:  # noqa: BLE001 - torch and the checkpoint reader raise many types for a bad file
+        cause = exc.__cause__ or exc
+        text = str(cause).splitlines()[0] if str(cause) else ""
+        detail = text if text and len(text) <= 100 else type(cause).__name__  # torch's messages run to many lines
+        raise GraspToolError(f"--model {path}: not a readable model file ({detail})") from None
+
+
 def _step(number: int, text: str, *args) -> None:
     log.info(f"[{number}/{STEPS}] {text}", *args)
 
 
-def object_scales(assets, real_size: bool, configured: tuple[float, ...]) -> dict[str, tuple[float, ...]]:
-    """Scales per object: the configured ones, or the mesh's own size (1 / normalization factor, in metres)."""
-    if not real_size:
+def object_scales(assets, request: GraspRequest, configured: tuple[float, ...]) -> dict[str, tuple[float, ...]]:
+    """Scales per object: the real size (file unit in metres / normalization factor), or the configured ones."""
+    if request.resize_to_training:
         return {a.object_id: tuple(configured) for a in assets}
+    unit_m = UNIT_METRES[request.units]
     scales = {}
     for asset in assets:
         factor = float(asset.meta.get("normalization_factor", math.nan))
         if not math.isfinite(factor) or factor <= 0:
             raise GraspToolError(f"{asset.object_id}: asset has no normalization factor; cannot keep its real size")
-        scales[asset.object_id] = (1.0 / factor,)
+        scales[asset.object_id] = (unit_m / factor,)
     return scales
 
 
@@ -139,31 +285,27 @@ def _balanced_rows(per_scale: int, scale_count: int, wanted: int) -> np.ndarray:
     return np.sort(order[:wanted])
 
 
-def synthesize_from_scratch(assets, scales: dict, n: int, config: dict, device, seed: int, support_planes=None):
+def synthesize_from_scratch(assets, scales: dict, n: int, config, device, seed: int, support_planes=None):
     """``n`` grasps per object by energy optimization from convex-hull starts (section ``seed_grasps``)."""
-    from dexlite_pipeline.energy.config import EnergyConfig
     from dexlite_pipeline.io.grasp_store import GraspSet
-    from dexlite_pipeline.optim.config import SeedConfig
     from dexlite_pipeline.optim.seed import synthesize
 
-    base = from_section(SeedConfig, config.get("seed_grasps"), "config.seed_grasps")
-    energy_config = from_section(EnergyConfig, config.get("energy"), "config.energy")
     generator = shard_generator("seed_grasps", seed, 0)
     parts = []
     for number, asset in enumerate(assets, start=1):
         object_scales = scales[asset.object_id]
         per_scale = -(-n // len(object_scales))
-        seed_config = dataclasses.replace(base, grasps_per_object=per_scale, scales=object_scales)
+        seed_config = dataclasses.replace(config.seed_grasps, grasps_per_object=per_scale, scales=object_scales)
         log.info("object %d/%d %s: optimizing %d grasps, %d iterations", number, len(assets), asset.object_id,
                  per_scale * len(object_scales), seed_config.annealing.iterations)
-        grasps, _ = synthesize([asset], seed_config, energy_config, generator, device, support_planes=support_planes)
+        grasps, _ = synthesize([asset], seed_config, config.energy, generator, device, support_planes=support_planes)
         parts.append(grasps.select(_balanced_rows(per_scale, len(object_scales), n)))
     grasps = GraspSet.concatenate(parts)
     grasps.arrays["method"] = np.full(len(grasps), "seed", dtype=object)
     return grasps
 
 
-def synthesize_with_model(assets, scales: dict, n: int, config: dict, model_path: str, device, seed: int, support_planes=None):
+def synthesize_with_model(assets, scales: dict, n: int, config, loaded, model_path: str, device, seed: int, support_planes=None):
     """``n`` CVAE samples per object, refined by post-optimization (sections ``sample``, ``post_optimize``)."""
     import torch
 
@@ -171,19 +313,13 @@ def synthesize_with_model(assets, scales: dict, n: int, config: dict, model_path
     from dexlite_pipeline.energy.grasp_energy import GraspEnergy
     from dexlite_pipeline.hand import ShadowHand
     from dexlite_pipeline.io.grasp_store import GraspSet
-    from dexlite_pipeline.model.checkpoint import cloud_reading, load_checkpoint
+    from dexlite_pipeline.model.checkpoint import cloud_reading
     from dexlite_pipeline.model.data import ObjectClouds
-    from dexlite_pipeline.model.config import PostOptimizeConfig, SampleConfig
     from dexlite_pipeline.model.post_optimization import refine
     from dexlite_pipeline.model.sampling import synthesize
 
-    sample_config = from_section(SampleConfig, config.get("sample"), "config.sample")
-    post_config = from_section(PostOptimizeConfig, config.get("post_optimize"), "config.post_optimize")
-    margin = from_section(EnergyConfig, config.get("energy"), "config.energy").self_penetration_margin_m
-    try:
-        model, checkpoint = load_checkpoint(model_path, device)
-    except ValueError as exc:
-        raise GraspToolError(str(exc)) from None
+    sample_config, post_config = config.sample, config.post_optimize
+    model, checkpoint = loaded
     points, fixed = cloud_reading(checkpoint, sample_config.points_per_cloud)
     clouds = ObjectClouds(assets, device)
     object_index = np.repeat(np.arange(len(assets)), n)
@@ -191,7 +327,7 @@ def synthesize_with_model(assets, scales: dict, n: int, config: dict, model_path
     trained = sorted(float(s) for s in sample_config.scales)  # the training grasps' scales
     outside = sorted({round(float(s), 4) for s in scale if not min(trained) * 0.8 <= s <= max(trained) * 1.25})
     if outside:
-        log.warning("scales %s are far from the training scales %s: expect fewer grasps that hold", outside, trained)
+        log.info("object radii %s m are outside the model's training radii %s m: expect fewer grasps that hold", outside, trained)
     generator = shard_generator("grasp_tool_post_optimize", seed, 0)
     log.info("sampling %d grasps from %s", len(object_index), model_path)
     prior, anchor_rule = sample_config.latent_prior, sample_config.anchor_rule
@@ -202,11 +338,19 @@ def synthesize_with_model(assets, scales: dict, n: int, config: dict, model_path
         model, clouds, object_index, scale, points, generator, prior, sample_config.latent_temperature, fixed, anchor_rule,
         sample_config.neighbour_clouds,
     )
+    if support_planes is not None:  # tabletop: samples whose hand starts below the table are raised above it first
+        from dexlite_pipeline.tabletop import raise_above_table
+
+        starts = GraspSet({"hand_pose": poses.detach().cpu().numpy(), "object_id": np.asarray([assets[i].object_id for i in object_index], dtype=object),
+                           "scale": scale})  # fmt: skip
+        poses = torch.as_tensor(raise_above_table(starts, support_planes)[0].hand_pose, dtype=poses.dtype, device=poses.device)
     hand = ShadowHand(device)
     energy = GraspEnergy.from_assets(
-        hand, assets, EnergyConfig(weights=post_config.energy_weights, object_points=post_config.energy_object_points, self_penetration_margin_m=margin),
+        hand, assets,
+        EnergyConfig(weights=post_config.energy_weights, object_points=post_config.energy_object_points,
+                     self_penetration_margin_m=config.energy.self_penetration_margin_m),
         support_planes=support_planes,
-    )
+    )  # fmt: skip
     log.info("post-optimizing %d grasps, %d iterations", len(object_index), post_config.annealing.iterations)
     refined = refine(
         energy, poses, torch.as_tensor(object_index, device=device), torch.as_tensor(scale, device=device), post_config, generator, "surface"
@@ -218,45 +362,92 @@ def synthesize_with_model(assets, scales: dict, n: int, config: dict, model_path
     return GraspSet(arrays)
 
 
-def render_examples(grasps, objects_dir: Path, out_dir: Path, per_object: int) -> list[Path]:
-    """Up to ``per_object`` held grasps per object as PNGs, six-direction passes first (one failure when none held)."""
+def grasp_rank(grasps) -> np.ndarray:
+    """Row order best first: held, six-direction passed, more of the six directions passed, lower energy."""
+    arrays = grasps.arrays
+    n = len(grasps)
+    held = np.asarray(arrays.get("lift_success", np.zeros(n, bool)), bool)
+    six = np.asarray(arrays.get("six_dir_success", np.zeros(n, bool)), bool)
+    passed = np.asarray(arrays["six_dir_passed"], bool).reshape(n, -1).sum(axis=1) if "six_dir_passed" in arrays else np.zeros(n)
+    energy_name = next((k for k in ("E_post", "E_total") if k in arrays), None)
+    energy = np.nan_to_num(np.asarray(arrays[energy_name], np.float64), nan=np.inf) if energy_name else np.zeros(n)
+    return np.lexsort((np.arange(n), energy, -passed, ~six, ~held))
+
+
+def distinct_labels(grasps, config) -> np.ndarray:
+    """(N,) distinct-grasp label of each held grasp (clusters of one object and scale, best grasp first), -1 if not held."""
+    from dexlite_pipeline.evaluation.diversity import distinct_grasp_labels
+
+    held = np.asarray(grasps.arrays["lift_success"], bool)
+    labels = np.full(len(grasps), -1, dtype=np.int64)
+    order = [i for i in grasp_rank(grasps) if held[i]]
+    if order:
+        groups = np.asarray([f"{grasps.object_id[i]}@{float(grasps.scale[i]):.6g}" for i in order])
+        labels[order] = distinct_grasp_labels(
+            grasps.hand_pose[order], groups, config.diversity.distinct_translation_m, config.diversity.distinct_rotation_deg
+        )
+    return labels
+
+
+def representatives(grasps, labels: np.ndarray) -> np.ndarray:
+    """Rows of the best grasp of each distinct-grasp cluster, best first (clusters are numbered best first)."""
+    order = [i for i in grasp_rank(grasps) if labels[i] >= 0]
+    seen: set[int] = set()
+    rows = []
+    for i in order:
+        if labels[i] not in seen:
+            seen.add(int(labels[i]))
+            rows.append(i)
+    return np.asarray(rows, dtype=np.int64)
+
+
+def render_examples(grasps, labels: np.ndarray, objects_dir: Path, out_dir: Path, per_object: int) -> list[Path]:
+    """Up to ``per_object`` different held grasps per object as PNGs, the best first (one failure when none held)."""
     from dexlite_pipeline.hand import ShadowHand
     from dexlite_pipeline.report.render import render_grasp_png
 
     hand, written = ShadowHand(), []
     held = np.asarray(grasps.arrays["lift_success"], bool)
     six = np.asarray(grasps.arrays.get("six_dir_success", np.zeros(len(grasps), bool)), bool)
+    best = representatives(grasps, labels)
     for object_id in sorted(set(grasps.object_id.tolist())):
-        rows = np.flatnonzero((grasps.object_id == object_id) & held)
-        rows = rows[np.argsort(~six[rows], kind="stable")][:per_object]  # those that also pass the six-direction test first
-        if not len(rows):
+        rows = [i for i in best if grasps.object_id[i] == object_id][:per_object]
+        if not rows:
             finite = np.flatnonzero((grasps.object_id == object_id) & np.isfinite(grasps.hand_pose).all(axis=1))
-            rows = finite[:1]
+            rows = [i for i in grasp_rank(grasps) if i in set(finite.tolist())][:1]
         for row in rows:
             if held[row]:
                 outcome = "HELD: lifted, six-direction " + ("passed" if six[row] else "failed")
             else:
-                outcome = f"NOT HELD: {grasps.arrays['failure_reason'][row] or 'dropped'}"
+                outcome = f"NOT HELD: {str(grasps.arrays['failure_reason'][row] or 'dropped').replace('_', ' ')}"
             path = out_dir / f"{object_id}_{row:04d}.png"
-            title = f"{object_id}  grasp {row}  scale {float(grasps.scale[row]):.3f} m\n{outcome}"
+            title = f"{object_id}  grasp {row}  object radius {100 * float(grasps.scale[row]):.3g} cm\n{outcome}"
             render_grasp_png(hand, grasps.hand_pose[row], object_id, float(grasps.scale[row]), [str(objects_dir)], out=path, title=title)
             written.append(path)
     return written
 
 
-def per_object_rows(grasps, sources, catalog) -> list[dict]:
-    """One summary row per prepared object: counts and shares of grasps that held."""
+def failure_counts(reasons) -> dict[str, int]:
+    """Failure reasons of grasps that did not hold, most frequent first ('initial_penetration' -> 'initial penetration')."""
+    counts = Counter(str(r).replace("_", " ") if r else "dropped" for r in reasons)
+    return dict(sorted(counts.items(), key=lambda kv: (-kv[1], kv[0])))
+
+
+def per_object_rows(grasps, labels: np.ndarray, sources, sizes: dict, prepared_ids: list[str]) -> list[dict]:
+    """One summary row per prepared object: its size, counts held / distinct and the failure reasons."""
     rows = []
     file_of = {s.object_id: s.file for s in sources}
-    for object_id in sorted(catalog.loc[catalog["status"] == "ok", "object_id"]):
+    held_all = np.asarray(grasps.arrays["lift_success"], bool)
+    six_all = np.asarray(grasps.arrays["six_dir_success"], bool)
+    for object_id in prepared_ids:
         mask = grasps.object_id == object_id
-        total = int(mask.sum())
-        lift = np.asarray(grasps.arrays["lift_success"], bool)[mask]
-        six = np.asarray(grasps.arrays["six_dir_success"], bool)[mask]
-        scales = sorted({round(float(s), 4) for s in grasps.scale[mask]})
+        lift, six = held_all[mask], six_all[mask]
+        reasons = np.asarray(grasps.arrays["failure_reason"], dtype=object)[mask & ~held_all]
         rows.append({
-            "object_id": object_id, "file": file_of.get(object_id, ""), "scales_m": scales, "grasps": total,
+            "object_id": object_id, "file": file_of.get(object_id, ""), "size": sizes.get(object_id),
+            "radii_m": sorted({round(float(s), 4) for s in grasps.scale[mask]}), "grasps": int(mask.sum()),
             "lift": int(lift.sum()), "six_dir": int(six.sum()), "both": int((lift & six).sum()),
+            "distinct": len(set(labels[mask & held_all].tolist())), "failures": failure_counts(reasons),
         })  # fmt: skip
     return rows
 
@@ -265,134 +456,234 @@ def _share(count: int, total: int) -> str:
     return f"{count}/{total} ({100 * count / total:.0f}%)" if total else "0/0"
 
 
+def next_steps(request: GraspRequest, rows: list[dict], rejected: list[dict]) -> list[str]:
+    """What to try next, each from a fact of this run: objects with fewer than ``WANTED_DISTINCT`` distinct held grasps
+    (why, from their failure reasons) and meshes not tried for their size. Empty when there is nothing to suggest."""
+    hints = []
+    more = f"more grasps (`--n {2 * request.grasps_per_object}`)"
+    for r in rows:
+        if r["distinct"] >= WANTED_DISTINCT:
+            continue
+        failed = r["grasps"] - r["lift"]
+        facts = [f"{r['distinct']} distinct held grasp(s) of {r['grasps']}"]
+        if r["lift"] > r["distinct"]:
+            facts.append(f"its {r['lift']} held grasps are near-duplicates of {r['distinct']}")
+        top, count = next(iter(r["failures"].items()), ("", 0))
+        if failed and top == "initial penetration" and 2 * count >= failed:
+            facts.append(f"{count} of the {failed} failures start with the hand inside the object")
+            fix = f"`--from-scratch` (optimization pushes the hand out of the object) or {more}" if request.model else more
+        else:
+            if failed:
+                facts.append(f"the most common failure is '{top}' ({count} of {failed})")
+            fix = f"{more} or `--from-scratch` (other grasps than the model's)" if request.model else more
+        hints.append(f"`{Path(r['file']).name}`: " + "; ".join(facts) + f": try {fix}.")
+    for r in rejected:
+        if r.get("kind") == "hand_fit":
+            hints.append(f"`{Path(r['file']).name}` was not tried ({r['reason']}); if its file is not in "
+                         f"{UNIT_NAMES[request.units]}, give its unit with `--units`.")
+    return hints
+
+
 def summary_markdown(
-    request: GraspRequest, rows: list[dict], rejected: list[dict], method: str, step_seconds: dict, renders: list[Path], lift_config
+    request: GraspRequest, rows: list[dict], rejected: list[dict], method: str, step_seconds: dict, renders: list[Path], lift_config, diversity, kept: int
 ) -> str:
-    """The one-page ``summary.md``: objects, counts, lift and six-direction shares side by side, time."""
+    """The one-page ``summary.md``: per object its size, held and distinct counts, failure reasons; what to try next."""
     total = sum(r["grasps"] for r in rows)
-    lift, six, both = (sum(r[k] for r in rows) for k in ("lift", "six_dir", "both"))
+    lift, six, both, distinct = (sum(r[k] for r in rows) for k in ("lift", "six_dir", "both", "distinct"))
     seconds = sum(step_seconds.values())
+    size_rule = ("each object resized to the training radii" if request.resize_to_training
+                 else f"each object at its real size (mesh units: {request.units})")  # fmt: skip
     lines = [
         "# Grasps",
         "",
-        f"**{_share(lift, total)} grasps held the object in the lift test; {_share(both, total)} also passed the "
-        f"six-direction test** ({len(rows)} object(s), {method}, {seconds / 60:.1f} min).",
+        f"**{_share(lift, total)} grasps held the object in the lift test, {distinct} of them distinct; {_share(both, total)} also "
+        f"passed the six-direction test** ({len(rows)} object(s), {size_rule}, {method}, {seconds / 60:.1f} min).",
         "",
         f"A grasp *holds* when the hand lifts the object {lift_config.lift_height_m:g} m and keeps at least "
         f"{100 * lift_config.success_lift_ratio:.0f}% of that rise (MuJoCo, object {lift_config.object_mass_kg:g} kg, "
         f"friction {lift_config.friction:g}); the six-direction test pushes the held object with "
         f"{lift_config.six_dir_force_per_kg_n:g} N/kg along ±x, ±y, ±z (gravity off) and passes when it moves less than "
         f"{100 * lift_config.six_dir_max_translation_m:g} cm and turns less than {lift_config.six_dir_max_rotation_deg:g}° each time. "
-        "`grasps.zarr` and `dexgraspnet/` hold the grasps that held in the lift test.",
+        f"Two held grasps are *the same grasp* when their palms are within {100 * diversity.distinct_translation_m:g} cm "
+        f"and {diversity.distinct_rotation_deg:g}° of each other.",
         "",
-        "| object | file | scale (m) | grasps | lift test held | six-direction held | both |",
-        "| --- | --- | --- | ---: | ---: | ---: | ---: |",
+    ]
+    if kept:
+        what = "one of each distinct held grasp (the best)" if request.distinct else "every held grasp"
+        lines.append(f"`grasps.zarr` and `dexgraspnet/` hold {what}: {kept} grasp(s). `all_grasps.zarr` holds all {total} with their failure reasons.")
+    else:
+        lines.append(f"No grasp held: `grasps.zarr` is empty and no `dexgraspnet/` was written. `all_grasps.zarr` holds all {total} with their failure reasons.")
+    lines += [
+        "",
+        "| object | file | size (cm) | grasps | held | distinct held | six-direction passed | held and six-direction passed | why the others failed |",
+        "| --- | --- | --- | ---: | ---: | ---: | ---: | ---: | --- |",
     ]
     for r in rows:
-        scales = ", ".join(f"{s:.3f}" for s in r["scales_m"])
-        lines.append(f"| {r['object_id']} | {Path(r['file']).name} | {scales} | {r['grasps']} | {_share(r['lift'], r['grasps'])} | "
-                     f"{_share(r['six_dir'], r['grasps'])} | {_share(r['both'], r['grasps'])} |")
-    lines.append(f"| **all** | | | {total} | {_share(lift, total)} | {_share(six, total)} | {_share(both, total)} |")
+        size = _size_text(r["size"]) if r["size"] is not None and not request.resize_to_training else (
+            "radius " + ", ".join(f"{100 * s:.3g}" for s in r["radii_m"]))
+        reasons = ", ".join(f"{reason} {count}" for reason, count in r["failures"].items()) or "-"
+        lines.append(f"| {r['object_id']} | {Path(r['file']).name} | {size} | {r['grasps']} | {_share(r['lift'], r['grasps'])} | "
+                     f"{r['distinct']} | {_share(r['six_dir'], r['grasps'])} | {_share(r['both'], r['grasps'])} | {reasons} |")
+    lines.append(f"| **all** | | | {total} | {_share(lift, total)} | {distinct} | {_share(six, total)} | {_share(both, total)} | |")
     if rejected:
-        lines += ["", "## Meshes that could not be used", ""]
+        lines += ["", "## Meshes not tried", ""]
         lines += [f"- `{r['file']}`: {r['reason']}" for r in rejected]
+    hints = next_steps(request, rows, rejected)
+    if hints:
+        lines += ["", "## What to try next", ""] + [f"- {h}" for h in hints]
     if renders:
-        lines += ["", "## Examples", ""]
+        lines += ["", "## Examples (different grasps)", ""]
         lines += [f"![{p.stem}](renders/{p.name})" for p in renders]
     lines += ["", "## Run", "", "| step | seconds |", "| --- | ---: |"]
     lines += [f"| {name} | {value:.0f} |" for name, value in step_seconds.items()]
     lines += [
         "",
-        f"Grasps per object: {request.grasps_per_object}; size: {'the mesh’s own (metres)' if request.real_size else 'configured scales'}; "
+        f"Grasps per object: {request.grasps_per_object}; size: {size_rule}; distinct only: {'yes' if request.distinct else 'no'}; "
         f"model: {request.model or 'none (optimization from scratch)'}.",
         "",
     ]
     return "\n".join(lines)
 
 
+@dataclass
+class CheckedRequest:
+    """Everything a run needs, checked before any work."""
+
+    config: object  # settings.PipelineConfig
+    mapping: dict
+    device: object
+    loaded_model: tuple | None
+    sources: list
+    sizes: dict  # object id -> MeshSize
+    not_tried: list[dict]  # meshes the hand cannot hold: file, reason, kind
+
+
+def check_request(request: GraspRequest) -> CheckedRequest:
+    """Every check that can fail on the user's input, before anything is prepared or written."""
+    if request.grasps_per_object < 1:
+        raise GraspToolError(f"--n must be at least 1, got {request.grasps_per_object}")
+    if request.renders_per_object < 0:
+        raise GraspToolError(f"--renders must be 0 or more, got {request.renders_per_object}")
+    if request.threads < 1:
+        raise GraspToolError(f"--threads must be at least 1, got {request.threads}")
+    if request.units not in UNIT_METRES:
+        raise GraspToolError(f"--units {request.units}: expected one of {', '.join(UNIT_METRES)}")
+    config, mapping = tool_config(request.config)
+    out_dir = Path(request.out_dir)
+    sources = mesh_sources(request.meshes)
+    problem = output_folder_problem(out_dir, request.overwrite, [s.file for s in sources])
+    if problem:
+        raise GraspToolError(problem)
+    device = check_device(request.device, "--device") if request.device else check_device(config.device, "config device")
+    loaded = load_model(request.model, device) if request.model else None
+    sizes, not_tried, refusals = {}, [], []
+    for source in sources:
+        size = measure_mesh(source, UNIT_METRES[request.units])
+        sizes[source.object_id] = size
+        if request.resize_to_training:
+            continue
+        refusal = implausible_size(source.file, size, request.units)
+        if refusal:
+            refusals.append(refusal)
+            continue
+        fit = hand_fit_problem(size)
+        if fit:
+            not_tried.append({"file": source.file, "reason": fit, "kind": "hand_fit"})
+    if refusals:
+        raise GraspToolError(refusals[0] + (f" (and {len(refusals) - 1} more mesh(es) like it)" if len(refusals) > 1 else ""))
+    if len(not_tried) == len(sources):
+        raise GraspToolError("; ".join(f"{r['file']}: {r['reason']}" for r in not_tried)
+                             + f" (if a file is not in {UNIT_NAMES[request.units]}, give its unit with --units)")
+    return CheckedRequest(config, mapping, device, loaded, sources, sizes, not_tried)
+
+
 def run_grasp_tool(request: GraspRequest) -> GraspOutcome:
-    """Prepare, synthesize, test and write everything for ``request`` (see the module docstring)."""
-    from dexlite_pipeline.device import resolve_device
+    """Check, prepare, synthesize, test and write everything for ``request`` (see the module docstring)."""
     from dexlite_pipeline.io.atomic import write_text_atomic
     from dexlite_pipeline.io.dexgraspnet import export_dexgraspnet
     from dexlite_pipeline.io.grasp_store import write_grasp_store
     from dexlite_pipeline.objects.assets import load_asset
-    from dexlite_pipeline.objects.config import ObjectsConfig
     from dexlite_pipeline.objects.prepare import prepare_objects
-    from dexlite_pipeline.optim.config import SeedConfig
-    from dexlite_pipeline.sim.config import lift_config_from
     from dexlite_pipeline.sim.results import lift_grasp_set
-    from dexlite_pipeline.tabletop import grasp_tool_tables
+    from dexlite_pipeline.tabletop import tool_support_planes
 
-    if request.grasps_per_object < 1:
-        raise GraspToolError(f"--n must be at least 1, got {request.grasps_per_object}")
+    checked = check_request(request)
+    config = checked.config
     started = time.perf_counter()
-    config = merge_config(default_config(), request.config)
-    config["objects"] = {**config.get("objects", {}), "builtin_count": 0, "mesh_dirs": [], "heldout_mesh_dirs": []}  # only the given meshes
-    validate_config(config, "configuration", partial=True)
-    seed = int(config.get("seed", 0))
-    device = resolve_device(request.device or config.get("device") or "auto")
     out_dir = Path(request.out_dir)
+    if request.overwrite and out_dir.is_dir() and any(out_dir.iterdir()):
+        log.info("--overwrite: clearing the earlier run's output in %s", out_dir)
+        shutil.rmtree(out_dir)
     objects_dir = out_dir / "objects"
-    sources = mesh_sources(request.meshes)
+    skipped = {r["file"] for r in checked.not_tried}
+    sources = [s for s in checked.sources if s.file not in skipped]
+    for r in checked.not_tried:
+        log.warning("not tried: %s: %s", r["file"], r["reason"])
     times: dict[str, float] = {}
 
     _step(1, "preparing %d mesh(es) into %s", len(sources), objects_dir)
     t = time.perf_counter()
-    objects_config = from_section(ObjectsConfig, config["objects"], "config.objects")
-    catalog = prepare_objects(sources, objects_dir, objects_config, seed, max(1, request.threads))
+    catalog = prepare_objects(sources, objects_dir, config.objects, config.seed, request.threads)
     times["prepare"] = time.perf_counter() - t
-    rejected = [{"file": r.file, "reason": r.reason} for r in catalog[catalog["status"] != "ok"].itertuples()]
-    for r in rejected:
-        log.warning("mesh not usable: %s: %s", r["file"], r["reason"])
+    failed = [{"file": r.file, "reason": r.reason, "kind": "prepare"} for r in catalog[catalog["status"] != "ok"].itertuples()]
     ok_ids = sorted(catalog.loc[catalog["status"] == "ok", "object_id"])
+    rejected = checked.not_tried + failed
     if not ok_ids:
-        raise GraspToolError(f"none of the {len(sources)} mesh(es) could be prepared: " + "; ".join(f"{r['file']}: {r['reason']}" for r in rejected))
+        raise GraspToolError(f"none of the {len(checked.sources)} mesh(es) could be used: " + "; ".join(f"{r['file']}: {r['reason']}" for r in rejected))
+    for r in failed:
+        log.warning("mesh not usable: %s: %s", r["file"], r["reason"])
+    log.info("prepared %d of %d mesh(es)", len(ok_ids), len(checked.sources))
     assets = [load_asset(objects_dir, oid) for oid in ok_ids]
-    planes, support = grasp_tool_tables(config, assets, request.upright_axis, seed)  # tabletop: each object's table (None: floating)
+    # tabletop: each object's table (None: floating)
+    planes, support = tool_support_planes(assets, config.scene.table, request.upright_axis, config.stability, config.seed)
 
     method = f"CVAE samples + post-optimization ({request.model})" if request.model else "energy optimization from scratch"
-    configured = (
-        from_section(SeedConfig, config.get("seed_grasps"), "config.seed_grasps").scales
-        if not request.model
-        else tuple((config.get("sample") or {}).get("scales") or SeedConfig().scales)
-    )
-    scales = object_scales(assets, request.real_size, configured)
-    _step(2, "synthesizing %d grasps for each of %d object(s): %s, device %s", request.grasps_per_object, len(assets), method, device)
+    configured = config.sample.scales if request.model else config.seed_grasps.scales
+    scales = object_scales(assets, request, configured)
+    _step(2, "synthesizing %d grasps for each of %d object(s): %s, device %s", request.grasps_per_object, len(assets), method, checked.device)
     t = time.perf_counter()
     if request.model:
-        grasps = synthesize_with_model(assets, scales, request.grasps_per_object, config, request.model, device, seed, planes)
+        grasps = synthesize_with_model(assets, scales, request.grasps_per_object, config, checked.loaded_model, request.model, checked.device,
+                                       config.seed, planes)
     else:
-        grasps = synthesize_from_scratch(assets, scales, request.grasps_per_object, config, device, seed, planes)
+        grasps = synthesize_from_scratch(assets, scales, request.grasps_per_object, config, checked.device, config.seed, planes)
     times["synthesize"] = time.perf_counter() - t
 
     _step(3, "lift test and six-direction test of %d grasps on %d thread(s)", len(grasps), request.threads)
     t = time.perf_counter()
-    lift_config = lift_config_from(config, six_directions=True)
-    tested, _ = lift_grasp_set(grasps, [str(objects_dir)], lift_config, max(1, request.threads), support_planes=planes)
+    lift_config = dataclasses.replace(config.lift, six_directions=True)
+    tested, _ = lift_grasp_set(grasps, [str(objects_dir)], lift_config, request.threads, support_planes=planes)
     times["lift and six-direction tests"] = time.perf_counter() - t
 
-    _step(4, "writing grasp stores and the DexGraspNet export")
+    _step(4, "distinct grasps, grasp stores and the DexGraspNet export")
     t = time.perf_counter()
-    held_mask = np.asarray(tested.arrays["lift_success"], bool)
-    held = tested.select(held_mask)
-    attrs = {"stage": "grasp", "method": method, "config": config, "real_size": request.real_size, "meshes": [s.file for s in sources], "support": support}
+    labels = distinct_labels(tested, config)
+    tested.arrays["distinct_label"] = labels
+    held_mask = labels >= 0
+    kept_rows = representatives(tested, labels) if request.distinct else np.flatnonzero(held_mask)
+    kept = tested.select(np.sort(kept_rows))
+    attrs = {
+        "stage": "grasp", "method": method, "config": checked.mapping, "units": request.units,
+        "size": "resized to the training scales" if request.resize_to_training else "real size",
+        "meshes": [s.file for s in checked.sources], "support": support,
+    }  # fmt: skip
     write_grasp_store(out_dir / "all_grasps.zarr", tested, attrs)
-    write_grasp_store(out_dir / "grasps.zarr", held, {**attrs, "selection": "lift_success"})
-    if len(held):
-        export_dexgraspnet(held, out_dir / "dexgraspnet", [str(objects_dir)])
-    times["write"] = time.perf_counter() - t
+    selection = "lift_success, one per distinct_label (the best)" if request.distinct else "lift_success"
+    write_grasp_store(out_dir / "grasps.zarr", kept, {**attrs, "selection": selection})
+    if len(kept):
+        export_dexgraspnet(kept, out_dir / "dexgraspnet", [str(objects_dir)])
+    times["distinct grasps and writing"] = time.perf_counter() - t
 
     _step(5, "rendering examples and writing the summary")
     t = time.perf_counter()
-    renders = render_examples(tested, objects_dir, out_dir / "renders", request.renders_per_object) if request.renders_per_object > 0 else []
+    renders = render_examples(tested, labels, objects_dir, out_dir / "renders", request.renders_per_object) if request.renders_per_object > 0 else []
     times["render"] = time.perf_counter() - t
-    rows = per_object_rows(tested, sources, catalog)
+    rows = per_object_rows(tested, labels, checked.sources, checked.sizes, ok_ids)
     summary_path = out_dir / "summary.md"
-    write_text_atomic(summary_path, summary_markdown(request, rows, rejected, method, times, renders, lift_config))
+    write_text_atomic(summary_path, summary_markdown(request, rows, rejected, method, times, renders, lift_config, config.diversity, len(kept)))
     seconds = time.perf_counter() - started
     for r in rows:
-        log.info("%s: lift test held %s, six-direction %s, both %s", r["object_id"], _share(r["lift"], r["grasps"]),
-                 _share(r["six_dir"], r["grasps"]), _share(r["both"], r["grasps"]))
-    return GraspOutcome(objects=rows, rejected=rejected, held=int(held_mask.sum()), total=len(tested), seconds=seconds, summary_path=summary_path)
-
+        reasons = ", ".join(f"{k} {v}" for k, v in r["failures"].items()) or "none"
+        log.info("%s: held %s, %d distinct; failures: %s", r["object_id"], _share(r["lift"], r["grasps"]), r["distinct"], reasons)
+    return GraspOutcome(objects=rows, rejected=rejected, held=int(held_mask.sum()), distinct=sum(r["distinct"] for r in rows),
+                        total=len(tested), seconds=seconds, summary_path=summary_path, next_steps=next_steps(request, rows, rejected))  # fmt: skip

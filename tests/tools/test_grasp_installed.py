@@ -1,0 +1,98 @@
+"""``dexlite grasp`` from a built wheel in a fresh virtual environment: the shipped model and the default
+config come with the package, not from a checkout.
+
+The wheel is built offline from a copy of the source (``pip wheel --no-deps --no-build-isolation``),
+installed without dependencies into a new virtual environment that sees this environment's packages
+(torch, mujoco, ...: ``--system-site-packages``, and this interpreter's site-packages when it is itself a
+virtual environment), and run from a folder outside the checkout with no PYTHONPATH.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+import sysconfig
+import venv
+import zipfile
+from pathlib import Path
+
+import pytest
+import trimesh
+
+from dexlite_pipeline.config import default_config
+from dexlite_pipeline.io.grasp_store import read_grasp_store
+
+ROOT = Path(__file__).resolve().parents[2]
+# A small budget: this checks the installation, not the grasps.
+TINY = {
+    "objects": {"sdf_resolution": 32, "surface_points": 512, "coacd_mcts_iterations": 10, "coacd_mcts_nodes": 5,
+                "coacd_mcts_max_depth": 1, "coacd_resolution": 300},
+    "post_optimize": {"annealing": {"iterations": 5}, "energy_object_points": 300, "start_contact_samples": 8, "final_contact_samples": 8},
+}  # fmt: skip
+
+
+def _clean_environment() -> dict:
+    environment = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTHONHOME", "VIRTUAL_ENV")}
+    return {**environment, "PIP_NO_INDEX": "1", "PIP_DISABLE_PIP_VERSION_CHECK": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+
+
+def _build_wheel(folder: Path) -> Path:
+    """The package's wheel, built offline from a copy of the source (so the checkout gets no build files)."""
+    source = folder / "source"
+    source.mkdir()
+    for name in ("pyproject.toml", "README.md"):
+        shutil.copy2(ROOT / name, source / name)
+    shutil.copytree(ROOT / "src", source / "src", ignore=shutil.ignore_patterns("__pycache__", "*.egg-info"))
+    wheels = folder / "wheels"
+    subprocess.run(
+        [sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation", "--no-index", "-q", "-w", str(wheels), str(source)],
+        check=True, env=_clean_environment(), capture_output=True,
+    )  # fmt: skip
+    (wheel,) = wheels.glob("dexlite_pipeline-*.whl")
+    return wheel
+
+
+def _fresh_environment(folder: Path) -> Path:
+    """A new virtual environment that sees this environment's packages but not its dexlite_pipeline; returns its python."""
+    target = folder / "venv"
+    venv.EnvBuilder(system_site_packages=True, with_pip=False).create(target)
+    python = target / "bin" / "python"
+    site_packages = Path(subprocess.run([python, "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"],
+                                        check=True, capture_output=True, text=True, env=_clean_environment()).stdout.strip())  # fmt: skip
+    if sys.prefix != sys.base_prefix:  # this interpreter is a virtual environment: its packages by path (not its .pth files,
+        # which hold an editable install of the checkout)
+        (site_packages / "outer_environment.pth").write_text(sysconfig.get_paths()["purelib"] + "\n")
+    return python
+
+
+@pytest.mark.slow
+def test_a_wheel_in_a_fresh_environment_grasps_with_the_shipped_model(tmp_path):
+    wheel = _build_wheel(tmp_path)
+    names = set(zipfile.ZipFile(wheel).namelist())
+    for packaged in ("dexlite_pipeline/data/config.yaml", "dexlite_pipeline/data/shadow-hand-large/cvae.pt",
+                     "dexlite_pipeline/data/shadow-hand-large/card.json", "dexlite_pipeline/schemas/config.schema.yaml"):  # fmt: skip
+        assert packaged in names
+    python = _fresh_environment(tmp_path)
+    subprocess.run([sys.executable, "-m", "pip", "--python", str(python), "install", "--no-deps", "--no-index", "-q", str(wheel)],
+                   check=True, env=_clean_environment(), capture_output=True)  # fmt: skip
+    installed = subprocess.run([python, "-c", "import dexlite_pipeline; print(dexlite_pipeline.__file__)"], check=True,
+                               capture_output=True, text=True, env=_clean_environment(), cwd=tmp_path).stdout.strip()  # fmt: skip
+    package = Path(installed).parent
+    assert package.is_relative_to(tmp_path / "venv"), f"dexlite_pipeline imported from {installed}, not the fresh environment"
+
+    trimesh.creation.box((0.08, 0.06, 0.10)).export(tmp_path / "box.obj")
+    out = tmp_path / "out"
+    run = subprocess.run(
+        [python.parent / "dexlite", "grasp", "box.obj", "--out", str(out), "--n", "2", "--renders", "0", "--threads", "1",
+         "--config-json", json.dumps(TINY)],
+        capture_output=True, text=True, env=_clean_environment(), cwd=tmp_path,
+    )  # fmt: skip
+    assert run.returncode in (0, 1), run.stderr[-2000:]
+    every = read_grasp_store(out / "all_grasps.zarr")
+    assert set(every.arrays["method"]) == {"cvae_post"} and len(every) == 2
+    shipped = package / "data" / "shadow-hand-large" / "cvae.pt"
+    assert f"model: {shipped}" in (out / "summary.md").read_text()
+    assert every.attrs["config"]["lift"] == json.loads(json.dumps(default_config()["lift"]))  # the packaged default config
