@@ -126,3 +126,21 @@ def test_view_refuses_no_grasp_or_a_missing_mesh():
         grasp_view_html({}, [])
     with pytest.raises(GraspViewError, match="no mesh for object"):
         grasp_view_html({}, [ViewGrasp("mug", np.zeros(28), "")])
+
+
+def test_report_embeds_the_view_of_its_pictured_grasps(tiny_objects):
+    from dexlite_pipeline.report.html import ReportInputs, build_report_html
+
+    grasps = _store(6)
+    grasps.arrays["method"] = np.array(["cvae_raw"] * 3 + ["cvae_post"] * 3, dtype=object)
+    grasps.arrays["lift_success"] = np.array([True, False, True, True, True, False])
+    import pandas as pd
+
+    page = build_report_html(ReportInputs(metrics=pd.DataFrame(), per_object=None, convergence=None, history=None, simulated=grasps,
+                                          objects_dirs=[str(tiny_objects)], rendered_per_method=1))  # fmt: skip
+    section = page[page.index("<h2>The same grasps in 3-D</h2>") :]
+    assert section.index("class=\"plotly-graph-div\"") < section.index("<h2>", 5)
+    assert page.index("<h2>Grasps, drawn at random") < page.index("<h2>The same grasps in 3-D</h2>")
+    # one success and one failure per method, as in the pictures: four hands, each titled with its method
+    steps = re.findall(r'"title.text":"4 grasps\\u003cbr\\u003e(\w+) ', section)
+    assert section.count('"label":"') == 4 and sorted(steps) == ["cvae_post"] * 2 + ["cvae_raw"] * 2

@@ -161,8 +161,10 @@ def write_grasp_view(path: str | Path, objects, grasps: Sequence[ViewGrasp], tit
 
 
 def grasp_label(arrays: Mapping[str, np.ndarray], row: int) -> str:
-    """A grasp's results in one or two lines: object, held or not, six-direction pushes, energies."""
+    """A grasp's results in one or two lines: method (if any), object, held or not, six-direction pushes, energies."""
     parts = [f"{arrays['object_id'][row]} (scale {float(arrays['scale'][row]):.3f} m)"]
+    if "method" in arrays:
+        parts.insert(0, str(arrays["method"][row]))
     if "lift_success" in arrays:
         held = bool(arrays["lift_success"][row])
         text = "held" if held else "not held"
@@ -197,20 +199,21 @@ def spread_rows(object_ids: np.ndarray, max_grasps: int) -> np.ndarray:
     return np.asarray(sorted(chosen), dtype=np.int64)
 
 
-def grasp_set_view(grasps, objects_dirs, max_grasps: int = DEFAULT_MAX_GRASPS) -> tuple[dict, list[ViewGrasp]]:
+def grasp_set_view(grasps, objects_dirs, max_grasps: int = DEFAULT_MAX_GRASPS, rows=None) -> tuple[dict, list[ViewGrasp]]:
     """The meshes and ``ViewGrasp``s of a ``GraspSet`` (object meshes from the prepared assets in ``objects_dirs``).
 
-    Grasps with a non-finite pose are skipped (they cannot be drawn); at most ``max_grasps``
-    are kept, spread evenly over the objects.
+    ``rows`` chooses the grasps (default: all); those with a non-finite pose are skipped (they
+    cannot be drawn); at most ``max_grasps`` are kept, spread evenly over the objects.
     """
     if isinstance(objects_dirs, (str, Path)):
         objects_dirs = [str(objects_dirs)]
     arrays = grasps.arrays
-    finite = np.flatnonzero(np.isfinite(np.asarray(grasps.hand_pose, np.float64)).all(axis=1))
-    rows = finite[spread_rows(np.asarray(grasps.object_id)[finite], max_grasps)]
+    candidates = np.arange(len(grasps)) if rows is None else np.asarray(rows, dtype=np.int64)
+    candidates = candidates[np.isfinite(np.asarray(grasps.hand_pose, np.float64)[candidates]).all(axis=1)]
+    chosen = candidates[spread_rows(np.asarray(grasps.object_id)[candidates], max_grasps)]
     objects: dict[str, tuple[np.ndarray, np.ndarray]] = {}
     view: list[ViewGrasp] = []
-    for row in rows:
+    for row in chosen:
         key = f"{grasps.object_id[row]} @ {float(grasps.scale[row]):.4f}"
         if key not in objects:
             objects[key] = object_mesh_world([str(d) for d in objects_dirs], str(grasps.object_id[row]), float(grasps.scale[row]))
@@ -218,10 +221,22 @@ def grasp_set_view(grasps, objects_dirs, max_grasps: int = DEFAULT_MAX_GRASPS) -
     return objects, view
 
 
+def _shown(view: list[ViewGrasp], total: int) -> str:
+    return f"{len(view)} of {total} grasps" if len(view) < total else f"{len(view)} grasp{'s' if len(view) > 1 else ''}"
+
+
 def write_grasp_set_view(path: str | Path, grasps, objects_dirs, max_grasps: int = DEFAULT_MAX_GRASPS, title: str = "") -> Path | None:
     """Write ``view.html`` for a ``GraspSet`` (e.g. the held grasps of ``dexlite grasp``); None when it has no drawable grasp."""
     objects, view = grasp_set_view(grasps, objects_dirs, max_grasps)
     if not view:
         return None
-    shown = f"{len(view)} of {len(grasps)} grasps" if len(view) < len(grasps) else f"{len(view)} grasp{'s' if len(view) > 1 else ''}"
+    shown = _shown(view, len(grasps))
     return write_grasp_view(path, objects, view, f"{title}: {shown}" if title else shown)
+
+
+def grasp_view_div(grasps, rows, objects_dirs, max_grasps: int = 2 * DEFAULT_MAX_GRASPS, height_px: int = 560) -> str | None:
+    """The view of the chosen ``rows`` as an HTML ``<div>`` with plotly.js inlined, to embed in a page; None when none is drawable."""
+    objects, view = grasp_set_view(grasps, objects_dirs, max_grasps, rows=rows)
+    if not view:
+        return None
+    return grasp_view_html(objects, view, _shown(view, len(rows)), full_html=False, height_px=height_px)

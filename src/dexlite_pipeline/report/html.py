@@ -441,6 +441,30 @@ def grasp_picture_png(hand, simulated: GraspSet, row: int, objects_dirs, size_px
     return buffer.getvalue()
 
 
+def gallery_methods(inputs: ReportInputs) -> list[str]:
+    """The simulated methods in the order of the tables (headline rows, then the ladder's rungs, then the rest)."""
+    present = set(str(m) for m in inputs.simulated.arrays["method"])
+    table_order = list(dict.fromkeys(headline_rows(inputs.metrics)["method"])) if inputs.metrics is not None and len(inputs.metrics) else []
+    table_order += [m for m in LADDER_METHOD_ORDER if m not in table_order]  # then the ladder's rows, rung by rung
+    return [m for m in table_order if m in present] + sorted(present - set(table_order))
+
+
+def interactive_view_html(inputs: ReportInputs) -> str:
+    """The gallery's grasps in the interactive 3-D view (report.grasp_view), embedded with plotly.js (~4.7 MB)."""
+    from dexlite_pipeline.report.grasp_view import grasp_view_div
+
+    simulated = inputs.simulated
+    if simulated is None or len(simulated) == 0 or inputs.rendered_per_method == 0:
+        return "<p>No simulated grasps to show.</p>"
+    rows = [row for method in gallery_methods(inputs) for row, _ in pick_examples(simulated, method, inputs.rendered_per_method, inputs.seed)]
+    try:
+        div = grasp_view_div(simulated, rows, inputs.objects_dirs)
+    except (ValueError, OSError) as exc:
+        log.warning("report: no interactive view: %s", exc)
+        return f"<p>Not available: {html.escape(str(exc))}</p>"
+    return div or "<p>No grasp to show.</p>"
+
+
 def grasp_gallery(inputs: ReportInputs) -> str:
     """HTML of randomly drawn lift successes and failures for each method, outcome in large type."""
     simulated = inputs.simulated
@@ -449,12 +473,8 @@ def grasp_gallery(inputs: ReportInputs) -> str:
     from dexlite_pipeline.hand import ShadowHand
 
     hand = ShadowHand()
-    present = set(str(m) for m in simulated.arrays["method"])
-    table_order = list(dict.fromkeys(headline_rows(inputs.metrics)["method"])) if inputs.metrics is not None and len(inputs.metrics) else []
-    table_order += [m for m in LADDER_METHOD_ORDER if m not in table_order]  # then the ladder's rows, rung by rung
-    methods = [m for m in table_order if m in present] + sorted(present - set(table_order))
     parts = []
-    for method in methods:
+    for method in gallery_methods(inputs):
         cells = []
         for row, _ in pick_examples(simulated, method, inputs.rendered_per_method, inputs.seed):
             headline, detail, css = outcome_of(simulated.arrays, row)
@@ -879,6 +899,10 @@ def build_report_html(inputs: ReportInputs) -> str:
         "<h2>Grasps, drawn at random</h2><p class='note'>For each method, grasps drawn at random (seeded) among those that passed "
         "the lift test and those that failed it; two viewpoints each; red dots: the four contact points nearest the surface.</p>"
         + grasp_gallery(inputs)
+    )
+    sections.append(
+        "<h2>The same grasps in 3-D</h2><p class='note'>Drag to turn, scroll to zoom; the slider shows one grasp at a time, "
+        "titled with its method and results.</p>" + interactive_view_html(inputs)
     )
     if inputs.per_object is not None and len(inputs.per_object):
         per_object = inputs.per_object.to_html(index=False, float_format=lambda v: f"{v:.3g}", na_rep="—")
