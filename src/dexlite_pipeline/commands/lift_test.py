@@ -1,10 +1,11 @@
-"""``dexlite lift-test GRASPS.zarr --objects DIR --out OUT.zarr``: MuJoCo lift test of every grasp in a store.
+"""``dexlite lift-test GRASPS.zarr --out OUT.zarr [--objects DIR]``: MuJoCo lift test of every grasp in a store.
 
 Writes the input grasps with ``lift_ratio``, ``lift_success``, ``failure_reason`` and
 ``initial_penetration_mm`` (plus the six-direction arrays with ``--six-directions``) and
 prints a summary. Grasps with a non-finite pose or scale, or whose object is not among the
 assets, are kept and flagged (``failure_reason = 'invalid_grasp: ...'``); the others are
-simulated. Exit status 2 when no --objects folder holds prepared objects, 1 when the
+simulated. ``--objects`` defaults to the ``objects/`` folder beside the store (a ``dexlite grasp``
+output folder). Exit status 2 when no --objects folder holds prepared objects, 1 when the
 store has grasps but none of them could be simulated. Physical constants: ``LiftConfig`` defaults, the ``lift`` section of
 ``--config-json``, then the explicit options, in that order; all are recorded in the output.
 """
@@ -15,9 +16,11 @@ import argparse
 import os
 import sys
 
+from dexlite_pipeline.commands import add_objects_argument, objects_dirs
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("grasps", help="grasp store (.zarr)")
-    parser.add_argument("--objects", action="append", required=True, help="prepared objects dir (repeatable)")
+    add_objects_argument(parser)
     parser.add_argument("--out", required=True, help="output grasp store (.zarr) with the lift results")
     parser.add_argument("--config-json", default="{}", help="config sections as JSON; its 'lift' section sets the constants")
     parser.add_argument("--six-directions", action="store_true", default=None, help="also run the six-direction disturbance test")
@@ -37,7 +40,7 @@ def run(args: argparse.Namespace) -> int:
         object_mass_kg=args.object_mass_kg,
         six_directions=args.six_directions,
     )
-    result, summary = lift_test_store(args.grasps, args.objects, config, args.threads or os.cpu_count() or 1)
+    result, summary = lift_test_store(args.grasps, objects_dirs(args), config, args.threads or os.cpu_count() or 1)
     write_grasp_store(args.out, result, {"stage": "lift_test", "source": str(args.grasps)})
     print(format_summary(summary, config), file=sys.stdout)
     return 1 if nothing_simulated(args.grasps, summary) else 0
