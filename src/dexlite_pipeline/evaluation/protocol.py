@@ -81,7 +81,7 @@ CONVERGENCE_COLUMNS = (
 
 @dataclass(frozen=True)
 class SeedProtocolConfig:
-    """Config ``evaluate.seed_protocol``: DexLite's own lift test, a second, lenient measure beside ours.
+    """Config ``evaluate.seed_protocol``: the own lift test of the DexLite write-up (Murali), a second, lenient measure beside ours.
 
     Its physics differs from ours in these constants (lift test only); everything else is ours.
     """
@@ -111,7 +111,7 @@ class EvaluateConfig:
     energy_batch_size: int = 256  # grasps per energy evaluation batch
     rendered_per_method: int = 2  # successes and failures pictured per method in the report
     ladder_grasps_per_object: int = 8  # cap per (ladder method, training object) on simulated grasps
-    seed_protocol: SeedProtocolConfig = field(default_factory=SeedProtocolConfig)  # DexLite's lenient test beside ours
+    seed_protocol: SeedProtocolConfig = field(default_factory=SeedProtocolConfig)  # the write-up's lenient test beside ours
 
     def __post_init__(self) -> None:
         unknown = sorted(set(self.methods) - set(METHODS))
@@ -346,7 +346,7 @@ def simulate(
     lift_s = time.perf_counter() - start
     if seed_protocol is not None and seed_protocol.enabled:
         lenient = dataclasses.replace(lift_cfg, **seed_protocol.lift_overrides())
-        log.info("lift test of %d grasps under DexLite's protocol (friction %g, +%g rad, ratio %g)", len(selected),
+        log.info("lift test of %d grasps under the write-up's protocol (friction %g, +%g rad, ratio %g)", len(selected),
                  lenient.friction, lenient.preclose_rad, lenient.success_lift_ratio)
         arrays[SEED_PROTOCOL_SUCCESS] = run_lift_tests(selected, objects_dirs, lenient, threads)["lift_success"]
     attrs = dict(selected.attrs)

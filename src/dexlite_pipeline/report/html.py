@@ -36,9 +36,9 @@ log = logging.getLogger(__name__)
 # Published numbers a reader compares against: (source, result, how it was measured).
 # None of them used this project's test; the last column says what differs.
 REFERENCE_ROWS = (
-    ("DexLite (a lightweight reproduction of Dex1B), raw CVAE samples", "lift success ≈ 55%",
+    ("The DexLite write-up (Murali; a lightweight reproduction of Dex1B), raw CVAE samples", "lift success ≈ 55%",
      "its own MuJoCo test (friction 2, lift ratio > 0.7), on its training objects; laptop RTX 4050"),
-    ("DexLite, CVAE + 200 post-optimization steps", "lift success ≈ 79%; ≈ 2 s per grasp; ≈ 3× faster convergence than random starts",
+    ("The DexLite write-up (Murali), CVAE + 200 post-optimization steps", "lift success ≈ 79%; ≈ 2 s per grasp; ≈ 3× faster convergence than random starts",
      "same test and objects"),
     ("Dex1B: Learning with 1B Demonstrations for Dexterous Manipulation", "86.0% with post-optimization and filtering",
      "DexGraspNet benchmark in Isaac Gym, a more lenient test"),
@@ -62,7 +62,7 @@ LADDER_COLUMN_LABELS = {
     "fit_translation_error_mm_median": "palm position error (mm, median)",
     "fit_joint_error_rad_mean": "joint error (rad, mean)",
 }
-LENIENT = "seed_protocol_lift_success"  # the same grasps under DexLite's more lenient lift test (evaluate.seed_protocol)
+LENIENT = "seed_protocol_lift_success"  # the same grasps under the DexLite write-up's (Murali) more lenient lift test (evaluate.seed_protocol)
 # The methods of the main comparison, in the order the compact table lists them.
 HEADLINE_METHODS = ("cvae_post", "random_post", "cvae_raw", "shipped_post", "shipped_raw", "seed", "dexgraspnet")
 HEADLINE_METHOD = "cvae_post"  # the pipeline's product: the sentence leads with it when present
@@ -554,12 +554,12 @@ def _grasps_cell(row) -> str:
 
 
 def has_lenient(frame) -> bool:
-    """Whether the rows carry the lift rate under DexLite's lenient test (evaluate.seed_protocol)."""
+    """Whether the rows carry the lift rate under the write-up's lenient test (evaluate.seed_protocol)."""
     column = f"{LENIENT}_rate"
     return frame is not None and column in frame.columns and np.isfinite(frame[column].astype(float)).any()
 
 
-LENIENT_HEADER = "<th class='lenient'>lift, DexLite's test</th>"
+LENIENT_HEADER = "<th class='lenient'>lift, the write-up's test</th>"
 
 
 def compact_table_html(frame) -> str:
@@ -811,7 +811,7 @@ def convergence_note(metrics_df, curves) -> str:
     speedup = f"{budget / reached:.1f}×" if reached > 0 else "already at the start (iteration 0)"
     return (
         f"<p class='note'>CVAE starts reach the median E_post that random starts end with after {int(budget)} iterations "
-        f"at iteration {int(reached)}: speed-up {speedup} (DexLite reports ≈ 3×).</p>"
+        f"at iteration {int(reached)}: speed-up {speedup} (the write-up reports ≈ 3×).</p>"
     )
 
 
@@ -870,7 +870,7 @@ def build_report_html(inputs: ReportInputs) -> str:
         "<p class='note'>Both tests count with equal weight: “lift test” = the object rose with the hand; "
         "“six pushes” = it stayed put under a push of about its own weight along each of ±x, ±y, ±z in turn. "
         "Small numbers: object-level bootstrap 95% interval (objects resampled)"
-        + ("; “lift, DexLite's test”: the same grasps under DexLite's more lenient lift test (Wilson interval), for comparison "
+        + ("; “lift, the write-up's test”: the same grasps under the more lenient lift test of the DexLite write-up (Murali) (Wilson interval), for comparison "
            "with its published numbers" if has_lenient(headline) else "")
         + ". Definitions and every column: end of the page.</p>"
     )
