@@ -74,6 +74,7 @@ def _store(n: int) -> GraspSet:
     })
 
 
+@pytest.mark.slow
 def test_view_opens_offline_in_headless_chromium_with_hand_and_object(tmp_path, tiny_objects):
     view = write_grasp_set_view(tmp_path / "view.html", _store(3), [tiny_objects], title="box")
     html = view.read_text()
