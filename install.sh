@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Set up DexLite in ./.venv. Usage: bash install.sh [--test]
 #   --test   also install the test tools, and (as root, with apt) the Debian packages slurm-wlm
-#            and munge that the SLURM integration test runs; without them that test skips.
+#            and munge that the SLURM integration test runs, and chromium, in which the 3-D view
+#            test opens view.html; without them those tests skip.
 # Torch: the CPU build torch==2.13.0+cpu is installed first, so that the dependency resolver
 # never pulls PyPI's torch, a CUDA build of several GB with nvidia-* packages. It is taken
 # from wherever pip already looks (a local wheel folder or mirror holding it), otherwise
@@ -39,8 +40,11 @@ if [[ $WITH_TEST == 1 ]]; then
                DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends slurm-wlm munge >/dev/null; }; then
             echo "install.sh: could not apt-get install slurm-wlm munge; the SLURM test will skip" >&2
         fi
+        if ! DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends chromium >/dev/null; then
+            echo "install.sh: could not apt-get install chromium; the 3-D view test will fail" >&2
+        fi
     else
-        echo "install.sh: not root or no apt-get: slurm-wlm/munge not installed; the SLURM test will skip" >&2
+        echo "install.sh: not root or no apt-get: slurm-wlm/munge/chromium not installed; the SLURM and 3-D view tests will skip" >&2
     fi
     "${PIP_INSTALL[@]}" -e ".[test]"
 else

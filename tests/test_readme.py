@@ -8,8 +8,9 @@ Checked in the README's code (fenced blocks and `inline code`):
 - every repository path it names exists, and every `section.key` of the config is a key of
   config.yaml;
 - the test command is the one `.ci/run` runs.
-And in README.md and docs/*.md: every relative link and image exists, and nothing points
-outside the repository.
+The README opens with the one-mesh command, and carries no run log (dates, commits: those are in
+docs/results.md). In README.md and docs/*.md: every relative link and image exists, nothing points
+outside the repository, and the write-up this project follows is never called plain "DexLite".
 """
 
 import argparse
@@ -39,6 +40,11 @@ def code_blocks(text: str) -> list[str]:
     fenced = re.findall(r"^```[^\n]*\n(.*?)^```", text, flags=re.M | re.S)
     rest = re.sub(r"^```[^\n]*\n.*?^```", "", text, flags=re.M | re.S)
     return fenced + re.findall(r"`([^`\n]+)`", rest)
+
+
+def code_blocks_fenced(text: str) -> list[str]:
+    """The fenced code blocks, in order."""
+    return re.findall(r"^```[^\n]*\n(.*?)^```", text, flags=re.M | re.S)
 
 
 def command_lines(block: str) -> list[str]:
@@ -189,3 +195,23 @@ def test_readme_images_are_pictures():
     assert "docs/heldout_seed_grasp.png" in images and "docs/report_first_screen.png" in images  # a grasp and the report
     for image in images:
         assert (ROOT / image).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n", image
+
+
+def test_first_command_block_grasps_a_mesh():
+    first = code_blocks_fenced(README.read_text())[0]
+    tokens = words(command_lines(first)[0])
+    assert tokens[:2] == ["dexlite", "grasp"] and "--out" in tokens, f"README: the first command block is {first!r}"
+
+
+def test_readme_has_no_run_log():
+    text = README.read_text()
+    for pattern, what in ((r"\b20\d\d-\d\d-\d\d\b", "a date"), (r"\bat [0-9a-f]{7}\b", "a commit"), (r"training seeds? \d", "per-seed numbers")):
+        assert not re.search(pattern, text), f"README carries {what} ({re.search(pattern, text).group(0)!r}): it belongs in docs/results.md"
+
+
+@pytest.mark.parametrize("path", [README, *DOCS], ids=lambda p: p.name)
+def test_the_write_up_has_its_own_name(path):
+    """"DexLite" is this project; the write-up it follows is "the DexLite write-up (Murali)" / "the write-up"."""
+    text = path.read_text()
+    for pattern in (r"DexLite['’]s", r"DexLite report", r"DexLite,? a lightweight", r"of DexLite\b"):
+        assert not re.search(pattern, text), f"{path.name}: {re.search(pattern, text).group(0)!r} (call the write-up 'the DexLite write-up (Murali)' or 'the write-up')"

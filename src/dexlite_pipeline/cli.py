@@ -1,4 +1,4 @@
-"""The ``dexlite`` command: one subcommand per pipeline stage plus user tools.
+"""The dexlite command: user commands for your own meshes and grasp stores, and the pipeline's stages.
 
 Each pipeline stage's command lives in ``dexlite_pipeline.stages.<module>``, each user tool's in
 ``dexlite_pipeline.commands.<module>``; both expose
@@ -18,25 +18,41 @@ import sys
 
 from dexlite_pipeline import __version__
 
-# Pipeline stages (``stages``) and user tools (``commands``): command -> (module, help).
-COMMANDS: dict[str, tuple[str, str]] = {
+# Commands for users, in the order of the help: command -> (module, help).
+USER_COMMANDS: dict[str, tuple[str, str]] = {
+    "grasp": ("commands.grasp", "grasps that hold for your own meshes: prepare, synthesize, test, export, summarize"),
+    "lift-test": ("commands.lift_test", "MuJoCo lift test (and optional six-direction test) of every grasp in a store"),
+    "energy": ("commands.energy", "per-grasp energy terms and penetration depth of a grasp store"),
+    "render": ("commands.render", "render one grasp (hand and object) to a PNG"),
+    "import-dexgraspnet": ("stages.import_dexgraspnet", "import a DexGraspNet download as a grasp store plus object assets"),
+    "export-dexgraspnet": ("commands.export_dexgraspnet", "write a grasp store in the DexGraspNet layout"),
+}
+# The pipeline's stages, in the order they run (Snakemake calls them, one rule each).
+PIPELINE_STAGES: dict[str, tuple[str, str]] = {
     "prepare-objects": ("stages.prepare_objects", "normalize meshes, decompose, build SDF grids and point clouds"),
     "stability-filter": ("stages.stability_filter", "PyBullet table-stability test of prepared objects"),
     "seed-grasps": ("stages.seed_grasps", "synthesize seed grasps by energy optimization (one shard)"),
-    "import-dexgraspnet": ("stages.import_dexgraspnet", "import a DexGraspNet download as a grasp store plus object assets"),
     "curate": ("stages.curate", "filter seed/imported grasps by stability, energy thresholds and duplicates"),
-    "lift-validate": ("stages.lift_validate", "pipeline stage: lift-test one shard of curated grasps"),
+    "lift-validate": ("stages.lift_validate", "lift-test one shard of curated grasps"),
     "train-cvae": ("stages.train_cvae", "train the PointNet + CVAE grasp model"),
     "sample-grasps": ("stages.sample_grasps", "sample grasps from the trained CVAE"),
     "post-optimize": ("stages.post_optimize", "refine sampled grasps by annealed energy optimization"),
     "evaluate": ("stages.evaluate", "simulate and measure every method on held-out objects"),
     "report": ("stages.report", "build results/eval/report.html from the evaluation outputs"),
-    "grasp": ("commands.grasp", "grasps that hold for your own meshes: prepare, synthesize, test, export, summarize"),
-    "lift-test": ("commands.lift_test", "MuJoCo lift test (and optional six-direction test) of every grasp in a store"),
-    "energy": ("commands.energy", "per-grasp energy terms and penetration depth of a grasp store"),
-    "render": ("commands.render", "render one grasp (hand and object) to a PNG"),
-    "export-dexgraspnet": ("commands.export_dexgraspnet", "write a grasp store back in the DexGraspNet layout"),
 }
+COMMANDS: dict[str, tuple[str, str]] = {**USER_COMMANDS, **PIPELINE_STAGES}
+DESCRIPTION = "DexLite: grasps that hold for the Shadow Hand, on your own meshes, and the pipeline that learns to make them."
+HELP_WIDTH = 22  # column of the commands' descriptions in ``dexlite --help``
+
+
+def commands_help() -> str:
+    """The grouped command list of ``dexlite --help``, plain text."""
+    lines = ["commands for your meshes and grasp stores:"]
+    lines += [f"  {name:<{HELP_WIDTH - 2}}{text}" for name, (_, text) in USER_COMMANDS.items()]
+    lines += ["", "pipeline stages (Snakemake runs them, one rule each: snakemake --cores 2 all):"]
+    lines += [f"  {name:<{HELP_WIDTH - 2}}{text}" for name, (_, text) in PIPELINE_STAGES.items()]
+    lines += ["", "dexlite COMMAND --help shows a command's options. Start with: dexlite grasp MESH --out DIR"]
+    return "\n".join(lines)
 
 
 class CliError(Exception):
@@ -51,12 +67,12 @@ class OneLineParser(argparse.ArgumentParser):
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="dexlite", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(prog="dexlite", description=DESCRIPTION, epilog=commands_help(), formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--version", action="version", version=f"dexlite {__version__}")
     parser.add_argument("--log-level", default="INFO", choices=["DEBUG", "INFO", "WARNING", "ERROR"])
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
-    for name, (_, help_text) in COMMANDS.items():
-        sub.add_parser(name, help=help_text, add_help=False)
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True, help="one of the commands below")
+    for name in COMMANDS:  # listed, grouped, by the epilog
+        sub.add_parser(name, add_help=False)
     return parser
 
 

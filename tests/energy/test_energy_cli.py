@@ -46,3 +46,17 @@ def test_energy_cli_flags_invalid_rows_and_fills_missing_contacts(sphere_objects
 def test_energy_cli_missing_store_is_an_error(sphere_objects, tmp_path, capsys):
     code = main(["energy", str(tmp_path / "nope.zarr"), "--objects", str(sphere_objects), "--out", str(tmp_path / "o.zarr")])
     assert code == 2 and "nope.zarr" in capsys.readouterr().err
+
+
+def test_energy_cli_takes_its_weights_from_config_json(sphere_objects, tmp_path):
+    """--config-json, as for the other commands: inline JSON or a file such as config.yaml."""
+    pose = np.zeros((1, 28), np.float32)
+    pose[:, 2] = -0.05
+    write_grasp_store(tmp_path / "in.zarr", GraspSet({"hand_pose": pose, "object_id": np.array(["sphere"], dtype=object), "scale": np.full(1, 0.08, np.float32)}))
+    args = ["energy", str(tmp_path / "in.zarr"), "--objects", str(sphere_objects), "--out", str(tmp_path / "out.zarr"), "--threads", "1"]
+    assert main([*args, "--config-json", '{"energy": {"weights": {"pen": 50.0}}}']) == 0
+    assert read_grasp_store(tmp_path / "out.zarr").attrs["energy"]["config"]["weights"]["pen"] == 50.0
+    (tmp_path / "c.yaml").write_text("energy:\n  weights:\n    pen: 25.0\n")
+    assert main([*args, "--config-json", str(tmp_path / "c.yaml")]) == 0
+    assert read_grasp_store(tmp_path / "out.zarr").attrs["energy"]["config"]["weights"]["pen"] == 25.0
+    assert main([*args, "--config-json", '{"energy": {"wieghts": {}}}']) == 2  # a misspelled key is refused

@@ -180,7 +180,7 @@ def test_export_then_import_round_trip(layout, tmp_path):
     from dexlite_pipeline.io.grasp_store import write_grasp_store
 
     write_grasp_store(tmp_path / "first.zarr", first)
-    assert dexlite(["export-dexgraspnet", str(tmp_path / "first.zarr"), str(tmp_path / "out"), "--objects", str(tmp_path / "objects")]) == 0
+    assert dexlite(["export-dexgraspnet", str(tmp_path / "first.zarr"), "--out", str(tmp_path / "out"), "--objects", str(tmp_path / "objects")]) == 0
     exported = np.load(tmp_path / "out" / "dataset" / "box.npy", allow_pickle=True)  # our own file
     assert set(exported[0]) == {"qpos", "scale"}
     original = np.load(layout["root"] / "dataset" / "box.npy", allow_pickle=True)
@@ -223,12 +223,12 @@ def test_export_reports_missing_assets_and_refuses_unsafe_ids(tmp_path, capsys):
     poses = random_poses(2).astype(np.float32)
     ok = GraspSet({"hand_pose": poses, "object_id": np.array(["mug", "mug"], dtype=object), "scale": np.full(2, 0.1, np.float32)})
     write_grasp_store(tmp_path / "ok.zarr", ok)
-    assert dexlite(["export-dexgraspnet", str(tmp_path / "ok.zarr"), str(tmp_path / "out"), "--objects", str(tmp_path / "none")]) == 0
+    assert dexlite(["export-dexgraspnet", str(tmp_path / "ok.zarr"), "--out", str(tmp_path / "out"), "--objects", str(tmp_path / "none")]) == 0
     assert "no prepared asset (mesh not exported) for: mug" in capsys.readouterr().out
     assert (tmp_path / "out" / "dataset" / "mug.npy").is_file() and not (tmp_path / "out" / "meshdata").exists()
     unsafe = GraspSet({**ok.arrays, "object_id": np.array(["mug", "../mug"], dtype=object)})
     write_grasp_store(tmp_path / "unsafe.zarr", unsafe)
-    assert dexlite(["export-dexgraspnet", str(tmp_path / "unsafe.zarr"), str(tmp_path / "out2")]) == 2
+    assert dexlite(["export-dexgraspnet", str(tmp_path / "unsafe.zarr"), "--out", str(tmp_path / "out2")]) == 2
     assert "cannot be used as a DexGraspNet file name" in capsys.readouterr().err
     assert not (tmp_path / "out2").exists()
 
@@ -237,7 +237,7 @@ def test_exporting_an_empty_store_fails(tmp_path, capsys):
     from dexlite_pipeline.io.grasp_store import empty_grasp_set, write_grasp_store
 
     write_grasp_store(tmp_path / "empty.zarr", empty_grasp_set())
-    assert dexlite(["export-dexgraspnet", str(tmp_path / "empty.zarr"), str(tmp_path / "out")]) == 2
+    assert dexlite(["export-dexgraspnet", str(tmp_path / "empty.zarr"), "--out", str(tmp_path / "out")]) == 2
     assert f"{tmp_path / 'empty.zarr'}: the grasp store is empty, nothing to export" in capsys.readouterr().err
     assert not (tmp_path / "out").exists()
 

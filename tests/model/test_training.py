@@ -24,7 +24,7 @@ def setup(hand, tiny_assets, request):
     return grasps, data, grasp_energy_terms(energy)
 
 
-SEED_ENERGY_WEIGHTS = dict(energy_weights=EnergyWeights(fc=1.0, dis=100.0, pen=100.0, spen=10.0, joints=1.0))  # DexLite's
+SEED_ENERGY_WEIGHTS = dict(energy_weights=EnergyWeights(fc=1.0, dis=100.0, pen=100.0, spen=10.0, joints=1.0))  # the write-up's
 
 
 def _config(small_model_config, **overrides):

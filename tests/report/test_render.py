@@ -62,3 +62,15 @@ def test_render_cli_names_the_file_and_row_of_a_nan_pose(tmp_path, tiny_objects,
     error = capsys.readouterr().err.strip()
     assert error == f"dexlite render: error: {store}: row 1 ({OBJECT_ID}): hand_pose is not finite at position(s) 4"
     assert not out.exists()
+
+
+def test_render_finds_the_objects_beside_a_grasp_output_folders_store(tmp_path, tiny_objects):
+    """In a `dexlite grasp` output folder (DIR/grasps.zarr beside DIR/objects) --objects is not needed."""
+    import shutil
+
+    run = tmp_path / "run"
+    shutil.copytree(tiny_objects, run / "objects")
+    poses = grasp_poses(1, np.random.default_rng(0))
+    write_grasp_store(run / "grasps.zarr", GraspSet({"hand_pose": poses, "object_id": np.array([OBJECT_ID], dtype=object), "scale": np.full(1, 0.06, np.float32)}))
+    assert main(["render", str(run / "grasps.zarr"), "--out", str(tmp_path / "g.png"), "--size-px", "100"]) == 0
+    assert (tmp_path / "g.png").read_bytes()[:4] == b"\x89PNG"

@@ -193,7 +193,7 @@ def test_lost_object_early_exit_matches_full_simulation_and_held_grasp_runs_ever
 
 
 def test_preclose_adds_to_the_flexion_targets_only(hand, objects_dir, hooks):
-    """DexLite's lenient protocol closes every finger's J2/J1/J0 a further preclose_rad; other joints keep the squeeze."""
+    """The write-up's lenient protocol closes every finger's J2/J1/J0 a further preclose_rad; other joints keep the squeeze."""
     asset = load_asset(objects_dir, "round_bar")
     far = torch.tensor(hooks["round_bar"][None]).clone()
     far[0, :3] += 0.5  # nothing touches: the squeeze alone moves no joint

@@ -1,4 +1,4 @@
-"""``dexlite export-dexgraspnet GRASPS.zarr OUT_DIR``: write a grasp store in DexGraspNet's layout.
+"""``dexlite export-dexgraspnet GRASPS.zarr --out OUT_DIR``: write a grasp store in DexGraspNet's layout.
 
 ``OUT_DIR/dataset/<object_id>.npy`` holds, per object, DexGraspNet's list of
 ``{'qpos': {...}, 'scale': s}`` dicts; with ``--objects DIR`` the convex pieces of each
@@ -14,7 +14,7 @@ import argparse
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("grasps", help="grasp store (.zarr)")
-    parser.add_argument("out_dir", help="output folder (dataset/ and, with --objects, meshdata/)")
+    parser.add_argument("--out", required=True, help="output folder (dataset/ and, with --objects, meshdata/)")
     parser.add_argument("--objects", action="append", default=[], help="prepared objects dir (repeatable): also export the meshes")
 
 
@@ -25,8 +25,8 @@ def run(args: argparse.Namespace) -> int:
     grasps = read_grasp_store(args.grasps)
     if not len(grasps):
         raise ValueError(f"{args.grasps}: the grasp store is empty, nothing to export")
-    summary = export_dexgraspnet(grasps, args.out_dir, args.objects or None)
-    print(f"wrote {summary['grasps']} grasps of {summary['objects']} objects to {args.out_dir}/dataset")
+    summary = export_dexgraspnet(grasps, args.out, args.objects or None)
+    print(f"wrote {summary['grasps']} grasps of {summary['objects']} objects to {args.out}/dataset")
     if summary["missing_assets"]:
         print(f"no prepared asset (mesh not exported) for: {', '.join(summary['missing_assets'])}")
     return 0

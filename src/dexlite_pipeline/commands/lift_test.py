@@ -1,10 +1,11 @@
-"""``dexlite lift-test GRASPS.zarr --objects DIR --out OUT.zarr``: MuJoCo lift test of every grasp in a store.
+"""``dexlite lift-test GRASPS.zarr --out OUT.zarr [--objects DIR]``: MuJoCo lift test of every grasp in a store.
 
 Writes the input grasps with ``lift_ratio``, ``lift_success``, ``failure_reason`` and
 ``initial_penetration_mm`` (plus the six-direction arrays with ``--six-directions``) and
 prints a summary. Grasps with a non-finite pose or scale, or whose object is not among the
 assets, are kept and flagged (``failure_reason = 'invalid_grasp: ...'``); the others are
-simulated. Exit status 2 when no --objects folder holds prepared objects, 1 when the
+simulated. ``--objects`` defaults to the ``objects/`` folder beside the store (a ``dexlite grasp``
+output folder). Exit status 2 when no --objects folder holds prepared objects, 1 when the
 store has grasps but none of them could be simulated. Physical constants: ``LiftConfig`` defaults, the ``lift`` section of
 ``--config-json``, then the explicit options, in that order; all are recorded in the output.
 Tables: a store written in tabletop mode records each grasp's support plane, and the test then
@@ -19,9 +20,11 @@ import argparse
 import os
 import sys
 
+from dexlite_pipeline.commands import add_objects_argument, objects_dirs
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("grasps", help="grasp store (.zarr)")
-    parser.add_argument("--objects", action="append", required=True, help="prepared objects dir (repeatable)")
+    add_objects_argument(parser)
     parser.add_argument("--out", required=True, help="output grasp store (.zarr) with the lift results")
     parser.add_argument("--config-json", default="{}", help="config sections as JSON; its 'lift' section sets the constants")
     parser.add_argument("--six-directions", action="store_true", default=None, help="also run the six-direction disturbance test")
@@ -32,7 +35,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     table.add_argument("--floating", action="store_true", help="no table, even if the store recorded one")
 
 
-def test_tables(grasps_path: str, stability: str | None, floating: bool):
+def lift_test_tables(grasps_path: str, stability: str | None, floating: bool):
     """(support planes or None, a phrase saying where the objects are) for the lift test of a store."""
     from dexlite_pipeline.io.grasp_store import read_grasp_store
     from dexlite_pipeline.tabletop import SupportPlanes, planes_from_store
@@ -59,9 +62,10 @@ def run(args: argparse.Namespace) -> int:
         object_mass_kg=args.object_mass_kg,
         six_directions=args.six_directions,
     )
-    check_objects_dirs(args.objects)  # before reading the store: the errors come in the order users fix them
-    planes, where = test_tables(args.grasps, args.stability, args.floating)
-    result, summary = lift_test_store(args.grasps, args.objects, config, args.threads or os.cpu_count() or 1, support_planes=planes)
+    objects = objects_dirs(args)
+    check_objects_dirs(objects)  # before reading the store: the errors come in the order users fix them
+    planes, where = lift_test_tables(args.grasps, args.stability, args.floating)
+    result, summary = lift_test_store(args.grasps, objects, config, args.threads or os.cpu_count() or 1, support_planes=planes)
     write_grasp_store(args.out, result, {"stage": "lift_test", "source": str(args.grasps), "scene": {"table": planes is not None}})
     print(f"objects: {where}", file=sys.stdout)
     print(format_summary(summary, config), file=sys.stdout)

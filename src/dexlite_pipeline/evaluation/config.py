@@ -28,7 +28,7 @@ LADDER_SPLIT = "train"
 
 @dataclass(frozen=True)
 class SeedProtocolConfig:
-    """Config ``evaluate.seed_protocol``: DexLite's own lift test, a second, lenient measure beside ours.
+    """Config ``evaluate.seed_protocol``: the own lift test of the DexLite write-up (Murali), a second, lenient measure beside ours.
 
     Its physics differs from ours in these constants (lift test only); everything else is ours.
     """
@@ -58,7 +58,7 @@ class EvaluateConfig:
     energy_batch_size: int = 256  # grasps per energy evaluation batch
     rendered_per_method: int = 2  # successes and failures pictured per method in the report
     ladder_grasps_per_object: int = 8  # cap per (ladder method, training object) on simulated grasps
-    seed_protocol: SeedProtocolConfig = field(default_factory=SeedProtocolConfig)  # DexLite's lenient test beside ours
+    seed_protocol: SeedProtocolConfig = field(default_factory=SeedProtocolConfig)  # the write-up's lenient test beside ours
 
     def __post_init__(self) -> None:
         unknown = sorted(set(self.methods) - set(METHODS))

@@ -300,7 +300,7 @@ def simulate(
     lift_s = time.perf_counter() - start
     if seed_protocol is not None and seed_protocol.enabled:
         lenient = dataclasses.replace(lift_cfg, **seed_protocol.lift_overrides())
-        log.info("lift test of %d grasps under DexLite's protocol (friction %g, +%g rad, ratio %g)", len(selected),
+        log.info("lift test of %d grasps under the write-up's protocol (friction %g, +%g rad, ratio %g)", len(selected),
                  lenient.friction, lenient.preclose_rad, lenient.success_lift_ratio)
         arrays[SEED_PROTOCOL_SUCCESS] = run_lift_tests(selected, objects_dirs, lenient, threads, **on_table)["lift_success"]
     attrs = dict(selected.attrs)

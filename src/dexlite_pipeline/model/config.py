@@ -137,7 +137,7 @@ class SampleConfig:
             raise ValueError(f"sample.latent_prior {self.latent_prior!r} is not one of {', '.join(LATENT_PRIORS)}")
 
 
-# DexLite's post-optimization schedule: DexGraspNet's constants over 200 iterations.
+# The write-up's post-optimization schedule: DexGraspNet's constants over 200 iterations.
 POST_SCHEDULE = AnnealingSchedule(iterations=200)
 
 

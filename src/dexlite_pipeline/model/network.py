@@ -1,4 +1,4 @@
-"""PointNet object encoder and the conditional VAE over hand poses (Dex1B / DexLite appendix).
+"""PointNet object encoder and the conditional VAE over hand poses (Dex1B; the appendix of the DexLite write-up by Murali).
 
 - PointNet: shared 1-D convolutions 3 -> 64 -> 128 -> 1024 -> 256 (6 input channels with
   ``point_normals``: each point's outward normal beside its position), each followed by a

@@ -8,10 +8,10 @@ section ``post_optimize``. A CVAE grasp starts from contacts where it already to
 with ``final_contact_samples`` the best contact set for the final pose is searched once
 at the end, so the reported E_post is that of the pose, not of a random contact walk.
 With ``keep_best`` (default) each grasp ends in the lowest-E_post state it visited: at
-DexLite's T0 = 18 nearly every step is accepted, and the last state of that walk is often
+the T0 = 18 of the DexLite write-up (Murali) nearly every step is accepted, and the last state of that walk is often
 worse than the start. CVAE starts are already close to a grasp, so they run a close-start
 schedule (``learned_start_temperature``, ``learned_start_step_size``: T0 0.5, step 0.002 by
-default; 18 and 0.005 give DexLite's); random starts keep DexGraspNet's exploring one. The pose after each of ``budget_iterations`` is kept for the budget
+default; 18 and 0.005 give the write-up's); random starts keep DexGraspNet's exploring one. The pose after each of ``budget_iterations`` is kept for the budget
 curve. The random-init baseline uses the same budget from ``optim.init.initial_poses``
 (convex-hull start) for the same objects and scales.
 """

@@ -38,9 +38,9 @@ log = logging.getLogger(__name__)
 # Published numbers a reader compares against: (source, result, how it was measured).
 # None of them used this project's test; the last column says what differs.
 REFERENCE_ROWS = (
-    ("DexLite (a lightweight reproduction of Dex1B), raw CVAE samples", "lift success ≈ 55%",
+    ("The DexLite write-up (Murali; a lightweight reproduction of Dex1B), raw CVAE samples", "lift success ≈ 55%",
      "its own MuJoCo test (friction 2, lift ratio > 0.7), on its training objects; laptop RTX 4050"),
-    ("DexLite, CVAE + 200 post-optimization steps", "lift success ≈ 79%; ≈ 2 s per grasp; ≈ 3× faster convergence than random starts",
+    ("The DexLite write-up (Murali), CVAE + 200 post-optimization steps", "lift success ≈ 79%; ≈ 2 s per grasp; ≈ 3× faster convergence than random starts",
      "same test and objects"),
     ("Dex1B: Learning with 1B Demonstrations for Dexterous Manipulation", "86.0% with post-optimization and filtering",
      "DexGraspNet benchmark in Isaac Gym, a more lenient test"),
@@ -69,7 +69,7 @@ LADDER_COLUMN_LABELS = {
     "fit_translation_error_mm_median": "palm position error (mm, median)",
     "fit_joint_error_rad_mean": "joint error (rad, mean)",
 }
-LENIENT = "seed_protocol_lift_success"  # the same grasps under DexLite's more lenient lift test (evaluate.seed_protocol)
+LENIENT = "seed_protocol_lift_success"  # the same grasps under the DexLite write-up's (Murali) more lenient lift test (evaluate.seed_protocol)
 # The methods of the main comparison, in the order the compact table lists them.
 HEADLINE_METHODS = ("cvae_post", "random_post", "cvae_raw", "shipped_post", "shipped_raw", "seed", "dexgraspnet")
 HEADLINE_METHOD = "cvae_post"  # the pipeline's product: the sentence leads with it when present
@@ -449,6 +449,30 @@ def grasp_picture_png(hand, simulated: GraspSet, row: int, objects_dirs, size_px
     return buffer.getvalue()
 
 
+def gallery_methods(inputs: ReportInputs) -> list[str]:
+    """The simulated methods in the order of the tables (headline rows, then the ladder's rungs, then the rest)."""
+    present = set(str(m) for m in inputs.simulated.arrays["method"])
+    table_order = list(dict.fromkeys(headline_rows(inputs.metrics)["method"])) if inputs.metrics is not None and len(inputs.metrics) else []
+    table_order += [m for m in LADDER_METHOD_ORDER if m not in table_order]  # then the ladder's rows, rung by rung
+    return [m for m in table_order if m in present] + sorted(present - set(table_order))
+
+
+def interactive_view_html(inputs: ReportInputs) -> str:
+    """The gallery's grasps in the interactive 3-D view (report.grasp_view), embedded with plotly.js (~4.7 MB)."""
+    from dexlite_pipeline.report.grasp_view import grasp_view_div
+
+    simulated = inputs.simulated
+    if simulated is None or len(simulated) == 0 or inputs.rendered_per_method == 0:
+        return "<p>No simulated grasps to show.</p>"
+    rows = [row for method in gallery_methods(inputs) for row, _ in pick_examples(simulated, method, inputs.rendered_per_method, inputs.seed)]
+    try:
+        div = grasp_view_div(simulated, rows, inputs.objects_dirs)
+    except (ValueError, OSError) as exc:
+        log.warning("report: no interactive view: %s", exc)
+        return f"<p>Not available: {html.escape(str(exc))}</p>"
+    return div or "<p>No grasp to show.</p>"
+
+
 def grasp_gallery(inputs: ReportInputs) -> str:
     """HTML of randomly drawn lift successes and failures for each method, outcome in large type."""
     simulated = inputs.simulated
@@ -457,12 +481,8 @@ def grasp_gallery(inputs: ReportInputs) -> str:
     from dexlite_pipeline.hand import ShadowHand
 
     hand = ShadowHand()
-    present = set(str(m) for m in simulated.arrays["method"])
-    table_order = list(dict.fromkeys(headline_rows(inputs.metrics)["method"])) if inputs.metrics is not None and len(inputs.metrics) else []
-    table_order += [m for m in LADDER_METHOD_ORDER if m not in table_order]  # then the ladder's rows, rung by rung
-    methods = [m for m in table_order if m in present] + sorted(present - set(table_order))
     parts = []
-    for method in methods:
+    for method in gallery_methods(inputs):
         cells = []
         for row, _ in pick_examples(simulated, method, inputs.rendered_per_method, inputs.seed):
             headline, detail, css = outcome_of(simulated.arrays, row)
@@ -542,12 +562,12 @@ def _grasps_cell(row) -> str:
 
 
 def has_lenient(frame) -> bool:
-    """Whether the rows carry the lift rate under DexLite's lenient test (evaluate.seed_protocol)."""
+    """Whether the rows carry the lift rate under the write-up's lenient test (evaluate.seed_protocol)."""
     column = f"{LENIENT}_rate"
     return frame is not None and column in frame.columns and np.isfinite(frame[column].astype(float)).any()
 
 
-LENIENT_HEADER = "<th class='lenient'>lift, DexLite's test</th>"
+LENIENT_HEADER = "<th class='lenient'>lift, the write-up's test</th>"
 
 
 def _diversity_cells(row, prefix: str = "") -> list[str]:
@@ -890,7 +910,7 @@ def convergence_note(metrics_df, curves) -> str:
     speedup = f"{budget / reached:.1f}×" if reached > 0 else "already at the start (iteration 0)"
     return (
         f"<p class='note'>CVAE starts reach the median E_post that random starts end with after {int(budget)} iterations "
-        f"at iteration {int(reached)}: speed-up {speedup} (DexLite reports ≈ 3×).</p>"
+        f"at iteration {int(reached)}: speed-up {speedup} (the write-up reports ≈ 3×).</p>"
     )
 
 
@@ -967,7 +987,7 @@ def build_report_html(inputs: ReportInputs) -> str:
         "<p class='note'>Both tests count with equal weight: “lift test” = the object rose with the hand; "
         "“six pushes” = it stayed put under a push of about its own weight along each of ±x, ±y, ±z in turn. "
         "Small numbers: object-level bootstrap 95% interval (objects resampled)"
-        + ("; “lift, DexLite's test”: the same grasps under DexLite's more lenient lift test (Wilson interval), for comparison "
+        + ("; “lift, the write-up's test”: the same grasps under the more lenient lift test of the DexLite write-up (Murali) (Wilson interval), for comparison "
            "with its published numbers" if has_lenient(headline) else "")
         + ". Definitions and every column: end of the page.</p>"
     )
@@ -996,6 +1016,10 @@ def build_report_html(inputs: ReportInputs) -> str:
         "<h2>Grasps, drawn at random</h2><p class='note'>For each method, grasps drawn at random (seeded) among those that passed "
         "the lift test and those that failed it; two viewpoints each; red dots: the four contact points nearest the surface.</p>"
         + grasp_gallery(inputs)
+    )
+    sections.append(
+        "<h2>The same grasps in 3-D</h2><p class='note'>Drag to turn, scroll to zoom; the slider shows one grasp at a time, "
+        "titled with its method and results.</p>" + interactive_view_html(inputs)
     )
     if inputs.per_object is not None and len(inputs.per_object):
         per_object = inputs.per_object.to_html(index=False, float_format=lambda v: f"{v:.3g}", na_rep="—")

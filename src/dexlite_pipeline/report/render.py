@@ -75,12 +75,15 @@ def hand_visual() -> HandVisual:
     return HandVisual(np.concatenate(vertices), np.concatenate(faces), np.concatenate(links))
 
 
-def hand_mesh_world(hand: ShadowHand, hand_pose: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The hand's visual mesh (vertices in metres in the object frame, faces) for one 28-vector pose."""
+def hand_mesh_world(hand: ShadowHand, hand_pose: np.ndarray, visual: HandVisual | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The hand's visual mesh (vertices in metres in the object frame, faces) for one 28-vector pose.
+
+    ``visual`` replaces the full visual mesh (e.g. a decimated copy for the interactive view).
+    """
     pose = np.asarray(hand_pose, dtype=np.float64).reshape(-1)
     if pose.shape != (POSE_DIM,) or not np.isfinite(pose).all():
         raise RenderError(f"hand_pose must be {POSE_DIM} finite numbers, got shape {pose.shape}")
-    visual = hand_visual()
+    visual = hand_visual() if visual is None else visual
     with torch.no_grad():
         frames = hand.forward(torch.as_tensor(pose[None], dtype=hand.dtype, device=hand.device))
         rot = frames.rotation[0].double().cpu().numpy()[visual.vertex_link]  # (V, 3, 3)

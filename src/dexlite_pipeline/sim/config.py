@@ -29,9 +29,9 @@ class LiftConfig:
     lift_s: float = 2.0  # duration of the rise (smooth profile)
     final_hold_s: float = 0.2  # hold at the top
     success_lift_ratio: float = 0.9  # success if dz_object / dz_hand is above this
-    preclose_rad: float = 0.0  # added to the finger flexion joints' (J2, J1, J0) closing targets, rad (DexLite's test: 0.07)
+    preclose_rad: float = 0.0  # added to the finger flexion joints' (J2, J1, J0) closing targets, rad (the lift test of the DexLite write-up (Murali): 0.07)
     contact_condim: int = 3  # MuJoCo contact dimensionality of the object's geoms: 3 sliding friction, 4 + torsional,
-    # 6 + rolling (DexLite's test: 6)
+    # 6 + rolling (the write-up's test: 6)
     max_initial_penetration_m: float = 0.01  # deeper initial penetration fails before simulation
     control_substeps: int = 10  # simulation steps per control update (targets and mocap)
     multi_contact: bool = True  # MuJoCo's multi-point convex contacts (its default); off: ~15% faster, ~1% of outcomes change
