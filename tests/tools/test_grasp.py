@@ -67,6 +67,10 @@ def test_grasp_writes_every_output_for_an_obj_and_an_stl(grasp_run):
     assert f"{int(lifted.sum())}/4 (" in summary and "six-direction" in summary
     for name in renders:
         assert f"renders/{name}" in summary
+    view = out / "view.html"
+    assert view.is_file() == bool(len(held)) and (("`view.html`" in summary) == bool(len(held)))
+    if len(held):
+        assert "plotly" in view.read_text()[:200000] and str(held.object_id[0]) in view.read_text()
 
 
 @pytest.mark.slow

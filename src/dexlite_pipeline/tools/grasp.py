@@ -20,7 +20,8 @@ Steps (each logs its progress):
 5. write ``DIR/grasps.zarr`` (the kept held grasps, same schema as the pipeline's stores),
    ``DIR/all_grasps.zarr`` (every grasp with its failure reason and distinct-grasp label),
    ``DIR/dexgraspnet/`` (DexGraspNet layout of the kept grasps and meshes, when any held),
-   ``DIR/renders/*.png`` (different grasps) and ``DIR/summary.md``.
+   ``DIR/renders/*.png`` (different grasps), ``DIR/view.html`` (the kept grasps in an offline,
+   turnable 3-D view) and ``DIR/summary.md``.
 
 Settings are the package's default ``config.yaml`` overlaid by the caller's sections, read as
 the typed tree (``settings.build_config``); the physics constants of the lift test are never
@@ -485,7 +486,8 @@ def next_steps(request: GraspRequest, rows: list[dict], rejected: list[dict]) ->
 
 
 def summary_markdown(
-    request: GraspRequest, rows: list[dict], rejected: list[dict], method: str, step_seconds: dict, renders: list[Path], lift_config, diversity, kept: int
+    request: GraspRequest, rows: list[dict], rejected: list[dict], method: str, step_seconds: dict, renders: list[Path], lift_config, diversity, kept: int,
+    view: Path | None = None,
 ) -> str:
     """The one-page ``summary.md``: per object its size, held and distinct counts, failure reasons; what to try next."""
     total = sum(r["grasps"] for r in rows)
@@ -531,6 +533,8 @@ def summary_markdown(
     hints = next_steps(request, rows, rejected)
     if hints:
         lines += ["", "## What to try next", ""] + [f"- {h}" for h in hints]
+    if view is not None:
+        lines += ["", f"Open `{view.name}` in a browser to turn each kept grasp around (one file, works offline)."]
     if renders:
         lines += ["", "## Examples (different grasps)", ""]
         lines += [f"![{p.stem}](renders/{p.name})" for p in renders]
@@ -604,6 +608,7 @@ def run_grasp_tool(request: GraspRequest) -> GraspOutcome:
     from dexlite_pipeline.io.grasp_store import write_grasp_store
     from dexlite_pipeline.objects.assets import load_asset
     from dexlite_pipeline.objects.prepare import prepare_objects
+    from dexlite_pipeline.report.grasp_view import write_grasp_set_view
     from dexlite_pipeline.sim.results import lift_grasp_set
     from dexlite_pipeline.tabletop import tool_support_planes
 
@@ -678,9 +683,12 @@ def run_grasp_tool(request: GraspRequest) -> GraspOutcome:
     t = time.perf_counter()
     renders = render_examples(tested, labels, objects_dir, out_dir / "renders", request.renders_per_object) if request.renders_per_object > 0 else []
     times["render"] = time.perf_counter() - t
+    t = time.perf_counter()
+    view = write_grasp_set_view(out_dir / "view.html", kept, [str(objects_dir)], title=method) if len(kept) else None
+    times["3-D view"] = time.perf_counter() - t
     rows = per_object_rows(tested, labels, checked.sources, checked.sizes, ok_ids)
     summary_path = out_dir / "summary.md"
-    write_text_atomic(summary_path, summary_markdown(request, rows, rejected, method, times, renders, lift_config, config.diversity, len(kept)))
+    write_text_atomic(summary_path, summary_markdown(request, rows, rejected, method, times, renders, lift_config, config.diversity, len(kept), view))
     seconds = time.perf_counter() - started
     for r in rows:
         reasons = ", ".join(f"{k} {v}" for k, v in r["failures"].items()) or "none"
