@@ -50,6 +50,8 @@ class ObjectsConfig:
     builtin_count: int = 40
     benchmark_heldout: bool = True  # embedded objects of the benchmark split are always held out (never trained on)
     benchmark_objects: int = 4  # the first this many benchmark-split objects are added to the run, held out
+    household_count: int = 0  # generated household objects (objects.household) added for training, at real size in metres
+    household_benchmark_objects: int = 0  # the first this many household-split objects are added to the run, held out
     mesh_dirs: tuple[str, ...] = ()
     heldout_mesh_dirs: tuple[str, ...] = ()
     heldout_fraction: float = 0.2
@@ -319,6 +321,8 @@ def prepare_object(source: MeshSource, objects_dir: str, settings: AssetBuildSet
             "placement_rotation_rpy": list(source.rotation_rpy),
             "normalization_centre": centre.tolist(),
             "normalization_factor": factor,
+            # Real radius (m) when the file's units are known to be metres (generated objects), else None.
+            "real_radius_m": source.real_radius_m,
             "center_mass": np.asarray(mesh.center_mass).tolist(),
             "build_key": key,
         }
