@@ -59,6 +59,14 @@ def test_instances_are_single_closed_solids_at_real_size_standing_on_z0(family):
     assert np.ptp(heights) > 1e-3, "instances of a family must differ"
 
 
+def test_many_instances_of_every_family_are_single_closed_solids():
+    """Parameter draws near the ends of their ranges must still make closed solids (generation checks each)."""
+    for family in hh.FAMILIES:
+        for index in range(40):
+            mesh = hh.household_object(hh.household_id(family, index)).mesh
+            assert mesh.is_watertight and mesh.body_count == 1 and mesh.volume > 0
+
+
 def _wall_thickness_at(mesh, z: float) -> float:
     """Outer minus inner radius of the wall loops (circles about the z axis) of the section at height z."""
     section = mesh.section(plane_origin=[0.0, 0.0, z], plane_normal=[0.0, 0.0, 1.0])

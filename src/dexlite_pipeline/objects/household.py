@@ -9,7 +9,7 @@ keeps its orientation, and the stability test stands it in that orientation.)
 An instance is named ``household-<family>-<NNN>``; its parameters are drawn from
 ``numpy.random.default_rng([HOUSEHOLD_SEED, crc32(family), NNN])``, so an id always means the
 same object. Ranges (metres) follow common real objects: walls of cups, mugs and bowls 3-5 mm,
-a mug handle 4-6 mm thick with room for two or three fingers, a wine bottle 29-31 cm tall, a
+a mug handle 8-12 mm thick with room for two or three fingers, a wine bottle 29-31 cm tall, a
 cereal box about 30 x 20 x 7 cm, a one-litre-class milk carton.
 
 Vessels are revolved profiles (``trimesh.creation.revolve``): the wall's inner curve is the
@@ -31,6 +31,8 @@ HOUSEHOLD_SEED = 20261202
 ID_PREFIX = "household"
 # Angular resolution of revolved surfaces: chord error under 0.15 mm at a 10 cm radius.
 REVOLVE_SECTIONS = 64
+# Profile points closer than this (m) to a neighbour are one point.
+MIN_SPACING = 1e-5
 
 
 class HouseholdMeshError(ValueError):
@@ -66,7 +68,9 @@ def _revolve(profile) -> object:
     """Solid of revolution of a closed (r, z) profile that starts and ends on the axis, counter-clockwise."""
     import trimesh
 
-    mesh = trimesh.creation.revolve(np.asarray(profile, dtype=np.float64), sections=REVOLVE_SECTIONS)
+    profile = np.asarray(profile, dtype=np.float64)
+    keep = np.concatenate([[True], np.linalg.norm(np.diff(profile, axis=0), axis=1) > MIN_SPACING])
+    mesh = trimesh.creation.revolve(profile[keep], sections=REVOLVE_SECTIONS)
     if mesh.volume < 0:
         mesh.invert()
     return mesh
@@ -102,7 +106,8 @@ def _clip_z(curve: np.ndarray, z_min: float, z_max: float) -> np.ndarray:
         t = (level - z[i]) / (z[i + 1] - z[i])
         return curve[i] + t * (curve[i + 1] - curve[i])
 
-    inside = curve[(z > z_min) & (z < z_max)]
+    # Points within 10 µm of a cut would leave sliver faces that the revolve cannot close.
+    inside = curve[(z > z_min + MIN_SPACING) & (z < z_max - MIN_SPACING)]
     return np.vstack([at(z_min), inside, at(z_max)])
 
 
