@@ -65,7 +65,7 @@ def real_radius_m(mesh) -> float:
 
 
 def _revolve(profile) -> object:
-    """Solid of revolution of a closed (r, z) profile that starts and ends on the axis, counter-clockwise."""
+    """Solid of revolution about z of an (r, z) profile that starts and ends on the axis (outward normals either way)."""
     import trimesh
 
     profile = np.asarray(profile, dtype=np.float64)
