@@ -1,8 +1,9 @@
 """``dexlite prepare-objects --catalog results/objects/catalog.parquet --record ...``: build every object asset.
 
 Config sections ``seed`` and ``objects``. Writes ``assets/<id>/`` beside the catalog per
-usable object (and the generated household meshes, in metres, to ``household_meshes/``), the catalog (every object, ok or rejected with the reason, with its split)
-and the record of the config used. A configured folder that does not exist stops the run at
+usable object (and the generated household meshes, in metres, to ``household_meshes/``),
+the catalog (every object, ok or rejected with the reason, with its split) and the record
+of the config used. A configured folder that does not exist stops the run at
 once; a bad mesh is only a rejected row, but a run in which every object is rejected exits
 with status 1.
 """
