@@ -1,11 +1,13 @@
 # The benchmark split (objects always held out) is data the stage reads: editing it reruns the stage.
 BENCHMARK_SPLIT = str(Path(workflow.basedir) / "src" / "dexlite_pipeline" / "objects" / "benchmark_split.yaml")
+HOUSEHOLD_SPLIT = str(Path(workflow.basedir) / "src" / "dexlite_pipeline" / "objects" / "household_split.yaml")
 
 
 rule prepare_objects:
     input:
         meshes=mesh_dir_files,
         benchmark=BENCHMARK_SPLIT if config["objects"].get("benchmark_heldout", True) else [],
+        household_split=HOUSEHOLD_SPLIT if config["objects"].get("household_benchmark_objects", 0) else [],
     output:
         catalog=f"{RESULTS}/objects/catalog.parquet",
         config=f"{RESULTS}/objects/prepare_config.json",

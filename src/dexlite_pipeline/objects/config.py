@@ -18,6 +18,8 @@ class ObjectsConfig:
     builtin_count: int = 40
     benchmark_heldout: bool = True  # embedded objects of the benchmark split are always held out (never trained on)
     benchmark_objects: int = 4  # the first this many benchmark-split objects are added to the run, held out
+    household_count: int = 0  # generated household objects (objects.household) added for training, at real size in metres
+    household_benchmark_objects: int = 0  # the first this many household-split objects are added to the run, held out
     mesh_dirs: tuple[str, ...] = ()
     heldout_mesh_dirs: tuple[str, ...] = ()
     heldout_fraction: float = 0.2

@@ -292,6 +292,8 @@ def prepare_object(source: MeshSource, objects_dir: str, settings: AssetBuildSet
             "placement_rotation_rpy": list(source.rotation_rpy),
             "normalization_centre": centre.tolist(),
             "normalization_factor": factor,
+            # Real radius (m) when the file's units are known to be metres (generated objects), else None.
+            "real_radius_m": source.real_radius_m,
             "center_mass": np.asarray(mesh.center_mass).tolist(),
             "build_key": key,
         }

@@ -5,7 +5,9 @@ rotation), so that an object stands in the orientation its author intended (the 
 test keeps the file orientation). Object ids are stable, filesystem-safe and unique:
 ``pb-<name>`` for named pybullet meshes, ``pb-random-NNN`` for the procedural
 ``random_urdfs``, ``user-<stem>`` for the user's meshes (with a short path hash appended
-only when two user files share a stem).
+only when two user files share a stem), ``household-<family>-<NNN>`` for the household
+objects the project generates (``objects.household``; their meshes are written as .obj files
+in metres into a folder of the run, and their real radius is recorded).
 """
 
 from __future__ import annotations
@@ -56,11 +58,14 @@ class MeshSource:
     """One mesh to prepare, with the placement (scale per axis, then rotation) to apply first."""
 
     object_id: str
-    source: str  # pybullet_named, pybullet_random, user, user_heldout
+    source: str  # pybullet_named, pybullet_random, user, user_heldout, household, household_benchmark
     file: str
     scale_xyz: tuple[float, float, float] = (1.0, 1.0, 1.0)
     rotation_rpy: tuple[float, float, float] = (0.0, 0.0, 0.0)
     always_heldout: bool = False
+    # The object's real radius (m: largest vertex distance from its bounding-box centre) when
+    # the file's units are known to be metres (generated objects); None when unknown.
+    real_radius_m: float | None = None
 
 
 def pybullet_data_dir() -> Path:
@@ -168,7 +173,7 @@ def _make_ids_unique(sources: list[MeshSource]) -> list[MeshSource]:
     for s in sources:
         if counts[s.object_id] > 1:
             digest = hashlib.sha1(os.path.abspath(s.file).encode()).hexdigest()[:6]
-            s = MeshSource(f"{s.object_id}-{digest}", s.source, s.file, s.scale_xyz, s.rotation_rpy, s.always_heldout)
+            s = dataclasses.replace(s, object_id=f"{s.object_id}-{digest}")
         unique.append(s)
     return unique
 
@@ -208,14 +213,71 @@ def benchmark_sources(count: int) -> list[MeshSource]:
     return [dataclasses.replace(pybullet_random_source_of(object_id), always_heldout=True) for object_id in ids[:count]]
 
 
+# The household benchmark split: generated household objects that are always held out, never
+# trained on (``objects.household_benchmark_objects`` adds the first N of it to a run).
+HOUSEHOLD_SPLIT_FILE = Path(__file__).with_name("household_split.yaml")
+# Folder of a prepared-objects directory where the generated household meshes are written.
+HOUSEHOLD_MESH_DIR = "household_meshes"
+
+
+def household_benchmark_list() -> list[str]:
+    """Ids of the household benchmark split's objects (``HOUSEHOLD_SPLIT_FILE``), in the split's order."""
+    import yaml
+
+    record = yaml.safe_load(HOUSEHOLD_SPLIT_FILE.read_text()) or {}
+    return [str(o) for o in record.get("object_ids") or []]
+
+
+def household_sources(training_count: int, benchmark_count: int, folder) -> list[MeshSource]:
+    """Generated household objects: the first ``training_count`` training ones (round-robin over the
+    families, never an object of the household split) and the first ``benchmark_count`` of the
+    household split (always held out). Their meshes (metres) are written to ``folder`` as
+    ``<id>.obj``; other ``household-*.obj`` files there (from an earlier, larger run) are removed.
+    """
+    from dexlite_pipeline.objects.household import household_object, training_household_ids, write_mesh_obj
+
+    if training_count <= 0 and benchmark_count <= 0:
+        return []
+    split = household_benchmark_list()
+    if benchmark_count > len(split):
+        raise ObjectSourceError(f"objects.household_benchmark_objects: {benchmark_count} asked, the household split ({HOUSEHOLD_SPLIT_FILE.name}) has {len(split)}")
+    if folder is None:
+        raise ObjectSourceError("objects.household_count / household_benchmark_objects: no folder given to write the generated meshes to")
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    wanted = [(i, "household", False) for i in training_household_ids(training_count, frozenset(split))]
+    wanted += [(i, "household_benchmark", True) for i in split[:benchmark_count]]
+    sources = []
+    for object_id, kind, heldout in wanted:
+        generated = household_object(object_id)
+        path = folder / f"{object_id}.obj"
+        write_mesh_obj(generated.mesh, path)
+        sources.append(MeshSource(object_id, kind, str(path), always_heldout=heldout, real_radius_m=generated.real_radius_m))
+    keep = {Path(s.file).name for s in sources}
+    for stale in folder.glob("household-*.obj"):
+        if stale.name not in keep:
+            stale.unlink()
+    return sources
+
+
 def collect_sources(
-    builtin_count: int, mesh_dirs, heldout_mesh_dirs, seed: int, benchmark_heldout: bool = False, benchmark_objects: int = 0
+    builtin_count: int,
+    mesh_dirs,
+    heldout_mesh_dirs,
+    seed: int,
+    benchmark_heldout: bool = False,
+    benchmark_objects: int = 0,
+    household_count: int = 0,
+    household_benchmark_objects: int = 0,
+    household_dir=None,
 ) -> list[MeshSource]:
-    """Every object to prepare: embedded default, user folders, always-held-out folders.
+    """Every object to prepare: embedded default, generated household objects, user folders, always-held-out folders.
 
     ``benchmark_heldout``: embedded objects of the benchmark split are always held out.
     ``benchmark_objects``: the first this many objects of the benchmark split are added (held
     out), so that a small run is also measured on objects that no model ever trains on.
+    ``household_count`` / ``household_benchmark_objects``: generated household objects for
+    training / from the household split (held out), their meshes written to ``household_dir``.
     """
     # A file listed twice (a folder repeated, or in both lists) is one object; held out wins.
     user: dict[str, MeshSource] = {}
@@ -227,4 +289,5 @@ def collect_sources(
         builtin = [dataclasses.replace(s, always_heldout=True) if s.object_id in benchmark else s for s in builtin]
     drawn = {s.object_id for s in builtin}
     builtin += [s for s in benchmark_sources(benchmark_objects) if s.object_id not in drawn]
-    return _make_ids_unique(builtin + list(user.values()))
+    household = household_sources(household_count, household_benchmark_objects, household_dir)
+    return _make_ids_unique(builtin + household + list(user.values()))

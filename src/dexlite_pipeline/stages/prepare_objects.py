@@ -1,8 +1,9 @@
 """``dexlite prepare-objects --catalog results/objects/catalog.parquet --record ...``: build every object asset.
 
 Config sections ``seed`` and ``objects``. Writes ``assets/<id>/`` beside the catalog per
-usable object, the catalog (every object, ok or rejected with the reason, with its split)
-and the record of the config used. A configured folder that does not exist stops the run at
+usable object (and the generated household meshes, in metres, to ``household_meshes/``),
+the catalog (every object, ok or rejected with the reason, with its split) and the record
+of the config used. A configured folder that does not exist stops the run at
 once; a bad mesh is only a rejected row, but a run in which every object is rejected exits
 with status 1.
 """
@@ -27,12 +28,15 @@ def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from dexlite_pipeline.objects.prepare import prepare_objects
-    from dexlite_pipeline.objects.sources import collect_sources
+    from dexlite_pipeline.objects.sources import HOUSEHOLD_MESH_DIR, collect_sources
     from dexlite_pipeline.settings import stage_config
 
     config = stage_config(args.config_json)
     section = config.objects
-    sources = collect_sources(section.builtin_count, section.mesh_dirs, section.heldout_mesh_dirs, config.seed, section.benchmark_heldout, section.benchmark_objects)
+    sources = collect_sources(
+        section.builtin_count, section.mesh_dirs, section.heldout_mesh_dirs, config.seed, section.benchmark_heldout, section.benchmark_objects,
+        section.household_count, section.household_benchmark_objects, Path(args.catalog).parent / HOUSEHOLD_MESH_DIR,
+    )
     workers = args.threads or os.cpu_count() or 1
     log.info("preparing %d objects with %d worker(s)", len(sources), workers)
     start = time.perf_counter()
