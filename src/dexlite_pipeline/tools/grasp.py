@@ -434,8 +434,9 @@ def failure_counts(reasons) -> dict[str, int]:
     return dict(sorted(counts.items(), key=lambda kv: (-kv[1], kv[0])))
 
 
-def per_object_rows(grasps, labels: np.ndarray, sources, sizes: dict, prepared_ids: list[str]) -> list[dict]:
-    """One summary row per prepared object: its size, counts held / distinct and the failure reasons."""
+def per_object_rows(grasps, labels: np.ndarray, sources, sizes: dict, prepared_ids: list[str], coverage: dict | None = None) -> list[dict]:
+    """One summary row per prepared object: its size, counts held / distinct, the share of its surface the held
+    grasps touch (``coverage``: object id -> share, NaN when not measured) and the failure reasons."""
     rows = []
     file_of = {s.object_id: s.file for s in sources}
     held_all = np.asarray(grasps.arrays["lift_success"], bool)
@@ -449,8 +450,13 @@ def per_object_rows(grasps, labels: np.ndarray, sources, sizes: dict, prepared_i
             "radii_m": sorted({round(float(s), 4) for s in grasps.scale[mask]}), "grasps": int(mask.sum()),
             "lift": int(lift.sum()), "six_dir": int(six.sum()), "both": int((lift & six).sum()),
             "distinct": len(set(labels[mask & held_all].tolist())), "failures": failure_counts(reasons),
+            "coverage": (coverage or {}).get(object_id, math.nan),
         })  # fmt: skip
     return rows
+
+
+def _percent(share: float) -> str:
+    return "-" if share != share else f"{100 * share:.0f}%"
 
 
 def _share(count: int, total: int) -> str:
@@ -507,7 +513,9 @@ def summary_markdown(
         f"{lift_config.six_dir_force_per_kg_n:g} N/kg along ±x, ±y, ±z (gravity off) and passes when it moves less than "
         f"{100 * lift_config.six_dir_max_translation_m:g} cm and turns less than {lift_config.six_dir_max_rotation_deg:g}° each time. "
         f"Two held grasps are *the same grasp* when their palms are within {100 * diversity.distinct_translation_m:g} cm "
-        f"and {diversity.distinct_rotation_deg:g}° of each other.",
+        f"and {diversity.distinct_rotation_deg:g}° of each other. *Surface touched*: the share of the object's surface, cut into "
+        f"{diversity.coverage_patches} patches of about equal area, that the held grasps' contact points (hand surface points within "
+        f"{1000 * diversity.coverage_contact_m:g} mm of the object) reach.",
         "",
     ]
     if kept:
@@ -517,16 +525,16 @@ def summary_markdown(
         lines.append(f"No grasp held: `grasps.zarr` is empty and no `dexgraspnet/` was written. `all_grasps.zarr` holds all {total} with their failure reasons.")
     lines += [
         "",
-        "| object | file | size (cm) | grasps | held | distinct held | six-direction passed | held and six-direction passed | why the others failed |",
-        "| --- | --- | --- | ---: | ---: | ---: | ---: | ---: | --- |",
+        "| object | file | size (cm) | grasps | held | distinct held | surface touched | six-direction passed | held and six-direction passed | why the others failed |",
+        "| --- | --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | --- |",
     ]
     for r in rows:
         size = _size_text(r["size"]) if r["size"] is not None and not request.resize_to_training else (
             "radius " + ", ".join(f"{100 * s:.3g}" for s in r["radii_m"]))
         reasons = ", ".join(f"{reason} {count}" for reason, count in r["failures"].items()) or "-"
         lines.append(f"| {r['object_id']} | {Path(r['file']).name} | {size} | {r['grasps']} | {_share(r['lift'], r['grasps'])} | "
-                     f"{r['distinct']} | {_share(r['six_dir'], r['grasps'])} | {_share(r['both'], r['grasps'])} | {reasons} |")
-    lines.append(f"| **all** | | | {total} | {_share(lift, total)} | {distinct} | {_share(six, total)} | {_share(both, total)} | |")
+                     f"{r['distinct']} | {_percent(r['coverage'])} | {_share(r['six_dir'], r['grasps'])} | {_share(r['both'], r['grasps'])} | {reasons} |")
+    lines.append(f"| **all** | | | {total} | {_share(lift, total)} | {distinct} | | {_share(six, total)} | {_share(both, total)} | |")
     if rejected:
         lines += ["", "## Meshes not tried", ""]
         lines += [f"- `{r['file']}`: {r['reason']}" for r in rejected]
@@ -604,6 +612,8 @@ def check_request(request: GraspRequest) -> CheckedRequest:
 def run_grasp_tool(request: GraspRequest) -> GraspOutcome:
     """Check, prepare, synthesize, test and write everything for ``request`` (see the module docstring)."""
     from dexlite_pipeline.io.atomic import write_text_atomic
+    from dexlite_pipeline.evaluation.metrics import per_object_diversity
+    from dexlite_pipeline.evaluation.protocol import coverage_arrays
     from dexlite_pipeline.io.dexgraspnet import export_dexgraspnet
     from dexlite_pipeline.io.grasp_store import write_grasp_store
     from dexlite_pipeline.objects.assets import load_asset
@@ -686,7 +696,12 @@ def run_grasp_tool(request: GraspRequest) -> GraspOutcome:
     t = time.perf_counter()
     view = write_grasp_set_view(out_dir / "view.html", kept, [str(objects_dir)], title=method) if len(kept) else None
     times["3-D view"] = time.perf_counter() - t
-    rows = per_object_rows(tested, labels, checked.sources, checked.sizes, ok_ids)
+    t = time.perf_counter()
+    touched = coverage_arrays(tested, [str(objects_dir)], config.diversity)
+    diversity_rows = per_object_diversity({**tested.arrays, **touched}, held_mask, config.diversity)
+    times["surface coverage"] = time.perf_counter() - t
+    coverage = {object_id: row["coverage"] for object_id, row in diversity_rows.items()}
+    rows = per_object_rows(tested, labels, checked.sources, checked.sizes, ok_ids, coverage)
     summary_path = out_dir / "summary.md"
     write_text_atomic(summary_path, summary_markdown(request, rows, rejected, method, times, renders, lift_config, config.diversity, len(kept), view))
     seconds = time.perf_counter() - started
