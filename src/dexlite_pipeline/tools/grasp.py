@@ -533,7 +533,7 @@ def summary_markdown(
             "radius " + ", ".join(f"{100 * s:.3g}" for s in r["radii_m"]))
         reasons = ", ".join(f"{reason} {count}" for reason, count in r["failures"].items()) or "-"
         lines.append(f"| {r['object_id']} | {Path(r['file']).name} | {size} | {r['grasps']} | {_share(r['lift'], r['grasps'])} | "
-                     f"{r['distinct']} | {_percent(r['coverage'])} | {_share(r['six_dir'], r['grasps'])} | {_share(r['both'], r['grasps'])} | {reasons} |")
+                     f"{r['distinct']} | {_percent(r.get('coverage', math.nan))} | {_share(r['six_dir'], r['grasps'])} | {_share(r['both'], r['grasps'])} | {reasons} |")
     lines.append(f"| **all** | | | {total} | {_share(lift, total)} | {distinct} | | {_share(six, total)} | {_share(both, total)} | |")
     if rejected:
         lines += ["", "## Meshes not tried", ""]
