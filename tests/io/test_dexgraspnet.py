@@ -264,6 +264,7 @@ def imported_sample(dexgraspnet_sample, tmp_path_factory):
     return import_dexgraspnet(dexgraspnet_sample, objects, settings, DexGraspNetConfig(), seed=0), objects
 
 
+@pytest.mark.real_sample
 def test_real_sample_imports_whole_with_correct_sdf_sign(dexgraspnet_sample, imported_sample):
     import igl
     import trimesh
@@ -283,6 +284,7 @@ def test_real_sample_imports_whole_with_correct_sdf_sign(dexgraspnet_sample, imp
         np.testing.assert_array_equal(values[clear] > 0, inside_some_piece[clear])
 
 
+@pytest.mark.real_sample
 def test_real_sample_grasps_barely_penetrate(imported_sample):
     """The makers filtered these grasps at 1 mm: a frame or conversion error shows up as deep penetration."""
     from dexlite_pipeline.energy import evaluate_grasp_energies
@@ -299,6 +301,7 @@ def test_real_sample_grasps_barely_penetrate(imported_sample):
     assert np.median(evaluate_grasp_energies(closed, [objects])["penetration_mm"]) > 3.0
 
 
+@pytest.mark.real_sample
 def test_real_sample_force_closure_on_threads_equals_serial(imported_sample):
     """Real grasps give a mix of closing and open contact sets, and the threaded hull step changes nothing."""
     from dexlite_pipeline.curation.force_closure import evaluate_force_closure
