@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 from workflow_harness import (
-    GRASP_FIXTURE,
+    grasp_fixture,
     job_blocks,
     local_run_args,
     planned_rules,
@@ -32,7 +32,7 @@ TARGETS = ("results/objects/catalog.parquet", "results/dexgraspnet/grasps.zarr")
 
 @pytest.fixture()
 def dexgraspnet_copy(tmp_path) -> Path:
-    return Path(shutil.copytree(GRASP_FIXTURE, tmp_path / "dexgraspnet"))
+    return Path(shutil.copytree(grasp_fixture(), tmp_path / "dexgraspnet"))
 
 
 def planned_inputs(workdir: Path, rule: str) -> list[str]:
@@ -77,7 +77,7 @@ def inputs_run(tmp_path_factory) -> Path:
     """A directory where prepare_objects and import_dexgraspnet ran on ./meshes and ./dexgraspnet."""
     workdir = tmp_path_factory.mktemp("inputs_run")
     write_tiny_meshes(workdir / "meshes")
-    shutil.copytree(GRASP_FIXTURE, workdir / "dexgraspnet")
+    shutil.copytree(grasp_fixture(), workdir / "dexgraspnet")
     write_config(workdir, tiny_config(Path("meshes"), dexgraspnet={"root": "dexgraspnet"}))
     run_snakemake(workdir, *local_run_args(), *TARGETS)
     return workdir

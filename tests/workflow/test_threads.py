@@ -6,7 +6,7 @@ from __future__ import annotations
 import shutil
 
 import pytest
-from workflow_harness import GRASP_FIXTURE, checkout, option_value, planned_commands, run_snakemake, tiny_config, write_config
+from workflow_harness import checkout, grasp_fixture, option_value, planned_commands, run_snakemake, tiny_config, write_config
 
 # Stages that run once for all objects use every core; sharded stages one per job.
 ALL_CORES_STAGES = {"prepare_objects", "stability_filter", "import_dexgraspnet", "train_cvae"}
@@ -18,7 +18,7 @@ def test_every_stage_gets_its_threads_with_or_without_the_local_profile(tmp_path
     meshes = tmp_path / "meshes"
     meshes.mkdir()
     (meshes / "box.obj").write_text("not read by a dry run\n")
-    dexgraspnet = shutil.copytree(GRASP_FIXTURE, tmp_path / "dexgraspnet")
+    dexgraspnet = shutil.copytree(grasp_fixture(), tmp_path / "dexgraspnet")
     write_config(tmp_path / "run", tiny_config(meshes, dexgraspnet={"root": str(dexgraspnet)}))
     profile_args = ["--profile", str(checkout() / "profiles" / profile)] if profile else []
 
