@@ -1,4 +1,5 @@
-"""DexGraspNet import/export on small fixtures written here in DexGraspNet's layout."""
+"""DexGraspNet import/export on small fixtures written here in DexGraspNet's layout (the real sample's
+tests are marked real_sample: they run only where $DEXLITE_DEXGRASPNET_SAMPLE names a download)."""
 
 import os
 import pickle
@@ -7,6 +8,7 @@ import numpy as np
 import pandas as pd
 import pytest
 from numpy.lib import format as npy_format
+from sample_data import DEXGRASPNET_JOINT_KEYS, DEXGRASPNET_QPOS_ORDER
 
 from dexlite_pipeline.cli import main as dexlite
 from dexlite_pipeline.hand import JOINT_NAMES
@@ -265,6 +267,7 @@ def imported_sample(dexgraspnet_sample, tmp_path_factory):
     return import_dexgraspnet(dexgraspnet_sample, objects, settings, DexGraspNetConfig(), seed=0), objects
 
 
+@pytest.mark.real_sample
 def test_real_sample_imports_whole_with_correct_sdf_sign(dexgraspnet_sample, imported_sample):
     import igl
     import trimesh
@@ -284,6 +287,7 @@ def test_real_sample_imports_whole_with_correct_sdf_sign(dexgraspnet_sample, imp
         np.testing.assert_array_equal(values[clear] > 0, inside_some_piece[clear])
 
 
+@pytest.mark.real_sample
 def test_real_sample_grasps_barely_penetrate(imported_sample):
     """The makers filtered these grasps at 1 mm: a frame or conversion error shows up as deep penetration."""
     from dexlite_pipeline.energy.per_grasp import evaluate_grasp_energies
@@ -300,6 +304,7 @@ def test_real_sample_grasps_barely_penetrate(imported_sample):
     assert np.median(evaluate_grasp_energies(closed, [objects])["penetration_mm"]) > 3.0
 
 
+@pytest.mark.real_sample
 def test_real_sample_force_closure_on_threads_equals_serial(imported_sample):
     """Real grasps give a mix of closing and open contact sets, and the threaded hull step changes nothing."""
     from dexlite_pipeline.curation.force_closure import evaluate_force_closure
@@ -310,3 +315,76 @@ def test_real_sample_force_closure_on_threads_equals_serial(imported_sample):
     threaded = evaluate_force_closure(grasps, [objects], batch_size=16, threads=2).epsilon
     np.testing.assert_array_equal(serial, threaded)
     assert 0.2 < float((serial > 0).mean()) < 1.0
+
+
+def write_dexgraspnet_file(root, code, count, seed=0):
+    """A grasp file in DexGraspNet's own structure (``sample_data.DEXGRASPNET_QPOS_ORDER``, Python
+    float values, numpy float64 scales) and a decomposed box mesh; returns (qpos dicts, scales)."""
+    rng = np.random.default_rng(seed)
+    qposes, scales, entries = [], [], []
+    for _ in range(count):
+        values = {key: float(rng.uniform(0.0, 1.2)) for key in DEXGRASPNET_JOINT_KEYS}
+        values |= {key: float(rng.uniform(-np.pi, np.pi)) for key in ("WRJRx", "WRJRy", "WRJRz")}
+        values |= {key: float(rng.uniform(-0.2, 0.2)) for key in ("WRJTx", "WRJTy", "WRJTz")}
+        qpos = {key: values[key] for key in DEXGRASPNET_QPOS_ORDER}
+        scale = np.float64(rng.choice([0.06, 0.08, 0.1, 0.12, 0.15]))
+        qposes.append(qpos)
+        scales.append(scale)
+        entries.append({"qpos": qpos, "scale": scale})
+    write_grasps(root, code, entries)
+    write_decomposed_boxes(root / "meshdata" / code / "coacd" / "decomposed.obj")
+    return qposes, np.asarray(scales)
+
+
+def assert_dexgraspnet_structure(path):
+    """``path`` is a grasp file as DexGraspNet writes it: keys, key order and value types."""
+    entries = np.load(path, allow_pickle=True)
+    assert entries.dtype == object and entries.ndim == 1 and len(entries) > 0
+    for entry in entries:
+        assert type(entry) is dict and list(entry) == ["qpos", "scale"]
+        assert list(entry["qpos"]) == list(DEXGRASPNET_QPOS_ORDER)
+        assert all(type(value) is float for value in entry["qpos"].values())
+        assert type(entry["scale"]) is np.float64
+    return entries
+
+
+def test_a_file_in_dexgraspnets_own_structure_imports_exactly(tmp_path):
+    qposes, scales = write_dexgraspnet_file(tmp_path / "dgn", "core-box-0", 5)
+    result = import_dexgraspnet(tmp_path / "dgn", tmp_path / "objects", SMALL_ASSETS, DexGraspNetConfig(), seed=0)
+    assert result.problems == [] and len(result.grasps) == 5
+    # hand_pose is [palm translation, palm Euler angles, the 22 joints]
+    expected = [[q[k] for k in ("WRJTx", "WRJTy", "WRJTz", "WRJRx", "WRJRy", "WRJRz", *JOINT_NAMES)] for q in qposes]
+    assert sorted(JOINT_NAMES) == sorted(DEXGRASPNET_JOINT_KEYS)
+    np.testing.assert_allclose(result.grasps.hand_pose, expected, rtol=1e-7, atol=1e-8)
+    np.testing.assert_allclose(result.grasps.scale, scales, rtol=1e-7)
+
+
+def test_cli_round_trip_export_then_import_keeps_dexgraspnets_structure(tmp_path):
+    """import-dexgraspnet, export-dexgraspnet, import-dexgraspnet: the export is DexGraspNet's structure
+    with the original values, and importing it again gives the same grasps and the same object."""
+    qposes, scales = write_dexgraspnet_file(tmp_path / "dgn", "core-box-0", 6, seed=1)
+    small = '{"objects": {"sdf_resolution": 24, "surface_points": 256}}'
+
+    def cli_import(root, name):
+        out = tmp_path / name
+        code = dexlite(["import-dexgraspnet", str(root), "--out", str(out / "grasps.zarr"),
+                        *_import_outputs(out / "objects", out / "report.csv"), "--config-json", small])
+        assert code == 0
+        return read_grasp_store(out / "grasps.zarr"), out / "objects"
+
+    first, first_objects = cli_import(tmp_path / "dgn", "first")
+    assert dexlite(["export-dexgraspnet", str(tmp_path / "first" / "grasps.zarr"), str(tmp_path / "exported"), "--objects", str(first_objects)]) == 0
+
+    exported = assert_dexgraspnet_structure(tmp_path / "exported" / "dataset" / "core-box-0.npy")
+    for entry, qpos, scale in zip(exported, qposes, scales, strict=True):
+        np.testing.assert_allclose([entry["qpos"][k] for k in DEXGRASPNET_QPOS_ORDER], [qpos[k] for k in DEXGRASPNET_QPOS_ORDER], rtol=1e-6, atol=1e-7)
+        assert entry["scale"] == pytest.approx(scale, rel=1e-7)
+    mesh_text = (tmp_path / "exported" / "meshdata" / "core-box-0" / "coacd" / "decomposed.obj").read_text()
+    assert mesh_text.startswith("o convex_0\n") and mesh_text.count("\no convex_") == 1  # the two pieces, in CoACD's layout
+
+    second, second_objects = cli_import(tmp_path / "exported", "second")
+    assert pd.read_csv(tmp_path / "second" / "report.csv").empty
+    np.testing.assert_array_equal(second.hand_pose, first.hand_pose)
+    np.testing.assert_array_equal(second.scale, first.scale)
+    assert list(second.object_id) == list(first.object_id) == ["core-box-0"] * 6
+    np.testing.assert_allclose(load_asset(second_objects, "core-box-0").sdf, load_asset(first_objects, "core-box-0").sdf, atol=1e-5)

@@ -115,6 +115,7 @@ def test_truncated_and_non_npy_files_are_errors(tmp_path):
         load_npy_restricted(tmp_path / "text.npy")
 
 
+@pytest.mark.real_sample
 def test_real_dexgraspnet_files_load(dexgraspnet_sample):
     for path in sorted((dexgraspnet_sample / "dataset").glob("*.npy")):
         grasps = load_npy_restricted(path)

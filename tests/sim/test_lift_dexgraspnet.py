@@ -1,4 +1,4 @@
-"""The lift test on real DexGraspNet grasps (a DexGraspNet download named by $DEXLITE_DEXGRASPNET_SAMPLE; skipped without it).
+"""The lift test on real DexGraspNet grasps (a DexGraspNet download named by $DEXLITE_DEXGRASPNET_SAMPLE; deselected without it).
 
 These grasps were made and validated by another system. A prototype of this protocol
 passed 79% of such grasps at friction 0.6 (88% at 1.0) and 0% once moved away; the full
@@ -14,6 +14,8 @@ import pytest
 
 from dexlite_pipeline.sim.config import LiftConfig
 from dexlite_pipeline.sim.lift import run_lift_tests
+
+pytestmark = pytest.mark.real_sample
 
 SUBSET = 64
 # The subset passes 48 of 64, the same on every run. The tolerance is for another platform's

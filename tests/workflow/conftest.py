@@ -8,7 +8,6 @@ from pathlib import Path
 
 import pytest
 from workflow_harness import (
-    DEXGRASPNET_SAMPLE,
     freeze_checkout,
     local_run_args,
     rule_graph,
@@ -36,8 +35,6 @@ def frozen_checkout(tmp_path_factory) -> Path:
 @pytest.fixture(scope="session")
 def complete_run(frozen_checkout, tmp_path_factory) -> CompletedRun:
     """The tiny config run to the end with `--cores 2` (read-only for tests: copy it to change it)."""
-    if not (DEXGRASPNET_SAMPLE / "dataset").is_dir():
-        pytest.skip(f"DexGraspNet sample not present at {DEXGRASPNET_SAMPLE}: the tiny run trains on its grasps")
     workdir = tmp_path_factory.mktemp("complete_run")
     config = tiny_config(write_tiny_meshes(tmp_path_factory.mktemp("tiny_meshes")))
     write_config(workdir, config)

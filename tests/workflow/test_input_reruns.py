@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 from workflow_harness import (
-    DEXGRASPNET_SAMPLE,
+    grasp_fixture,
     job_blocks,
     local_run_args,
     planned_rules,
@@ -32,9 +32,7 @@ TARGETS = ("results/objects/catalog.parquet", "results/dexgraspnet/grasps.zarr")
 
 @pytest.fixture()
 def dexgraspnet_copy(tmp_path) -> Path:
-    if not (DEXGRASPNET_SAMPLE / "dataset").is_dir():
-        pytest.skip(f"DexGraspNet sample not present at {DEXGRASPNET_SAMPLE}")
-    return Path(shutil.copytree(DEXGRASPNET_SAMPLE, tmp_path / "dexgraspnet"))
+    return Path(shutil.copytree(grasp_fixture(), tmp_path / "dexgraspnet"))
 
 
 def planned_inputs(workdir: Path, rule: str) -> list[str]:
@@ -77,11 +75,9 @@ def test_dexgraspnet_import_lists_the_grasp_files_and_their_meshes(tmp_path, dex
 @pytest.fixture(scope="module")
 def inputs_run(tmp_path_factory) -> Path:
     """A directory where prepare_objects and import_dexgraspnet ran on ./meshes and ./dexgraspnet."""
-    if not (DEXGRASPNET_SAMPLE / "dataset").is_dir():
-        pytest.skip(f"DexGraspNet sample not present at {DEXGRASPNET_SAMPLE}")
     workdir = tmp_path_factory.mktemp("inputs_run")
     write_tiny_meshes(workdir / "meshes")
-    shutil.copytree(DEXGRASPNET_SAMPLE, workdir / "dexgraspnet")
+    shutil.copytree(grasp_fixture(), workdir / "dexgraspnet")
     write_config(workdir, tiny_config(Path("meshes"), dexgraspnet={"root": "dexgraspnet"}))
     run_snakemake(workdir, *local_run_args(), *TARGETS)
     return workdir

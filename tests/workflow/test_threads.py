@@ -6,7 +6,7 @@ from __future__ import annotations
 import shutil
 
 import pytest
-from workflow_harness import DEXGRASPNET_SAMPLE, checkout, option_value, planned_commands, run_snakemake, tiny_config, write_config
+from workflow_harness import checkout, grasp_fixture, option_value, planned_commands, run_snakemake, tiny_config, write_config
 
 # Stages that run once for all objects use every core; sharded stages one per job.
 ALL_CORES_STAGES = {"prepare_objects", "stability_filter", "import_dexgraspnet", "train_cvae"}
@@ -15,12 +15,10 @@ SHARDED_STAGES = {"seed_grasps", "curate", "lift_validate", "sample_grasps", "po
 
 @pytest.mark.parametrize("profile", [None, "local"])
 def test_every_stage_gets_its_threads_with_or_without_the_local_profile(tmp_path, profile):
-    if not (DEXGRASPNET_SAMPLE / "dataset").is_dir():
-        pytest.skip(f"DexGraspNet sample not present at {DEXGRASPNET_SAMPLE}: import_dexgraspnet is not planned without it")
     meshes = tmp_path / "meshes"
     meshes.mkdir()
     (meshes / "box.obj").write_text("not read by a dry run\n")
-    dexgraspnet = shutil.copytree(DEXGRASPNET_SAMPLE, tmp_path / "dexgraspnet")
+    dexgraspnet = shutil.copytree(grasp_fixture(), tmp_path / "dexgraspnet")
     write_config(tmp_path / "run", tiny_config(meshes, dexgraspnet={"root": str(dexgraspnet)}))
     profile_args = ["--profile", str(checkout() / "profiles" / profile)] if profile else []
 

@@ -20,20 +20,15 @@ from collections import Counter
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # tests/: the shared sample_data module
-from sample_data import dexgraspnet_sample_dir  # noqa: E402
+from sample_data import FIXTURE_HELDOUT_OBJECT, GRASP_FIXTURE  # noqa: E402
 
 import yaml
 
 REPO = Path(__file__).resolve().parents[2]
-CHECKOUT_PARTS = ("Snakefile", "config.yaml", "config", "workflow", "profiles", "envs", "src", "pyproject.toml")
+GRASP_FIXTURE_PART = GRASP_FIXTURE.relative_to(REPO).as_posix()
+CHECKOUT_PARTS = ("Snakefile", "config.yaml", "config", "workflow", "profiles", "envs", "src", "pyproject.toml", GRASP_FIXTURE_PART)
 _checkout: Path | None = None
 BIN_DIR = Path(sys.executable).parent
-# Real grasps to train on: a tiny seed run finds none that hold, so the tiny config imports
-# the two-object DexGraspNet sample (sample_data: $DEXLITE_DEXGRASPNET_SAMPLE or the team's copy;
-# the bottle trains; the mug, which tips over in its file orientation, is held out).
-DEXGRASPNET_SAMPLE = dexgraspnet_sample_dir()
-HELDOUT_SAMPLE_OBJECT = "core-mug-8570d9a8d24cb0acbebd3c0c0c70fb03"
-
 # The smallest settings that still exercise every stage. Keys of sections that are not in
 # config.yaml yet are ignored (stages land one by one); keys that are, must be valid.
 TINY_OVERRIDES: dict = {
@@ -46,7 +41,10 @@ TINY_OVERRIDES: dict = {
         "coacd_max_convex_hull": 4,
         "benchmark_objects": 1,  # one object no model trained on: the shipped model's rows
     },
-    "dexgraspnet": {"root": str(DEXGRASPNET_SAMPLE), "heldout_object_codes": [HELDOUT_SAMPLE_OBJECT]},
+    # Real grasps to train on: a tiny seed run finds none that hold, so the tiny config imports the
+    # committed fixture of grasps the pipeline found and lift-tested itself, in DexGraspNet's layout
+    # (grasp_fixture(), made by tests/fixtures/make_grasp_fixture.py; the mug is held out).
+    "dexgraspnet": {"heldout_object_codes": [FIXTURE_HELDOUT_OBJECT]},
     "seed_grasps": {
         "grasps_per_object": 2,
         "scales": [0.1],
@@ -98,6 +96,11 @@ def checkout() -> Path:
     return _checkout or REPO
 
 
+def grasp_fixture() -> Path:
+    """The committed grasp fixture in the frozen checkout (its DexGraspNet root)."""
+    return checkout() / GRASP_FIXTURE_PART
+
+
 def _merge(base: dict, override: dict) -> dict:
     merged = copy.deepcopy(base)
     for key, value in override.items():
@@ -133,11 +136,12 @@ def write_tiny_meshes(folder: Path) -> Path:
 
 def tiny_config(mesh_dir: Path, **section_overrides: dict) -> dict:
     """config.yaml with TINY_OVERRIDES (for the sections it has), the meshes of ``mesh_dir``
-    as the objects, and then ``section_overrides``."""
+    as the objects, the grasp fixture as the DexGraspNet download, and then ``section_overrides``."""
     config = repo_config()
     applicable = {k: v for k, v in TINY_OVERRIDES.items() if k in config}
     config = _merge(config, applicable)
     config["objects"]["mesh_dirs"] = [str(mesh_dir)]
+    config["dexgraspnet"]["root"] = str(grasp_fixture())
     return _merge(config, section_overrides)
 
 
