@@ -33,7 +33,7 @@ RECONSTRUCTION = "cvae_recon"  # learning ladder, fit rung: encoder-mean reconst
 PRIOR_ON_TRAINING = "cvae_prior_train"  # learning ladder, in-distribution rung: pure synthesis on training objects
 SHIPPED_SYNTHESIS = "shipped_raw"  # pure synthesis by the shipped (pretrained) model on held-out objects it never trained on
 LATENT_PRIORS = ("standard", "aggregate", "neighbours")
-ANCHOR_RULES = ("uniform", "matched")
+ANCHOR_RULES = ("uniform", "matched", "debiased", "spread")
 
 
 @dataclass(frozen=True)
@@ -54,12 +54,19 @@ class SampleConfig:
     latent_temperature: float = 1.0  # scale of the latent noise
     anchor_rule: str = "matched"  # associated points of pure synthesis: uniform, or matched to each latent's training grasp
     neighbour_clouds: int = 1  # latent prior ``neighbours``: codes of this many nearest training clouds
+    anchor_region_m: float = 0.02  # anchor rule ``debiased``: a drawn associated point counts against cloud points this close (m)
+    debias_training: bool = False  # anchor rule ``debiased``: counts start from the training grasps matching each point
+    match_candidates: int = 1  # anchor rule ``matched``: debiased draw among this many best-matching points (1: the best)
 
     def __post_init__(self) -> None:
         if not self.scales or min(self.scales) <= 0:
             raise ValueError("sample.scales must be a non-empty list of positive scales")
         if self.neighbour_clouds < 1:
             raise ValueError(f"sample.neighbour_clouds must be >= 1, got {self.neighbour_clouds}")
+        if self.match_candidates < 1:
+            raise ValueError(f"sample.match_candidates must be >= 1, got {self.match_candidates}")
+        if self.anchor_region_m <= 0:
+            raise ValueError(f"sample.anchor_region_m must be > 0, got {self.anchor_region_m}")
         if self.anchor_rule not in ANCHOR_RULES:
             raise ValueError(f"sample.anchor_rule {self.anchor_rule!r} is not one of {', '.join(ANCHOR_RULES)}")
         if self.latent_prior not in LATENT_PRIORS:
@@ -135,8 +142,52 @@ def neighbour_weights(model: GraspCVAE, global_feature: torch.Tensor | None, nei
     return chosen[:, code_cloud]
 
 
-def matched_points(model: GraspCVAE, per_point: torch.Tensor, cloud_index: torch.Tensor, code_index: torch.Tensor) -> torch.Tensor:
-    """(B,) associated points whose local feature is nearest that of the training grasp each latent came from.
+def debiased_points(
+    points: torch.Tensor,
+    cloud_index: torch.Tensor,
+    generator: torch.Generator,
+    region_m: float,
+    prior_counts: torch.Tensor | None = None,
+    candidates: torch.Tensor | None = None,
+) -> torch.Tensor:
+    """(B,) associated points drawn one grasp at a time, each point with weight 1 / (count + 1) (Dex1B's debiased rule).
+
+    ``points`` (C, N, 3) are the clouds' positions (metres). A point's count is how many of the
+    grasps already drawn on its cloud have their associated point within ``region_m`` of it,
+    plus ``prior_counts`` (C, N) when given (e.g. how often training grasps used a similar
+    point): regions already used become less likely, so a batch of grasps spreads over the
+    surface instead of piling onto whichever patch the model favours. ``candidates`` (B, K)
+    restricts each grasp's draw to those point indices (all points when None). Draws are in row order.
+    """
+    counts = prior_counts.clone().float() if prior_counts is not None else torch.zeros(points.shape[:2], device=points.device)
+    chosen = torch.zeros(len(cloud_index), dtype=torch.long)
+    for row, cloud in enumerate(cloud_index.tolist()):
+        allowed = candidates[row] if candidates is not None else torch.arange(points.shape[1], device=points.device)
+        weight = (counts[cloud, allowed] + 1.0).reciprocal()
+        pick = int(allowed[int(torch.multinomial(weight.cpu(), 1, generator=generator))])
+        chosen[row] = pick
+        counts[cloud] += ((points[cloud] - points[cloud, pick]).norm(dim=-1) <= region_m).float()
+    return chosen.to(points.device)
+
+
+def spread_points(points: torch.Tensor, cloud_index: torch.Tensor, generator: torch.Generator) -> torch.Tensor:
+    """(B,) associated points spread over each cloud by farthest-point order: a cloud's first grasp takes a uniformly
+    random point, each next one the point farthest from those its cloud's earlier grasps took (``points`` (C, N, 3))."""
+    nearest = torch.full(points.shape[:2], float("inf"), device=points.device)  # distance to the nearest point taken
+    used = torch.zeros(len(points), dtype=torch.bool)
+    chosen = torch.zeros(len(cloud_index), dtype=torch.long)
+    for row, cloud in enumerate(cloud_index.tolist()):
+        pick = int(nearest[cloud].argmax()) if used[cloud] else int(torch.randint(points.shape[1], (1,), generator=generator))
+        used[cloud] = True
+        chosen[row] = pick
+        nearest[cloud] = torch.minimum(nearest[cloud], (points[cloud] - points[cloud, pick]).norm(dim=-1))
+    return chosen.to(points.device)
+
+
+def matched_points(
+    model: GraspCVAE, per_point: torch.Tensor, cloud_index: torch.Tensor, code_index: torch.Tensor, candidates: int = 1
+) -> torch.Tensor:
+    """(B, candidates) the points whose local feature is nearest that of the training grasp each latent came from, nearest first.
 
     ``per_point`` (C, N, F) are PointNet's per-point features of the clouds. A training
     grasp's code describes a hand relative to a patch of surface; decoding it where the new
@@ -145,7 +196,19 @@ def matched_points(model: GraspCVAE, per_point: torch.Tensor, cloud_index: torch
     """
     wanted = model.codes_condition[code_index, model.config.pointnet_widths[-1] :]  # (B, F)
     distance = (per_point[cloud_index] - wanted[:, None, :]).pow(2).sum(-1)  # (B, N)
-    return distance.argmin(dim=1)
+    return distance.topk(min(candidates, distance.shape[1]), dim=1, largest=False).indices
+
+
+def training_point_counts(model: GraspCVAE, per_point: torch.Tensor, chunk: int = 256) -> torch.Tensor:
+    """(C, N) how many training grasps' associated points match each cloud point: each training grasp counts once,
+    on the point whose local feature is nearest its own (``per_point`` (C, N, F) PointNet's per-point features)."""
+    wanted = model.codes_condition[:, model.config.pointnet_widths[-1] :]  # (G, F)
+    counts = torch.zeros(per_point.shape[:2], device=per_point.device)
+    for cloud in range(len(per_point)):
+        for start in range(0, len(wanted), chunk):
+            distance = torch.cdist(wanted[start : start + chunk], per_point[cloud])  # (g, N)
+            counts[cloud] += torch.bincount(distance.argmin(dim=1), minlength=per_point.shape[1]).float()
+    return counts
 
 
 @torch.no_grad()
@@ -189,11 +252,17 @@ def synthesize(
     fixed_clouds: bool = True,
     anchor_rule: str = "uniform",
     neighbour_clouds: int = 1,
+    anchor_region_m: float = 0.02,
+    debias_training: bool = False,
+    match_candidates: int = 1,
 ) -> torch.Tensor:
     """(B, 28) decoded poses for grasps on (object_index, scale) pairs, from the latent ``prior`` (``sample_latents``).
 
-    ``anchor_rule``: ``uniform`` (associated points uniformly random over the cloud) or
-    ``matched`` (``matched_points``; needs the aggregate prior, whose latents name their code).
+    ``anchor_rule``: ``uniform`` (associated points uniformly random over the cloud),
+    ``matched`` (``matched_points``; needs a prior drawn from the training codes, whose latents
+    name their code; with ``match_candidates`` > 1 a debiased draw among that many best matches), ``debiased`` (``debiased_points`` with regions of ``anchor_region_m``;
+    with ``debias_training`` the counts start from how many training grasps' local features
+    match each point, ``training_point_counts``) or ``spread`` (``spread_points``).
     """
     if anchor_rule not in ANCHOR_RULES:
         raise ValueError(f"anchor rule {anchor_rule!r} is not one of {', '.join(ANCHOR_RULES)}")
@@ -205,7 +274,13 @@ def synthesize(
         model, len(object_index), generator, prior, temperature, features[0][cloud_index], neighbour_clouds
     )
     if anchor_rule == "matched":
-        point_index = matched_points(model, features[1], cloud_index, code_index)
+        matches = matched_points(model, features[1], cloud_index, code_index, match_candidates)
+        point_index = matches[:, 0] if match_candidates <= 1 else debiased_points(drawn[..., :3], cloud_index, generator, anchor_region_m, None, matches)
+    elif anchor_rule == "debiased":
+        prior_counts = training_point_counts(model, features[1]) if debias_training else None
+        point_index = debiased_points(drawn[..., :3], cloud_index, generator, anchor_region_m, prior_counts)
+    elif anchor_rule == "spread":
+        point_index = spread_points(drawn[..., :3], cloud_index, generator)
     else:
         point_index = random_points(len(object_index), points, generator).to(clouds.device)
     condition = condition_at(features, cloud_index, point_index)
@@ -291,7 +366,7 @@ def synthesis_rows(
     scale = np.tile(np.resize(np.asarray(config.scales, np.float32), count), len(object_ids))
     pose = synthesize(
         model, clouds, obj, scale, points, generator, config.latent_prior, config.latent_temperature, fixed_clouds, config.anchor_rule,
-        config.neighbour_clouds,
+        config.neighbour_clouds, config.anchor_region_m, config.debias_training, config.match_candidates,
     )
     return SampledRows(hand_pose=pose, object_id=[clouds.object_ids[i] for i in obj], scale=scale, method=[label] * len(obj))
 
