@@ -45,6 +45,11 @@ SETTINGS: dict[str, dict] = {
     "neighbours8_matched_c8": {"latent_prior": "neighbours", "neighbour_clouds": 8, "anchor_rule": "matched", "match_candidates": 8},
     "neighbours8_matched_c32": {"latent_prior": "neighbours", "neighbour_clouds": 8, "anchor_rule": "matched", "match_candidates": 32},
     "neighbours16_matched_c8": {"latent_prior": "neighbours", "neighbour_clouds": 16, "anchor_rule": "matched", "match_candidates": 8},
+    "neighbours8_matched_codes": {"latent_prior": "neighbours", "neighbour_clouds": 8, "anchor_rule": "matched", "debias_codes": True},
+    "neighbours16_matched_codes": {"latent_prior": "neighbours", "neighbour_clouds": 16, "anchor_rule": "matched", "debias_codes": True},
+    "neighbours8_matched_codes_T2": {
+        "latent_prior": "neighbours", "neighbour_clouds": 8, "anchor_rule": "matched", "debias_codes": True, "latent_temperature": 2.0,
+    },
     "aggregate_matched": {"latent_prior": "aggregate", "anchor_rule": "matched"},
     "aggregate_matched_T3": {"latent_prior": "aggregate", "latent_temperature": 3.0, "anchor_rule": "matched"},
     "aggregate_debiased": {"latent_prior": "aggregate", "anchor_rule": "debiased"},
@@ -95,6 +100,7 @@ def synthesized_starts(model_path: str, assets, object_index, scale, sample, gen
     return synthesize(
         model, ObjectClouds(assets), object_index, scale, points, generator, sample.latent_prior, sample.latent_temperature, fixed,
         sample.anchor_rule, sample.neighbour_clouds, sample.anchor_region_m, sample.debias_training, sample.match_candidates,
+        sample.debias_codes,
     )
 
 

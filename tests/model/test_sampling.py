@@ -114,3 +114,19 @@ def test_matched_candidates_are_the_best_matches_nearest_first(small_model_confi
     assert distance[matches[0]].tolist() == sorted(distance[matches[0]].tolist()) and distance[matches[0, -1]] <= distance.sort().values[3]
     with pytest.raises(ValueError, match="match_candidates"):
         SampleConfig(match_candidates=0)
+
+
+def test_debiased_codes_prefer_codes_a_cloud_has_not_drawn():
+    """Three equally weighted codes, three draws on one cloud: all different with p = 1 x (2/2.5) x (1/2) = 0.4
+    (independent draws: 6/27); a draw on another cloud does not count."""
+    from dexlite_pipeline.model.sampling import debiased_codes
+
+    generator = torch.Generator().manual_seed(6)
+    weights = torch.ones(4, 3)
+    distinct, crossed = [], []
+    for _ in range(3000):
+        pick = debiased_codes(weights, torch.tensor([0, 0, 0, 1]), generator).tolist()
+        distinct.append(len(set(pick[:3])) == 3)
+        crossed.append(pick[3] == pick[0])
+    assert np.mean(distinct) == pytest.approx(0.4, abs=0.03)
+    assert np.mean(crossed) == pytest.approx(1 / 3, abs=0.03)

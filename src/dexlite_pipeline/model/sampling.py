@@ -57,6 +57,7 @@ class SampleConfig:
     anchor_region_m: float = 0.02  # anchor rule ``debiased``: a drawn associated point counts against cloud points this close (m)
     debias_training: bool = False  # anchor rule ``debiased``: counts start from the training grasps matching each point
     match_candidates: int = 1  # anchor rule ``matched``: debiased draw among this many best-matching points (1: the best)
+    debias_codes: bool = False  # training-code priors: a cloud's draws prefer codes it has drawn less (weight / (count + 1))
 
     def __post_init__(self) -> None:
         if not self.scales or min(self.scales) <= 0:
@@ -94,6 +95,7 @@ def sample_latents(
     temperature: float = 1.0,
     global_feature: torch.Tensor | None = None,
     neighbour_clouds: int = 1,
+    cloud_index: torch.Tensor | None = None,
 ) -> tuple[torch.Tensor, torch.Tensor | None]:
     """(count, latent) latents for new grasps, and which training code each came from (None for ``standard``).
 
@@ -107,6 +109,9 @@ def sample_latents(
       ``neighbour_clouds`` nearest): a conditional prior p(z | object) read off the training
       data. On a training object it draws that object's own grasps' codes.
     ``temperature`` scales the noise (of the prior, or of each code's posterior).
+    With ``cloud_index`` (count,) the codes are drawn one row at a time, a code's weight divided
+    by (count + 1) where count is how often earlier rows of the same cloud drew it (``debiased_codes``):
+    a cloud's grasps then use different training codes before any code repeats.
     """
     device = next(model.parameters()).device
     if prior == "standard":
@@ -120,9 +125,24 @@ def sample_latents(
         weights = neighbour_weights(model, global_feature, neighbour_clouds)
     else:
         weights = torch.ones(count, len(codes_mu), device=device)
-    pick = torch.multinomial(weights.cpu(), 1, generator=generator)[:, 0].to(device)
+    if cloud_index is None:
+        pick = torch.multinomial(weights.cpu(), 1, generator=generator)[:, 0].to(device)
+    else:
+        pick = debiased_codes(weights.cpu(), cloud_index.cpu(), generator).to(device)
     noise = torch.randn(count, model.config.latent_dim, generator=generator).to(device)
     return codes_mu[pick] + temperature * torch.exp(0.5 * codes_log_var[pick]) * noise, pick
+
+
+def debiased_codes(weights: torch.Tensor, cloud_index: torch.Tensor, generator: torch.Generator) -> torch.Tensor:
+    """(B,) training codes drawn row by row from ``weights`` (B, N), each divided by (count + 1), count = how often
+    earlier rows of the same cloud (``cloud_index`` (B,)) drew that code: Dex1B's inverse-frequency rule over codes."""
+    counts: dict[int, torch.Tensor] = {}
+    pick = torch.zeros(len(weights), dtype=torch.long)
+    for row, cloud in enumerate(cloud_index.tolist()):
+        used = counts.setdefault(cloud, torch.zeros(weights.shape[1]))
+        pick[row] = int(torch.multinomial(weights[row] / (used + 1.0), 1, generator=generator))
+        used[pick[row]] += 1.0
+    return pick
 
 
 def neighbour_weights(model: GraspCVAE, global_feature: torch.Tensor | None, neighbour_clouds: int) -> torch.Tensor:
@@ -255,6 +275,7 @@ def synthesize(
     anchor_region_m: float = 0.02,
     debias_training: bool = False,
     match_candidates: int = 1,
+    debias_codes: bool = False,
 ) -> torch.Tensor:
     """(B, 28) decoded poses for grasps on (object_index, scale) pairs, from the latent ``prior`` (``sample_latents``).
 
@@ -271,7 +292,7 @@ def synthesize(
     drawn, cloud_index = _clouds_for(clouds, object_index, scale, points, generator, fixed_clouds)
     features = model.pointnet(drawn)
     latent, code_index = sample_latents(
-        model, len(object_index), generator, prior, temperature, features[0][cloud_index], neighbour_clouds
+        model, len(object_index), generator, prior, temperature, features[0][cloud_index], neighbour_clouds, cloud_index if debias_codes else None
     )
     if anchor_rule == "matched":
         matches = matched_points(model, features[1], cloud_index, code_index, match_candidates)
@@ -367,6 +388,7 @@ def synthesis_rows(
     pose = synthesize(
         model, clouds, obj, scale, points, generator, config.latent_prior, config.latent_temperature, fixed_clouds, config.anchor_rule,
         config.neighbour_clouds, config.anchor_region_m, config.debias_training, config.match_candidates,
+        config.debias_codes,
     )
     return SampledRows(hand_pose=pose, object_id=[clouds.object_ids[i] for i in obj], scale=scale, method=[label] * len(obj))
 
