@@ -1,9 +1,10 @@
 """Grasps from the trained CVAE: pure synthesis and dataset expansion.
 
 - Pure synthesis (method ``cvae_raw``, held-out objects): PointNet on the object's cloud,
-  an associated point drawn uniformly from the cloud (``association.random_points``),
-  in the ``hand`` pose frame a uniformly random roll about its normal, z ~ N(0, I),
-  decoder only.
+  a latent from the configured prior (``sample_latents``: N(0, T²I), or training codes), an
+  associated point by the configured rule (uniform, matched to the code's training grasp,
+  debiased by how often nearby points were drawn, or farthest-point spread), in the ``hand``
+  pose frame a uniformly random roll about its normal; decoder only.
 - Dataset expansion (training objects), from a known grasp: its associated point from
   its ray; either the latent is perturbed, z = mu + sigma_expand * eps (method
   ``cvae_expand_latent``), or the associated point is moved to one of its nearest
@@ -51,13 +52,13 @@ class SampleConfig:
     ladder_grasps_per_object: int = 0  # ladder rows per training object and rung (0: every training grasp, synthesis_grasps_per_object prior samples)
     shipped_model: str = str(SHIPPED_MODEL_RELATIVE)  # pretrained model (path in the checkout) also sampled on held-out objects (rows shipped_raw); "" = none
     latent_prior: str = "neighbours"  # where synthesis draws latents: standard N(0, I), the training codes' aggregate or its nearest clouds' codes
-    latent_temperature: float = 1.0  # scale of the latent noise
+    latent_temperature: float = 2.0  # scale of the latent noise
     anchor_rule: str = "matched"  # associated points of pure synthesis: uniform, or matched to each latent's training grasp
-    neighbour_clouds: int = 1  # latent prior ``neighbours``: codes of this many nearest training clouds
+    neighbour_clouds: int = 8  # latent prior ``neighbours``: codes of this many nearest training clouds
     anchor_region_m: float = 0.02  # anchor rule ``debiased``: a drawn associated point counts against cloud points this close (m)
     debias_training: bool = False  # anchor rule ``debiased``: counts start from the training grasps matching each point
     match_candidates: int = 1  # anchor rule ``matched``: debiased draw among this many best-matching points (1: the best)
-    debias_codes: bool = False  # training-code priors: a cloud's draws prefer codes it has drawn less (weight / (count + 1))
+    debias_codes: bool = True  # training-code priors: a cloud's draws prefer codes it has drawn less (weight / (count + 1))
 
     def __post_init__(self) -> None:
         if not self.scales or min(self.scales) <= 0:

@@ -196,7 +196,8 @@ def synthesize_with_model(assets, scales: dict, n: int, config: dict, model_path
         prior, anchor_rule = "standard", "uniform"
     poses = synthesize(
         model, clouds, object_index, scale, points, generator, prior, sample_config.latent_temperature, fixed, anchor_rule,
-        sample_config.neighbour_clouds,
+        sample_config.neighbour_clouds, sample_config.anchor_region_m, sample_config.debias_training, sample_config.match_candidates,
+        sample_config.debias_codes,
     )
     hand = ShadowHand(device)
     energy = GraspEnergy.from_assets(
