@@ -5,13 +5,14 @@ optimization from scratch on the same objects with the same number of attempts.
         [--objects-dir DIR] [--model PATH] [--threads 1] [--csv OUT.csv]
     python benchmarks/sampling_diversity.py --tabulate OUT.csv [MORE.csv ...]
 
-Objects: the first ``--objects`` of the benchmark split (``objects/benchmark_split.yaml``, never trained
+Objects: ``--objects`` of the benchmark split (the first ones, or after ``--skip-objects``) (``objects/benchmark_split.yaml``, never trained
 on), prepared with the checkout's ``objects`` settings into ``--objects-dir`` (reused when already there).
 Each setting samples ``--attempts`` grasps per object (scales dealt in turn from ``sample.scales``) with
 the shipped model, post-optimizes them (``post_optimize``, 200 steps, close-start schedule) and runs the
 lift and six-direction tests (``lift``). Baselines with the same attempts: ``random_post`` (convex-hull
 starts, the same 200-step budget, exploring schedule) and ``seed`` (``seed_grasps``: 2,000 steps, counted
-per attempt, no energy filter). Settings named ``config`` use config.yaml's ``sample`` section as it is.
+per attempt, no energy filter). The setting ``config`` uses config.yaml's ``sample`` section as it is; the
+other named settings are ``SETTING_BASE`` (the sampling defaults before 2026-12-02) with their own options.
 
 Per setting and seed: held per attempt (lift; six-direction among all attempts), distinct held grasps per
 object (``evaluation.diversity``: config ``diversity``, per object and scale, summed per object), joint
@@ -34,7 +35,12 @@ from pathlib import Path
 
 import numpy as np
 
-# name -> synthesize() options over config.yaml's sample section
+# every named setting is these sampling options with its own on top (independent of config.yaml); "config" is
+# config.yaml's sample section as it is
+SETTING_BASE = {
+    "latent_prior": "neighbours", "neighbour_clouds": 1, "latent_temperature": 1.0, "anchor_rule": "matched", "anchor_region_m": 0.02,
+    "debias_training": False, "match_candidates": 1, "debias_codes": False,
+}  # fmt: skip
 SETTINGS: dict[str, dict] = {
     "config": {},
     "neighbours1_matched": {"latent_prior": "neighbours", "neighbour_clouds": 1, "anchor_rule": "matched"},
@@ -75,14 +81,14 @@ COLUMNS = (
 log = logging.getLogger("sampling_diversity")
 
 
-def prepare(objects_dir: Path, count: int, config: dict, threads: int) -> list:
-    """The first ``count`` benchmark objects, prepared into ``objects_dir`` unless they are there already."""
+def prepare(objects_dir: Path, count: int, config: dict, threads: int, skip: int = 0) -> list:
+    """``count`` benchmark objects after the first ``skip``, prepared into ``objects_dir`` unless they are there already."""
     from dexlite_pipeline.config import from_section
     from dexlite_pipeline.objects.assets import available_object_ids, load_asset
     from dexlite_pipeline.objects.prepare import ObjectsConfig, prepare_objects
     from dexlite_pipeline.objects.sources import benchmark_object_list, pybullet_random_source_of
 
-    ids = list(benchmark_object_list())[:count]
+    ids = list(benchmark_object_list())[skip : skip + count]
     missing = [oid for oid in ids if oid not in available_object_ids([str(objects_dir)])]
     if missing:
         objects = from_section(ObjectsConfig, config.get("objects"), "config.objects")
@@ -146,7 +152,8 @@ def run_setting(name: str, assets, attempts: int, seed: int, config: dict, model
         if name == "random_post":
             starts, contacts = initial_poses(hand, HullSampler(assets), obj, sc, post.random_init, generator), "random"
         else:
-            starts = synthesized_starts(model_path, assets, object_index, scale, dataclasses.replace(sample, **SETTINGS[name]), generator)
+            options = {**SETTING_BASE, **SETTINGS[name]} if name != "config" else {}
+            starts = synthesized_starts(model_path, assets, object_index, scale, dataclasses.replace(sample, **options), generator)
             contacts = "surface"
         pose = refine(energy, starts, obj, sc, post, generator, contacts).arrays["hand_pose"]
         grasp_ids = np.asarray([ids[i] for i in object_index], dtype=object)
@@ -216,7 +223,8 @@ def read_rows(paths: list[str]) -> list[dict]:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--objects", type=int, default=12, help="first N objects of the benchmark split")
+    parser.add_argument("--objects", type=int, default=12, help="N objects of the benchmark split (after --skip-objects)")
+    parser.add_argument("--skip-objects", type=int, default=0, help="start after this many benchmark objects")
     parser.add_argument("--attempts", type=int, default=16, help="grasps per object and setting")
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1], help="sampling seeds")
     parser.add_argument("--settings", nargs="+", default=[*SETTINGS, *BASELINES], help=f"of {', '.join([*SETTINGS, *BASELINES])}")
@@ -243,7 +251,7 @@ def main() -> None:
     config = default_config()
     model_path = str(model_or_shipped(args.model))
     objects_dir = Path(args.objects_dir)
-    assets = prepare(objects_dir, args.objects, config, args.threads)
+    assets = prepare(objects_dir, args.objects, config, args.threads, args.skip_objects)
     print(f"# {platform.node()} {platform.processor() or platform.machine()}, {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, "
           f"{len(assets)} benchmark objects x {args.attempts} attempts, model {model_path}, lift threads {args.threads}", flush=True)
     rows = []
