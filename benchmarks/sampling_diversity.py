@@ -52,6 +52,7 @@ SETTINGS: dict[str, dict] = {
     "neighbours8_matched_c32": {"latent_prior": "neighbours", "neighbour_clouds": 8, "anchor_rule": "matched", "match_candidates": 32},
     "neighbours16_matched_c8": {"latent_prior": "neighbours", "neighbour_clouds": 16, "anchor_rule": "matched", "match_candidates": 8},
     "neighbours8_matched_codes": {"latent_prior": "neighbours", "neighbour_clouds": 8, "anchor_rule": "matched", "debias_codes": True},
+    "neighbours4_matched_codes": {"latent_prior": "neighbours", "neighbour_clouds": 4, "anchor_rule": "matched", "debias_codes": True},
     "neighbours16_matched_codes": {"latent_prior": "neighbours", "neighbour_clouds": 16, "anchor_rule": "matched", "debias_codes": True},
     "neighbours8_matched_codes_T2": {
         "latent_prior": "neighbours", "neighbour_clouds": 8, "anchor_rule": "matched", "debias_codes": True, "latent_temperature": 2.0,

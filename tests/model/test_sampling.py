@@ -71,7 +71,8 @@ def test_training_counts_give_each_training_grasp_one_point_per_cloud(small_mode
     with torch.no_grad():
         _, per_point = model.pointnet(random_clouds(2, 32))
     codes = 7
-    model.set_latent_codes(torch.zeros(codes, 8), torch.zeros(codes, 8), torch.cat([torch.zeros(codes, width), per_point[0, :codes]], 1), torch.zeros(codes))
+    conditions = torch.cat([torch.zeros(codes, width), per_point[0, :codes]], 1)  # local features of cloud 0's first points
+    model.set_latent_codes(torch.zeros(codes, 8), torch.zeros(codes, 8), conditions, torch.zeros(codes))
     counts = training_point_counts(model, per_point, chunk=3)
     assert counts.shape == (2, 32) and counts.sum(dim=1).tolist() == [codes, codes]
     assert counts[0, :codes].tolist() == [1.0] * codes  # each training grasp's local feature is that of its own point on cloud 0

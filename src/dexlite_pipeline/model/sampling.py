@@ -52,8 +52,8 @@ class SampleConfig:
     ladder_grasps_per_object: int = 0  # ladder rows per training object and rung (0: every training grasp, synthesis_grasps_per_object prior samples)
     shipped_model: str = str(SHIPPED_MODEL_RELATIVE)  # pretrained model (path in the checkout) also sampled on held-out objects (rows shipped_raw); "" = none
     latent_prior: str = "neighbours"  # where synthesis draws latents: standard N(0, I), the training codes' aggregate or its nearest clouds' codes
-    latent_temperature: float = 2.0  # scale of the latent noise
-    anchor_rule: str = "matched"  # associated points of pure synthesis: uniform, or matched to each latent's training grasp
+    latent_temperature: float = 2.0  # scale of the latent noise (of N(0, I), or of each training code's posterior sigma)
+    anchor_rule: str = "matched"  # associated points of pure synthesis: uniform, matched to each latent's training grasp, debiased or spread
     neighbour_clouds: int = 8  # latent prior ``neighbours``: codes of this many nearest training clouds
     anchor_region_m: float = 0.02  # anchor rule ``debiased``: a drawn associated point counts against cloud points this close (m)
     debias_training: bool = False  # anchor rule ``debiased``: counts start from the training grasps matching each point
@@ -108,7 +108,7 @@ def sample_latents(
     - ``neighbours``: the aggregate over the codes of the training clouds (object and scale)
       whose global feature is nearest the new cloud's (``global_feature`` (count, F), the
       ``neighbour_clouds`` nearest): a conditional prior p(z | object) read off the training
-      data. On a training object it draws that object's own grasps' codes.
+      data. On a training object its own cloud is the nearest, so its own grasps' codes are among those drawn.
     ``temperature`` scales the noise (of the prior, or of each code's posterior).
     With ``cloud_index`` (count,) the codes are drawn one row at a time, a code's weight divided
     by (count + 1) where count is how often earlier rows of the same cloud drew it (``debiased_codes``):
@@ -282,9 +282,11 @@ def synthesize(
 
     ``anchor_rule``: ``uniform`` (associated points uniformly random over the cloud),
     ``matched`` (``matched_points``; needs a prior drawn from the training codes, whose latents
-    name their code; with ``match_candidates`` > 1 a debiased draw among that many best matches), ``debiased`` (``debiased_points`` with regions of ``anchor_region_m``;
-    with ``debias_training`` the counts start from how many training grasps' local features
-    match each point, ``training_point_counts``) or ``spread`` (``spread_points``).
+    name their code; with ``match_candidates`` > 1 a debiased draw among that many best
+    matches), ``debiased`` (``debiased_points`` with regions of ``anchor_region_m``; with
+    ``debias_training`` the counts start from how many training grasps' local features match
+    each point, ``training_point_counts``) or ``spread`` (``spread_points``). With
+    ``debias_codes`` each cloud's training codes are drawn by ``debiased_codes``.
     """
     if anchor_rule not in ANCHOR_RULES:
         raise ValueError(f"anchor rule {anchor_rule!r} is not one of {', '.join(ANCHOR_RULES)}")
@@ -297,7 +299,10 @@ def synthesize(
     )
     if anchor_rule == "matched":
         matches = matched_points(model, features[1], cloud_index, code_index, match_candidates)
-        point_index = matches[:, 0] if match_candidates <= 1 else debiased_points(drawn[..., :3], cloud_index, generator, anchor_region_m, None, matches)
+        if match_candidates <= 1:
+            point_index = matches[:, 0]
+        else:
+            point_index = debiased_points(drawn[..., :3], cloud_index, generator, anchor_region_m, None, matches)
     elif anchor_rule == "debiased":
         prior_counts = training_point_counts(model, features[1]) if debias_training else None
         point_index = debiased_points(drawn[..., :3], cloud_index, generator, anchor_region_m, prior_counts)
