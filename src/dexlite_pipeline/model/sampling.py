@@ -52,7 +52,7 @@ class SampleConfig:
     ladder_grasps_per_object: int = 0  # ladder rows per training object and rung (0: every training grasp, synthesis_grasps_per_object prior samples)
     shipped_model: str = str(SHIPPED_MODEL_RELATIVE)  # pretrained model (path in the checkout) also sampled on held-out objects (rows shipped_raw); "" = none
     latent_prior: str = "neighbours"  # where synthesis draws latents: standard N(0, I), the training codes' aggregate or its nearest clouds' codes
-    latent_temperature: float = 2.0  # scale of the latent noise (of N(0, I), or of each training code's posterior sigma)
+    latent_temperature: float = 1.0  # scale of the latent noise (of N(0, I), or of each training code's posterior sigma)
     anchor_rule: str = "matched"  # associated points of pure synthesis: uniform, matched to each latent's training grasp, debiased or spread
     neighbour_clouds: int = 8  # latent prior ``neighbours``: codes of this many nearest training clouds
     anchor_region_m: float = 0.02  # anchor rule ``debiased``: a drawn associated point counts against cloud points this close (m)
