@@ -104,7 +104,7 @@ class TrainConfig:
 
 
 LATENT_PRIORS = ("standard", "aggregate", "neighbours")
-ANCHOR_RULES = ("uniform", "matched")
+ANCHOR_RULES = ("uniform", "matched", "debiased", "spread")
 
 
 @dataclass(frozen=True)
@@ -122,15 +122,23 @@ class SampleConfig:
     ladder_grasps_per_object: int = 0  # ladder rows per training object and rung (0: every training grasp, synthesis_grasps_per_object prior samples)
     shipped_model: str = str(SHIPPED_MODEL_RELATIVE)  # pretrained model (path in the checkout) also sampled on held-out objects (rows shipped_raw); "" = none
     latent_prior: str = "neighbours"  # where synthesis draws latents: standard N(0, I), the training codes' aggregate or its nearest clouds' codes
-    latent_temperature: float = 1.0  # scale of the latent noise
-    anchor_rule: str = "matched"  # associated points of pure synthesis: uniform, or matched to each latent's training grasp
-    neighbour_clouds: int = 1  # latent prior ``neighbours``: codes of this many nearest training clouds
+    latent_temperature: float = 1.0  # scale of the latent noise (of N(0, I), or of each training code's posterior sigma)
+    anchor_rule: str = "matched"  # associated points of pure synthesis: uniform, matched to each latent's training grasp, debiased or spread
+    neighbour_clouds: int = 8  # latent prior ``neighbours``: codes of this many nearest training clouds
+    anchor_region_m: float = 0.02  # anchor rule ``debiased``: a drawn associated point counts against cloud points this close (m)
+    debias_training: bool = False  # anchor rule ``debiased``: counts start from the training grasps matching each point
+    match_candidates: int = 1  # anchor rule ``matched``: debiased draw among this many best-matching points (1: the best)
+    debias_codes: bool = True  # training-code priors: a cloud's draws prefer codes it has drawn less (weight / (count + 1))
 
     def __post_init__(self) -> None:
         if not self.scales or min(self.scales) <= 0:
             raise ValueError("sample.scales must be a non-empty list of positive scales")
         if self.neighbour_clouds < 1:
             raise ValueError(f"sample.neighbour_clouds must be >= 1, got {self.neighbour_clouds}")
+        if self.match_candidates < 1:
+            raise ValueError(f"sample.match_candidates must be >= 1, got {self.match_candidates}")
+        if self.anchor_region_m <= 0:
+            raise ValueError(f"sample.anchor_region_m must be > 0, got {self.anchor_region_m}")
         if self.anchor_rule not in ANCHOR_RULES:
             raise ValueError(f"sample.anchor_rule {self.anchor_rule!r} is not one of {', '.join(ANCHOR_RULES)}")
         if self.latent_prior not in LATENT_PRIORS:

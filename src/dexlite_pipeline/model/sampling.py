@@ -1,9 +1,10 @@
 """Grasps from the trained CVAE: pure synthesis and dataset expansion.
 
 - Pure synthesis (method ``cvae_raw``, held-out objects): PointNet on the object's cloud,
-  an associated point drawn uniformly from the cloud (``association.random_points``),
-  in the ``hand`` pose frame a uniformly random roll about its normal, z ~ N(0, I),
-  decoder only.
+  a latent from the configured prior (``sample_latents``: N(0, T²I), or training codes), an
+  associated point by the configured rule (uniform, matched to the code's training grasp,
+  debiased by how often nearby points were drawn, or farthest-point spread), in the ``hand``
+  pose frame a uniformly random roll about its normal; decoder only.
 - Dataset expansion (training objects), from a known grasp: its associated point from
   its ray; either the latent is perturbed, z = mu + sigma_expand * eps (method
   ``cvae_expand_latent``), or the associated point is moved to one of its nearest
@@ -49,6 +50,7 @@ def sample_latents(
     temperature: float = 1.0,
     global_feature: torch.Tensor | None = None,
     neighbour_clouds: int = 1,
+    cloud_index: torch.Tensor | None = None,
 ) -> tuple[torch.Tensor, torch.Tensor | None]:
     """(count, latent) latents for new grasps, and which training code each came from (None for ``standard``).
 
@@ -60,8 +62,11 @@ def sample_latents(
     - ``neighbours``: the aggregate over the codes of the training clouds (object and scale)
       whose global feature is nearest the new cloud's (``global_feature`` (count, F), the
       ``neighbour_clouds`` nearest): a conditional prior p(z | object) read off the training
-      data. On a training object it draws that object's own grasps' codes.
+      data. On a training object its own cloud is the nearest, so its own grasps' codes are among those drawn.
     ``temperature`` scales the noise (of the prior, or of each code's posterior).
+    With ``cloud_index`` (count,) the codes are drawn one row at a time, a code's weight divided
+    by (count + 1) where count is how often earlier rows of the same cloud drew it (``debiased_codes``):
+    a cloud's grasps then use different training codes before any code repeats.
     """
     device = next(model.parameters()).device
     if prior == "standard":
@@ -75,9 +80,24 @@ def sample_latents(
         weights = neighbour_weights(model, global_feature, neighbour_clouds)
     else:
         weights = torch.ones(count, len(codes_mu), device=device)
-    pick = torch.multinomial(weights.cpu(), 1, generator=generator)[:, 0].to(device)
+    if cloud_index is None:
+        pick = torch.multinomial(weights.cpu(), 1, generator=generator)[:, 0].to(device)
+    else:
+        pick = debiased_codes(weights.cpu(), cloud_index.cpu(), generator).to(device)
     noise = torch.randn(count, model.config.latent_dim, generator=generator).to(device)
     return codes_mu[pick] + temperature * torch.exp(0.5 * codes_log_var[pick]) * noise, pick
+
+
+def debiased_codes(weights: torch.Tensor, cloud_index: torch.Tensor, generator: torch.Generator) -> torch.Tensor:
+    """(B,) training codes drawn row by row from ``weights`` (B, N), each divided by (count + 1), count = how often
+    earlier rows of the same cloud (``cloud_index`` (B,)) drew that code: Dex1B's inverse-frequency rule over codes."""
+    counts: dict[int, torch.Tensor] = {}
+    pick = torch.zeros(len(weights), dtype=torch.long)
+    for row, cloud in enumerate(cloud_index.tolist()):
+        used = counts.setdefault(cloud, torch.zeros(weights.shape[1]))
+        pick[row] = int(torch.multinomial(weights[row] / (used + 1.0), 1, generator=generator))
+        used[pick[row]] += 1.0
+    return pick
 
 
 def neighbour_weights(model: GraspCVAE, global_feature: torch.Tensor | None, neighbour_clouds: int) -> torch.Tensor:
@@ -97,8 +117,52 @@ def neighbour_weights(model: GraspCVAE, global_feature: torch.Tensor | None, nei
     return chosen[:, code_cloud]
 
 
-def matched_points(model: GraspCVAE, per_point: torch.Tensor, cloud_index: torch.Tensor, code_index: torch.Tensor) -> torch.Tensor:
-    """(B,) associated points whose local feature is nearest that of the training grasp each latent came from.
+def debiased_points(
+    points: torch.Tensor,
+    cloud_index: torch.Tensor,
+    generator: torch.Generator,
+    region_m: float,
+    prior_counts: torch.Tensor | None = None,
+    candidates: torch.Tensor | None = None,
+) -> torch.Tensor:
+    """(B,) associated points drawn one grasp at a time, each point with weight 1 / (count + 1) (Dex1B's debiased rule).
+
+    ``points`` (C, N, 3) are the clouds' positions (metres). A point's count is how many of the
+    grasps already drawn on its cloud have their associated point within ``region_m`` of it,
+    plus ``prior_counts`` (C, N) when given (e.g. how often training grasps used a similar
+    point): regions already used become less likely, so a batch of grasps spreads over the
+    surface instead of piling onto whichever patch the model favours. ``candidates`` (B, K)
+    restricts each grasp's draw to those point indices (all points when None). Draws are in row order.
+    """
+    counts = prior_counts.clone().float() if prior_counts is not None else torch.zeros(points.shape[:2], device=points.device)
+    chosen = torch.zeros(len(cloud_index), dtype=torch.long)
+    for row, cloud in enumerate(cloud_index.tolist()):
+        allowed = candidates[row] if candidates is not None else torch.arange(points.shape[1], device=points.device)
+        weight = (counts[cloud, allowed] + 1.0).reciprocal()
+        pick = int(allowed[int(torch.multinomial(weight.cpu(), 1, generator=generator))])
+        chosen[row] = pick
+        counts[cloud] += ((points[cloud] - points[cloud, pick]).norm(dim=-1) <= region_m).float()
+    return chosen.to(points.device)
+
+
+def spread_points(points: torch.Tensor, cloud_index: torch.Tensor, generator: torch.Generator) -> torch.Tensor:
+    """(B,) associated points spread over each cloud by farthest-point order: a cloud's first grasp takes a uniformly
+    random point, each next one the point farthest from those its cloud's earlier grasps took (``points`` (C, N, 3))."""
+    nearest = torch.full(points.shape[:2], float("inf"), device=points.device)  # distance to the nearest point taken
+    used = torch.zeros(len(points), dtype=torch.bool)
+    chosen = torch.zeros(len(cloud_index), dtype=torch.long)
+    for row, cloud in enumerate(cloud_index.tolist()):
+        pick = int(nearest[cloud].argmax()) if used[cloud] else int(torch.randint(points.shape[1], (1,), generator=generator))
+        used[cloud] = True
+        chosen[row] = pick
+        nearest[cloud] = torch.minimum(nearest[cloud], (points[cloud] - points[cloud, pick]).norm(dim=-1))
+    return chosen.to(points.device)
+
+
+def matched_points(
+    model: GraspCVAE, per_point: torch.Tensor, cloud_index: torch.Tensor, code_index: torch.Tensor, candidates: int = 1
+) -> torch.Tensor:
+    """(B, candidates) the points whose local feature is nearest that of the training grasp each latent came from, nearest first.
 
     ``per_point`` (C, N, F) are PointNet's per-point features of the clouds. A training
     grasp's code describes a hand relative to a patch of surface; decoding it where the new
@@ -107,7 +171,19 @@ def matched_points(model: GraspCVAE, per_point: torch.Tensor, cloud_index: torch
     """
     wanted = model.codes_condition[code_index, model.config.pointnet_widths[-1] :]  # (B, F)
     distance = (per_point[cloud_index] - wanted[:, None, :]).pow(2).sum(-1)  # (B, N)
-    return distance.argmin(dim=1)
+    return distance.topk(min(candidates, distance.shape[1]), dim=1, largest=False).indices
+
+
+def training_point_counts(model: GraspCVAE, per_point: torch.Tensor, chunk: int = 256) -> torch.Tensor:
+    """(C, N) how many training grasps' associated points match each cloud point: each training grasp counts once,
+    on the point whose local feature is nearest its own (``per_point`` (C, N, F) PointNet's per-point features)."""
+    wanted = model.codes_condition[:, model.config.pointnet_widths[-1] :]  # (G, F)
+    counts = torch.zeros(per_point.shape[:2], device=per_point.device)
+    for cloud in range(len(per_point)):
+        for start in range(0, len(wanted), chunk):
+            distance = torch.cdist(wanted[start : start + chunk], per_point[cloud])  # (g, N)
+            counts[cloud] += torch.bincount(distance.argmin(dim=1), minlength=per_point.shape[1]).float()
+    return counts
 
 
 @torch.no_grad()
@@ -151,11 +227,20 @@ def synthesize(
     fixed_clouds: bool = True,
     anchor_rule: str = "uniform",
     neighbour_clouds: int = 1,
+    anchor_region_m: float = 0.02,
+    debias_training: bool = False,
+    match_candidates: int = 1,
+    debias_codes: bool = False,
 ) -> torch.Tensor:
     """(B, 28) decoded poses for grasps on (object_index, scale) pairs, from the latent ``prior`` (``sample_latents``).
 
-    ``anchor_rule``: ``uniform`` (associated points uniformly random over the cloud) or
-    ``matched`` (``matched_points``; needs the aggregate prior, whose latents name their code).
+    ``anchor_rule``: ``uniform`` (associated points uniformly random over the cloud),
+    ``matched`` (``matched_points``; needs a prior drawn from the training codes, whose latents
+    name their code; with ``match_candidates`` > 1 a debiased draw among that many best
+    matches), ``debiased`` (``debiased_points`` with regions of ``anchor_region_m``; with
+    ``debias_training`` the counts start from how many training grasps' local features match
+    each point, ``training_point_counts``) or ``spread`` (``spread_points``). With
+    ``debias_codes`` each cloud's training codes are drawn by ``debiased_codes``.
     """
     if anchor_rule not in ANCHOR_RULES:
         raise ValueError(f"anchor rule {anchor_rule!r} is not one of {', '.join(ANCHOR_RULES)}")
@@ -164,10 +249,19 @@ def synthesize(
     drawn, cloud_index = _clouds_for(clouds, object_index, scale, points, generator, fixed_clouds)
     features = model.pointnet(drawn)
     latent, code_index = sample_latents(
-        model, len(object_index), generator, prior, temperature, features[0][cloud_index], neighbour_clouds
+        model, len(object_index), generator, prior, temperature, features[0][cloud_index], neighbour_clouds, cloud_index if debias_codes else None
     )
     if anchor_rule == "matched":
-        point_index = matched_points(model, features[1], cloud_index, code_index)
+        matches = matched_points(model, features[1], cloud_index, code_index, match_candidates)
+        if match_candidates <= 1:
+            point_index = matches[:, 0]
+        else:
+            point_index = debiased_points(drawn[..., :3], cloud_index, generator, anchor_region_m, None, matches)
+    elif anchor_rule == "debiased":
+        prior_counts = training_point_counts(model, features[1]) if debias_training else None
+        point_index = debiased_points(drawn[..., :3], cloud_index, generator, anchor_region_m, prior_counts)
+    elif anchor_rule == "spread":
+        point_index = spread_points(drawn[..., :3], cloud_index, generator)
     else:
         point_index = random_points(len(object_index), points, generator).to(clouds.device)
     condition = condition_at(features, cloud_index, point_index)
@@ -253,7 +347,8 @@ def synthesis_rows(
     scale = np.tile(np.resize(np.asarray(config.scales, np.float32), count), len(object_ids))
     pose = synthesize(
         model, clouds, obj, scale, points, generator, config.latent_prior, config.latent_temperature, fixed_clouds, config.anchor_rule,
-        config.neighbour_clouds,
+        config.neighbour_clouds, config.anchor_region_m, config.debias_training, config.match_candidates,
+        config.debias_codes,
     )
     return SampledRows(hand_pose=pose, object_id=[clouds.object_ids[i] for i in obj], scale=scale, method=[label] * len(obj))
 

@@ -337,7 +337,8 @@ def synthesize_with_model(assets, scales: dict, n: int, config, loaded, model_pa
         prior, anchor_rule = "standard", "uniform"
     poses = synthesize(
         model, clouds, object_index, scale, points, generator, prior, sample_config.latent_temperature, fixed, anchor_rule,
-        sample_config.neighbour_clouds,
+        sample_config.neighbour_clouds, sample_config.anchor_region_m, sample_config.debias_training, sample_config.match_candidates,
+        sample_config.debias_codes,
     )
     if support_planes is not None:  # tabletop: samples whose hand starts below the table are raised above it first
         from dexlite_pipeline.tabletop import raise_above_table

@@ -1,0 +1,133 @@
+"""Associated points of pure synthesis that spread over the object: Dex1B's debiased draw and farthest-point spread."""
+
+import numpy as np
+import pytest
+import torch
+
+from dexlite_pipeline.model.sampling import SampleConfig, debiased_points, spread_points, synthesize, training_point_counts
+
+
+def _three_far_points() -> torch.Tensor:
+    """One cloud (1, 3, 3) of three points 1 m apart."""
+    return torch.tensor([[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]])
+
+
+def test_a_drawn_point_weighs_one_over_count_plus_one_afterwards():
+    """After the first draw its point weighs 1/2 and the others 1: the second draw repeats it with p = 0.5 / 2.5 = 0.2."""
+    generator = torch.Generator().manual_seed(0)
+    repeats = [int((lambda p: p[0] == p[1])(debiased_points(_three_far_points(), torch.zeros(2, dtype=torch.long), generator, 0.1)))
+               for _ in range(3000)]  # fmt: skip
+    assert np.mean(repeats) == pytest.approx(0.2, abs=0.025)
+
+
+def test_prior_counts_steer_the_first_draw_away_from_used_points():
+    """Counts (3, 0, 0): the first point weighs 1/4, the others 1 each: p = 0.25 / 2.25."""
+    generator = torch.Generator().manual_seed(1)
+    counts = torch.tensor([[3.0, 0.0, 0.0]])
+    first = [int(debiased_points(_three_far_points(), torch.zeros(1, dtype=torch.long), generator, 0.1, counts)) for _ in range(3000)]
+    assert np.mean(np.asarray(first) == 0) == pytest.approx(0.25 / 2.25, abs=0.02)
+
+
+def test_a_draw_counts_against_its_whole_region_not_its_point_alone():
+    """Two clusters of 50 points 1 m apart; a region of 10 cm covers a cluster: the second draw leaves the first cluster with
+    p = 2/3 (uniform: 1/2); with a 1 mm region the count stays on the one point and the second draw is nearly uniform."""
+    cluster = torch.rand(50, 3, generator=torch.Generator().manual_seed(2)) * 0.05
+    cloud = torch.cat([cluster, cluster + torch.tensor([1.0, 0.0, 0.0])])[None]
+    for region, expected in ((0.1, 2 / 3), (0.001, 50 / 99.5)):
+        generator = torch.Generator().manual_seed(3)
+        switched = []
+        for _ in range(2000):
+            first, second = debiased_points(cloud, torch.zeros(2, dtype=torch.long), generator, region).tolist()
+            switched.append((first < 50) != (second < 50))
+        assert np.mean(switched) == pytest.approx(expected, abs=0.03), region
+
+
+def test_each_cloud_keeps_its_own_counts():
+    """Two clouds alike: a draw on cloud 0 does not weigh on cloud 1, whose draw then repeats that index with p = 1/3
+    (shared counts would make it 0.2)."""
+    clouds = torch.cat([_three_far_points(), _three_far_points()])
+    generator = torch.Generator().manual_seed(4)
+    same = [int((lambda p: p[0] == p[1])(debiased_points(clouds, torch.tensor([0, 1]), generator, 0.1))) for _ in range(3000)]
+    assert np.mean(same) == pytest.approx(1 / 3, abs=0.03)
+
+
+def test_spread_takes_farthest_points_per_cloud():
+    """Points on a line 0..9 m, two clouds' rows interleaved: each grasp takes a point as far as any from its cloud's earlier ones."""
+    line = torch.stack([torch.arange(10.0), torch.zeros(10), torch.zeros(10)], dim=1)
+    clouds = torch.stack([line, line])
+    chosen = spread_points(clouds, torch.tensor([0, 1, 0, 1, 0, 1]), torch.Generator().manual_seed(5))
+    for cloud in (0, 1):
+        picks = chosen[cloud::2].tolist()
+        for k in (1, 2):
+            gap = lambda x: min(abs(x - p) for p in picks[:k])  # noqa: E731
+            assert gap(picks[k]) == max(gap(x) for x in range(10)) > 0, (cloud, picks)
+
+
+def test_training_counts_give_each_training_grasp_one_point_per_cloud(small_model_config, random_clouds):
+    from dexlite_pipeline.model.network import GraspCVAE
+
+    model = GraspCVAE(small_model_config).eval()
+    width = small_model_config.pointnet_widths[-1]
+    with torch.no_grad():
+        _, per_point = model.pointnet(random_clouds(2, 32))
+    codes = 7
+    conditions = torch.cat([torch.zeros(codes, width), per_point[0, :codes]], 1)  # local features of cloud 0's first points
+    model.set_latent_codes(torch.zeros(codes, 8), torch.zeros(codes, 8), conditions, torch.zeros(codes))
+    counts = training_point_counts(model, per_point, chunk=3)
+    assert counts.shape == (2, 32) and counts.sum(dim=1).tolist() == [codes, codes]
+    assert counts[0, :codes].tolist() == [1.0] * codes  # each training grasp's local feature is that of its own point on cloud 0
+
+
+@pytest.mark.parametrize("rule", ["debiased", "spread"])
+def test_synthesis_with_spread_anchors_decodes_finite_poses_on_distinct_points(rule, small_model_config, tiny_assets):
+    from dexlite_pipeline.model.data import ObjectClouds
+    from dexlite_pipeline.model.network import GraspCVAE
+
+    model = GraspCVAE(small_model_config).eval()
+    clouds = ObjectClouds(tiny_assets)
+    object_index, scale = np.zeros(6, np.int64), np.full(6, 0.1, np.float32)
+    pose = synthesize(model, clouds, object_index, scale, 64, torch.Generator().manual_seed(0), "standard", 1.0, True, rule)
+    assert pose.shape == (6, 28) and torch.isfinite(pose).all()
+    # the palms differ: six anchors, not one point decoded six times
+    assert len({tuple(np.round(p, 4)) for p in pose[:, :3].numpy()}) == 6
+
+
+def test_config_rejects_unknown_rules_and_empty_regions():
+    with pytest.raises(ValueError, match="anchor_rule"):
+        SampleConfig(anchor_rule="everywhere")
+    with pytest.raises(ValueError, match="anchor_region_m"):
+        SampleConfig(anchor_region_m=0.0)
+
+
+def test_matched_candidates_are_the_best_matches_nearest_first(small_model_config, random_clouds):
+    """A training grasp's local feature is that of point 5 of cloud 0: point 5 is its best match, the others follow by distance."""
+    from dexlite_pipeline.model.network import GraspCVAE
+    from dexlite_pipeline.model.sampling import matched_points
+
+    model = GraspCVAE(small_model_config).eval()
+    width = small_model_config.pointnet_widths[-1]
+    with torch.no_grad():
+        _, per_point = model.pointnet(random_clouds(1, 32))
+    model.set_latent_codes(torch.zeros(1, 8), torch.zeros(1, 8), torch.cat([torch.zeros(1, width), per_point[0, 5:6]], 1), torch.zeros(1))
+    matches = matched_points(model, per_point, torch.zeros(1, dtype=torch.long), torch.zeros(1, dtype=torch.long), candidates=4)
+    distance = (per_point[0] - per_point[0, 5]).norm(dim=-1)
+    assert matches.shape == (1, 4) and int(matches[0, 0]) == 5
+    assert distance[matches[0]].tolist() == sorted(distance[matches[0]].tolist()) and distance[matches[0, -1]] <= distance.sort().values[3]
+    with pytest.raises(ValueError, match="match_candidates"):
+        SampleConfig(match_candidates=0)
+
+
+def test_debiased_codes_prefer_codes_a_cloud_has_not_drawn():
+    """Three equally weighted codes, three draws on one cloud: all different with p = 1 x (2/2.5) x (1/2) = 0.4
+    (independent draws: 6/27); a draw on another cloud does not count."""
+    from dexlite_pipeline.model.sampling import debiased_codes
+
+    generator = torch.Generator().manual_seed(6)
+    weights = torch.ones(4, 3)
+    distinct, crossed = [], []
+    for _ in range(3000):
+        pick = debiased_codes(weights, torch.tensor([0, 0, 0, 1]), generator).tolist()
+        distinct.append(len(set(pick[:3])) == 3)
+        crossed.append(pick[3] == pick[0])
+    assert np.mean(distinct) == pytest.approx(0.4, abs=0.03)
+    assert np.mean(crossed) == pytest.approx(1 / 3, abs=0.03)
