@@ -370,3 +370,19 @@ def test_a_mesh_rejected_in_preparation_is_reported_once_and_never_as_prepared(t
     messages = [r.getMessage() for r in caplog.records]
     assert not [m for m in messages if "degenerate" in m]  # the reason appears once: in the error line
     assert not [m for m in messages if "prepared" in m and "could be used" not in m]
+
+
+@pytest.mark.slow
+def test_on_a_table_no_held_grasp_reaches_below_it(grasp_run):
+    """Tabletop mode (the default): every grasp records its object's table, and no held grasp has a hand point below it."""
+    from dexlite_pipeline.tabletop import TABLE_TOLERANCE_M, grasp_table_depths, planes_from_store
+
+    _, out = grasp_run
+    every = read_grasp_store(out / "all_grasps.zarr")
+    planes = planes_from_store(every)
+    assert planes is not None and {"user-box", "user-cup"} <= set(planes.planes)
+    depth = grasp_table_depths(every, planes)
+    held = np.asarray(every.arrays["lift_success"], bool)
+    assert np.isfinite(depth).all() and (depth[held] <= TABLE_TOLERANCE_M).all()
+    in_table = np.asarray(every.arrays["failure_reason"], dtype=object) == "hand_in_table"
+    assert (depth[in_table] > TABLE_TOLERANCE_M).all()
