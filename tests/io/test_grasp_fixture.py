@@ -69,7 +69,7 @@ def test_fixture_imports_whole_with_correct_sdf_sign(imported_fixture):
 def test_fixture_grasps_meet_the_energy_thresholds_they_were_kept_for(imported_fixture):
     """Seed synthesis kept them below the penetration and contact-distance thresholds on these very
     meshes: a frame or conversion error would show as deep penetration or far contacts."""
-    from dexlite_pipeline.energy import evaluate_grasp_energies
+    from dexlite_pipeline.energy.per_grasp import evaluate_grasp_energies
     from dexlite_pipeline.hand import JOINT_NAMES
 
     result, objects, config = imported_fixture
