@@ -127,6 +127,10 @@ def simulate_shard(
     result = simulate(selected_all, objects_dirs, lift_cfg, energy_cfg, device, threads, cfg.energy_batch_size, cfg.seed_protocol, **on_table)
     if planes is not None:
         result.arrays["table_depth_mm"] = grasp_table_depths(selected_all, planes) * 1000.0
+    if scene.table:  # the table each grasp was tested on, so that a grasp is reproducible from the store (and pictured on it)
+        from dexlite_pipeline.tabletop import support_arrays
+
+        result.arrays.update(support_arrays(planes, selected_all.object_id, selected_all.scale))
     attrs = {
         "stage": "evaluate",
         "shard": shard,

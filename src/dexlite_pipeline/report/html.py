@@ -427,7 +427,7 @@ def contact_points(hand, hand_pose: np.ndarray, contact_index: np.ndarray | None
 
 def grasp_picture_png(hand, simulated: GraspSet, row: int, objects_dirs, size_px: int = 260) -> bytes:
     """Two viewpoints of one grasp (the renderer's hand and object) with its four contact points as red dots."""
-    from dexlite_pipeline.report.render import DEFAULT_VIEWS_DEG, draw_grasp, hand_mesh_world, object_mesh_world
+    from dexlite_pipeline.report.render import DEFAULT_VIEWS_DEG, draw_grasp, grasp_table, hand_mesh_world, object_mesh_world
 
     plt = _plt()
     pose = np.asarray(simulated.hand_pose[row], dtype=np.float64)
@@ -439,7 +439,7 @@ def grasp_picture_png(hand, simulated: GraspSet, row: int, objects_dirs, size_px
     fig = plt.figure(figsize=(size_px * len(DEFAULT_VIEWS_DEG) / dpi, size_px / dpi), dpi=dpi)
     for k, (elev, azim) in enumerate(DEFAULT_VIEWS_DEG):
         ax = fig.add_subplot(1, len(DEFAULT_VIEWS_DEG), k + 1, projection="3d")
-        draw_grasp(ax, hand_mesh, object_mesh, elev, azim)
+        draw_grasp(ax, hand_mesh, object_mesh, elev, azim, grasp_table(simulated, row))
         ax.computed_zorder = False  # the dots are drawn over the meshes, so occluded contacts still show
         ax.scatter(contacts[:, 0], contacts[:, 1], contacts[:, 2], s=42, c="#e00000", edgecolors="white", linewidths=0.8, zorder=10, depthshade=False)
     fig.subplots_adjust(left=0, right=1, bottom=0, top=1, wspace=0)

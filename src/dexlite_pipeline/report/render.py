@@ -23,6 +23,7 @@ from dexlite_pipeline.objects.assets import find_asset_dir
 
 HAND_RGB = (0.85, 0.55, 0.35)
 OBJECT_RGB = (0.35, 0.55, 0.85)
+TABLE_RGBA = (0.45, 0.42, 0.38, 0.35)  # the table of tabletop mode: a translucent square under the object
 DEFAULT_VIEWS_DEG = ((25.0, -60.0), (-20.0, 120.0))  # (elevation, azimuth) pairs, roughly opposite sides
 VISUAL_GROUP = 1  # the gym hand's visual geoms (collision geoms are group 4)
 
@@ -121,8 +122,33 @@ def _view_direction(elev_deg: float, azim_deg: float) -> np.ndarray:
     return np.array([np.cos(e) * np.cos(a), np.cos(e) * np.sin(a), np.sin(e)])
 
 
-def draw_grasp(ax, hand_mesh: tuple[np.ndarray, np.ndarray], object_mesh: tuple[np.ndarray, np.ndarray], elev_deg: float, azim_deg: float) -> None:
-    """Draw hand and object into a 3D axes from one viewpoint, equal aspect, axes hidden."""
+def table_square(normal, offset_m: float, centre: np.ndarray, half_m: float) -> np.ndarray:
+    """(4, 3) corners of a square of side 2·``half_m`` in the table plane n·x + offset = 0 (object frame, m),
+    centred under ``centre``."""
+    n = np.asarray(normal, dtype=np.float64)
+    n = n / np.linalg.norm(n)
+    foot = centre - (n @ centre + offset_m) * n
+    u = np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0])
+    u /= np.linalg.norm(u)
+    v = np.cross(n, u)
+    return np.stack([foot + half_m * (a * u + b * v) for a, b in ((-1, -1), (1, -1), (1, 1), (-1, 1))])
+
+
+def grasp_table(grasps, row: int) -> tuple[np.ndarray, float] | None:
+    """The table a grasp store recorded for one row (normal, offset in metres), or None (floating, or none recorded)."""
+    if "support_normal" not in grasps.arrays or "support_offset_m" not in grasps.arrays:
+        return None
+    normal = np.asarray(grasps.arrays["support_normal"][row], dtype=np.float64)
+    offset = float(grasps.arrays["support_offset_m"][row])
+    return (normal, offset) if np.isfinite(normal).all() and np.isfinite(offset) and np.linalg.norm(normal) > 0 else None
+
+
+def draw_grasp(
+    ax, hand_mesh: tuple[np.ndarray, np.ndarray], object_mesh: tuple[np.ndarray, np.ndarray], elev_deg: float, azim_deg: float,
+    table: tuple[np.ndarray, float] | None = None,
+) -> None:
+    """Draw hand and object into a 3D axes from one viewpoint, equal aspect, axes hidden; with ``table``
+    (normal, offset in metres, object frame) a translucent square of the table under the object."""
     from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
     view = _view_direction(elev_deg, azim_deg)
@@ -130,11 +156,14 @@ def draw_grasp(ax, hand_mesh: tuple[np.ndarray, np.ndarray], object_mesh: tuple[
     object_tris = object_mesh[0][object_mesh[1]]
     triangles = np.concatenate([object_tris, hand_tris])
     colors = np.concatenate([_shaded_colors(object_tris, OBJECT_RGB, view), _shaded_colors(hand_tris, HAND_RGB, view)])
-    ax.add_collection3d(Poly3DCollection(triangles, facecolors=colors, edgecolors="none", linewidths=0))
     # Frame the object and the hand; a hand far from the object (>25 cm) is left out of the frame.
     obj_v = object_mesh[0]
     centre = (obj_v.max(0) + obj_v.min(0)) / 2
     radius = float(np.linalg.norm(obj_v - centre, axis=1).max())
+    if table is not None:
+        square = table_square(table[0], table[1], centre, 1.2 * radius)
+        ax.add_collection3d(Poly3DCollection([square], facecolors=[TABLE_RGBA], edgecolors=[TABLE_RGBA[:3]], linewidths=0.5))
+    ax.add_collection3d(Poly3DCollection(triangles, facecolors=colors, edgecolors="none", linewidths=0))
     near_hand = hand_mesh[0][np.linalg.norm(hand_mesh[0] - centre, axis=1) < radius + 0.25]
     pts = np.concatenate([obj_v, near_hand])
     lo, hi = pts.min(0), pts.max(0)
@@ -157,8 +186,10 @@ def render_grasp_png(
     title: str = "",
     views_deg=DEFAULT_VIEWS_DEG,
     size_px: int = 360,
+    table: tuple[np.ndarray, float] | None = None,
 ) -> bytes:
-    """Render one grasp from each viewpoint side by side; return PNG bytes (and write ``out`` if given)."""
+    """Render one grasp from each viewpoint side by side (on its ``table`` in tabletop mode); return PNG bytes
+    (and write ``out`` if given)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -170,7 +201,7 @@ def render_grasp_png(
     fig = plt.figure(figsize=(size_px * len(views_deg) / dpi, size_px / dpi), dpi=dpi)
     for k, (elev, azim) in enumerate(views_deg):
         ax = fig.add_subplot(1, len(views_deg), k + 1, projection="3d")
-        draw_grasp(ax, hand_mesh, object_mesh, elev, azim)
+        draw_grasp(ax, hand_mesh, object_mesh, elev, azim, table)
     if title:
         fig.suptitle(title, fontsize=9)
     fig.subplots_adjust(left=0, right=1, bottom=0, top=0.92 if title else 1, wspace=0)
@@ -207,4 +238,5 @@ def render_store_row(grasps_path: str, index: int, objects_dirs: list[str], out:
     title = f"{object_id}  scale {scale:.3f}  grasp {index}"
     if "lift_success" in grasps.arrays:
         title += "  lift " + ("success" if bool(grasps.arrays["lift_success"][index]) else "failure")
-    render_grasp_png(ShadowHand(), grasps.hand_pose[index], object_id, scale, objects_dirs, out=out, title=title, size_px=size_px)
+    render_grasp_png(ShadowHand(), grasps.hand_pose[index], object_id, scale, objects_dirs, out=out, title=title, size_px=size_px,
+                     table=grasp_table(grasps, index))

@@ -406,7 +406,7 @@ def representatives(grasps, labels: np.ndarray) -> np.ndarray:
 def render_examples(grasps, labels: np.ndarray, objects_dir: Path, out_dir: Path, per_object: int) -> list[Path]:
     """Up to ``per_object`` different held grasps per object as PNGs, the best first (one failure when none held)."""
     from dexlite_pipeline.hand import ShadowHand
-    from dexlite_pipeline.report.render import render_grasp_png
+    from dexlite_pipeline.report.render import grasp_table, render_grasp_png
 
     hand, written = ShadowHand(), []
     held = np.asarray(grasps.arrays["lift_success"], bool)
@@ -424,7 +424,8 @@ def render_examples(grasps, labels: np.ndarray, objects_dir: Path, out_dir: Path
                 outcome = f"NOT HELD: {str(grasps.arrays['failure_reason'][row] or 'dropped').replace('_', ' ')}"
             path = out_dir / f"{object_id}_{row:04d}.png"
             title = f"{object_id}  grasp {row}  object radius {100 * float(grasps.scale[row]):.3g} cm\n{outcome}"
-            render_grasp_png(hand, grasps.hand_pose[row], object_id, float(grasps.scale[row]), [str(objects_dir)], out=path, title=title)
+            render_grasp_png(hand, grasps.hand_pose[row], object_id, float(grasps.scale[row]), [str(objects_dir)], out=path, title=title,
+                             table=grasp_table(grasps, row))
             written.append(path)
     return written
 
