@@ -7,6 +7,7 @@ import pickle
 import numpy as np
 import pandas as pd
 import pytest
+from asset_checks import assert_sdf_sign_matches_pieces
 from numpy.lib import format as npy_format
 from sample_data import DEXGRASPNET_JOINT_KEYS, DEXGRASPNET_QPOS_ORDER
 
@@ -269,7 +270,6 @@ def imported_sample(dexgraspnet_sample, tmp_path_factory):
 
 @pytest.mark.real_sample
 def test_real_sample_imports_whole_with_correct_sdf_sign(dexgraspnet_sample, imported_sample):
-    import igl
     import trimesh
 
     result, objects = imported_sample
@@ -278,13 +278,7 @@ def test_real_sample_imports_whole_with_correct_sdf_sign(dexgraspnet_sample, imp
     for object_id in sorted(set(result.grasps.object_id)):
         asset = load_asset(objects, object_id)
         soup = trimesh.load(dexgraspnet_sample / "meshdata" / object_id / "coacd" / "decomposed.obj", force="mesh", process=False)
-        idx = rng.integers(0, asset.sdf.shape[0], size=(2000, 3))
-        points = asset.grid_min + idx * asset.voxel_size
-        values = asset.sdf[idx[:, 0], idx[:, 1], idx[:, 2]]
-        inside_some_piece = igl.winding_number(np.asarray(soup.vertices), np.asarray(soup.faces), points) > 0.5
-        clear = np.abs(values) > 1e-3  # away from the surface
-        assert inside_some_piece.any() and (~inside_some_piece).any()
-        np.testing.assert_array_equal(values[clear] > 0, inside_some_piece[clear])
+        assert_sdf_sign_matches_pieces(asset, soup, rng)
 
 
 @pytest.mark.real_sample
@@ -373,7 +367,7 @@ def test_cli_round_trip_export_then_import_keeps_dexgraspnets_structure(tmp_path
         return read_grasp_store(out / "grasps.zarr"), out / "objects"
 
     first, first_objects = cli_import(tmp_path / "dgn", "first")
-    assert dexlite(["export-dexgraspnet", str(tmp_path / "first" / "grasps.zarr"), str(tmp_path / "exported"), "--objects", str(first_objects)]) == 0
+    assert dexlite(["export-dexgraspnet", str(tmp_path / "first" / "grasps.zarr"), "--out", str(tmp_path / "exported"), "--objects", str(first_objects)]) == 0
 
     exported = assert_dexgraspnet_structure(tmp_path / "exported" / "dataset" / "core-box-0.npy")
     for entry, qpos, scale in zip(exported, qposes, scales, strict=True):

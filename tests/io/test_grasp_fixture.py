@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from asset_checks import assert_sdf_sign_matches_pieces
 from fixtures.make_grasp_fixture import MAX_GRASPS_PER_OBJECT, import_settings, pipeline_config
 from sample_data import DEXGRASPNET_QPOS_ORDER, FIXTURE_HELDOUT_OBJECT, FIXTURE_TRAIN_OBJECT, GRASP_FIXTURE
 
@@ -46,7 +47,6 @@ def imported_fixture(tmp_path_factory):
 
 
 def test_fixture_imports_whole_with_correct_sdf_sign(imported_fixture):
-    import igl
     import trimesh
 
     result, objects, _ = imported_fixture
@@ -57,13 +57,7 @@ def test_fixture_imports_whole_with_correct_sdf_sign(imported_fixture):
     for object_id in OBJECTS:
         asset = load_asset(objects, object_id)
         soup = trimesh.load(GRASP_FIXTURE / "meshdata" / object_id / "coacd" / "decomposed.obj", force="mesh", process=False)
-        idx = rng.integers(0, asset.sdf.shape[0], size=(2000, 3))
-        points = asset.grid_min + idx * asset.voxel_size
-        values = asset.sdf[idx[:, 0], idx[:, 1], idx[:, 2]]
-        inside_some_piece = igl.winding_number(np.asarray(soup.vertices), np.asarray(soup.faces), points) > 0.5
-        clear = np.abs(values) > 1e-3  # away from the surface
-        assert inside_some_piece.any() and (~inside_some_piece).any()
-        np.testing.assert_array_equal(values[clear] > 0, inside_some_piece[clear])
+        assert_sdf_sign_matches_pieces(asset, soup, rng)
 
 
 def test_fixture_grasps_meet_the_energy_thresholds_they_were_kept_for(imported_fixture):

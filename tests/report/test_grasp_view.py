@@ -13,6 +13,7 @@ import subprocess
 
 import numpy as np
 import pytest
+from image_colours import colour_fraction
 from report_synthetic import OBJECT_ID, grasp_poses
 
 from dexlite_pipeline.io.grasp_store import GraspSet
@@ -31,13 +32,6 @@ from dexlite_pipeline.report.render import HAND_RGB, OBJECT_RGB, hand_visual
 BROWSERS = ("chromium", "chromium-browser", "google-chrome")
 
 
-def _colour_fraction(image: np.ndarray, rgb, tolerance: float = 0.12) -> float:
-    """Fraction of pixels whose colour is a shade of ``rgb`` (same hue, any brightness)."""
-    pixels = image[..., :3].reshape(-1, 3).astype(np.float64)
-    norm = np.linalg.norm(pixels, axis=1, keepdims=True)
-    target = np.asarray(rgb) / np.linalg.norm(rgb)
-    direction = np.divide(pixels, norm, out=np.zeros_like(pixels), where=norm > 0.05)
-    return float((np.linalg.norm(direction - target, axis=1) < tolerance).mean())
 
 
 def _browser() -> str:
@@ -81,8 +75,8 @@ def test_view_opens_offline_in_headless_chromium_with_hand_and_object(tmp_path, 
     assert not re.search(r"<script[^>]+src=", html)  # plotly.js is inline: nothing to fetch
     image = _screenshot(view, tmp_path / "shot.png", tmp_path / "chromium-profile")
     assert image.shape[:2] == (700, 900)
-    assert _colour_fraction(image, HAND_RGB) > 0.01, "the hand is not drawn"
-    assert _colour_fraction(image, OBJECT_RGB) > 0.01, "the object is not drawn"
+    assert colour_fraction(image, HAND_RGB) > 0.01, "the hand is not drawn"
+    assert colour_fraction(image, OBJECT_RGB) > 0.01, "the object is not drawn"
 
 
 def test_view_shows_one_grasp_at_a_time_with_its_results(tmp_path, tiny_objects):

@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+from image_colours import colour_fraction
 from report_synthetic import OBJECT_ID, grasp_poses
 
 from dexlite_pipeline.cli import main
@@ -9,13 +10,6 @@ from dexlite_pipeline.io.grasp_store import GraspSet, write_grasp_store
 from dexlite_pipeline.report.render import HAND_RGB, OBJECT_RGB, hand_mesh_world, hand_visual
 
 
-def _colour_fraction(image: np.ndarray, rgb, tolerance: float = 0.12) -> float:
-    """Fraction of pixels whose colour is a shade of ``rgb`` (same hue, any brightness)."""
-    pixels = image[..., :3].reshape(-1, 3).astype(np.float64)
-    norm = np.linalg.norm(pixels, axis=1, keepdims=True)
-    target = np.asarray(rgb) / np.linalg.norm(rgb)
-    direction = np.divide(pixels, norm, out=np.zeros_like(pixels), where=norm > 0.05)
-    return float((np.linalg.norm(direction - target, axis=1) < tolerance).mean())
 
 
 def test_hand_visual_mesh_follows_forward_kinematics(hand):
@@ -40,8 +34,8 @@ def test_render_cli_draws_hand_and_object(tmp_path, tiny_objects):
     image = matplotlib.image.imread(out)
     assert image.shape[0] == 200 and image.shape[1] == 400  # two views side by side
     for half in (image[:, :200], image[:, 200:]):
-        assert _colour_fraction(half, HAND_RGB) > 0.01
-        assert _colour_fraction(half, OBJECT_RGB) > 0.01
+        assert colour_fraction(half, HAND_RGB) > 0.01
+        assert colour_fraction(half, OBJECT_RGB) > 0.01
     assert main(["render", str(store), "--objects", str(tiny_objects), "--index", "5", "--out", str(out)]) == 2
 
 

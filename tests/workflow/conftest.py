@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import shutil
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -42,3 +43,11 @@ def complete_run(frozen_checkout, tmp_path_factory) -> CompletedRun:
     run_snakemake(workdir, *local_run_args(), "all")
     seconds = time.monotonic() - start
     return CompletedRun(workdir=workdir, config=config, graph=rule_graph(workdir), seconds=seconds)
+
+
+@pytest.fixture()
+def scratch_copy(complete_run, tmp_path) -> Path:
+    """A copy of the complete run (outputs, metadata, mtimes) that a test may change."""
+    workdir = tmp_path / "run"
+    shutil.copytree(complete_run.workdir, workdir, symlinks=True)
+    return workdir

@@ -99,14 +99,6 @@ def changed_config(config: dict, section: str, key: str) -> tuple[str, dict]:
     raise AssertionError(f"no valid change of numeric config key {section}.{key} = {value!r}")
 
 
-@pytest.fixture()
-def scratch_copy(complete_run, tmp_path) -> Path:
-    """A copy of the complete run (outputs, metadata, mtimes) that a test may change."""
-    workdir = tmp_path / "run"
-    shutil.copytree(complete_run.workdir, workdir, symlinks=True)
-    return workdir
-
-
 def test_unchanged_config_plans_nothing(complete_run):
     assert planned_rules(complete_run.workdir) == set()
 

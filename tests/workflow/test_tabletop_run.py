@@ -3,8 +3,6 @@ grasp of the run reaches below it."""
 
 from __future__ import annotations
 
-import shutil
-from pathlib import Path
 
 import pytest
 from workflow_harness import downstream, planned_commands, planned_rules, run_snakemake, tiny_config, write_config
@@ -14,14 +12,6 @@ pytestmark = pytest.mark.slow
 # The rules whose params carry section `scene` (docs/design.md, "Tabletop mode").
 SCENE_RULES = {"seed_grasps", "curate", "lift_validate", "train_cvae", "post_optimize", "evaluate_simulate", "report"}
 BEFORE_SEED_SYNTHESIS = {"prepare_objects", "stability_filter", "import_dexgraspnet"}
-
-
-@pytest.fixture()
-def scratch_copy(complete_run, tmp_path) -> Path:
-    """A copy of the complete run (outputs, metadata, mtimes) that a test may change."""
-    workdir = tmp_path / "run"
-    shutil.copytree(complete_run.workdir, workdir, symlinks=True)
-    return workdir
 
 
 def test_scene_section_reaches_exactly_its_rules(tmp_path):
