@@ -139,3 +139,10 @@ def test_report_embeds_the_view_of_its_pictured_grasps(tiny_objects):
     # one success and one failure per method, as in the pictures: four hands, each titled with its method
     steps = re.findall(r'"title.text":"4 grasps\\u003cbr\\u003e(\w+) ', section)
     assert section.count('"label":"') == 4 and sorted(steps) == ["cvae_post"] * 2 + ["cvae_raw"] * 2
+
+
+def test_the_same_grasps_give_the_same_page(tmp_path, tiny_objects):
+    """The view is deterministic: no random element ids, so a report or a dexlite grasp output repeats byte for byte."""
+    first = write_grasp_set_view(tmp_path / "a.html", _store(2), [tiny_objects]).read_bytes()
+    second = write_grasp_set_view(tmp_path / "b.html", _store(2), [tiny_objects]).read_bytes()
+    assert first == second and b'id="grasp-view-' in first

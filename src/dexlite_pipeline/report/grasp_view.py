@@ -146,9 +146,13 @@ def _title(title: str, label: str) -> str:
 
 def grasp_view_html(objects, grasps: Sequence[ViewGrasp], title: str = "", full_html: bool = True, height_px: int = 640) -> str:
     """The view as HTML with plotly.js inlined: a whole page, or (``full_html=False``) a ``<div>`` to embed."""
+    import hashlib
+
     fig = grasp_view_figure(objects, grasps, title)
+    # plotly names the div with a random id unless given one: an id from the content keeps the page deterministic
+    div_id = "grasp-view-" + hashlib.sha256(fig.to_json().encode()).hexdigest()[:16]
     return fig.to_html(full_html=full_html, include_plotlyjs=True, default_height=f"{height_px}px", default_width="100%",
-                       config={"displaylogo": False, "responsive": True})
+                       config={"displaylogo": False, "responsive": True}, div_id=div_id)
 
 
 def write_grasp_view(path: str | Path, objects, grasps: Sequence[ViewGrasp], title: str = "") -> Path:
