@@ -6,7 +6,7 @@ import pytest
 from report_synthetic import OBJECT_ID, grasp_poses
 
 from dexlite_pipeline.io.grasp_store import GraspSet
-from dexlite_pipeline.report.html import (
+from dexlite_pipeline.report.tables import (
     OBJECT_MARKER_LABEL, ReportInputs, build_report_html, compact_table_html, headline_rows, headline_sentence, ladder_html,
     outcome_of, pick_examples, run_settings_html, success_figure, training_run_text,
 )  # fmt: skip
@@ -197,7 +197,7 @@ def test_picture_marks_the_contacts(tiny_objects):
     import matplotlib.image
 
     from dexlite_pipeline.hand import ShadowHand
-    from dexlite_pipeline.report.html import contact_points, grasp_picture_png
+    from dexlite_pipeline.report.tables import contact_points, grasp_picture_png
     from dexlite_pipeline.report.render import object_mesh_world
 
     hand = ShadowHand()
