@@ -124,7 +124,8 @@ def test_view_refuses_no_grasp_or_a_missing_mesh():
 
 
 def test_report_embeds_the_view_of_its_pictured_grasps(tiny_objects):
-    from dexlite_pipeline.report.html import ReportInputs, build_report_html
+    from dexlite_pipeline.report.inputs import ReportInputs
+    from dexlite_pipeline.report.page import build_report_html
 
     grasps = _store(6)
     grasps.arrays["method"] = np.array(["cvae_raw"] * 3 + ["cvae_post"] * 3, dtype=object)

@@ -6,10 +6,11 @@ import pytest
 from report_synthetic import OBJECT_ID, grasp_poses
 
 from dexlite_pipeline.io.grasp_store import GraspSet
-from dexlite_pipeline.report.html import (
-    OBJECT_MARKER_LABEL, ReportInputs, build_report_html, compact_table_html, headline_rows, headline_sentence, ladder_html,
-    outcome_of, pick_examples, run_settings_html, success_figure, training_run_text,
-)  # fmt: skip
+from dexlite_pipeline.report.inputs import ReportInputs
+from dexlite_pipeline.report.page import build_report_html, run_settings_html, training_run_text
+from dexlite_pipeline.report.pictures import outcome_of, pick_examples
+from dexlite_pipeline.report.plots import OBJECT_MARKER_LABEL, success_figure
+from dexlite_pipeline.report.tables import compact_table_html, headline_rows, headline_sentence, ladder_html
 from dexlite_pipeline.evaluation.metrics import method_label, percent_text, seconds_text
 
 
@@ -197,7 +198,7 @@ def test_picture_marks_the_contacts(tiny_objects):
     import matplotlib.image
 
     from dexlite_pipeline.hand import ShadowHand
-    from dexlite_pipeline.report.html import contact_points, grasp_picture_png
+    from dexlite_pipeline.report.pictures import contact_points, grasp_picture_png
     from dexlite_pipeline.report.render import object_mesh_world
 
     hand = ShadowHand()

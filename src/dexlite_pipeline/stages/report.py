@@ -5,7 +5,7 @@ whole of it in the page; of the ``evaluate`` section it reads ``evaluation.step_
 At the top: the report date, the code commit, the run's wall time (from ``--benchmarks``, the
 jobs' benchmark files) and the machine (``report.run_facts``).
 The run's ``seed`` seeds the random choice of pictured grasps; the page links the CSV
-tables relative to where it is written (``report.html.load_report_inputs``).
+tables relative to where it is written (``report.inputs.load_report_inputs``).
 """
 
 from __future__ import annotations
@@ -31,7 +31,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from dexlite_pipeline.config import parse_config_json
     from dexlite_pipeline.io.atomic import write_text_atomic
-    from dexlite_pipeline.report.html import EvaluationFiles, build_report_html, load_report_inputs
+    from dexlite_pipeline.report.inputs import EvaluationFiles, load_report_inputs
+    from dexlite_pipeline.report.page import build_report_html
 
     files = EvaluationFiles(args.metrics, args.per_object, args.convergence, args.budget, args.record)
     inputs = load_report_inputs(files, args.sim, args.history, args.objects, parse_config_json(args.config_json), args.out, args.learning_curve,
