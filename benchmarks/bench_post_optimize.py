@@ -4,7 +4,7 @@
 
 Objects: ``--objects`` prepared-object dirs (every asset in them is used), or by default
 four primitives prepared at the default SDF resolution in a temporary folder. Poses:
-grasp-like poses with the hand at the object (``model.demo_grasps``), as CVAE samples
+grasp-like poses with the hand at the object (``tests/model/demo_grasps.py``), as CVAE samples
 are, so the timing is the one of hands in contact, not of hands far away. Sampling uses
 a freshly initialized model of the reference sizes (its speed does not depend on the
 weights) at 512 points per cloud. Prints one table row per measurement.
@@ -13,11 +13,16 @@ weights) at 512 points per cloud. Prints one table row per measurement.
 from __future__ import annotations
 
 import argparse
+import sys
 import tempfile
 import time
+from pathlib import Path
 
 import numpy as np
 import torch
+
+# The grasp-like poses of the model tests (tests/model/demo_grasps.py), shared rather than copied.
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "model"))
 
 
 def prepare_primitives(root: str) -> list[str]:
@@ -39,11 +44,12 @@ def prepare_primitives(root: str) -> list[str]:
 
 def measure(assets, batches, iterations: int, sample_grasps: int) -> list[dict]:
     """Rows (benchmark, size, value, unit, note): post-optimization per batch size, then CVAE sampling."""
+    from demo_grasps import facing_grasps
+
     from dexlite_pipeline.energy.config import EnergyConfig
     from dexlite_pipeline.energy.grasp_energy import GraspEnergy
     from dexlite_pipeline.hand import ShadowHand
     from dexlite_pipeline.model.data import ObjectClouds
-    from dexlite_pipeline.model.demo_grasps import facing_grasps
     from dexlite_pipeline.model.config import ModelConfig
     from dexlite_pipeline.model.network import GraspCVAE
     from dexlite_pipeline.model.config import PostOptimizeConfig

@@ -3,7 +3,7 @@
     python benchmarks/bench_train.py [--threads 2] [--steps 300] [--grasps 256] [--objects 8]
 
 Trains the default model (config.yaml's ``train`` section: sizes, batch, clouds per batch,
-points per cloud, energy weights) on grasp-like poses (``model.demo_grasps``) over
+points per cloud, energy weights) on grasp-like poses (``tests/model/demo_grasps.py``) over
 ``--objects`` primitives at three scales, so the batches hold as many clouds as a real run's.
 Steps per second do not depend on what the grasps are, only on the batch composition and
 the network sizes. Prints one table row: steps/s and the seconds the default budget
@@ -13,6 +13,7 @@ the network sizes. Prints one table row: steps/s and the seconds the default bud
 from __future__ import annotations
 
 import argparse
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -20,6 +21,9 @@ from pathlib import Path
 import numpy as np
 import torch
 import yaml
+
+# The grasp-like poses of the model tests (tests/model/demo_grasps.py), shared rather than copied.
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "model"))
 
 
 def main() -> None:
@@ -32,11 +36,11 @@ def main() -> None:
     torch.set_num_threads(args.threads)
 
     import trimesh
+    from demo_grasps import facing_grasps
 
     from dexlite_pipeline.config import from_section
     from dexlite_pipeline.hand import ShadowHand
     from dexlite_pipeline.model.data import build_training_data
-    from dexlite_pipeline.model.demo_grasps import facing_grasps
     from dexlite_pipeline.model.config import TrainConfig
     from dexlite_pipeline.model.training import train_cvae
     from dexlite_pipeline.objects.assets import load_asset

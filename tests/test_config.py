@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import copy
 import json
 import dataclasses
 import typing
@@ -11,7 +10,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from dexlite_pipeline.config import ConfigError, from_section, load_config, load_schema, validate_config
+from dexlite_pipeline.config import ConfigError, from_section, load_config, load_schema, merge_config, validate_config
 from dexlite_pipeline.settings import PipelineConfig, build_config
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -28,14 +27,6 @@ def _field_tree(cls) -> dict:
 def _key_tree(section: dict, like: dict) -> dict:
     """Keys of a config section, descending where the settings class nests a class."""
     return {k: _key_tree(v, like[k]) if isinstance(like.get(k), dict) and isinstance(v, dict) else None for k, v in section.items()}
-
-
-def _merged(base: dict, overlay: dict) -> dict:
-    """``overlay`` over ``base``, nested mappings merged key by key (as Snakemake merges --configfile)."""
-    out = copy.deepcopy(base)
-    for key, value in overlay.items():
-        out[key] = _merged(out[key], value) if isinstance(value, dict) and isinstance(out.get(key), dict) else value
-    return out
 
 
 @pytest.fixture(scope="module")
@@ -104,16 +95,16 @@ def test_a_shared_shape_is_one_type_wherever_it_appears():
 
 @pytest.mark.parametrize("profile", sorted(p.name for p in (ROOT / "config" / "profiles").glob("*.yaml")))
 def test_profiles_over_the_default_config_validate_and_build(config, profile):
-    merged = _merged(config, yaml.safe_load((ROOT / "config" / "profiles" / profile).read_text()))
+    merged = merge_config(config, yaml.safe_load((ROOT / "config" / "profiles" / profile).read_text()))
     validate_config(merged, profile)
     build_config(merged, profile)
 
 
 def test_schema_rejects_unknown_keys_and_wrong_types(config):
-    unknown = _merged(config, {"post_optimize": {"annealing": {"iteratons": 100}}})
+    unknown = merge_config(config, {"post_optimize": {"annealing": {"iteratons": 100}}})
     with pytest.raises(ConfigError, match="post_optimize"):
         validate_config(unknown)
-    wrong_type = _merged(config, {"lift": {"friction": "high"}})
+    wrong_type = merge_config(config, {"lift": {"friction": "high"}})
     with pytest.raises(ConfigError, match="lift.friction"):
         validate_config(wrong_type)
 

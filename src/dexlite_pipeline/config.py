@@ -7,6 +7,7 @@ file and key. The schema ships in the package so that Snakemake and the CLI vali
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import json
 import os
@@ -119,6 +120,15 @@ def load_config(path: str | os.PathLike) -> dict:
 def default_config() -> dict:
     """The package's default ``config.yaml``, validated."""
     return load_config(DEFAULT_CONFIG_PATH)
+
+
+def merge_config(base: dict, overlay: dict) -> dict:
+    """``overlay`` over ``base`` as Snakemake merges ``--configfile``s: nested mappings merged key by
+    key, anything else replaced. Returns a new mapping; neither argument is changed or shared."""
+    out = copy.deepcopy(base)
+    for key, value in overlay.items():
+        out[key] = merge_config(out[key], value) if isinstance(value, dict) and isinstance(out.get(key), dict) else copy.deepcopy(value)
+    return out
 
 
 def from_section(cls: type[T], section: dict[str, Any] | None, where: str) -> T:

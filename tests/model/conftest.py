@@ -44,7 +44,7 @@ def tiny_assets(tiny_objects):
 @pytest.fixture(scope="session")
 def make_grasps():
     """``make_grasps(hand, count, seed)``: grasp-like poses on the tiny objects, alternating box and sphere."""
-    from dexlite_pipeline.model.demo_grasps import facing_grasps
+    from demo_grasps import facing_grasps
 
     return lambda hand, count, seed: facing_grasps(hand, OBJECT_IDS, count, seed)
 

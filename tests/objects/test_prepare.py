@@ -9,8 +9,9 @@ import pandas as pd
 import pytest
 import trimesh
 
+from dexlite_pipeline.objects.assets import CATALOG_COLUMNS
 from dexlite_pipeline.objects.config import ObjectsConfig
-from dexlite_pipeline.objects.prepare import CATALOG_COLUMNS, MeshRejected, assign_split, check_mesh, normalize_mesh, prepare_object, prepare_objects, repair_mesh
+from dexlite_pipeline.objects.prepare import MeshRejected, assign_split, check_mesh, normalize_mesh, prepare_object, prepare_objects, repair_mesh
 from dexlite_pipeline.objects.sources import MeshSource, collect_sources
 
 # Small grids, few samples and a light CoACD search keep these tests at a second or two.
@@ -105,7 +106,7 @@ def test_prepare_objects_writes_catalog_assets_and_config(tmp_path):
     catalog = prepare_objects(sources, out, config, seed=0, workers=0)
 
     stored = pd.read_parquet(out / "catalog.parquet")
-    assert list(stored.columns) == CATALOG_COLUMNS
+    assert list(stored.columns) == list(CATALOG_COLUMNS)
     pd.testing.assert_frame_equal(stored, catalog)
     rows = stored.set_index("object_id")
     assert set(rows.index) == {"user-box", "user-ball", "user-broken", "user-can"}

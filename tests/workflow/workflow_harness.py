@@ -9,7 +9,6 @@ and Snakemake's metadata all stay in that folder.
 
 from __future__ import annotations
 
-import copy
 import os
 import re
 import shlex
@@ -23,6 +22,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # tests/: the shar
 from sample_data import FIXTURE_HELDOUT_OBJECT, GRASP_FIXTURE  # noqa: E402
 
 import yaml
+
+from dexlite_pipeline.config import merge_config
 
 REPO = Path(__file__).resolve().parents[2]
 GRASP_FIXTURE_PART = GRASP_FIXTURE.relative_to(REPO).as_posix()
@@ -101,16 +102,6 @@ def grasp_fixture() -> Path:
     return checkout() / GRASP_FIXTURE_PART
 
 
-def _merge(base: dict, override: dict) -> dict:
-    merged = copy.deepcopy(base)
-    for key, value in override.items():
-        if isinstance(value, dict) and isinstance(merged.get(key), dict):
-            merged[key] = _merge(merged[key], value)
-        else:
-            merged[key] = copy.deepcopy(value)
-    return merged
-
-
 def repo_config() -> dict:
     return yaml.safe_load((checkout() / "config.yaml").read_text())
 
@@ -139,10 +130,10 @@ def tiny_config(mesh_dir: Path, **section_overrides: dict) -> dict:
     as the objects, the grasp fixture as the DexGraspNet download, and then ``section_overrides``."""
     config = repo_config()
     applicable = {k: v for k, v in TINY_OVERRIDES.items() if k in config}
-    config = _merge(config, applicable)
+    config = merge_config(config, applicable)
     config["objects"]["mesh_dirs"] = [str(mesh_dir)]
     config["dexgraspnet"]["root"] = str(grasp_fixture())
-    return _merge(config, section_overrides)
+    return merge_config(config, section_overrides)
 
 
 def write_config(workdir: Path, config: dict) -> Path:

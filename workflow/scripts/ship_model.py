@@ -32,6 +32,7 @@ import pandas as pd
 import torch
 import yaml
 
+from dexlite_pipeline.config import merge_config
 from dexlite_pipeline.io.grasp_store import GraspSet, read_grasp_store, write_grasp_store
 from dexlite_pipeline.model.checkpoint import save_half_precision_copy
 from dexlite_pipeline.model.shipped_check import shipped_model_check
@@ -42,16 +43,9 @@ CARD_METHODS = ("cvae_raw", "cvae_post", "random_post", "cvae_recon", "cvae_reco
 
 def merged_config(run: Path, configfiles: list[str]) -> dict:
     """The run's config: its config files merged in order (Snakemake's --configfile rule)."""
-
-    def merge(base: dict, extra: dict) -> dict:
-        out = dict(base)
-        for key, value in extra.items():
-            out[key] = merge(out[key], value) if isinstance(value, dict) and isinstance(out.get(key), dict) else value
-        return out
-
     config: dict = {}
     for name in configfiles:
-        config = merge(config, yaml.safe_load((run / name).read_text()) or {})
+        config = merge_config(config, yaml.safe_load((run / name).read_text()) or {})
     return config
 
 

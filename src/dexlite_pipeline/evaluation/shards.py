@@ -61,36 +61,33 @@ def simulate_shard(
     object's table in the resting pose, in both modes (the reachability column); in tabletop mode
     (``scene.table``, the default) the lift tests also run with each object on its table.
     """
-    from dexlite_pipeline.config import from_section
     from dexlite_pipeline.device import resolve_device
-    from dexlite_pipeline.energy.config import EnergyConfig
     from dexlite_pipeline.evaluation.protocol import (
         BUDGET_POSES, BUDGET_SUCCESS, evaluate_config_from, fit_error_arrays, method_grasps, require_split_objects, sample_rows_of,
         select_grasps, simulate, simulate_budget, stage_seconds_per_grasp,
     )  # fmt: skip
     from dexlite_pipeline.objects.assets import available_object_ids
     from dexlite_pipeline.sharding import shard_objects
+    from dexlite_pipeline.settings import build_config
     from dexlite_pipeline.sim.config import lift_config_from
-
-    from dexlite_pipeline.sim.config import SceneConfig
     from dexlite_pipeline.tabletop import SupportPlanes, grasp_table_depths, load_support_planes
 
+    tree = build_config(config)
     cfg = evaluate_config_from(config, SIMULATE_KEYS)
     lift_cfg = lift_config_from(config, six_directions=cfg.six_directions)
-    energy_cfg = from_section(EnergyConfig, config.get("energy"), "config.energy")
-    seed = int(config.get("seed") or 0)
+    energy_cfg = tree.energy
+    seed = tree.seed
     split_of = object_splits(objects_dirs, ok_only=False)
     require_split_objects(split_of, cfg.splits, objects_dirs)
-    scene = from_section(SceneConfig, config.get("scene"), "config.scene")
+    scene = tree.scene
     planes = SupportPlanes.from_stability_table(stability_path) if stability_path else load_support_planes(scene.table, None)
     on_table = {"support_planes": planes} if scene.table else {}
     known_object_ids = available_object_ids(objects_dirs)
     sources = {key: [read_grasp_store(p) for p in source_paths.get(key, [])] for key in SOURCE_OPTIONS}
     if sources["dexgraspnet"]:  # one store for all shards: take this shard's objects
-        shard_count = int(config.get("shards") or 1)
         mine = set()
         for store in sources["dexgraspnet"]:
-            mine |= set(shard_objects([str(o) for o in store.object_id], shard, shard_count))
+            mine |= set(shard_objects([str(o) for o in store.object_id], shard, tree.shards))
         sources["dexgraspnet"] = [s.select(np.isin([str(o) for o in s.object_id], sorted(mine))) for s in sources["dexgraspnet"]]
 
     sampled_reference = _sampled_reference(sources["sample"])
@@ -123,7 +120,7 @@ def simulate_shard(
     if "method" not in selected_all.arrays:
         for name, dtype in (("method", object), ("split", object), ("source_row", np.int64), ("sample_row", np.int64), ("invalid_reason", object)):
             selected_all.arrays[name] = np.zeros(0, dtype=dtype)
-    device = resolve_device(config.get("device") or "auto")
+    device = resolve_device(tree.device)
     result = simulate(selected_all, objects_dirs, lift_cfg, energy_cfg, device, threads, cfg.energy_batch_size, cfg.seed_protocol, **on_table)
     if planes is not None:
         result.arrays["table_depth_mm"] = grasp_table_depths(selected_all, planes) * 1000.0
@@ -176,8 +173,6 @@ def aggregate_evaluation(sim_paths: list[str], post_paths: list[str], random_pos
 
     ``config``: the config mapping (seed, diversity and the aggregate keys of evaluate).
     """
-    from dexlite_pipeline.config import from_section
-    from dexlite_pipeline.evaluation.diversity import DiversityConfig
     from dexlite_pipeline.evaluation.metrics import BOOTSTRAP_RESAMPLES
     from dexlite_pipeline.evaluation.protocol import (
         budget_rows, concatenate_shards, convergence_ratio, convergence_rows, coverage_arrays, evaluate_config_from, iterations_to_reach,
@@ -185,9 +180,11 @@ def aggregate_evaluation(sim_paths: list[str], post_paths: list[str], random_pos
     )  # fmt: skip
     from dexlite_pipeline.hand import ShadowHand
     from dexlite_pipeline.io.grasp_store import empty_grasp_set
+    from dexlite_pipeline.settings import build_config
 
+    tree = build_config(config)
     cfg = evaluate_config_from(config, AGGREGATE_KEYS)
-    diversity = from_section(DiversityConfig, config.get("diversity"), "config.diversity")
+    diversity = tree.diversity
     shards = [read_grasp_store(p) for p in sim_paths]
     # A method with no input in any shard (e.g. dexgraspnet when not configured) gets no row.
     absent = set.intersection(*(set(s.attrs.get("methods_without_input") or []) for s in shards))
@@ -217,7 +214,7 @@ def aggregate_evaluation(sim_paths: list[str], post_paths: list[str], random_pos
     for method, summary in convergence.items():
         summary["convergence_ratio"] = convergence_ratio(random_needs, summary["iterations_to_random_final_E_post"])
     joint_limits = ShadowHand().joint_limits.cpu().numpy()
-    bootstrap_seed = int(config.get("seed") or 0)
+    bootstrap_seed = tree.seed
     metrics_df, per_object_df = metrics_tables(simulated, joint_limits, cfg, seconds, convergence, sim_seconds, bootstrap_seed, diversity)
     budget_iterations = next((s.attrs.get("budget_iterations") for s in shards if s.attrs.get("budget_iterations")), [])
     budget = pd.DataFrame(

@@ -47,7 +47,6 @@ SOURCE = "dexgraspnet"
 DATASET_DIR = "dataset"
 MESHDATA_DIR = "meshdata"
 MESH_RELATIVE_PATH = Path("coacd") / "decomposed.obj"
-CATALOG_COLUMNS = ("object_id", "source", "file", "watertight", "volume", "n_convex_pieces", "status", "reason", "split")
 REPORT_COLUMNS = ("file", "object_id", "grasp_index", "grasps_affected", "kind", "reason")
 UNKNOWN_GRASP_COUNT = -1  # grasps_affected of a failed file whose header does not say how many grasps it holds
 # DexGraspNet writes the joints first, then the palm rotation and translation.
@@ -428,7 +427,7 @@ def import_download(root: str, grasps_out: str, catalog_path: str, report_path: 
     """
     from dexlite_pipeline.config import IMPORT_ASSET_KEYS, json_ready
     from dexlite_pipeline.io.grasp_store import write_grasp_store
-    from dexlite_pipeline.objects.assets import CATALOG_NAME
+    from dexlite_pipeline.objects.assets import CATALOG_COLUMNS, CATALOG_NAME
     from dexlite_pipeline.objects.config import AssetBuildSettings
 
     if Path(catalog_path).name != CATALOG_NAME:

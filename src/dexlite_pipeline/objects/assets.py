@@ -29,6 +29,8 @@ import torch
 
 log = logging.getLogger(__name__)
 CATALOG_NAME = "catalog.parquet"
+# The catalog's columns, in order: written by object preparation and by the DexGraspNet import.
+CATALOG_COLUMNS = ("object_id", "source", "file", "watertight", "volume", "n_convex_pieces", "status", "reason", "split")
 ASSETS_DIR = "assets"
 
 

@@ -68,7 +68,7 @@ class StabilityConfig:
 
     scale: float = 0.1
     duration_s: float = 2.0
-    time_step_s: float = 0.004166667
+    timestep_s: float = 0.004166667
     tilt_deg: float = 3.0
     max_lateral_m: float = 0.05
     max_rotation_deg: float = 7.0

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dexlite_pipeline.objects.assets import ASSETS_DIR, CATALOG_NAME, asset_dir
+from dexlite_pipeline.objects.assets import ASSETS_DIR, CATALOG_COLUMNS, CATALOG_NAME, asset_dir
 from dexlite_pipeline.objects.build import write_asset
 from dexlite_pipeline.objects.config import AssetBuildSettings, ObjectsConfig
 from dexlite_pipeline.objects.sources import MeshSource, pybullet_data_dir
@@ -29,7 +29,6 @@ from dexlite_pipeline.config import json_ready
 
 log = logging.getLogger(__name__)
 
-CATALOG_COLUMNS = ["object_id", "source", "file", "watertight", "volume", "n_convex_pieces", "status", "reason", "split"]
 CONFIG_RECORD_NAME = "prepare_config.json"
 # DexGraspNet's normalization: the max vertex radius becomes 1 / 1.03.
 RADIUS_MARGIN = 1.03
@@ -368,11 +367,11 @@ def prepare_objects(
 
     progress = ProgressLog(log, "preparation", len(sources), unit="objects")  # done, whether prepared or rejected
     rows = resilient_map(task, sources, workers, _crashed_row, lambda done, total: progress.advance())
-    catalog = pd.DataFrame(rows, columns=CATALOG_COLUMNS[:-1])
+    catalog = pd.DataFrame(rows, columns=list(CATALOG_COLUMNS[:-1]))
     catalog["watertight"] = catalog["watertight"].astype("boolean")
     catalog["n_convex_pieces"] = catalog["n_convex_pieces"].astype("int64")
     catalog = assign_split(catalog, config.heldout_fraction, seed, {s.object_id for s in sources if s.always_heldout})
-    catalog = catalog[CATALOG_COLUMNS].sort_values("object_id", kind="stable").reset_index(drop=True)
+    catalog = catalog[list(CATALOG_COLUMNS)].sort_values("object_id", kind="stable").reset_index(drop=True)
     remove_stale_assets(objects_dir, set(catalog.loc[catalog["status"] == "ok", "object_id"]))
     with atomic_path(record_path) as tmp:
         tmp.write_text(json.dumps({"seed": seed, "objects": json_ready(config)}, indent=2, sort_keys=True))

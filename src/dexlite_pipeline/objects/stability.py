@@ -131,7 +131,7 @@ def simulate_object(
     try:
         pb.setGravity(0, 0, -GRAVITY_M_S2, physicsClientId=client)
         pb.setPhysicsEngineParameter(
-            fixedTimeStep=config.time_step_s,
+            fixedTimeStep=config.timestep_s,
             numSolverIterations=config.solver_iterations,
             deterministicOverlappingPairs=1,
             physicsClientId=client,
@@ -161,7 +161,7 @@ def simulate_object(
             )
         pb.changeDynamics(body, -1, localInertiaDiagonal=moments.tolist(), physicsClientId=client)
         start_pos, start_orn = pb.getBasePositionAndOrientation(body, physicsClientId=client)
-        for _ in range(int(round(config.duration_s / config.time_step_s))):
+        for _ in range(int(round(config.duration_s / config.timestep_s))):
             pb.stepSimulation(physicsClientId=client)
         end_pos, end_orn = pb.getBasePositionAndOrientation(body, physicsClientId=client)
     finally:

@@ -64,6 +64,7 @@ def load_report_inputs(files: EvaluationFiles, sim_paths: list[str], history_pat
     from dexlite_pipeline.evaluation.step_keys import REPORT_KEYS
     from dexlite_pipeline.io.grasp_store import read_grasp_store
     from dexlite_pipeline.report.run_facts import run_facts
+    from dexlite_pipeline.settings import build_config
 
     for path in (files.metrics, files.per_object, files.convergence):
         if not Path(path).is_file():
@@ -83,7 +84,7 @@ def load_report_inputs(files: EvaluationFiles, sim_paths: list[str], history_pat
         rendered_per_method=evaluate_config_from(config, REPORT_KEYS).rendered_per_method,
         config=config,
         csv_links={name: Path(os.path.relpath(path, page_dir)).as_posix() for name, path in files.tables().items()},
-        seed=int(config.get("seed") or 0),
+        seed=build_config(config).seed,
         budget=budget,
         learning_curve=pd.read_csv(learning_curve_path) if learning_curve_path else None,
         run_facts=run_facts(config, benchmarks_dir),

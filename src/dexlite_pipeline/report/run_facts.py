@@ -88,9 +88,11 @@ def torch_device_text(config: Mapping) -> str:
     import torch
 
     from dexlite_pipeline.device import resolve_device
+    from dexlite_pipeline.settings import build_config
 
+    configured = build_config(config).device
     try:
-        device = resolve_device(str(config.get("device") or "auto"))
+        device = resolve_device(configured)
     except (RuntimeError, ValueError) as exc:
         return f"unavailable ({exc})"
     if device.type == "cuda":

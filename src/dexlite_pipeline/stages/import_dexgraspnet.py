@@ -22,14 +22,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from dexlite_pipeline.config import from_section, parse_config_json
-    from dexlite_pipeline.io.config import DexGraspNetConfig
-    from dexlite_pipeline.io.dexgraspnet import import_download
+    import dataclasses
 
-    config = parse_config_json(args.config_json)
-    section = from_section(DexGraspNetConfig, config.get("dexgraspnet"), "config.dexgraspnet")
-    counts = import_download(args.root, args.out, args.catalog, args.report, int(config.get("seed", 0)), config.get("objects") or {},
-                             section, workers=args.threads or 1)
+    from dexlite_pipeline.io.dexgraspnet import import_download
+    from dexlite_pipeline.settings import stage_config
+
+    config = stage_config(args.config_json)
+    counts = import_download(args.root, args.out, args.catalog, args.report, config.seed, dataclasses.asdict(config.objects),
+                             config.dexgraspnet, workers=args.threads or 1)
     unknown = counts["failed_files_with_unknown_grasp_count"]
     uncounted = f" (plus the grasps of {unknown} failed files, number unknown)" if unknown else ""
     print(

@@ -111,20 +111,12 @@ class MeshSize:
     oriented_m: tuple[float, float, float]
 
 
-def merge_config(base: dict, overlay: dict) -> dict:
-    """``overlay`` merged into ``base`` key by key (nested mappings merged, anything else replaced)."""
-    out = dict(base)
-    for key, value in overlay.items():
-        out[key] = merge_config(out[key], value) if isinstance(value, dict) and isinstance(out.get(key), dict) else value
-    return out
-
-
 def tool_config(overlay: dict):
     """The typed config of a run: the package's default config.yaml with ``overlay``'s sections over it.
 
     Returns (typed tree, the merged mapping recorded in the outputs). Only the given meshes are objects.
     """
-    from dexlite_pipeline.config import default_config, validate_config
+    from dexlite_pipeline.config import default_config, merge_config, validate_config
     from dexlite_pipeline.settings import build_config
 
     mapping = merge_config(default_config(), overlay)
