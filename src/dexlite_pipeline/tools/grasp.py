@@ -316,7 +316,7 @@ def synthesize_with_model(assets, scales: dict, n: int, config, loaded, model_pa
     from dexlite_pipeline.io.grasp_store import GraspSet
     from dexlite_pipeline.model.checkpoint import cloud_reading
     from dexlite_pipeline.model.data import ObjectClouds
-    from dexlite_pipeline.model.post_optimization import refine
+    from dexlite_pipeline.optim.post import refine
     from dexlite_pipeline.model.sampling import synthesize
 
     sample_config, post_config = config.sample, config.post_optimize
