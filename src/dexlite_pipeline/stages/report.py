@@ -30,7 +30,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from dexlite_pipeline.config import parse_config_json
-    from dexlite_pipeline.io.atomic import write_text_atomic
+    from dexlite_pipeline.atomic import write_text_atomic
     from dexlite_pipeline.report.html import EvaluationFiles, build_report_html, load_report_inputs
 
     files = EvaluationFiles(args.metrics, args.per_object, args.convergence, args.budget, args.record)

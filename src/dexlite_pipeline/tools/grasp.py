@@ -613,7 +613,7 @@ def check_request(request: GraspRequest) -> CheckedRequest:
 
 def run_grasp_tool(request: GraspRequest) -> GraspOutcome:
     """Check, prepare, synthesize, test and write everything for ``request`` (see the module docstring)."""
-    from dexlite_pipeline.io.atomic import write_text_atomic
+    from dexlite_pipeline.atomic import write_text_atomic
     from dexlite_pipeline.evaluation.metrics import per_object_diversity
     from dexlite_pipeline.evaluation.protocol import coverage_arrays
     from dexlite_pipeline.io.dexgraspnet import export_dexgraspnet
