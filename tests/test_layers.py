@@ -14,10 +14,6 @@ import dexlite_pipeline
 
 PACKAGE_DIR = Path(dexlite_pipeline.__file__).parent
 
-# File-level cycles still to untangle (issue 23): the support-plane geometry in `tabletop` is read by
-# `objects.stability`, which `tabletop` calls to load and simulate resting poses. No other cycle may appear.
-KNOWN_FILE_CYCLES = {frozenset({"dexlite_pipeline.objects.stability", "dexlite_pipeline.tabletop"})}
-
 
 def _module_files() -> dict[str, Path]:
     files = {}
@@ -103,7 +99,15 @@ def test_io_and_objects_import_one_way():
     assert not _edges_between(graph, "objects", "io"), f"objects imports io: {_edges_between(graph, 'objects', 'io')}"
 
 
-def test_no_new_file_level_cycle():
-    found = cycles(import_graph())
-    new = [sorted(c) for c in found - KNOWN_FILE_CYCLES]
-    assert not new, f"modules that import each other (directly or through others): {new}"
+def test_io_and_objects_are_in_no_package_cycle():
+    graph = import_graph()
+    packages = {}
+    for module, imported in graph.items():
+        packages.setdefault(_package(module), set()).update(_package(b) for b in imported if _package(b) != _package(module))
+    tangled = [sorted(c) for c in cycles(packages) if {"io", "objects"} & c]
+    assert not tangled, f"packages that import each other, directly or through others: {tangled}"
+
+
+def test_no_file_level_cycle():
+    found = [sorted(c) for c in cycles(import_graph())]
+    assert not found, f"modules that import each other (directly or through others): {found}"
