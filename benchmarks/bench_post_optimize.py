@@ -52,8 +52,8 @@ def measure(assets, batches, iterations: int, sample_grasps: int) -> list[dict]:
     from dexlite_pipeline.model.data import ObjectClouds
     from dexlite_pipeline.model.config import ModelConfig
     from dexlite_pipeline.model.network import GraspCVAE
-    from dexlite_pipeline.model.config import PostOptimizeConfig
-    from dexlite_pipeline.model.post_optimization import refine
+    from dexlite_pipeline.optim.config import PostOptimizeConfig
+    from dexlite_pipeline.optim.post import refine
     from dexlite_pipeline.optim.config import AnnealingSchedule
     from dexlite_pipeline.model.sampling import synthesize
 

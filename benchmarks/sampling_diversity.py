@@ -125,7 +125,8 @@ def run_setting(name: str, assets, attempts: int, seed: int, config: dict, model
     from dexlite_pipeline.evaluation.metrics import joint_entropy_bits
     from dexlite_pipeline.hand import ShadowHand
     from dexlite_pipeline.io.grasp_store import GraspSet
-    from dexlite_pipeline.model.post_optimization import PostOptimizeConfig, refine
+    from dexlite_pipeline.optim.config import PostOptimizeConfig
+    from dexlite_pipeline.optim.post import refine
     from dexlite_pipeline.model.sampling import SampleConfig
     from dexlite_pipeline.optim.init import HullSampler, initial_poses
     from dexlite_pipeline.sim.config import lift_config_from

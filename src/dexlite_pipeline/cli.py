@@ -106,7 +106,7 @@ def main(argv: list[str] | None = None) -> int:
 
 
 # Outputs are written to a hidden sibling ``.NAME.tmp-XXXXXXXX`` and renamed into place
-# (``io.atomic``); an error on the sibling is reported with the path the user gave.
+# (``dexlite_pipeline.atomic``); an error on the sibling is reported with the path the user gave.
 TEMPORARY_SIBLING = re.compile(r"\.(?P<name>.+)\.tmp-[0-9a-f]{8}")
 
 

@@ -26,9 +26,9 @@ from dexlite_pipeline.energy.config import EnergyConfig
 from dexlite_pipeline.evaluation.config import EvaluateConfig
 from dexlite_pipeline.evaluation.diversity import DiversityConfig
 from dexlite_pipeline.io.config import DexGraspNetConfig
-from dexlite_pipeline.model.config import PostOptimizeConfig, SampleConfig, TrainConfig
+from dexlite_pipeline.model.config import SampleConfig, TrainConfig
 from dexlite_pipeline.objects.config import ObjectsConfig, StabilityConfig
-from dexlite_pipeline.optim.config import SeedConfig
+from dexlite_pipeline.optim.config import PostOptimizeConfig, SeedConfig
 from dexlite_pipeline.sim.config import LiftConfig, SceneConfig
 
 

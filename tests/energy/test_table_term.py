@@ -9,7 +9,8 @@ import torch
 from dexlite_pipeline.energy.grasp_energy import GraspEnergy
 from dexlite_pipeline.energy.terms import TableTerm
 from dexlite_pipeline.objects.assets import load_asset
-from dexlite_pipeline.tabletop import HandTableClearance, SupportPlane, SupportPlanes
+from dexlite_pipeline.objects.rest_pose import SupportPlane
+from dexlite_pipeline.tabletop import HandTableClearance, SupportPlanes
 
 SCALE = 0.08
 

@@ -7,8 +7,8 @@ import torch
 
 from dexlite_pipeline.energy.config import EnergyConfig
 from dexlite_pipeline.energy.grasp_energy import GraspEnergy
-from dexlite_pipeline.model.config import PostOptimizeConfig
-from dexlite_pipeline.model.post_optimization import refine
+from dexlite_pipeline.optim.config import PostOptimizeConfig
+from dexlite_pipeline.optim.post import refine
 from dexlite_pipeline.optim.config import AnnealingSchedule
 
 

@@ -165,7 +165,8 @@ def test_resting_pose_is_recorded_and_agrees_with_the_simulated_height(tmp_path,
     shape rests within a few degrees of its file orientation; the toppled cone rests on its side."""
     from scipy.spatial.transform import Rotation
 
-    from dexlite_pipeline.tabletop import REST_POSE_COLUMNS, plane_from_row
+    from dexlite_pipeline.objects.rest_pose import REST_POSE_COLUMNS
+    from dexlite_pipeline.tabletop import plane_from_row
 
     mesh = normalize_mesh(SHAPES[name][0])[0]
     row = _simulate(tmp_path, name, SHAPES[name][0]).row()
@@ -183,7 +184,8 @@ def test_resting_pose_is_recorded_and_agrees_with_the_simulated_height(tmp_path,
 
 def test_unsimulated_rows_have_no_resting_pose():
     from dexlite_pipeline.objects.stability import StabilityResult
-    from dexlite_pipeline.tabletop import REST_POSE_COLUMNS, plane_from_row
+    from dexlite_pipeline.objects.rest_pose import REST_POSE_COLUMNS
+    from dexlite_pipeline.tabletop import plane_from_row
 
     row = StabilityResult("x", math.nan, math.nan, False, "not simulated").row()
     assert all(math.isnan(row[c]) for c in REST_POSE_COLUMNS) and plane_from_row(row) is None

@@ -20,7 +20,8 @@ from dexlite_pipeline.objects.assets import load_asset
 from dexlite_pipeline.sim.config import LiftConfig
 from dexlite_pipeline.sim.lift import GraspSimulator, _palm_quaternions, run_lift_tests
 from dexlite_pipeline.sim.scene import LiftScene
-from dexlite_pipeline.tabletop import HAND_IN_TABLE, SupportPlane, SupportPlanes
+from dexlite_pipeline.objects.rest_pose import SupportPlane
+from dexlite_pipeline.tabletop import HAND_IN_TABLE, SupportPlanes
 
 LYING = SupportPlane((0.0, 0.0, 1.0), 0.25)  # the square bar lying flat: table 0.25 x scale below its axis
 STANDING = SupportPlane((1.0, 0.0, 0.0), 1.0)  # the square bar standing on its end (its axis is the table normal)

@@ -235,7 +235,7 @@ def aggregate_evaluation(sim_paths: list[str], post_paths: list[str], random_pos
 
 def write_evaluation(tables: EvaluationTables, metrics_path, per_object_path, convergence_path, budget_path, record_path) -> None:
     """Each table to its CSV and the record to its JSON file, atomically."""
-    from dexlite_pipeline.io.atomic import atomic_path
+    from dexlite_pipeline.atomic import atomic_path
 
     for frame, path in ((tables.metrics, metrics_path), (tables.per_object, per_object_path), (tables.convergence, convergence_path), (tables.budget, budget_path)):
         with atomic_path(path) as tmp:

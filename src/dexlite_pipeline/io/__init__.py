@@ -1,1 +1,1 @@
-"""Reading and writing the pipeline's data: atomic outputs and Zarr grasp stores."""
+"""Reading and writing the pipeline's data: Zarr grasp stores and DexGraspNet files (atomic writes: ``dexlite_pipeline.atomic``)."""

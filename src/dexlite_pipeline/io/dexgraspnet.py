@@ -36,7 +36,7 @@ from numpy.lib import format as npy_format
 
 from dexlite_pipeline.hand.model import JOINT_NAMES
 from dexlite_pipeline.hand.qpos import QPOS_KEYS, ROTATION_KEYS, TRANSLATION_KEYS, QposError, hand_pose_from_qpos, qpos_from_hand_pose
-from dexlite_pipeline.io.atomic import atomic_path
+from dexlite_pipeline.atomic import atomic_path
 from dexlite_pipeline.io.config import DexGraspNetConfig
 from dexlite_pipeline.io.grasp_store import GraspSet, empty_grasp_set
 from dexlite_pipeline.io.safe_pickle import NpyReadError, RefusedPickleError, load_npy_restricted

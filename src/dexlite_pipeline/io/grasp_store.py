@@ -16,8 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
+from dexlite_pipeline.atomic import atomic_path
 from dexlite_pipeline.hand.model import JOINT_NAMES, POSE_DIM
-from dexlite_pipeline.io.atomic import atomic_path
 
 SCHEMA_VERSION = 1
 REQUIRED_ARRAYS = ("hand_pose", "object_id", "scale")

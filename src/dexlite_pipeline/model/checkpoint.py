@@ -12,7 +12,7 @@ from pathlib import Path
 
 import torch
 
-from dexlite_pipeline.io.atomic import atomic_path
+from dexlite_pipeline.atomic import atomic_path
 from dexlite_pipeline.model.config import ModelConfig
 from dexlite_pipeline.model.network import GraspCVAE
 from dexlite_pipeline.config import json_ready

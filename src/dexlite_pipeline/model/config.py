@@ -1,8 +1,7 @@
-"""The model's config types: the network (``train.model``), sections ``train``, ``sample`` and ``post_optimize``.
+"""The model's config types: the network (``train.model``), sections ``train`` and ``sample``.
 
 A leaf of the config tree (``settings``): it imports no model code, so a stage's code hash
-(``codehash``) covers these shapes without the network, training, sampling or
-post-optimization code.
+(``codehash``) covers these shapes without the network, training or sampling code.
 """
 
 from __future__ import annotations
@@ -13,7 +12,6 @@ from dataclasses import dataclass, field
 from dexlite_pipeline.config import json_ready
 from dexlite_pipeline.energy.config import EnergyWeights
 from dexlite_pipeline.model.shipped import SHIPPED_MODEL_RELATIVE
-from dexlite_pipeline.optim.config import AnnealingConfig, AnnealingSchedule, InitConfig
 
 NORMALIZATIONS = ("batch", "none")
 POSE_FRAMES = ("object", "point", "surface", "hand")
@@ -143,37 +141,3 @@ class SampleConfig:
             raise ValueError(f"sample.anchor_rule {self.anchor_rule!r} is not one of {', '.join(ANCHOR_RULES)}")
         if self.latent_prior not in LATENT_PRIORS:
             raise ValueError(f"sample.latent_prior {self.latent_prior!r} is not one of {', '.join(LATENT_PRIORS)}")
-
-
-# The write-up's post-optimization schedule: DexGraspNet's constants over 200 iterations.
-POST_SCHEDULE = AnnealingSchedule(iterations=200)
-
-
-@dataclass(frozen=True)
-class PostOptimizeConfig:
-    """Config section ``post_optimize`` (the seed's post-optimization)."""
-
-    annealing: AnnealingSchedule = POST_SCHEDULE  # the random starts' schedule (DexGraspNet's, 200 steps)
-    energy_weights: EnergyWeights = field(default_factory=EnergyWeights)  # E_post = Σ weight · term
-    energy_object_points: int = 2000  # object surface points for E_pen
-    start_contact_samples: int = 64  # sampled grasps start from the best of this many near-surface 4-sets (0: nearest pads)
-    final_contact_samples: int = 64  # after the last step, keep the best of this many contact sets (0: off)
-    keep_best: bool = True  # return each grasp's lowest-E_post visited state instead of the last one
-    learned_start_temperature: float = 0.5  # T0 for CVAE starts, which are already close: few uphill moves accepted
-    learned_start_step_size: float = 0.002  # step size at iteration 0 for CVAE starts
-    budget_iterations: tuple[int, ...] = (0, 25, 50, 100, 200)  # poses kept after these iterations for the budget curve
-    batch_size: int = 1024  # grasps per optimizer batch (a shard is cut into batches of this size)
-    random_baseline: bool = True  # also run the random-init baseline (held-out objects' grasps)
-    random_init: InitConfig = field(default_factory=InitConfig)
-
-    def optimizer_config(self, learned_start: bool = False) -> AnnealingConfig:
-        """The optimizer's settings: ``annealing`` for random starts; for learned (CVAE) starts the same
-        with the close-start temperature and step size. The energy is traced at every iteration."""
-        schedule = self.annealing
-        if learned_start:
-            schedule = dataclasses.replace(schedule, starting_temperature=self.learned_start_temperature, step_size=self.learned_start_step_size)
-        return AnnealingConfig.from_schedule(schedule, trace_every=1, final_contact_samples=self.final_contact_samples, keep_best=self.keep_best)
-
-    def budget(self) -> tuple[int, ...]:
-        """The budget-curve iterations within this run's length."""
-        return tuple(sorted(i for i in set(self.budget_iterations) if 0 <= i <= self.annealing.iterations))

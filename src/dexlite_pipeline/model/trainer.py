@@ -16,8 +16,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 import pandas as pd
 
+from dexlite_pipeline.atomic import atomic_path
 from dexlite_pipeline.curation.config import IMPORTED_ORIGIN
-from dexlite_pipeline.io.atomic import atomic_path
 from dexlite_pipeline.io.grasp_store import GraspSet, read_grasp_store
 from dexlite_pipeline.model.config import LOSS_TERMS
 from dexlite_pipeline.model.training import TrainingResult

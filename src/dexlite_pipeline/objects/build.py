@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dexlite_pipeline.io.atomic import atomic_path
+from dexlite_pipeline.atomic import atomic_path
 from dexlite_pipeline.objects.assets import asset_dir
 from dexlite_pipeline.objects.config import AssetBuildSettings
 

@@ -461,7 +461,7 @@ def training_household_ids(count: int, excluded: frozenset[str] = frozenset()) -
 
 def write_mesh_obj(mesh, path: Path) -> None:
     """Write ``mesh`` as .obj atomically, leaving an identical existing file untouched (its time stamp too)."""
-    from dexlite_pipeline.io.atomic import atomic_path
+    from dexlite_pipeline.atomic import atomic_path
 
     text = mesh.export(file_type="obj")
     if path.is_file() and path.read_text() == text:

@@ -349,7 +349,7 @@ def prepare_objects(
     """
     import pandas as pd
 
-    from dexlite_pipeline.io.atomic import atomic_path
+    from dexlite_pipeline.atomic import atomic_path
     from dexlite_pipeline.parallel import resilient_map
     from dexlite_pipeline.progress import ProgressLog
 

@@ -27,9 +27,9 @@ from pathlib import Path
 import numpy as np
 
 from dexlite_pipeline.objects.config import StabilityConfig
-from dexlite_pipeline.tabletop import REST_POSE_COLUMNS, support_plane_from_rest
+from dexlite_pipeline.objects.rest_pose import REST_POSE_COLUMNS, support_plane_from_rest
 
-# Every row also records the object's resting pose after settling (tabletop.REST_POSE_COLUMNS; NaN
+# Every row also records the object's resting pose after settling (objects.rest_pose.REST_POSE_COLUMNS; NaN
 # where not simulated): the pose later stages put the object in, with the table plane below it.
 STABILITY_COLUMNS = ["object_id", "lateral_displacement_m", "rotation_deg", "stable", "reason", *REST_POSE_COLUMNS]
 STABILITY_REQUIRED_COLUMNS = ("object_id", "stable")  # what the stages that read the table use
@@ -74,7 +74,7 @@ class StabilityResult:
     rotation_deg: float
     stable: bool
     reason: str
-    rest_pose: dict = field(default_factory=dict)  # tabletop.REST_POSE_COLUMNS -> value (absent: NaN)
+    rest_pose: dict = field(default_factory=dict)  # objects.rest_pose.REST_POSE_COLUMNS -> value (absent: NaN)
 
     def row(self) -> dict:
         base = {c: getattr(self, c) for c in STABILITY_COLUMNS if c not in REST_POSE_COLUMNS}

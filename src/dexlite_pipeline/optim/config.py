@@ -1,4 +1,4 @@
-"""The optimizer's config types: the annealing schedule, the start poses, section ``seed_grasps``.
+"""The optimizer's config types: the annealing schedule, the start poses, sections ``seed_grasps`` and ``post_optimize``.
 
 A leaf of the config tree (``settings``): it imports no optimizer code, so a stage's code hash
 (``codehash``) covers these shapes without the computation. ``AnnealingSchedule`` is the one
@@ -11,7 +11,7 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass, field
 
-from dexlite_pipeline.energy.config import EnergyThresholds
+from dexlite_pipeline.energy.config import EnergyThresholds, EnergyWeights
 
 
 @dataclass(frozen=True)
@@ -88,3 +88,37 @@ class SeedConfig:
             self.annealing, trace_every=self.trace_every, final_contact_samples=self.final_contact_samples,
             contact_search_every=self.contact_search_every, keep_best=self.keep_best,
         )
+
+
+# The write-up's post-optimization schedule: DexGraspNet's constants over 200 iterations.
+POST_SCHEDULE = AnnealingSchedule(iterations=200)
+
+
+@dataclass(frozen=True)
+class PostOptimizeConfig:
+    """Config section ``post_optimize`` (the seed's post-optimization)."""
+
+    annealing: AnnealingSchedule = POST_SCHEDULE  # the random starts' schedule (DexGraspNet's, 200 steps)
+    energy_weights: EnergyWeights = field(default_factory=EnergyWeights)  # E_post = Σ weight · term
+    energy_object_points: int = 2000  # object surface points for E_pen
+    start_contact_samples: int = 64  # sampled grasps start from the best of this many near-surface 4-sets (0: nearest pads)
+    final_contact_samples: int = 64  # after the last step, keep the best of this many contact sets (0: off)
+    keep_best: bool = True  # return each grasp's lowest-E_post visited state instead of the last one
+    learned_start_temperature: float = 0.5  # T0 for CVAE starts, which are already close: few uphill moves accepted
+    learned_start_step_size: float = 0.002  # step size at iteration 0 for CVAE starts
+    budget_iterations: tuple[int, ...] = (0, 25, 50, 100, 200)  # poses kept after these iterations for the budget curve
+    batch_size: int = 1024  # grasps per optimizer batch (a shard is cut into batches of this size)
+    random_baseline: bool = True  # also run the random-init baseline (held-out objects' grasps)
+    random_init: InitConfig = field(default_factory=InitConfig)
+
+    def optimizer_config(self, learned_start: bool = False) -> AnnealingConfig:
+        """The optimizer's settings: ``annealing`` for random starts; for learned (CVAE) starts the same
+        with the close-start temperature and step size. The energy is traced at every iteration."""
+        schedule = self.annealing
+        if learned_start:
+            schedule = dataclasses.replace(schedule, starting_temperature=self.learned_start_temperature, step_size=self.learned_start_step_size)
+        return AnnealingConfig.from_schedule(schedule, trace_every=1, final_contact_samples=self.final_contact_samples, keep_best=self.keep_best)
+
+    def budget(self) -> tuple[int, ...]:
+        """The budget-curve iterations within this run's length."""
+        return tuple(sorted(i for i in set(self.budget_iterations) if 0 <= i <= self.annealing.iterations))

@@ -157,7 +157,7 @@ def grasp_view_html(objects, grasps: Sequence[ViewGrasp], title: str = "", full_
 
 def write_grasp_view(path: str | Path, objects, grasps: Sequence[ViewGrasp], title: str = "") -> Path:
     """Write the view to ``path`` (one self-contained HTML file, written atomically) and return the path."""
-    from dexlite_pipeline.io.atomic import write_text_atomic
+    from dexlite_pipeline.atomic import write_text_atomic
 
     html = grasp_view_html(objects, grasps, title)
     write_text_atomic(path, html)

@@ -210,7 +210,7 @@ def render_grasp_png(
     plt.close(fig)
     data = buffer.getvalue()
     if out is not None:
-        from dexlite_pipeline.io.atomic import atomic_path
+        from dexlite_pipeline.atomic import atomic_path
 
         with atomic_path(out) as tmp:
             Path(tmp).write_bytes(data)

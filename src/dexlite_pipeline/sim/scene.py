@@ -14,7 +14,7 @@ Choices that move measured success rates (docs/design.md, "Physics tests"):
 - elliptic friction cones with impratio 10, 2 ms steps (sparse Jacobians: speed only);
 - the world frame is the object frame, so gravity acts along the object's -z; on a table
   (tabletop mode) the scene adds the table, a plane in the object frame below the object's
-  resting pose (``tabletop.SupportPlane``), and gravity acts along its downward normal,
+  resting pose (``objects.rest_pose.SupportPlane``), and gravity acts along its downward normal,
   the world's -z in the resting pose.
 """
 
@@ -74,7 +74,7 @@ def _strip_visuals(root: ET.Element) -> None:
 def scene_mjcf(convex_paths: list[Path], scale: float, config: LiftConfig, table=None) -> str:
     """MJCF text of the scene: hand + mocap target + free object made of ``convex_paths`` scaled by ``scale``.
 
-    ``table`` (a ``tabletop.SupportPlane``; tabletop mode): adds the table plane at this scale and
+    ``table`` (an ``objects.rest_pose.SupportPlane``; tabletop mode): adds the table plane at this scale and
     turns gravity along its downward normal. None: no table, gravity along -z (floating mode).
     """
     if not convex_paths:

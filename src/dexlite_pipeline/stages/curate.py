@@ -27,7 +27,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from dexlite_pipeline.curation.shard import curate_shard, merge_summary_files
-    from dexlite_pipeline.io.atomic import atomic_path
+    from dexlite_pipeline.atomic import atomic_path
     from dexlite_pipeline.io.grasp_store import write_grasp_store
     from dexlite_pipeline.settings import stage_config
 

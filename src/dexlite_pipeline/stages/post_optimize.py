@@ -6,7 +6,7 @@ per-iteration traces (``trace_E_post`` etc., attribute ``trace_iterations``). Wi
 ``post_optimize.random_baseline`` it also writes ``--random-out``: the same optimization
 from random convex-hull starts for the same held-out objects and scales as the shard's
 pure syntheses (``cvae_raw``), the baseline for "CVAE starts converge faster"
-(``model.post_optimize_shard``). In tabletop mode (``scene.table``) E_post includes E_table,
+(``optim.post_shard``). In tabletop mode (``scene.table``) E_post includes E_table,
 starts below the table are raised above it first, random starts come from above it, and
 every row records its support plane (resting poses from ``--stability``).
 """
@@ -28,7 +28,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from dexlite_pipeline.io.grasp_store import write_grasp_store
-    from dexlite_pipeline.model.post_optimize_shard import post_optimize_shard
+    from dexlite_pipeline.optim.post_shard import post_optimize_shard
     from dexlite_pipeline.settings import stage_config
 
     (refined, attrs), (baseline, baseline_attrs) = post_optimize_shard(args.sample, args.objects, args.shard, stage_config(args.config_json), args.stability)

@@ -30,7 +30,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from dexlite_pipeline.config import parse_config_json
-    from dexlite_pipeline.io.atomic import write_text_atomic
+    from dexlite_pipeline.atomic import write_text_atomic
     from dexlite_pipeline.report.inputs import EvaluationFiles, load_report_inputs
     from dexlite_pipeline.report.page import build_report_html
 

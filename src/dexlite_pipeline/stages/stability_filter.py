@@ -27,7 +27,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from dexlite_pipeline.config import json_ready
-    from dexlite_pipeline.io.atomic import atomic_path
+    from dexlite_pipeline.atomic import atomic_path
     from dexlite_pipeline.objects.stability import NoObjectToTest, stability_filter
     from dexlite_pipeline.settings import stage_config
 

@@ -308,7 +308,7 @@ def synthesize_with_model(assets, scales: dict, n: int, config, loaded, model_pa
     from dexlite_pipeline.io.grasp_store import GraspSet
     from dexlite_pipeline.model.checkpoint import cloud_reading
     from dexlite_pipeline.model.data import ObjectClouds
-    from dexlite_pipeline.model.post_optimization import refine
+    from dexlite_pipeline.optim.post import refine
     from dexlite_pipeline.model.sampling import synthesize
 
     sample_config, post_config = config.sample, config.post_optimize
@@ -605,7 +605,7 @@ def check_request(request: GraspRequest) -> CheckedRequest:
 
 def run_grasp_tool(request: GraspRequest) -> GraspOutcome:
     """Check, prepare, synthesize, test and write everything for ``request`` (see the module docstring)."""
-    from dexlite_pipeline.io.atomic import write_text_atomic
+    from dexlite_pipeline.atomic import write_text_atomic
     from dexlite_pipeline.evaluation.metrics import per_object_diversity
     from dexlite_pipeline.evaluation.protocol import coverage_arrays
     from dexlite_pipeline.io.dexgraspnet import export_dexgraspnet

@@ -25,7 +25,7 @@ import numpy as np
 import torch
 
 from dexlite_pipeline.energy.grasp_energy import TERM_NAMES, GraspEnergy
-from dexlite_pipeline.model.config import PostOptimizeConfig
+from dexlite_pipeline.optim.config import PostOptimizeConfig
 from dexlite_pipeline.optim.annealing import optimize
 
 # Terms traced per iteration beside E_post: those of DexGraspNet's success thresholds, so the

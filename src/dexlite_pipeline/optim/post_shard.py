@@ -1,6 +1,6 @@
 """Post-optimization of one shard: the ``post_optimize`` stage's work.
 
-The shard's sampled grasps are refined (``model.post_optimization.refine``); with
+The shard's sampled grasps are refined (``optim.post.refine``); with
 ``post_optimize.random_baseline`` the same budget also runs from random convex-hull starts for
 the same held-out objects and scales as the shard's pure syntheses (``cvae_raw``).
 """
@@ -15,7 +15,7 @@ import torch
 
 from dexlite_pipeline.io.grasp_store import GraspSet
 from dexlite_pipeline.energy.grasp_energy import GraspEnergy
-from dexlite_pipeline.model.post_optimization import RefinedGrasps, refine
+from dexlite_pipeline.optim.post import RefinedGrasps, refine
 
 if TYPE_CHECKING:
     from dexlite_pipeline.settings import PipelineConfig
