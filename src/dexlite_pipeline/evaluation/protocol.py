@@ -293,8 +293,7 @@ def simulate(
     arrays.update(filter_energy_arrays(selected, objects_dirs, energy_cfg.weights, device))
     log.info("the equal filter's contact search of %d grasps in %.1f s", len(selected), time.perf_counter() - start)
     start = time.perf_counter()
-    on_table = {} if support_planes is None else {"support_planes": support_planes}
-    lifted = run_lift_tests(selected, objects_dirs, lift_cfg, threads, **on_table)
+    lifted = run_lift_tests(selected, objects_dirs, lift_cfg, threads, support_planes=support_planes)
     lifted.pop("table_depth_mm", None)  # measured for every mode by the caller (tabletop.grasp_table_depths)
     arrays.update(lifted)
     lift_s = time.perf_counter() - start
@@ -302,7 +301,7 @@ def simulate(
         lenient = dataclasses.replace(lift_cfg, **seed_protocol.lift_overrides())
         log.info("lift test of %d grasps under the write-up's protocol (friction %g, +%g rad, ratio %g)", len(selected),
                  lenient.friction, lenient.preclose_rad, lenient.success_lift_ratio)
-        arrays[SEED_PROTOCOL_SUCCESS] = run_lift_tests(selected, objects_dirs, lenient, threads, **on_table)["lift_success"]
+        arrays[SEED_PROTOCOL_SUCCESS] = run_lift_tests(selected, objects_dirs, lenient, threads, support_planes=support_planes)["lift_success"]
     attrs = dict(selected.attrs)
     attrs["energy_seconds_per_grasp"] = energy_s / simulated_count
     attrs["simulation_seconds_per_grasp"] = lift_s / simulated_count
@@ -471,8 +470,7 @@ def simulate_budget(selected: GraspSet, objects_dirs, lift_cfg, threads: int, su
         },
         {},
     )
-    on_table = {} if support_planes is None else {"support_planes": support_planes}
-    result = run_lift_tests(flat, objects_dirs, dataclasses.replace(lift_cfg, six_directions=False), threads, **on_table)
+    result = run_lift_tests(flat, objects_dirs, dataclasses.replace(lift_cfg, six_directions=False), threads, support_planes=support_planes)
     return np.asarray(result["lift_success"], dtype=np.float64).reshape(count, steps)
 
 

@@ -81,7 +81,7 @@ def simulate_shard(
     require_split_objects(split_of, cfg.splits, objects_dirs)
     scene = tree.scene
     planes = SupportPlanes.from_stability_table(stability_path) if stability_path else load_support_planes(scene.table, None)
-    on_table = {"support_planes": planes} if scene.table else {}
+    table_planes = planes if scene.table else None  # the tables the lift tests use (floating: none)
     known_object_ids = available_object_ids(objects_dirs)
     sources = {key: [read_grasp_store(p) for p in source_paths.get(key, [])] for key in SOURCE_OPTIONS}
     if sources["dexgraspnet"]:  # one store for all shards: take this shard's objects
@@ -105,7 +105,7 @@ def simulate_shard(
         budget_poses = arrays.pop(BUDGET_POSES, None)
         if budget_poses is not None and method in BUDGET_METHODS and len(selected):
             budget_iterations = budget_iterations or _budget_iterations(method_sources)
-            arrays[BUDGET_SUCCESS] = simulate_budget(selected, objects_dirs, lift_cfg, threads, **on_table)
+            arrays[BUDGET_SUCCESS] = simulate_budget(selected, objects_dirs, lift_cfg, threads, support_planes=table_planes)
             log.info("evaluate shard %s: %s: budget curve over iterations %s simulated", shard, method, budget_iterations)
         parts.append(GraspSet(arrays, {}))
         invalid[method] = selected.attrs["invalid_reasons"]
@@ -121,7 +121,7 @@ def simulate_shard(
         for name, dtype in (("method", object), ("split", object), ("source_row", np.int64), ("sample_row", np.int64), ("invalid_reason", object)):
             selected_all.arrays[name] = np.zeros(0, dtype=dtype)
     device = resolve_device(tree.device)
-    result = simulate(selected_all, objects_dirs, lift_cfg, energy_cfg, device, threads, cfg.energy_batch_size, cfg.seed_protocol, **on_table)
+    result = simulate(selected_all, objects_dirs, lift_cfg, energy_cfg, device, threads, cfg.energy_batch_size, cfg.seed_protocol, support_planes=table_planes)
     if planes is not None:
         result.arrays["table_depth_mm"] = grasp_table_depths(selected_all, planes) * 1000.0
     if scene.table:  # the table each grasp was tested on, so that a grasp is reproducible from the store (and pictured on it)

@@ -128,8 +128,7 @@ def train_from_lift_shards(lift_paths: list[str], objects_dirs: list[str], confi
     )
     train_index, val_index = split_validation(len(grasps), settings.validation_fraction, config.seed)
     energy_terms = grasp_energy_terms(energy, settings.contact_samples, config.seed)
-    on_table = {} if planes is None else {"table": True}
-    result = train_cvae(data, train_index, val_index, settings, energy_terms, config.seed, on_epoch=_log_epoch, **on_table)
+    result = train_cvae(data, train_index, val_index, settings, energy_terms, config.seed, on_epoch=_log_epoch, table=planes is not None)
     fit = fit_training_codes(result.model, data, train_index, settings)
     log.info(
         "fit rung (encoder-mean reconstructions of the %d training grasps): median palm rotation error %.2f deg, "

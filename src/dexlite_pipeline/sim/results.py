@@ -71,7 +71,7 @@ def lift_grasp_set(grasps: GraspSet, objects_dirs, config: LiftConfig, threads: 
     support plane (NaN for an object without one, whose grasps are flagged invalid).
     """
     start = time.perf_counter()
-    results = run_lift_tests(grasps, objects_dirs, config, threads) if support_planes is None else run_lift_tests(grasps, objects_dirs, config, threads, support_planes)
+    results = run_lift_tests(grasps, objects_dirs, config, threads, support_planes)
     seconds = time.perf_counter() - start
     arrays = dict(grasps.arrays)
     previous = arrays.pop("failure_reason", None)
