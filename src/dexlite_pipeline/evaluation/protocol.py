@@ -47,8 +47,7 @@ import numpy as np
 from dexlite_pipeline.config import from_section
 from dexlite_pipeline.io.grasp_store import GraspSet, invalid_grasp_reasons
 from dexlite_pipeline.evaluation import metrics
-from dexlite_pipeline.evaluation.config import LADDER_RUNGS, EvaluateConfig, SeedProtocolConfig
-from dexlite_pipeline.evaluation.diversity import DiversityConfig
+from dexlite_pipeline.evaluation.config import LADDER_RUNGS, DiversityConfig, EvaluateConfig, SeedProtocolConfig
 from dexlite_pipeline.evaluation.step_keys import with_evaluate_keys
 
 log = logging.getLogger(__name__)
