@@ -181,7 +181,7 @@ def curate_grasps(
     """Per grasp, '' if kept, else its drop reason (one of ``DROP_REASONS``; ``TABLETOP_DROP_REASONS`` on a table).
 
     ``table_depth_m`` (tabletop mode): per grasp the deepest hand point below its object's table
-    (``tabletop.grasp_table_depths``); grasps deeper than ``tabletop.TABLE_TOLERANCE_M`` (or with
+    (``energy.table_clearance.grasp_table_depths``); grasps deeper than ``tabletop.TABLE_TOLERANCE_M`` (or with
     no table) are dropped as ``below_table`` after the object-level checks.
 
     With ``config.force_closure``, ``force_closure_evaluator`` is called once, on the

@@ -128,7 +128,8 @@ def curate_shard(
     grasps = _common_arrays(sets)
     table_depth = None
     if scene.table:
-        from dexlite_pipeline.tabletop import load_support_planes, grasp_table_depths
+        from dexlite_pipeline.energy.table_clearance import grasp_table_depths
+        from dexlite_pipeline.tabletop import load_support_planes
 
         table_depth = grasp_table_depths(grasps, load_support_planes(True, stability_paths[0]))
     drop_reasons = TABLETOP_DROP_REASONS if scene.table else DROP_REASONS

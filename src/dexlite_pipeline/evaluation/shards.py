@@ -77,7 +77,8 @@ def simulate_shard(
     from dexlite_pipeline.objects.assets import available_object_ids
     from dexlite_pipeline.sharding import shard_objects
     from dexlite_pipeline.sim.config import lift_config_from
-    from dexlite_pipeline.tabletop import SupportPlanes, grasp_table_depths, load_support_planes
+    from dexlite_pipeline.energy.table_clearance import grasp_table_depths
+    from dexlite_pipeline.tabletop import SupportPlanes, load_support_planes
 
     cfg = evaluate_config_from(config, SIMULATE_KEYS)
     lift_cfg = lift_config_from(config, six_directions=cfg.six_directions)

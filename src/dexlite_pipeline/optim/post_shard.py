@@ -117,7 +117,7 @@ def post_optimize_shard(
     if valid.any():
         starts = sampled.select(valid)
         if planes is not None:
-            from dexlite_pipeline.tabletop import raise_above_table
+            from dexlite_pipeline.energy.table_clearance import raise_above_table
 
             starts, shift = raise_above_table(starts, planes)
             log.info("shard %03d: %d of %d sampled starts raised above the table (median %.1f mm)", shard, int((shift > 0).sum()), len(shift),

@@ -54,6 +54,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
+from dexlite_pipeline.energy.table_clearance import hand_table_depth
 from dexlite_pipeline.hand.model import JOINT_NAMES, JOINTS, ShadowHand
 from dexlite_pipeline.hand.rotation import euler_xyz_to_matrix
 from dexlite_pipeline.io.grasp_store import GraspSet, invalid_grasp_reasons
@@ -62,7 +63,7 @@ from dexlite_pipeline.objects.rest_pose import SupportPlane
 from dexlite_pipeline.progress import ProgressLog
 from dexlite_pipeline.sim.config import LiftConfig
 from dexlite_pipeline.sim.scene import GRAVITY_MPS2, LiftScene
-from dexlite_pipeline.tabletop import HAND_IN_TABLE, TABLE_TOLERANCE_M, SupportPlanes, hand_table_depth
+from dexlite_pipeline.tabletop import HAND_IN_TABLE, TABLE_TOLERANCE_M, SupportPlanes
 
 log = logging.getLogger(__name__)
 
