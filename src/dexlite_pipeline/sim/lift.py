@@ -27,12 +27,10 @@ An object that has provably left the hand (entirely below a sphere that holds th
 in any joint configuration, falling away from it, no contacts) can never touch the hand
 again, so the rest of its fall is ballistic: it is extrapolated with MuJoCo's own
 semi-implicit Euler update instead of simulated, checked before every control chunk
-from the start of the close. The outcome is that of a full simulation; dropped objects
-keep falling (there is no table; on a table they land back on it and their ratio is taken as 0), so their
-ratios are strongly negative, and equal the
-full simulation's to 0.04% (measured on the 115 dropped DexGraspNet sample grasps: at
-most 0.009 of about -33, from MuJoCo integrating a spinning body about its frame origin
-where the extrapolation follows its centre of mass exactly).
+from the start of the close. The outcome is that of a full simulation (the ratios agree
+closely; MuJoCo integrates a spinning body about its frame origin, the extrapolation its
+centre of mass). Without a table a dropped object keeps falling, so its ratio is strongly
+negative; on a table it lands back on it and its ratio is taken as 0.
 
 Six-direction test (optional): gravity off, fingers closed as above, then a force of
 ``six_dir_force_per_kg_n`` x mass along +x, -x, +y, -y, +z, -z in turn, each from the same
