@@ -10,9 +10,8 @@ and shared shapes are one type wherever they appear: ``EnergyWeights`` (``energy
 the same values so that the file documents every key (``tests/test_config.py`` holds the
 classes, the schema and the file to each other).
 
-The section classes live in leaf modules (each component's ``config`` module, and
-``evaluation.diversity``) that import no pipeline code but ``dexlite_pipeline.config`` and each
-other: a stage imports this tree without importing other components' code, so its code hash
+The section classes live in leaf modules (each component's ``config`` module) that import no
+pipeline code but ``dexlite_pipeline.config`` and each other: a stage imports this tree without importing other components' code, so its code hash
 (``codehash``) covers only the code it runs (docs/design.md, "Code hashes").
 """
 
@@ -23,8 +22,7 @@ from dataclasses import dataclass, field
 from dexlite_pipeline.config import from_section, parse_config_json
 from dexlite_pipeline.curation.config import CurateConfig
 from dexlite_pipeline.energy.config import EnergyConfig
-from dexlite_pipeline.evaluation.config import EvaluateConfig
-from dexlite_pipeline.evaluation.diversity import DiversityConfig
+from dexlite_pipeline.evaluation.config import DiversityConfig, EvaluateConfig
 from dexlite_pipeline.io.config import DexGraspNetConfig
 from dexlite_pipeline.model.config import SampleConfig, TrainConfig
 from dexlite_pipeline.objects.config import ObjectsConfig, StabilityConfig

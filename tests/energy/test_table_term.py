@@ -7,10 +7,11 @@ import pytest
 import torch
 
 from dexlite_pipeline.energy.grasp_energy import GraspEnergy
+from dexlite_pipeline.energy.table_clearance import HandTableClearance
 from dexlite_pipeline.energy.terms import TableTerm
 from dexlite_pipeline.objects.assets import load_asset
 from dexlite_pipeline.objects.rest_pose import SupportPlane
-from dexlite_pipeline.tabletop import HandTableClearance, SupportPlanes
+from dexlite_pipeline.tabletop import SupportPlanes
 
 SCALE = 0.08
 

@@ -342,7 +342,7 @@ def test_coverage_arrays_touch_the_box_only_where_the_hand_is(tiny_objects):
     """Forward kinematics and the SDF: a hand on the box touches patches, one a metre away or invalid touches none."""
     from report_synthetic import grasp_poses
 
-    from dexlite_pipeline.evaluation.diversity import DiversityConfig
+    from dexlite_pipeline.evaluation.config import DiversityConfig
     from dexlite_pipeline.evaluation.metrics import COVERAGE_PATCHES, TOUCHED_PATCHES
     from dexlite_pipeline.evaluation.protocol import coverage_arrays
 

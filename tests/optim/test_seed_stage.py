@@ -111,7 +111,7 @@ def test_seed_stage_catalog_without_status_column_is_a_clear_error(optim_objects
 def test_tabletop_seed_grasps_start_above_the_table_and_record_it(optim_objects, stability, tmp_path):
     """Tabletop mode (the default): every start's palm is above the box's table, E_table is in the
     energy and stored, and each grasp records its support plane; the store records the mode."""
-    from dexlite_pipeline.tabletop import HandTableClearance
+    from dexlite_pipeline.energy.table_clearance import HandTableClearance
 
     assert _run(optim_objects, stability, tmp_path / "t.zarr") == 0
     grasps = read_grasp_store(tmp_path / "t.zarr")

@@ -375,7 +375,8 @@ def test_a_mesh_rejected_in_preparation_is_reported_once_and_never_as_prepared(t
 @pytest.mark.slow
 def test_on_a_table_no_held_grasp_reaches_below_it(grasp_run):
     """Tabletop mode (the default): every grasp records its object's table, and no held grasp has a hand point below it."""
-    from dexlite_pipeline.tabletop import TABLE_TOLERANCE_M, grasp_table_depths, planes_from_store
+    from dexlite_pipeline.energy.table_clearance import grasp_table_depths
+    from dexlite_pipeline.tabletop import TABLE_TOLERANCE_M, planes_from_store
 
     _, out = grasp_run
     every = read_grasp_store(out / "all_grasps.zarr")

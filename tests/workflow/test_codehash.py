@@ -72,9 +72,8 @@ def test_real_package_closure_is_exact():
 
 REPO = Path(__file__).resolve().parents[2]
 PACKAGE_ROOT = REPO / "src" / "dexlite_pipeline"
-# Light modules the config tree may import besides the config modules: a section class that lives
-# in its light component module (diversity), and where the shipped model is (sample.shipped_model).
-CONFIG_TREE_LEAVES = {"dexlite_pipeline.evaluation.diversity", "dexlite_pipeline.model.shipped"}
+# Light modules the config tree may import besides the config modules: where the shipped model is (sample.shipped_model).
+CONFIG_TREE_LEAVES = {"dexlite_pipeline.model.shipped"}
 
 
 def test_config_tree_imports_only_config_modules():

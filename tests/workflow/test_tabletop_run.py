@@ -43,7 +43,8 @@ def test_on_a_table_no_held_grasp_of_the_run_reaches_below_it(complete_run):
     import numpy as np
 
     from dexlite_pipeline.io.grasp_store import read_grasp_store
-    from dexlite_pipeline.tabletop import TABLE_TOLERANCE_M, SupportPlanes, grasp_table_depths
+    from dexlite_pipeline.energy.table_clearance import grasp_table_depths
+    from dexlite_pipeline.tabletop import TABLE_TOLERANCE_M, SupportPlanes
 
     results = complete_run.workdir / "results"
     planes = SupportPlanes.from_stability_table(results / "stability" / "stability.parquet")

@@ -32,12 +32,10 @@ cone (``force_closure_friction``); ε is the largest wrench, in every direction,
 resist per newton of total normal force. Why: E_fc is scored on four contact candidates
 that seed synthesis picks after the fact, with unit normals and no friction, and its
 torque term (contact points in metres) is about 1/scale² weaker than with torques over
-the object's radius, so E_fc < 0.3 says little about how the hand presses. Grasps whose
-contacts are not in force closure (or only barely, ε <= 0.01) lift far less often; a
-penetration limit is no substitute. The contact distance is the energy thresholds' own
-scale (E_dis < 5 mm over four contacts is 1.25 mm each). The check applies to imported
-grasps too: it uses no stored contacts. The measurements behind these choices are in
-docs/results.md ("Curation").
+the object's radius, so E_fc < 0.3 says little about how the hand presses. The contact
+distance is the energy thresholds' own scale (E_dis < 5 mm over four contacts is 1.25 mm
+each). The check applies to imported grasps too: it uses no stored contacts. The
+measurements behind these choices are in docs/results.md ("Curation").
 """
 
 from __future__ import annotations
@@ -181,7 +179,7 @@ def curate_grasps(
     """Per grasp, '' if kept, else its drop reason (one of ``DROP_REASONS``; ``TABLETOP_DROP_REASONS`` on a table).
 
     ``table_depth_m`` (tabletop mode): per grasp the deepest hand point below its object's table
-    (``tabletop.grasp_table_depths``); grasps deeper than ``tabletop.TABLE_TOLERANCE_M`` (or with
+    (``energy.table_clearance.grasp_table_depths``); grasps deeper than ``tabletop.TABLE_TOLERANCE_M`` (or with
     no table) are dropped as ``below_table`` after the object-level checks.
 
     With ``config.force_closure``, ``force_closure_evaluator`` is called once, on the

@@ -13,12 +13,9 @@ share a unit.
 
 ε is the radius of the largest ball about the origin inside the convex hull of those
 wrenches: the contacts resist every wrench of norm ε per newton of total normal force
-(0 when the hull does not strictly contain the origin: no force closure). In MuJoCo's
-lift test the object had left the hand before the lift started for 111 of 123 failed
-curated seed grasps of the default run, the squeeze alone (gravity off) pushed the
-object more than 2 cm for a third of all its curated seed grasps, and the fraction
-lifted rises with ε on the seed grasps of two synthesis seeds and on the DexGraspNet
-sample (numbers in ``curate``).
+(0 when the hull does not strictly contain the origin: no force closure). Why: failed
+grasps mostly lose the object during the squeeze, before the lift, and the share lifted
+rises with ε (docs/results.md, "Curation").
 """
 
 from __future__ import annotations

@@ -32,7 +32,8 @@ from dexlite_pipeline.curation.config import IMPORTED_ORIGIN, CurateConfig
 from dexlite_pipeline.io.grasp_store import GraspSet, read_grasp_store
 
 if TYPE_CHECKING:
-    from dexlite_pipeline.settings import PipelineConfig
+    from dexlite_pipeline.energy.config import EnergyConfig
+    from dexlite_pipeline.sim.config import SceneConfig
 
 log = logging.getLogger(__name__)
 
@@ -48,20 +49,21 @@ def tag_origin(grasps: GraspSet, origin: str) -> GraspSet:
     return grasps
 
 
-def imported_with_energies(imported_path: str, objects_dirs: list[str], shard: int, config: PipelineConfig, facts: ObjectFacts) -> GraspSet:
-    """This shard's imported grasps, with energies for those that pass the object checks."""
+def imported_with_energies(
+    imported_path: str, objects_dirs: list[str], shard: int, shards: int, facts: ObjectFacts, energy: EnergyConfig, batch_size: int, device: str
+) -> GraspSet:
+    """This shard's (of ``shards``) imported grasps, with energies (``energy``, ``batch_size`` grasps at a time) for those that pass the object checks."""
     from dexlite_pipeline.device import resolve_device
     from dexlite_pipeline.energy.per_grasp import evaluate_grasp_energies
     from dexlite_pipeline.sharding import shard_objects
 
     imported = tag_origin(read_grasp_store(imported_path), IMPORTED_ORIGIN)
     ids = np.asarray([str(o) for o in imported.object_id])
-    imported = imported.select(np.isin(ids, shard_objects(ids, shard, config.shards)))
+    imported = imported.select(np.isin(ids, shard_objects(ids, shard, shards)))
     candidates = object_reasons(imported, facts) == ""
     log.info("imported grasps of shard %d: %d, energies computed for %d", shard, len(imported), int(candidates.sum()))
     energies = evaluate_grasp_energies(
-        imported.select(candidates), objects_dirs, device=resolve_device(config.device),
-        batch_size=config.curate.energy_batch_size, config=config.energy,
+        imported.select(candidates), objects_dirs, device=resolve_device(device), batch_size=batch_size, config=energy,
     )
     for name, values in energies.items():
         full = np.full((len(imported), *values.shape[1:]), NOT_EVALUATED[values.dtype.kind], dtype=values.dtype)
@@ -103,11 +105,11 @@ def force_closure_evaluator(objects_dirs: list[str], settings: CurateConfig, thr
 
 def curate_shard(
     seed_paths: list[str], imported_path: str | None, stability_paths: list[str], objects_dirs: list[str],
-    shard: int, config: PipelineConfig, threads: int = 1,
+    shard: int, *, shards: int, curate: CurateConfig, energy: EnergyConfig, scene: SceneConfig, device: str, threads: int = 1,
 ) -> tuple[GraspSet, dict, pd.DataFrame]:
     """The curated grasps of one shard, their store attributes and the per-object summary.
 
-    Reads ``shards``, ``device``, ``curate``, ``scene`` and (for imported grasps) ``energy`` of ``config``.
+    The config it reads comes as arguments: ``shards``, ``device``, sections ``curate``, ``scene`` and (for imported grasps) ``energy``.
     In tabletop mode (``scene.table``) every grasp, seed or imported, with a hand point below its
     object's table (the first stability table's resting pose) is dropped as ``below_table``.
     """
@@ -115,21 +117,22 @@ def curate_shard(
     from dexlite_pipeline.objects.assets import CATALOG_NAME, read_catalog
     from dexlite_pipeline.objects.stability import read_stability_table
 
-    settings = config.curate
+    settings = curate
     catalogs = [read_catalog(d) for d in objects_dirs if (Path(d) / CATALOG_NAME).exists()]
     facts = ObjectFacts.from_tables(catalogs, [read_stability_table(p) for p in stability_paths])
     sets = [tag_origin(read_grasp_store(p), SEED_ORIGIN) for p in seed_paths]
     if imported_path:
-        sets.append(imported_with_energies(imported_path, objects_dirs, shard, config, facts))
+        sets.append(imported_with_energies(imported_path, objects_dirs, shard, shards, facts, energy, settings.energy_batch_size, device))
     if not sets:
         raise ValueError("curate needs seed grasps and/or imported grasps")
     grasps = _common_arrays(sets)
     table_depth = None
-    if config.scene.table:
-        from dexlite_pipeline.tabletop import load_support_planes, grasp_table_depths
+    if scene.table:
+        from dexlite_pipeline.energy.table_clearance import grasp_table_depths
+        from dexlite_pipeline.tabletop import load_support_planes
 
         table_depth = grasp_table_depths(grasps, load_support_planes(True, stability_paths[0]))
-    drop_reasons = TABLETOP_DROP_REASONS if config.scene.table else DROP_REASONS
+    drop_reasons = TABLETOP_DROP_REASONS if scene.table else DROP_REASONS
     reasons = curate_grasps(grasps, facts, settings, force_closure_evaluator(objects_dirs, settings, threads), table_depth_m=table_depth)
     # Reported in the attributes and the log, not stored: it is '' for every kept grasp.
     failure_reason = grasps.arrays.pop("force_closure_failure_reason", np.full(len(grasps), "", dtype=object))
@@ -138,14 +141,14 @@ def curate_shard(
     attrs = {
         "stage": "curate",
         "shard": shard,
-        "config": {"curate": json_ready(settings), "energy": json_ready(config.energy) if imported_path else None},
+        "config": {"curate": json_ready(settings), "energy": json_ready(energy) if imported_path else None},
         "inputs": {"seed": list(seed_paths), "imported": imported_path, "stability": list(stability_paths)},
         "n_input": len(grasps),
         "n_kept": len(kept),
         "dropped": {r: int((reasons == r).sum()) for r in drop_reasons},
         "force_closure_failures": dict(force_closure_failures),
     }
-    if config.scene.table:
+    if scene.table:
         attrs["config"]["scene"] = {"table": True}
         attrs["scene"] = {"table": True}
     return kept, attrs, summarize(grasps, reasons, facts, drop_reasons)

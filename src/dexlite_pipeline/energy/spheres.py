@@ -3,9 +3,8 @@
 Each capsule becomes spheres of its radius along its axis (spacing r/2, ends included);
 each box becomes spheres of its smallest half-extent on a grid in its mid-plane. A sphere
 of centre c and radius r penetrates the object by d(c) + r (d positive inside), exact
-for the capsule's end caps and wherever the surface is locally flat, which makes the
-hand→object penetration ~7× cheaper than querying the SDF at the shapes' surface points
-(Dex1B models the hand by spheres likewise). Each shape also gets its covering gap: how
+for the capsule's end caps and wherever the surface is locally flat, and far cheaper than
+querying the SDF at the shapes' surface points (Dex1B models the hand by spheres likewise). Each shape also gets its covering gap: how
 far its true surface reaches beyond its spheres, so a culling test on spheres stays exact.
 """
 

@@ -327,14 +327,14 @@ class TableTerm(EnergyTerm):
 
     Tabletop mode only (``scene.table``): the table is the plane n·x + offset = 0 of the object's
     resting pose (``tabletop``); each capsule's and box's lowest point is exact
-    (``tabletop.HandTableClearance``), so a hand wholly above the table costs exactly 0.
+    (``energy.table_clearance.HandTableClearance``), so a hand wholly above the table costs exactly 0.
     """
 
     name = "E_table"
     weight_key = "table"
 
     def __init__(self, hand: ShadowHand) -> None:
-        from dexlite_pipeline.tabletop import HandTableClearance
+        from dexlite_pipeline.energy.table_clearance import HandTableClearance
 
         self.clearance = HandTableClearance(hand)
 

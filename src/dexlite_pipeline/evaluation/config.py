@@ -27,6 +27,22 @@ LADDER_SPLIT = "train"
 
 
 @dataclass(frozen=True)
+class DiversityConfig:
+    """Section ``diversity`` of config.yaml: when two grasps count as one."""
+
+    distinct_translation_m: float = 0.02  # palms closer than this (m) ...
+    distinct_rotation_deg: float = 30.0  # ... and turned less than this (deg) from each other are one grasp
+    coverage_patches: int = 256  # surface patches per object for the coverage share (farthest-point centres)
+    coverage_contact_m: float = 0.005  # a hand contact candidate this close to the surface (m) touches its patch
+
+    def __post_init__(self):
+        if self.distinct_translation_m <= 0 or self.distinct_rotation_deg <= 0:
+            raise ValueError("config.diversity: distinct_translation_m and distinct_rotation_deg must be > 0")
+        if self.coverage_patches < 1 or self.coverage_contact_m <= 0:
+            raise ValueError("config.diversity: coverage_patches must be >= 1 and coverage_contact_m > 0")
+
+
+@dataclass(frozen=True)
 class SeedProtocolConfig:
     """Config ``evaluate.seed_protocol``: the own lift test of the DexLite write-up (Murali), a second, lenient measure beside ours.
 

@@ -22,26 +22,10 @@ nearest surface sample is in that patch. Coverage = touched patches / patches, i
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-
-@dataclass(frozen=True)
-class DiversityConfig:
-    """Section ``diversity`` of config.yaml: when two grasps count as one."""
-
-    distinct_translation_m: float = 0.02  # palms closer than this (m) ...
-    distinct_rotation_deg: float = 30.0  # ... and turned less than this (deg) from each other are one grasp
-    coverage_patches: int = 256  # surface patches per object for the coverage share (farthest-point centres)
-    coverage_contact_m: float = 0.005  # a hand contact candidate this close to the surface (m) touches its patch
-
-    def __post_init__(self):
-        if self.distinct_translation_m <= 0 or self.distinct_rotation_deg <= 0:
-            raise ValueError("config.diversity: distinct_translation_m and distinct_rotation_deg must be > 0")
-        if self.coverage_patches < 1 or self.coverage_contact_m <= 0:
-            raise ValueError("config.diversity: coverage_patches must be >= 1 and coverage_contact_m > 0")
+from dexlite_pipeline.evaluation.config import DiversityConfig
 
 
 def palm_rotations(hand_pose: np.ndarray) -> np.ndarray:

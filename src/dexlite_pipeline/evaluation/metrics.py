@@ -69,8 +69,8 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 from dexlite_pipeline.energy.config import DEXGRASPNET_THRESHOLDS
-from dexlite_pipeline.evaluation.config import JOINT_ENTROPY_BINS, PCA_COMPONENTS
-from dexlite_pipeline.evaluation.diversity import DiversityConfig, distinct_grasp_labels
+from dexlite_pipeline.evaluation.config import JOINT_ENTROPY_BINS, PCA_COMPONENTS, DiversityConfig
+from dexlite_pipeline.evaluation.diversity import distinct_grasp_labels
 
 TOUCHED_PATCHES = "touched_patches"  # (N, K) bool: surface patches each grasp touches (aggregate step)
 COVERAGE_PATCHES = "coverage_patches"  # (N,) patches of each grasp's object (0: coverage not measured)

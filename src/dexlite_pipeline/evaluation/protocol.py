@@ -47,8 +47,7 @@ import numpy as np
 from dexlite_pipeline.config import from_section
 from dexlite_pipeline.io.grasp_store import GraspSet, invalid_grasp_reasons
 from dexlite_pipeline.evaluation import metrics
-from dexlite_pipeline.evaluation.config import LADDER_RUNGS, EvaluateConfig, SeedProtocolConfig
-from dexlite_pipeline.evaluation.diversity import DiversityConfig
+from dexlite_pipeline.evaluation.config import LADDER_RUNGS, DiversityConfig, EvaluateConfig, SeedProtocolConfig
 from dexlite_pipeline.evaluation.step_keys import with_evaluate_keys
 
 log = logging.getLogger(__name__)
@@ -294,7 +293,7 @@ def simulate(
     log.info("the equal filter's contact search of %d grasps in %.1f s", len(selected), time.perf_counter() - start)
     start = time.perf_counter()
     lifted = run_lift_tests(selected, objects_dirs, lift_cfg, threads, support_planes=support_planes)
-    lifted.pop("table_depth_mm", None)  # measured for every mode by the caller (tabletop.grasp_table_depths)
+    lifted.pop("table_depth_mm", None)  # measured for every mode by the caller (energy.table_clearance.grasp_table_depths)
     arrays.update(lifted)
     lift_s = time.perf_counter() - start
     if seed_protocol is not None and seed_protocol.enabled:

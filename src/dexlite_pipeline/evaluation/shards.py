@@ -19,6 +19,7 @@ import json
 import logging
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pandas as pd
@@ -27,6 +28,11 @@ from dexlite_pipeline.evaluation.step_keys import AGGREGATE_KEYS, METHOD_SOURCES
 from dexlite_pipeline.config import json_ready
 from dexlite_pipeline.io.grasp_store import GraspSet, read_grasp_store
 from dexlite_pipeline.objects.assets import object_splits
+
+if TYPE_CHECKING:
+    from dexlite_pipeline.energy.config import EnergyConfig
+    from dexlite_pipeline.evaluation.config import DiversityConfig
+    from dexlite_pipeline.sim.config import SceneConfig
 
 log = logging.getLogger(__name__)
 
@@ -50,16 +56,18 @@ def _budget_iterations(stores) -> list[int]:
 
 
 def simulate_shard(
-    source_paths: dict[str, list[str]], objects_dirs: list[str], shard: int, config: dict, threads: int = 1, stability_path: str | None = None
+    source_paths: dict[str, list[str]], objects_dirs: list[str], shard: int, config: dict, *, energy: EnergyConfig, scene: SceneConfig,
+    seed: int, shards: int, device: str, threads: int = 1, stability_path: str | None = None,
 ) -> tuple[GraspSet, dict]:
     """Choose, simulate and measure the shard's grasps of every configured method.
 
     ``source_paths``: store paths per source (keys of ``step_keys.SOURCE_OPTIONS``). ``config``:
-    the config mapping (sections seed, device, shards, lift, energy, scene and the simulate keys of
-    evaluate). Returns the simulated grasps and their store attributes. With the stability table
-    (``stability_path``) every grasp gets ``table_depth_mm``, how far its hand reaches below the
-    object's table in the resting pose, in both modes (the reachability column); in tabletop mode
-    (``scene.table``, the default) the lift tests also run with each object on its table.
+    the config mapping (sections lift and the simulate keys of evaluate; recorded in the attributes);
+    ``energy``, ``scene``, ``seed``, ``shards`` and ``device`` are its typed values. Returns the
+    simulated grasps and their store attributes. With the stability table (``stability_path``)
+    every grasp gets ``table_depth_mm``, how far its hand reaches below the object's table in the
+    resting pose, in both modes (the reachability column); in tabletop mode (``scene.table``, the
+    default) the lift tests also run with each object on its table.
     """
     from dexlite_pipeline.device import resolve_device
     from dexlite_pipeline.evaluation.protocol import (
@@ -68,18 +76,15 @@ def simulate_shard(
     )  # fmt: skip
     from dexlite_pipeline.objects.assets import available_object_ids
     from dexlite_pipeline.sharding import shard_objects
-    from dexlite_pipeline.settings import build_config
     from dexlite_pipeline.sim.config import lift_config_from
-    from dexlite_pipeline.tabletop import SupportPlanes, grasp_table_depths, load_support_planes
+    from dexlite_pipeline.energy.table_clearance import grasp_table_depths
+    from dexlite_pipeline.tabletop import SupportPlanes, load_support_planes
 
-    tree = build_config(config)
     cfg = evaluate_config_from(config, SIMULATE_KEYS)
     lift_cfg = lift_config_from(config, six_directions=cfg.six_directions)
-    energy_cfg = tree.energy
-    seed = tree.seed
+    energy_cfg = energy
     split_of = object_splits(objects_dirs, ok_only=False)
     require_split_objects(split_of, cfg.splits, objects_dirs)
-    scene = tree.scene
     planes = SupportPlanes.from_stability_table(stability_path) if stability_path else load_support_planes(scene.table, None)
     table_planes = planes if scene.table else None  # the tables the lift tests use (floating: none)
     known_object_ids = available_object_ids(objects_dirs)
@@ -87,7 +92,7 @@ def simulate_shard(
     if sources["dexgraspnet"]:  # one store for all shards: take this shard's objects
         mine = set()
         for store in sources["dexgraspnet"]:
-            mine |= set(shard_objects([str(o) for o in store.object_id], shard, tree.shards))
+            mine |= set(shard_objects([str(o) for o in store.object_id], shard, shards))
         sources["dexgraspnet"] = [s.select(np.isin([str(o) for o in s.object_id], sorted(mine))) for s in sources["dexgraspnet"]]
 
     sampled_reference = _sampled_reference(sources["sample"])
@@ -120,7 +125,7 @@ def simulate_shard(
     if "method" not in selected_all.arrays:
         for name, dtype in (("method", object), ("split", object), ("source_row", np.int64), ("sample_row", np.int64), ("invalid_reason", object)):
             selected_all.arrays[name] = np.zeros(0, dtype=dtype)
-    device = resolve_device(tree.device)
+    device = resolve_device(device)
     result = simulate(selected_all, objects_dirs, lift_cfg, energy_cfg, device, threads, cfg.energy_batch_size, cfg.seed_protocol, support_planes=table_planes)
     if planes is not None:
         result.arrays["table_depth_mm"] = grasp_table_depths(selected_all, planes) * 1000.0
@@ -168,10 +173,14 @@ def _weighted_method_seconds(shards) -> dict[str, dict[str, float]]:
     return {m: {s: v[0] / v[1] for s, v in stages.items()} for m, stages in totals.items()}
 
 
-def aggregate_evaluation(sim_paths: list[str], post_paths: list[str], random_post_paths: list[str], objects_dirs: list[str], config: dict) -> EvaluationTables:
+def aggregate_evaluation(
+    sim_paths: list[str], post_paths: list[str], random_post_paths: list[str], objects_dirs: list[str], config: dict, *,
+    diversity: DiversityConfig, seed: int,
+) -> EvaluationTables:
     """Metrics, per-object table, convergence curves and budget curve over all simulated shards.
 
-    ``config``: the config mapping (seed, diversity and the aggregate keys of evaluate).
+    ``config``: the config mapping (the aggregate keys of evaluate; recorded); ``diversity`` and
+    ``seed`` (the bootstrap's) are its typed values.
     """
     from dexlite_pipeline.evaluation.metrics import BOOTSTRAP_RESAMPLES
     from dexlite_pipeline.evaluation.protocol import (
@@ -180,11 +189,8 @@ def aggregate_evaluation(sim_paths: list[str], post_paths: list[str], random_pos
     )  # fmt: skip
     from dexlite_pipeline.hand import ShadowHand
     from dexlite_pipeline.io.grasp_store import empty_grasp_set
-    from dexlite_pipeline.settings import build_config
 
-    tree = build_config(config)
     cfg = evaluate_config_from(config, AGGREGATE_KEYS)
-    diversity = tree.diversity
     shards = [read_grasp_store(p) for p in sim_paths]
     # A method with no input in any shard (e.g. dexgraspnet when not configured) gets no row.
     absent = set.intersection(*(set(s.attrs.get("methods_without_input") or []) for s in shards))
@@ -214,7 +220,7 @@ def aggregate_evaluation(sim_paths: list[str], post_paths: list[str], random_pos
     for method, summary in convergence.items():
         summary["convergence_ratio"] = convergence_ratio(random_needs, summary["iterations_to_random_final_E_post"])
     joint_limits = ShadowHand().joint_limits.cpu().numpy()
-    bootstrap_seed = tree.seed
+    bootstrap_seed = seed
     metrics_df, per_object_df = metrics_tables(simulated, joint_limits, cfg, seconds, convergence, sim_seconds, bootstrap_seed, diversity)
     budget_iterations = next((s.attrs.get("budget_iterations") for s in shards if s.attrs.get("budget_iterations")), [])
     budget = pd.DataFrame(

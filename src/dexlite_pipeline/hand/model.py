@@ -2,11 +2,10 @@
 
 The kinematic tree is read once from the palm-rooted MuJoCo model (``hand.mjcf``) into
 flat tensors; forward kinematics then runs over a batch of 28-vectors with no Python
-work per grasp. pytorch-kinematics 0.10 cannot parse MJCF under mujoco 4 (its joint-type
-table is keyed by enum members), so the chain is built here from the compiled MjModel,
-and ``tests/hand`` checks it against MuJoCo's own forward kinematics and against
-pytorch-kinematics on the same chain (``hand.pk_chain``), which is 1.9-3.7x slower at the
-optimizers' batches of 512-1024 poses on CPU (``benchmarks/bench_kinematics.py``).
+work per grasp. pytorch-kinematics 0.10 cannot parse MJCF under mujoco 4, so the chain is
+built here from the compiled MjModel; ``tests/hand`` checks it against MuJoCo's forward
+kinematics and against pytorch-kinematics on the same chain (``hand.pk_chain``; speeds:
+``benchmarks/bench_kinematics.py``).
 
 Frames: ``hand_pose`` = [t (3, m), static-xyz Euler (3, rad), 22 joints (rad)] is the pose
 of ``robot0:palm`` in the object frame. Every point set below is returned in the object frame.
@@ -60,8 +59,7 @@ class HandFrames:
 def _rotate(rotation: torch.Tensor, vector: torch.Tensor) -> torch.Tensor:
     """Batched rotation (..., 3, 3) applied to vectors (..., 3).
 
-    A matmul, not broadcasting: torch 2.13's CPU matmul is ~3x faster forward and ~2x
-    backward for these 3x3 products (older torch versions were faster with broadcasting).
+    A matmul, not broadcasting: the faster of the two for these 3x3 products on CPU (torch 2.13).
     """
     return (rotation @ vector[..., None])[..., 0]
 

@@ -18,10 +18,9 @@
   learn each training object's extent and orientation.
 - Why ``hand``: grasps on one patch of surface come at every roll about the normal
   (thumb up, thumb down, ...). In the ``surface`` frame that roll is a many-modal target
-  that only the latent could carry, and the latent carries little once the energies
-  shape the decoder (KL ~3 nats): decoded palms were ~100° off their training grasps'.
-  In the ``hand`` frame the roll is an input instead, taken from the grasp in training
-  and drawn uniformly at sampling (``sampling_anchors``), like the associated point.
+  only the latent could carry, and the latent carries little once the energies shape the
+  decoder (docs/results.md, "The model's fit"). In the ``hand`` frame the roll is an input,
+  taken from the grasp in training and drawn uniformly at sampling (``sampling_anchors``).
 
 Normalization: BatchNorm over the points of one cloud standardizes each cloud on its
 own when a batch holds a single object, which erases the object's size and position

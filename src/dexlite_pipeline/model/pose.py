@@ -56,8 +56,7 @@ def reconstruction_error(predicted: torch.Tensor, target: torch.Tensor) -> torch
 
     Summed, not averaged, over the 34 components: the VAE's Gaussian log-likelihood sums
     over dimensions, and a mean would weaken the data term 34x against the KL term (the
-    latent collapses: KL ~3 instead of ~9 nats per grasp on the default run) and against
-    the energies. Rotations are compared as matrices, so the loss is continuous across
+    latent collapses) and against the energies. Rotations are compared as matrices, so the loss is continuous across
     Euler wrap-around.
     """
     rot_p, t_p, q_p = features_to_parts(predicted)

@@ -23,7 +23,7 @@ from dexlite_pipeline.model.methods import EXPAND_LATENT, EXPAND_POINT, SYNTHESI
 from dexlite_pipeline.model.sampling import SampledRows
 
 if TYPE_CHECKING:
-    from dexlite_pipeline.settings import PipelineConfig
+    from dexlite_pipeline.model.config import SampleConfig
 
 log = logging.getLogger(__name__)
 
@@ -94,15 +94,15 @@ def shipped_rows(shipped_path: str, heldout: list[str], clouds, settings, genera
 
 
 def sample_shard(
-    model_path: str, objects_dirs: list[str], stability_path: str, lift_paths: list[str], shard: int, config: PipelineConfig,
-    shipped_model: str | None = None,
+    model_path: str, objects_dirs: list[str], stability_path: str, lift_paths: list[str], shard: int, *, shards: int,
+    sample: SampleConfig, seed: int, device: str, shipped_model: str | None = None,
 ) -> tuple[GraspSet, dict]:
     """Every CVAE grasp of ``shard``: syntheses on held-out objects, expansions and ladder rows on training objects
     and, with ``shipped_model`` (a pretrained model file), its syntheses on held-out objects (``shipped_rows``).
 
     Returns the grasps (``hand_pose``, ``object_id``, ``scale``, ``method`` and, for ladder
     reconstructions, the ``reference_hand_pose`` they reproduce; NaN elsewhere) and the
-    store attributes. Reads ``seed``, ``device``, ``shards`` and ``sample`` of ``config``.
+    store attributes. The config it reads comes as arguments: ``shards``, section ``sample``, ``seed`` and ``device``.
     """
     from dexlite_pipeline.config import json_ready
     from dexlite_pipeline.device import resolve_device
@@ -114,17 +114,17 @@ def sample_shard(
     from dexlite_pipeline.objects.assets import load_asset
     from dexlite_pipeline.sharding import shard_generator
 
-    settings = config.sample
-    device = resolve_device(config.device)
+    settings = sample
+    device = resolve_device(device)
     model, checkpoint = load_checkpoint(model_path, device)
     points, fixed_clouds = cloud_reading(checkpoint, settings.points_per_cloud)
 
     heldout, seeds, ladder_ids, skipped = shard_targets(
-        objects_dirs, stability_path, lift_paths, shard, config.shards, set(checkpoint.get("train_object_ids") or []), settings.ladder
+        objects_dirs, stability_path, lift_paths, shard, shards, set(checkpoint.get("train_object_ids") or []), settings.ladder
     )
     seeded = set(seeds.object_id.tolist())
     targets = sorted(set(heldout) | seeded | set(ladder_ids))
-    generator = shard_generator("sample_grasps", config.seed, shard)
+    generator = shard_generator("sample_grasps", seed, shard)
     started = time.perf_counter()
     parts: list[SampledRows] = []
     shipped_left_out: dict[str, str] = {}
@@ -163,7 +163,7 @@ def sample_shard(
     attrs = {
         "stage": "sample_grasps",
         "shard": f"{shard:03d}",
-        "config": {"seed": config.seed, "sample": json_ready(settings), "points_per_cloud": points},
+        "config": {"seed": seed, "sample": json_ready(settings), "points_per_cloud": points},
         "model_seed": checkpoint.get("seed"),
         "model_steps": checkpoint.get("steps"),
         "seconds_per_grasp": seconds / count if count else None,

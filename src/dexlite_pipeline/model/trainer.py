@@ -11,7 +11,6 @@ from __future__ import annotations
 import logging
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 import pandas as pd
@@ -19,11 +18,8 @@ import pandas as pd
 from dexlite_pipeline.atomic import atomic_path
 from dexlite_pipeline.curation.config import IMPORTED_ORIGIN
 from dexlite_pipeline.io.grasp_store import GraspSet, read_grasp_store
-from dexlite_pipeline.model.config import LOSS_TERMS
+from dexlite_pipeline.model.config import LOSS_TERMS, TrainConfig
 from dexlite_pipeline.model.training import TrainingResult
-
-if TYPE_CHECKING:
-    from dexlite_pipeline.settings import PipelineConfig
 
 log = logging.getLogger(__name__)
 
@@ -72,7 +68,7 @@ class TrainedModel:
     result: TrainingResult
     facts: dict  # seed, steps, grasp counts, object ids, exclusions, fit rung, versions (JSON-ready)
     training_grasps: dict  # hand_pose (N, 28), object_id (N,), scale (N,) of the training split
-    config: PipelineConfig
+    train: TrainConfig  # config section ``train`` it was trained with
 
 
 def _log_epoch(row: dict) -> None:
@@ -84,12 +80,15 @@ def _log_epoch(row: dict) -> None:
     )
 
 
-def train_from_lift_shards(lift_paths: list[str], objects_dirs: list[str], config: PipelineConfig, stability_path: str | None = None) -> TrainedModel:
+def train_from_lift_shards(
+    lift_paths: list[str], objects_dirs: list[str], *, train: TrainConfig, self_penetration_margin_m: float, table: bool, seed: int, device: str,
+    stability_path: str | None = None,
+) -> TrainedModel:
     """Train on the lift-successful grasps of the training objects in ``lift_paths``.
 
     Raises ``TrainingDataError`` naming the shards when fewer than ``train.min_grasps`` remain.
-    Reads ``seed``, ``device``, ``train``, ``scene`` and ``energy.self_penetration_margin_m`` of ``config``.
-    In tabletop mode (``scene.table``) the loss's energy knows each object's table (resting poses
+    The config it reads comes as arguments: section ``train``, ``energy.self_penetration_margin_m`` (m),
+    ``scene.table`` (``table``), and the top-level ``seed`` and ``device``. In tabletop mode the loss's energy knows each object's table (resting poses
     from ``stability_path``) and E_table is a loss term with weight ``train.energy_weights.table``.
     """
     from dexlite_pipeline.tabletop import load_support_planes
@@ -104,13 +103,13 @@ def train_from_lift_shards(lift_paths: list[str], objects_dirs: list[str], confi
     from dexlite_pipeline.model.training import fit_training_codes, grasp_energy_terms, train_cvae
     from dexlite_pipeline.objects.assets import available_object_ids, load_asset, object_splits
 
-    settings = config.train
-    device = resolve_device(config.device)
+    settings = train
+    device = resolve_device(device)
     lifted = read_lift_shards(lift_paths)
     train_ids = {oid for oid, split in object_splits(objects_dirs).items() if split == "train"}
     if settings.max_training_objects > 0:  # the learning curve: a seeded subset of the objects with lift-successful grasps
         held = set(lifted.object_id[np.asarray(lifted.arrays["lift_success"], bool)].tolist()) if len(lifted) else set()
-        train_ids = training_object_subset(train_ids & held, settings.max_training_objects, config.seed)
+        train_ids = training_object_subset(train_ids & held, settings.max_training_objects, seed)
     grasps, excluded = select_training_grasps(lifted, train_ids, available_object_ids(objects_dirs))
     if len(grasps) < settings.min_grasps:
         raise TrainingDataError(
@@ -121,14 +120,14 @@ def train_from_lift_shards(lift_paths: list[str], objects_dirs: list[str], confi
     assets = [load_asset(objects_dirs, oid) for oid in object_ids]
     hand = ShadowHand(device)
     data = build_training_data(grasps, assets, hand, device)
-    margin_m = config.energy.self_penetration_margin_m
-    planes = load_support_planes(config.scene.table, stability_path)
+    margin_m = self_penetration_margin_m
+    planes = load_support_planes(table, stability_path)
     energy = GraspEnergy.from_assets(
         hand, assets, EnergyConfig(object_points=settings.energy_object_points, self_penetration_margin_m=margin_m), support_planes=planes
     )
-    train_index, val_index = split_validation(len(grasps), settings.validation_fraction, config.seed)
-    energy_terms = grasp_energy_terms(energy, settings.contact_samples, config.seed)
-    result = train_cvae(data, train_index, val_index, settings, energy_terms, config.seed, on_epoch=_log_epoch, table=planes is not None)
+    train_index, val_index = split_validation(len(grasps), settings.validation_fraction, seed)
+    energy_terms = grasp_energy_terms(energy, settings.contact_samples, seed)
+    result = train_cvae(data, train_index, val_index, settings, energy_terms, seed, on_epoch=_log_epoch, table=planes is not None)
     fit = fit_training_codes(result.model, data, train_index, settings)
     log.info(
         "fit rung (encoder-mean reconstructions of the %d training grasps): median palm rotation error %.2f deg, "
@@ -136,7 +135,7 @@ def train_from_lift_shards(lift_paths: list[str], objects_dirs: list[str], confi
         len(train_index), fit["rotation_error_deg_median"], fit["translation_error_mm_median"], fit["joint_error_rad_mean"],
     )
     facts = {
-        "seed": config.seed,
+        "seed": seed,
         "self_penetration_margin_m": margin_m,
         "steps": result.steps,
         "train_grasps": int(len(train_index)),
@@ -147,7 +146,7 @@ def train_from_lift_shards(lift_paths: list[str], objects_dirs: list[str], confi
         "fit": fit,
     }
     training_grasps = {"hand_pose": grasps.hand_pose[train_index], "object_id": grasps.object_id[train_index], "scale": grasps.scale[train_index]}
-    return TrainedModel(result=result, facts=facts, training_grasps=training_grasps, config=config)
+    return TrainedModel(result=result, facts=facts, training_grasps=training_grasps, train=settings)
 
 
 def plot_history(history: pd.DataFrame, path: Path) -> None:
@@ -189,4 +188,4 @@ def write_trained_model(trained: TrainedModel, model_path: str | Path, history_p
     with atomic_path(history_path) as tmp:
         history.to_csv(tmp, index=False)
     plot_history(history, Path(curves_path))
-    save_checkpoint(model_path, trained.result.model, trained.config.train, trained.facts, training_grasps=trained.training_grasps)
+    save_checkpoint(model_path, trained.result.model, trained.train, trained.facts, training_grasps=trained.training_grasps)

@@ -18,7 +18,8 @@ from dexlite_pipeline.energy.grasp_energy import GraspEnergy
 from dexlite_pipeline.optim.post import RefinedGrasps, refine
 
 if TYPE_CHECKING:
-    from dexlite_pipeline.settings import PipelineConfig
+    from dexlite_pipeline.optim.config import PostOptimizeConfig
+    from dexlite_pipeline.sim.config import SceneConfig
 
 log = logging.getLogger(__name__)
 
@@ -50,7 +51,8 @@ def _unrefined_arrays(grasps: GraspSet, reasons: np.ndarray, method: np.ndarray)
 
 
 def post_optimize_shard(
-    sample_path: str, objects_dirs: list[str], shard: int, config: PipelineConfig, stability_path: str | None = None
+    sample_path: str, objects_dirs: list[str], shard: int, *, post_optimize: PostOptimizeConfig, self_penetration_margin_m: float,
+    scene: SceneConfig, seed: int, device: str, stability_path: str | None = None,
 ) -> tuple[tuple[GraspSet, dict], tuple[GraspSet, dict]]:
     """Refine one shard's sampled grasps, and run the random-init baseline on its pure syntheses.
 
@@ -58,7 +60,8 @@ def post_optimize_shard(
     is kept: rows that cannot be optimized (invalid pose, unknown object) carry their
     ``failure_reason``. The baseline starts from convex-hull poses (``post_optimize.random_init``)
     for the same held-out objects and scales as the shard's ``cvae_raw`` rows, with the same budget.
-    Reads ``seed``, ``device``, ``post_optimize``, ``scene`` and ``energy.self_penetration_margin_m``.
+    The config it reads comes as arguments: sections ``post_optimize`` and ``scene``,
+    ``energy.self_penetration_margin_m`` (m), and the top-level ``seed`` and ``device``.
     In tabletop mode (``scene.table``; resting poses from ``stability_path``) E_post includes E_table,
     sampled starts below the table are first raised above it (``raise_above_table``; the shift is
     stored as ``start_table_shift_m``), the random starts come from above it, and every row records
@@ -75,13 +78,13 @@ def post_optimize_shard(
     from dexlite_pipeline.optim.init import HullSampler, initial_poses
     from dexlite_pipeline.sharding import shard_generator
 
-    settings = config.post_optimize
-    margin_m = config.energy.self_penetration_margin_m
-    device = resolve_device(config.device)
+    settings = post_optimize
+    margin_m = self_penetration_margin_m
+    device = resolve_device(device)
     sampled = read_grasp_store(sample_path)
     method = np.asarray(sampled.arrays.get("method", np.full(len(sampled), SYNTHESIS, dtype=object)), dtype=object)
     reasons = invalid_grasp_reasons(sampled, available_object_ids(objects_dirs))
-    planes = load_support_planes(config.scene.table, stability_path)
+    planes = load_support_planes(scene.table, stability_path)
     if planes is not None:
         no_plane = np.array([oid not in planes for oid in sampled.object_id], dtype=bool)
         reasons[(reasons == "") & no_plane] = "no resting pose (tabletop mode)"
@@ -91,7 +94,7 @@ def post_optimize_shard(
     attrs = {
         "stage": "post_optimize",
         "shard": f"{shard:03d}",
-        "config": {"seed": config.seed, "post_optimize": json_ready(settings), "energy": {"self_penetration_margin_m": margin_m}},
+        "config": {"seed": seed, "post_optimize": json_ready(settings), "energy": {"self_penetration_margin_m": margin_m}},
         "trace_iterations": list(range(settings.annealing.iterations + 1)),
         "budget_iterations": list(settings.budget()),
         "sample_seconds_per_grasp": sampled.attrs.get("seconds_per_grasp"),
@@ -103,7 +106,7 @@ def post_optimize_shard(
         assets = [load_asset(objects_dirs, oid) for oid in object_ids]
         energy_config = EnergyConfig(weights=settings.energy_weights, object_points=settings.energy_object_points, self_penetration_margin_m=margin_m)
         energy = GraspEnergy.from_assets(hand, assets, energy_config, support_planes=planes)
-    generator = shard_generator("post_optimize", config.seed, shard)
+    generator = shard_generator("post_optimize", seed, shard)
 
     def optimize_rows(rows: GraspSet, init_pose: torch.Tensor | None, start_contacts: str) -> RefinedGrasps:
         obj = energy.object_index(rows.object_id)
@@ -114,7 +117,7 @@ def post_optimize_shard(
     if valid.any():
         starts = sampled.select(valid)
         if planes is not None:
-            from dexlite_pipeline.tabletop import raise_above_table
+            from dexlite_pipeline.energy.table_clearance import raise_above_table
 
             starts, shift = raise_above_table(starts, planes)
             log.info("shard %03d: %d of %d sampled starts raised above the table (median %.1f mm)", shard, int((shift > 0).sum()), len(shift),

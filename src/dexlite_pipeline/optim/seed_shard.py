@@ -18,7 +18,9 @@ from dexlite_pipeline.optim.seed import synthesize
 from dexlite_pipeline.tabletop import load_support_planes, store_arrays, store_attrs
 
 if TYPE_CHECKING:
-    from dexlite_pipeline.settings import PipelineConfig
+    from dexlite_pipeline.energy.config import EnergyConfig
+    from dexlite_pipeline.optim.config import SeedConfig
+    from dexlite_pipeline.sim.config import SceneConfig
 
 log = logging.getLogger(__name__)
 
@@ -45,8 +47,14 @@ def empty_seed_grasps(table: bool = False) -> GraspSet:
     return grasps
 
 
-def seed_shard(objects_dirs: list[str], stability_path: str, shard: int, config: PipelineConfig) -> tuple[GraspSet, dict]:
-    """Seed grasps of one shard: the stable, prepared objects dealt to ``shard`` (train and held-out).
+def seed_shard(
+    objects_dirs: list[str], stability_path: str, shard: int, *, shards: int, seed_grasps: SeedConfig, energy: EnergyConfig,
+    scene: SceneConfig, seed: int, device: str,
+) -> tuple[GraspSet, dict]:
+    """Seed grasps of one shard: the stable, prepared objects dealt to ``shard`` of ``shards`` (train and held-out).
+
+    The config sections it reads come as arguments: ``seed_grasps``, ``energy``, ``scene``, and the
+    top-level ``seed`` and ``device``.
 
     Returns the grasps and the store attributes: the settings used (with the scene mode), the objects
     synthesized, the objects that could not be used with their reason, and the run statistics. In
@@ -59,10 +67,10 @@ def seed_shard(objects_dirs: list[str], stability_path: str, shard: int, config:
     from dexlite_pipeline.objects.stability import stable_object_ids
     from dexlite_pipeline.sharding import shard_generator, shard_objects
 
-    settings = config.seed_grasps
-    device = resolve_device(config.device)
-    object_ids = shard_objects(sorted(ok_object_ids(objects_dirs) & stable_object_ids(stability_path)), shard, config.shards)
-    planes = load_support_planes(config.scene.table, stability_path)
+    settings = seed_grasps
+    device = resolve_device(device)
+    object_ids = shard_objects(sorted(ok_object_ids(objects_dirs) & stable_object_ids(stability_path)), shard, shards)
+    planes = load_support_planes(scene.table, stability_path)
     assets, failed = [], {}
     for object_id in object_ids:
         if planes is not None and object_id not in planes:
@@ -82,15 +90,15 @@ def seed_shard(objects_dirs: list[str], stability_path: str, shard: int, config:
         settings.annealing.iterations, device,
     )
     if assets:
-        grasps, stats = synthesize(assets, settings, config.energy, shard_generator("seed_grasps", config.seed, shard), device, support_planes=planes)
+        grasps, stats = synthesize(assets, settings, energy, shard_generator("seed_grasps", seed, shard), device, support_planes=planes)
     else:
         grasps, stats = empty_seed_grasps(planes is not None), {"grasps": 0, "passing": 0, "pass_fraction": 0.0, "seconds": 0.0, "seconds_per_grasp": 0.0}
     attrs = {
         "stage": "seed_grasps",
         "shard": f"{shard:03d}",
-        "seed": config.seed,
-        "config": {"seed_grasps": json_ready(settings), "energy": json_ready(config.energy), "scene": json_ready(config.scene)},
-        **store_attrs(config.scene.table),
+        "seed": seed,
+        "config": {"seed_grasps": json_ready(settings), "energy": json_ready(energy), "scene": json_ready(scene)},
+        **store_attrs(scene.table),
         "objects": [a.object_id for a in assets],
         "failed_objects": failed,
         **stats,

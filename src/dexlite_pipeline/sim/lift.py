@@ -27,12 +27,10 @@ An object that has provably left the hand (entirely below a sphere that holds th
 in any joint configuration, falling away from it, no contacts) can never touch the hand
 again, so the rest of its fall is ballistic: it is extrapolated with MuJoCo's own
 semi-implicit Euler update instead of simulated, checked before every control chunk
-from the start of the close. The outcome is that of a full simulation; dropped objects
-keep falling (there is no table; on a table they land back on it and their ratio is taken as 0), so their
-ratios are strongly negative, and equal the
-full simulation's to 0.04% (measured on the 115 dropped DexGraspNet sample grasps: at
-most 0.009 of about -33, from MuJoCo integrating a spinning body about its frame origin
-where the extrapolation follows its centre of mass exactly).
+from the start of the close. The outcome is that of a full simulation (the ratios agree
+closely; MuJoCo integrates a spinning body about its frame origin, the extrapolation its
+centre of mass). Without a table a dropped object keeps falling, so its ratio is strongly
+negative; on a table it lands back on it and its ratio is taken as 0.
 
 Six-direction test (optional): gravity off, fingers closed as above, then a force of
 ``six_dir_force_per_kg_n`` x mass along +x, -x, +y, -y, +z, -z in turn, each from the same
@@ -54,6 +52,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
+from dexlite_pipeline.energy.table_clearance import hand_table_depth
 from dexlite_pipeline.hand.model import JOINT_NAMES, JOINTS, ShadowHand
 from dexlite_pipeline.hand.rotation import euler_xyz_to_matrix
 from dexlite_pipeline.io.grasp_store import GraspSet, invalid_grasp_reasons
@@ -62,7 +61,7 @@ from dexlite_pipeline.objects.rest_pose import SupportPlane
 from dexlite_pipeline.progress import ProgressLog
 from dexlite_pipeline.sim.config import LiftConfig
 from dexlite_pipeline.sim.scene import GRAVITY_MPS2, LiftScene
-from dexlite_pipeline.tabletop import HAND_IN_TABLE, TABLE_TOLERANCE_M, SupportPlanes, hand_table_depth
+from dexlite_pipeline.tabletop import HAND_IN_TABLE, TABLE_TOLERANCE_M, SupportPlanes
 
 log = logging.getLogger(__name__)
 

@@ -43,8 +43,10 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError("--step curate needs --shard, --out and --summary-out")
     if not args.seed_grasps and not args.imported:
         raise ValueError("--step curate needs --seed-grasps and/or --imported")
+    config = stage_config(args.config_json)
     kept, attrs, summary = curate_shard(
-        args.seed_grasps, args.imported, args.stability, args.objects, args.shard, stage_config(args.config_json), args.threads or 1
+        args.seed_grasps, args.imported, args.stability, args.objects, args.shard, shards=config.shards, curate=config.curate,
+        energy=config.energy, scene=config.scene, device=config.device, threads=args.threads or 1,
     )
     write_grasp_store(args.out, kept, attrs)
     with atomic_path(args.summary_out) as tmp:

@@ -41,19 +41,24 @@ def run(args: argparse.Namespace) -> int:
     from dexlite_pipeline.config import parse_config_json
     from dexlite_pipeline.evaluation.shards import aggregate_evaluation, simulate_shard, write_evaluation
     from dexlite_pipeline.io.grasp_store import write_grasp_store
+    from dexlite_pipeline.settings import build_config
 
     config = parse_config_json(args.config_json)
+    tree = build_config(config)
     if args.step == "simulate":
         if not args.out or args.shard is None:
             raise ValueError("evaluate --step simulate needs --out and --shard")
-        result, attrs = simulate_shard({key: getattr(args, key) for key in SOURCE_OPTIONS}, args.objects, args.shard, config, args.threads or 1, args.stability)
+        result, attrs = simulate_shard(
+            {key: getattr(args, key) for key in SOURCE_OPTIONS}, args.objects, args.shard, config, energy=tree.energy, scene=tree.scene,
+            seed=tree.seed, shards=tree.shards, device=tree.device, threads=args.threads or 1, stability_path=args.stability,
+        )
         write_grasp_store(args.out, result, attrs)
         print(f"evaluate shard {args.shard}: simulated {len(result)} grasps -> {args.out}")
         return 0
     outputs = [getattr(args, name.replace("-", "_")) for name in AGGREGATE_OUTPUTS]
     if not args.sim or not all(outputs):
         raise ValueError("evaluate --step aggregate needs --sim and " + ", ".join(f"--{n}" for n in AGGREGATE_OUTPUTS))
-    tables = aggregate_evaluation(args.sim, args.post, args.random_post, args.objects, config)
+    tables = aggregate_evaluation(args.sim, args.post, args.random_post, args.objects, config, diversity=tree.diversity, seed=tree.seed)
     write_evaluation(tables, *outputs)
     columns = ["method", "split", "n_grasps", "n_invalid", "lift_success_rate", "six_dir_success_rate", "distinct_held_per_object_mean",
                "surface_coverage_mean", "energy_threshold_pass_rate", "filtered_lift_success_rate", "cpu_seconds_per_distinct_held_grasp"]  # fmt: skip

@@ -31,7 +31,12 @@ def run(args: argparse.Namespace) -> int:
     from dexlite_pipeline.optim.post_shard import post_optimize_shard
     from dexlite_pipeline.settings import stage_config
 
-    (refined, attrs), (baseline, baseline_attrs) = post_optimize_shard(args.sample, args.objects, args.shard, stage_config(args.config_json), args.stability)
+    config = stage_config(args.config_json)
+    (refined, attrs), (baseline, baseline_attrs) = post_optimize_shard(
+        args.sample, args.objects, args.shard, post_optimize=config.post_optimize,
+        self_penetration_margin_m=config.energy.self_penetration_margin_m, scene=config.scene, seed=config.seed, device=config.device,
+        stability_path=args.stability,
+    )
     write_grasp_store(args.out, refined, attrs)
     write_grasp_store(args.random_out, baseline, baseline_attrs)
     return 0

@@ -29,6 +29,9 @@ def run(args: argparse.Namespace) -> int:
 
     config = stage_config(args.config_json)
     shipped = args.shipped_model if args.shipped_model is not None else config.sample.shipped_model
-    grasps, attrs = sample_shard(str(model_or_shipped(args.model)), args.objects, args.stability, args.lift, args.shard, config, shipped or None)
+    grasps, attrs = sample_shard(
+        str(model_or_shipped(args.model)), args.objects, args.stability, args.lift, args.shard, shards=config.shards, sample=config.sample,
+        seed=config.seed, device=config.device, shipped_model=shipped or None,
+    )
     write_grasp_store(args.out, grasps, attrs)
     return 0

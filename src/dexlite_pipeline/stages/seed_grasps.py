@@ -29,7 +29,11 @@ def run(args: argparse.Namespace) -> int:
     from dexlite_pipeline.optim.seed_shard import seed_shard
     from dexlite_pipeline.settings import stage_config
 
-    grasps, attrs = seed_shard(args.objects, args.stability, args.shard, stage_config(args.config_json))
+    config = stage_config(args.config_json)
+    grasps, attrs = seed_shard(
+        args.objects, args.stability, args.shard, shards=config.shards, seed_grasps=config.seed_grasps, energy=config.energy,
+        scene=config.scene, seed=config.seed, device=config.device,
+    )
     write_grasp_store(args.out, grasps, attrs)
     log.info(
         "shard %03d: %d grasps, %d (%.1f%%) pass the energy thresholds, %.2f s per grasp, %.0f passing grasps/hour -> %s",

@@ -27,7 +27,11 @@ def run(args: argparse.Namespace) -> int:
     from dexlite_pipeline.model.trainer import train_from_lift_shards, write_trained_model
     from dexlite_pipeline.settings import stage_config
 
-    trained = train_from_lift_shards(args.lift, args.objects, stage_config(args.config_json), args.stability)
+    config = stage_config(args.config_json)
+    trained = train_from_lift_shards(
+        args.lift, args.objects, train=config.train, self_penetration_margin_m=config.energy.self_penetration_margin_m,
+        table=config.scene.table, seed=config.seed, device=config.device, stability_path=args.stability,
+    )
     write_trained_model(trained, args.model, args.history, args.curves)
     log.info("wrote %s (%d steps, %d training grasps of %d objects)", args.model, trained.facts["steps"],
              trained.facts["train_grasps"], len(trained.facts["train_object_ids"]))

@@ -333,7 +333,7 @@ def synthesize_with_model(assets, scales: dict, n: int, config, loaded, model_pa
         sample_config.debias_codes,
     )
     if support_planes is not None:  # tabletop: samples whose hand starts below the table are raised above it first
-        from dexlite_pipeline.tabletop import raise_above_table
+        from dexlite_pipeline.energy.table_clearance import raise_above_table
 
         starts = GraspSet({"hand_pose": poses.detach().cpu().numpy(), "object_id": np.asarray([assets[i].object_id for i in object_index], dtype=object),
                            "scale": scale})  # fmt: skip
