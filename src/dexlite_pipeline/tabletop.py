@@ -101,11 +101,6 @@ def load_support_planes(table: bool, stability_path: str | Path | None) -> Suppo
     return SupportPlanes.from_stability_table(stability_path)
 
 
-def heights_above(points, normal, offset_m):
-    """Signed heights (m) above the table of points (B, P, 3): n·x + offset; works on numpy arrays and torch tensors."""
-    return (points * normal[:, None, :]).sum(-1) + offset_m[:, None]
-
-
 def store_arrays(normal: np.ndarray, offset_m: np.ndarray) -> dict[str, np.ndarray]:
     """The per-grasp arrays a grasp store records in tabletop mode (so a grasp is reproducible)."""
     return {"support_normal": np.asarray(normal, np.float32), "support_offset_m": np.asarray(offset_m, np.float32)}
