@@ -89,9 +89,8 @@ def test_grasps_are_for_the_object_at_its_real_size(grasp_run):
     assert np.allclose(cup, 1.03 * np.hypot(0.035, 0.045), rtol=1e-3)
 
 
-@pytest.mark.slow
-def test_grasp_with_a_model_samples_and_post_optimizes(grasp_run, meshes, tmp_path):
-    """A trained model's path (here untrained weights: the test is of the plumbing, not the grasps)."""
+def _untrained_model(path):
+    """A small CVAE with untrained weights saved as ``path``: a model file for testing the plumbing, not the grasps."""
     from dexlite_pipeline.model.checkpoint import save_checkpoint
     from dexlite_pipeline.model.config import ModelConfig
     from dexlite_pipeline.model.network import GraspCVAE
@@ -100,42 +99,83 @@ def test_grasp_with_a_model_samples_and_post_optimizes(grasp_run, meshes, tmp_pa
     class Trained:
         points_per_cloud: int = 64
 
-    model = tmp_path / "cvae.pt"
+    path.parent.mkdir(parents=True, exist_ok=True)
     small = ModelConfig(pointnet_widths=(16, 32), encoder_hidden=(32,), decoder_hidden=(32,), latent_dim=8, normalization="none")
-    save_checkpoint(model, GraspCVAE(small), Trained(), {"seed": 0})
+    save_checkpoint(path, GraspCVAE(small), Trained(), {"seed": 0})
+    return path
+
+
+@pytest.mark.slow
+def test_grasp_with_a_model_samples_and_post_optimizes(grasp_run, meshes, tmp_path):
+    """A trained model's path; with --min-distinct 0 its grasps only, whatever they give."""
+    model = _untrained_model(tmp_path / "cvae.pt")
     out = tmp_path / "with_model"
     code = main(["grasp", str(meshes / "box.obj"), "--out", str(out), "--n", "3", "--renders", "0", "--threads", "1",
-                 "--model", str(model), "--resize-to-training", "--config-json", json.dumps(TINY)])  # fmt: skip
+                 "--model", str(model), "--resize-to-training", "--min-distinct", "0", "--config-json", json.dumps(TINY)])  # fmt: skip
     every = read_grasp_store(out / "all_grasps.zarr")
-    assert len(every) == 3 and set(every.arrays["method"]) == {"cvae_post"}
+    assert len(every) == 3 and set(every.arrays["method"]) == {"cvae_post"} and set(every.arrays["source"]) == {"model"}
     assert "raw_hand_pose" in every.arrays and np.isfinite(every.hand_pose).all()
     assert sorted(set(np.round(every.scale, 3))) == [0.08, 0.1, 0.12]
     assert code == (0 if every.arrays["lift_success"].any() else 1)
+    assert every.attrs["min_distinct"] == 0 and every.attrs["topped_up"] == []
+    summary = (out / "summary.md").read_text()
+    assert "`--min-distinct 0`: the model's grasps only; optimization from scratch never tops them up." in summary
+
+
+@pytest.mark.slow
+def test_too_few_distinct_model_grasps_are_topped_up_by_optimization_from_scratch(grasp_run, meshes, tmp_path, capsys):
+    """With --n 2 a model gives at most 2 distinct held grasps, fewer than the default --min-distinct: optimization from
+    scratch adds --n grasps, made and tested exactly as --from-scratch makes them (grasp_run, same seed and threads)."""
+    from dexlite_pipeline.tools.grasp import DEFAULT_MIN_DISTINCT
+
+    assert DEFAULT_MIN_DISTINCT > 2
+    model = _untrained_model(tmp_path / "cvae.pt")
+    out = tmp_path / "topped_up"
+    code = main(["grasp", str(meshes / "box.obj"), "--out", str(out), "--n", "2", "--renders", "1", "--threads", "2",
+                 "--model", str(model), "--config-json", json.dumps(TINY)])  # fmt: skip
+    every, kept = read_grasp_store(out / "all_grasps.zarr"), read_grasp_store(out / "grasps.zarr")
+    source = every.arrays["source"]
+    assert source.tolist() == ["model"] * 2 + ["optimization"] * 2
+    assert every.arrays["method"].tolist() == ["cvae_post"] * 2 + ["seed"] * 2
+    _, scratch = grasp_run
+    alone = read_grasp_store(scratch / "all_grasps.zarr")
+    box = alone.object_id == "user-box"
+    optimized = source == "optimization"
+    assert np.array_equal(every.hand_pose[optimized], alone.hand_pose[box])  # the --from-scratch path and seeds
+    assert np.array_equal(every.arrays["lift_success"][optimized], alone.arrays["lift_success"][box])
+    held = np.asarray(every.arrays["lift_success"], bool)
+    assert kept.arrays["source"].tolist() == source[np.sort(representatives_of(every))].tolist()  # each kept grasp's source
+    assert every.attrs["topped_up"] == ["user-box"] and every.attrs["min_distinct"] == DEFAULT_MIN_DISTINCT
+    assert code == (0 if held.any() else 1)
+    summary = (out / "summary.md").read_text()
+    assert (f"< {DEFAULT_MIN_DISTINCT} (`--min-distinct`): optimization from scratch added 2 grasps, {int(held[optimized].sum())} held, "
+            in summary.split("- `box.obj`: the model gave ")[1])  # fmt: skip
+    assert f"| user-box | {int(held[~optimized].sum())}/2 (" in summary.split("## Model and optimization from scratch")[1]
+    assert "topped up by energy optimization from scratch on 1 of 1 object(s)" in summary
+    assert "optimization from scratch topped up the model's grasps of 1 object(s): user-box" in capsys.readouterr().out
+    for picture in (out / "renders").glob("*.png"):
+        assert picture.stat().st_size > 0
+
+
+def representatives_of(grasps):
+    """Rows of the kept grasps of a store: one per distinct label, as grasps.zarr keeps them."""
+    from dexlite_pipeline.tools.grasp import representatives
+
+    return representatives(grasps, np.asarray(grasps.arrays["distinct_label"]))
 
 
 @pytest.mark.slow
 def test_grasp_uses_the_shipped_model_when_no_model_is_given(meshes, tmp_path, monkeypatch):
     """Without --model (and without --from-scratch) the checkout's shipped model samples the grasps."""
     from dexlite_pipeline.model import shipped
-    from dexlite_pipeline.model.checkpoint import save_checkpoint
-    from dexlite_pipeline.model.config import ModelConfig
-    from dexlite_pipeline.model.network import GraspCVAE
 
-    @dataclasses.dataclass
-    class Trained:
-        points_per_cloud: int = 64
-
-    stand_in = tmp_path / "models" / "cvae.pt"
-    stand_in.parent.mkdir()
-    small = ModelConfig(pointnet_widths=(16, 32), encoder_hidden=(32,), decoder_hidden=(32,), latent_dim=8, normalization="none")
-    save_checkpoint(stand_in, GraspCVAE(small), Trained(), {"seed": 0})
+    stand_in = _untrained_model(tmp_path / "models" / "cvae.pt")
     monkeypatch.setattr(shipped, "SHIPPED_MODEL_PATH", stand_in)
     out = tmp_path / "shipped"
     main(["grasp", str(meshes / "box.obj"), "--out", str(out), "--n", "1", "--renders", "0", "--threads", "1", "--config-json", json.dumps(TINY)])
-    assert set(read_grasp_store(out / "all_grasps.zarr").arrays["method"]) == {"cvae_post"}
+    every = read_grasp_store(out / "all_grasps.zarr")
+    assert every.arrays["method"][every.arrays["source"] == "model"].tolist() == ["cvae_post"]
     assert f"model: {stand_in}" in (out / "summary.md").read_text()
-
-
 
 
 @pytest.mark.slow
@@ -231,7 +271,7 @@ def test_distinct_grasps_of_other_objects_never_merge():
     assert labels[0] != labels[1]
 
 
-def _summary(rows, rejected=(), model="cvae.pt", kept=None):
+def _summary(rows, rejected=(), model="cvae.pt", kept=None, min_distinct=0):
     from dexlite_pipeline.settings import build_config
     from dexlite_pipeline.tools.grasp import GraspRequest, MeshSize, summary_markdown
 
@@ -241,7 +281,7 @@ def _summary(rows, rejected=(), model="cvae.pt", kept=None):
         r.setdefault("radii_m", [0.09])
         r.setdefault("six_dir", 0)
         r.setdefault("both", 0)
-    request = GraspRequest(meshes=[], out_dir="out", grasps_per_object=32, model=model)
+    request = GraspRequest(meshes=[], out_dir="out", grasps_per_object=32, model=model, min_distinct=min_distinct)
     held = sum(r["lift"] for r in rows)
     return summary_markdown(request, rows, list(rejected), "method", {"prepare": 1.0}, [], config.lift, config.diversity,
                             held if kept is None else kept)  # fmt: skip
@@ -253,10 +293,69 @@ def test_summary_counts_distinct_grasps_and_failure_reasons_with_a_hint_that_fit
     text = _summary(rows, kept=1)
     assert "| user-mug | mug.obj | 8 x 10 x 12.5 cm | 32 | 4/32 (12%) | 1 |" in text
     assert "initial penetration 20, dropped 8" in text
-    assert "20 of the 28 failures start with the hand inside the object: try `--from-scratch`" in text
+    assert ("20 of the 28 failures start with the hand inside the object: try `--min-distinct 4` (optimization from scratch tops up "
+            "the model's grasps and pushes the hand out of the object)") in text  # fmt: skip
+    assert "`--min-distinct 0`: the model's grasps only; optimization from scratch never tops them up." in text
     assert "its 4 held grasps are near-duplicates of 1" in text
     assert "--units" not in text.split("## What to try next")[1].split("## Run")[0]  # the size was never in question
     assert "`dexgraspnet/` hold one of each distinct held grasp (the best): 1 grasp(s)" in text
+
+
+def test_summary_says_per_source_what_the_model_and_the_top_up_gave():
+    """A model run with the top-up: per object held and distinct of each source, why optimization ran or not, and
+    no hint to run optimization where it already ran."""
+    topped = {"object_id": "user-mug", "file": "mug.obj", "grasps": 64, "lift": 22, "distinct": 21, "failures": {"dropped": 42},
+              "topped_up": True, "by_source": {"model": {"grasps": 32, "held": 3, "distinct": 2}, "optimization": {"grasps": 32, "held": 19, "distinct": 19}}}
+    enough = {"object_id": "user-can", "file": "can.obj", "grasps": 32, "lift": 9, "distinct": 6, "failures": {"dropped": 23},
+              "topped_up": False, "by_source": {"model": {"grasps": 32, "held": 9, "distinct": 6}}}
+    few = {"object_id": "user-box", "file": "box.obj", "grasps": 64, "lift": 2, "distinct": 1, "failures": {"dropped": 62},
+           "topped_up": True, "by_source": {"model": {"grasps": 32, "held": 0, "distinct": 0}, "optimization": {"grasps": 32, "held": 2, "distinct": 1}}}  # fmt: skip
+    text = _summary([topped, enough, few], min_distinct=4)
+    assert "| user-mug | 3/32 (9%) | 2 | 19/32 (59%) | 19 | 21 |" in text and "| user-can | 9/32 (28%) | 6 | not run | - | 6 |" in text
+    assert ("- `mug.obj`: the model gave 2 distinct held grasp(s) < 4 (`--min-distinct`): optimization from scratch added 32 grasps, "
+            "19 held, 19 distinct; 21 distinct held grasp(s) together.") in text  # fmt: skip
+    assert "- `can.obj`: the model gave 6 distinct held grasp(s), at least 4 (`--min-distinct`): no optimization from scratch." in text
+    hints = text.split("## What to try next")[1].split("## Run")[0]
+    assert "`box.obj`: 1 distinct held grasp(s) of 64 from the model and optimization from scratch together" in hints
+    assert "try more grasps (`--n 64`)." in hints and "--min-distinct" not in hints and "mug.obj" not in hints
+    assert "min distinct: 4 (`--min-distinct`)" in text
+    assert "## Model and optimization from scratch" not in _summary([dict(enough)], model=None)  # --from-scratch: one source
+
+
+def test_the_top_up_goes_to_the_objects_with_too_few_distinct_held_model_grasps():
+    from types import SimpleNamespace
+
+    from dexlite_pipeline.settings import build_config
+    from dexlite_pipeline.tools.grasp import distinct_labels, objects_to_top_up
+
+    # object a: two distinct held grasps (and a near-duplicate); b: four distinct; c: none held
+    poses = [_pose(0.0), _pose(0.005), _pose(0.1), _pose(0.0), _pose(0.1), _pose(0.2), _pose(0.3), _pose(0.0)]
+    objects = ["a", "a", "a", "b", "b", "b", "b", "c"]
+    grasps = _grasp_set(poses, held=[1, 1, 1, 1, 1, 1, 1, 0], six=[0] * 8, passed=[0] * 8, energy=[0] * 8, object_ids=objects)
+    labels = distinct_labels(grasps, build_config({}))
+    assets = [SimpleNamespace(object_id=o) for o in "abc"]
+    assert [a.object_id for a in objects_to_top_up(assets, grasps, labels, 4)] == ["a", "c"]
+    assert [a.object_id for a in objects_to_top_up(assets, grasps, labels, 5)] == ["a", "b", "c"]
+    assert [a.object_id for a in objects_to_top_up(assets, grasps, labels, 2)] == ["c"]
+    assert objects_to_top_up(assets, grasps, labels, 0) == []  # --min-distinct 0: never
+
+
+def test_grasps_of_both_sources_join_with_each_ones_own_arrays_kept():
+    from dexlite_pipeline.io.grasp_store import GraspSet
+    from dexlite_pipeline.tools.grasp import concatenate_sources, grasp_rank
+
+    model = _grasp_set([_pose(0.0)], held=[1], six=[0], passed=[3], energy=[0.5])
+    model.arrays["E_post"] = model.arrays.pop("E_total")
+    model.arrays["raw_hand_pose"] = np.ones((1, 28), np.float32)
+    model.arrays["source"] = np.asarray(["model"], dtype=object)
+    optimized = _grasp_set([_pose(0.1), _pose(0.2)], held=[1, 0], six=[0, 0], passed=[3, 6], energy=[0.2, 0.0])
+    optimized.arrays["contact_index"] = np.zeros((2, 4), np.int64)
+    optimized.arrays["source"] = np.asarray(["optimization"] * 2, dtype=object)
+    both = concatenate_sources([model, optimized])
+    assert isinstance(both, GraspSet) and len(both) == 3 and both.arrays["source"].tolist() == ["model", "optimization", "optimization"]
+    assert np.isnan(both.arrays["raw_hand_pose"][1:]).all() and (both.arrays["raw_hand_pose"][0] == 1).all()
+    assert (both.arrays["contact_index"][0] == -1).all() and np.isnan(both.arrays["E_total"][0]) and np.isnan(both.arrays["E_post"][1:]).all()
+    assert grasp_rank(both).tolist() == [1, 0, 2]  # held first, then the lower energy of each row's own source
 
 
 def test_summary_says_nothing_held_and_suggests_no_fix_when_there_is_none_to_make():
@@ -324,6 +423,10 @@ BAD_INPUTS = [
     (["{d}/box.obj", "--model", "{d}/garbage.pt"], "--model {d}/garbage.pt: not a readable model file"),
     (["{d}/box.obj", "--model", "{d}/garbage.pt", "--from-scratch"], "--model and --from-scratch exclude each other"),
     (["{d}/box.obj", "--units", "cm", "--resize-to-training"], "--units and --resize-to-training exclude each other"),
+    (["{d}/box.obj", "--min-distinct", "-1"], "--min-distinct must be 0 or more, got -1"),
+    (["{d}/box.obj", "--min-distinct", "few"], "argument --min-distinct: invalid int value: 'few'"),
+    (["{d}/box.obj", "--from-scratch", "--min-distinct", "4"], "--min-distinct and --from-scratch exclude each other"),
+    (["{d}/box.obj", "--from-scratch", "--min-distinct", "0"], "--min-distinct and --from-scratch exclude each other"),
     (["{d}/box.obj", "--config-json", '{"lift": {"friction": "high"}}'], 'lift.friction: expected a number, got a string "high"'),
     (["{d}/box.obj", "--config-json", '{"lift": {"frictoin": 1.0}}'], "frictoin"),
     (["{d}/box.obj", "--config-json", "{not json"], "--config-json"),

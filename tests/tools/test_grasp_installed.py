@@ -30,6 +30,8 @@ ROOT = Path(__file__).resolve().parents[2]
 TINY = {
     "objects": {"sdf_resolution": 32, "surface_points": 512, "coacd_mcts_iterations": 10, "coacd_mcts_nodes": 5,
                 "coacd_mcts_max_depth": 1, "coacd_resolution": 300},
+    "energy": {"object_points": 300},
+    "seed_grasps": {"annealing": {"iterations": 60}, "final_contact_samples": 32, "contact_search_every": 0},
     "post_optimize": {"annealing": {"iterations": 5}, "energy_object_points": 300, "start_contact_samples": 8, "final_contact_samples": 8},
 }  # fmt: skip
 
@@ -92,7 +94,8 @@ def test_a_wheel_in_a_fresh_environment_grasps_with_the_shipped_model(tmp_path):
     )  # fmt: skip
     assert run.returncode in (0, 1), run.stderr[-2000:]
     every = read_grasp_store(out / "all_grasps.zarr")
-    assert set(every.arrays["method"]) == {"cvae_post"} and len(every) == 2
+    model = every.arrays["source"] == "model"  # 2 grasps give at most 2 distinct held ones: optimization from scratch tops them up
+    assert every.arrays["method"][model].tolist() == ["cvae_post"] * 2 and every.arrays["method"][~model].tolist() == ["seed"] * 2
     shipped = package / "data" / "shadow-hand-large" / "cvae.pt"
     assert f"model: {shipped}" in (out / "summary.md").read_text()
     assert every.attrs["config"]["lift"] == json.loads(json.dumps(default_config()["lift"]))  # the packaged default config

@@ -1,10 +1,11 @@
 """``dexlite grasp MESH [MESH ...] --out DIR``: grasps that hold for your own meshes, in one command.
 
 Prepares the meshes (a folder of .obj/.stl files works too) at their real size (``--units``),
-synthesizes grasps (with the shipped model, package data; by optimization from scratch with
-``--from-scratch``), keeps the distinct ones that pass the lift test and writes ``DIR/grasps.zarr``,
-``DIR/dexgraspnet/``, ``DIR/renders/`` and ``DIR/summary.md`` (``dexlite_pipeline.tools.grasp``).
-On a table (``scene.table``, the default) each mesh stands in its stable pose, or with
+synthesizes grasps (with the shipped model, package data, topped up by optimization from scratch
+for each object where the model gives fewer than ``--min-distinct`` distinct held grasps; by
+optimization from scratch only with ``--from-scratch``), keeps the distinct ones that pass the
+lift test and writes ``DIR/grasps.zarr``, ``DIR/dexgraspnet/``, ``DIR/renders/`` and
+``DIR/summary.md`` (``dexlite_pipeline.tools.grasp``). On a table (``scene.table``, the default) each mesh stands in its stable pose, or with
 ``--upright-axis`` up; the log says which. Exit status 0 when some grasp held, 1 when none did
 (the outputs are written all the same), 2 for unusable input (one line, before any work).
 """
@@ -19,7 +20,7 @@ log = logging.getLogger("dexlite.grasp")
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     from dexlite_pipeline.tabletop import UPRIGHT_AXES
-    from dexlite_pipeline.tools.grasp import DEFAULT_GRASPS_PER_OBJECT, DEFAULT_RENDERS_PER_OBJECT, UNIT_METRES
+    from dexlite_pipeline.tools.grasp import DEFAULT_GRASPS_PER_OBJECT, DEFAULT_MIN_DISTINCT, DEFAULT_RENDERS_PER_OBJECT, UNIT_METRES
 
     parser.add_argument("meshes", nargs="+", help=".obj/.stl mesh files, or folders of them")
     parser.add_argument("--out", required=True, help="output folder (new or empty; an earlier run's only with --overwrite)")
@@ -34,7 +35,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--device", default=None, help="auto, cpu, cuda or cuda:N (default: the config's device)")
     parser.add_argument("--model", default=None, help="trained model (cvae.pt) to sample and post-optimize with (default: the shipped "
                         "model, dexlite_pipeline/data/shadow-hand-large/cvae.pt)")
-    parser.add_argument("--from-scratch", action="store_true", help="energy optimization from scratch instead of a model (slower per grasp)")
+    parser.add_argument("--min-distinct", type=int, default=None, metavar="N",
+                        help="with a model: an object whose model grasps give fewer than N distinct held grasps also gets --n grasps by "
+                        f"optimization from scratch, and the distinct held grasps are chosen from both (default {DEFAULT_MIN_DISTINCT}: a handful of "
+                        "different grasps, so a robot can pick one whose approach is free; it costs the optimization's time on each such "
+                        "object); 0: the model's grasps only")  # fmt: skip
+    parser.add_argument("--from-scratch", action="store_true", help="energy optimization from scratch only, no model (slower per grasp)")
     parser.add_argument("--config-json", default="{}", help="config sections over the default config.yaml, as inline JSON or a .json/.yaml file")
     parser.add_argument("--renders", type=int, default=DEFAULT_RENDERS_PER_OBJECT, help="pictures per object (default %(default)s)")
     parser.add_argument("--upright-axis", choices=UPRIGHT_AXES, default=None, help="on a table (scene.table, the default): the mesh axis that "
@@ -46,10 +52,13 @@ def run(args: argparse.Namespace) -> int:
 
     from dexlite_pipeline.config import parse_config_json
     from dexlite_pipeline.model.shipped import SHIPPED_MODEL_PATH, shipped_model_path
-    from dexlite_pipeline.tools.grasp import GraspRequest, GraspToolError, run_grasp_tool
+    from dexlite_pipeline.tools.grasp import DEFAULT_MIN_DISTINCT, GraspRequest, GraspToolError, run_grasp_tool
 
     if args.from_scratch and args.model:
         raise GraspToolError("--model and --from-scratch exclude each other (a model samples grasps; --from-scratch optimizes without one)")
+    if args.from_scratch and args.min_distinct is not None:
+        raise GraspToolError("--min-distinct and --from-scratch exclude each other (--min-distinct tops up a model's grasps "
+                             "with optimization from scratch; --from-scratch uses optimization only)")  # fmt: skip
     if args.resize_to_training and args.units:
         raise GraspToolError("--units and --resize-to-training exclude each other (resized objects take the training radii whatever their unit)")
     model = None
@@ -61,12 +70,15 @@ def run(args: argparse.Namespace) -> int:
     request = GraspRequest(
         meshes=args.meshes, out_dir=args.out, grasps_per_object=args.n, units=args.units or "m",
         resize_to_training=args.resize_to_training, distinct=args.distinct, overwrite=args.overwrite, device=args.device,
-        model=model, config=parse_config_json(args.config_json), threads=args.threads or os.cpu_count() or 1,
+        model=model, min_distinct=DEFAULT_MIN_DISTINCT if args.min_distinct is None else args.min_distinct,
+        config=parse_config_json(args.config_json), threads=args.threads or os.cpu_count() or 1,
         renders_per_object=args.renders, upright_axis=args.upright_axis,
     )  # fmt: skip
     outcome = run_grasp_tool(request)
     print(f"{outcome.held}/{outcome.total} grasps held the object in the lift test, {outcome.distinct} distinct "
           f"({len(outcome.objects)} object(s), {outcome.seconds:.0f} s) -> {outcome.summary_path}")
+    if outcome.topped_up:
+        print(f"optimization from scratch topped up the model's grasps of {len(outcome.topped_up)} object(s): {', '.join(outcome.topped_up)}")
     for hint in outcome.next_steps:
         print(f"next: {hint.replace('`', '')}")
     if not outcome.held:

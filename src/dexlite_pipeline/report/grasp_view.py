@@ -165,9 +165,11 @@ def write_grasp_view(path: str | Path, objects, grasps: Sequence[ViewGrasp], tit
 
 
 def grasp_label(arrays: Mapping[str, np.ndarray], row: int) -> str:
-    """A grasp's results in one or two lines: method (if any), object, held or not, six-direction pushes, energies."""
+    """A grasp's results in one or two lines: source or method (if any), object, held or not, six-direction pushes, energies."""
     parts = [f"{arrays['object_id'][row]} (scale {float(arrays['scale'][row]):.3f} m)"]
-    if "method" in arrays:
+    if "source" in arrays:  # dexlite grasp: which synthesis made the grasp (model or optimization)
+        parts.insert(0, f"from the {arrays['source'][row]}")
+    elif "method" in arrays:
         parts.insert(0, str(arrays["method"][row]))
     if "lift_success" in arrays:
         held = bool(arrays["lift_success"][row])

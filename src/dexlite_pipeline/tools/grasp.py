@@ -15,9 +15,14 @@ Steps (each logs its progress):
    (section ``seed_grasps``, the pipeline's seed synthesis);
 3. lift test and six-direction test of every grasp with the ``lift`` section's constants
    (the pipeline's physics, unchanged);
-4. distinct grasps among those held (``evaluation.diversity``, section ``diversity``), the
-   better grasps first; with ``distinct`` only one of each near-duplicate is kept;
-5. write ``DIR/grasps.zarr`` (the kept held grasps, same schema as the pipeline's stores),
+4. with a model and ``min_distinct`` > 0, the top-up: each object whose model grasps gave
+   fewer than ``min_distinct`` distinct held grasps also gets ``n`` grasps by optimization from
+   scratch (the same function, seeds and lift test as without a model); every grasp records
+   its ``source`` (``model`` or ``optimization``);
+5. distinct grasps among those held (``evaluation.diversity``, section ``diversity``) over
+   both sources together, the better grasps first; with ``distinct`` only one of each
+   near-duplicate is kept;
+6. write ``DIR/grasps.zarr`` (the kept held grasps, same schema as the pipeline's stores),
    ``DIR/all_grasps.zarr`` (every grasp with its failure reason and distinct-grasp label),
    ``DIR/dexgraspnet/`` (DexGraspNet layout of the kept grasps and meshes, when any held),
    ``DIR/renders/*.png`` (different grasps), ``DIR/view.html`` (the kept grasps in an offline,
@@ -49,7 +54,7 @@ log = logging.getLogger("dexlite.grasp")
 
 DEFAULT_GRASPS_PER_OBJECT = 32
 DEFAULT_RENDERS_PER_OBJECT = 2
-STEPS = 5
+STEPS = 5  # progress steps of a run without the top-up (one more with it)
 UNIT_METRES = {"mm": 0.001, "cm": 0.01, "m": 1.0}
 UNIT_NAMES = {"mm": "millimetres", "cm": "centimetres", "m": "metres"}
 # A largest extent outside this range is a unit mistake (a 95 m mug is a mug in millimetres), not an object for a hand.
@@ -62,6 +67,16 @@ HAND_MAX_THINNEST_EXTENT_M = 0.15
 HAND_MIN_LARGEST_EXTENT_M = 0.03
 # The summary suggests what to try for an object with fewer distinct held grasps than this.
 WANTED_DISTINCT = 4
+# Default --min-distinct: with a model, an object with fewer distinct held model grasps than this also gets grasps
+# by optimization from scratch. The same number as the summary's hints, so the tool does by itself what the summary
+# would otherwise tell the user to try; a handful of different grasps (palms 2 cm or 30 degrees apart) lets a robot
+# pick one whose approach is free of the table, neighbouring objects and its arm's reach limits.
+DEFAULT_MIN_DISTINCT = WANTED_DISTINCT
+# The ``source`` array of the stores: which synthesis made each grasp.
+SOURCE_MODEL = "model"
+SOURCE_OPTIMIZATION = "optimization"
+# A missing array of one source is filled for the other source's rows with this value, by dtype kind.
+NOT_MADE = {"f": np.nan, "i": -1, "u": 0, "b": False, "O": ""}
 # What dexlite grasp writes in its output folder: a folder holding one of these is an earlier run's output.
 OUTPUT_MARKERS = ("summary.md", "all_grasps.zarr", "grasps.zarr", "objects")
 
@@ -83,6 +98,8 @@ class GraspRequest:
     overwrite: bool = False  # clear an earlier run's output folder first
     device: str | None = None  # None: the config's device
     model: str | None = None  # trained cvae.pt: sample + post-optimize; None: optimization from scratch
+    # with a model: objects with fewer distinct held model grasps also get optimization from scratch (0: never)
+    min_distinct: int = DEFAULT_MIN_DISTINCT
     config: dict = field(default_factory=dict)  # config sections over the defaults
     threads: int = 1
     renders_per_object: int = DEFAULT_RENDERS_PER_OBJECT
@@ -101,6 +118,7 @@ class GraspOutcome:
     seconds: float
     summary_path: Path
     next_steps: list[str] = field(default_factory=list)  # what to try next (the summary's list)
+    topped_up: list[str] = field(default_factory=list)  # objects that optimization from scratch topped up
 
 
 @dataclass(frozen=True)
@@ -253,8 +271,8 @@ def load_model(path: str, device):
         raise GraspToolError(f"--model {path}: not a readable model file ({detail})") from None
 
 
-def _step(number: int, text: str, *args) -> None:
-    log.info(f"[{number}/{STEPS}] {text}", *args)
+def _step(number: int, steps: int, text: str, *args) -> None:
+    log.info(f"[{number}/{steps}] {text}", *args)
 
 
 def object_scales(assets, request: GraspRequest, configured: tuple[float, ...]) -> dict[str, tuple[float, ...]]:
@@ -363,8 +381,11 @@ def grasp_rank(grasps) -> np.ndarray:
     held = np.asarray(arrays.get("lift_success", np.zeros(n, bool)), bool)
     six = np.asarray(arrays.get("six_dir_success", np.zeros(n, bool)), bool)
     passed = np.asarray(arrays["six_dir_passed"], bool).reshape(n, -1).sum(axis=1) if "six_dir_passed" in arrays else np.zeros(n)
-    energy_name = next((k for k in ("E_post", "E_total") if k in arrays), None)
-    energy = np.nan_to_num(np.asarray(arrays[energy_name], np.float64), nan=np.inf) if energy_name else np.zeros(n)
+    energy = np.full(n, np.inf)
+    for name in ("E_total", "E_post"):  # a model grasp's post-optimization energy, else the optimizer's (rows of both sources)
+        if name in arrays:
+            values = np.asarray(arrays[name], np.float64)
+            energy = np.where(np.isfinite(values), values, energy)
     return np.lexsort((np.arange(n), energy, -passed, ~six, ~held))
 
 
@@ -395,6 +416,49 @@ def representatives(grasps, labels: np.ndarray) -> np.ndarray:
     return np.asarray(rows, dtype=np.int64)
 
 
+def distinct_per_object(grasps, labels: np.ndarray) -> Counter:
+    """Object id -> number of distinct held grasps (labels from ``distinct_labels``; objects with none are absent)."""
+    held = labels >= 0
+    return Counter(str(o) for o, _ in set(zip(grasps.object_id[held].tolist(), labels[held].tolist())))
+
+
+def objects_to_top_up(assets, model_grasps, model_labels: np.ndarray, min_distinct: int) -> list:
+    """The assets whose model grasps gave fewer than ``min_distinct`` distinct held grasps (none when it is 0)."""
+    counts = distinct_per_object(model_grasps, model_labels)
+    return [a for a in assets if counts[a.object_id] < min_distinct]
+
+
+def concatenate_sources(parts: list):
+    """The grasp sets of both sources as one; an array only one source has is filled for the other's rows (``NOT_MADE``)."""
+    from dexlite_pipeline.io.grasp_store import GraspSet
+
+    names = list(dict.fromkeys(k for part in parts for k in part.arrays))
+    examples = {k: next(part.arrays[k] for part in parts if k in part.arrays) for k in names}
+    arrays = {
+        k: np.concatenate([
+            part.arrays[k] if k in part.arrays
+            else np.full((len(part), *examples[k].shape[1:]), NOT_MADE[examples[k].dtype.kind], dtype=examples[k].dtype)
+            for part in parts
+        ])
+        for k in names
+    }  # fmt: skip
+    return GraspSet(arrays, dict(parts[0].attrs))
+
+
+def per_source_counts(grasps, config) -> dict[str, dict[str, dict[str, int]]]:
+    """Object id -> source -> attempts, held and distinct held grasps among that source's grasps alone."""
+    sources = np.asarray(grasps.arrays["source"], dtype=object)
+    held = np.asarray(grasps.arrays["lift_success"], bool)
+    counts: dict[str, dict[str, dict[str, int]]] = {}
+    for source in dict.fromkeys(sources.tolist()):
+        part = grasps.select(np.flatnonzero(sources == source))
+        distinct = distinct_per_object(part, distinct_labels(part, config))
+        for object_id in dict.fromkeys(part.object_id.tolist()):
+            mask = (grasps.object_id == object_id) & (sources == source)
+            counts.setdefault(object_id, {})[source] = {"grasps": int(mask.sum()), "held": int(held[mask].sum()), "distinct": distinct[object_id]}
+    return counts
+
+
 def render_examples(grasps, labels: np.ndarray, objects_dir: Path, out_dir: Path, per_object: int) -> list[Path]:
     """Up to ``per_object`` different held grasps per object as PNGs, the best first (one failure when none held)."""
     from dexlite_pipeline.hand import ShadowHand
@@ -415,7 +479,8 @@ def render_examples(grasps, labels: np.ndarray, objects_dir: Path, out_dir: Path
             else:
                 outcome = f"NOT HELD: {str(grasps.arrays['failure_reason'][row] or 'dropped').replace('_', ' ')}"
             path = out_dir / f"{object_id}_{row:04d}.png"
-            title = f"{object_id}  grasp {row}  object radius {100 * float(grasps.scale[row]):.3g} cm\n{outcome}"
+            source = f" (from the {grasps.arrays['source'][row]})" if "source" in grasps.arrays else ""
+            title = f"{object_id}  grasp {row}{source}  object radius {100 * float(grasps.scale[row]):.3g} cm\n{outcome}"
             render_grasp_png(hand, grasps.hand_pose[row], object_id, float(grasps.scale[row]), [str(objects_dir)], out=path, title=title,
                              table=grasp_table(grasps, row))
             written.append(path)
@@ -459,30 +524,68 @@ def _share(count: int, total: int) -> str:
 
 def next_steps(request: GraspRequest, rows: list[dict], rejected: list[dict]) -> list[str]:
     """What to try next, each from a fact of this run: objects with fewer than ``WANTED_DISTINCT`` distinct held grasps
-    (why, from their failure reasons) and meshes not tried for their size. Empty when there is nothing to suggest."""
+    (why, from their failure reasons and sources) and meshes not tried for their size. Empty when there is nothing to suggest."""
     hints = []
     more = f"more grasps (`--n {2 * request.grasps_per_object}`)"
+    top_up = f"`--min-distinct {WANTED_DISTINCT}`"
     for r in rows:
         if r["distinct"] >= WANTED_DISTINCT:
             continue
         failed = r["grasps"] - r["lift"]
         facts = [f"{r['distinct']} distinct held grasp(s) of {r['grasps']}"]
+        if r.get("topped_up"):
+            facts[0] += " from the model and optimization from scratch together"
         if r["lift"] > r["distinct"]:
             facts.append(f"its {r['lift']} held grasps are near-duplicates of {r['distinct']}")
         top, count = next(iter(r["failures"].items()), ("", 0))
+        untried = request.model and not r.get("topped_up")  # optimization from scratch has not run on this object
         if failed and top == "initial penetration" and 2 * count >= failed:
             facts.append(f"{count} of the {failed} failures start with the hand inside the object")
-            fix = f"`--from-scratch` (optimization pushes the hand out of the object) or {more}" if request.model else more
+            fix = f"{top_up} (optimization from scratch tops up the model's grasps and pushes the hand out of the object) or {more}" if untried else more
         else:
             if failed:
                 facts.append(f"the most common failure is '{top}' ({count} of {failed})")
-            fix = f"{more} or `--from-scratch` (other grasps than the model's)" if request.model else more
+            fix = f"{more} or {top_up} (optimization from scratch tops up the model's grasps with other grasps)" if untried else more
         hints.append(f"`{Path(r['file']).name}`: " + "; ".join(facts) + f": try {fix}.")
     for r in rejected:
         if r.get("kind") == "hand_fit":
             hints.append(f"`{Path(r['file']).name}` was not tried ({r['reason']}); if its file is not in "
                          f"{UNIT_NAMES[request.units]}, give its unit with `--units`.")
     return hints
+
+
+def source_lines(request: GraspRequest, rows: list[dict]) -> list[str]:
+    """The summary's section on the two sources of a model run: per object held and distinct held grasps of the model
+    and of optimization from scratch (each counted alone), and whether and why optimization topped the model up."""
+    if not request.model:
+        return []
+    lines = [
+        "", "## Model and optimization from scratch", "",
+        "| object | model: held | model: distinct held | optimization from scratch: held | optimization from scratch: distinct held | distinct held, together |",
+        "| --- | ---: | ---: | ---: | ---: | ---: |",
+    ]  # fmt: skip
+    none = {"grasps": 0, "held": 0, "distinct": 0}
+    for r in rows:
+        model = r.get("by_source", {}).get(SOURCE_MODEL, none)
+        optimized = r.get("by_source", {}).get(SOURCE_OPTIMIZATION)
+        scratch = (_share(optimized["held"], optimized["grasps"]), optimized["distinct"]) if optimized else ("not run", "-")
+        lines.append(f"| {r['object_id']} | {_share(model['held'], model['grasps'])} | {model['distinct']} | {scratch[0]} | {scratch[1]} | {r['distinct']} |")
+    lines.append("")
+    if request.min_distinct == 0:
+        lines.append("`--min-distinct 0`: the model's grasps only; optimization from scratch never tops them up.")
+        return lines
+    for r in rows:
+        model = r.get("by_source", {}).get(SOURCE_MODEL, none)
+        optimized = r.get("by_source", {}).get(SOURCE_OPTIMIZATION)
+        name = f"`{Path(r['file']).name}`"
+        if r.get("topped_up") and optimized:
+            lines.append(f"- {name}: the model gave {model['distinct']} distinct held grasp(s) < {request.min_distinct} (`--min-distinct`): "
+                         f"optimization from scratch added {optimized['grasps']} grasps, {optimized['held']} held, {optimized['distinct']} distinct; "
+                         f"{r['distinct']} distinct held grasp(s) together.")  # fmt: skip
+        else:
+            lines.append(f"- {name}: the model gave {model['distinct']} distinct held grasp(s), at least {request.min_distinct} "
+                         "(`--min-distinct`): no optimization from scratch.")  # fmt: skip
+    return lines
 
 
 def summary_markdown(
@@ -529,6 +632,7 @@ def summary_markdown(
         lines.append(f"| {r['object_id']} | {Path(r['file']).name} | {size} | {r['grasps']} | {_share(r['lift'], r['grasps'])} | "
                      f"{r['distinct']} | {_percent(r.get('coverage', math.nan))} | {_share(r['six_dir'], r['grasps'])} | {_share(r['both'], r['grasps'])} | {reasons} |")
     lines.append(f"| **all** | | | {total} | {_share(lift, total)} | {distinct} | | {_share(six, total)} | {_share(both, total)} | |")
+    lines += source_lines(request, rows)
     if rejected:
         lines += ["", "## Meshes not tried", ""]
         lines += [f"- `{r['file']}`: {r['reason']}" for r in rejected]
@@ -545,7 +649,8 @@ def summary_markdown(
     lines += [
         "",
         f"Grasps per object: {request.grasps_per_object}; size: {size_rule}; distinct only: {'yes' if request.distinct else 'no'}; "
-        f"model: {request.model or 'none (optimization from scratch)'}.",
+        f"model: {request.model or 'none (optimization from scratch)'}"
+        + (f"; min distinct: {request.min_distinct} (`--min-distinct`)." if request.model else "."),
         "",
     ]
     return "\n".join(lines)
@@ -570,6 +675,8 @@ def check_request(request: GraspRequest) -> CheckedRequest:
         raise GraspToolError(f"--n must be at least 1, got {request.grasps_per_object}")
     if request.renders_per_object < 0:
         raise GraspToolError(f"--renders must be 0 or more, got {request.renders_per_object}")
+    if request.min_distinct < 0:
+        raise GraspToolError(f"--min-distinct must be 0 or more, got {request.min_distinct}")
     if request.threads < 1:
         raise GraspToolError(f"--threads must be at least 1, got {request.threads}")
     if request.units not in UNIT_METRES:
@@ -630,7 +737,9 @@ def run_grasp_tool(request: GraspRequest) -> GraspOutcome:
         log.warning("not tried: %s: %s", r["file"], r["reason"])
     times: dict[str, float] = {}
 
-    _step(1, "preparing %d mesh(es) into %s", len(sources), objects_dir)
+    top_up = bool(request.model) and request.min_distinct > 0
+    steps = STEPS + top_up
+    _step(1, steps, "preparing %d mesh(es) into %s", len(sources), objects_dir)
     t = time.perf_counter()
     catalog = prepare_objects(sources, objects_dir, config.objects, config.seed, request.threads)
     times["prepare"] = time.perf_counter() - t
@@ -645,26 +754,57 @@ def run_grasp_tool(request: GraspRequest) -> GraspOutcome:
     assets = [load_asset(objects_dir, oid) for oid in ok_ids]
     # tabletop: each object's table (None: floating)
     planes, support = tool_support_planes(assets, config.scene.table, request.upright_axis, config.stability, config.seed)
-
-    method = f"CVAE samples + post-optimization ({request.model})" if request.model else "energy optimization from scratch"
-    configured = config.sample.scales if request.model else config.seed_grasps.scales
-    scales = object_scales(assets, request, configured)
-    _step(2, "synthesizing %d grasps for each of %d object(s): %s, device %s", request.grasps_per_object, len(assets), method, checked.device)
-    t = time.perf_counter()
-    if request.model:
-        grasps = synthesize_with_model(assets, scales, request.grasps_per_object, config, checked.loaded_model, request.model, checked.device,
-                                       config.seed, planes)
-    else:
-        grasps = synthesize_from_scratch(assets, scales, request.grasps_per_object, config, checked.device, config.seed, planes)
-    times["synthesize"] = time.perf_counter() - t
-
-    _step(3, "lift test and six-direction test of %d grasps on %d thread(s)", len(grasps), request.threads)
-    t = time.perf_counter()
     lift_config = dataclasses.replace(config.lift, six_directions=True)
-    tested, _ = lift_grasp_set(grasps, [str(objects_dir)], lift_config, request.threads, support_planes=planes)
-    times["lift and six-direction tests"] = time.perf_counter() - t
 
-    _step(4, "distinct grasps, grasp stores and the DexGraspNet export")
+    def optimized(chosen, times_key: str):
+        """``n`` grasps per chosen object by optimization from scratch: ``--from-scratch`` and the top-up alike."""
+        t = time.perf_counter()
+        grasps = synthesize_from_scratch(chosen, object_scales(chosen, request, config.seed_grasps.scales), request.grasps_per_object, config,
+                                         checked.device, config.seed, planes)  # fmt: skip
+        times[times_key] = time.perf_counter() - t
+        return grasps
+
+    def lift_tested(grasps, source: str, times_key: str):
+        """The grasps with their lift and six-direction test results and their ``source``."""
+        t = time.perf_counter()
+        tested, _ = lift_grasp_set(grasps, [str(objects_dir)], lift_config, request.threads, support_planes=planes)
+        tested.arrays["source"] = np.full(len(tested), source, dtype=object)
+        times[times_key] = time.perf_counter() - t
+        return tested
+
+    testing = "lift test and six-direction test of %d grasps on %d thread(s)"
+    if request.model:
+        method = f"CVAE samples + post-optimization ({request.model})"
+        _step(2, steps, "synthesizing %d grasps for each of %d object(s): %s, device %s", request.grasps_per_object, len(assets), method, checked.device)
+        t = time.perf_counter()
+        grasps = synthesize_with_model(assets, object_scales(assets, request, config.sample.scales), request.grasps_per_object, config,
+                                       checked.loaded_model, request.model, checked.device, config.seed, planes)  # fmt: skip
+        times["synthesize"] = time.perf_counter() - t
+        _step(3, steps, testing, len(grasps), request.threads)
+        tested = lift_tested(grasps, SOURCE_MODEL, "lift and six-direction tests")
+    else:
+        method = "energy optimization from scratch"
+        _step(2, steps, "optimizing %d grasps for each of %d object(s) from scratch, device %s", request.grasps_per_object, len(assets), checked.device)
+        grasps = optimized(assets, "synthesize")
+        _step(3, steps, testing, len(grasps), request.threads)
+        tested = lift_tested(grasps, SOURCE_OPTIMIZATION, "lift and six-direction tests")
+    short: list = []
+    if top_up:
+        short = objects_to_top_up(assets, tested, distinct_labels(tested, config), request.min_distinct)
+        if short:
+            _step(4, steps, "top-up: the model gave fewer than %d distinct held grasps (--min-distinct) for %d of %d object(s) (%s): optimizing %d "
+                  "grasps for each from scratch, device %s", request.min_distinct, len(short), len(assets), ", ".join(a.object_id for a in short),
+                  request.grasps_per_object, checked.device)  # fmt: skip
+            grasps = optimized(short, "top-up: synthesize")
+            log.info("top-up: " + testing, len(grasps), request.threads)
+            tested = concatenate_sources([tested, lift_tested(grasps, SOURCE_OPTIMIZATION, "top-up: lift and six-direction tests")])
+            method += f", topped up by energy optimization from scratch on {len(short)} of {len(assets)} object(s)"
+        else:
+            _step(4, steps, "no top-up: the model gave at least %d distinct held grasps (--min-distinct) for every object", request.min_distinct)
+    topped_up = [a.object_id for a in short]
+    done = 3 + top_up
+
+    _step(done + 1, steps, "distinct grasps, grasp stores and the DexGraspNet export")
     t = time.perf_counter()
     labels = distinct_labels(tested, config)
     tested.arrays["distinct_label"] = labels
@@ -675,6 +815,7 @@ def run_grasp_tool(request: GraspRequest) -> GraspOutcome:
         "stage": "grasp", "method": method, "config": checked.mapping, "units": request.units,
         "size": "resized to the training scales" if request.resize_to_training else "real size",
         "meshes": [s.file for s in checked.sources], "support": support,
+        "min_distinct": request.min_distinct if request.model else None, "topped_up": topped_up,
     }  # fmt: skip
     write_grasp_store(out_dir / "all_grasps.zarr", tested, attrs)
     selection = "lift_success, one per distinct_label (the best)" if request.distinct else "lift_success"
@@ -683,7 +824,7 @@ def run_grasp_tool(request: GraspRequest) -> GraspOutcome:
         export_dexgraspnet(kept, out_dir / "dexgraspnet", [str(objects_dir)])
     times["distinct grasps and writing"] = time.perf_counter() - t
 
-    _step(5, "rendering examples and writing the summary")
+    _step(done + 2, steps, "rendering examples and writing the summary")
     t = time.perf_counter()
     renders = render_examples(tested, labels, objects_dir, out_dir / "renders", request.renders_per_object) if request.renders_per_object > 0 else []
     times["render"] = time.perf_counter() - t
@@ -696,6 +837,9 @@ def run_grasp_tool(request: GraspRequest) -> GraspOutcome:
     times["surface coverage"] = time.perf_counter() - t
     coverage = {object_id: row["coverage"] for object_id, row in diversity_rows.items()}
     rows = per_object_rows(tested, labels, checked.sources, checked.sizes, ok_ids, coverage)
+    by_source = per_source_counts(tested, config)
+    for r in rows:
+        r["by_source"], r["topped_up"] = by_source.get(r["object_id"], {}), r["object_id"] in topped_up
     summary_path = out_dir / "summary.md"
     write_text_atomic(summary_path, summary_markdown(request, rows, rejected, method, times, renders, lift_config, config.diversity, len(kept), view))
     seconds = time.perf_counter() - started
@@ -703,4 +847,5 @@ def run_grasp_tool(request: GraspRequest) -> GraspOutcome:
         reasons = ", ".join(f"{k} {v}" for k, v in r["failures"].items()) or "none"
         log.info("%s: held %s, %d distinct; failures: %s", r["object_id"], _share(r["lift"], r["grasps"]), r["distinct"], reasons)
     return GraspOutcome(objects=rows, rejected=rejected, held=int(held_mask.sum()), distinct=sum(r["distinct"] for r in rows),
-                        total=len(tested), seconds=seconds, summary_path=summary_path, next_steps=next_steps(request, rows, rejected))  # fmt: skip
+                        total=len(tested), seconds=seconds, summary_path=summary_path, next_steps=next_steps(request, rows, rejected),
+                        topped_up=topped_up)  # fmt: skip
