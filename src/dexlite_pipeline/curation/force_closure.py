@@ -1,7 +1,7 @@
 """Force closure of the contacts a grasp actually makes (Ferrari–Canny ε with friction cones).
 
 DexGraspNet's E_fc scores four chosen contact candidates with unit normals and no
-friction; a seed grasp's four are picked after the fact, from many sets, as the ones
+friction; an optimized grasp's four are picked after the fact, from many sets, as the ones
 whose normals cancel best, so E_fc < 0.3 says little about how the hand really presses.
 This module looks at the contacts instead: every hand link (finger segments and palm)
 whose collision surface comes within ``contact_distance_m`` of the object contributes
@@ -15,9 +15,9 @@ share a unit.
 wrenches: the contacts resist every wrench of norm ε per newton of total normal force
 (0 when the hull does not strictly contain the origin: no force closure). In MuJoCo's
 lift test the object had left the hand before the lift started for 111 of 123 failed
-curated seed grasps of the default run, the squeeze alone (gravity off) pushed the
-object more than 2 cm for a third of all its curated seed grasps, and the fraction
-lifted rises with ε on the seed grasps of two synthesis seeds and on the DexGraspNet
+curated optimized grasps of the default run, the squeeze alone (gravity off) pushed the
+object more than 2 cm for a third of all its curated optimized grasps, and the fraction
+lifted rises with ε on the optimized grasps of two random seeds and on the DexGraspNet
 sample (numbers in ``curate``).
 """
 

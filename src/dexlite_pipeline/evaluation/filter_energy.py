@@ -1,20 +1,20 @@
 """The equal energy filter's contact-dependent energies: one deterministic contact search for every method.
 
 E_fc and E_dis depend on which four of the hand's 140 contact candidates count as a grasp's
-contacts. The seed synthesis flags ``passes_energy_thresholds`` with the set its optimizer
+contacts. Optimization from scratch flags ``passes_energy_thresholds`` with the set its optimizer
 searched for; the evaluation's energies take the four candidates nearest the surface, which
 often lie on one finger pad, whose parallel normals read as no force closure (on a box and a
-cylinder, 40 of 41 seed grasps that passed their own thresholds fail E_fc that way:
+cylinder, 40 of 41 optimized grasps that passed their own thresholds fail E_fc that way:
 docs/results.md). A filter that every method goes through must choose contacts the same way
 for every grasp, whoever made it, and without the optimizer's bookkeeping. So, per grasp:
 
 1. the ``SEARCH_CANDIDATES`` (16) candidates nearest the object surface (|signed distance|);
 2. every multiset of four of them (a candidate may count twice, as in the optimizer's own
-   sets, which draw with replacement): C(19, 4) = 3,876 sets, each scored as the seed optimizer
+   sets, which draw with replacement): C(19, 4) = 3,876 sets, each scored as the from-scratch optimizer
    scores its contact sets, w_fc·E_fc + w_dis·E_dis (config ``energy.weights``); the lowest
    wins (the first on ties).
 
-On the same box and cylinder this passes 37 of those 41 seed grasps and none that the seed
+On the same box and cylinder this passes 37 of those 41 optimized grasps and none that their optimizer
 flagged as failing, at ~7 ms per grasp on one CPU thread (docs/results.md).
 
 Each grasp's result depends only on its own pose, object and scale (no random draw, no batch

@@ -1,8 +1,8 @@
-"""Seed synthesis for one shard of objects: the ``seed_grasps`` stage's work.
+"""Optimization from scratch for one shard of objects: the ``optimize_grasps`` stage's work.
 
 The stable, prepared objects are dealt to shards (``sharding.shard_objects``); objects whose
 asset cannot be used, or whose SDF grid differs from the shard's, are recorded with their
-reason; the rest get grasps from ``optim.seed.synthesize``.
+reason; the rest get grasps from ``optim.from_scratch.synthesize``.
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ import numpy as np
 
 from dexlite_pipeline.energy.grasp_energy import TERM_NAMES
 from dexlite_pipeline.io.grasp_store import GraspSet
-from dexlite_pipeline.optim.seed import synthesize
+from dexlite_pipeline.optim.from_scratch import synthesize
 from dexlite_pipeline.tabletop import load_support_planes, store_arrays, store_attrs
 
 if TYPE_CHECKING:
@@ -23,7 +23,7 @@ if TYPE_CHECKING:
 log = logging.getLogger(__name__)
 
 
-def empty_seed_grasps(table: bool = False) -> GraspSet:
+def empty_optimized_grasps(table: bool = False) -> GraspSet:
     """A zero-row shard with every array ``synthesize`` writes (dtypes and trailing shapes alike; ``table``: tabletop mode's too).
 
     A shard without usable objects must still carry the energy arrays: curation keeps only
@@ -45,8 +45,8 @@ def empty_seed_grasps(table: bool = False) -> GraspSet:
     return grasps
 
 
-def seed_shard(objects_dirs: list[str], stability_path: str, shard: int, config: PipelineConfig) -> tuple[GraspSet, dict]:
-    """Seed grasps of one shard: the stable, prepared objects dealt to ``shard`` (train and held-out).
+def optimize_shard(objects_dirs: list[str], stability_path: str, shard: int, config: PipelineConfig) -> tuple[GraspSet, dict]:
+    """Optimized grasps of one shard: the stable, prepared objects dealt to ``shard`` (train and held-out).
 
     Returns the grasps and the store attributes: the settings used (with the scene mode), the objects
     synthesized, the objects that could not be used with their reason, and the run statistics. In
@@ -59,7 +59,7 @@ def seed_shard(objects_dirs: list[str], stability_path: str, shard: int, config:
     from dexlite_pipeline.objects.stability import stable_object_ids
     from dexlite_pipeline.sharding import shard_generator, shard_objects
 
-    settings = config.seed_grasps
+    settings = config.optimize_grasps
     device = resolve_device(config.device)
     object_ids = shard_objects(sorted(ok_object_ids(objects_dirs) & stable_object_ids(stability_path)), shard, config.shards)
     planes = load_support_planes(config.scene.table, stability_path)
@@ -82,14 +82,14 @@ def seed_shard(objects_dirs: list[str], stability_path: str, shard: int, config:
         settings.annealing.iterations, device,
     )
     if assets:
-        grasps, stats = synthesize(assets, settings, config.energy, shard_generator("seed_grasps", config.seed, shard), device, support_planes=planes)
+        grasps, stats = synthesize(assets, settings, config.energy, shard_generator("optimize_grasps", config.seed, shard), device, support_planes=planes)
     else:
-        grasps, stats = empty_seed_grasps(planes is not None), {"grasps": 0, "passing": 0, "pass_fraction": 0.0, "seconds": 0.0, "seconds_per_grasp": 0.0}
+        grasps, stats = empty_optimized_grasps(planes is not None), {"grasps": 0, "passing": 0, "pass_fraction": 0.0, "seconds": 0.0, "seconds_per_grasp": 0.0}
     attrs = {
-        "stage": "seed_grasps",
+        "stage": "optimize_grasps",
         "shard": f"{shard:03d}",
         "seed": config.seed,
-        "config": {"seed_grasps": json_ready(settings), "energy": json_ready(config.energy), "scene": json_ready(config.scene)},
+        "config": {"optimize_grasps": json_ready(settings), "energy": json_ready(config.energy), "scene": json_ready(config.scene)},
         **store_attrs(config.scene.table),
         "objects": [a.object_id for a in assets],
         "failed_objects": failed,
