@@ -1,12 +1,12 @@
-"""Energy and seed-synthesis benchmark: cost of an energy step and of seed synthesis.
+"""Energy and optimization benchmark: cost of an energy step and of optimization from scratch.
 
-    python benchmarks/bench_energy.py                 # full: batches 64/256/1024, seed run on 4 objects
+    python benchmarks/bench_energy.py                 # full: batches 64/256/1024, optimization from scratch on 4 objects
     python benchmarks/bench_energy.py --quick         # small sizes, to check it runs
     python benchmarks/bench_energy.py --objects results/objects   # prepared objects instead of built ones
 
 1. Time of one energy-and-gradient step (forward kinematics, all five terms, backward) for
    batches of 64, 256 and 1024 grasps with the hands AT the object: poses come from a short
-   seed optimization (so fingers touch the surface), tiled to the batch size. Measured with
+   optimization (so fingers touch the surface), tiled to the batch size. Measured with
    1 and with 2 torch threads (the machine has 2 cores); each row gives the median wall
    time, and in its note the minimum, the CPU time and the load average (the cores are
    shared). With 2 threads while other jobs run, OpenMP's default spin-waiting makes a
@@ -14,7 +14,7 @@
    ``OMP_WAIT_POLICY=PASSIVE`` in the environment removes that (50 ms, as 1 thread), so
    the note records the policy. Reported with the median contact distance and the share
    of grasps that penetrate, to show where the hands are. Target: <= 40 ms at 256.
-2. Seed synthesis with the schedule of ``config.yaml`` (section ``seed_grasps``): pass
+2. Optimization from scratch with the schedule of ``config.yaml`` (section ``optimize_grasps``): pass
    fraction of the energy thresholds and threshold-passing grasps per hour. On a shared
    machine wall time depends on the other jobs, so the rate is given both per wall second
    and per CPU second of this process (one thread: the rate one dedicated core gives).
@@ -62,27 +62,27 @@ def build_objects(directory: Path, count: int, seed: int, resolution: int) -> li
     return ids
 
 
-def _seed_config(quick: bool):
+def _optimize_config(quick: bool):
     from dexlite_pipeline.config import from_section, load_config
     from dexlite_pipeline.energy.config import EnergyConfig
-    from dexlite_pipeline.optim.config import SeedConfig
+    from dexlite_pipeline.optim.config import OptimizeGraspsConfig
 
     config = load_config(ROOT / "config.yaml")
-    seed = from_section(SeedConfig, config.get("seed_grasps"), "config.seed_grasps")
+    section = from_section(OptimizeGraspsConfig, config.get("optimize_grasps"), "config.optimize_grasps")
     energy = from_section(EnergyConfig, config.get("energy"), "config.energy")
     if quick:
-        seed = dataclasses.replace(seed, grasps_per_object=2, annealing=dataclasses.replace(seed.annealing, iterations=100))
-    return seed, energy, int(config["objects"].get("sdf_resolution", 96))
+        section = dataclasses.replace(section, grasps_per_object=2, annealing=dataclasses.replace(section.annealing, iterations=100))
+    return section, energy, int(config["objects"].get("sdf_resolution", 96))
 
 
-def poses_at_object(energy, hulls, seed_config, count: int, generator):
+def poses_at_object(energy, hulls, optimize_config, count: int, generator):
     """Poses touching the objects: a short, fast-cooling optimization from close starts."""
     from dexlite_pipeline.optim.annealing import optimize
     from dexlite_pipeline.optim.config import AnnealingConfig, InitConfig
     from dexlite_pipeline.optim.init import initial_poses
 
     object_index = torch.arange(count) % len(energy.object_ids)
-    scale = torch.tensor(seed_config.scales, dtype=torch.float32)[torch.arange(count) % len(seed_config.scales)]
+    scale = torch.tensor(optimize_config.scales, dtype=torch.float32)[torch.arange(count) % len(optimize_config.scales)]
     init = initial_poses(energy.hand, hulls, object_index, scale, InitConfig(distance_m=(0.06, 0.09)), generator)
     schedule = AnnealingConfig(iterations=300, step_size_period=6, temperature_period=4, final_contact_samples=256)
     result = optimize(energy, init, object_index, scale, schedule, generator)
@@ -134,23 +134,23 @@ def time_energy_steps(energy, pose, contacts, object_index, scale, batches, repe
     return rows
 
 
-def seed_throughput(assets, seed_config, energy_config, generator) -> list[dict]:
-    from dexlite_pipeline.optim.seed import synthesize
+def optimization_throughput(assets, optimize_config, energy_config, generator) -> list[dict]:
+    from dexlite_pipeline.optim.from_scratch import synthesize
 
     t_cpu = time.process_time()
-    grasps, stats = synthesize(assets, seed_config, energy_config, generator)
+    grasps, stats = synthesize(assets, optimize_config, energy_config, generator)
     cpu = time.process_time() - t_cpu
     passing = stats["passing"]
     terms = {k: float(np.mean(grasps.arrays[k] < t)) for k, t in (("E_fc", 0.3), ("E_dis", 0.005), ("E_pen", 0.001))}
-    schedule = seed_config.annealing
-    note = (f"{stats['grasps']} grasps, {schedule.iterations} it, init {seed_config.init.distance_m} m; pass {100 * stats['pass_fraction']:.1f}% "
+    schedule = optimize_config.annealing
+    note = (f"{stats['grasps']} grasps, {schedule.iterations} it, init {optimize_config.init.distance_m} m; pass {100 * stats['pass_fraction']:.1f}% "
             f"(E_fc {100 * terms['E_fc']:.0f}%, E_dis {100 * terms['E_dis']:.0f}%, E_pen {100 * terms['E_pen']:.0f}%); "
             f"{1000 * cpu / max(stats['grasps'] * schedule.iterations, 1):.3f} ms cpu per grasp-iteration")
     return [
-        {"benchmark": "seed synthesis pass fraction", "size": f"{len(assets)} objects", "value": 100 * stats["pass_fraction"], "unit": "%", "note": note},
-        {"benchmark": "seed synthesis passing grasps/hour", "size": "per wall hour", "value": passing / stats["seconds"] * 3600, "unit": "grasps/h",
+        {"benchmark": "optimization from scratch pass fraction", "size": f"{len(assets)} objects", "value": 100 * stats["pass_fraction"], "unit": "%", "note": note},
+        {"benchmark": "optimization from scratch passing grasps/hour", "size": "per wall hour", "value": passing / stats["seconds"] * 3600, "unit": "grasps/h",
          "note": f"wall {stats['seconds']:.0f} s (shared machine)"},
-        {"benchmark": "seed synthesis passing grasps/hour", "size": "per CPU hour (1 thread)", "value": passing / cpu * 3600, "unit": "grasps/h",
+        {"benchmark": "optimization from scratch passing grasps/hour", "size": "per CPU hour (1 thread)", "value": passing / cpu * 3600, "unit": "grasps/h",
          "note": f"cpu {cpu:.0f} s"},
     ]
 
@@ -162,7 +162,7 @@ def run(quick: bool = False, objects_dir: str | None = None, object_count: int =
     from dexlite_pipeline.optim.init import HullSampler
 
     torch.set_num_threads(1)
-    seed_config, energy_config, resolution = _seed_config(quick)
+    optimize_config, energy_config, resolution = _optimize_config(quick)
     with tempfile.TemporaryDirectory() as tmp:
         if objects_dir:
             ids = sorted(available_object_ids(objects_dir))[:object_count]
@@ -174,9 +174,9 @@ def run(quick: bool = False, objects_dir: str | None = None, object_count: int =
         hand = ShadowHand()
         energy = GraspEnergy.from_assets(hand, assets, energy_config)
         generator = torch.Generator().manual_seed(0)
-        pose, contacts, object_index, scale = poses_at_object(energy, HullSampler(assets), seed_config, 16 if quick else 64, generator)
+        pose, contacts, object_index, scale = poses_at_object(energy, HullSampler(assets), optimize_config, 16 if quick else 64, generator)
         rows = time_energy_steps(energy, pose, contacts, object_index, scale, (64, 256) if quick else (64, 256, 1024), 2 if quick else 10)
-        rows += seed_throughput(assets, seed_config, energy_config, torch.Generator().manual_seed(1))
+        rows += optimization_throughput(assets, optimize_config, energy_config, torch.Generator().manual_seed(1))
     return rows
 
 

@@ -7,10 +7,10 @@ subsets of one seed are nested) and evaluates it on the run's held-out objects â
 split â€” with the run's own rules and budget: ``sample.synthesis_grasps_per_object`` syntheses per
 object, ``evaluate.grasps_per_object`` of them simulated, ``post_optimize.annealing.iterations``
 post-optimization steps. Every point is a directory ``<run>/curve/n<count>_seed<seed>/`` holding
-hard links of the run's data stages (``results/objects``, ``stability``, ``seed``, ``curate``,
+hard links of the run's data stages (``results/objects``, ``stability``, ``optimized``, ``curate``,
 ``lift``) in which Snakemake runs the workflow from ``train_cvae`` on (``--rerun-triggers mtime``:
 the linked outputs are kept as they are). The run's own model is the curve's "all objects" point.
-Random init + post-optimization and optimization from scratch (``seed``) do not depend on the
+Random init + post-optimization and optimization from scratch (``optimization``) do not depend on the
 model: they are read from the run. For CVAE + post-optimization each point also gets the number of
 generated grasps after which it, training CPU time included, costs fewer CPU-seconds per
 lift-successful grasp than each of them (``break_even_grasps``; inf: never).
@@ -36,7 +36,7 @@ import pandas as pd
 
 from dexlite_pipeline.report.learning_curve import BASELINES, CURVE_METHODS, curve_markdown, save_curve_figure
 
-DATA_STAGES = ("objects", "stability", "seed", "curate", "lift")
+DATA_STAGES = ("objects", "stability", "optimized", "curate", "lift")
 RATE_COLUMNS = (
     "lift_success_rate", "lift_success_ci95_low", "lift_success_ci95_high",
     "six_dir_success_rate", "six_dir_success_ci95_low", "six_dir_success_ci95_high",

@@ -6,7 +6,7 @@
 
 Each component measures itself in ``benchmarks/bench_<name>.py``, which exposes
 ``run(quick: bool) -> list[dict]`` (keys benchmark, size, value, unit, note): hand FK +
-energy step time against batch size and seed synthesis grasps/s (``bench_energy``), hand
+energy step time against batch size and optimization from scratch grasps/s (``bench_energy``), hand
 FK alone against pytorch-kinematics (``bench_kinematics``), the
 MuJoCo lift test on real DexGraspNet grasps (``bench_lift``), post-optimization and CVAE
 sampling grasps/s (``bench_post_optimize``), object preparation and the stability test

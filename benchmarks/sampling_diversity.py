@@ -10,7 +10,7 @@ on), prepared with the checkout's ``objects`` settings into ``--objects-dir`` (r
 Each setting samples ``--attempts`` grasps per object (scales dealt in turn from ``sample.scales``) with
 the shipped model, post-optimizes them (``post_optimize``, 200 steps, close-start schedule) and runs the
 lift and six-direction tests (``lift``). Baselines with the same attempts: ``random_post`` (convex-hull
-starts, the same 200-step budget, exploring schedule) and ``seed`` (``seed_grasps``: 2,000 steps, counted
+starts, the same 200-step budget, exploring schedule) and ``optimization`` (``optimize_grasps``: 2,000 steps, counted
 per attempt, no energy filter). The setting ``config`` uses config.yaml's ``sample`` section as it is; the
 other named settings are ``SETTING_BASE`` (the sampling defaults before 2026-12-02) with their own options.
 
@@ -73,7 +73,7 @@ SETTINGS: dict[str, dict] = {
     "standard_T2_debiased": {"latent_prior": "standard", "latent_temperature": 2.0, "anchor_rule": "debiased"},
     "standard_T1_debiased_training": {"latent_prior": "standard", "latent_temperature": 1.0, "anchor_rule": "debiased", "debias_training": True},
 }
-BASELINES = ("random_post", "seed")
+BASELINES = ("random_post", "optimization")
 COLUMNS = (
     "setting", "seed", "objects", "attempts", "held", "six_dir_held", "held_rate", "six_dir_rate", "distinct_held", "distinct_per_object",
     "distinct_per_object_min", "joint_entropy_bits", "cpu_seconds", "cpu_s_per_held", "cpu_s_per_distinct", "distinct_by_object",
@@ -143,7 +143,7 @@ def run_setting(name: str, assets, attempts: int, seed: int, config: dict, model
     generator = torch.Generator().manual_seed(seed)
     hand = ShadowHand()
     started = time.process_time()
-    if name == "seed":
+    if name == "optimization":
         grasps = synthesize_from_scratch(assets, {oid: tuple(sample.scales) for oid in ids}, attempts, config, "cpu", seed)
         pose, scale, grasp_ids = grasps.hand_pose, grasps.scale.astype(np.float32), grasps.object_id
     else:
@@ -186,7 +186,7 @@ def _cell(values: list[float], fmt: str) -> str:
     return text if len(values) == 1 else f"{text} [{format(min(values), fmt)}–{format(max(values), fmt)}]"
 
 
-def table(rows: list[dict], reference: str = "seed") -> str:
+def table(rows: list[dict], reference: str = "optimization") -> str:
     """Markdown table: one line per setting, seeds pooled (mean [min–max]); distinct grasps and entropy also as a share of
     the ``reference`` setting's means (optimization from scratch by default)."""
     names = list(dict.fromkeys(r["setting"] for r in rows))
@@ -235,7 +235,7 @@ def main() -> None:
     parser.add_argument("--threads", type=int, default=1, help="lift-test threads and object preparation workers")
     parser.add_argument("--csv", default=None, help="append the rows to this CSV")
     parser.add_argument("--tabulate", nargs="+", default=None, help="only print the table of these CSVs")
-    parser.add_argument("--reference", default="seed", help="setting the ratio columns divide by")
+    parser.add_argument("--reference", default="optimization", help="setting the ratio columns divide by")
     args = parser.parse_args()
     logging.basicConfig(level=logging.WARNING, format="%(asctime)s %(name)s %(message)s")
     if args.tabulate:

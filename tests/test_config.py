@@ -88,9 +88,9 @@ def test_a_shared_shape_is_one_type_wherever_it_appears():
 
     hints = {name: typing.get_type_hints(cls) for name, cls in SECTIONS.items()}
     assert hints["energy"]["weights"] is hints["train"]["energy_weights"] is hints["post_optimize"]["energy_weights"] is EnergyWeights
-    assert hints["seed_grasps"]["annealing"] is hints["post_optimize"]["annealing"] is AnnealingSchedule
-    assert hints["seed_grasps"]["thresholds"] is hints["curate"]["thresholds"] is EnergyThresholds
-    assert hints["seed_grasps"]["init"] is hints["post_optimize"]["random_init"] is InitConfig
+    assert hints["optimize_grasps"]["annealing"] is hints["post_optimize"]["annealing"] is AnnealingSchedule
+    assert hints["optimize_grasps"]["thresholds"] is hints["curate"]["thresholds"] is EnergyThresholds
+    assert hints["optimize_grasps"]["init"] is hints["post_optimize"]["random_init"] is InitConfig
 
 
 @pytest.mark.parametrize("profile", sorted(p.name for p in (ROOT / "config" / "profiles").glob("*.yaml")))

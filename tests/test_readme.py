@@ -192,7 +192,7 @@ def test_links_and_images_exist_and_stay_in_the_repository(path):
 
 def test_readme_images_are_pictures():
     images = re.findall(r"!\[[^\]]*\]\(([^)\s]+)\)", README.read_text())
-    assert "docs/heldout_seed_grasp.png" in images and "docs/report_first_screen.png" in images  # a grasp and the report
+    assert "docs/heldout_optimized_grasp.png" in images and "docs/report_first_screen.png" in images  # a grasp and the report
     for image in images:
         assert (ROOT / image).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n", image
 

@@ -31,8 +31,8 @@ USER_COMMANDS: dict[str, tuple[str, str]] = {
 PIPELINE_STAGES: dict[str, tuple[str, str]] = {
     "prepare-objects": ("stages.prepare_objects", "normalize meshes, decompose, build SDF grids and point clouds"),
     "stability-filter": ("stages.stability_filter", "PyBullet table-stability test of prepared objects"),
-    "seed-grasps": ("stages.seed_grasps", "synthesize seed grasps by energy optimization (one shard)"),
-    "curate": ("stages.curate", "filter seed/imported grasps by stability, energy thresholds and duplicates"),
+    "optimize-grasps": ("stages.optimize_grasps", "grasps by energy optimization from scratch (one shard)"),
+    "curate": ("stages.curate", "filter optimized/imported grasps by stability, energy thresholds and duplicates"),
     "lift-validate": ("stages.lift_validate", "lift-test one shard of curated grasps"),
     "train-cvae": ("stages.train_cvae", "train the PointNet + CVAE grasp model"),
     "sample-grasps": ("stages.sample_grasps", "sample grasps from the trained CVAE"),

@@ -4,8 +4,8 @@
 component it configures (``objects.config.ObjectsConfig``, ``sim.config.LiftConfig``, ...)
 and shared shapes are one type wherever they appear: ``EnergyWeights`` (``energy.weights``,
 ``train.energy_weights``, ``post_optimize.energy_weights``), ``AnnealingSchedule``
-(``seed_grasps.annealing``, ``post_optimize.annealing``), ``EnergyThresholds``
-(``seed_grasps.thresholds``, ``curate.thresholds``) and ``InitConfig`` (``seed_grasps.init``,
+(``optimize_grasps.annealing``, ``post_optimize.annealing``), ``EnergyThresholds``
+(``optimize_grasps.thresholds``, ``curate.thresholds``) and ``InitConfig`` (``optimize_grasps.init``,
 ``post_optimize.random_init``). The dataclass defaults are the defaults: ``config.yaml`` lists
 the same values so that the file documents every key (``tests/test_config.py`` holds the
 classes, the schema and the file to each other).
@@ -26,7 +26,7 @@ from dexlite_pipeline.evaluation.config import DiversityConfig, EvaluateConfig
 from dexlite_pipeline.io.config import DexGraspNetConfig
 from dexlite_pipeline.model.config import SampleConfig, TrainConfig
 from dexlite_pipeline.objects.config import ObjectsConfig, StabilityConfig
-from dexlite_pipeline.optim.config import PostOptimizeConfig, SeedConfig
+from dexlite_pipeline.optim.config import OptimizeGraspsConfig, PostOptimizeConfig
 from dexlite_pipeline.sim.config import LiftConfig, SceneConfig
 
 
@@ -49,7 +49,7 @@ class PipelineConfig:
     train: TrainConfig = field(default_factory=TrainConfig)
     sample: SampleConfig = field(default_factory=SampleConfig)
     post_optimize: PostOptimizeConfig = field(default_factory=PostOptimizeConfig)
-    seed_grasps: SeedConfig = field(default_factory=SeedConfig)
+    optimize_grasps: OptimizeGraspsConfig = field(default_factory=OptimizeGraspsConfig)
 
 
 def build_config(mapping: dict | None, where: str = "config") -> PipelineConfig:

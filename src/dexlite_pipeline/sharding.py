@@ -6,9 +6,10 @@ from collections.abc import Iterable
 
 # Random streams of the sharded stages: stream name -> the generator seed as a function of the
 # global seed and the shard number. The constants are the ones the stages have always used, so
-# that a given seed keeps reproducing the same grasps.
+# that a given seed keeps reproducing the same grasps. A stream's name is only its key here: the
+# formula alone makes its numbers, so a renamed stream keeps its grasps.
 STREAM_SEEDS = {
-    "seed_grasps": lambda seed, shard: seed * 1_000_003 + 7919 * (shard + 1),
+    "optimize_grasps": lambda seed, shard: seed * 1_000_003 + 7919 * (shard + 1),
     "sample_grasps": lambda seed, shard: seed * 1000 + shard,
     "post_optimize": lambda seed, shard: seed * 1000 + shard + 500,
     "grasp_tool_post_optimize": lambda seed, shard: seed * 1000 + 77,

@@ -117,12 +117,12 @@ def test_cap_keeps_the_best_grasps_of_each_object():
 def test_summary_counts_add_up_per_object_and_origin():
     rows = [("a", _pose(t=(0.05 * i, 0, 0.1)), 0.1, {**GOOD, "E_pen": 0.0004 * i}) for i in range(4)] + [("held", _pose(), 0.1, GOOD)]
     grasps = _grasp_set(rows)
-    grasps.arrays["origin"] = np.array(["seed", "seed", "dexgraspnet", "dexgraspnet", "seed"], dtype=object)
+    grasps.arrays["origin"] = np.array(["optimization", "optimization", "dexgraspnet", "dexgraspnet", "optimization"], dtype=object)
     config = CurateConfig(force_closure=False, imported_thresholded_terms=("E_fc", "E_dis", "E_pen"))
     table = summarize(grasps, curate_grasps(grasps, FACTS, config), FACTS).set_index(["object_id", "origin"])
-    assert table.loc[("a", "seed"), "n_kept"] == 2 and table.loc[("a", "dexgraspnet"), "n_kept"] == 1
+    assert table.loc[("a", "optimization"), "n_kept"] == 2 and table.loc[("a", "dexgraspnet"), "n_kept"] == 1
     assert table.loc[("a", "dexgraspnet"), "dropped_e_pen"] == 1
-    assert table.loc[("held", "seed"), "dropped_not_train"] == 1 and table.loc[("held", "seed"), "split"] == "heldout"
+    assert table.loc[("held", "optimization"), "dropped_not_train"] == 1 and table.loc[("held", "optimization"), "split"] == "heldout"
     dropped = table[[f"dropped_{r}" for r in DROP_REASONS]].sum(axis=1)
     assert ((table["n_kept"] + dropped) == table["n_input"]).all()
 
@@ -131,7 +131,7 @@ def test_imported_grasps_are_held_to_the_configured_terms_only():
     failing = [{**GOOD, "E_fc": 0.5}, {**GOOD, "E_dis": 0.006}, {**GOOD, "E_pen": 0.002}]
     rows = [("a", _pose(t=(0.05 * i, 0, 0.1)), 0.1, e) for i, e in enumerate(failing * 2)]
     grasps = _grasp_set(rows)
-    grasps.arrays["origin"] = np.array(["seed"] * 3 + ["dexgraspnet"] * 3, dtype=object)
+    grasps.arrays["origin"] = np.array(["optimization"] * 3 + ["dexgraspnet"] * 3, dtype=object)
     assert list(curate_grasps(grasps, FACTS, CurateConfig(force_closure=False))) == ["e_fc", "e_dis", "e_pen", "", "e_dis", ""]
     only_pen = CurateConfig(force_closure=False, imported_thresholded_terms=("E_pen",))
     assert list(curate_grasps(grasps, FACTS, only_pen)) == ["e_fc", "e_dis", "e_pen", "", "", "e_pen"]
@@ -173,15 +173,15 @@ def test_grasps_whose_force_closure_could_not_be_computed_are_dropped_with_the_r
 
 
 def test_empty_input_sets_do_not_decide_the_shared_arrays():
-    """A seed shard without grasps (and without energy arrays) must not strip the imported grasps' energies."""
-    empty_seed = _tag(empty_grasp_set(), "seed")
+    """An optimized shard without grasps (and without energy arrays) must not strip the imported grasps' energies."""
+    empty_optimized = _tag(empty_grasp_set(), "optimization")
     imported = _grasp_set([("a", _pose(t=(0.05 * i, 0, 0.1)), 0.1, {**GOOD, "E_pen": 0.002}) for i in range(2)])
     imported.arrays["source_index"] = np.arange(2)
-    merged = _common_arrays([empty_seed, _tag(imported, "dexgraspnet")])
+    merged = _common_arrays([empty_optimized, _tag(imported, "dexgraspnet")])
     assert set(merged.arrays) == {"hand_pose", "object_id", "scale", "E_fc", "E_dis", "E_pen", "source_index", "origin", "origin_index"}
     np.testing.assert_array_equal(merged.arrays["E_pen"], imported.arrays["E_pen"])
     assert list(curate_grasps(merged, FACTS, CurateConfig(force_closure=False))) == ["", ""]  # imported: held to E_dis only
-    assert len(_common_arrays([empty_seed])) == 0 and list(curate_grasps(_common_arrays([empty_seed]), FACTS, CurateConfig(force_closure=False))) == []
+    assert len(_common_arrays([empty_optimized])) == 0 and list(curate_grasps(_common_arrays([empty_optimized]), FACTS, CurateConfig(force_closure=False))) == []
 
 
 def test_config_rejects_nonsense():
@@ -195,7 +195,7 @@ def test_config_rejects_nonsense():
 
 @pytest.fixture(scope="module")
 def workspace(tmp_path_factory):
-    """Two prepared box objects (catalog, stability), a seed shard, and imported grasps."""
+    """Two prepared box objects (catalog, stability), an optimized shard, and imported grasps."""
     import trimesh
 
     from dexlite_pipeline.objects.build import write_asset
@@ -216,8 +216,8 @@ def workspace(tmp_path_factory):
     pd.DataFrame({"object_id": ["box0", "box1"], "lateral_displacement_m": 0.0, "rotation_deg": 0.0, "stable": True, "reason": "", **rest}).to_parquet(
         root / "stability.parquet"
     )
-    seed = _grasp_set([("box0", _pose(), 0.1, GOOD), ("box0", _pose(t=(0.05, 0, 0.1)), 0.1, {**GOOD, "E_dis": 0.01})])
-    write_grasp_store(root / "seed_000.zarr", seed)
+    optimized = _grasp_set([("box0", _pose(), 0.1, GOOD), ("box0", _pose(t=(0.05, 0, 0.1)), 0.1, {**GOOD, "E_dis": 0.01})])
+    write_grasp_store(root / "optimized_000.zarr", optimized)
     far = _pose(t=(0.0, 0.0, 0.5))  # 40 cm above the box: no contact
     imported = GraspSet(
         {
@@ -241,25 +241,25 @@ def test_cli_curates_a_shard_with_imported_grasps_and_aggregates(workspace):
                 "--objects", str(root / "objects"), "--imported", str(root / "imported.zarr"),
                 "--out", str(root / f"curate_{shard}.zarr"), "--summary-out", str(root / f"summary_{shard}.csv")]
         if shard == 0:
-            args += ["--seed-grasps", str(root / "seed_000.zarr")]
+            args += ["--optimized-grasps", str(root / "optimized_000.zarr")]
         assert dexlite(args) == 0
         summaries.append(str(root / f"summary_{shard}.csv"))
     kept = read_grasp_store(root / "curate_0.zarr")
-    assert len(kept) == 1 and kept.arrays["origin"][0] == "seed" and kept.arrays["origin_index"][0] == 0
+    assert len(kept) == 1 and kept.arrays["origin"][0] == "optimization" and kept.arrays["origin_index"][0] == 0
     assert kept.attrs["dropped"]["e_dis"] == 3 and kept.attrs["n_input"] == 4
     assert "source_file" not in kept.arrays  # only arrays every input has
     assert len(read_grasp_store(root / "curate_1.zarr")) == 0
 
     assert dexlite(["curate", "--step", "aggregate", "--summary", summaries[0], "--summary", summaries[1], "--out", str(root / "summary.csv")]) == 0
     table = pd.read_csv(root / "summary.csv", keep_default_na=False).set_index(["object_id", "origin"])
-    assert table.loc[("box0", "seed"), "n_kept"] == 1 and table.loc[("box0", "seed"), "dropped_e_dis"] == 1
+    assert table.loc[("box0", "optimization"), "n_kept"] == 1 and table.loc[("box0", "optimization"), "dropped_e_dis"] == 1
     assert table.loc[("box0", "dexgraspnet"), "dropped_e_dis"] == 2
     assert table.loc[("box1", "dexgraspnet"), "dropped_not_train"] == 1
     assert table["n_input"].sum() == 5
 
 
 def test_aggregate_refuses_overlapping_shards(tmp_path):
-    row = pd.DataFrame([{"object_id": "a", "origin": "seed", "n_input": 1, "n_kept": 1}])
+    row = pd.DataFrame([{"object_id": "a", "origin": "optimization", "n_input": 1, "n_kept": 1}])
     row.to_csv(tmp_path / "s0.csv", index=False)
     row.to_csv(tmp_path / "s1.csv", index=False)
     code = dexlite(["curate", "--step", "aggregate", "--summary", str(tmp_path / "s0.csv"), "--summary", str(tmp_path / "s1.csv"), "--out", str(tmp_path / "m.csv")])
@@ -270,7 +270,7 @@ def test_cli_force_closure_drops_a_grasp_that_touches_nothing(workspace):
     root = workspace
     config = json.dumps({"shards": 2, "device": "cpu", "curate": {"force_closure": True}})
     args = ["curate", "--step", "curate", "--shard", "0", "--config-json", config, "--stability", str(root / "stability.parquet"),
-            "--objects", str(root / "objects"), "--seed-grasps", str(root / "seed_000.zarr"),
+            "--objects", str(root / "objects"), "--optimized-grasps", str(root / "optimized_000.zarr"),
             "--out", str(root / "fc_0.zarr"), "--summary-out", str(root / "fc_summary_0.csv")]
     assert dexlite(args) == 0
     kept = read_grasp_store(root / "fc_0.zarr")
@@ -279,24 +279,24 @@ def test_cli_force_closure_drops_a_grasp_that_touches_nothing(workspace):
     assert pd.read_csv(root / "fc_summary_0.csv").loc[0, "dropped_force_closure"] == 1
 
 
-def _curate_args(root, shard_name, config, objects=None, seed=None, imported=None, stability=None):
+def _curate_args(root, shard_name, config, objects=None, optimized=None, imported=None, stability=None):
     args = ["curate", "--step", "curate", "--shard", "0", "--config-json", json.dumps(config),
             "--stability", str(stability or root / "stability.parquet"), "--objects", str(objects or root / "objects"),
             "--out", str(root / f"{shard_name}.zarr"), "--summary-out", str(root / f"{shard_name}.csv")]
-    if seed:
-        args += ["--seed-grasps", str(seed)]
+    if optimized:
+        args += ["--optimized-grasps", str(optimized)]
     if imported:
         args += ["--imported", str(imported)]
     return args
 
 
-def test_cli_empty_seed_shard_keeps_the_imported_grasps_and_their_energies(workspace):
-    """An empty seed shard (as the seed stage wrote one without usable objects) no longer strips E_* from imported grasps."""
+def test_cli_empty_optimized_shard_keeps_the_imported_grasps_and_their_energies(workspace):
+    """An empty optimized shard (as the optimize stage writes one without usable objects) no longer strips E_* from imported grasps."""
     root = workspace
-    write_grasp_store(root / "seed_empty.zarr", empty_grasp_set())
+    write_grasp_store(root / "optimized_empty.zarr", empty_grasp_set())
     config = {"shards": 1, "device": "cpu", "curate": {"thresholds": {"max_e_dis_m": 100.0}, "force_closure": False}}  # imported grasps are held to E_dis only
-    assert dexlite(_curate_args(root, "from_empty_seed", config, seed=root / "seed_empty.zarr", imported=root / "imported.zarr")) == 0
-    kept = read_grasp_store(root / "from_empty_seed.zarr")
+    assert dexlite(_curate_args(root, "from_empty_optimized", config, optimized=root / "optimized_empty.zarr", imported=root / "imported.zarr")) == 0
+    kept = read_grasp_store(root / "from_empty_optimized.zarr")
     assert len(kept) == 1 and kept.arrays["origin"][0] == "dexgraspnet"
     assert kept.attrs["dropped"]["duplicate"] == 1 and kept.attrs["dropped"]["not_train"] == 1  # box0's two imported grasps are one pose
     for term in ("E_fc", "E_dis", "E_pen"):
@@ -306,7 +306,7 @@ def test_cli_empty_seed_shard_keeps_the_imported_grasps_and_their_energies(works
 def test_cli_stability_table_without_stable_is_a_one_line_error(workspace, tmp_path, capsys):
     malformed = tmp_path / "malformed.parquet"
     pd.DataFrame({"object_id": ["box0"], "is_stable": [True]}).to_parquet(malformed)
-    args = _curate_args(tmp_path, "out", {"shards": 1}, objects=workspace / "objects", seed=workspace / "seed_000.zarr", stability=malformed)
+    args = _curate_args(tmp_path, "out", {"shards": 1}, objects=workspace / "objects", optimized=workspace / "optimized_000.zarr", stability=malformed)
     assert dexlite(args) == 2
     error = capsys.readouterr().err.strip()
     assert len(error.splitlines()) == 1 and "malformed.parquet" in error and "stable" in error
@@ -320,7 +320,7 @@ def test_cli_force_closure_of_a_damaged_asset_drops_its_grasps_with_the_reason(w
     shutil.copytree(workspace / "objects", objects)
     (objects / "assets" / "box0" / "meta.json").write_text("{not json")
     config = {"shards": 1, "device": "cpu", "curate": {"force_closure": True}}
-    args = _curate_args(tmp_path, "fc", config, objects=objects, seed=workspace / "seed_000.zarr", stability=workspace / "stability.parquet")
+    args = _curate_args(tmp_path, "fc", config, objects=objects, optimized=workspace / "optimized_000.zarr", stability=workspace / "stability.parquet")
     assert dexlite(args) == 0
     kept = read_grasp_store(tmp_path / "fc.zarr")
     assert len(kept) == 0 and kept.attrs["dropped"]["force_closure_unknown"] == 1 and kept.attrs["dropped"]["e_dis"] == 1
@@ -343,11 +343,11 @@ def test_cli_tabletop_drops_imported_grasps_below_the_table_with_the_reason(work
         }
     )
     write_grasp_store(tmp_path / "imported.zarr", imported)
-    write_grasp_store(tmp_path / "seed_empty.zarr", empty_grasp_set())
+    write_grasp_store(tmp_path / "optimized_empty.zarr", empty_grasp_set())
     config = {"shards": 1, "device": "cpu", "curate": {"force_closure": False}}
     root = workspace
     for name, scene in (("tabletop", {}), ("floating", {"scene": {"table": False}})):
-        args = _curate_args(tmp_path, name, {**config, **scene}, objects=root / "objects", seed=tmp_path / "seed_empty.zarr",
+        args = _curate_args(tmp_path, name, {**config, **scene}, objects=root / "objects", optimized=tmp_path / "optimized_empty.zarr",
                             imported=tmp_path / "imported.zarr", stability=root / "stability.parquet")
         assert dexlite(args) == 0
     tabletop = read_grasp_store(tmp_path / "tabletop.zarr")

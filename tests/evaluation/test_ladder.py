@@ -39,10 +39,10 @@ def test_rungs_of_methods_and_splits():
     assert rung_of("cvae_recon", "train") == rung_of("cvae_recon_post", "train") == "fit"
     assert rung_of("cvae_prior_train", "train") == rung_of("cvae_prior_train_post", "train") == "in_distribution"
     assert rung_of("cvae_post", "heldout") == rung_of("random_post", "heldout") == "heldout"
-    assert rung_of("seed", "heldout") == "" and rung_of("cvae_raw", "train") == ""
+    assert rung_of("optimization", "heldout") == "" and rung_of("cvae_raw", "train") == ""
     cfg = EvaluateConfig(splits=("heldout",))
     assert cfg.splits_of("cvae_recon") == ("train",) and cfg.splits_of("cvae_raw") == ("heldout",)
-    assert cfg.cap_of("cvae_prior_train") == cfg.ladder_grasps_per_object and cfg.cap_of("seed") == cfg.grasps_per_object
+    assert cfg.cap_of("cvae_prior_train") == cfg.ladder_grasps_per_object and cfg.cap_of("optimization") == cfg.grasps_per_object
 
 
 def test_metrics_rows_carry_rungs_and_ladder_rows_use_the_training_split():
@@ -73,9 +73,9 @@ def test_budget_rows_skip_methods_without_a_curve():
     success = np.array([[0, 0, 1], [0, 1, 1], [np.nan, np.nan, np.nan], [0, 0, 0]], dtype=float)
     simulated = GraspSet({
         "hand_pose": _poses(4).numpy(), "object_id": np.array(list("abcd"), dtype=object), "scale": np.full(4, 0.1, np.float32),
-        "method": np.array(["cvae_post", "cvae_post", "seed", "random_post"], dtype=object), BUDGET_SUCCESS: success,
+        "method": np.array(["cvae_post", "cvae_post", "optimization", "random_post"], dtype=object), BUDGET_SUCCESS: success,
     })
-    rows = budget_rows(simulated, [0, 100, 200], ("cvae_post", "random_post", "seed"))
+    rows = budget_rows(simulated, [0, 100, 200], ("cvae_post", "random_post", "optimization"))
     got = {(r["method"], r["iteration"]): r["lift_success_rate"] for r in rows}
     assert got == {("cvae_post", 0): 0.0, ("cvae_post", 100): 0.5, ("cvae_post", 200): 1.0,
                    ("random_post", 0): 0.0, ("random_post", 100): 0.0, ("random_post", 200): 0.0}

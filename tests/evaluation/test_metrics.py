@@ -256,12 +256,12 @@ def test_metrics_tables_give_cost_per_held_and_distinct_held_grasp_for_every_met
 
     one = _held_table()
     both = {k: np.concatenate([v, v]) for k, v in one.items()}
-    both["method"] = np.array(["seed"] * 6 + ["cvae_post"] * 6, dtype=object)
+    both["method"] = np.array(["optimization"] * 6 + ["cvae_post"] * 6, dtype=object)
     both["split"] = np.full(12, "heldout", dtype=object)
-    cfg = EvaluateConfig(methods=("seed", "cvae_post"), entropy_bins=4)
-    table, per_object = metrics_tables(GraspSet(both), LIMITS, cfg, {"seed": {"seed": 2.0}, "cvae_post": {"sample": 0.5, "post": 1.5}}, {})
+    cfg = EvaluateConfig(methods=("optimization", "cvae_post"), entropy_bins=4)
+    table, per_object = metrics_tables(GraspSet(both), LIMITS, cfg, {"optimization": {"optimized": 2.0}, "cvae_post": {"sample": 0.5, "post": 1.5}}, {})
     table = table.set_index("method")
-    for method in ("seed", "cvae_post"):
+    for method in ("optimization", "cvae_post"):
         row = table.loc[method]
         assert row["seconds_per_grasp"] == 2.0 and row["lift_success_rate"] == pytest.approx(4 / 6)
         assert row["filtered_lift_success_rate"] == pytest.approx(3 / 4)
@@ -269,5 +269,5 @@ def test_metrics_tables_give_cost_per_held_and_distinct_held_grasp_for_every_met
         assert row["cpu_seconds_per_distinct_held_grasp"] == pytest.approx(12 / 3)
         assert row["filtered_cpu_seconds_per_held_grasp"] == pytest.approx(12 / 3)
         assert row["filtered_cpu_seconds_per_distinct_held_grasp"] == pytest.approx(12 / 2)
-    assert per_object.groupby("method")["n_distinct_held"].sum().to_dict() == {"cvae_post": 3, "seed": 3}
+    assert per_object.groupby("method")["n_distinct_held"].sum().to_dict() == {"cvae_post": 3, "optimization": 3}
     assert {"n_held", "n_distinct_held", "surface_coverage", "filtered_n_held", "filtered_surface_coverage"} <= set(per_object.columns)

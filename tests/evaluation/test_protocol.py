@@ -32,15 +32,28 @@ def test_select_grasps_caps_per_object_keeps_split_and_keeps_invalid_as_chosen_r
     grasps.arrays["scale"][10] = np.nan  # one of b's three: chosen whatever the draw (cap 4)
     split_of = {"a": "heldout", "b": "heldout", "t": "train"}
     cfg = EvaluateConfig(grasps_per_object=4)
-    chosen = select_grasps(grasps, "seed", split_of, cfg, seed=0)
+    chosen = select_grasps(grasps, "optimization", split_of, cfg, seed=0)
     assert sorted(chosen.object_id.tolist()) == ["a"] * 4 + ["b"] * 3
     reasons = dict(zip(chosen.arrays["source_row"].tolist(), chosen.arrays["invalid_reason"].tolist()))
     assert reasons[10] == "non-positive or non-finite scale" and sum(r != "" for r in reasons.values()) == 1
     assert chosen.attrs["invalid_reasons"] == {"non-positive or non-finite scale": 1}
-    assert set(chosen.arrays["split"]) == {"heldout"} and set(chosen.arrays["method"]) == {"seed"}
+    assert set(chosen.arrays["split"]) == {"heldout"} and set(chosen.arrays["method"]) == {"optimization"}
     assert (chosen.arrays["sample_row"] == -1).all()
-    again = select_grasps(grasps, "seed", split_of, cfg, seed=0)
+    again = select_grasps(grasps, "optimization", split_of, cfg, seed=0)
     assert np.array_equal(again.arrays["source_row"], chosen.arrays["source_row"])
+
+
+def test_a_renamed_method_draws_with_its_frozen_label():
+    """The optimization method draws the rows its old name "seed" drew, so a seed keeps choosing the same grasps."""
+    from dexlite_pipeline.evaluation.protocol import row_priorities
+
+    grasps = _set(["a"] * 12 + ["b"] * 7)
+    cfg = EvaluateConfig(grasps_per_object=3)
+    chosen = select_grasps(grasps, "optimization", {"a": "heldout", "b": "heldout"}, cfg, seed=5)
+    priority = row_priorities(5, "seed", len(grasps))
+    expected = [sorted(rows[np.argsort(priority[rows], kind="stable")][:3].tolist()) for rows in (np.arange(12), np.arange(12, 19))]
+    assert chosen.arrays["source_row"].tolist() == expected[0] + expected[1]
+    assert chosen.arrays["source_row"].tolist() != select_grasps(grasps, "cvae_raw", {"a": "heldout", "b": "heldout"}, cfg, seed=5).arrays["source_row"].tolist()
 
 
 def test_invalid_grasps_are_chosen_as_often_as_valid_ones():
@@ -110,7 +123,7 @@ def test_stores_that_do_not_line_up_with_the_sampled_rows_are_an_error():
 
 def test_unpaired_methods_and_runs_without_sampled_stores_draw_over_their_own_rows():
     sources = _paired_stores(np.random.default_rng(0))
-    assert sample_rows_of("seed", sources, {"a", "b", "t"}) is None
+    assert sample_rows_of("optimization", sources, {"a", "b", "t"}) is None
     assert sample_rows_of("random_post", {"random_post": sources["random_post"]}, {"a", "b", "t"}) is None
 
 
@@ -118,7 +131,7 @@ def test_method_grasps_takes_only_pure_cvae_samples():
     sample = _set(["a", "a", "t"], {"method": np.asarray(["cvae_raw", "expansion", "cvae_raw"], dtype=object)})
     raw = method_grasps("cvae_raw", [sample])
     assert len(raw) == 2 and set(raw.arrays) == {"hand_pose", "object_id", "scale"}
-    assert len(method_grasps("seed", [sample])) == 3
+    assert len(method_grasps("optimization", [sample])) == 3
 
 
 def test_shipped_methods_read_the_shipped_models_rows_paired_raw_and_refined():
@@ -138,12 +151,12 @@ def test_shipped_methods_read_the_shipped_models_rows_paired_raw_and_refined():
     assert chosen[0].arrays["sample_row"].tolist() == chosen[1].arrays["sample_row"].tolist()  # the same samples, raw and refined
 
 
-def test_seed_method_keeps_every_attempt_and_costs_per_attempt():
-    """No method is filtered before the evaluation: the seed's failing attempts are drawn too, and its cost is per attempt."""
-    seed = _set(["a", "a", "a", "a"], {"passes_energy_thresholds": np.array([True, False, False, True])})
-    seed.attrs.update({"seconds_per_grasp": 2.0, "seconds": 8.0, "passing": 2})
-    assert len(method_grasps("seed", [seed])) == 4
-    assert stage_seconds_per_grasp("seed", {"seed": [seed]}) == {"seed": 2.0}
+def test_optimization_method_keeps_every_attempt_and_costs_per_attempt():
+    """No method is filtered before the evaluation: optimization's failing attempts are drawn too, and its cost is per attempt."""
+    optimized = _set(["a", "a", "a", "a"], {"passes_energy_thresholds": np.array([True, False, False, True])})
+    optimized.attrs.update({"seconds_per_grasp": 2.0, "seconds": 8.0, "passing": 2})
+    assert len(method_grasps("optimization", [optimized])) == 4
+    assert stage_seconds_per_grasp("optimization", {"optimized": [optimized]}) == {"optimized": 2.0}
 
 
 
@@ -159,9 +172,9 @@ def tiny_run(tmp_path_factory, tiny_objects):
     lift_config = {"friction": 0.6, "object_mass_kg": 0.1, "finger_kp": 5.0, "timestep_s": 0.002, "success_lift_ratio": 0.9}
     shard0 = simulated_shard(
         root / "sim_000.zarr",
-        {"seed": [True, False, False, False], "cvae_post": [True, True, False]},
+        {"optimization": [True, False, False, False], "cvae_post": [True, True, False]},
         rng,
-        {"lift_config": lift_config, "method_seconds_per_grasp": {"seed": {"seed": 3.0}, "cvae_post": {"sample": 0.01, "post": 0.5}},
+        {"lift_config": lift_config, "method_seconds_per_grasp": {"optimization": {"optimized": 3.0}, "cvae_post": {"sample": 0.01, "post": 0.5}},
          "methods_without_input": ["dexgraspnet"], "simulation_seconds_per_grasp": 0.2},
     )  # fmt: skip
     shard1 = simulated_shard(root / "sim_001.zarr", {"cvae_post": [True, None]}, rng, {"methods_without_input": ["dexgraspnet", "random_post"]})
@@ -169,7 +182,7 @@ def tiny_run(tmp_path_factory, tiny_objects):
     random_post = post_store(root / "random.zarr", 6, 21, rng, decay=0.045)  # from t = 27: never within 21
     eval_dir = root / "eval"
     eval_dir.mkdir()
-    evaluate = {"methods": ["seed", "cvae_post", "random_post", "dexgraspnet"], "rendered_per_method": 1}
+    evaluate = {"methods": ["optimization", "cvae_post", "random_post", "dexgraspnet"], "rendered_per_method": 1}
     aggregate_cfg = json.dumps({"seed": 0, "evaluate": evaluate})
     run_config = {
         "seed": 7, "shards": 2, "objects": {"builtin_count": 40, "mesh_dirs": []}, "lift": lift_config, "evaluate": evaluate,
@@ -189,13 +202,13 @@ def tiny_run(tmp_path_factory, tiny_objects):
 def test_metrics_csv_from_tiny_run(tiny_run):
     eval_dir, _ = tiny_run
     table = pd.read_csv(eval_dir / "metrics.csv").set_index("method")
-    assert list(table.index) == ["seed", "cvae_post", "random_post"]  # dexgraspnet had no input anywhere
-    assert table.loc["seed", "lift_success_rate"] == 0.25
+    assert list(table.index) == ["optimization", "cvae_post", "random_post"]  # dexgraspnet had no input anywhere
+    assert table.loc["optimization", "lift_success_rate"] == 0.25
     # the invalid grasp of shard 1 is a failure: 3 of 5, not 3 of 4
     assert table.loc["cvae_post", "lift_success_rate"] == 0.6
-    assert table.loc["cvae_post", ["n_grasps", "n_invalid"]].tolist() == [5, 1] and table.loc["seed", "n_invalid"] == 0
+    assert table.loc["cvae_post", ["n_grasps", "n_invalid"]].tolist() == [5, 1] and table.loc["optimization", "n_invalid"] == 0
     assert table.loc["cvae_post", "lift_success_boot_ci95_low"] <= 0.6 <= table.loc["cvae_post", "lift_success_boot_ci95_high"]
-    assert table.loc["seed", "object_success_rate"] == 1.0
+    assert table.loc["optimization", "object_success_rate"] == 1.0
     assert table.loc["cvae_post", "seconds_per_grasp"] == pytest.approx(0.51)
     assert table.loc["random_post", "n_grasps"] == 0 and np.isnan(table.loc["random_post", "lift_success_rate"])
     assert table.loc["cvae_post", "threshold_reached_fraction"] == 1.0
@@ -205,9 +218,9 @@ def test_metrics_csv_from_tiny_run(tiny_run):
     assert table.loc["random_post", "E_post_median_final"] == pytest.approx(np.exp(-0.9) + 0.1, rel=1e-5)  # CSV keeps 6 digits
     assert table.loc["cvae_post", "iterations_to_random_final_E_post"] == 50
     assert table.loc["random_post", "iterations_to_random_final_E_post"] == 200
-    assert np.isnan(table.loc["seed", "iterations_to_random_final_E_post"])
+    assert np.isnan(table.loc["optimization", "iterations_to_random_final_E_post"])
     per_object = pd.read_csv(eval_dir / "per_object.csv")
-    assert per_object[["method", "object_id", "n_grasps", "n_invalid"]].values.tolist() == [["seed", OBJECT_ID, 4, 0], ["cvae_post", OBJECT_ID, 5, 1]]
+    assert per_object[["method", "object_id", "n_grasps", "n_invalid"]].values.tolist() == [["optimization", OBJECT_ID, 4, 0], ["cvae_post", OBJECT_ID, 5, 1]]
     curves = pd.read_csv(eval_dir / "convergence.csv")
     assert set(curves["method"]) == {"cvae_post", "random_post"} and (curves["q25"] <= curves["median"]).all()
 
@@ -225,7 +238,7 @@ def test_report_is_self_contained_with_pictures(tiny_run):
     # success bars, histograms, convergence, training curves, then a success and a failure per method
     assert len(images) == 4 + 2 * 2
     assert all(base64.b64decode(b)[:8] == b"\x89PNG\r\n\x1a\n" for b in images)
-    for needle in ("Optimization from scratch (seed grasps)", "CVAE samples + post-optimization", "friction", "object_mass_kg", "lift success ≈ 55%",
+    for needle in ("Optimization from scratch", "CVAE samples + post-optimization", "friction", "object_mass_kg", "lift success ≈ 55%",
                    "n_invalid", "boot_ci95", "after 200 iterations at iteration 50: speed-up 4.0×", "object-level bootstrap"):
         assert needle in text, needle
     # the result sentence leads with the post-optimized samples: 3 of 5 lifted, none held against the pushes
@@ -249,14 +262,14 @@ def test_simulate_step_on_tiny_object(tmp_path, tiny_objects):
     from report_synthetic import grasp_poses
 
     rng = np.random.default_rng(1)
-    seed_store = tmp_path / "seed.zarr"
+    optimized_store = tmp_path / "optimized.zarr"
     ids = [OBJECT_ID] * 3 + ["train_obj"] * 2
     poses = grasp_poses(5, rng)
     poses[1, 4] = np.nan
-    write_grasp_store(seed_store, GraspSet({"hand_pose": poses, "object_id": np.asarray(ids, dtype=object), "scale": np.full(5, 0.06, np.float32)}), {"seconds_per_grasp": 2.0})
+    write_grasp_store(optimized_store, GraspSet({"hand_pose": poses, "object_id": np.asarray(ids, dtype=object), "scale": np.full(5, 0.06, np.float32)}), {"seconds_per_grasp": 2.0})
     out = tmp_path / "sim.zarr"
     cfg = json.dumps({"seed": 0, "shards": 1, "device": "cpu", "evaluate": {"grasps_per_object": 3, "six_directions": False}, "scene": {"table": False}})
-    assert main(["evaluate", "--step", "simulate", "--shard", "0", "--config-json", cfg, "--seed", str(seed_store), "--objects", str(tiny_objects), "--out", str(out)]) == 0
+    assert main(["evaluate", "--step", "simulate", "--shard", "0", "--config-json", cfg, "--optimized", str(optimized_store), "--objects", str(tiny_objects), "--out", str(out)]) == 0
     result = read_grasp_store(out)
     assert len(result) == 3 and set(result.object_id) == {OBJECT_ID}
     for name in ("lift_success", "failure_reason", "E_fc", "penetration_mm", "contact_distance_mm", "filter_E_fc", "filter_E_dis"):
@@ -264,9 +277,9 @@ def test_simulate_step_on_tiny_object(tmp_path, tiny_objects):
     invalid = result.arrays["source_row"] == 1
     assert result.arrays["invalid_reason"][invalid].tolist() == ["non-finite hand_pose"] and not result.arrays["lift_success"][invalid].any()
     assert (result.arrays["invalid_reason"][~invalid] == "").all() and np.isfinite(result.arrays["E_fc"][~invalid]).all()
-    assert result.attrs["invalid_reasons"]["seed"] == {"non-finite hand_pose": 1}
+    assert result.attrs["invalid_reasons"]["optimization"] == {"non-finite hand_pose": 1}
     assert result.attrs["lift_config"]["six_directions"] is False
-    assert result.attrs["method_seconds_per_grasp"] == {"seed": {"seed": 2.0}}
+    assert result.attrs["method_seconds_per_grasp"] == {"optimization": {"optimized": 2.0}}
     without_input = {"cvae_raw", "cvae_post", "random_post", "dexgraspnet", "cvae_recon", "cvae_recon_post", "cvae_prior_train", "cvae_prior_train_post",
                      "shipped_raw", "shipped_post"}
     assert set(result.attrs["methods_without_input"]) == without_input
@@ -282,8 +295,8 @@ def test_simulate_step_on_a_table_rejects_hands_in_it_and_measures_reach_in_both
 
     poses = grasp_poses(2, np.random.default_rng(1))
     poses[1, :3] = [0.0, 0.0, -0.3]  # 30 cm under the object: in its table
-    seed_store = tmp_path / "seed.zarr"
-    write_grasp_store(seed_store, GraspSet({"hand_pose": poses, "object_id": np.asarray([OBJECT_ID] * 2, dtype=object), "scale": np.full(2, 0.06, np.float32)}),
+    optimized_store = tmp_path / "optimized.zarr"
+    write_grasp_store(optimized_store, GraspSet({"hand_pose": poses, "object_id": np.asarray([OBJECT_ID] * 2, dtype=object), "scale": np.full(2, 0.06, np.float32)}),
                       {"seconds_per_grasp": 2.0})
     stability = tmp_path / "stability.parquet"
     pd.DataFrame({"object_id": [OBJECT_ID], "stable": [True], "support_nx": [0.0], "support_ny": [0.0], "support_nz": [1.0], "support_offset": [1.0]}).to_parquet(stability)
@@ -291,7 +304,7 @@ def test_simulate_step_on_a_table_rejects_hands_in_it_and_measures_reach_in_both
     for name, table in (("tabletop", True), ("floating", False)):
         cfg = json.dumps({"seed": 0, "shards": 1, "device": "cpu", "evaluate": {"grasps_per_object": 3, "six_directions": False}, "scene": {"table": table}})
         out = tmp_path / f"{name}.zarr"
-        assert main(["evaluate", "--step", "simulate", "--shard", "0", "--config-json", cfg, "--seed", str(seed_store), "--objects", str(tiny_objects),
+        assert main(["evaluate", "--step", "simulate", "--shard", "0", "--config-json", cfg, "--optimized", str(optimized_store), "--objects", str(tiny_objects),
                      "--stability", str(stability), "--out", str(out)]) == 0
         results[name] = read_grasp_store(out)
     below = results["tabletop"].arrays["source_row"] == 1

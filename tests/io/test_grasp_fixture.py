@@ -1,7 +1,7 @@
 """The committed grasp fixture (tests/fixtures/pybullet_grasps): DexGraspNet's structure, and grasps
 that the project's importer, energies and lift test treat as the real grasps they are.
 
-The fixture holds grasps the pipeline's seed synthesis found on two pybullet_data objects and its
+The fixture holds grasps the pipeline's optimization from scratch found on two pybullet_data objects and its
 lift test held, kept only if they held again after export and re-import
 (tests/fixtures/make_grasp_fixture.py). Imported here with the same settings as there, every one
 must hold, and the same grasps moved away from the object must all drop it.
@@ -61,13 +61,13 @@ def test_fixture_imports_whole_with_correct_sdf_sign(imported_fixture):
 
 
 def test_fixture_grasps_meet_the_energy_thresholds_they_were_kept_for(imported_fixture):
-    """Seed synthesis kept them below the penetration and contact-distance thresholds on these very
+    """Optimization from scratch kept them below the penetration and contact-distance thresholds on these very
     meshes: a frame or conversion error would show as deep penetration or far contacts."""
     from dexlite_pipeline.energy.per_grasp import evaluate_grasp_energies
     from dexlite_pipeline.hand import JOINT_NAMES
 
     result, objects, config = imported_fixture
-    thresholds = config.seed_grasps.thresholds
+    thresholds = config.optimize_grasps.thresholds
     energies = evaluate_grasp_energies(result.grasps, [objects], config=config.energy)
     assert (energies["E_pen"] < thresholds.max_e_pen_m).all() and (energies["E_dis"] < thresholds.max_e_dis_m).all()
     # control: the same grasps with the four fingers closed through the object

@@ -24,7 +24,7 @@ from dexlite_pipeline.model.config import TrainConfig
 from dexlite_pipeline.model.training import vertical_turns
 
 
-def test_reference_sizes_give_the_seed_shapes(random_clouds):
+def test_reference_sizes_give_the_writeup_shapes(random_clouds):
     model = GraspCVAE(ModelConfig(normalization="batch"))
     clouds = random_clouds(3, 128)
     global_feature, per_point = model.pointnet(clouds)

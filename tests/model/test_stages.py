@@ -139,12 +139,12 @@ def test_training_refuses_too_few_grasps(pipeline_inputs, capsys):
     assert not (root / "model" / "cvae.pt").exists()
 
 
-def test_lift_shards_keep_seed_contacts_and_drop_imported_ones(tmp_path, hand, make_grasps):
+def test_lift_shards_keep_optimized_contacts_and_drop_imported_ones(tmp_path, hand, make_grasps):
     from dexlite_pipeline.model.trainer import read_lift_shards
 
     grasps = make_grasps(hand, 4, seed=3)
     grasps.arrays["lift_success"] = np.ones(4, bool)
-    grasps.arrays["origin"] = np.array(["seed", "dexgraspnet", "seed", "dexgraspnet"], dtype=object)
+    grasps.arrays["origin"] = np.array(["optimization", "dexgraspnet", "optimization", "dexgraspnet"], dtype=object)
     grasps.arrays["contact_index"] = np.arange(16, dtype=np.int64).reshape(4, 4)  # curation's scoring contacts for imported rows
     write_grasp_store(tmp_path / "with_origin.zarr", grasps)
     no_contacts = make_grasps(hand, 2, seed=4)

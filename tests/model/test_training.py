@@ -24,7 +24,7 @@ def setup(hand, tiny_assets, request):
     return grasps, data, grasp_energy_terms(energy)
 
 
-SEED_ENERGY_WEIGHTS = dict(energy_weights=EnergyWeights(fc=1.0, dis=100.0, pen=100.0, spen=10.0, joints=1.0))  # the write-up's
+WRITEUP_ENERGY_WEIGHTS = dict(energy_weights=EnergyWeights(fc=1.0, dis=100.0, pen=100.0, spen=10.0, joints=1.0))  # the write-up's
 
 
 def _config(small_model_config, **overrides):
@@ -36,7 +36,7 @@ def _config(small_model_config, **overrides):
 def test_loss_falls_when_overfitting_a_handful_of_grasps(setup, small_model_config):
     grasps, data, energy_terms = setup
     everything = np.arange(len(grasps))
-    memorize = _config(small_model_config, rotation_augmentation=False, **SEED_ENERGY_WEIGHTS)
+    memorize = _config(small_model_config, rotation_augmentation=False, **WRITEUP_ENERGY_WEIGHTS)
     result = train_cvae(data, everything, np.zeros(0, np.int64), memorize, energy_terms, seed=0)
     first, last = result.history[0], result.history[-1]
     assert last["train_total"] < 0.5 * first["train_total"]

@@ -1,4 +1,4 @@
-"""Tiny objects for the optimizer and seed-stage tests (coarse SDF, the mesh as its own convex piece)."""
+"""Tiny objects for the optimizer and optimize-stage tests (coarse SDF, the mesh as its own convex piece)."""
 
 from __future__ import annotations
 

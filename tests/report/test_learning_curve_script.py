@@ -40,7 +40,7 @@ def test_break_even_solves_equal_cost_per_successful_grasp():
 
 
 def _metrics(folder: Path, rates: dict) -> None:
-    rows = [{"method": m, "split": "heldout", "n_grasps": 768, **{c: r for c in RATES}, "seconds_per_grasp": 0.2 if m != "seed" else 1.0}
+    rows = [{"method": m, "split": "heldout", "n_grasps": 768, **{c: r for c in RATES}, "seconds_per_grasp": 0.2 if m != "optimization" else 1.0}
             for m, r in rates.items()]  # fmt: skip
     (folder / "results" / "eval").mkdir(parents=True)
     pd.DataFrame(rows).to_csv(folder / "results" / "eval" / "metrics.csv", index=False)
@@ -53,7 +53,7 @@ def _metrics(folder: Path, rates: dict) -> None:
 
 def test_table_holds_every_point_its_steps_and_the_run_baselines(tmp_path):
     curve = _load()
-    _metrics(tmp_path, {"cvae_raw": 0.1, "cvae_post": 0.4, "random_post": 0.1, "seed": 0.6})
+    _metrics(tmp_path, {"cvae_raw": 0.1, "cvae_post": 0.4, "random_post": 0.1, "optimization": 0.6})
     for name in ("n10_seed0", "nall_seed0_steps16000"):
         point = tmp_path / "curve" / name
         _metrics(point, {"cvae_raw": 0.05, "cvae_post": 0.3})

@@ -28,7 +28,7 @@ def _metrics(six_dir_rate: float) -> pd.DataFrame:
 def _run_metrics() -> pd.DataFrame:
     """Four methods on 5 held-out objects, 80 grasps each, shaped like metrics.csv."""
     rows = []
-    for method, lift, six, seconds in (("seed", 0.55, 0.5, 0.35), ("cvae_raw", 0.0625, 0.0, 0.003), ("cvae_post", 0.175, 0.1375, 0.021),
+    for method, lift, six, seconds in (("optimization", 0.55, 0.5, 0.35), ("cvae_raw", 0.0625, 0.0, 0.003), ("cvae_post", 0.175, 0.1375, 0.021),
                                        ("random_post", 0.2125, 0.0875, 0.024)):  # fmt: skip
         rows.append({
             "method": method, "split": "heldout", "n_grasps": 80, "n_invalid": 0, "n_objects": 5,
@@ -92,7 +92,7 @@ def test_headline_sentence_gives_both_rates_of_the_product_and_the_comparisons()
     assert sentence.startswith("On 5 held-out objects (80 grasps), 17.5% of CVAE samples + post-optimization held the object in the lift test")
     assert "13.8% against pushes from all six directions" in sentence
     assert "; for comparison, random start + post-optimization 21.2% / 8.8% per attempt; CVAE samples, raw 6.2% / 0.0% per attempt;" in sentence
-    assert sentence.endswith("; optimization from scratch (seed grasps) 55.0% / 50.0% per attempt.")
+    assert sentence.endswith("; optimization from scratch 55.0% / 50.0% per attempt.")
     assert sentence.count(".") == sentence.count("%") + 1  # one sentence: the only other full stops are decimal points
     no_six = _run_metrics().assign(six_dir_success_rate=np.nan)
     assert "(six-direction test not run)" in headline_sentence(headline_rows(no_six), {})
@@ -106,7 +106,7 @@ def test_headline_sentence_gives_both_rates_of_the_product_and_the_comparisons()
 def test_compact_table_shows_percentages_with_intervals_and_readable_names():
     table = compact_table_html(headline_rows(_run_metrics()))
     assert table.count("<tr>") == 5  # header and four methods
-    order = [table.index(method_label(m)) for m in ("cvae_post", "random_post", "cvae_raw", "seed")]
+    order = [table.index(method_label(m)) for m in ("cvae_post", "random_post", "cvae_raw", "optimization")]
     assert order == sorted(order)  # the product first, then its baselines
     assert "<b>17.5%</b> <small>(7–28)</small>" in table and "<b>13.8%</b> <small>(9–24)</small>" in table
     assert "0.175" not in table and "21 ms" in table and "80 on 5" in table
@@ -132,7 +132,7 @@ def test_ladder_section_lists_rungs_in_order_and_only_when_measured():
     assert positions == sorted(positions) and section.index("1 · fit") < section.index("2 · in distribution") < section.index("3 · held out")
     assert "palm rotation error (°, median)" in section and ">107<" in section  # the fit rung's own column, readable
     assert "gap to training mm" in section  # any other column only the ladder fills, by its name
-    assert headline_rows(metrics)["method"].tolist() == ["cvae_post", "random_post", "cvae_raw", "seed"]  # cvae_raw once
+    assert headline_rows(metrics)["method"].tolist() == ["cvae_post", "random_post", "cvae_raw", "optimization"]  # cvae_raw once
     assert ladder_html(_run_metrics()) == "" and ladder_html(_run_metrics().assign(rung=np.nan)) == ""
 
 
@@ -163,7 +163,7 @@ def _simulated(n_per_method: int) -> GraspSet:
     invalid[1] = True  # a failure with no usable pose: never pictured
     return GraspSet({
         "hand_pose": grasp_poses(n, rng), "object_id": np.full(n, OBJECT_ID, dtype=object), "scale": np.full(n, 0.06, np.float32),
-        "method": np.asarray(["cvae_post"] * n_per_method + ["seed"] * n_per_method, dtype=object),
+        "method": np.asarray(["cvae_post"] * n_per_method + ["optimization"] * n_per_method, dtype=object),
         "lift_success": lift, "invalid_reason": np.where(invalid, "non-finite hand_pose", "").astype(object),
     })  # fmt: skip
 
@@ -176,8 +176,16 @@ def test_pictured_grasps_are_drawn_at_random_with_a_seed():
     assert all(bool(simulated.arrays["lift_success"][r]) == ok and r < 40 and r != 1 for r, ok in picks)
     drawn = {r for seed in range(30) for r, _ in pick_examples(simulated, "cvae_post", 2, seed=seed)}
     assert len(drawn) > 20  # not the first rows every time
-    assert len(pick_examples(simulated, "seed", 50, seed=0)) == 40  # no more than there are
+    assert len(pick_examples(simulated, "optimization", 50, seed=0)) == 40  # no more than there are
     assert pick_examples(simulated, "cvae_post", 2, seed=1) != picks
+
+
+def test_a_renamed_method_pictures_the_grasps_its_old_name_drew():
+    """The optimization method's pictures are drawn with its frozen label "seed" (its name before the rename)."""
+    simulated = _simulated(40)
+    relabelled = GraspSet({**simulated.arrays, "method": np.where(simulated.arrays["method"] == "optimization", "seed", "cvae_post").astype(object)})
+    for seed in range(5):
+        assert pick_examples(simulated, "optimization", 2, seed=seed) == pick_examples(relabelled, "seed", 2, seed=seed)
 
 
 def test_outcome_reads_both_tests():
@@ -220,12 +228,12 @@ def test_metrics_without_or_with_empty_ladder_column_render(column):
 
 
 def test_lenient_test_column_only_when_measured():
-    lenient = _run_metrics().assign(seed_protocol_lift_success_rate=[0.7, 0.1, 0.4, 0.45], seed_protocol_lift_success_ci95_low=0.3,
-                                    seed_protocol_lift_success_ci95_high=0.8)  # fmt: skip
+    lenient = _run_metrics().assign(writeup_protocol_lift_success_rate=[0.7, 0.1, 0.4, 0.45], writeup_protocol_lift_success_ci95_low=0.3,
+                                    writeup_protocol_lift_success_ci95_high=0.8)  # fmt: skip
     table = compact_table_html(headline_rows(lenient))
     assert "lift, the write-up's test" in table and "<td class='rate lenient'><b>40.0%</b> <small>(30–80)</small></td>" in table
     assert "the write-up's test" not in compact_table_html(headline_rows(_run_metrics()))
-    assert "the write-up's test" not in compact_table_html(headline_rows(_run_metrics().assign(seed_protocol_lift_success_rate=np.nan)))
+    assert "the write-up's test" not in compact_table_html(headline_rows(_run_metrics().assign(writeup_protocol_lift_success_rate=np.nan)))
 
 
 def test_budget_plot_only_with_budget_rows():
@@ -277,7 +285,7 @@ def test_diversity_beside_each_rate_per_attempt_and_after_the_filter():
     assert "random start + post-optimization 21.2% / 8.8% per attempt, 50.0% after the filter;" in sentence
     none_pass = frame.assign(filtered_n_grasps=0, filtered_lift_success_rate=np.nan, energy_threshold_pass_rate=0.0)
     assert compact_table_html(headline_rows(none_pass)).count("none pass") == 4
-    assert "optimization from scratch (seed grasps) 55.0% / 50.0% per attempt, none passing after the filter." in headline_sentence(headline_rows(none_pass), {})
+    assert "optimization from scratch 55.0% / 50.0% per attempt, none passing after the filter." in headline_sentence(headline_rows(none_pass), {})
 
 
 def test_run_facts_at_the_top(tmp_path):
@@ -288,7 +296,7 @@ def test_run_facts_at_the_top(tmp_path):
 
     benchmarks = tmp_path / "benchmarks"
     benchmarks.mkdir()
-    for name, seconds, cpu, end in (("seed_grasps_000.tsv", 10.0, 9.0, 1000.0), ("evaluate.tsv", 20.0, 18.0, 1100.0)):
+    for name, seconds, cpu, end in (("optimize_grasps_000.tsv", 10.0, 9.0, 1000.0), ("evaluate.tsv", 20.0, 18.0, 1100.0)):
         (benchmarks / name).write_text(f"s\th:m:s\tcpu_time\n{seconds}\t0:00:{int(seconds):02d}\t{cpu}\n")
         os.utime(benchmarks / name, (end, end))
     facts = dict(run_facts({"device": "cpu"}, benchmarks, checkout=tmp_path, now=dt.datetime(2026, 12, 2, 9, 30, tzinfo=dt.timezone.utc)))

@@ -18,7 +18,7 @@ TINY = {
     "objects": {"sdf_resolution": 32, "surface_points": 512, "coacd_mcts_iterations": 10, "coacd_mcts_nodes": 5,
                 "coacd_mcts_max_depth": 1, "coacd_resolution": 300},
     "energy": {"object_points": 300},
-    "seed_grasps": {"annealing": {"iterations": 60}, "final_contact_samples": 32, "contact_search_every": 0},
+    "optimize_grasps": {"annealing": {"iterations": 60}, "final_contact_samples": 32, "contact_search_every": 0},
     "post_optimize": {"annealing": {"iterations": 5}, "energy_object_points": 300, "start_contact_samples": 8, "final_contact_samples": 8},
 }  # fmt: skip
 
@@ -136,7 +136,7 @@ def test_too_few_distinct_model_grasps_are_topped_up_by_optimization_from_scratc
     every, kept = read_grasp_store(out / "all_grasps.zarr"), read_grasp_store(out / "grasps.zarr")
     source = every.arrays["source"]
     assert source.tolist() == ["model"] * 2 + ["optimization"] * 2
-    assert every.arrays["method"].tolist() == ["cvae_post"] * 2 + ["seed"] * 2
+    assert every.arrays["method"].tolist() == ["cvae_post"] * 2 + ["optimization"] * 2
     _, scratch = grasp_run
     alone = read_grasp_store(scratch / "all_grasps.zarr")
     box = alone.object_id == "user-box"

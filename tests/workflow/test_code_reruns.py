@@ -24,7 +24,7 @@ from workflow_harness import checkout, downstream, planned_rules, rule_code_modu
 
 from dexlite_pipeline.codehash import code_hash
 
-UPSTREAM_OF_LIFT = frozenset({"prepare_objects", "stability_filter", "seed_grasps", "import_dexgraspnet", "curate", "curate_summary"})
+UPSTREAM_OF_LIFT = frozenset({"prepare_objects", "stability_filter", "optimize_grasps", "import_dexgraspnet", "curate", "curate_summary"})
 
 
 @dataclass(frozen=True)
@@ -47,9 +47,9 @@ EDITS = {
         "sim/lift.py", frozenset({"lift_validate", "evaluate_simulate", "evaluate", "report"}), frozenset({"lift_validate"}),
         UPSTREAM_OF_LIFT,
     ),
-    # the optimizer: seed synthesis and post-optimization run it; preparation and stability do not
+    # the optimizer: optimization from scratch and post-optimization run it; preparation and stability do not
     "optimizer": CodeEdit(
-        "optim/annealing.py", frozenset({"seed_grasps", "post_optimize"}), frozenset({"seed_grasps", "post_optimize"}),
+        "optim/annealing.py", frozenset({"optimize_grasps", "post_optimize"}), frozenset({"optimize_grasps", "post_optimize"}),
         frozenset({"prepare_objects", "stability_filter", "import_dexgraspnet"}),
     ),
 }

@@ -30,7 +30,7 @@ from dexlite_pipeline.config import ConfigError, validate_config
 
 pytestmark = pytest.mark.slow
 
-UPSTREAM_OF_LIFT = {"prepare_objects", "stability_filter", "seed_grasps", "import_dexgraspnet", "curate"}
+UPSTREAM_OF_LIFT = {"prepare_objects", "stability_filter", "optimize_grasps", "import_dexgraspnet", "curate"}
 UPSTREAM_OF_TRAINING = UPSTREAM_OF_LIFT | {"lift_validate"}
 UPSTREAM_OF_POST = UPSTREAM_OF_TRAINING | {"train_cvae", "sample_grasps"}
 
@@ -61,7 +61,7 @@ CHANGES = [
 # which is per grasp) reach their stage but rerun nothing.
 # (section, key, a rule that reads it)
 RESULT_NEUTRAL_KEYS = [
-    ("seed_grasps", "progress_every", "seed_grasps"),
+    ("optimize_grasps", "progress_every", "optimize_grasps"),
     ("curate", "energy_batch_size", "curate"),
     ("evaluate", "energy_batch_size", "evaluate_simulate"),
 ]
@@ -125,8 +125,8 @@ def _planned_stage_configs(workdir: Path, config: dict) -> dict[str, set[str]]:
 
 def test_energy_weights_are_not_tracked_by_training_or_post_optimization(tmp_path):
     """Training and post-optimization read one key of `energy` (the self-penetration margin) and get only
-    that key: new `energy.weights` change the params of the stages that weigh energies with them (seed
-    synthesis, the evaluation's energies), not those of training or post-optimization, so these rerun
+    that key: new `energy.weights` change the params of the stages that weigh energies with them
+    (optimization from scratch, the evaluation's energies), not those of training or post-optimization, so these rerun
     only when their inputs change."""
     (tmp_path / "meshes").mkdir()
     base = tiny_config(tmp_path / "meshes")
@@ -135,7 +135,7 @@ def test_energy_weights_are_not_tracked_by_training_or_post_optimization(tmp_pat
     before = _planned_stage_configs(tmp_path / "before", base)
     after = _planned_stage_configs(tmp_path / "after", changed)
 
-    assert before["seed_grasps"] != after["seed_grasps"] and before["evaluate_simulate"] != after["evaluate_simulate"], description
+    assert before["optimize_grasps"] != after["optimize_grasps"] and before["evaluate_simulate"] != after["evaluate_simulate"], description
     for rule in ("train_cvae", "post_optimize"):
         assert before[rule] == after[rule], (description, rule)
         assert all(json.loads(c)["energy"] == {"self_penetration_margin_m": base["energy"]["self_penetration_margin_m"]} for c in after[rule])

@@ -10,8 +10,8 @@ from workflow_harness import downstream, planned_commands, planned_rules, run_sn
 pytestmark = pytest.mark.slow
 
 # The rules whose params carry section `scene` (docs/design.md, "Tabletop mode").
-SCENE_RULES = {"seed_grasps", "curate", "lift_validate", "train_cvae", "post_optimize", "evaluate_simulate", "report"}
-BEFORE_SEED_SYNTHESIS = {"prepare_objects", "stability_filter", "import_dexgraspnet"}
+SCENE_RULES = {"optimize_grasps", "curate", "lift_validate", "train_cvae", "post_optimize", "evaluate_simulate", "report"}
+BEFORE_OPTIMIZATION = {"prepare_objects", "stability_filter", "import_dexgraspnet"}
 
 
 def test_scene_section_reaches_exactly_its_rules(tmp_path):
@@ -26,7 +26,7 @@ def test_scene_section_reaches_exactly_its_rules(tmp_path):
     assert reading == SCENE_RULES
 
 
-def test_switching_the_table_off_reruns_its_stages_and_nothing_before_seed_synthesis(complete_run, scratch_copy):
+def test_switching_the_table_off_reruns_its_stages_and_nothing_before_optimization(complete_run, scratch_copy):
     assert complete_run.config["scene"]["table"] is True  # the default
     config = {**complete_run.config, "scene": {"table": False}}
     write_config(scratch_copy, config)
@@ -34,8 +34,8 @@ def test_switching_the_table_off_reruns_its_stages_and_nothing_before_seed_synth
     planned = planned_rules(scratch_copy)
 
     assert planned == downstream(complete_run.graph, SCENE_RULES & set(complete_run.graph))
-    assert not planned & BEFORE_SEED_SYNTHESIS
-    assert {"seed_grasps", "curate", "lift_validate", "train_cvae", "post_optimize", "evaluate"} <= planned
+    assert not planned & BEFORE_OPTIMIZATION
+    assert {"optimize_grasps", "curate", "lift_validate", "train_cvae", "post_optimize", "evaluate"} <= planned
 
 
 def test_on_a_table_no_held_grasp_of_the_run_reaches_below_it(complete_run):

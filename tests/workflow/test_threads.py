@@ -10,7 +10,7 @@ from workflow_harness import checkout, grasp_fixture, option_value, planned_comm
 
 # Stages that run once for all objects use every core; sharded stages one per job.
 ALL_CORES_STAGES = {"prepare_objects", "stability_filter", "import_dexgraspnet", "train_cvae"}
-SHARDED_STAGES = {"seed_grasps", "curate", "lift_validate", "sample_grasps", "post_optimize"}
+SHARDED_STAGES = {"optimize_grasps", "curate", "lift_validate", "sample_grasps", "post_optimize"}
 
 
 @pytest.mark.parametrize("profile", [None, "local"])

@@ -42,11 +42,11 @@ TINY_OVERRIDES: dict = {
         "coacd_max_convex_hull": 4,
         "benchmark_objects": 1,  # one object no model trained on: the shipped model's rows
     },
-    # Real grasps to train on: a tiny seed run finds none that hold, so the tiny config imports the
+    # Real grasps to train on: a tiny optimization run finds none that hold, so the tiny config imports the
     # committed fixture of grasps the pipeline found and lift-tested itself, in DexGraspNet's layout
     # (grasp_fixture(), made by tests/fixtures/make_grasp_fixture.py; the mug is held out).
     "dexgraspnet": {"heldout_object_codes": [FIXTURE_HELDOUT_OBJECT]},
-    "seed_grasps": {
+    "optimize_grasps": {
         "grasps_per_object": 2,
         "scales": [0.1],
         "batch_size": 16,

@@ -41,10 +41,10 @@ os.environ.setdefault("DEXLITE_SOURCE", str(workflow.basedir))
 # Config keys that cannot change any output reach their stage but never rerun it: log
 # cadence, and the batch size of energy evaluation (energies are computed grasp by grasp;
 # batches of 1, 37, 256 and 1000 gave bit-identical results on CPU). The optimizers' batch
-# sizes (seed_grasps.batch_size, post_optimize.batch_size) do change results (their step
+# sizes (optimize_grasps.batch_size, post_optimize.batch_size) do change results (their step
 # uses the batch-mean squared gradient) and stay tracked.
 RESULT_NEUTRAL_KEYS = {
-    "seed_grasps": ("progress_every",),
+    "optimize_grasps": ("progress_every",),
     "curate": ("energy_batch_size",),
     "evaluate": ("energy_batch_size",),
 }

@@ -1,11 +1,11 @@
-# Curation: per shard, keep the seed (and imported DexGraspNet) grasps of stable training
+# Curation: per shard, keep the optimized (and imported DexGraspNet) grasps of stable training
 # objects that meet the energy thresholds, without near-duplicates, capped per object;
 # then merge the per-shard summaries into results/curate/summary.csv.
 
 
 def curate_inputs(wildcards):
     inputs = {
-        "seed": f"{RESULTS}/seed/shard_{wildcards.shard}.zarr",
+        "optimized": f"{RESULTS}/optimized/shard_{wildcards.shard}.zarr",
         "stability": f"{RESULTS}/stability/stability.parquet",
         "catalog": f"{RESULTS}/objects/catalog.parquet",
     }
@@ -46,7 +46,7 @@ rule curate:
     benchmark:
         f"{LOGS}/benchmarks/curate_{{shard}}.tsv"
     shell:
-        "dexlite curate --step curate --shard {wildcards.shard} --config-json {params.cfg:q} --seed-grasps {input.seed} "
+        "dexlite curate --step curate --shard {wildcards.shard} --config-json {params.cfg:q} --optimized-grasps {input.optimized} "
         "--stability {input.stability} {params.options} --out {output.grasps} --summary-out {output.summary} "
         "--threads {threads} > {log} 2>&1"
 

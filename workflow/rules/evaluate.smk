@@ -14,7 +14,7 @@ def evaluate_step_params(keys, *sections):
 
 # Where each grasp source's store of a shard is (the method -> source map is step_keys.METHOD_SOURCES).
 SOURCE_STORES = {
-    "seed": f"{RESULTS}/seed/shard_{{shard}}.zarr",
+    "optimized": f"{RESULTS}/optimized/shard_{{shard}}.zarr",
     "sample": f"{RESULTS}/sample/shard_{{shard}}.zarr",
     "post": f"{RESULTS}/post/shard_{{shard}}.zarr",
     "random_post": f"{RESULTS}/post/random_shard_{{shard}}.zarr",

@@ -4,7 +4,7 @@
         --curve docs/learning_curve.csv --wall-log RUN.time.log
 
 Reads from the run: the model (``results/model/cvae.pt``), its config files, the object catalog,
-the stability table, seed / curated / lift-validated shards (counts), the evaluation
+the stability table, optimized / curated / lift-validated shards (counts), the evaluation
 (``results/eval/metrics.csv``, ``per_object.csv``) and Snakemake's per-job benchmark files
 (time per stage). Writes to ``--out``: ``cvae.pt`` (weights and codes in float16, loads with
 ``torch.load(..., weights_only=True)``), ``training_grasps.zarr`` (the grasps it was trained on), ``card.json`` (everything the card says, machine
@@ -80,7 +80,7 @@ def data_counts(run: Path) -> dict:
     stability = pd.read_parquet(run / "results" / "stability" / "stability.parquet")
     ok = catalog[catalog.status == "ok"]
     stable = set(stability.loc[stability.stable, "object_id"])
-    seed = store_rows((run / "results" / "seed").glob("shard_*.zarr"))
+    optimized = store_rows((run / "results" / "optimized").glob("shard_*.zarr"))
     curated = store_rows((run / "results" / "curate").glob("shard_*.zarr"))
     lift = store_rows((run / "results" / "lift").glob("shard_*.zarr"))
     lifted = [np.asarray(s.arrays["lift_success"], bool) for s in lift if len(s)]
@@ -89,8 +89,8 @@ def data_counts(run: Path) -> dict:
         "objects_listed": len(catalog), "objects_prepared": len(ok), "objects_stable": len(stable & set(ok.object_id)),
         "objects_train_stable": len(stable & set(ok.object_id[ok.split == "train"])),
         "objects_heldout_stable": len(stable & set(ok.object_id[ok.split == "heldout"])),
-        "seed_grasps": sum(len(s) for s in seed),
-        "seed_grasps_passing_thresholds": int(sum(np.asarray(s.arrays["passes_energy_thresholds"], bool).sum() for s in seed if len(s))),
+        "optimized_grasps": sum(len(s) for s in optimized),
+        "optimized_grasps_passing_thresholds": int(sum(np.asarray(s.arrays["passes_energy_thresholds"], bool).sum() for s in optimized if len(s))),
         "curated_grasps": sum(len(s) for s in curated),
         "lift_tested_grasps": sum(len(s) for s in lift), "lift_successful_grasps": int(sum(x.sum() for x in lifted)),
         "objects_with_lift_successes": len(set(np.concatenate(lift_ids).tolist())) if lift_ids else 0,
@@ -102,7 +102,7 @@ def metrics_rows(run: Path) -> list[dict]:
     keep = [
         "method", "split", "rung", "n_grasps", "n_objects", "lift_success_rate", "lift_success_ci95_low", "lift_success_ci95_high",
         "lift_success_boot_ci95_low", "lift_success_boot_ci95_high", "six_dir_success_rate", "six_dir_success_ci95_low",
-        "six_dir_success_ci95_high", "seed_protocol_lift_success_rate", "seconds_per_grasp", "fit_rotation_error_deg_median",
+        "six_dir_success_ci95_high", "writeup_protocol_lift_success_rate", "seconds_per_grasp", "fit_rotation_error_deg_median",
         "fit_translation_error_mm_median", "fit_joint_error_rad_mean",
     ]  # fmt: skip
     rows = metrics[metrics.method.isin(CARD_METHODS)][[c for c in keep if c in metrics.columns]]
@@ -157,9 +157,9 @@ def throughput_lines(card: dict) -> list[str]:
         return count / seconds * 3600 if seconds else float("nan")
 
     out.append(f"{rate(counts['objects_listed'], 'prepare_objects', 'wall_s'):.0f} objects prepared per hour")
-    out.append(f"{rate(counts['seed_grasps'], 'seed_grasps', 'cpu_s'):.0f} seed grasps per CPU-hour")
+    out.append(f"{rate(counts['optimized_grasps'], 'optimize_grasps', 'cpu_s'):.0f} optimized grasps per CPU-hour")
     out.append(f"{rate(counts['lift_tested_grasps'], 'lift_validate', 'cpu_s'):.0f} grasps lift-tested per CPU-hour")
-    cpu_hours = sum(times.get(r, {}).get("cpu_s", 0.0) for r in ("prepare_objects", "stability_filter", "seed_grasps", "curate", "lift_validate")) / 3600
+    cpu_hours = sum(times.get(r, {}).get("cpu_s", 0.0) for r in ("prepare_objects", "stability_filter", "optimize_grasps", "curate", "lift_validate")) / 3600
     if cpu_hours:
         out.append(f"{counts['lift_successful_grasps'] / cpu_hours:.0f} lift-validated grasps per CPU-hour of the whole data pipeline")
     return out
@@ -187,7 +187,7 @@ def card_markdown(card: dict) -> str:
         "",
         f"- Objects: {counts['objects_prepared']} of {counts['objects_listed']} embedded objects prepared, {counts['objects_stable']} table-stable "
         f"({counts['objects_train_stable']} training, {counts['objects_heldout_stable']} held out: the benchmark split).",
-        f"- Seed grasps (energy optimization from scratch): {counts['seed_grasps']}, of which {counts['seed_grasps_passing_thresholds']} pass the energy thresholds; "
+        f"- Optimized grasps (energy optimization from scratch): {counts['optimized_grasps']}, of which {counts['optimized_grasps_passing_thresholds']} pass the energy thresholds; "
         f"curated {counts['curated_grasps']}; lift-tested {counts['lift_tested_grasps']}, **{counts['lift_successful_grasps']} hold** "
         f"on {counts['objects_with_lift_successes']} objects.",
         f"- Trained on {training['train_grasps']} grasps of {training['train_objects']} objects ({training['validation_grasps']} grasps held for the validation curve).",
@@ -267,7 +267,7 @@ def main() -> None:
     training = checkpoint["training_grasps"]
     write_grasp_store(args.out / "training_grasps.zarr", GraspSet({
         "hand_pose": training["hand_pose"].numpy(), "object_id": np.asarray(training["object_id"], dtype=object), "scale": training["scale"].numpy(),
-    }), {"description": "the grasps the shipped model was trained on (lift-validated seed grasps of the large run)", "code_version": git_version(run)})  # fmt: skip
+    }), {"description": "the grasps the shipped model was trained on (lift-validated optimized grasps of the large run)", "code_version": git_version(run)})  # fmt: skip
     raw_config = merged_config(run, args.configfile)
     config = build_config(raw_config)
     train_ids, heldout_ids = check_objects(run, checkpoint, args.check_train_objects, args.check_heldout_objects)

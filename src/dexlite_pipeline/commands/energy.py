@@ -7,7 +7,7 @@ a summary. Contacts: a ``contact_index`` array in the input is used; otherwise t
 pad points nearest the object surface, or with ``--contact-samples N`` the best of N
 searched sets (``energy.per_grasp.store_energies``). ``--objects`` defaults to the ``objects/``
 folder beside the store (a ``dexlite grasp`` output folder); ``--config-json`` takes the
-``energy`` and ``seed_grasps.thresholds`` sections, like the other commands' option.
+``energy`` and ``optimize_grasps.thresholds`` sections, like the other commands' option.
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_objects_argument(parser)
     parser.add_argument("--out", required=True, help="output grasp store (.zarr)")
     parser.add_argument("--config-json", default="{}",
-                        help="config sections (energy, seed_grasps.thresholds) as inline JSON or a .json/.yaml file such as config.yaml (default: built-in values)")
+                        help="config sections (energy, optimize_grasps.thresholds) as inline JSON or a .json/.yaml file such as config.yaml (default: built-in values)")
     parser.add_argument("--device", default="auto", help="auto, cpu, cuda, cuda:N")
     parser.add_argument("--batch-size", type=int, default=256, help="grasps per energy evaluation")
     parser.add_argument("--contact-samples", type=int, default=0,
@@ -36,7 +36,7 @@ def run(args: argparse.Namespace) -> int:
 
     config = stage_config(args.config_json)
     grasps, attrs = store_energies(
-        args.grasps, objects_dirs(args), config.energy, config.seed_grasps.thresholds, args.device, args.batch_size, args.contact_samples
+        args.grasps, objects_dirs(args), config.energy, config.optimize_grasps.thresholds, args.device, args.batch_size, args.contact_samples
     )
     write_grasp_store(args.out, grasps, attrs)
     for line in energy_summary_lines(grasps.arrays):

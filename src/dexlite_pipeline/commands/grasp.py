@@ -28,7 +28,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--units", choices=list(UNIT_METRES), default=None,
                         help="length unit of the mesh files (default m); objects are grasped at their real size")
     parser.add_argument("--resize-to-training", action="store_true",
-                        help="grasp each object resized to the training radii (config sample.scales or seed_grasps.scales: 8, 10, 12 cm) instead of its real size")
+                        help="grasp each object resized to the training radii (config sample.scales or optimize_grasps.scales: 8, 10, 12 cm) instead of its real size")
     parser.add_argument("--distinct", action=argparse.BooleanOptionalAction, default=True,
                         help="keep one grasp of each near-duplicate group in grasps.zarr (default: on)")
     parser.add_argument("--overwrite", action="store_true", help="clear an earlier run's --out folder first")

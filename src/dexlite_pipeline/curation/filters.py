@@ -1,4 +1,4 @@
-"""Curation: which seed / imported grasps become training data for the lift test and the CVAE.
+"""Curation: which optimized / imported grasps become training data for the lift test and the CVAE.
 
 A grasp is kept when its object is prepared (status ok), in the train split and stable on
 a table; its pose is finite and its energies exist; it meets the energy thresholds
@@ -30,7 +30,7 @@ Force closure of the actual contacts (``dexlite_pipeline.curation.force_closure`
 within ``force_closure_contact_distance_m`` of the object is a contact with a friction
 cone (``force_closure_friction``); ε is the largest wrench, in every direction, they
 resist per newton of total normal force. Why: E_fc is scored on four contact candidates
-that seed synthesis picks after the fact, with unit normals and no friction, and its
+that optimization from scratch picks after the fact, with unit normals and no friction, and its
 torque term (contact points in metres) is about 1/scale² weaker than with torques over
 the object's radius, so E_fc < 0.3 says little about how the hand presses. The contact
 distance is the energy thresholds' own scale (E_dis < 5 mm over four contacts is 1.25 mm

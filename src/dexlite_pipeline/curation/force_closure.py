@@ -1,7 +1,7 @@
 """Force closure of the contacts a grasp actually makes (Ferrari–Canny ε with friction cones).
 
 DexGraspNet's E_fc scores four chosen contact candidates with unit normals and no
-friction; a seed grasp's four are picked after the fact, from many sets, as the ones
+friction; an optimized grasp's four are picked after the fact, from many sets, as the ones
 whose normals cancel best, so E_fc < 0.3 says little about how the hand really presses.
 This module looks at the contacts instead: every hand link (finger segments and palm)
 whose collision surface comes within ``contact_distance_m`` of the object contributes

@@ -1,8 +1,8 @@
 """Curating one shard: the ``curate`` stage's work.
 
-Reads the shard's seed grasps (with their energy terms) and, optionally, the imported
+Reads the shard's optimized grasps (with their energy terms) and, optionally, the imported
 DexGraspNet grasps of the shard's objects (their energies are computed here); keeps the
-grasps ``curation.filters`` admits; returns the curated grasps (``origin`` seed/dexgraspnet
+grasps ``curation.filters`` admits; returns the curated grasps (``origin`` optimization/dexgraspnet
 and ``origin_index``, the row in its input), their store attributes and a per-object summary
 of kept and dropped counts. Grasps whose force closure could not be computed (an unreadable
 object asset) are dropped as ``force_closure_unknown`` and counted by reason.
@@ -37,7 +37,7 @@ if TYPE_CHECKING:
 
 log = logging.getLogger(__name__)
 
-SEED_ORIGIN = "seed"  # ``origin`` of grasps from seed synthesis
+OPTIMIZED_ORIGIN = "optimization"  # ``origin`` of grasps from optimization from scratch
 # Fill values of energy arrays for imported grasps dropped before their energies are computed.
 NOT_EVALUATED = {"f": np.nan, "i": -1, "b": False, "O": ""}
 
@@ -104,13 +104,13 @@ def force_closure_evaluator(objects_dirs: list[str], settings: CurateConfig, thr
 
 
 def curate_shard(
-    seed_paths: list[str], imported_path: str | None, stability_paths: list[str], objects_dirs: list[str],
+    optimized_paths: list[str], imported_path: str | None, stability_paths: list[str], objects_dirs: list[str],
     shard: int, *, shards: int, curate: CurateConfig, energy: EnergyConfig, scene: SceneConfig, device: str, threads: int = 1,
 ) -> tuple[GraspSet, dict, pd.DataFrame]:
     """The curated grasps of one shard, their store attributes and the per-object summary.
 
     The config it reads comes as arguments: ``shards``, ``device``, sections ``curate``, ``scene`` and (for imported grasps) ``energy``.
-    In tabletop mode (``scene.table``) every grasp, seed or imported, with a hand point below its
+    In tabletop mode (``scene.table``) every grasp, optimized or imported, with a hand point below its
     object's table (the first stability table's resting pose) is dropped as ``below_table``.
     """
     from dexlite_pipeline.config import json_ready
@@ -120,11 +120,11 @@ def curate_shard(
     settings = curate
     catalogs = [read_catalog(d) for d in objects_dirs if (Path(d) / CATALOG_NAME).exists()]
     facts = ObjectFacts.from_tables(catalogs, [read_stability_table(p) for p in stability_paths])
-    sets = [tag_origin(read_grasp_store(p), SEED_ORIGIN) for p in seed_paths]
+    sets = [tag_origin(read_grasp_store(p), OPTIMIZED_ORIGIN) for p in optimized_paths]
     if imported_path:
         sets.append(imported_with_energies(imported_path, objects_dirs, shard, shards, facts, energy, settings.energy_batch_size, device))
     if not sets:
-        raise ValueError("curate needs seed grasps and/or imported grasps")
+        raise ValueError("curate needs optimized grasps and/or imported grasps")
     grasps = _common_arrays(sets)
     table_depth = None
     if scene.table:
@@ -142,7 +142,7 @@ def curate_shard(
         "stage": "curate",
         "shard": shard,
         "config": {"curate": json_ready(settings), "energy": json_ready(energy) if imported_path else None},
-        "inputs": {"seed": list(seed_paths), "imported": imported_path, "stability": list(stability_paths)},
+        "inputs": {"optimized": list(optimized_paths), "imported": imported_path, "stability": list(stability_paths)},
         "n_input": len(grasps),
         "n_kept": len(kept),
         "dropped": {r: int((reasons == r).sum()) for r in drop_reasons},

@@ -2,8 +2,8 @@
 
 A leaf of the config tree (``settings``): it imports no energy code, so a stage's code hash
 (``codehash``) covers these shapes without the computation. ``EnergyThresholds`` is the one type
-for every place that thresholds energies: seed synthesis marks ``passes_energy_thresholds`` with
-it (``seed_grasps.thresholds``) and curation filters with it (``curate.thresholds``).
+for every place that thresholds energies: optimization from scratch marks ``passes_energy_thresholds`` with
+it (``optimize_grasps.thresholds``) and curation filters with it (``curate.thresholds``).
 """
 
 from __future__ import annotations

@@ -7,7 +7,7 @@ radians for joint angles), read from the ``EnergyContext`` that ``GraspEnergy`` 
 per evaluation (link frames, joints, contact points with their signed distances and
 normals, the penetration result). ``GraspEnergy`` sums weight·value over its list of terms,
 so a new term is one subclass here plus one entry in that list. Weighting is held apart
-from the terms, so the seed optimizer, post-optimization and the CVAE's training loss share
+from the terms, so the from-scratch optimizer, post-optimization and the CVAE's training loss share
 the same terms with their own weights. All terms are differentiable in the points and
 frames they receive. Each class is also callable on its own inputs (``__call__``), for
 callers that have those without a context (``GraspEnergy.best_contacts``, tests).

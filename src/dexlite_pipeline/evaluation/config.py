@@ -1,4 +1,4 @@
-"""The evaluation's config type: section ``evaluate`` (with ``evaluate.seed_protocol``), and the names it checks.
+"""The evaluation's config type: section ``evaluate`` (with ``evaluate.writeup_protocol``), and the names it checks.
 
 A leaf of the config tree (``settings``): it imports no evaluation code, so a stage's code hash
 (``codehash``) covers this shape without the simulation or the metrics.
@@ -13,9 +13,20 @@ from dexlite_pipeline.energy.config import EnergyThresholds
 JOINT_ENTROPY_BINS = 100  # default bins per joint of the joint-angle entropy (evaluation.metrics)
 PCA_COMPONENTS = (1, 2, 3, 5)  # default k of the cumulative PCA explained variance (evaluation.metrics)
 METHODS = (
-    "seed", "cvae_raw", "cvae_post", "random_post", "dexgraspnet",
+    "optimization", "cvae_raw", "cvae_post", "random_post", "dexgraspnet",
     "cvae_recon", "cvae_recon_post", "cvae_prior_train", "cvae_prior_train_post", "shipped_raw", "shipped_post",
 )  # fmt: skip
+# Frozen random-stream labels: a method's seeded draws (the evaluation's choice of grasps per
+# object, protocol.select_grasps; the report's pictured grasps, report.pictures.pick_examples)
+# hash a label, and a method renamed after results were published keeps its old label there, so
+# that a seed still draws the same grasps. Never change these values.
+FROZEN_DRAW_LABELS = {"optimization": "seed"}  # "seed": the method's name before issue 23
+
+
+def draw_label(method: str) -> str:
+    """The label ``method``'s random draws are derived from: its frozen old name, or its name."""
+    return FROZEN_DRAW_LABELS.get(method, method)
+
 SPLITS = ("train", "heldout")  # the values of the object catalogs' ``split`` column
 # The learning ladder: rung of each method. Fit and in-distribution rows are measured on the
 # training objects whatever ``evaluate.splits`` says; held-out rows are the other methods'.
@@ -43,8 +54,8 @@ class DiversityConfig:
 
 
 @dataclass(frozen=True)
-class SeedProtocolConfig:
-    """Config ``evaluate.seed_protocol``: the own lift test of the DexLite write-up (Murali), a second, lenient measure beside ours.
+class WriteupProtocolConfig:
+    """Config ``evaluate.writeup_protocol``: the own lift test of the DexLite write-up (Murali), a second, lenient measure beside ours.
 
     Its physics differs from ours in these constants (lift test only); everything else is ours.
     """
@@ -74,7 +85,7 @@ class EvaluateConfig:
     energy_batch_size: int = 256  # grasps per energy evaluation batch
     rendered_per_method: int = 2  # successes and failures pictured per method in the report
     ladder_grasps_per_object: int = 8  # cap per (ladder method, training object) on simulated grasps
-    seed_protocol: SeedProtocolConfig = field(default_factory=SeedProtocolConfig)  # the write-up's lenient test beside ours
+    writeup_protocol: WriteupProtocolConfig = field(default_factory=WriteupProtocolConfig)  # the write-up's lenient test beside ours
 
     def __post_init__(self) -> None:
         unknown = sorted(set(self.methods) - set(METHODS))

@@ -1,7 +1,7 @@
 """The equal energy filter's contact-dependent energies: one deterministic contact search for every method.
 
 E_fc and E_dis depend on which four of the hand's 140 contact candidates count as a grasp's
-contacts. The seed synthesis flags ``passes_energy_thresholds`` with the set its optimizer
+contacts. Optimization from scratch flags ``passes_energy_thresholds`` with the set its optimizer
 searched for; the evaluation's energies take the four candidates nearest the surface, which
 often lie on one finger pad, whose parallel normals read as no force closure (docs/results.md,
 "The equal filter's contacts"). A filter that every method goes through must choose contacts
@@ -10,7 +10,7 @@ per grasp:
 
 1. the ``SEARCH_CANDIDATES`` (16) candidates nearest the object surface (|signed distance|);
 2. every multiset of four of them (a candidate may count twice, as in the optimizer's own
-   sets, which draw with replacement): C(19, 4) = 3,876 sets, each scored as the seed optimizer
+   sets, which draw with replacement): C(19, 4) = 3,876 sets, each scored as the from-scratch optimizer
    scores its contact sets, w_fc·E_fc + w_dis·E_dis (config ``energy.weights``); the lowest
    wins (the first on ties).
 

@@ -48,7 +48,7 @@ outside the pipeline. Conventions (stated once, used in the CSV column names):
     all valid grasps.
 
 - **equal filtering**: every method is also counted after one energy filter, the thresholds
-  of ``evaluate.filter_thresholds`` (by default the curation's and the seed synthesis's:
+  of ``evaluate.filter_thresholds`` (by default those of curation and of optimization from scratch:
   E_fc < 0.3, E_dis < 5 mm, E_pen < 1 mm) applied to the evaluation's own energies, E_fc and
   E_dis with the contacts of one deterministic search for every method (``filter_E_fc``,
   ``filter_E_dis``: ``evaluation.filter_energy``). ``energy_threshold_pass_rate`` is the share of attempts
@@ -459,7 +459,7 @@ def per_object_rows(
 # Readable names for the method ids of metrics.csv; an id not listed here is shown by
 # ``method_label``'s fallback (words of the id, "+ post-optimization" for a ``_post`` suffix).
 METHOD_LABELS = {
-    "seed": "Optimization from scratch (seed grasps)",
+    "optimization": "Optimization from scratch",
     "cvae_raw": "CVAE samples, raw",
     "cvae_post": "CVAE samples + post-optimization",
     "random_post": "Random start + post-optimization",

@@ -2,7 +2,7 @@
 
 Methods (rows of ``metrics.csv``), each read from the pipeline's own outputs:
 
-- ``seed``         seed optimization from scratch (the reference), ``results/seed/shard_*.zarr``;
+- ``optimization`` optimization from scratch (the reference), ``results/optimized/shard_*.zarr``;
 - ``cvae_raw``     raw CVAE samples, ``results/sample/shard_*.zarr`` rows with method ``cvae_raw``;
 - ``cvae_post``    CVAE samples after post-optimization, ``results/post/shard_*.zarr``;
 - ``random_post``  random initialization + the same post-optimization budget,
@@ -22,7 +22,7 @@ on the same source rows (same objects and scales; raw and refined: the same samp
 A chosen grasp with an unusable pose or scale is not simulated but stays in the set as a
 failure (``invalid_reason``), so emitting NaN poses cannot raise a method's rate.
 
-Equal filtering: every method is drawn from all its attempts (the seed method too: all its
+Equal filtering: every method is drawn from all its attempts (the optimization method too: all its
 optimized grasps, not only those its synthesis flagged as passing) and reported twice, per
 attempt and after one energy filter: the simulate step computes every grasp's filter energies
 with one contact search (``evaluation.filter_energy``), the aggregate step applies
@@ -47,7 +47,7 @@ import numpy as np
 from dexlite_pipeline.config import from_section
 from dexlite_pipeline.io.grasp_store import GraspSet, invalid_grasp_reasons
 from dexlite_pipeline.evaluation import metrics
-from dexlite_pipeline.evaluation.config import LADDER_RUNGS, DiversityConfig, EvaluateConfig, SeedProtocolConfig
+from dexlite_pipeline.evaluation.config import LADDER_RUNGS, DiversityConfig, EvaluateConfig, WriteupProtocolConfig, draw_label
 from dexlite_pipeline.evaluation.step_keys import with_evaluate_keys
 
 log = logging.getLogger(__name__)
@@ -69,7 +69,7 @@ PAIRED_DRAW = "sampled_rows"  # name of the draw these methods share
 SELECTED_ARRAYS = ("hand_pose", "object_id", "scale")
 BUDGET_POSES = "budget_hand_pose"  # (N, S, 28) post-optimized poses after each budget iteration (post stores)
 TABLE_DEPTH = "table_depth_mm"  # deepest hand point below the object's table in its resting pose (mm; both modes)
-SEED_PROTOCOL_SUCCESS = "seed_protocol_lift_success"  # lift success under ``evaluate.seed_protocol``'s physics
+WRITEUP_PROTOCOL_SUCCESS = "writeup_protocol_lift_success"  # lift success under ``evaluate.writeup_protocol``'s physics
 BUDGET_SUCCESS = "budget_lift_success"  # (N, S) lift success of those poses (1/0; NaN where a method has none)
 CONVERGENCE_COLUMNS = (
     "threshold_reached_fraction", "threshold_iteration_median", "E_post_median_initial", "E_post_median_final",
@@ -147,7 +147,7 @@ def select_grasps(
     reasons = invalid_grasp_reasons(grasps)
     candidate = np.isin(splits, list(cfg.splits_of(method)))
     if sample_rows is None:
-        keys, draw = np.arange(len(grasps)), method
+        keys, draw = np.arange(len(grasps)), draw_label(method)  # a frozen label for a renamed method
     else:
         keys, draw = np.asarray(sample_rows, dtype=np.int64), PAIRED_DRAW
         if keys.shape != (len(grasps),):
@@ -182,7 +182,7 @@ def method_grasps(method: str, sources: Sequence[GraspSet]) -> GraspSet:
     The sample (and post) stores hold both pure syntheses on held-out objects (``method ==
     cvae_raw``) and dataset expansion on train objects; only the former are the
     ``cvae_raw`` method, and their refined versions the ``cvae_post`` method. Every method
-    keeps all its attempts: the seed method's grasps that its synthesis flagged as failing
+    keeps all its attempts: the optimization method's grasps that its synthesis flagged as failing
     the thresholds too (the equal filter is applied later, to every method alike).
     """
     parts = []
@@ -237,14 +237,14 @@ def stage_seconds_per_grasp(method: str, sources: Mapping[str, Sequence[GraspSet
     """Seconds per attempt of each stage that made a method's grasps (grasp-weighted over shards).
 
     Each store records its stage's wall seconds per grasp it made (``seconds_per_grasp``):
-    seed synthesis per optimized grasp (passing or not), sampling per sampled row (model
+    optimization from scratch per optimized grasp (passing or not), sampling per sampled row (model
     loading and every kind of row in the shard included), post-optimization per refined
     grasp. Those stages run as one-thread jobs (``SHARD_THREADS``), so on a CPU run these are
     CPU-seconds (an upper bound when the core is shared). Not included: training, object
     preparation, the evaluation's energies (the filter) and its simulation. DexGraspNet's
     imported grasps carry no cost.
     """
-    stages = {"seed": ("seed",), "random_post": ("random_post",), "dexgraspnet": ()}
+    stages = {"optimization": ("optimized",), "random_post": ("random_post",), "dexgraspnet": ()}
     stages.update({m: ("sample",) if stage == "sample" else ("sample", "post") for m, (_, stage) in SAMPLED_METHODS.items()})
     out = {}
     for stage in stages[method]:
@@ -264,7 +264,7 @@ def simulate(
     device: str,
     threads: int,
     energy_batch_size: int,
-    seed_protocol: SeedProtocolConfig | None = None,
+    writeup_protocol: WriteupProtocolConfig | None = None,
     support_planes=None,
 ) -> GraspSet:
     """Energies, the equal filter's energies (``evaluation.filter_energy``) and lift (+ six-direction) results for every
@@ -272,7 +272,7 @@ def simulate(
 
     Invalid grasps (``invalid_reason``) pass through both with NaN results and a failed
     lift; the seconds per grasp are per simulated (valid) grasp. ``support_planes`` (tabletop
-    mode): every lift test (and the seed protocol's) runs with each object on its table.
+    mode): every lift test (and the write-up's protocol's) runs with each object on its table.
     """
     from dexlite_pipeline.energy.per_grasp import evaluate_grasp_energies
     from dexlite_pipeline.evaluation.filter_energy import filter_energy_arrays
@@ -296,11 +296,11 @@ def simulate(
     lifted.pop("table_depth_mm", None)  # measured for every mode by the caller (energy.table_clearance.grasp_table_depths)
     arrays.update(lifted)
     lift_s = time.perf_counter() - start
-    if seed_protocol is not None and seed_protocol.enabled:
-        lenient = dataclasses.replace(lift_cfg, **seed_protocol.lift_overrides())
+    if writeup_protocol is not None and writeup_protocol.enabled:
+        lenient = dataclasses.replace(lift_cfg, **writeup_protocol.lift_overrides())
         log.info("lift test of %d grasps under the write-up's protocol (friction %g, +%g rad, ratio %g)", len(selected),
                  lenient.friction, lenient.preclose_rad, lenient.success_lift_ratio)
-        arrays[SEED_PROTOCOL_SUCCESS] = run_lift_tests(selected, objects_dirs, lenient, threads, support_planes=support_planes)["lift_success"]
+        arrays[WRITEUP_PROTOCOL_SUCCESS] = run_lift_tests(selected, objects_dirs, lenient, threads, support_planes=support_planes)["lift_success"]
     attrs = dict(selected.attrs)
     attrs["energy_seconds_per_grasp"] = energy_s / simulated_count
     attrs["simulation_seconds_per_grasp"] = lift_s / simulated_count
@@ -431,11 +431,11 @@ def metrics_tables(
                 values = values[np.isfinite(values)]
                 statistic = np.mean if name == "fit_joint_error_rad" else np.median
                 row[f"{name}_{'mean' if statistic is np.mean else 'median'}"] = float(statistic(values)) if len(values) else math.nan
-            if SEED_PROTOCOL_SUCCESS in subset:
-                lenient = np.asarray(subset[SEED_PROTOCOL_SUCCESS], dtype=bool)
+            if WRITEUP_PROTOCOL_SUCCESS in subset:
+                lenient = np.asarray(subset[WRITEUP_PROTOCOL_SUCCESS], dtype=bool)
                 low, high = metrics.wilson_interval(lenient)
-                row.update({"seed_protocol_lift_success_rate": metrics.rate(lenient), "seed_protocol_lift_success_ci95_low": low,
-                            "seed_protocol_lift_success_ci95_high": high})
+                row.update({"writeup_protocol_lift_success_rate": metrics.rate(lenient), "writeup_protocol_lift_success_ci95_low": low,
+                            "writeup_protocol_lift_success_ci95_high": high})
             row.update({name: convergence.get(method, {}).get(name, math.nan) for name in CONVERGENCE_COLUMNS})
             if TABLE_DEPTH in subset:  # tabletop reachability (both modes): held grasps with no hand point below the table
                 from dexlite_pipeline.tabletop import reachable_on_table

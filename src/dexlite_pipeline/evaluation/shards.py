@@ -126,7 +126,7 @@ def simulate_shard(
         for name, dtype in (("method", object), ("split", object), ("source_row", np.int64), ("sample_row", np.int64), ("invalid_reason", object)):
             selected_all.arrays[name] = np.zeros(0, dtype=dtype)
     device = resolve_device(device)
-    result = simulate(selected_all, objects_dirs, lift_cfg, energy_cfg, device, threads, cfg.energy_batch_size, cfg.seed_protocol, support_planes=table_planes)
+    result = simulate(selected_all, objects_dirs, lift_cfg, energy_cfg, device, threads, cfg.energy_batch_size, cfg.writeup_protocol, support_planes=table_planes)
     if planes is not None:
         result.arrays["table_depth_mm"] = grasp_table_depths(selected_all, planes) * 1000.0
     if scene.table:  # the table each grasp was tested on, so that a grasp is reproducible from the store (and pictured on it)

@@ -15,7 +15,7 @@ from collections.abc import Mapping, Sequence
 
 # evaluate --step simulate: which grasps are chosen and how they are measured
 SIMULATE_KEYS = (
-    "methods", "splits", "grasps_per_object", "ladder_grasps_per_object", "six_directions", "energy_batch_size", "seed_protocol",
+    "methods", "splits", "grasps_per_object", "ladder_grasps_per_object", "six_directions", "energy_batch_size", "writeup_protocol",
 )  # fmt: skip
 # evaluate --step aggregate: which rows metrics.csv has, how diversity is measured and the equal energy filter
 # (the aggregate step also reads the config section diversity: its rule tracks that section too)
@@ -31,10 +31,10 @@ def with_evaluate_keys(config: Mapping, keys: Sequence[str]) -> dict:
 
 
 # Grasp stores the evaluation reads: source -> its CLI option of ``dexlite evaluate``.
-SOURCE_OPTIONS = {"seed": "seed", "sample": "sample", "post": "post", "random_post": "random-post", "dexgraspnet": "dexgraspnet"}
+SOURCE_OPTIONS = {"optimized": "optimized", "sample": "sample", "post": "post", "random_post": "random-post", "dexgraspnet": "dexgraspnet"}
 # Method (row of metrics.csv) -> the store its grasps are read from.
 METHOD_SOURCES = {
-    "seed": "seed", "random_post": "random_post", "dexgraspnet": "dexgraspnet",
+    "optimization": "optimized", "random_post": "random_post", "dexgraspnet": "dexgraspnet",
     "cvae_raw": "sample", "cvae_recon": "sample", "cvae_prior_train": "sample",
     "cvae_post": "post", "cvae_recon_post": "post", "cvae_prior_train_post": "post",
     "shipped_raw": "sample", "shipped_post": "post",

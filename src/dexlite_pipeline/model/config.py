@@ -19,7 +19,7 @@ POSE_FRAMES = ("object", "point", "surface", "hand")
 
 @dataclass(frozen=True)
 class ModelConfig:
-    """Network sizes (the reference values are the seed's), the pose frame and PointNet's inputs."""
+    """Network sizes (the reference values are the write-up's), the pose frame and PointNet's inputs."""
 
     pointnet_widths: tuple[int, ...] = (64, 128, 1024, 256)
     encoder_hidden: tuple[int, ...] = (256, 512, 256)
@@ -62,7 +62,7 @@ LR_SCHEDULES = ("constant", "cosine")
 
 @dataclass(frozen=True)
 class TrainConfig:
-    """Config section ``train`` (two documented profiles: the default and ``config/profiles/seed_gpu.yaml``)."""
+    """Config section ``train`` (two documented profiles: the default and ``config/profiles/writeup_gpu.yaml``)."""
 
     profile: str = "default"
     epochs: int = 100000

@@ -194,7 +194,7 @@ def cloud_keys(object_id: np.ndarray, scale: np.ndarray) -> np.ndarray:
 
 
 def dataset_contacts(grasps: GraspSet) -> torch.Tensor:
-    """(G, 4) contact indices of ``grasps`` (seed synthesis stores them), rows of -1 where unknown."""
+    """(G, 4) contact indices of ``grasps`` (optimization from scratch stores them), rows of -1 where unknown."""
     contacts = grasps.arrays.get("contact_index")
     if contacts is None:
         return torch.full((len(grasps), 4), -1, dtype=torch.long)

@@ -26,7 +26,7 @@ Normalization: BatchNorm over the points of one cloud standardizes each cloud on
 own when a batch holds a single object, which erases the object's size and position
 (the features become invariant to them) and makes training statistics differ from
 the running ones used at sampling time. GroupNorm does the same per cloud in every
-mode. So BatchNorm (the seed's; ``config/profiles/seed_gpu.yaml``) needs several
+mode. So BatchNorm (the write-up's; ``config/profiles/writeup_gpu.yaml``) needs several
 clouds per batch (``train.clouds_per_batch`` >= 2, see ``training``) and its running
 statistics are used at sampling; the default profile trains one cloud per batch and
 uses ``"none"`` (no normalization).

@@ -29,7 +29,7 @@ log = logging.getLogger(__name__)
 
 
 def known_grasps(paths: list[str], object_ids: set[str]) -> GraspSet:
-    """Lift-successful grasps with finite poses of ``object_ids`` from the lift shards (the expansion seeds)."""
+    """Lift-successful grasps with finite poses of ``object_ids`` from the lift shards (the grasps to expand)."""
     sets = []
     for path in paths:
         grasps = read_grasp_store(path)
@@ -41,11 +41,11 @@ def known_grasps(paths: list[str], object_ids: set[str]) -> GraspSet:
     return GraspSet.concatenate(sets)
 
 
-def expansion_picks(seeds: GraspSet, per_object: int) -> np.ndarray:
-    """Rows of ``seeds`` to expand: ``per_object`` per object (sorted by id), cycling through its grasps in order."""
-    object_ids = sorted(set(seeds.object_id.tolist()))
+def expansion_picks(to_expand: GraspSet, per_object: int) -> np.ndarray:
+    """The rows of ``to_expand`` that are expanded: ``per_object`` per object (sorted by id), cycling through its grasps in order."""
+    object_ids = sorted(set(to_expand.object_id.tolist()))
     return np.concatenate([
-        np.flatnonzero(seeds.object_id == oid)[np.arange(per_object) % int((seeds.object_id == oid).sum())]
+        np.flatnonzero(to_expand.object_id == oid)[np.arange(per_object) % int((to_expand.object_id == oid).sum())]
         for oid in object_ids
     ]) if object_ids else np.zeros(0, np.int64)
 
@@ -54,7 +54,7 @@ def shard_targets(
     objects_dirs: list[str], stability_path: str, lift_paths: list[str], shard: int, shard_count: int, model_train_ids: set[str], ladder: bool
 ) -> tuple[list[str], GraspSet, list[str], dict[str, str]]:
     """What the shard samples on: its held-out objects, the known grasps of its training objects
-    (the expansion seeds), its training objects the model was fitted to (the ladder's, when
+    (the grasps to expand), its training objects the model was fitted to (the ladder's, when
     ``ladder``), and the objects that get nothing, with why."""
     from dexlite_pipeline.objects.assets import available_object_ids, object_splits
     from dexlite_pipeline.objects.stability import stable_object_ids
@@ -66,11 +66,11 @@ def shard_targets(
     skipped = {oid: "no prepared asset" for oid in ids if oid not in available}
     ids = [oid for oid in ids if oid in available]
     heldout = [oid for oid in ids if splits[oid] == "heldout"]
-    seeds = known_grasps(lift_paths, {oid for oid in ids if splits[oid] == "train"})
-    seeded = set(seeds.object_id.tolist())
-    skipped.update({oid: "training object without lift-validated grasps to expand" for oid in ids if splits[oid] == "train" and oid not in seeded})
+    to_expand = known_grasps(lift_paths, {oid for oid in ids if splits[oid] == "train"})
+    expandable = set(to_expand.object_id.tolist())
+    skipped.update({oid: "training object without lift-validated grasps to expand" for oid in ids if splits[oid] == "train" and oid not in expandable})
     ladder_ids = sorted(oid for oid in ids if splits[oid] == "train" and oid in model_train_ids) if ladder else []
-    return heldout, seeds, ladder_ids, skipped
+    return heldout, to_expand, ladder_ids, skipped
 
 
 def shipped_rows(shipped_path: str, heldout: list[str], clouds, settings, generator: torch.Generator, device) -> tuple:
@@ -119,11 +119,11 @@ def sample_shard(
     model, checkpoint = load_checkpoint(model_path, device)
     points, fixed_clouds = cloud_reading(checkpoint, settings.points_per_cloud)
 
-    heldout, seeds, ladder_ids, skipped = shard_targets(
+    heldout, to_expand, ladder_ids, skipped = shard_targets(
         objects_dirs, stability_path, lift_paths, shard, shards, set(checkpoint.get("train_object_ids") or []), settings.ladder
     )
-    seeded = set(seeds.object_id.tolist())
-    targets = sorted(set(heldout) | seeded | set(ladder_ids))
+    expandable = set(to_expand.object_id.tolist())
+    targets = sorted(set(heldout) | expandable | set(ladder_ids))
     generator = shard_generator("sample_grasps", seed, shard)
     started = time.perf_counter()
     parts: list[SampledRows] = []
@@ -132,12 +132,12 @@ def sample_shard(
         clouds = ObjectClouds([load_asset(objects_dirs, oid) for oid in targets], device)
         if heldout and settings.synthesis_grasps_per_object > 0:
             parts.append(synthesis_rows(model, clouds, heldout, settings, points, generator, fixed_clouds, SYNTHESIS))
-        if len(seeds) and settings.expansion_grasps_per_object > 0:
-            pick = expansion_picks(seeds, settings.expansion_grasps_per_object)
-            known = torch.as_tensor(seeds.hand_pose[pick], dtype=torch.float32, device=device)
+        if len(to_expand) and settings.expansion_grasps_per_object > 0:
+            pick = expansion_picks(to_expand, settings.expansion_grasps_per_object)
+            known = torch.as_tensor(to_expand.hand_pose[pick], dtype=torch.float32, device=device)
             origin, direction = grasp_rays(ShadowHand(device), known)
-            obj = np.array([clouds.index_of[o] for o in seeds.object_id[pick]])
-            scale = seeds.scale[pick].astype(np.float32)
+            obj = np.array([clouds.index_of[o] for o in to_expand.object_id[pick]])
+            scale = to_expand.scale[pick].astype(np.float32)
             move_point = torch.rand(len(pick), generator=generator) < settings.expansion_point_fraction
             pose = expand(model, clouds, known, origin, direction, obj, scale, move_point.to(device), settings, points, generator, fixed_clouds)
             methods = [EXPAND_POINT if m else EXPAND_LATENT for m in move_point.tolist()]
@@ -173,6 +173,6 @@ def sample_shard(
     }
     log.info(
         "shard %03d: %d grasps (%d synthesized on %d held-out objects, %d others on %d training objects) in %.2fs; skipped %d objects",
-        shard, count, rows.method.count(SYNTHESIS), len(heldout), count - rows.method.count(SYNTHESIS), len(seeded | set(ladder_ids)), seconds, len(skipped),
+        shard, count, rows.method.count(SYNTHESIS), len(heldout), count - rows.method.count(SYNTHESIS), len(expandable | set(ladder_ids)), seconds, len(skipped),
     )
     return GraspSet(arrays, {}), attrs

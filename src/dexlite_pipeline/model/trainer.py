@@ -27,7 +27,7 @@ log = logging.getLogger(__name__)
 def read_lift_shards(paths: list[str]) -> GraspSet:
     """All lift shards as one set (only the arrays training needs, so shards may differ in extras).
 
-    ``contact_index`` (the contacts seed synthesis made) is kept for seed grasps and set to
+    ``contact_index`` (the contacts their optimization from scratch chose) is kept for optimized grasps and set to
     -1 for imported ones, so the loss searches contacts for those: an imported grasp's
     ``contact_index`` is the four pads nearest the surface that curation scored it at, not
     contacts it was made with.

@@ -49,7 +49,7 @@ def grasp_energy_terms(energy: GraspEnergy, contact_samples: int = 0, seed: int 
     """The loss's energy terms from ``GraspEnergy`` at contacts chosen for each decoded pose.
 
     A grasp of the dataset that carries its contacts (``contact_index``: the four pads
-    seed synthesis scored it at) is scored at those: the loss then asks the decoded pose
+    its optimization from scratch scored it at) is scored at those: the loss then asks the decoded pose
     to be that grasp, touching where it touched, and a faithful reconstruction scores
     what the grasp scored (E_fc < 0.3 for curated grasps).
     Otherwise (imported grasps; rows of -1) contacts are chosen without gradient and held

@@ -1,4 +1,4 @@
-"""The annealed RMSProp-style grasp optimizer (seed synthesis and post-optimization).
+"""The annealed RMSProp-style grasp optimizer (optimization from scratch and post-optimization).
 
 Importing the package is light (``optim.config`` is a leaf of the config tree): import the
 optimizer from ``optim.annealing``, the start poses from ``optim.init``."""

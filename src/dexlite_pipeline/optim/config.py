@@ -1,9 +1,9 @@
-"""The optimizer's config types: the annealing schedule, the start poses, sections ``seed_grasps`` and ``post_optimize``.
+"""The optimizer's config types: the annealing schedule, the start poses, sections ``optimize_grasps`` and ``post_optimize``.
 
 A leaf of the config tree (``settings``): it imports no optimizer code, so a stage's code hash
 (``codehash``) covers these shapes without the computation. ``AnnealingSchedule`` is the one
-schedule type (``seed_grasps.annealing``, ``post_optimize.annealing``) and ``InitConfig`` the one
-start type (``seed_grasps.init``, ``post_optimize.random_init``).
+schedule type (``optimize_grasps.annealing``, ``post_optimize.annealing``) and ``InitConfig`` the one
+start type (``optimize_grasps.init``, ``post_optimize.random_init``).
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ from dexlite_pipeline.energy.config import EnergyThresholds, EnergyWeights
 
 @dataclass(frozen=True)
 class AnnealingSchedule:
-    """The annealing schedule: step size, temperature and their decay (config ``seed_grasps.annealing``,
+    """The annealing schedule: step size, temperature and their decay (config ``optimize_grasps.annealing``,
     ``post_optimize.annealing``). Defaults: DexGraspNet's constants (6000 steps from scratch)."""
 
     iterations: int = 6000
@@ -61,14 +61,14 @@ class InitConfig:
     joint_sigma_fraction: float = 0.1  # joint noise σ as a fraction of the joint range
 
 
-# The default seed-synthesis schedule: DexGraspNet's shortened to 2000 steps from 0.1-0.15 m, its
+# The default from-scratch schedule: DexGraspNet's shortened to 2000 steps from 0.1-0.15 m, its
 # periods scaled to match (why: docs/results.md); DexGraspNet's own is config/profiles/dexgraspnet_schedule.yaml.
-SEED_SCHEDULE = AnnealingSchedule(iterations=2000, step_size_period=17, temperature_period=10)
+FROM_SCRATCH_SCHEDULE = AnnealingSchedule(iterations=2000, step_size_period=17, temperature_period=10)
 
 
 @dataclass(frozen=True)
-class SeedConfig:
-    """Config section ``seed_grasps``."""
+class OptimizeGraspsConfig:
+    """Config section ``optimize_grasps``."""
 
     grasps_per_object: int = 32  # starts per object and scale
     scales: tuple[float, ...] = (0.08, 0.1, 0.12)  # object scales, about the object radius in metres
@@ -76,7 +76,7 @@ class SeedConfig:
     progress_every: int = 100  # iterations between progress lines in the log
     thresholds: EnergyThresholds = field(default_factory=EnergyThresholds)
     init: InitConfig = field(default_factory=lambda: InitConfig(distance_m=(0.1, 0.15)))
-    annealing: AnnealingSchedule = SEED_SCHEDULE
+    annealing: AnnealingSchedule = FROM_SCRATCH_SCHEDULE
     trace_every: int = 10  # iterations between rows of the energy trace
     final_contact_samples: int = 1024  # contact sets searched per grasp after the last step (0: off, DexGraspNet)
     contact_search_every: int = 100  # also search every this many iterations (0: only after the last step)
@@ -96,7 +96,7 @@ POST_SCHEDULE = AnnealingSchedule(iterations=200)
 
 @dataclass(frozen=True)
 class PostOptimizeConfig:
-    """Config section ``post_optimize`` (the seed's post-optimization)."""
+    """Config section ``post_optimize`` (the write-up's post-optimization)."""
 
     annealing: AnnealingSchedule = POST_SCHEDULE  # the random starts' schedule (DexGraspNet's, 200 steps)
     energy_weights: EnergyWeights = field(default_factory=EnergyWeights)  # E_post = Σ weight · term

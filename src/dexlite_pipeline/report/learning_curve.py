@@ -12,7 +12,7 @@ from __future__ import annotations
 
 CURVE_METHODS = ("cvae_raw", "cvae_post")
 # Methods that do not depend on the model (read from the run, drawn as bands): label, colour.
-BASELINES = {"random_post": ("random init + post", "grey"), "seed": ("optimization from scratch", "tab:green")}
+BASELINES = {"random_post": ("random init + post", "grey"), "optimization": ("optimization from scratch", "tab:green")}
 
 
 def _steps(table):

@@ -15,6 +15,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
+from dexlite_pipeline.evaluation.config import draw_label
 from dexlite_pipeline.evaluation.metrics import invalid_flags, method_label
 from dexlite_pipeline.io.grasp_store import GraspSet
 from dexlite_pipeline.report.inputs import ReportInputs
@@ -28,14 +29,15 @@ def pick_examples(simulated: GraspSet, method: str, count: int, seed: int = 0) -
     """Up to ``count`` lift successes and ``count`` lift failures of a method (rows, success flag), drawn at random.
 
     Drawn uniformly without replacement among the method's pictureable grasps of each
-    outcome by a generator seeded with ``seed`` and the method's name, so a page shows
+    outcome by a generator seeded with ``seed`` and the method's name (its frozen old name for a
+    renamed method, ``evaluation.config.draw_label``), so a page shows
     typical grasps, not hand-picked ones, and the same inputs give the same pictures.
     Invalid grasps (no usable pose, not simulated) are not pictured.
     """
     methods = np.asarray([str(m) for m in simulated.arrays["method"]])
     success = np.asarray(simulated.arrays.get("lift_success", np.zeros(len(simulated), bool)), dtype=bool)
     picturable = ~invalid_flags(simulated.arrays)
-    rng = np.random.default_rng([int(seed) & 0xFFFFFFFF, zlib.crc32(method.encode())])
+    rng = np.random.default_rng([int(seed) & 0xFFFFFFFF, zlib.crc32(draw_label(method).encode())])
     picks = []
     for outcome in (True, False):
         rows = np.nonzero((methods == method) & (success == outcome) & picturable)[0]

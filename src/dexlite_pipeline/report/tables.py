@@ -27,7 +27,7 @@ TABLE_COLUMNS = (
     "filtered_distinct_held_per_attempt", "filtered_surface_coverage_mean", "seconds_per_grasp", "cpu_seconds_per_held_grasp",
     "cpu_seconds_per_distinct_held_grasp", "filtered_cpu_seconds_per_held_grasp", "filtered_cpu_seconds_per_distinct_held_grasp",
     "E_post_median_initial", "E_post_median_final", "iterations_to_random_final_E_post", "threshold_reached_fraction", "convergence_ratio",
-    "seed_protocol_lift_success_rate", "seed_protocol_lift_success_ci95_low", "seed_protocol_lift_success_ci95_high",
+    "writeup_protocol_lift_success_rate", "writeup_protocol_lift_success_ci95_low", "writeup_protocol_lift_success_ci95_high",
     "fit_rotation_error_deg_median", "fit_translation_error_mm_median", "fit_joint_error_rad_mean",
 )  # fmt: skip
 # Readable headers of the ladder's own columns (the fit rung's pose errors against the grasps it reconstructs).
@@ -36,9 +36,9 @@ LADDER_COLUMN_LABELS = {
     "fit_translation_error_mm_median": "palm position error (mm, median)",
     "fit_joint_error_rad_mean": "joint error (rad, mean)",
 }
-LENIENT = "seed_protocol_lift_success"  # the same grasps under the DexLite write-up's (Murali) more lenient lift test (evaluate.seed_protocol)
+LENIENT = "writeup_protocol_lift_success"  # the same grasps under the DexLite write-up's (Murali) more lenient lift test (evaluate.writeup_protocol)
 # The methods of the main comparison, in the order the compact table lists them.
-HEADLINE_METHODS = ("cvae_post", "random_post", "cvae_raw", "shipped_post", "shipped_raw", "seed", "dexgraspnet")
+HEADLINE_METHODS = ("cvae_post", "random_post", "cvae_raw", "shipped_post", "shipped_raw", "optimization", "dexgraspnet")
 HEADLINE_METHOD = "cvae_post"  # the pipeline's product: the sentence leads with it when present
 RUNG_ORDER = ("fit", "in_distribution", "heldout")
 # Within a rung: each kind of start raw, then post-optimized; the random-start baseline last.
@@ -134,7 +134,7 @@ def _grasps_cell(row) -> str:
 
 
 def has_lenient(frame) -> bool:
-    """Whether the rows carry the lift rate under the write-up's lenient test (evaluate.seed_protocol)."""
+    """Whether the rows carry the lift rate under the write-up's lenient test (evaluate.writeup_protocol)."""
     column = f"{LENIENT}_rate"
     return frame is not None and column in frame.columns and np.isfinite(frame[column].astype(float)).any()
 

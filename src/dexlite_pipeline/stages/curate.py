@@ -1,4 +1,4 @@
-"""``dexlite curate``: filter seed (and imported DexGraspNet) grasps into training data.
+"""``dexlite curate``: filter optimized (and imported DexGraspNet) grasps into training data.
 
 Two steps, so that each shard is one job and the summary one small job:
 
@@ -16,7 +16,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--step", choices=("curate", "aggregate"), required=True)
     parser.add_argument("--config-json", default="{}", help="config section curate, and for imported grasps device, shards and energy, as JSON")
     parser.add_argument("--shard", type=int, default=None, help="curate: shard index (selects the imported objects of this shard)")
-    parser.add_argument("--seed-grasps", action="append", default=[], help="curate: seed grasp store(s) of this shard (repeatable)")
+    parser.add_argument("--optimized-grasps", action="append", default=[], help="curate: optimized grasp store(s) of this shard (repeatable)")
     parser.add_argument("--imported", default=None, help="curate: imported DexGraspNet grasp store (all objects; this shard's are used)")
     parser.add_argument("--stability", action="append", default=[], help="curate: stability table(s) (.parquet, repeatable)")
     parser.add_argument("--objects", action="append", default=[], help="curate: prepared objects dir(s) with catalogs (repeatable)")
@@ -41,11 +41,11 @@ def run(args: argparse.Namespace) -> int:
         return 0
     if args.shard is None or not args.out or not args.summary_out:
         raise ValueError("--step curate needs --shard, --out and --summary-out")
-    if not args.seed_grasps and not args.imported:
-        raise ValueError("--step curate needs --seed-grasps and/or --imported")
+    if not args.optimized_grasps and not args.imported:
+        raise ValueError("--step curate needs --optimized-grasps and/or --imported")
     config = stage_config(args.config_json)
     kept, attrs, summary = curate_shard(
-        args.seed_grasps, args.imported, args.stability, args.objects, args.shard, shards=config.shards, curate=config.curate,
+        args.optimized_grasps, args.imported, args.stability, args.objects, args.shard, shards=config.shards, curate=config.curate,
         energy=config.energy, scene=config.scene, device=config.device, threads=args.threads or 1,
     )
     write_grasp_store(args.out, kept, attrs)

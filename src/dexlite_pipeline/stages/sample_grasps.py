@@ -16,7 +16,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         "(rows shipped_raw; default: sample.shipped_model, \"\" = none)")
     parser.add_argument("--objects", action="append", required=True, help="prepared objects dir with catalog.parquet (repeatable)")
     parser.add_argument("--stability", required=True, help="stability.parquet of the stability_filter stage")
-    parser.add_argument("--lift", action="append", default=[], help="lift-validated grasp shard, the expansion seeds (repeatable)")
+    parser.add_argument("--lift", action="append", default=[], help="lift-validated grasp shard, the grasps to expand (repeatable)")
     parser.add_argument("--shard", required=True, type=int, help="shard number, e.g. 000")
     parser.add_argument("--out", required=True, help="output grasp store (.zarr)")
 

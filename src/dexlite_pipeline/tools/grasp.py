@@ -12,7 +12,7 @@ Steps (each logs its progress):
    ``units``), or with ``resize_to_training`` at the training scales (object radius 8-12 cm):
    with a trained model (``cvae.pt``), CVAE samples refined by post-optimization (config
    sections ``sample`` and ``post_optimize``); without one, energy optimization from scratch
-   (section ``seed_grasps``, the pipeline's seed synthesis);
+   (section ``optimize_grasps``, the pipeline's optimization from scratch);
 3. lift test and six-direction test of every grasp with the ``lift`` section's constants
    (the pipeline's physics, unchanged);
 4. with a model and ``min_distinct`` > 0, the top-up: each object whose model grasps gave
@@ -297,22 +297,22 @@ def _balanced_rows(per_scale: int, scale_count: int, wanted: int) -> np.ndarray:
 
 
 def synthesize_from_scratch(assets, scales: dict, n: int, config, device, seed: int, support_planes=None):
-    """``n`` grasps per object by energy optimization from convex-hull starts (section ``seed_grasps``)."""
+    """``n`` grasps per object by energy optimization from convex-hull starts (section ``optimize_grasps``)."""
     from dexlite_pipeline.io.grasp_store import GraspSet
-    from dexlite_pipeline.optim.seed import synthesize
+    from dexlite_pipeline.optim.from_scratch import synthesize
 
-    generator = shard_generator("seed_grasps", seed, 0)
+    generator = shard_generator("optimize_grasps", seed, 0)
     parts = []
     for number, asset in enumerate(assets, start=1):
         object_scales = scales[asset.object_id]
         per_scale = -(-n // len(object_scales))
-        seed_config = dataclasses.replace(config.seed_grasps, grasps_per_object=per_scale, scales=object_scales)
+        optimize_config = dataclasses.replace(config.optimize_grasps, grasps_per_object=per_scale, scales=object_scales)
         log.info("object %d/%d %s: optimizing %d grasps, %d iterations", number, len(assets), asset.object_id,
-                 per_scale * len(object_scales), seed_config.annealing.iterations)
-        grasps, _ = synthesize([asset], seed_config, config.energy, generator, device, support_planes=support_planes)
+                 per_scale * len(object_scales), optimize_config.annealing.iterations)
+        grasps, _ = synthesize([asset], optimize_config, config.energy, generator, device, support_planes=support_planes)
         parts.append(grasps.select(_balanced_rows(per_scale, len(object_scales), n)))
     grasps = GraspSet.concatenate(parts)
-    grasps.arrays["method"] = np.full(len(grasps), "seed", dtype=object)
+    grasps.arrays["method"] = np.full(len(grasps), "optimization", dtype=object)
     return grasps
 
 
@@ -759,7 +759,7 @@ def run_grasp_tool(request: GraspRequest) -> GraspOutcome:
     def optimized(chosen, times_key: str):
         """``n`` grasps per chosen object by optimization from scratch: ``--from-scratch`` and the top-up alike."""
         t = time.perf_counter()
-        grasps = synthesize_from_scratch(chosen, object_scales(chosen, request, config.seed_grasps.scales), request.grasps_per_object, config,
+        grasps = synthesize_from_scratch(chosen, object_scales(chosen, request, config.optimize_grasps.scales), request.grasps_per_object, config,
                                          checked.device, config.seed, planes)  # fmt: skip
         times[times_key] = time.perf_counter() - t
         return grasps

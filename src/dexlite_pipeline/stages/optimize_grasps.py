@@ -1,11 +1,11 @@
-"""Stage ``seed_grasps`` (one shard): synthesize grasps from scratch for this shard's stable objects.
+"""Stage ``optimize_grasps`` (one shard): optimize grasps from scratch for this shard's stable objects.
 
 Objects: every object of the catalog(s) with status ok that the stability table marks
 stable (train and held-out alike), dealt to shards by ``sharding.shard_objects``. Writes
 ``--out`` (grasp store) with every energy term, ``passes_energy_thresholds``, the initial
 pose and the optimizer's acceptance rate per grasp; attributes hold the config,
 ``seconds_per_grasp``, the pass fraction and any object that could not be used, with its
-reason (``optim.seed_shard``).
+reason (``optim.from_scratch_shard``).
 """
 
 from __future__ import annotations
@@ -13,11 +13,11 @@ from __future__ import annotations
 import argparse
 import logging
 
-log = logging.getLogger("dexlite.seed_grasps")
+log = logging.getLogger("dexlite.optimize_grasps")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--config-json", required=True, help="config sections seed, device, shards, energy, scene, seed_grasps (canonical JSON)")
+    parser.add_argument("--config-json", required=True, help="config sections seed, device, shards, energy, scene, optimize_grasps (canonical JSON)")
     parser.add_argument("--shard", required=True, type=int, help="shard number, e.g. 000")
     parser.add_argument("--stability", required=True, help="stability table (.parquet)")
     parser.add_argument("--objects", action="append", required=True, help="prepared objects dir with catalog.parquet (repeatable)")
@@ -26,12 +26,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from dexlite_pipeline.io.grasp_store import write_grasp_store
-    from dexlite_pipeline.optim.seed_shard import seed_shard
+    from dexlite_pipeline.optim.from_scratch_shard import optimize_shard
     from dexlite_pipeline.settings import stage_config
 
     config = stage_config(args.config_json)
-    grasps, attrs = seed_shard(
-        args.objects, args.stability, args.shard, shards=config.shards, seed_grasps=config.seed_grasps, energy=config.energy,
+    grasps, attrs = optimize_shard(
+        args.objects, args.stability, args.shard, shards=config.shards, optimize_grasps=config.optimize_grasps, energy=config.energy,
         scene=config.scene, seed=config.seed, device=config.device,
     )
     write_grasp_store(args.out, grasps, attrs)

@@ -1,4 +1,4 @@
-"""Seed synthesis: optimize grasps from scratch for a group of objects (one shard).
+"""Optimization from scratch: grasps for a group of objects (one shard) by annealed energy optimization.
 
 Every (object, scale) gets ``grasps_per_object`` starts on the inflated convex hull; all
 grasps of the shard are optimized together in batches of ``batch_size`` (one batch mixes
@@ -8,7 +8,7 @@ objects, so the CPU runs few, large steps). Each grasp keeps every energy term a
 The default schedule (config.yaml) is DexGraspNet's compressed to 2,000 iterations (step
 size and temperature decaying every 17 and 10 iterations), starting 0.1-0.15 m out, with a
 contact search every 100 iterations: of the schedules measured it keeps the most
-threshold-passing grasps per CPU hour (docs/results.md, "Seed synthesis schedule").
+threshold-passing grasps per CPU hour (docs/results.md, the schedule comparison on machine A).
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ from dexlite_pipeline.hand.model import ShadowHand
 from dexlite_pipeline.io.grasp_store import GraspSet
 from dexlite_pipeline.objects.assets import ObjectAsset
 from dexlite_pipeline.optim.annealing import optimize
-from dexlite_pipeline.optim.config import SeedConfig
+from dexlite_pipeline.optim.config import OptimizeGraspsConfig
 from dexlite_pipeline.optim.init import HullSampler, initial_poses
 from dexlite_pipeline.tabletop import store_arrays
 
@@ -33,7 +33,7 @@ log = logging.getLogger(__name__)
 
 def synthesize(
     assets: list[ObjectAsset],
-    config: SeedConfig,
+    config: OptimizeGraspsConfig,
     energy_config: EnergyConfig,
     generator: torch.Generator,
     device: torch.device | str = "cpu",

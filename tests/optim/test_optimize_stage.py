@@ -1,4 +1,4 @@
-"""The seed_grasps stage end to end on two tiny objects: output schema, thresholds flag, determinism."""
+"""The optimize_grasps stage end to end on two tiny objects: output schema, thresholds flag, determinism."""
 
 from __future__ import annotations
 
@@ -18,7 +18,7 @@ CONFIG = {
     "device": "cpu",
     "shards": 1,
     "energy": {"object_points": 300},
-    "seed_grasps": {
+    "optimize_grasps": {
         "grasps_per_object": 3,
         "scales": [0.08, 0.1],
         "batch_size": 8,
@@ -42,11 +42,11 @@ def stability(optim_objects, tmp_path_factory):
 
 
 def _run(objects, stability, out, config=CONFIG) -> int:
-    return main(["seed-grasps", "--config-json", json.dumps(config), "--shard", "000", "--stability", str(stability),
+    return main(["optimize-grasps", "--config-json", json.dumps(config), "--shard", "000", "--stability", str(stability),
                  "--objects", str(objects), "--out", str(out), "--threads", "1"])
 
 
-def test_seed_stage_writes_every_term_and_is_deterministic(optim_objects, stability, tmp_path, caplog):
+def test_optimize_stage_writes_every_term_and_is_deterministic(optim_objects, stability, tmp_path, caplog):
     caplog.set_level("INFO")
     assert _run(optim_objects, stability, tmp_path / "a.zarr") == 0
     grasps = read_grasp_store(tmp_path / "a.zarr")
@@ -59,7 +59,7 @@ def test_seed_stage_writes_every_term_and_is_deterministic(optim_objects, stabil
     assert np.array_equal(flag, EnergyThresholds().passes(grasps.arrays))
     attrs = grasps.attrs
     assert attrs["seconds_per_grasp"] > 0 and attrs["objects"] == ["box"]
-    assert attrs["config"]["seed_grasps"]["annealing"]["iterations"] == 10
+    assert attrs["config"]["optimize_grasps"]["annealing"]["iterations"] == 10
     assert any("iteration 5/10" in r.getMessage() for r in caplog.records)
 
     assert _run(optim_objects, stability, tmp_path / "b.zarr") == 0
@@ -68,7 +68,7 @@ def test_seed_stage_writes_every_term_and_is_deterministic(optim_objects, stabil
     assert np.array_equal(again.arrays["contact_index"], grasps.arrays["contact_index"])
 
 
-def test_seed_stage_missing_stability_table_is_a_clear_error(optim_objects, tmp_path, capsys):
+def test_optimize_stage_missing_stability_table_is_a_clear_error(optim_objects, tmp_path, capsys):
     assert _run(optim_objects, tmp_path / "none.parquet", tmp_path / "c.zarr") == 2
     assert "none.parquet" in capsys.readouterr().err
     assert not (tmp_path / "c.zarr").exists()
@@ -99,7 +99,7 @@ def test_damaged_asset_is_recorded_and_the_other_objects_synthesized(optim_objec
     assert list(grasps.attrs["failed_objects"]) == ["box"] and "arrays.zarr" in grasps.attrs["failed_objects"]["box"]
 
 
-def test_seed_stage_catalog_without_status_column_is_a_clear_error(optim_objects, stability, tmp_path, capsys):
+def test_optimize_stage_catalog_without_status_column_is_a_clear_error(optim_objects, stability, tmp_path, capsys):
     objects = tmp_path / "objects"
     shutil.copytree(optim_objects, objects)
     pd.read_parquet(objects / "catalog.parquet").drop(columns="status").to_parquet(objects / "catalog.parquet")
@@ -108,7 +108,7 @@ def test_seed_stage_catalog_without_status_column_is_a_clear_error(optim_objects
     assert "catalog.parquet" in error and "status" in error and len(error.strip().splitlines()) == 1
 
 
-def test_tabletop_seed_grasps_start_above_the_table_and_record_it(optim_objects, stability, tmp_path):
+def test_tabletop_optimized_grasps_start_above_the_table_and_record_it(optim_objects, stability, tmp_path):
     """Tabletop mode (the default): every start's palm is above the box's table, E_table is in the
     energy and stored, and each grasp records its support plane; the store records the mode."""
     from dexlite_pipeline.energy.table_clearance import HandTableClearance

@@ -1,8 +1,8 @@
-"""Seed synthesis for one shard of objects: the ``seed_grasps`` stage's work.
+"""Optimization from scratch for one shard of objects: the ``optimize_grasps`` stage's work.
 
 The stable, prepared objects are dealt to shards (``sharding.shard_objects``); objects whose
 asset cannot be used, or whose SDF grid differs from the shard's, are recorded with their
-reason; the rest get grasps from ``optim.seed.synthesize``.
+reason; the rest get grasps from ``optim.from_scratch.synthesize``.
 """
 
 from __future__ import annotations
@@ -14,18 +14,18 @@ import numpy as np
 
 from dexlite_pipeline.energy.grasp_energy import TERM_NAMES
 from dexlite_pipeline.io.grasp_store import GraspSet
-from dexlite_pipeline.optim.seed import synthesize
+from dexlite_pipeline.optim.from_scratch import synthesize
 from dexlite_pipeline.tabletop import load_support_planes, store_arrays, store_attrs
 
 if TYPE_CHECKING:
     from dexlite_pipeline.energy.config import EnergyConfig
-    from dexlite_pipeline.optim.config import SeedConfig
+    from dexlite_pipeline.optim.config import OptimizeGraspsConfig
     from dexlite_pipeline.sim.config import SceneConfig
 
 log = logging.getLogger(__name__)
 
 
-def empty_seed_grasps(table: bool = False) -> GraspSet:
+def empty_optimized_grasps(table: bool = False) -> GraspSet:
     """A zero-row shard with every array ``synthesize`` writes (dtypes and trailing shapes alike; ``table``: tabletop mode's too).
 
     A shard without usable objects must still carry the energy arrays: curation keeps only
@@ -47,13 +47,13 @@ def empty_seed_grasps(table: bool = False) -> GraspSet:
     return grasps
 
 
-def seed_shard(
-    objects_dirs: list[str], stability_path: str, shard: int, *, shards: int, seed_grasps: SeedConfig, energy: EnergyConfig,
+def optimize_shard(
+    objects_dirs: list[str], stability_path: str, shard: int, *, shards: int, optimize_grasps: OptimizeGraspsConfig, energy: EnergyConfig,
     scene: SceneConfig, seed: int, device: str,
 ) -> tuple[GraspSet, dict]:
-    """Seed grasps of one shard: the stable, prepared objects dealt to ``shard`` of ``shards`` (train and held-out).
+    """Optimized grasps of one shard: the stable, prepared objects dealt to ``shard`` of ``shards`` (train and held-out).
 
-    The config sections it reads come as arguments: ``seed_grasps``, ``energy``, ``scene``, and the
+    The config sections it reads come as arguments: ``optimize_grasps``, ``energy``, ``scene``, and the
     top-level ``seed`` and ``device``.
 
     Returns the grasps and the store attributes: the settings used (with the scene mode), the objects
@@ -67,7 +67,7 @@ def seed_shard(
     from dexlite_pipeline.objects.stability import stable_object_ids
     from dexlite_pipeline.sharding import shard_generator, shard_objects
 
-    settings = seed_grasps
+    settings = optimize_grasps
     device = resolve_device(device)
     object_ids = shard_objects(sorted(ok_object_ids(objects_dirs) & stable_object_ids(stability_path)), shard, shards)
     planes = load_support_planes(scene.table, stability_path)
@@ -90,14 +90,14 @@ def seed_shard(
         settings.annealing.iterations, device,
     )
     if assets:
-        grasps, stats = synthesize(assets, settings, energy, shard_generator("seed_grasps", seed, shard), device, support_planes=planes)
+        grasps, stats = synthesize(assets, settings, energy, shard_generator("optimize_grasps", seed, shard), device, support_planes=planes)
     else:
-        grasps, stats = empty_seed_grasps(planes is not None), {"grasps": 0, "passing": 0, "pass_fraction": 0.0, "seconds": 0.0, "seconds_per_grasp": 0.0}
+        grasps, stats = empty_optimized_grasps(planes is not None), {"grasps": 0, "passing": 0, "pass_fraction": 0.0, "seconds": 0.0, "seconds_per_grasp": 0.0}
     attrs = {
-        "stage": "seed_grasps",
+        "stage": "optimize_grasps",
         "shard": f"{shard:03d}",
         "seed": seed,
-        "config": {"seed_grasps": json_ready(settings), "energy": json_ready(energy), "scene": json_ready(scene)},
+        "config": {"optimize_grasps": json_ready(settings), "energy": json_ready(energy), "scene": json_ready(scene)},
         **store_attrs(scene.table),
         "objects": [a.object_id for a in assets],
         "failed_objects": failed,
