@@ -96,7 +96,7 @@ def test_view_of_a_failed_grasp_names_the_reason():
     # dexlite grasp's stores say which synthesis made each grasp, in place of the pipeline's method name
     sourced = {**arrays, "method": np.array(["optimization"], dtype=object), "source": np.array(["optimization"], dtype=object)}
     assert grasp_label(sourced, 0) == "from the optimization · mug (scale 0.100 m) · not held: initial penetration"
-    assert grasp_label({**arrays, "method": sourced["method"]}, 0).startswith("seed · mug")
+    assert grasp_label({**arrays, "method": sourced["method"]}, 0).startswith("optimization · mug")
 
 
 def test_view_size_stays_small_per_grasp(tmp_path, tiny_objects):
