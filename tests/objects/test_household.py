@@ -201,10 +201,10 @@ def test_household_objects_pass_preparation_and_the_stability_test(tmp_path):
 
 
 def test_renaming_clashing_ids_keeps_the_real_radius():
-    from dexlite_pipeline.objects.sources import MeshSource, _make_ids_unique
+    from dexlite_pipeline.objects.sources import MeshSource, make_ids_unique
 
     clashing = [MeshSource("user-mug", "user", f"/tmp/{d}/mug.obj", real_radius_m=0.08) for d in ("a", "b")]
-    renamed = _make_ids_unique(clashing)
+    renamed = make_ids_unique(clashing)
     assert len({s.object_id for s in renamed}) == 2 and all(s.real_radius_m == 0.08 for s in renamed)
 
 

@@ -158,13 +158,17 @@ def folder_sources(folders, heldout: bool) -> list[MeshSource]:
             raise ObjectSourceError(f"{key}: folder {str(folder)!r} does not exist")
         if not path.is_dir():
             raise ObjectSourceError(f"{folder}: not a folder (objects mesh dirs must be folders of .obj/.stl files)")
-        files = sorted(p for p in path.iterdir() if p.is_file() and p.suffix.lower() in MESH_SUFFIXES)
-        source = "user_heldout" if heldout else "user"
-        found += [MeshSource(f"user-{_safe_name(p.stem)}", source, str(p), always_heldout=heldout) for p in files]
+        found += user_mesh_sources(sorted(p for p in path.iterdir() if p.is_file() and p.suffix.lower() in MESH_SUFFIXES), heldout)
     return found
 
 
-def _make_ids_unique(sources: list[MeshSource]) -> list[MeshSource]:
+def user_mesh_sources(files, heldout: bool = False) -> list[MeshSource]:
+    """One source per mesh file, id ``user-<file stem>`` (characters outside [A-Za-z0-9_.-] become ``_``)."""
+    source = "user_heldout" if heldout else "user"
+    return [MeshSource(f"user-{_safe_name(Path(f).stem)}", source, str(f), always_heldout=heldout) for f in files]
+
+
+def make_ids_unique(sources: list[MeshSource]) -> list[MeshSource]:
     """Give sources sharing an id a suffix from a hash of their file path (stable, order-free)."""
     counts: dict[str, int] = {}
     for s in sources:
@@ -290,4 +294,4 @@ def collect_sources(
     drawn = {s.object_id for s in builtin}
     builtin += [s for s in benchmark_sources(benchmark_objects) if s.object_id not in drawn]
     household = household_sources(household_count, household_benchmark_objects, household_dir)
-    return _make_ids_unique(builtin + household + list(user.values()))
+    return make_ids_unique(builtin + household + list(user.values()))

@@ -145,7 +145,7 @@ def tool_config(overlay: dict):
 
 def mesh_sources(paths: list[str]):
     """One ``MeshSource`` per mesh file given, or per .obj/.stl file directly inside a folder given."""
-    from dexlite_pipeline.objects.sources import MESH_SUFFIXES, MeshSource, _make_ids_unique, _safe_name
+    from dexlite_pipeline.objects.sources import MESH_SUFFIXES, make_ids_unique, user_mesh_sources
 
     files: list[Path] = []
     for text in paths:
@@ -162,7 +162,7 @@ def mesh_sources(paths: list[str]):
         else:
             raise GraspToolError(f"{text}: no such file or folder")
     unique = list(dict.fromkeys(p.resolve() for p in files))
-    return _make_ids_unique([MeshSource(f"user-{_safe_name(p.stem)}", "user", str(p)) for p in unique])
+    return make_ids_unique(user_mesh_sources(unique))
 
 
 def _cm(metres: float) -> str:
