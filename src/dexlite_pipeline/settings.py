@@ -26,6 +26,7 @@ from dexlite_pipeline.energy.config import EnergyConfig
 from dexlite_pipeline.evaluation.config import EvaluateConfig
 from dexlite_pipeline.evaluation.diversity import DiversityConfig
 from dexlite_pipeline.io.config import DexGraspNetConfig
+from dexlite_pipeline.loop.config import LoopConfig
 from dexlite_pipeline.model.config import SampleConfig, TrainConfig
 from dexlite_pipeline.objects.config import ObjectsConfig, StabilityConfig
 from dexlite_pipeline.optim.config import PostOptimizeConfig, SeedConfig
@@ -52,6 +53,7 @@ class PipelineConfig:
     sample: SampleConfig = field(default_factory=SampleConfig)
     post_optimize: PostOptimizeConfig = field(default_factory=PostOptimizeConfig)
     seed_grasps: SeedConfig = field(default_factory=SeedConfig)
+    loop: LoopConfig = field(default_factory=LoopConfig)
 
 
 def build_config(mapping: dict | None, where: str = "config") -> PipelineConfig:
