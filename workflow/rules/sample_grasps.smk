@@ -19,7 +19,7 @@ def shipped_model_input(wildcards):
 rule sample_grasps:
     input:
         unpack(shipped_model_input),
-        model=f"{RESULTS}/model/cvae.pt",
+        model=final_model(),  # the data loop's last model (train_cvae's without the loop)
         stability=f"{RESULTS}/stability/stability.parquet",
         lift=expand(f"{RESULTS}/lift/shard_{{shard}}.zarr", shard=SHARDS),
         catalog=f"{RESULTS}/objects/catalog.parquet",
