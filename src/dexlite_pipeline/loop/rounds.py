@@ -176,7 +176,8 @@ def validate_round(
         arrays[name] = np.full(n, np.nan, np.float32)
     for name, values in found.items():
         arrays[name][rows] = values
-    passing = filter_flags({"hand_pose": post.hand_pose, **arrays}, thresholds.limits())
+    refined_pen = np.asarray(arrays.get("E_pen", np.full(n, np.nan)), np.float64)  # absent when no row was refined
+    passing = filter_flags({"hand_pose": post.hand_pose, **arrays, "E_pen": refined_pen}, thresholds.limits())
     reason[(reason == "") & ~passing] = ENERGY_FILTER
     rows = np.flatnonzero(optimized if simulate_all else reason == "")
     lift = dataclasses.replace(lift, six_directions=six_directions)
