@@ -71,6 +71,8 @@ TINY_OVERRIDES: dict = {
     "sample": {"synthesis_grasps_per_object": 4, "expansion_grasps_per_object": 2},
     "post_optimize": {"annealing": {"iterations": 8}, "batch_size": 64, "energy_object_points": 64},
     "evaluate": {"grasps_per_object": 2, "rendered_per_method": 1, "pca_components": [1, 2]},
+    # two rounds of the data loop (config.yaml's default count), each as small as it gets
+    "loop": {"rounds": 2, "grasps_per_object": 3, "train_steps": 3, "heldout_grasps_per_object": 2},
 }
 
 # Every rule gets one thread in the tests: two shards run side by side on two cores, and a
