@@ -33,7 +33,7 @@ RESULTS = "results"
 LOGS = "logs"
 SHARDS = [f"{i:03d}" for i in range(int(config["shards"]))]
 # Rounds of the data loop (workflow/rules/loop.smk; 0 = none: the workflow without it).
-LOOP_ROUNDS = int(config.get("loop", {}).get("rounds", 0))
+LOOP_ROUNDS = int(config["loop"]["rounds"])
 # Threads of a sharded stage's job: one, so that `--cores` shards run side by side.
 SHARD_THREADS = 1
 # The conda environment every rule declares; used only with `--sdm conda` (see README).

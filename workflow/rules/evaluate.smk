@@ -92,6 +92,9 @@ rule evaluate:
 
 # The shipped model's learning curve, shown in the report when the checkout has it.
 LEARNING_CURVE = Path(workflow.basedir) / "docs" / "learning_curve.csv"
+# The data loop's table, shown in the report when the run has rounds; with loop.rounds 0 the rule's
+# inputs, params and command are exactly those of the workflow without the loop.
+REPORT_LOOP_OPTION = "--loop {input.loop} " if LOOP_ROUNDS else ""
 
 
 rule report:
@@ -115,7 +118,6 @@ rule report:
         sims=lambda wc, input: learning_cli_options("sim", input.sims),
         objects=learning_cli_options("objects", learning_objects_dirs()),
         curve=lambda wc, input: f"--learning-curve {shlex.quote(input.learning_curve)}" if "learning_curve" in input.keys() else "",
-        loop=lambda wc, input: f"--loop {input.loop}" if "loop" in input.keys() else "",
         benchmarks=f"{LOGS}/benchmarks",  # the jobs' benchmark files: the run's wall time at the top of the report
     conda:
         CONDA_ENV
@@ -126,4 +128,4 @@ rule report:
     shell:
         "dexlite report --config-json {params.cfg:q} --metrics {input.metrics} --per-object {input.per_object} "
         "--convergence {input.convergence} --budget {input.budget} --record {input.record} {params.sims} --history {input.history} "
-        "{params.objects} {params.curve} {params.loop} --benchmarks {params.benchmarks} --out {output} > {log} 2>&1"
+        "{params.objects} {params.curve} " + REPORT_LOOP_OPTION + "--benchmarks {params.benchmarks} --out {output} > {log} 2>&1"
