@@ -108,7 +108,7 @@ rule loop_validate:
         f"{LOGS}/benchmarks/loop_validate_{{round}}_{{part}}_{{shard}}.tsv"
     shell:
         "dexlite loop-validate --config-json {params.cfg:q} --grasps {input.grasps} --stability {input.stability} {params.objects} "
-        "--part {wildcards.part} --out {output} --threads {threads} > {log} 2>&1"
+        "--round {wildcards.round} --part {wildcards.part} --shard {wildcards.shard} --out {output} --threads {threads} > {log} 2>&1"
 
 
 rule loop_merge:

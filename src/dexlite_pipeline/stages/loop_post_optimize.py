@@ -8,16 +8,12 @@ from __future__ import annotations
 
 import argparse
 
+from dexlite_pipeline.loop.stage_options import add_round_shard_arguments
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--config-json", required=True, help="config sections seed, device, post_optimize, scene and energy.self_penetration_margin_m (JSON)")
-    parser.add_argument("--stability", help="stability table with the objects' resting poses (needed in tabletop mode, scene.table)")
     parser.add_argument("--sample", required=True, help="the round's sampled grasp shard (loop_sample output)")
-    parser.add_argument("--objects", action="append", required=True, help="prepared objects dir (repeatable)")
-    parser.add_argument("--round", required=True, type=int, help="the loop round")
-    parser.add_argument("--part", required=True, choices=("train", "heldout"), help="the objects sampled on: training or held-out")
-    parser.add_argument("--shard", required=True, type=int, help="shard number, e.g. 000")
-    parser.add_argument("--out", required=True, help="refined grasp store (.zarr)")
+    add_round_shard_arguments(parser, "seed, device, post_optimize, scene and energy.self_penetration_margin_m", "refined grasp store (.zarr)")
 
 
 def run(args: argparse.Namespace) -> int:

@@ -9,16 +9,12 @@ from __future__ import annotations
 
 import argparse
 
+from dexlite_pipeline.loop.stage_options import add_round_shard_arguments
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--config-json", required=True, help="config sections seed, device, shards, sample and loop (JSON)")
     parser.add_argument("--model", required=True, help="the model to sample from (cvae.pt)")
-    parser.add_argument("--objects", action="append", required=True, help="prepared objects dir with catalog.parquet (repeatable)")
-    parser.add_argument("--stability", required=True, help="stability.parquet of the stability_filter stage")
-    parser.add_argument("--round", required=True, type=int, help="the loop round, 0, 1, ...")
-    parser.add_argument("--part", required=True, choices=("train", "heldout"), help="the objects sampled on: training or held-out")
-    parser.add_argument("--shard", required=True, type=int, help="shard number, e.g. 000")
-    parser.add_argument("--out", required=True, help="output grasp store (.zarr)")
+    add_round_shard_arguments(parser, "seed, device, shards, sample and loop", "output grasp store (.zarr)")
 
 
 def run(args: argparse.Namespace) -> int:

@@ -9,14 +9,12 @@ from __future__ import annotations
 
 import argparse
 
+from dexlite_pipeline.loop.stage_options import add_round_shard_arguments
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--config-json", required=True, help="config sections device, curate.thresholds, energy.weights, lift, scene and loop (JSON)")
     parser.add_argument("--grasps", required=True, help="the round's refined grasp shard (loop_post_optimize output)")
-    parser.add_argument("--stability", help="stability table with the objects' resting poses (needed in tabletop mode, scene.table)")
-    parser.add_argument("--objects", action="append", required=True, help="prepared objects dir (repeatable)")
-    parser.add_argument("--part", required=True, choices=("train", "heldout"), help="the objects sampled on: training or held-out")
-    parser.add_argument("--out", required=True, help="validated grasp store (.zarr)")
+    add_round_shard_arguments(parser, "device, curate.thresholds, energy.weights, lift, scene and loop.six_directions", "validated grasp store (.zarr)")
 
 
 def run(args: argparse.Namespace) -> int:
