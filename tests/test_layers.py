@@ -33,6 +33,7 @@ LAYERS = (
     ("model", ("model",)),  # trainer reads curation's origin labels
     ("optim", ("optim",)),  # post-optimization refines the model's samples (model.methods)
     ("evaluation", ("evaluation",)),
+    ("loop", ("loop",)),  # the data loop's rounds: sampling, refinement, checks and training of the components below
     ("settings", ("settings",)),  # the typed config tree over every component's config module
     ("report", ("report",)),
     ("stages and tools", ("stages", "tools")),

@@ -24,6 +24,7 @@ from dexlite_pipeline.curation.config import CurateConfig
 from dexlite_pipeline.energy.config import EnergyConfig
 from dexlite_pipeline.evaluation.config import DiversityConfig, EvaluateConfig
 from dexlite_pipeline.io.config import DexGraspNetConfig
+from dexlite_pipeline.loop.config import LoopConfig
 from dexlite_pipeline.model.config import SampleConfig, TrainConfig
 from dexlite_pipeline.objects.config import ObjectsConfig, StabilityConfig
 from dexlite_pipeline.optim.config import OptimizeGraspsConfig, PostOptimizeConfig
@@ -50,6 +51,7 @@ class PipelineConfig:
     sample: SampleConfig = field(default_factory=SampleConfig)
     post_optimize: PostOptimizeConfig = field(default_factory=PostOptimizeConfig)
     optimize_grasps: OptimizeGraspsConfig = field(default_factory=OptimizeGraspsConfig)
+    loop: LoopConfig = field(default_factory=LoopConfig)
 
 
 def build_config(mapping: dict | None, where: str = "config") -> PipelineConfig:

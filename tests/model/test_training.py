@@ -1,5 +1,7 @@
 """Training: the loss falls on a handful of grasps, runs are deterministic, checkpoints round-trip."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 import torch
@@ -59,6 +61,23 @@ def test_training_is_deterministic_for_a_seed(setup, small_model_config):
         assert torch.equal(a, b)
     other = train_cvae(data, train, val, config, energy_terms, seed=6)
     assert other.history[-1]["train_total"] != runs[0].history[-1]["train_total"]
+
+
+def test_a_warm_start_goes_on_from_the_given_model(setup, small_model_config):
+    grasps, data, energy_terms = setup
+    everything, none = np.arange(len(grasps)), np.zeros(0, np.int64)
+    config = _config(small_model_config, epochs=40, rotation_augmentation=False)
+    first = train_cvae(data, everything, none, config, energy_terms, seed=0)
+    start_loss = first.history[-1]["train_recon"]
+    short = _config(small_model_config, epochs=1, rotation_augmentation=False)
+    warm = train_cvae(data, everything, none, short, energy_terms, seed=1, initial_model=first.model)
+    cold = train_cvae(data, everything, none, short, energy_terms, seed=1)
+    assert warm.model is first.model  # trained on in place
+    assert warm.history[0]["train_recon"] < 0.5 * cold.history[0]["train_recon"]
+    assert warm.history[0]["train_recon"] < 3 * start_loss
+    other = _config(dataclasses.replace(small_model_config, latent_dim=small_model_config.latent_dim + 1), epochs=1)
+    with pytest.raises(ValueError, match="warm start"):
+        train_cvae(data, everything, none, other, energy_terms, seed=1, initial_model=first.model)
 
 
 def test_step_budget_ends_training_mid_epoch(setup, small_model_config):

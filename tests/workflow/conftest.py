@@ -40,7 +40,8 @@ def complete_run(frozen_checkout, tmp_path_factory) -> CompletedRun:
     config = tiny_config(write_tiny_meshes(tmp_path_factory.mktemp("tiny_meshes")))
     write_config(workdir, config)
     start = time.monotonic()
-    run_snakemake(workdir, *local_run_args(), "all")
+    # ~60 jobs with the data loop's two rounds: ~5 CPU-minutes, far longer on a shared machine (the guard is against a hang)
+    run_snakemake(workdir, *local_run_args(), "all", timeout_s=1800)
     seconds = time.monotonic() - start
     return CompletedRun(workdir=workdir, config=config, graph=rule_graph(workdir), seconds=seconds)
 

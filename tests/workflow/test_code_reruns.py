@@ -35,22 +35,29 @@ class CodeEdit:
     not_planned: frozenset[str]  # stages the edit cannot affect
 
 
+# The data loop's stages (loop.smk) all import loop.rounds, which imports what any round step needs
+# (sampling, the lift test, training's shard reader), so an edit of those changes every loop stage's hash.
+LOOP_STAGES = frozenset({
+    "loop_initial_set", "loop_sample", "loop_post_optimize", "loop_validate", "loop_merge", "loop_train", "loop_summary", "loop_table",
+})  # fmt: skip
+
 EDITS = {
-    # the network: training and sampling run it; the plan is training onwards
+    # the network: training and sampling run it (and the loop's stages); the plan is training onwards,
+    # and the loop's round 0 set, whose stage imports the training's shard reader
     "network": CodeEdit(
-        "model/network.py", frozenset({"train_cvae", "sample_grasps"}), frozenset({"train_cvae"}),
+        "model/network.py", frozenset({"train_cvae", "sample_grasps"}) | LOOP_STAGES, frozenset({"train_cvae", "loop_initial_set"}),
         UPSTREAM_OF_LIFT | {"lift_validate"},
     ),
     # the lift test: lift validation and the evaluation's simulation (and the report, which
-    # reads the evaluation's protocol) run it; nothing before lift validation reruns
+    # reads the evaluation's protocol) run it, and the loop's validation; nothing before lift validation reruns
     "lift test": CodeEdit(
-        "sim/lift.py", frozenset({"lift_validate", "evaluate_simulate", "evaluate", "report"}), frozenset({"lift_validate"}),
+        "sim/lift.py", frozenset({"lift_validate", "evaluate_simulate", "evaluate", "report"}) | LOOP_STAGES, frozenset({"lift_validate"}),
         UPSTREAM_OF_LIFT,
     ),
-    # the optimizer: optimization from scratch and post-optimization run it; preparation and stability do not
+    # the optimizer: optimization from scratch and post-optimization (the loop's too) run it; preparation and stability do not
     "optimizer": CodeEdit(
-        "optim/annealing.py", frozenset({"optimize_grasps", "post_optimize"}), frozenset({"optimize_grasps", "post_optimize"}),
-        frozenset({"prepare_objects", "stability_filter", "import_dexgraspnet"}),
+        "optim/annealing.py", frozenset({"optimize_grasps", "post_optimize", "loop_post_optimize"}),
+        frozenset({"optimize_grasps", "post_optimize", "loop_post_optimize"}), frozenset({"prepare_objects", "stability_filter", "import_dexgraspnet"}),
     ),
 }
 

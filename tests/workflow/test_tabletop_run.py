@@ -10,7 +10,10 @@ from workflow_harness import downstream, planned_commands, planned_rules, run_sn
 pytestmark = pytest.mark.slow
 
 # The rules whose params carry section `scene` (docs/design.md, "Tabletop mode").
-SCENE_RULES = {"optimize_grasps", "curate", "lift_validate", "train_cvae", "post_optimize", "evaluate_simulate", "report"}
+SCENE_RULES = {
+    "optimize_grasps", "curate", "lift_validate", "train_cvae", "post_optimize", "evaluate_simulate", "report",
+    "loop_post_optimize", "loop_validate", "loop_train",  # the data loop's rounds, on each object's table
+}  # fmt: skip
 BEFORE_OPTIMIZATION = {"prepare_objects", "stability_filter", "import_dexgraspnet"}
 
 

@@ -56,7 +56,7 @@ TINY_OVERRIDES: dict = {
     "curate": {"max_grasps_per_object": 4},
     "energy": {"object_points": 256},
     "train": {
-        "max_steps": 6,
+        "max_steps": 300,  # ~15 CPU s: a model that proposes grasps the data loop can refine into grasps that hold
         "batch_size": 8,
         "points_per_cloud": 64,
         "energy_object_points": 64,
@@ -69,8 +69,11 @@ TINY_OVERRIDES: dict = {
         },
     },
     "sample": {"synthesis_grasps_per_object": 4, "expansion_grasps_per_object": 2},
-    "post_optimize": {"annealing": {"iterations": 8}, "batch_size": 64, "energy_object_points": 64},
+    # 128 steps (the default: 200): with 8, no sampled grasp of the tiny model came below the energy thresholds
+    "post_optimize": {"annealing": {"iterations": 128}, "batch_size": 64, "energy_object_points": 64},
     "evaluate": {"grasps_per_object": 2, "rendered_per_method": 1, "pca_components": [1, 2]},
+    # two rounds of the data loop (config.yaml's default count), small, yet large enough that some grasp is kept
+    "loop": {"rounds": 2, "grasps_per_object": 8, "train_steps": 20, "heldout_grasps_per_object": 2},
 }
 
 # Every rule gets one thread in the tests: two shards run side by side on two cores, and a

@@ -32,6 +32,8 @@ validate(config, str(SCHEMA_PATH))
 RESULTS = "results"
 LOGS = "logs"
 SHARDS = [f"{i:03d}" for i in range(int(config["shards"]))]
+# Rounds of the data loop (workflow/rules/loop.smk; 0 = none: the workflow without it).
+LOOP_ROUNDS = int(config["loop"]["rounds"])
 # Threads of a sharded stage's job: one, so that `--cores` shards run side by side.
 SHARD_THREADS = 1
 # The conda environment every rule declares; used only with `--sdm conda` (see README).
@@ -125,10 +127,20 @@ def dexgraspnet_files(wildcards):
     return [str(path) for path in [*grasp_files, *meshes] if path.is_file()]
 
 
+def round_model(round_number):
+    """The model of data-loop round ``round_number``: round 0's is train_cvae's, round r's loop_train's."""
+    return f"{RESULTS}/model/cvae.pt" if int(round_number) == 0 else f"{RESULTS}/round_{int(round_number)}/model/cvae.pt"
+
+
+def final_model():
+    """The model the evaluation's cvae_* rows sample from: the last round's (train_cvae's without the loop)."""
+    return round_model(LOOP_ROUNDS)
+
+
 def final_outputs():
     """The final products: object catalog, stability table, curation summary, lift-validated
-    shards, the trained model, post-optimized shards (with the random-init baseline) and
-    the evaluation (metrics, per-object table, report)."""
+    shards, the trained model, post-optimized shards (with the random-init baseline), the
+    evaluation (metrics, per-object table, report) and, with the data loop, its table."""
     return [
         f"{RESULTS}/objects/catalog.parquet",
         f"{RESULTS}/stability/stability.parquet",
@@ -141,6 +153,7 @@ def final_outputs():
         f"{RESULTS}/eval/metrics.csv",
         f"{RESULTS}/eval/per_object.csv",
         f"{RESULTS}/eval/report.html",
+        *([f"{RESULTS}/loop.csv"] if LOOP_ROUNDS else []),
     ]
 
 

@@ -92,11 +92,15 @@ rule evaluate:
 
 # The shipped model's learning curve, shown in the report when the checkout has it.
 LEARNING_CURVE = Path(workflow.basedir) / "docs" / "learning_curve.csv"
+# The data loop's table, shown in the report when the run has rounds; with loop.rounds 0 the rule's
+# inputs, params and command are exactly those of the workflow without the loop.
+REPORT_LOOP_OPTION = "--loop {input.loop} " if LOOP_ROUNDS else ""
 
 
 rule report:
     input:
         unpack(lambda wc: {"learning_curve": str(LEARNING_CURVE)} if LEARNING_CURVE.is_file() else {}),
+        unpack(lambda wc: {"loop": f"{RESULTS}/loop.csv"} if LOOP_ROUNDS else {}),
         metrics=f"{RESULTS}/eval/metrics.csv",
         per_object=f"{RESULTS}/eval/per_object.csv",
         convergence=f"{RESULTS}/eval/convergence.csv",
@@ -108,7 +112,8 @@ rule report:
         f"{RESULTS}/eval/report.html",
     threads: 1
     params:
-        cfg=stage_params(*sorted(config)),  # the whole config: the report shows it (last stage, so nothing else reruns)
+        # the whole config: the report shows it (last stage, so nothing else reruns); a loop of no rounds is not shown
+        cfg=stage_params(*sorted(section for section in config if section != "loop" or LOOP_ROUNDS)),
         code=code_hash("report"),
         sims=lambda wc, input: learning_cli_options("sim", input.sims),
         objects=learning_cli_options("objects", learning_objects_dirs()),
@@ -123,4 +128,4 @@ rule report:
     shell:
         "dexlite report --config-json {params.cfg:q} --metrics {input.metrics} --per-object {input.per_object} "
         "--convergence {input.convergence} --budget {input.budget} --record {input.record} {params.sims} --history {input.history} "
-        "{params.objects} {params.curve} --benchmarks {params.benchmarks} --out {output} > {log} 2>&1"
+        "{params.objects} {params.curve} " + REPORT_LOOP_OPTION + "--benchmarks {params.benchmarks} --out {output} > {log} 2>&1"

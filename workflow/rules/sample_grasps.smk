@@ -19,8 +19,9 @@ def shipped_model_input(wildcards):
 rule sample_grasps:
     input:
         unpack(shipped_model_input),
-        model=f"{RESULTS}/model/cvae.pt",
+        model=final_model(),  # the data loop's last model (train_cvae's without the loop)
         stability=f"{RESULTS}/stability/stability.parquet",
+        # the expansion's seeds: the lift-validated grasps, with or without the data loop (docs/design.md, "The data loop")
         lift=expand(f"{RESULTS}/lift/shard_{{shard}}.zarr", shard=SHARDS),
         catalog=f"{RESULTS}/objects/catalog.parquet",
     output:

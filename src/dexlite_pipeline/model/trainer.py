@@ -82,7 +82,7 @@ def _log_epoch(row: dict) -> None:
 
 def train_from_lift_shards(
     lift_paths: list[str], objects_dirs: list[str], *, train: TrainConfig, self_penetration_margin_m: float, table: bool, seed: int, device: str,
-    stability_path: str | None = None,
+    stability_path: str | None = None, initial_model_path: str | None = None,
 ) -> TrainedModel:
     """Train on the lift-successful grasps of the training objects in ``lift_paths``.
 
@@ -90,6 +90,7 @@ def train_from_lift_shards(
     The config it reads comes as arguments: section ``train``, ``energy.self_penetration_margin_m`` (m),
     ``scene.table`` (``table``), and the top-level ``seed`` and ``device``. In tabletop mode the loss's energy knows each object's table (resting poses
     from ``stability_path``) and E_table is a loss term with weight ``train.energy_weights.table``.
+    ``initial_model_path``: a model file to go on training (warm start) instead of a fresh model.
     """
     from dexlite_pipeline.tabletop import load_support_planes
 
@@ -127,7 +128,14 @@ def train_from_lift_shards(
     )
     train_index, val_index = split_validation(len(grasps), settings.validation_fraction, seed)
     energy_terms = grasp_energy_terms(energy, settings.contact_samples, seed)
-    result = train_cvae(data, train_index, val_index, settings, energy_terms, seed, on_epoch=_log_epoch, table=planes is not None)
+    initial_model = None
+    if initial_model_path is not None:
+        from dexlite_pipeline.model.checkpoint import load_checkpoint
+
+        initial_model = load_checkpoint(initial_model_path, device)[0]
+    result = train_cvae(
+        data, train_index, val_index, settings, energy_terms, seed, on_epoch=_log_epoch, table=planes is not None, initial_model=initial_model
+    )
     fit = fit_training_codes(result.model, data, train_index, settings)
     log.info(
         "fit rung (encoder-mean reconstructions of the %d training grasps): median palm rotation error %.2f deg, "

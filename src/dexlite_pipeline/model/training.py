@@ -172,14 +172,19 @@ def train_cvae(
     seed: int,
     on_epoch: Callable[[dict], None] | None = None,
     table: bool = False,
+    initial_model: GraspCVAE | None = None,
 ) -> TrainingResult:
-    """Train a fresh model; returns it with one history row per epoch (train and validation means).
+    """Train a fresh model, or go on training ``initial_model`` (a warm start: the data loop's rounds); returns it
+    with one history row per epoch (train and validation means).
 
     ``table`` (tabletop mode; ``energy_terms`` built on an energy with tables): E_table is a loss term too.
+    The optimizer and learning-rate schedule start afresh either way.
     """
     device = data.pose_features.device
     torch.manual_seed(seed)
-    model = GraspCVAE(config.model).to(device)
+    if initial_model is not None and initial_model.config != config.model:
+        raise ValueError(f"warm start: the model's network config {initial_model.config} differs from train.model {config.model}")
+    model = GraspCVAE(config.model).to(device) if initial_model is None else initial_model.to(device)
     optimizer = torch.optim.Adam(model.parameters(), lr=config.learning_rate)
     weights = config.weights(table)
     batch_rng = np.random.default_rng(seed)

@@ -31,6 +31,7 @@ class ReportInputs:
     seed: int = 0  # seeds the random choice of pictured grasps
     learning_curve: object | None = None  # the shipped model's learning curve (docs/learning_curve.csv; optional)
     run_facts: Sequence[tuple[str, str]] = ()  # (label, value): report date, code commit, wall time, machine (report.run_facts)
+    data_loop: object | None = None  # the data loop's table, a row per round (results/loop.csv; optional)
 
 
 @dataclass(frozen=True)
@@ -50,10 +51,12 @@ class EvaluationFiles:
 
 
 def load_report_inputs(files: EvaluationFiles, sim_paths: list[str], history_path: str | None, objects_dirs: list[str],
-                       config: dict, page_path: str, learning_curve_path: str | None = None, benchmarks_dir: str | None = None) -> ReportInputs:
+                       config: dict, page_path: str, learning_curve_path: str | None = None, benchmarks_dir: str | None = None,
+                       loop_path: str | None = None) -> ReportInputs:
     """Everything the page shows, read from the evaluation's files; CSV links relative to the page's folder.
 
-    ``benchmarks_dir``: the run's job benchmark files (logs/benchmarks), for the wall time at the top.
+    ``benchmarks_dir``: the run's job benchmark files (logs/benchmarks), for the wall time at the top;
+    ``loop_path``: the data loop's table (results/loop.csv), when the run had the loop.
     """
     import json
     import os
@@ -88,4 +91,5 @@ def load_report_inputs(files: EvaluationFiles, sim_paths: list[str], history_pat
         budget=budget,
         learning_curve=pd.read_csv(learning_curve_path) if learning_curve_path else None,
         run_facts=run_facts(config, benchmarks_dir),
+        data_loop=pd.read_csv(loop_path) if loop_path else None,
     )

@@ -254,6 +254,34 @@ def learning_curve_html(curve) -> str:
     )
 
 
+DATA_LOOP_COLUMNS = {
+    "round": "round", "grasps_per_object": "grasps / training object", "distinct_per_object": "distinct / training object",
+    "distinct_min": "fewest distinct", "objects_without_grasps": "objects without grasps", "kept": "new kept", "sampled": "sampled",
+    "cpu_minutes": "CPU min", "heldout_lift_success": "held-out lift", "heldout_six_dir_success": "held-out six pushes",
+    "heldout_distinct_per_object": "distinct held / held-out object",
+}  # fmt: skip
+
+
+def data_loop_html(table) -> str:
+    """The data loop's rounds: the training set's growth, what each round cost and how its model does on held-out objects."""
+    shown = table.assign(cpu_minutes=table["cpu_seconds"] / 60.0)
+    reasons = [c for c in ("not_optimized", "energy_filter", "lift_test", "six_directions", "duplicate") if c in shown.columns]
+    shown = shown.assign(dropped=[", ".join(f"{r} {int(row[r])}" for r in reasons if row[r]) or "–" for _, row in shown.iterrows()])
+    columns = {**DATA_LOOP_COLUMNS, "dropped": "dropped (why)"}
+    body = shown[[c for c in columns if c in shown.columns]].rename(columns=columns).to_html(
+        index=False, float_format=lambda v: f"{v:.3g}", na_rep="–"
+    )
+    return (
+        "<h2>Data loop</h2><p class='note'>Round 0 is the model trained on the pipeline's own grasps; each later round samples "
+        "grasps on every training object with the previous round's model (debiased associated points), post-optimizes them, keeps "
+        "those that pass the energy filter, the lift test and the six pushes and are new distinct grasps (2 cm / 30°), and trains "
+        "the next model on the grown set, warm-started. Held-out columns: a small check of each round's model on the held-out "
+        "objects (sampled, post-optimized, lift-tested; per attempt), not the evaluation above, which uses the last round's model. "
+        "CPU minutes: the round's jobs (round 0: made by the stages before the loop). Per object: results/round_&lt;r&gt;/summary.csv.</p>"
+        + body
+    )
+
+
 def build_report_html(inputs: ReportInputs) -> str:
     """The whole page as a string."""
     headline = headline_rows(inputs.metrics)
@@ -281,6 +309,8 @@ def build_report_html(inputs: ReportInputs) -> str:
         sections.append(f"<h2>{html.escape(title)}</h2>" + (img_tag(image, title) if image else "<p>Not available in this run.</p>"))
         if title.startswith("Post-optimization convergence"):
             sections.append(convergence_note(inputs.metrics, inputs.convergence))
+    if inputs.data_loop is not None and len(inputs.data_loop):
+        sections.append(data_loop_html(inputs.data_loop))
     if inputs.learning_curve is not None and len(inputs.learning_curve):
         sections.append(learning_curve_html(inputs.learning_curve))
     ref_rows = "".join(f"<tr><td>{html.escape(a)}</td><td>{html.escape(b)}</td><td>{html.escape(c)}</td></tr>" for a, b, c in REFERENCE_ROWS)

@@ -24,6 +24,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--history", default=None, help="CVAE training history CSV (optional)")
     parser.add_argument("--objects", action="append", default=[], help="prepared objects dir (repeatable), for the pictures")
     parser.add_argument("--learning-curve", default=None, help="the shipped model's learning curve (docs/learning_curve.csv; optional)")
+    parser.add_argument("--loop", default=None, help="the data loop's table (results/loop.csv; optional): the \"Data loop\" section")
     parser.add_argument("--benchmarks", default=None, help="the run's job benchmark folder (logs/benchmarks; optional): the run's wall time")
     parser.add_argument("--out", required=True, help="output HTML file")
 
@@ -36,7 +37,7 @@ def run(args: argparse.Namespace) -> int:
 
     files = EvaluationFiles(args.metrics, args.per_object, args.convergence, args.budget, args.record)
     inputs = load_report_inputs(files, args.sim, args.history, args.objects, parse_config_json(args.config_json), args.out, args.learning_curve,
-                                args.benchmarks)
+                                args.benchmarks, args.loop)
     write_text_atomic(args.out, build_report_html(inputs))
     print(f"wrote {args.out}")
     return 0

@@ -1,0 +1,29 @@
+"""The data loop's config type: section ``loop``.
+
+A leaf of the config tree (``settings``): it imports no loop code, so a stage's code hash
+(``codehash``) covers this shape without the rounds' computation (``loop.rounds``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from dexlite_pipeline.config import ConfigError
+
+
+@dataclass(frozen=True)
+class LoopConfig:
+    """Config section ``loop``: how many rounds, and what one round samples and trains."""
+
+    rounds: int = 0  # rounds after the first model (0 = no loop: the pipeline without it)
+    grasps_per_object: int = 16  # grasps sampled per stable training object per round
+    train_steps: int = 1000  # optimizer steps of each round's training, warm-started from the previous round's model
+    six_directions: bool = True  # new grasps must also pass the six-direction test (off: the lift test alone)
+    heldout_grasps_per_object: int = 8  # grasps per held-out object in each round's small held-out check (0 = none)
+
+    def __post_init__(self) -> None:
+        for name in ("rounds", "grasps_per_object", "heldout_grasps_per_object"):
+            if getattr(self, name) < 0:
+                raise ConfigError(f"loop.{name} must be >= 0, got {getattr(self, name)}")
+        if self.train_steps < 1:
+            raise ConfigError(f"loop.train_steps must be >= 1, got {self.train_steps}")

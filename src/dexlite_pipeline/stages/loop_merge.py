@@ -1,0 +1,24 @@
+"""Stage ``loop_merge`` (one round): round r's grasp set, round r-1's plus the round's validated grasps that are
+new distinct grasps (``loop.rounds.merge_round``); the candidates per object and reason go in its attributes."""
+
+from __future__ import annotations
+
+import argparse
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--config-json", required=True, help="config section diversity (JSON)")
+    parser.add_argument("--previous", required=True, help="round r-1's grasp set (.zarr)")
+    parser.add_argument("--validated", action="append", required=True, help="a validated shard of the round's candidates (repeatable)")
+    parser.add_argument("--round", required=True, type=int, help="the loop round, 1, 2, ...")
+    parser.add_argument("--out", required=True, help="round r's grasp set (.zarr)")
+
+
+def run(args: argparse.Namespace) -> int:
+    from dexlite_pipeline.io.grasp_store import write_grasp_store
+    from dexlite_pipeline.loop.rounds import merge_round_stores, process_cpu_seconds
+    from dexlite_pipeline.settings import stage_config
+
+    merged, attrs = merge_round_stores(args.previous, args.validated, stage_config(args.config_json).diversity, args.round)
+    write_grasp_store(args.out, merged, {**attrs, "cpu_seconds": process_cpu_seconds()})
+    return 0

@@ -1,0 +1,32 @@
+"""Stage ``loop_sample`` (one round, part and shard): grasps from a model for the data loop.
+
+Part ``train``: round r's candidates, sampled by round r-1's model on every stable training object of the
+shard with debiased associated points; part ``heldout``: round r's model on the held-out objects, the
+round's small held-out check (``loop.rounds.sample_round``).
+"""
+
+from __future__ import annotations
+
+import argparse
+
+from dexlite_pipeline.loop.stage_options import add_round_shard_arguments
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--model", required=True, help="the model to sample from (cvae.pt)")
+    add_round_shard_arguments(parser, "seed, device, shards, sample and loop", "output grasp store (.zarr)")
+
+
+def run(args: argparse.Namespace) -> int:
+    from dexlite_pipeline.device import resolve_device
+    from dexlite_pipeline.io.grasp_store import write_grasp_store
+    from dexlite_pipeline.loop.rounds import process_cpu_seconds, sample_round
+    from dexlite_pipeline.settings import stage_config
+
+    config = stage_config(args.config_json)
+    grasps, attrs = sample_round(
+        args.model, args.objects, args.stability, args.shard, config.shards, args.part, args.round, config.loop, config.sample,
+        resolve_device(config.device), config.seed,
+    )
+    write_grasp_store(args.out, grasps, {**attrs, "cpu_seconds": process_cpu_seconds()})
+    return 0

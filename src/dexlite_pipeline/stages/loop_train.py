@@ -1,0 +1,41 @@
+"""Stage ``loop_train`` (one round): round r's model, round r-1's trained on for ``loop.train_steps`` more steps
+on round r's grasp set (``model.trainer``, warm start); the same files as ``train_cvae``."""
+
+from __future__ import annotations
+
+import argparse
+import logging
+
+log = logging.getLogger("dexlite.loop_train")
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--config-json", required=True, help="config sections seed, device, train, scene, energy.self_penetration_margin_m and loop (JSON)")
+    parser.add_argument("--grasps", required=True, help="the round's grasp set (loop_merge output)")
+    parser.add_argument("--initial-model", required=True, help="round r-1's model (cvae.pt), trained on from where it is")
+    parser.add_argument("--stability", help="stability table with the objects' resting poses (needed in tabletop mode, scene.table)")
+    parser.add_argument("--objects", action="append", required=True, help="prepared objects dir with catalog.parquet (repeatable)")
+    parser.add_argument("--round", required=True, type=int, help="the loop round, 1, 2, ...")
+    parser.add_argument("--model", required=True, help="output model file (cvae.pt)")
+    parser.add_argument("--history", required=True, help="output per-epoch loss table (.csv)")
+    parser.add_argument("--curves", required=True, help="output plot of the loss curves (.png)")
+
+
+def run(args: argparse.Namespace) -> int:
+    import dataclasses
+
+    from dexlite_pipeline.loop.rounds import process_cpu_seconds, round_seed
+    from dexlite_pipeline.model.trainer import train_from_lift_shards, write_trained_model
+    from dexlite_pipeline.settings import stage_config
+
+    config = stage_config(args.config_json)
+    config = dataclasses.replace(config, seed=round_seed(config.seed, args.round), train=dataclasses.replace(config.train, max_steps=config.loop.train_steps))
+    trained = train_from_lift_shards(
+        [args.grasps], args.objects, train=config.train, self_penetration_margin_m=config.energy.self_penetration_margin_m,
+        table=config.scene.table, seed=config.seed, device=config.device, stability_path=args.stability, initial_model_path=args.initial_model,
+    )
+    trained.facts.update(loop_round=args.round, initial_model=args.initial_model, cpu_seconds=process_cpu_seconds())
+    write_trained_model(trained, args.model, args.history, args.curves)
+    log.info("round %d: wrote %s (%d steps from %s, %d training grasps of %d objects)", args.round, args.model, trained.facts["steps"],
+             args.initial_model, trained.facts["train_grasps"], len(trained.facts["train_object_ids"]))
+    return 0
