@@ -72,7 +72,7 @@ TINY_OVERRIDES: dict = {
     # 128 steps (the default: 200): with 8, no sampled grasp of the tiny model came below the energy thresholds
     "post_optimize": {"annealing": {"iterations": 128}, "batch_size": 64, "energy_object_points": 64},
     "evaluate": {"grasps_per_object": 2, "rendered_per_method": 1, "pca_components": [1, 2]},
-    # two rounds of the data loop (the count the large profile starts from; the default is 0), small, yet large enough that some grasp is kept
+    # two rounds of the data loop (off by default), small, yet large enough that some grasp is kept
     "loop": {"rounds": 2, "grasps_per_object": 8, "train_steps": 20, "heldout_grasps_per_object": 2},
 }
 
