@@ -13,7 +13,7 @@ Compared, for every file found under both folders (after renaming BEFORE's paths
 Pictures, HTML pages, logs and JSON records (configs, run facts) are skipped: they carry dates, paths and key names.
 
 Renames map BEFORE's names onto AFTER's: --rename-path replaces a whole path component (a folder or file stem),
---rename-column replaces a substring of column names, --rename-value replaces a whole text cell (e.g. a method label).
+--rename-column replaces a substring of column names, --rename-value replaces a whole text cell or text array element (e.g. a method label).
 Exit status 0 when everything compared is equal, 1 when something differs, 2 on bad arguments.
 """
 
@@ -92,7 +92,7 @@ def compare_tables(before: Path, after: Path, args: argparse.Namespace) -> list[
     return problems
 
 
-def compare_zarr(before: Path, after: Path) -> list[str]:
+def compare_zarr(before: Path, after: Path, value_renames: dict[str, str]) -> list[str]:
     import zarr
 
     old, new = zarr.open_group(str(before), mode="r"), zarr.open_group(str(after), mode="r")
@@ -101,6 +101,8 @@ def compare_zarr(before: Path, after: Path) -> list[str]:
     problems = [f"array {name} only before" for name in sorted(set(old_arrays) - set(new_arrays))]
     for name in sorted(set(old_arrays) & set(new_arrays)):
         left, right = old_arrays[name][...], new_arrays[name][...]
+        if left.dtype.kind in "OUST" and value_renames:  # text labels (a method or origin) renamed like table cells
+            left = np.vectorize(lambda v: value_renames.get(v, v), otypes=[left.dtype])(left) if left.size else left
         if left.shape != right.shape or left.dtype != right.dtype:
             problems.append(f"array {name}: {left.shape} {left.dtype} before, {right.shape} {right.dtype} after")
         elif not np.array_equal(left, right, equal_nan=left.dtype.kind in "fc"):
@@ -147,7 +149,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f"only {'before' if rel in before else 'after'}: {rel}")
             continue
         if rel.suffix == ".zarr":
-            problems = compare_zarr(before[rel], after[rel])
+            problems = compare_zarr(before[rel], after[rel], args.value_renames)
         elif rel.suffix == ".pt":
             problems = compare_checkpoints(before[rel], after[rel])
         else:
