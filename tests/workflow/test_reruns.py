@@ -45,10 +45,12 @@ class ConfigChange:
 
 
 CHANGES = [
-    # a post-optimization setting: post_optimize (the data loop's too) and the evaluation, nothing upstream
+    # a post-optimization setting: post_optimize (the data loop's too) and the evaluation, nothing before the first model;
+    # sampling reruns too, because the loop's rounds post-optimize and the final model it samples from changes
     ConfigChange(
         "post_optimize", "annealing.iterations", frozenset({"post_optimize", "loop_post_optimize"}),
-        frozenset({"post_optimize", "loop_post_optimize", "evaluate"}), frozenset(UPSTREAM_OF_POST),
+        frozenset({"post_optimize", "loop_post_optimize", "loop_train", "sample_grasps", "evaluate"}),
+        frozenset(UPSTREAM_OF_TRAINING | {"train_cvae"}),
     ),
     # a lift-test constant: the lift stages and everything that depends on them
     ConfigChange("lift", "friction", frozenset({"lift_validate"}), frozenset({"lift_validate", "train_cvae", "evaluate"}), frozenset(UPSTREAM_OF_LIFT)),
