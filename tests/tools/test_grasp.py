@@ -124,31 +124,31 @@ def test_grasp_with_a_model_samples_and_post_optimizes(grasp_run, meshes, tmp_pa
 
 @pytest.mark.slow
 def test_too_few_distinct_model_grasps_are_topped_up_by_optimization_from_scratch(grasp_run, meshes, tmp_path, capsys):
-    """With --n 2 a model gives at most 2 distinct held grasps, fewer than the default --min-distinct: optimization from
-    scratch adds --n grasps, made and tested exactly as --from-scratch makes them (grasp_run, same seed and threads)."""
-    from dexlite_pipeline.tools.grasp import DEFAULT_MIN_DISTINCT
-
-    assert DEFAULT_MIN_DISTINCT > 2
+    """With --n 2 a model gives at most 2 distinct held grasps and a batch of optimization at most 2 more, fewer than
+    --min-distinct 5: the top-up runs both of --top-up-batches 2; its first batch is made and tested exactly as
+    --from-scratch makes it (grasp_run, same seed and threads), the second from another random stream."""
     model = _untrained_model(tmp_path / "cvae.pt")
     out = tmp_path / "topped_up"
     code = main(["grasp", str(meshes / "box.obj"), "--out", str(out), "--n", "2", "--renders", "1", "--threads", "2",
-                 "--model", str(model), "--config-json", json.dumps(TINY)])  # fmt: skip
+                 "--model", str(model), "--min-distinct", "5", "--top-up-batches", "2", "--config-json", json.dumps(TINY)])  # fmt: skip
     every, kept = read_grasp_store(out / "all_grasps.zarr"), read_grasp_store(out / "grasps.zarr")
     source = every.arrays["source"]
-    assert source.tolist() == ["model"] * 2 + ["optimization"] * 2
-    assert every.arrays["method"].tolist() == ["cvae_post"] * 2 + ["optimization"] * 2
+    assert source.tolist() == ["model"] * 2 + ["optimization"] * 4
+    assert every.arrays["method"].tolist() == ["cvae_post"] * 2 + ["optimization"] * 4
     _, scratch = grasp_run
     alone = read_grasp_store(scratch / "all_grasps.zarr")
     box = alone.object_id == "user-box"
     optimized = source == "optimization"
-    assert np.array_equal(every.hand_pose[optimized], alone.hand_pose[box])  # the --from-scratch path and seeds
-    assert np.array_equal(every.arrays["lift_success"][optimized], alone.arrays["lift_success"][box])
+    first, second = np.flatnonzero(optimized)[:2], np.flatnonzero(optimized)[2:]
+    assert np.array_equal(every.hand_pose[first], alone.hand_pose[box])  # the --from-scratch path and seeds
+    assert np.array_equal(every.arrays["lift_success"][first], alone.arrays["lift_success"][box])
+    assert not np.allclose(every.hand_pose[second], every.hand_pose[first])  # batch 2: other starts
     held = np.asarray(every.arrays["lift_success"], bool)
     assert kept.arrays["source"].tolist() == source[np.sort(representatives_of(every))].tolist()  # each kept grasp's source
-    assert every.attrs["topped_up"] == ["user-box"] and every.attrs["min_distinct"] == DEFAULT_MIN_DISTINCT
+    assert every.attrs["topped_up"] == ["user-box"] and every.attrs["min_distinct"] == 5
     assert code == (0 if held.any() else 1)
     summary = (out / "summary.md").read_text()
-    assert (f"< {DEFAULT_MIN_DISTINCT} (`--min-distinct`): optimization from scratch added 2 grasps, {int(held[optimized].sum())} held, "
+    assert (f"< 5 (`--min-distinct`): optimization from scratch added 4 grasps in 2 batch(es) of at most 2, {int(held[optimized].sum())} held, "
             in summary.split("- `box.obj`: the model gave ")[1])  # fmt: skip
     assert f"| user-box | {int(held[~optimized].sum())}/2 (" in summary.split("## Model and optimization from scratch")[1]
     assert "topped up by energy optimization from scratch on 1 of 1 object(s)" in summary
@@ -312,12 +312,13 @@ def test_summary_says_per_source_what_the_model_and_the_top_up_gave():
            "topped_up": True, "by_source": {"model": {"grasps": 32, "held": 0, "distinct": 0}, "optimization": {"grasps": 32, "held": 2, "distinct": 1}}}  # fmt: skip
     text = _summary([topped, enough, few], min_distinct=4)
     assert "| user-mug | 3/32 (9%) | 2 | 19/32 (59%) | 19 | 21 |" in text and "| user-can | 9/32 (28%) | 6 | not run | - | 6 |" in text
-    assert ("- `mug.obj`: the model gave 2 distinct held grasp(s) < 4 (`--min-distinct`): optimization from scratch added 32 grasps, "
-            "19 held, 19 distinct; 21 distinct held grasp(s) together.") in text  # fmt: skip
+    assert ("- `mug.obj`: the model gave 2 distinct held grasp(s) < 4 (`--min-distinct`): optimization from scratch added 32 grasps in "
+            "1 batch(es) of at most 4, 19 held, 19 distinct; 21 distinct held grasp(s) together.") in text  # fmt: skip
     assert "- `can.obj`: the model gave 6 distinct held grasp(s), at least 4 (`--min-distinct`): no optimization from scratch." in text
     hints = text.split("## What to try next")[1].split("## Run")[0]
     assert "`box.obj`: 1 distinct held grasp(s) of 64 from the model and optimization from scratch together" in hints
-    assert "try more grasps (`--n 64`)." in hints and "--min-distinct" not in hints and "mug.obj" not in hints
+    assert "try more top-up batches (`--top-up-batches 8`) or more grasps (`--n 64`)." in hints
+    assert "--min-distinct" not in hints and "mug.obj" not in hints
     assert "min distinct: 4 (`--min-distinct`)" in text
     assert "## Model and optimization from scratch" not in _summary([dict(enough)], model=None)  # --from-scratch: one source
 
@@ -338,6 +339,50 @@ def test_the_top_up_goes_to_the_objects_with_too_few_distinct_held_model_grasps(
     assert [a.object_id for a in objects_to_top_up(assets, grasps, labels, 5)] == ["a", "b", "c"]
     assert [a.object_id for a in objects_to_top_up(assets, grasps, labels, 2)] == ["c"]
     assert objects_to_top_up(assets, grasps, labels, 0) == []  # --min-distinct 0: never
+
+
+def test_the_top_up_adds_batches_until_each_object_has_enough_distinct_grasps_or_the_cap():
+    """Object a reaches 3 distinct held grasps after one batch, b after two, c never: a gets one batch, b two, c the
+    cap of three; each batch goes to the objects still short, with the batch number that seeds it."""
+    from types import SimpleNamespace
+
+    from dexlite_pipeline.settings import build_config
+    from dexlite_pipeline.tools.grasp import top_up_until_distinct
+
+    # per object, per batch: the palm offsets of the batch's held grasps (2 cm apart or more: distinct)
+    held_offsets = {"a": [[0.1, 0.2], [], []], "b": [[0.1], [0.2], [0.3]], "c": [[], [], []]}
+    calls = []
+
+    def optimized_batch(chosen, batch):
+        calls.append((batch, [a.object_id for a in chosen]))
+        poses, objects, held = [], [], []
+        for asset in chosen:
+            offsets = held_offsets[asset.object_id][batch]
+            poses += [_pose(x) for x in offsets] + [_pose(0.5)]  # and one failed grasp
+            objects += [asset.object_id] * (len(offsets) + 1)
+            held += [1] * len(offsets) + [0]
+        grasps = _grasp_set(poses, held=held, six=[0] * len(held), passed=[0] * len(held), energy=[0] * len(held), object_ids=objects)
+        grasps.arrays["source"] = np.full(len(grasps), "optimization", dtype=object)
+        return grasps
+
+    model = _grasp_set([_pose(0.0)] * 3, held=[1, 1, 0], six=[0] * 3, passed=[0] * 3, energy=[0] * 3, object_ids=["a", "b", "c"])
+    model.arrays["source"] = np.full(3, "model", dtype=object)
+    assets = [SimpleNamespace(object_id=o) for o in "abc"]
+    tested, topped_up, short = top_up_until_distinct(assets, model, build_config({}), 3, 3, optimized_batch)
+    assert calls == [(0, ["a", "b", "c"]), (1, ["b", "c"]), (2, ["c"])]
+    assert topped_up == ["a", "b", "c"] and [a.object_id for a in short] == ["c"]
+    assert len(tested) == 3 + (3 + 2 + 1) + (2 + 1) + 1  # model, then per batch: held grasps + one failure per object
+    done, none_needed, _ = top_up_until_distinct(assets[:1], model.select(np.array([0])), build_config({}), 1, 3, optimized_batch)
+    assert none_needed == [] and len(done) == 1  # enough already: no batch
+
+
+def test_top_up_batches_after_the_first_have_their_own_random_streams():
+    from dexlite_pipeline.tools.grasp import top_up_seed
+
+    assert top_up_seed(7, 0) == 7  # the first batch: --from-scratch's seed
+    seeds = [top_up_seed(s, b) for s in range(3) for b in range(1, 4)]
+    assert len(set(seeds)) == len(seeds) and not set(seeds) & {0, 1, 2}
+    assert top_up_seed(2, 3) == top_up_seed(2, 3)
 
 
 def test_grasps_of_both_sources_join_with_each_ones_own_arrays_kept():
@@ -427,6 +472,8 @@ BAD_INPUTS = [
     (["{d}/box.obj", "--min-distinct", "few"], "argument --min-distinct: invalid int value: 'few'"),
     (["{d}/box.obj", "--from-scratch", "--min-distinct", "4"], "--min-distinct and --from-scratch exclude each other"),
     (["{d}/box.obj", "--from-scratch", "--min-distinct", "0"], "--min-distinct and --from-scratch exclude each other"),
+    (["{d}/box.obj", "--top-up-batches", "0"], "--top-up-batches must be at least 1, got 0"),
+    (["{d}/box.obj", "--from-scratch", "--top-up-batches", "2"], "--top-up-batches and --from-scratch exclude each other"),
     (["{d}/box.obj", "--config-json", '{"lift": {"friction": "high"}}'], 'lift.friction: expected a number, got a string "high"'),
     (["{d}/box.obj", "--config-json", '{"lift": {"frictoin": 1.0}}'], "frictoin"),
     (["{d}/box.obj", "--config-json", "{not json"], "--config-json"),

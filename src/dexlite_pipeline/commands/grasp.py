@@ -20,7 +20,9 @@ log = logging.getLogger("dexlite.grasp")
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     from dexlite_pipeline.tabletop import UPRIGHT_AXES
-    from dexlite_pipeline.tools.grasp import DEFAULT_GRASPS_PER_OBJECT, DEFAULT_MIN_DISTINCT, DEFAULT_RENDERS_PER_OBJECT, UNIT_METRES
+    from dexlite_pipeline.tools.grasp import (
+        DEFAULT_GRASPS_PER_OBJECT, DEFAULT_MIN_DISTINCT, DEFAULT_RENDERS_PER_OBJECT, DEFAULT_TOP_UP_BATCHES, UNIT_METRES,
+    )
 
     parser.add_argument("meshes", nargs="+", help=".obj/.stl mesh files, or folders of them")
     parser.add_argument("--out", required=True, help="output folder (new or empty; an earlier run's only with --overwrite)")
@@ -40,6 +42,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         f"optimization from scratch, and the distinct held grasps are chosen from both (default {DEFAULT_MIN_DISTINCT}: a handful of "
                         "different grasps, so a robot can pick one whose approach is free; it costs the optimization's time on each such "
                         "object); 0: the model's grasps only")  # fmt: skip
+    parser.add_argument("--top-up-batches", type=int, default=None, metavar="K",
+                        help=f"with a model: the top-up optimizes batches of --n grasps on each short object until it has --min-distinct "
+                        f"distinct held grasps, at most K batches (default {DEFAULT_TOP_UP_BATCHES})")
     parser.add_argument("--from-scratch", action="store_true", help="energy optimization from scratch only, no model (slower per grasp)")
     parser.add_argument("--config-json", default="{}", help="config sections over the default config.yaml, as inline JSON or a .json/.yaml file")
     parser.add_argument("--renders", type=int, default=DEFAULT_RENDERS_PER_OBJECT, help="pictures per object (default %(default)s)")
@@ -52,13 +57,16 @@ def run(args: argparse.Namespace) -> int:
 
     from dexlite_pipeline.config import parse_config_json
     from dexlite_pipeline.model.shipped import SHIPPED_MODEL_PATH, shipped_model_path
-    from dexlite_pipeline.tools.grasp import DEFAULT_MIN_DISTINCT, GraspRequest, GraspToolError, run_grasp_tool
+    from dexlite_pipeline.tools.grasp import DEFAULT_MIN_DISTINCT, DEFAULT_TOP_UP_BATCHES, GraspRequest, GraspToolError, run_grasp_tool
 
     if args.from_scratch and args.model:
         raise GraspToolError("--model and --from-scratch exclude each other (a model samples grasps; --from-scratch optimizes without one)")
     if args.from_scratch and args.min_distinct is not None:
         raise GraspToolError("--min-distinct and --from-scratch exclude each other (--min-distinct tops up a model's grasps "
                              "with optimization from scratch; --from-scratch uses optimization only)")  # fmt: skip
+    if args.from_scratch and args.top_up_batches is not None:
+        raise GraspToolError("--top-up-batches and --from-scratch exclude each other (the top-up adds optimization from scratch to a "
+                             "model's grasps; --from-scratch uses optimization only)")  # fmt: skip
     if args.resize_to_training and args.units:
         raise GraspToolError("--units and --resize-to-training exclude each other (resized objects take the training radii whatever their unit)")
     model = None
@@ -71,6 +79,7 @@ def run(args: argparse.Namespace) -> int:
         meshes=args.meshes, out_dir=args.out, grasps_per_object=args.n, units=args.units or "m",
         resize_to_training=args.resize_to_training, distinct=args.distinct, overwrite=args.overwrite, device=args.device,
         model=model, min_distinct=DEFAULT_MIN_DISTINCT if args.min_distinct is None else args.min_distinct,
+        top_up_batches=DEFAULT_TOP_UP_BATCHES if args.top_up_batches is None else args.top_up_batches,
         config=parse_config_json(args.config_json), threads=args.threads or os.cpu_count() or 1,
         renders_per_object=args.renders, upright_axis=args.upright_axis,
     )  # fmt: skip
