@@ -13,7 +13,8 @@ Compared, for every file found under both folders (after renaming BEFORE's paths
 Pictures, HTML pages, logs and JSON records (configs, run facts) are skipped: they carry dates, paths and key names.
 
 Renames map BEFORE's names onto AFTER's: --rename-path replaces a whole path component (a folder or file stem),
---rename-column replaces a substring of column names, --rename-value replaces a whole text cell or text array element (e.g. a method label).
+--rename-column replaces a substring of column names and of Zarr array names, --rename-value replaces a whole text cell
+or text array element (e.g. a method label).
 Exit status 0 when everything compared is equal, 1 when something differs, 2 on bad arguments.
 """
 
@@ -68,8 +69,7 @@ def read_table(path: Path) -> pd.DataFrame:
 
 def compare_tables(before: Path, after: Path, args: argparse.Namespace) -> list[str]:
     old, new = read_table(before), read_table(after)
-    for source, target in args.column_renames.items():
-        old.columns = [c.replace(source, target) for c in old.columns]
+    old.columns = [renamed_name(c, args.column_renames) for c in old.columns]
     old = old.apply(lambda col: col.map(lambda v: args.value_renames.get(v, v) if isinstance(v, str) else v))
     problems = []
     if len(old) != len(new):
@@ -92,11 +92,17 @@ def compare_tables(before: Path, after: Path, args: argparse.Namespace) -> list[
     return problems
 
 
-def compare_zarr(before: Path, after: Path, value_renames: dict[str, str]) -> list[str]:
+def renamed_name(name: str, name_renames: dict[str, str]) -> str:
+    for source, target in name_renames.items():
+        name = name.replace(source, target)
+    return name
+
+
+def compare_zarr(before: Path, after: Path, value_renames: dict[str, str], name_renames: dict[str, str]) -> list[str]:
     import zarr
 
     old, new = zarr.open_group(str(before), mode="r"), zarr.open_group(str(after), mode="r")
-    old_arrays = dict(old.arrays())
+    old_arrays = {renamed_name(name, name_renames): array for name, array in old.arrays()}
     new_arrays = dict(new.arrays())
     problems = [f"array {name} only before" for name in sorted(set(old_arrays) - set(new_arrays))]
     for name in sorted(set(old_arrays) & set(new_arrays)):
@@ -149,7 +155,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f"only {'before' if rel in before else 'after'}: {rel}")
             continue
         if rel.suffix == ".zarr":
-            problems = compare_zarr(before[rel], after[rel], args.value_renames)
+            problems = compare_zarr(before[rel], after[rel], args.value_renames, args.column_renames)
         elif rel.suffix == ".pt":
             problems = compare_checkpoints(before[rel], after[rel])
         else:

@@ -27,6 +27,7 @@ def write_run(root: Path, stage: str, method: str, protocol_column: str, success
     group = zarr.open_group(str(root / stage / "shard_000.zarr"), mode="w")
     group.create_array("hand_pose", data=poses)
     group.create_array("origin", data=np.array([method] * len(poses)))  # a text label renamed like a table cell
+    group.create_array(protocol_column, data=np.ones(len(poses), bool))  # an array named like a table column
 
 
 def test_equal_runs_through_renames_and_ignored_times(compare_runs, tmp_path, capsys):
