@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
@@ -98,3 +100,21 @@ def test_loop_table_orders_rounds():
 def test_loop_config_refuses_bad_values(bad):
     with pytest.raises(ConfigError):
         LoopConfig(**bad)
+
+
+def test_a_round_fine_tunes_at_a_lower_constant_rate_with_no_warm_up():
+    from dexlite_pipeline.loop.rounds import round_training_config
+    from dexlite_pipeline.model.config import TrainConfig
+
+    train = TrainConfig(learning_rate=2e-3, lr_schedule="cosine", lr_warmup_steps=200, energy_warmup_fraction=0.3, max_steps=8000)
+    tuned = round_training_config(train, LoopConfig(train_steps=500, fine_tune_learning_rate_factor=0.1))
+    assert tuned.max_steps == 500 and tuned.learning_rate == pytest.approx(2e-4)
+    assert tuned.lr_schedule == "constant" and tuned.lr_warmup_steps == 0 and tuned.energy_warmup_fraction == 0.0
+    assert dataclasses.replace(tuned, max_steps=8000, learning_rate=2e-3, lr_schedule="cosine", lr_warmup_steps=200,
+                               energy_warmup_fraction=0.3) == train  # nothing else changes  # fmt: skip
+
+
+@pytest.mark.parametrize("factor", [0.0, -0.1, 1.5])
+def test_a_fine_tune_factor_outside_0_1_is_refused(factor):
+    with pytest.raises(ConfigError, match="fine_tune_learning_rate_factor"):
+        LoopConfig(fine_tune_learning_rate_factor=factor)

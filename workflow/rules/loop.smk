@@ -144,7 +144,7 @@ rule loop_train:
         history=f"{ROUND}/model/history.csv",
         curves=f"{ROUND}/model/training_curves.png",
     params:
-        cfg=stage_params("seed", "device", "train", "scene", "energy.self_penetration_margin_m", "loop.train_steps"),
+        cfg=stage_params("seed", "device", "train", "scene", "energy.self_penetration_margin_m", "loop.train_steps", "loop.fine_tune_learning_rate_factor"),
         code=code_hash("loop_train"),
         objects=learning_cli_options("objects", learning_objects_dirs()),
     threads: all_cores()

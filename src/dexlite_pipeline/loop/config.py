@@ -20,6 +20,9 @@ class LoopConfig:
     train_steps: int = 1000  # optimizer steps of each round's training, warm-started from the previous round's model
     six_directions: bool = True  # new grasps must also pass the six-direction test (off: the lift test alone)
     heldout_grasps_per_object: int = 8  # grasps per held-out object in each round's small held-out check (0 = none)
+    # a round's training fine-tunes the previous model: train.learning_rate times this, constant, no warm-up, and the
+    # energy terms at full weight from the first step (a fresh model's schedule would shake a trained one loose)
+    fine_tune_learning_rate_factor: float = 0.1
 
     def __post_init__(self) -> None:
         for name in ("rounds", "grasps_per_object", "heldout_grasps_per_object"):
@@ -27,3 +30,5 @@ class LoopConfig:
                 raise ConfigError(f"loop.{name} must be >= 0, got {getattr(self, name)}")
         if self.train_steps < 1:
             raise ConfigError(f"loop.train_steps must be >= 1, got {self.train_steps}")
+        if not 0 < self.fine_tune_learning_rate_factor <= 1:
+            raise ConfigError(f"loop.fine_tune_learning_rate_factor must be in (0, 1], got {self.fine_tune_learning_rate_factor}")

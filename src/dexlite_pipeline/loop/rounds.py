@@ -50,6 +50,16 @@ def round_seed(seed: int, round_number: int, shard: int = 0, part: str = TRAIN) 
     return int(seed) * 1_000_003 + 104_729 * (int(round_number) + 1) + 7919 * int(shard) + (0 if part == TRAIN else 613)
 
 
+def round_training_config(train, loop: LoopConfig):
+    """The ``train`` section for one round's training: ``loop.train_steps`` steps fine-tuning the previous round's
+    model at ``train.learning_rate * loop.fine_tune_learning_rate_factor``, constant, with no learning-rate warm-up
+    and the energy terms at full weight from the first step (the model is trained already)."""
+    return dataclasses.replace(
+        train, max_steps=loop.train_steps, learning_rate=train.learning_rate * loop.fine_tune_learning_rate_factor,
+        lr_schedule="constant", lr_warmup_steps=0, energy_warmup_fraction=0.0,
+    )  # fmt: skip
+
+
 def process_cpu_seconds() -> float:
     """CPU seconds (user + system) this process and its finished children have used so far: a job's own cost."""
     times = os.times()

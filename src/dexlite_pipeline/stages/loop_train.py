@@ -1,5 +1,6 @@
 """Stage ``loop_train`` (one round): round r's model, round r-1's trained on for ``loop.train_steps`` more steps
-on round r's grasp set (``model.trainer``, warm start); the same files as ``train_cvae``."""
+on round r's grasp set (``model.trainer``, warm start, ``loop.rounds.round_training_config``); the same files as
+``train_cvae``."""
 
 from __future__ import annotations
 
@@ -24,12 +25,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     import dataclasses
 
-    from dexlite_pipeline.loop.rounds import process_cpu_seconds, round_seed
+    from dexlite_pipeline.loop.rounds import process_cpu_seconds, round_seed, round_training_config
     from dexlite_pipeline.model.trainer import train_from_lift_shards, write_trained_model
     from dexlite_pipeline.settings import stage_config
 
     config = stage_config(args.config_json)
-    config = dataclasses.replace(config, seed=round_seed(config.seed, args.round), train=dataclasses.replace(config.train, max_steps=config.loop.train_steps))
+    config = dataclasses.replace(config, seed=round_seed(config.seed, args.round), train=round_training_config(config.train, config.loop))
     trained = train_from_lift_shards(
         [args.grasps], args.objects, train=config.train, self_penetration_margin_m=config.energy.self_penetration_margin_m,
         table=config.scene.table, seed=config.seed, device=config.device, stability_path=args.stability, initial_model_path=args.initial_model,
