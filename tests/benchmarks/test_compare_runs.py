@@ -1,7 +1,6 @@
 """benchmarks/compare_runs.py: equal runs compare equal through renames; a moved value, a lost row or a changed array
 is found; time columns are ignored."""
 
-import importlib.util
 from pathlib import Path
 
 import numpy as np
@@ -9,15 +8,9 @@ import pandas as pd
 import pytest
 import zarr
 
-SCRIPT = Path(__file__).resolve().parents[2] / "benchmarks" / "compare_runs.py"
-
-
 @pytest.fixture(scope="module")
-def compare_runs():
-    spec = importlib.util.spec_from_file_location("compare_runs", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+def compare_runs(benchmark_script):
+    return benchmark_script("compare_runs")
 
 
 def write_run(root: Path, stage: str, method: str, protocol_column: str, success: float, seconds: float, poses: np.ndarray):

@@ -1,23 +1,11 @@
 """benchmarks/grasp_check_meshes.py: per-mesh counts read from a dexlite grasp output folder."""
 
-import importlib.util
-from pathlib import Path
-
 import numpy as np
 
 from dexlite_pipeline.io.grasp_store import GraspSet, write_grasp_store
 
-SCRIPT = Path(__file__).resolve().parents[2] / "benchmarks" / "grasp_check_meshes.py"
 
-
-def load_script():
-    spec = importlib.util.spec_from_file_location("grasp_check_meshes", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
-def test_counts_per_mesh_and_source(tmp_path):
+def test_counts_per_mesh_and_source(tmp_path, benchmark_script):
     # mug: model 2 grasps (1 held), optimization 3 (2 held, near-duplicates: one distinct label); box: model only, none held
     objects = ["user-mug"] * 5 + ["user-box"] * 2
     sources = ["model", "model", "optimization", "optimization", "optimization", "model", "model"]
@@ -28,6 +16,6 @@ def test_counts_per_mesh_and_source(tmp_path):
         "lift_success": np.asarray(held, bool), "distinct_label": np.asarray(labels, np.int64), "source": np.asarray(sources, dtype=object),
     })  # fmt: skip
     write_grasp_store(tmp_path / "all_grasps.zarr", grasps, {})
-    counts = load_script().per_mesh_counts(tmp_path)
+    counts = benchmark_script("grasp_check_meshes").per_mesh_counts(tmp_path)
     assert counts["user-mug"] == {"attempts": 5, "held": 3, "distinct": 2, "model": "1/2", "optimization": "2/3"}
     assert counts["user-box"] == {"attempts": 2, "held": 0, "distinct": 0, "model": "0/2", "optimization": "-"}

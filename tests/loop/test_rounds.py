@@ -96,7 +96,9 @@ def test_loop_table_orders_rounds():
     assert table["round"].tolist() == [0, 2] and "heldout_distinct_per_object" in table.columns
 
 
-@pytest.mark.parametrize("bad", [{"rounds": -1}, {"train_steps": 0}, {"grasps_per_object": -2}])
+@pytest.mark.parametrize(
+    "bad", [{"rounds": -1}, {"train_steps": 0}, {"grasps_per_object": -2}, {"anchor_rule": "nearest"}, {"match_candidates": 0}]
+)
 def test_loop_config_refuses_bad_values(bad):
     with pytest.raises(ConfigError):
         LoopConfig(**bad)
@@ -118,3 +120,17 @@ def test_a_round_fine_tunes_at_a_lower_constant_rate_with_no_warm_up():
 def test_a_fine_tune_factor_outside_0_1_is_refused(factor):
     with pytest.raises(ConfigError, match="fine_tune_learning_rate_factor"):
         LoopConfig(fine_tune_learning_rate_factor=factor)
+
+
+def test_the_training_part_samples_with_the_loops_anchor_rule_and_the_heldout_part_as_the_evaluation():
+    from dexlite_pipeline.loop.rounds import LOOP_METHOD, round_sample_settings
+    from dexlite_pipeline.model.config import SampleConfig
+    from dexlite_pipeline.model.methods import SYNTHESIS
+
+    sample = SampleConfig(anchor_rule="matched", match_candidates=1, neighbour_clouds=8)
+    loop = LoopConfig(anchor_rule="debiased", match_candidates=16, grasps_per_object=12, heldout_grasps_per_object=3)
+    train, count, label = round_sample_settings(sample, loop, "train")
+    assert (train.anchor_rule, train.match_candidates, count, label) == ("debiased", 16, 12, LOOP_METHOD)
+    assert dataclasses.replace(train, anchor_rule="matched", match_candidates=1) == sample  # nothing else changes
+    heldout, count, label = round_sample_settings(sample, loop, "heldout")
+    assert (heldout, count, label) == (sample, 3, SYNTHESIS)

@@ -50,7 +50,10 @@ rule loop_sample:
     output:
         directory(f"{ROUND}/{{part}}/sample_{{shard}}.zarr"),
     params:
-        cfg=stage_params("seed", "device", "shards", "sample", "loop.grasps_per_object", "loop.heldout_grasps_per_object"),
+        cfg=stage_params(
+            "seed", "device", "shards", "sample", "loop.grasps_per_object", "loop.heldout_grasps_per_object", "loop.anchor_rule",
+            "loop.match_candidates",
+        ),
         code=code_hash("loop_sample"),
         objects=learning_cli_options("objects", learning_objects_dirs()),
     threads: SHARD_THREADS

@@ -9,6 +9,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from dexlite_pipeline.config import ConfigError
+from dexlite_pipeline.model.config import ANCHOR_RULES
 
 
 @dataclass(frozen=True)
@@ -23,6 +24,11 @@ class LoopConfig:
     # a round's training fine-tunes the previous model: train.learning_rate times this, constant, no warm-up, and the
     # energy terms at full weight from the first step (a fresh model's schedule would shake a trained one loose)
     fine_tune_learning_rate_factor: float = 0.1
+    # associated points of a round's samples on the training objects (the sample section's rules): debiased (Dex1B's
+    # 1/(count+1) over the whole cloud) or matched (where the surface looks like that of the training grasp whose code
+    # was drawn; with match_candidates > 1 a debiased draw among that many best matches)
+    anchor_rule: str = "debiased"
+    match_candidates: int = 1
 
     def __post_init__(self) -> None:
         for name in ("rounds", "grasps_per_object", "heldout_grasps_per_object"):
@@ -30,5 +36,9 @@ class LoopConfig:
                 raise ConfigError(f"loop.{name} must be >= 0, got {getattr(self, name)}")
         if self.train_steps < 1:
             raise ConfigError(f"loop.train_steps must be >= 1, got {self.train_steps}")
+        if self.anchor_rule not in ANCHOR_RULES:
+            raise ConfigError(f"loop.anchor_rule {self.anchor_rule!r} is not one of {', '.join(ANCHOR_RULES)}")
+        if self.match_candidates < 1:
+            raise ConfigError(f"loop.match_candidates must be >= 1, got {self.match_candidates}")
         if not 0 < self.fine_tune_learning_rate_factor <= 1:
             raise ConfigError(f"loop.fine_tune_learning_rate_factor must be in (0, 1], got {self.fine_tune_learning_rate_factor}")

@@ -3,8 +3,8 @@
 Round r >= 1 starts from round r-1's model (round 0's is the pipeline's ``results/model/cvae.pt``)
 and round r-1's grasp set (round 0's: the lift-successful grasps of training objects that model
 was trained on). Per shard it samples ``loop.grasps_per_object`` grasps on every stable training
-object, those without any grasp yet included, with debiased associated points (sample anchor rule
-``debiased``: Dex1B's 1/(count+1)); the pipeline's post-optimization refines them; the equal energy
+object, those without any grasp yet included, with the loop's associated points (``loop.anchor_rule``:
+``round_sample_settings``); the pipeline's post-optimization refines them; the equal energy
 filter (``evaluation.filter_energy`` at ``curate.thresholds``), the lift test and (``loop.six_directions``)
 the six-direction test validate them, on each object's table in tabletop mode. ``merge_round`` then
 keeps each validated grasp that is a new distinct grasp (``evaluation.diversity``: not the same grasp
@@ -109,32 +109,39 @@ def round_objects(objects_dirs: list[str], stability_path: str, shard: int, shar
     return [oid for oid in mine if oid in available], {oid: "no prepared asset" for oid in mine if oid not in available}
 
 
+def round_sample_settings(sample, loop: LoopConfig, part: str):
+    """(sample settings, grasps per object, method label) of a round's part: ``train`` samples ``loop.grasps_per_object``
+    per object with the loop's own associated points (``loop.anchor_rule``, ``loop.match_candidates``), labelled
+    ``LOOP_METHOD``; ``heldout`` ``loop.heldout_grasps_per_object`` by the ``sample`` section's rules as they are,
+    labelled as the evaluation's pure synthesis (``cvae_raw``), so the held-out check measures what the evaluation does."""
+    from dexlite_pipeline.model.methods import SYNTHESIS
+
+    if part == TRAIN:
+        settings = dataclasses.replace(sample, anchor_rule=loop.anchor_rule, match_candidates=loop.match_candidates)
+        return settings, loop.grasps_per_object, LOOP_METHOD
+    return sample, loop.heldout_grasps_per_object, SYNTHESIS
+
+
 def sample_round(
     model_path: str, objects_dirs: list[str], stability_path: str, shard: int, shard_count: int, part: str, round_number: int,
     loop: LoopConfig, sample, device, seed: int,
 ) -> tuple[GraspSet, dict]:
     """Grasps of one shard's objects of split ``part`` from the model at ``model_path`` (``sample``: the ``SampleConfig``).
 
-    ``train``: ``loop.grasps_per_object`` pure syntheses per training object with debiased associated points
-    (labelled ``LOOP_METHOD``); ``heldout``: ``loop.heldout_grasps_per_object`` per held-out object by the sample
-    section's rules (the evaluation's ``cvae_raw``). Returns the grasps (hand_pose, object_id, scale, method) and
+    What each part samples: ``round_sample_settings``. Returns the grasps (hand_pose, object_id, scale, method) and
     the store attributes.
     """
     import torch
 
     from dexlite_pipeline.model.checkpoint import cloud_reading, load_checkpoint
     from dexlite_pipeline.model.data import ObjectClouds
-    from dexlite_pipeline.model.methods import SYNTHESIS
     from dexlite_pipeline.model.sampling import SampledRows, synthesis_rows
     from dexlite_pipeline.objects.assets import load_asset
 
     model, checkpoint = load_checkpoint(model_path, device)
     points, fixed_clouds = cloud_reading(checkpoint, sample.points_per_cloud)
     object_ids, skipped = round_objects(objects_dirs, stability_path, shard, shard_count, part)
-    if part == TRAIN:
-        settings, count, label = dataclasses.replace(sample, anchor_rule="debiased"), loop.grasps_per_object, LOOP_METHOD
-    else:
-        settings, count, label = sample, loop.heldout_grasps_per_object, SYNTHESIS
+    settings, count, label = round_sample_settings(sample, loop, part)
     generator = torch.Generator().manual_seed(round_seed(seed, round_number, shard, part))
     if object_ids and count > 0:
         clouds = ObjectClouds([load_asset(objects_dirs, oid) for oid in object_ids], model.codes_mu.device)

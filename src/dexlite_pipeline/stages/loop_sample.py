@@ -1,7 +1,7 @@
 """Stage ``loop_sample`` (one round, part and shard): grasps from a model for the data loop.
 
 Part ``train``: round r's candidates, sampled by round r-1's model on every stable training object of the
-shard with debiased associated points; part ``heldout``: round r's model on the held-out objects, the
+shard with the loop's associated points (``loop.anchor_rule``); part ``heldout``: round r's model on the held-out objects, the
 round's small held-out check (``loop.rounds.sample_round``).
 """
 
