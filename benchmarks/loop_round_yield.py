@@ -4,8 +4,8 @@
         [--configfile FILE ...] [--round 1]
 
 ``RUN_DIR`` is a finished workflow folder (``config.yaml``, ``results/`` with the round's previous model and grasp
-set: for round 1 ``results/model/cvae.pt`` and ``results/round_0/grasps.zarr``, so a run with ``loop.rounds`` 0
-is enough). Its config is ``RUN_DIR/config.yaml`` overlaid by each ``--configfile`` (as given to snakemake) and then
+set: for round 1 ``results/model/cvae.pt`` and round 0's set, which is made here from ``results/lift/`` by
+``dexlite loop-initial-set`` when the run had no loop, so a run up to ``train_cvae`` is enough). Its config is ``RUN_DIR/config.yaml`` overlaid by each ``--configfile`` (as given to snakemake) and then
 by the variant's settings (dotted keys, YAML values: ``--variant matched16:loop.anchor_rule=matched,loop.match_candidates=16``).
 Per variant the round's training part runs with the stages' own commands (``dexlite loop-sample``,
 ``loop-post-optimize``, ``loop-validate`` per shard, then ``loop-merge``) into ``OUT_DIR/<variant>/``; nothing in
@@ -27,7 +27,7 @@ import yaml
 
 STAGE_SECTIONS = {  # what each stage's rule passes (workflow/rules/loop.smk)
     "loop-sample": ("seed", "device", "shards", "sample", "loop"),
-    "loop-post-optimize": ("seed", "device", "post_optimize", "scene", "energy.self_penetration_margin_m"),
+    "loop-post-optimize": ("seed", "device", "post_optimize", "scene", "energy.self_penetration_margin_m", "loop.post_iterations"),
     "loop-validate": ("device", "curate.thresholds", "energy.weights", "lift", "scene", "loop.six_directions"),
     "loop-merge": ("diversity",),
 }
@@ -54,7 +54,9 @@ def parse_variant(text: str) -> tuple[str, dict]:
 def run_stage(command: str, config: dict, arguments: list[str], log_path: Path) -> None:
     from dexlite_pipeline.config import section_json
 
-    full = [sys.executable, "-m", "dexlite_pipeline.cli", command, "--config-json", section_json(config, *STAGE_SECTIONS[command]), *arguments]
+    sections = STAGE_SECTIONS.get(command)
+    config_json = ["--config-json", section_json(config, *sections)] if sections else []
+    full = [sys.executable, "-m", "dexlite_pipeline.cli", command, *config_json, *arguments]
     with open(log_path, "w") as log:
         done = subprocess.run(full, stdout=log, stderr=subprocess.STDOUT)
     if done.returncode != 0:
@@ -69,12 +71,19 @@ def round_yield(run_dir: Path, out: Path, config: dict, round_number: int) -> di
     results = run_dir / "results"
     model = results / ("model/cvae.pt" if round_number == 1 else f"round_{round_number - 1}/model/cvae.pt")
     previous = results / f"round_{round_number - 1}/grasps.zarr"
-    for needed in (model, previous, results / "stability/stability.parquet"):
-        if not needed.exists():
-            raise SystemExit(f"loop_round_yield.py: error: {needed} does not exist (run the workflow first)")
     objects = ["--objects", str(results / "objects")]
     if config.get("dexgraspnet", {}).get("root"):
         objects += ["--objects", str(results / "dexgraspnet/objects")]
+    lift_shards = sorted((results / "lift").glob("shard_*.zarr"))
+    if round_number == 1 and not previous.exists() and lift_shards:
+        previous = out.parent / "round_0_grasps.zarr"  # shared by the variants: it depends on the run alone
+        if not previous.exists():
+            out.parent.mkdir(parents=True, exist_ok=True)
+            run_stage("loop-initial-set", config, [a for p in lift_shards for a in ("--lift", str(p))] + objects + ["--out", str(previous)],
+                      out.parent / "round_0_grasps.log")  # fmt: skip
+    for needed in (model, previous, results / "stability/stability.parquet"):
+        if not needed.exists():
+            raise SystemExit(f"loop_round_yield.py: error: {needed} does not exist (run the workflow first)")
     common = ["--stability", str(results / "stability/stability.parquet"), *objects, "--round", str(round_number), "--part", "train"]
     out.mkdir(parents=True, exist_ok=True)
     stores = []

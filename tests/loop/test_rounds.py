@@ -97,7 +97,7 @@ def test_loop_table_orders_rounds():
 
 
 @pytest.mark.parametrize(
-    "bad", [{"rounds": -1}, {"train_steps": 0}, {"grasps_per_object": -2}, {"anchor_rule": "nearest"}, {"match_candidates": 0}]
+    "bad", [{"rounds": -1}, {"train_steps": 0}, {"grasps_per_object": -2}, {"anchor_rule": "nearest"}, {"match_candidates": 0}, {"post_iterations": -1}]
 )
 def test_loop_config_refuses_bad_values(bad):
     with pytest.raises(ConfigError):
@@ -134,3 +134,15 @@ def test_the_training_part_samples_with_the_loops_anchor_rule_and_the_heldout_pa
     assert dataclasses.replace(train, anchor_rule="matched", match_candidates=1) == sample  # nothing else changes
     heldout, count, label = round_sample_settings(sample, loop, "heldout")
     assert (heldout, count, label) == (sample, 3, SYNTHESIS)
+
+
+def test_a_rounds_training_part_refines_for_loop_post_iterations_and_the_heldout_check_as_the_evaluation():
+    from dexlite_pipeline.loop.rounds import round_post_optimize_config
+    from dexlite_pipeline.optim.config import PostOptimizeConfig
+
+    post = PostOptimizeConfig(random_baseline=True)
+    longer = round_post_optimize_config(post, LoopConfig(post_iterations=600), "train")
+    assert longer.annealing.iterations == 600 and not longer.random_baseline
+    assert dataclasses.replace(longer.annealing, iterations=post.annealing.iterations) == post.annealing  # the same schedule, longer
+    assert round_post_optimize_config(post, LoopConfig(post_iterations=600), "heldout").annealing == post.annealing
+    assert round_post_optimize_config(post, LoopConfig(post_iterations=0), "train").annealing == post.annealing

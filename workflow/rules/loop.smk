@@ -76,7 +76,7 @@ rule loop_post_optimize:
     output:
         directory(f"{ROUND}/{{part}}/post_{{shard}}.zarr"),
     params:
-        cfg=stage_params("seed", "device", "post_optimize", "scene", "energy.self_penetration_margin_m"),
+        cfg=stage_params("seed", "device", "post_optimize", "scene", "energy.self_penetration_margin_m", "loop.post_iterations"),
         code=code_hash("loop_post_optimize"),
         objects=learning_cli_options("objects", learning_objects_dirs()),
     threads: SHARD_THREADS

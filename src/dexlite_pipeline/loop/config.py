@@ -29,9 +29,12 @@ class LoopConfig:
     # was drawn; with match_candidates > 1 a debiased draw among that many best matches)
     anchor_rule: str = "debiased"
     match_candidates: int = 1
+    # annealed steps of a round's post-optimization (post_optimize's schedule otherwise; 0 = post_optimize.annealing.iterations):
+    # what a round keeps must pass the energy thresholds, which short refinements of learned starts rarely reach
+    post_iterations: int = 0
 
     def __post_init__(self) -> None:
-        for name in ("rounds", "grasps_per_object", "heldout_grasps_per_object"):
+        for name in ("rounds", "grasps_per_object", "heldout_grasps_per_object", "post_iterations"):
             if getattr(self, name) < 0:
                 raise ConfigError(f"loop.{name} must be >= 0, got {getattr(self, name)}")
         if self.train_steps < 1:

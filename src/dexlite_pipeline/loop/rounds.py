@@ -109,6 +109,16 @@ def round_objects(objects_dirs: list[str], stability_path: str, shard: int, shar
     return [oid for oid in mine if oid in available], {oid: "no prepared asset" for oid in mine if oid not in available}
 
 
+def round_post_optimize_config(post_optimize, loop: LoopConfig, part: str):
+    """The ``post_optimize`` section a round's refinement of part ``part`` runs: without the random-start baseline
+    (the evaluation's), and on the training part for ``loop.post_iterations`` annealed steps when set (the same
+    schedule's constants, run longer); the held-out check refines as the evaluation does, so it measures the same."""
+    post_optimize = dataclasses.replace(post_optimize, random_baseline=False)
+    if part == TRAIN and loop.post_iterations > 0:
+        post_optimize = dataclasses.replace(post_optimize, annealing=dataclasses.replace(post_optimize.annealing, iterations=loop.post_iterations))
+    return post_optimize
+
+
 def round_sample_settings(sample, loop: LoopConfig, part: str):
     """(sample settings, grasps per object, method label) of a round's part: ``train`` samples ``loop.grasps_per_object``
     per object with the loop's own associated points (``loop.anchor_rule``, ``loop.match_candidates``), labelled

@@ -1,7 +1,8 @@
 """Stage ``loop_post_optimize`` (one round, part and shard): refine a round's sampled grasps.
 
 The pipeline's post-optimization (``optim.post_shard``) as the ``post_optimize`` stage runs it, on each
-object's table in tabletop mode, without the random-start baseline, from a random stream of the round's own.
+object's table in tabletop mode, without the random-start baseline, from a random stream of the round's own; the
+training part for ``loop.post_iterations`` steps when set (``loop.rounds.round_post_optimize_config``).
 """
 
 from __future__ import annotations
@@ -13,20 +14,20 @@ from dexlite_pipeline.loop.stage_options import add_round_shard_arguments
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--sample", required=True, help="the round's sampled grasp shard (loop_sample output)")
-    add_round_shard_arguments(parser, "seed, device, post_optimize, scene and energy.self_penetration_margin_m", "refined grasp store (.zarr)")
+    add_round_shard_arguments(parser, "seed, device, post_optimize, scene, energy.self_penetration_margin_m and loop.post_iterations", "refined grasp store (.zarr)")
 
 
 def run(args: argparse.Namespace) -> int:
     import dataclasses
 
     from dexlite_pipeline.io.grasp_store import write_grasp_store
-    from dexlite_pipeline.loop.rounds import process_cpu_seconds, round_seed
+    from dexlite_pipeline.loop.rounds import process_cpu_seconds, round_post_optimize_config, round_seed
     from dexlite_pipeline.optim.post_shard import post_optimize_shard
     from dexlite_pipeline.settings import stage_config
 
     config = stage_config(args.config_json)
     config = dataclasses.replace(
-        config, seed=round_seed(config.seed, args.round, 0, args.part), post_optimize=dataclasses.replace(config.post_optimize, random_baseline=False)
+        config, seed=round_seed(config.seed, args.round, 0, args.part), post_optimize=round_post_optimize_config(config.post_optimize, config.loop, args.part)
     )
     (refined, attrs), _ = post_optimize_shard(
         args.sample, args.objects, args.shard, post_optimize=config.post_optimize,
