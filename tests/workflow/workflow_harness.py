@@ -73,7 +73,7 @@ TINY_OVERRIDES: dict = {
     "post_optimize": {"annealing": {"iterations": 128}, "batch_size": 64, "energy_object_points": 64},
     "evaluate": {"grasps_per_object": 2, "rendered_per_method": 1, "pca_components": [1, 2]},
     # two rounds of the data loop (off by default), small, yet large enough that some grasp is kept
-    "loop": {"rounds": 2, "grasps_per_object": 8, "train_steps": 20, "heldout_grasps_per_object": 2},
+    "loop": {"rounds": 2, "grasps_per_object": 8, "train_steps": 20, "heldout_grasps_per_object": 2, "post_iterations": 256},
 }
 
 # Every rule gets one thread in the tests: two shards run side by side on two cores, and a

@@ -24,14 +24,15 @@ class LoopConfig:
     # a round's training fine-tunes the previous model: train.learning_rate times this, constant, no warm-up, and the
     # energy terms at full weight from the first step (a fresh model's schedule would shake a trained one loose)
     fine_tune_learning_rate_factor: float = 0.1
-    # associated points of a round's samples on the training objects (the sample section's rules): debiased (Dex1B's
-    # 1/(count+1) over the whole cloud) or matched (where the surface looks like that of the training grasp whose code
-    # was drawn; with match_candidates > 1 a debiased draw among that many best matches)
-    anchor_rule: str = "debiased"
+    # associated points of a round's samples on the training objects (the sample section's rules): matched (where the
+    # surface looks like that of the training grasp whose code was drawn; with match_candidates > 1 a debiased draw among
+    # that many best matches) or debiased (Dex1B's 1/(count+1) over the whole cloud, whose samples rarely refine into
+    # grasps that pass the energy thresholds with a model trained on a few grasps per object)
+    anchor_rule: str = "matched"
     match_candidates: int = 1
     # annealed steps of a round's post-optimization (post_optimize's schedule otherwise; 0 = post_optimize.annealing.iterations):
     # what a round keeps must pass the energy thresholds, which short refinements of learned starts rarely reach
-    post_iterations: int = 0
+    post_iterations: int = 1000
 
     def __post_init__(self) -> None:
         for name in ("rounds", "grasps_per_object", "heldout_grasps_per_object", "post_iterations"):
