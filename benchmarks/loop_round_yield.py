@@ -86,7 +86,7 @@ def round_yield(run_dir: Path, out: Path, config: dict, round_number: int) -> di
             raise SystemExit(f"loop_round_yield.py: error: {needed} does not exist (run the workflow first)")
     common = ["--stability", str(results / "stability/stability.parquet"), *objects, "--round", str(round_number), "--part", "train"]
     out.mkdir(parents=True, exist_ok=True)
-    stores = []
+    stores, validated_args = [], []
     for shard in range(int(config["shards"])):
         sample, post, validated = (out / f"{kind}_{shard:03d}.zarr" for kind in ("sample", "post", "validated"))
         shard_args = [*common, "--shard", str(shard), "--threads", "1"]
@@ -94,12 +94,12 @@ def round_yield(run_dir: Path, out: Path, config: dict, round_number: int) -> di
         run_stage("loop-post-optimize", config, ["--sample", str(sample), *shard_args, "--out", str(post)], out / f"post_{shard:03d}.log")
         run_stage("loop-validate", config, ["--grasps", str(post), *shard_args, "--out", str(validated)], out / f"validate_{shard:03d}.log")
         stores += [sample, post, validated]
+        validated_args += ["--validated", str(validated)]
     merged = out / "grasps.zarr"
-    validated_args = [a for shard in range(int(config["shards"])) for a in ("--validated", str(out / f"validated_{shard:03d}.zarr"))]
     run_stage("loop-merge", config, ["--previous", str(previous), *validated_args, "--round", str(round_number), "--out", str(merged)], out / "merge.log")
-    candidates = pd.DataFrame(read_grasp_store(merged).attrs["candidates"])
-    row = {"sampled": int(candidates["sampled"].sum()) if len(candidates) else 0, **{r: int(candidates[r].sum()) if len(candidates) else 0 for r in DROP_REASONS}}
-    row["kept"] = int(candidates["kept"].sum()) if len(candidates) else 0  # passed every check and new (not duplicate)
+    candidates = pd.DataFrame(read_grasp_store(merged).attrs["candidates"], columns=["object_id", "sampled", "kept", *DROP_REASONS])
+    row = {column: int(candidates[column].sum()) for column in ("sampled", *DROP_REASONS)}
+    row["kept"] = int(candidates["kept"].sum())  # passed every check and new (not duplicate)
     row["objects"] = len(candidates)
     row["kept_per_object"] = row["kept"] / max(len(candidates), 1)
     row["cpu_s"] = stores_cpu_seconds([str(p) for p in stores])
@@ -122,9 +122,9 @@ def main(argv: list[str] | None = None) -> int:
     for path in args.configfile:
         base = merge_config(base, yaml.safe_load(Path(path).read_text()) or {})
     variants = [parse_variant(text) for text in args.variant]
+    configs = [validate_config(merge_config(base, overlay), where=f"variant {name}") for name, overlay in variants]  # all before any work
     rows = []
-    for name, overlay in variants:
-        config = validate_config(merge_config(base, overlay), where=f"variant {name}")
+    for (name, overlay), config in zip(variants, configs):
         row = {"variant": name, "settings": json.dumps(overlay, sort_keys=True), **round_yield(args.run_dir, args.out_dir / name, config, args.round)}
         print(", ".join(f"{k} {v:.2f}" if isinstance(v, float) else f"{k} {v}" for k, v in row.items()), flush=True)
         rows.append(row)
