@@ -60,7 +60,7 @@ def measure(assets, batches, iterations: int, sample_grasps: int) -> list[dict]:
     ids = [a.object_id for a in assets]
     hand = ShadowHand()
     config = PostOptimizeConfig(annealing=AnnealingSchedule(iterations=iterations))
-    energy = GraspEnergy.from_assets(hand, assets, EnergyConfig(weights=config.energy_weights, object_points=config.energy_object_points))
+    energy = GraspEnergy.from_assets(hand, assets, EnergyConfig(weights=config.energy_weights, object_point_spacing_m=config.energy_point_spacing_m))
     rows = []
     for batch in batches:
         grasps = facing_grasps(hand, ids, batch, seed=batch)

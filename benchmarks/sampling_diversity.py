@@ -148,7 +148,7 @@ def run_setting(name: str, assets, attempts: int, seed: int, config: dict, model
         pose, scale, grasp_ids = grasps.hand_pose, grasps.scale.astype(np.float32), grasps.object_id
     else:
         energy = GraspEnergy.from_assets(
-            hand, assets, EnergyConfig(weights=post.energy_weights, object_points=post.energy_object_points, self_penetration_margin_m=margin)
+            hand, assets, EnergyConfig(weights=post.energy_weights, object_point_spacing_m=post.energy_point_spacing_m, self_penetration_margin_m=margin)
         )
         obj, sc = torch.as_tensor(object_index), torch.as_tensor(scale)
         if name == "random_post":

@@ -32,6 +32,7 @@ def _grasp_set(rows):
             "object_id": np.array([r[0] for r in rows], dtype=object),
             "scale": np.array([r[2] for r in rows], np.float32),
             **{t: np.array([r[3][t] for r in rows], np.float32) for t in ("E_fc", "E_dis", "E_pen")},
+            "penetration_mm": np.array([r[3].get("penetration_mm", 0.5) for r in rows], np.float32),
         }
     )
 
@@ -60,11 +61,14 @@ def test_each_grasp_gets_the_first_reason_that_applies():
         ("untested", _pose(), 0.1, GOOD),
         ("nowhere", _pose(), 0.1, GOOD),
         ("held", _pose(), 0.1, {**GOOD, "E_fc": 0.9}),  # object reasons come before energies
+        ("a", _pose(t=(0.30, 0, 0.1)), 0.1, {**GOOD, "penetration_mm": 2.01}),  # starts deeper than the 2 mm cap
+        ("a", _pose(t=(0.35, 0, 0.1)), 0.1, {**GOOD, "penetration_mm": 2.0}),  # exactly at the cap: allowed
     ]
     reasons = curate_grasps(_grasp_set(rows), FACTS, CurateConfig(force_closure=False))
     assert list(reasons) == [
         "", "e_fc", "e_dis", "e_pen", "e_fc", "invalid_grasp", "invalid_grasp",
         "not_train", "unstable", "object_not_ok", "no_stability_result", "object_not_ok", "not_train",
+        "penetration_mm", "",
     ]
 
 
@@ -178,7 +182,7 @@ def test_empty_input_sets_do_not_decide_the_shared_arrays():
     imported = _grasp_set([("a", _pose(t=(0.05 * i, 0, 0.1)), 0.1, {**GOOD, "E_pen": 0.002}) for i in range(2)])
     imported.arrays["source_index"] = np.arange(2)
     merged = _common_arrays([empty_optimized, _tag(imported, "dexgraspnet")])
-    assert set(merged.arrays) == {"hand_pose", "object_id", "scale", "E_fc", "E_dis", "E_pen", "source_index", "origin", "origin_index"}
+    assert set(merged.arrays) == {"hand_pose", "object_id", "scale", "E_fc", "E_dis", "E_pen", "penetration_mm", "source_index", "origin", "origin_index"}
     np.testing.assert_array_equal(merged.arrays["E_pen"], imported.arrays["E_pen"])
     assert list(curate_grasps(merged, FACTS, CurateConfig(force_closure=False))) == ["", ""]  # imported: held to E_dis only
     assert len(_common_arrays([empty_optimized])) == 0 and list(curate_grasps(_common_arrays([empty_optimized]), FACTS, CurateConfig(force_closure=False))) == []

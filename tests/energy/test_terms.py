@@ -123,6 +123,15 @@ def _poses_near_sphere(count: int, seed: int) -> torch.Tensor:
     return torch.cat([direction * distance, matrix_to_euler_xyz(rotation), joints], dim=1)
 
 
+def _used_object_depths(energy, hand, frames, index, scale):
+    """(B, P) depth of each of the grasp's own object points in the hand (0 for points past its count) and their weights (B,)."""
+    count, weight = energy.penetration.point_counts(index, scale)
+    points = energy.penetration.object_points[index] * scale[:, None, None]
+    depth = hand.collision_signed_distance(frames, points).clamp(min=0)
+    used = torch.arange(points.shape[1])[None, :] < count[:, None]
+    return depth * used, weight
+
+
 def test_penetration_culling_is_exact(hand, sphere_energy):
     """Culled E_pen equals the brute force: all object points in the hand plus all buried sphere centres."""
     pose = _poses_near_sphere(24, seed=1)
@@ -131,13 +140,12 @@ def test_penetration_culling_is_exact(hand, sphere_energy):
     frames = hand.forward(pose)
     result = sphere_energy.penetration(frames, index, scale)
 
-    points = sphere_energy.penetration.object_points[0][None].expand(24, -1, -1) * SCALE
-    object_in_hand = hand.collision_signed_distance(frames, points).clamp(min=0)
+    object_in_hand, weight = _used_object_depths(sphere_energy, hand, frames, index, scale)
     spheres = sphere_energy.penetration.spheres
     centre = sphere_energy.penetration.sphere_map(frames)
     distance, _ = sphere_energy.bank.signed_distance(centre, index[:, None], scale[:, None])
     hand_in_object = (distance + spheres.radius).clamp(min=0)
-    brute = object_in_hand.sum(1) + distance.clamp(min=0).sum(1)
+    brute = object_in_hand.sum(1) * weight + distance.clamp(min=0).sum(1)
     assert (brute > 0).sum() >= 6, "the test poses should include penetrating hands"
     assert (distance.max(1).values > 0).sum() >= 2, "and some links buried beyond their radius"
     assert torch.allclose(result.energy, brute, atol=1e-6, rtol=1e-4)
@@ -147,7 +155,7 @@ def test_penetration_culling_is_exact(hand, sphere_energy):
 
 @pytest.fixture(scope="module")
 def fine_sphere_energy(hand, fine_sphere_objects):
-    return GraspEnergy.from_assets(hand, [load_asset(fine_sphere_objects, "sphere")], EnergyConfig(object_points=4096))
+    return GraspEnergy.from_assets(hand, [load_asset(fine_sphere_objects, "sphere")], EnergyConfig(object_point_spacing_m=0.001))
 
 
 def test_penetration_culling_is_exact_at_box_corners(hand, fine_sphere_energy):
@@ -155,7 +163,7 @@ def test_penetration_culling_is_exact_at_box_corners(hand, fine_sphere_energy):
     sphere_energy = fine_sphere_energy
     frames = hand.forward(torch.zeros(1, 28))
     rotation, position = hand.shape_frames(frames)
-    radius_m = float(sphere_energy.penetration.object_points[0].norm(dim=1).mean()) * SCALE  # the asset is normalized
+    radius_m = float(sphere_energy.penetration.object_points[0, :256].norm(dim=1).mean()) * SCALE  # the asset is normalized
     poses = []
     for s in torch.nonzero(hand.shape_kind != CAPSULE).flatten().tolist():
         for signs in itertools.product((-1.0, 1.0), repeat=3):
@@ -170,10 +178,10 @@ def test_penetration_culling_is_exact_at_box_corners(hand, fine_sphere_energy):
     index, scale = torch.zeros(len(pose), dtype=torch.long), torch.full((len(pose),), SCALE)
     frames = hand.forward(pose)
     result = sphere_energy.penetration(frames, index, scale)
-    points = sphere_energy.penetration.object_points[0][None].expand(len(pose), -1, -1) * SCALE
+    object_in_hand, weight = _used_object_depths(sphere_energy, hand, frames, index, scale)
     centre = sphere_energy.penetration.sphere_map(frames)
     distance, _ = sphere_energy.bank.signed_distance(centre, index[:, None], scale[:, None])
-    brute = hand.collision_signed_distance(frames, points).clamp(min=0).sum(1) + distance.clamp(min=0).sum(1)
+    brute = object_in_hand.sum(1) * weight + distance.clamp(min=0).sum(1)
     assert (brute > 0).sum() >= len(pose) // 2, "the corners should reach object points"
     assert torch.allclose(result.energy, brute, atol=1e-7, rtol=1e-4)
 
@@ -227,17 +235,17 @@ def test_evaluate_grasp_energies_reports_missing_objects(hand, sphere_objects):
     grasps = GraspSet(
         {"hand_pose": pose, "object_id": np.array(["sphere", "box", "nope"], dtype=object), "scale": np.full(3, SCALE, np.float32)}
     )
-    out = evaluate_grasp_energies(grasps, sphere_objects, device="cpu", batch_size=2, config=EnergyConfig(object_points=500), hand=hand, contact_samples=256)
+    out = evaluate_grasp_energies(grasps, sphere_objects, device="cpu", batch_size=2, config=EnergyConfig(object_point_spacing_m=0.003), hand=hand, contact_samples=256)
     assert np.isfinite(out["E_fc"][:2]).all() and np.isnan(out["E_fc"][2])
     assert out["energy_failure_reason"][2].startswith("object asset unusable")
     assert out["energy_failure_reason"][0] == ""
     assert (out["contact_index"][:2] >= 0).all()
     assert out["contact_distance_mm"][0] * 4 == pytest.approx(out["E_dis"][0] * 1000, rel=1e-4)
     # Without given contacts, the searched set is never worse than the four nearest the surface (the default).
-    nearest = evaluate_grasp_energies(grasps.select(np.arange(2)), sphere_objects, config=EnergyConfig(object_points=500), hand=hand, contact_samples=0)
+    nearest = evaluate_grasp_energies(grasps.select(np.arange(2)), sphere_objects, config=EnergyConfig(object_point_spacing_m=0.003), hand=hand, contact_samples=0)
     searched = out["E_fc"][:2] + 100 * out["E_dis"][:2]
     assert (searched <= nearest["E_fc"] + 100 * nearest["E_dis"] + 1e-5).all()
-    again = evaluate_grasp_energies(grasps, sphere_objects, batch_size=2, config=EnergyConfig(object_points=500), hand=hand, contact_samples=256)
+    again = evaluate_grasp_energies(grasps, sphere_objects, batch_size=2, config=EnergyConfig(object_point_spacing_m=0.003), hand=hand, contact_samples=256)
     assert np.array_equal(again["contact_index"], out["contact_index"])
 
 
@@ -247,8 +255,8 @@ def _dense_reference_terms(energy, hand, pose, object_index, scale, contact_inde
     candidates = hand.contact_candidates(frames)
     points = torch.gather(candidates, 1, contact_index[..., None].expand(-1, -1, 3))
     distance, normal = energy.bank.signed_distance(points, object_index[:, None], scale[:, None])
-    object_points = energy.penetration.object_points[object_index] * scale[:, None, None]
-    object_in_hand = hand.collision_signed_distance(frames, object_points).clamp(min=0).sum(1)
+    depth, weight = _used_object_depths(energy, hand, frames, object_index, scale)
+    object_in_hand = depth.sum(1) * weight
     spheres = energy.penetration.spheres
     centre_distance, _ = energy.bank.signed_distance(frames.transform(spheres.centre_local, spheres.link), object_index[:, None], scale[:, None])
     pairs = torch.triu(hand.keypoint_pair_mask, diagonal=1).nonzero(as_tuple=True)

@@ -19,7 +19,7 @@ def test_post_optimization_lowers_e_post(hand, tiny_assets, make_grasps):
     pose[:, :3] += rng.normal(scale=0.005, size=(12, 3))
     pose[:, 6:] += rng.normal(scale=0.1, size=(12, 22))
     config = PostOptimizeConfig(annealing=AnnealingSchedule(iterations=80), batch_size=8)  # two optimizer batches
-    energy = GraspEnergy.from_assets(hand, tiny_assets, EnergyConfig(weights=config.energy_weights, object_points=128))
+    energy = GraspEnergy.from_assets(hand, tiny_assets, EnergyConfig(weights=config.energy_weights, object_point_spacing_m=0.005))
     refined = refine(
         energy, torch.as_tensor(pose, dtype=torch.float32), energy.object_index(grasps.object_id),
         torch.as_tensor(grasps.scale), config, torch.Generator().manual_seed(0),

@@ -17,12 +17,12 @@ CONFIG = {
     "shards": 1,
     "train": {
         "epochs": 3, "max_steps": 0, "batch_size": 8, "clouds_per_batch": 2, "points_per_cloud": 64, "min_grasps": 4,
-        "validation_fraction": 0.25, "energy_object_points": 64,
+        "validation_fraction": 0.25, "energy_point_spacing_m": 0.006,
         "model": {"pointnet_widths": [16, 32, 64, 32], "encoder_hidden": [32], "decoder_hidden": [32], "latent_dim": 8, "normalization": "batch"},
     },
     # no shipped model at first: the run's own rows alone; the shipped model's rows are checked on their own below
     "sample": {"synthesis_grasps_per_object": 5, "expansion_grasps_per_object": 6, "scales": [0.08, 0.1], "shipped_model": ""},
-    "post_optimize": {"annealing": {"iterations": 10}, "energy_object_points": 64, "batch_size": 4},
+    "post_optimize": {"annealing": {"iterations": 10}, "energy_point_spacing_m": 0.006, "batch_size": 4},
     "energy": {"self_penetration_margin_m": 0.015},
     "scene": {"table": False},  # floating objects (tabletop mode: test_post_optimize_on_tables below)
 }

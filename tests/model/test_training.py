@@ -22,7 +22,7 @@ def setup(hand, tiny_assets, request):
     make_grasps = request.getfixturevalue("make_grasps")
     grasps = make_grasps(hand, 8, seed=1)
     data = build_training_data(grasps, tiny_assets, hand)
-    energy = GraspEnergy.from_assets(hand, tiny_assets, EnergyConfig(object_points=128))
+    energy = GraspEnergy.from_assets(hand, tiny_assets, EnergyConfig(object_point_spacing_m=0.005))
     return grasps, data, grasp_energy_terms(energy)
 
 
@@ -139,7 +139,7 @@ def test_no_lifted_grasps_is_zero_training_grasps_not_a_format_error():
 
 
 def test_loss_energies_use_the_contacts_a_grasp_was_made_with(hand, tiny_assets, make_grasps):
-    energy = GraspEnergy.from_assets(hand, tiny_assets, EnergyConfig(object_points=128))
+    energy = GraspEnergy.from_assets(hand, tiny_assets, EnergyConfig(object_point_spacing_m=0.005))
     terms = grasp_energy_terms(energy, contact_samples=8)
     grasps = make_grasps(hand, 4, seed=3)
     pose = torch.as_tensor(grasps.hand_pose)

@@ -25,7 +25,7 @@ def setup(hand, optim_objects):
     assets = [load_asset(optim_objects, "sphere"), load_asset(optim_objects, "box")]
     threads = torch.get_num_threads()
     torch.set_num_threads(1)
-    yield GraspEnergy.from_assets(hand, assets, EnergyConfig(object_points=400)), HullSampler(assets)
+    yield GraspEnergy.from_assets(hand, assets, EnergyConfig(object_point_spacing_m=0.003)), HullSampler(assets)
     torch.set_num_threads(threads)
 
 

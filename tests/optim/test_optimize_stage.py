@@ -17,7 +17,7 @@ CONFIG = {
     "seed": 3,
     "device": "cpu",
     "shards": 1,
-    "energy": {"object_points": 300},
+    "energy": {"object_point_spacing_m": 0.004},
     "optimize_grasps": {
         "grasps_per_object": 3,
         "scales": [0.08, 0.1],

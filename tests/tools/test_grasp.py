@@ -17,9 +17,9 @@ from dexlite_pipeline.io.grasp_store import read_grasp_store
 TINY = {
     "objects": {"sdf_resolution": 32, "surface_points": 512, "coacd_mcts_iterations": 10, "coacd_mcts_nodes": 5,
                 "coacd_mcts_max_depth": 1, "coacd_resolution": 300},
-    "energy": {"object_points": 300},
+    "energy": {"object_point_spacing_m": 0.004},
     "optimize_grasps": {"annealing": {"iterations": 60}, "final_contact_samples": 32, "contact_search_every": 0},
-    "post_optimize": {"annealing": {"iterations": 5}, "energy_object_points": 300, "start_contact_samples": 8, "final_contact_samples": 8},
+    "post_optimize": {"annealing": {"iterations": 5}, "energy_point_spacing_m": 0.004, "start_contact_samples": 8, "final_contact_samples": 8},
 }  # fmt: skip
 
 

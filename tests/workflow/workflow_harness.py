@@ -54,12 +54,12 @@ TINY_OVERRIDES: dict = {
         "annealing": {"iterations": 20}, "trace_every": 5,
     },
     "curate": {"max_grasps_per_object": 4},
-    "energy": {"object_points": 256},
+    "energy": {"object_point_spacing_m": 0.004},
     "train": {
         "max_steps": 300,  # ~15 CPU s: a model that proposes grasps the data loop can refine into grasps that hold
         "batch_size": 8,
         "points_per_cloud": 64,
-        "energy_object_points": 64,
+        "energy_point_spacing_m": 0.006,
         "min_grasps": 1,
         "model": {
             "pointnet_widths": [16, 32, 64, 32],
@@ -70,7 +70,7 @@ TINY_OVERRIDES: dict = {
     },
     "sample": {"synthesis_grasps_per_object": 4, "expansion_grasps_per_object": 2},
     # 128 steps (the default: 200): with 8, no sampled grasp of the tiny model came below the energy thresholds
-    "post_optimize": {"annealing": {"iterations": 128}, "batch_size": 64, "energy_object_points": 64},
+    "post_optimize": {"annealing": {"iterations": 128}, "batch_size": 64, "energy_point_spacing_m": 0.006},
     "evaluate": {"grasps_per_object": 2, "rendered_per_method": 1, "pca_components": [1, 2]},
     # two rounds of the data loop (off by default), small, yet large enough that some grasp is kept
     "loop": {"rounds": 2, "grasps_per_object": 8, "train_steps": 20, "heldout_grasps_per_object": 2, "post_iterations": 256},

@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 
 from dexlite_pipeline.energy.config import EnergyThresholds
 
-THRESHOLDED_TERMS = ("E_fc", "E_dis", "E_pen")
+THRESHOLDED_TERMS = ("E_fc", "E_dis", "E_pen", "penetration_mm")  # the arrays EnergyThresholds.limits() names
 IMPORTED_ORIGIN = "dexgraspnet"  # ``origin`` of grasps read from a DexGraspNet import
 
 

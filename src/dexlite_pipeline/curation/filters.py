@@ -63,6 +63,7 @@ DROP_REASONS = (
     "e_fc",  # E_fc >= max_e_fc
     "e_dis",  # E_dis >= max_e_dis_m
     "e_pen",  # E_pen >= max_e_pen_m
+    "penetration_mm",  # penetration depth (the lift test's start measure) > max_penetration_m
     "force_closure_unknown",  # its force closure could not be computed (e.g. unreadable object asset; reason in force_closure_failure_reason)
     "force_closure",  # the contacts it makes are not in force closure with a margin (epsilon <= force_closure_min_epsilon)
     "duplicate",  # near-duplicate of a better grasp of the same object and scale
@@ -130,7 +131,8 @@ def threshold_reasons(grasps: GraspSet, config: CurateConfig) -> np.ndarray:
     limits = {name: (name.lower(), limit) for name, limit in config.thresholds.limits().items()}
     for term, (reason, limit) in limits.items():
         checked = np.ones(n, bool) if term in config.imported_thresholded_terms else ~imported
-        reasons[checked & (reasons == "") & ~(values[term] < limit)] = reason
+        within = values[term] <= limit if term == "penetration_mm" else values[term] < limit
+        reasons[checked & (reasons == "") & ~within] = reason
     return reasons
 
 

@@ -23,21 +23,26 @@ class EnergyThresholds:
     max_e_fc: float = DEXGRASPNET_THRESHOLDS["E_fc"]  # force-closure residual ‖Σn‖² + ‖Σx×n‖²
     max_e_dis_m: float = DEXGRASPNET_THRESHOLDS["E_dis"]  # contact distance Σ|d| over the four contacts, m
     max_e_pen_m: float = DEXGRASPNET_THRESHOLDS["E_pen"]  # penetration depth sum, m
+    max_penetration_m: float = 0.002  # penetration depth (the one measure, ``penetration_mm``), m: the lift test's start cap
 
     def __post_init__(self) -> None:
-        for name in ("max_e_fc", "max_e_dis_m", "max_e_pen_m"):
+        for name in ("max_e_fc", "max_e_dis_m", "max_e_pen_m", "max_penetration_m"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"thresholds.{name} must be positive, got {getattr(self, name)}")
 
     def limits(self) -> dict[str, float]:
-        """Term name -> threshold (E_fc, E_dis, E_pen)."""
-        return {"E_fc": self.max_e_fc, "E_dis": self.max_e_dis_m, "E_pen": self.max_e_pen_m}
+        """Array name -> threshold: E_fc, E_dis, E_pen and the penetration depth ``penetration_mm`` (in mm, as stored)."""
+        return {"E_fc": self.max_e_fc, "E_dis": self.max_e_dis_m, "E_pen": self.max_e_pen_m, "penetration_mm": self.max_penetration_m * 1000.0}
 
     def passes(self, terms: dict) -> np.ndarray:
-        """(B,) bool: every thresholded term of ``terms`` (arrays by term name) is below its limit."""
+        """(B,) bool: every thresholded array of ``terms`` (arrays by name, ``limits``) is below its limit.
+
+        The depth passes at exactly the cap (≤, as the lift test's start check); the energies below it.
+        """
         passing = None
         for name, limit in self.limits().items():
-            below = np.asarray(terms[name]) < limit
+            values = np.asarray(terms[name])
+            below = values <= limit if name == "penetration_mm" else values < limit
             passing = below if passing is None else passing & below
         return passing
 
@@ -59,5 +64,5 @@ class EnergyConfig:
     """Config section ``energy``: term weights and how the terms are sampled."""
 
     weights: EnergyWeights = field(default_factory=EnergyWeights)
-    object_points: int = 2000  # object surface points for E_pen (DexGraspNet: 2000)
+    object_point_spacing_m: float = 0.002  # mean spacing of E_pen's object surface points at the grasp's scale, m
     self_penetration_margin_m: float = 0.02  # E_spen distance below which keypoint pairs are penalized

@@ -30,6 +30,14 @@ from dexlite_pipeline.energy.terms import (
 )
 from dexlite_pipeline.hand.model import JOINTS, HandFrames, ShadowHand
 from dexlite_pipeline.objects.assets import ObjectAsset, SdfBank
+from dexlite_pipeline.objects.surface_distance import SurfaceDistance, surface_point_sequence
+
+# Largest grasp scale an object's E_pen points are drawn for when the caller names none (DexGraspNet's largest).
+DEFAULT_MAX_SCALE = 0.15
+# At most this many E_pen points per object (a 30 cm box at 2 mm spacing needs ~45,000); beyond it the spacing grows.
+MAX_OBJECT_POINTS = 200_000
+# Normalized coordinates of the points that pad shorter sequences: far outside any hand (never inside a shape).
+PADDING_POINT = 1.0e3
 
 # The terms of the grasp energy, in the order of ``EnergyResult.terms`` and of the weighted sum.
 TERM_CLASSES: tuple[type[EnergyTerm], ...] = (ForceClosureTerm, ContactDistanceTerm, PenetrationTerm, SelfPenetrationTerm, JointLimitTerm)
@@ -81,9 +89,13 @@ class GraspEnergy:
         weights: EnergyWeights = EnergyWeights(),
         self_penetration_margin_m: float = 0.02,
         support_planes: torch.Tensor | None = None,
+        object_area: torch.Tensor | None = None,
+        point_spacing_m: float | None = None,
+        surface: SurfaceDistance | None = None,
     ) -> None:
         """``support_planes`` (n_objects, 4): per bank object the table's normal and offset per unit scale
-        (tabletop mode; adds E_table). None: floating objects, the five terms only."""
+        (tabletop mode; adds E_table). None: floating objects, the five terms only. ``object_points``,
+        ``object_area``, ``point_spacing_m`` and ``surface``: see ``PenetrationTerm``."""
         self.hand = hand
         self.bank = sdf_bank
         self.weights = weights
@@ -93,7 +105,14 @@ class GraspEnergy:
         self.joint_limits = JointLimitTerm(hand.joint_limits)
         self.self_penetration = SelfPenetrationTerm(hand, self_penetration_margin_m)
         self.candidate_map = LinkFrameMap.for_points(hand.contact_points_local, hand.contact_link, len(hand.link_names))
-        self.penetration = PenetrationTerm(hand, sdf_bank, object_points.to(self.device, hand.dtype))
+        self.penetration = PenetrationTerm(
+            hand,
+            sdf_bank,
+            object_points.to(self.device, hand.dtype),
+            object_area=None if object_area is None else object_area.to(self.device, hand.dtype),
+            point_spacing_m=point_spacing_m,
+            surface=surface,
+        )
         self.terms: list[EnergyTerm] = [self.force_closure, self.contact_distance, self.penetration, self.self_penetration, self.joint_limits]
         self.support_planes = None
         if support_planes is not None:
@@ -102,19 +121,35 @@ class GraspEnergy:
             self.terms.append(self.table)
 
     @classmethod
-    def from_assets(cls, hand: ShadowHand, assets: list[ObjectAsset], config: EnergyConfig = EnergyConfig(), support_planes=None) -> "GraspEnergy":
-        """Build the SDF bank and E_pen point sets (first ``config.object_points`` surface samples).
+    def from_assets(
+        cls, hand: ShadowHand, assets: list[ObjectAsset], config: EnergyConfig = EnergyConfig(), support_planes=None, max_scale=None
+    ) -> "GraspEnergy":
+        """Build the SDF bank, the exact surface distance and E_pen's per-area point sets.
 
-        ``support_planes`` (``tabletop.SupportPlanes``, tabletop mode): adds E_table with each asset's table.
+        ``max_scale``: the largest scale the grasps of each object will have, a float for all or a
+        mapping object id -> scale (missing ids: ``DEFAULT_MAX_SCALE``); each object gets the
+        points ``config.object_point_spacing_m`` apart at that scale (a grasp at a larger scale
+        gets fewer per area). ``support_planes`` (``tabletop.SupportPlanes``, tabletop mode):
+        adds E_table with each asset's table.
         """
         bank = SdfBank(assets, device=hand.device, dtype=hand.dtype)
-        count = min(config.object_points, min(len(a.surface_points) for a in assets))
-        points = torch.as_tensor(np.stack([a.surface_points[:count] for a in assets]), dtype=hand.dtype)
+        meshes = [asset.load_mesh() for asset in assets]
+        points, area = object_point_sets(assets, meshes, config.object_point_spacing_m, max_scale)
         planes = None
         if support_planes is not None:
             rows = [(*support_planes.get(a.object_id).normal, support_planes.get(a.object_id).offset) for a in assets]
             planes = torch.tensor(rows, dtype=torch.float64)
-        return cls(hand, bank, points, config.weights, config.self_penetration_margin_m, support_planes=planes)
+        return cls(
+            hand,
+            bank,
+            torch.as_tensor(points, dtype=hand.dtype),
+            config.weights,
+            config.self_penetration_margin_m,
+            support_planes=planes,
+            object_area=torch.as_tensor(area, dtype=hand.dtype),
+            point_spacing_m=config.object_point_spacing_m,
+            surface=SurfaceDistance.from_meshes(bank, meshes),
+        )
 
     def support(self, object_index: torch.Tensor, scale: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor] | tuple[None, None]:
         """Per grasp, the table's normal (B, 3) and offset in metres (B,); (None, None) for floating objects."""
@@ -192,6 +227,7 @@ class GraspEnergy:
         palm_rot: torch.Tensor | None = None,
         palm_t: torch.Tensor | None = None,
         joints: torch.Tensor | None = None,
+        exact_penetration: bool = False,
     ) -> EnergyContext:
         """The shared quantities the terms read, for the same arguments as ``__call__``.
 
@@ -223,7 +259,7 @@ class GraspEnergy:
             contact_points=points,
             contact_distance=distance,
             contact_normal=normal,
-            penetration=self.penetration(frames, object_index, scale),
+            penetration=self.penetration(frames, object_index, scale, exact=exact_penetration),
         )
 
     def __call__(
@@ -236,17 +272,26 @@ class GraspEnergy:
         palm_rot: torch.Tensor | None = None,
         palm_t: torch.Tensor | None = None,
         joints: torch.Tensor | None = None,
+        exact_penetration: bool = False,
     ) -> EnergyResult:
         """Evaluate every term for a batch; pass ``hand_pose`` (B, 28) or ``palm_rot``/``palm_t``/``joints``.
 
-        ``contact_index`` None chooses the four candidates nearest the surface.
+        ``contact_index`` None chooses the four candidates nearest the surface. ``exact_penetration``:
+        ``penetration_mm`` with sphere distances from the mesh near the surface (the judged depth;
+        the terms are the same either way).
         """
         context = self.context(
-            hand_pose, object_index=object_index, scale=scale, contact_index=contact_index, palm_rot=palm_rot, palm_t=palm_t, joints=joints
+            hand_pose,
+            object_index=object_index,
+            scale=scale,
+            contact_index=contact_index,
+            palm_rot=palm_rot,
+            palm_t=palm_t,
+            joints=joints,
+            exact_penetration=exact_penetration,
         )
         terms = {term.name: term.evaluate(context) for term in self.terms}
-        penetration = context.penetration
-        deepest = torch.maximum(penetration.object_in_hand_max_m, penetration.hand_in_object_max_m)
+        deepest = context.penetration.depth_m
         return EnergyResult(
             terms=terms,
             total=weighted_sum(self.weights, terms, ((term.name, term.weight_key) for term in self.terms)),
@@ -254,3 +299,38 @@ class GraspEnergy:
             penetration_mm=deepest * 1000.0,
             contact_distance_mm=context.contact_distance.detach().abs().mean(dim=1) * 1000.0,
         )
+
+
+def max_scale_by_object(object_ids, scales) -> dict[str, float]:
+    """Object id -> the largest of its grasps' scales (for ``GraspEnergy.from_assets``'s ``max_scale``)."""
+    largest: dict[str, float] = {}
+    for object_id, scale in zip(object_ids, np.asarray(scales, dtype=np.float64).reshape(-1)):
+        if np.isfinite(scale):
+            largest[str(object_id)] = max(largest.get(str(object_id), 0.0), float(scale))
+    return largest
+
+
+def object_point_sets(assets: list[ObjectAsset], meshes, spacing_m: float, max_scale=None) -> tuple[np.ndarray, np.ndarray]:
+    """E_pen's points (n_objects, P, 3), normalized frame, padded with far points, and each mesh's area (n_objects,).
+
+    ``meshes``: the assets' normalized meshes (trimesh.Trimesh), in the same order.
+
+    Each object gets the first area·s²/spacing² points of its ``surface_point_sequence`` for its
+    largest scale s (``max_scale``: float, mapping object id -> scale, or None), at most
+    ``MAX_OBJECT_POINTS``.
+    """
+    areas, sequences = [], []
+    for asset, mesh in zip(assets, meshes):
+        if isinstance(max_scale, Mapping):
+            scale = float(max_scale.get(asset.object_id, DEFAULT_MAX_SCALE))
+        else:
+            scale = float(DEFAULT_MAX_SCALE if max_scale is None else max_scale)
+        area = float(mesh.area)
+        count = int(min(MAX_OBJECT_POINTS, max(1, np.ceil(area * scale**2 / spacing_m**2))))
+        areas.append(area)
+        sequences.append(surface_point_sequence(mesh, count))
+    width = max(len(p) for p in sequences)
+    points = np.full((len(assets), width, 3), PADDING_POINT, dtype=np.float32)
+    for o, sequence in enumerate(sequences):
+        points[o, : len(sequence)] = sequence
+    return points, np.asarray(areas)

@@ -9,7 +9,7 @@ import numpy as np
 import torch
 
 from dexlite_pipeline.energy.config import EnergyConfig, EnergyWeights
-from dexlite_pipeline.energy.grasp_energy import CONTACT_COUNT, TERM_NAMES, GraspEnergy
+from dexlite_pipeline.energy.grasp_energy import CONTACT_COUNT, TERM_NAMES, GraspEnergy, max_scale_by_object
 from dexlite_pipeline.hand.model import ShadowHand
 from dexlite_pipeline.io.grasp_store import GraspSet, invalid_grasp_reasons
 from dexlite_pipeline.objects.assets import ObjectAssetError, load_asset
@@ -68,7 +68,7 @@ def evaluate_grasp_energies(
     object_ids = np.asarray([str(o) for o in grasps.object_id])
     generator = torch.Generator().manual_seed(0)
     for assets in assets_by_resolution.values():
-        energy = GraspEnergy.from_assets(hand, assets, config)
+        energy = GraspEnergy.from_assets(hand, assets, config, max_scale=max_scale_by_object(grasps.object_id, grasps.scale))
         rows = np.nonzero(np.isin(object_ids, energy.object_ids) & (invalid == ""))[0]
         for start in range(0, len(rows), batch_size):
             idx = rows[start : start + batch_size]
@@ -83,7 +83,7 @@ def evaluate_grasp_energies(
                     chosen = energy.best_contacts(pose, object_index, scale, chosen, contact_samples, generator)
                 contacts = chosen if contacts is None else torch.where(given[:, None], contacts, chosen)
             with torch.no_grad():
-                result = energy(pose, object_index=object_index, scale=scale, contact_index=contacts)
+                result = energy(pose, object_index=object_index, scale=scale, contact_index=contacts, exact_penetration=True)
             for name, value in result.terms.items():
                 out[name][idx] = value.cpu().numpy()
             out["E_total"][idx] = result.total.cpu().numpy()

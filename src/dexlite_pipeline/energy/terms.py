@@ -33,15 +33,21 @@ from dexlite_pipeline.energy.link_map import LinkFrameMap
 from dexlite_pipeline.energy.point_clusters import build_point_clusters
 from dexlite_pipeline.energy.spheres import build_hand_spheres
 from dexlite_pipeline.objects.assets import SdfBank
+from dexlite_pipeline.objects.surface_distance import SurfaceDistance
 
 
 @dataclass
 class PenetrationResult:
-    """E_pen per grasp and the deepest penetration each way (metres, detached)."""
+    """E_pen per grasp and the deepest penetration each way (metres, detached, ≥ 0)."""
 
     energy: torch.Tensor
     object_in_hand_max_m: torch.Tensor
     hand_in_object_max_m: torch.Tensor
+
+    @property
+    def depth_m(self) -> torch.Tensor:
+        """(B,) the grasp's penetration depth: the deeper of the two directions (metres)."""
+        return torch.maximum(self.object_in_hand_max_m, self.hand_in_object_max_m)
 
 
 @dataclass
@@ -158,17 +164,30 @@ class SelfPenetrationTerm(EnergyTerm):
 
 
 class PenetrationTerm(EnergyTerm):
-    """E_pen (metres): depth of object surface points inside the hand, plus depth of buried hand spheres' centres.
+    """E_pen and the penetration depth: the hand and the object, each measured inside the other.
 
-    Object points in the hand's capsules and boxes is DexGraspNet's E_pen (its 1 mm
-    threshold applies to it). It is capped by a link's radius and blind to a link buried
-    wholly inside the object, so the hand's sphere model adds Σ max(0, d(c)) over sphere
-    centres c: zero until a link's axis is inside the object, about where the first part
-    stops growing. Near that depth both parts see the same link (object points inside
-    it and its buried centres), so they overlap there rather than meeting exactly.
-    ``hand_in_object_max_m`` is the full depth max(d(c) + r) (for ``penetration_mm``).
-    ``GraspEnergy`` calls it once per evaluation to fill ``EnergyContext.penetration`` (the
-    depths are diagnostics of every evaluation); ``evaluate`` reads the energy from there.
+    The depth of a grasp (``PenetrationResult.depth_m``, the one measure every check uses) is
+    the larger of two directions, each exact at its samples:
+
+    - object in hand: object surface points inside the hand's capsules and boxes, by the
+      shapes' analytic signed distances. Points are spread per area, ``point_spacing_m``
+      apart on average at the grasp's own scale (not a fixed count per object, which is
+      sparse on a large object): a grasp at scale s uses the first area·s²/spacing² points
+      of the object's sequence (``surface_point_sequence``), so its result does not depend
+      on the other grasps of its batch.
+    - hand in object: r + d(c) over the hand's spheres (centre c, radius r; d positive
+      inside). A capsule is its axis swept by a ball, so on a capsule this is the depth of
+      the deepest object point in it, thin walls included, and it sees a link buried wholly
+      inside, which the first direction cannot. With ``exact`` the distance of every sphere
+      that may touch the object comes from the mesh (``SurfaceDistance``), not the grid.
+
+    E_pen (metres) = Σ over object points of their depth inside the hand, each weighted by
+    its share of the surface over ``REFERENCE_POINT_AREA_M2`` (so its scale does not depend
+    on the sampling density; the reference is the area per point of DexGraspNet's 2,000
+    points on a 10 cm object), plus Σ max(0, d(c)) over the sphere centres inside the
+    object, zero until a link's axis is inside, about where the first part stops growing.
+    ``GraspEnergy`` calls it once per evaluation to fill ``EnergyContext.penetration``;
+    ``evaluate`` reads the energy from there.
 
     Exact culling keeps it cheap. Every sphere's depth is found first without autograd; a
     shape can hold object points only if one of its spheres reaches the object within the
@@ -184,14 +203,31 @@ class PenetrationTerm(EnergyTerm):
     # Float32 slack of the culling tests, so that rounding never drops a point (only adds candidates).
     CULL_SLACK_M = 1e-6
     CULL_SLACK_RELATIVE = 1e-4
+    REFERENCE_POINT_AREA_M2 = 6e-6  # surface area one object point stands for in E_pen's scale (m²)
 
     name = "E_pen"
     weight_key = "pen"
 
-    def __init__(self, hand: ShadowHand, sdf_bank: SdfBank, object_points: torch.Tensor, cluster_size: int = 8) -> None:
+    def __init__(
+        self,
+        hand: ShadowHand,
+        sdf_bank: SdfBank,
+        object_points: torch.Tensor,
+        cluster_size: int = 8,
+        object_area: torch.Tensor | None = None,
+        point_spacing_m: float | None = None,
+        surface: SurfaceDistance | None = None,
+    ) -> None:
+        """``object_points`` (n_objects, P, 3), normalized frame, each object's sequence padded to P with
+        far-away points; ``object_area`` (n_objects,) normalized surface areas and ``point_spacing_m``
+        give each grasp its points (None: every point, each standing for ``REFERENCE_POINT_AREA_M2``);
+        ``surface`` gives exact distances near the surface (None: the grid's)."""
         self.hand = hand
         self.bank = sdf_bank
+        self.surface = surface
         self.object_points = object_points  # (n_objects, P, 3), normalized frame
+        self.object_area = object_area
+        self.point_spacing_m = point_spacing_m
         self.clusters = build_point_clusters(object_points, cluster_size)
         # [m, |m|² − ρ², ρ, 1] per cluster (see ``_clusters_near``).
         centre, rho = self.clusters.centre, self.clusters.radius[..., None]
@@ -205,10 +241,20 @@ class PenetrationTerm(EnergyTerm):
         self.sphere_map = LinkFrameMap.for_points(self.spheres.centre_local, self.spheres.link, link_count)
         self.shape_map = LinkFrameMap.for_frames(hand.shape_rot, hand.shape_pos, hand.shape_link, link_count)
 
+    def point_counts(self, object_index: torch.Tensor, scale: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """Per grasp, how many of its object's points it uses (B,) and the E_pen weight of each (B,)."""
+        total = self.object_points.shape[1]
+        if self.object_area is None or self.point_spacing_m is None:
+            return torch.full_like(object_index, total), torch.ones_like(scale)
+        area_m2 = self.object_area.to(scale.dtype)[object_index] * scale.square()
+        count = torch.ceil(area_m2 / self.point_spacing_m**2).clamp(1, total).long()
+        return count, area_m2 / count / self.REFERENCE_POINT_AREA_M2
+
     def evaluate(self, context: EnergyContext) -> torch.Tensor:
         return context.penetration.energy
 
-    def __call__(self, frames: HandFrames, object_index: torch.Tensor, scale: torch.Tensor) -> PenetrationResult:
+    def __call__(self, frames: HandFrames, object_index: torch.Tensor, scale: torch.Tensor, exact: bool = False) -> PenetrationResult:
+        """E_pen and the depths of a batch; ``exact``: sphere depths from the mesh (``SurfaceDistance``) near the surface."""
         batch = object_index.shape[0]
         radius = self.spheres.radius
         with torch.no_grad():
@@ -220,6 +266,8 @@ class PenetrationTerm(EnergyTerm):
             margin = (self.interpolation_error[object_index] * scale)[:, None] + self.spheres.shape_gap[None, :]
             active = shape_reach > -margin
             b, k = (sphere_depth > radius).nonzero(as_tuple=True)  # centres inside the object
+            if exact and self.surface is not None:
+                sphere_depth = self.surface.signed_distance(centre, object_index[:, None], scale[:, None], band_m=radius) + radius
             hand_max = sphere_depth.max(dim=1).values.clamp(min=0)
         distance, _ = self.bank.signed_distance(self.sphere_map.rows(frames, b, k), object_index[b], scale[b], with_normal=False)
         hand_energy = distance.new_zeros(batch).index_add(0, b, distance)
@@ -227,13 +275,16 @@ class PenetrationTerm(EnergyTerm):
         return PenetrationResult(obj_energy + hand_energy, obj_max, hand_max)
 
     def _object_in_hand(self, frames, active, object_index, scale):
-        """Σ over object points of their depth inside the active shapes (deepest shape per point)."""
+        """Σ over the grasp's object points of their weighted depth inside the active shapes (deepest shape per point)."""
         batch = object_index.shape[0]
+        count, weight = self.point_counts(object_index, scale)
         with torch.no_grad():
             pair_b, pair_s = active.nonzero(as_tuple=True)
             frame = self.shape_map(frames)[pair_b, pair_s]  # (A, 3, 4): [R | c]
             cand_pair, cand_point, depth = self._points_inside(frame, pair_b, pair_s, object_index, scale)
             grasp = pair_b[cand_pair]
+            used = cand_point < count[grasp]  # the grasp's own points (its scale's prefix of the sequence)
+            cand_pair, cand_point, depth, grasp = cand_pair[used], cand_point[used], depth[used], grasp[used]
             deepest_max = depth.new_zeros(batch).scatter_reduce(0, grasp, depth, "amax")
             # A point inside several shapes counts once, at its deepest; exact ties share it (as amax's gradient does).
             _, point_id = torch.unique(grasp * self.object_points.shape[1] + cand_point, return_inverse=True)
@@ -245,7 +296,7 @@ class PenetrationTerm(EnergyTerm):
         frame = self.shape_map.rows(frames, grasp, shape)
         local = self._apply(self._to_local(frame, scale[grasp]), self.object_points[object_index[grasp], cand_point])
         depth = shape_signed_distance(local, self.hand.shape_kind[shape], self.hand.shape_size[shape])
-        return depth.new_zeros(batch).index_add(0, grasp, depth * share), deepest_max
+        return depth.new_zeros(batch).index_add(0, grasp, depth * share * weight[grasp]), deepest_max
 
     @staticmethod
     def _to_local(frame: torch.Tensor, scale: torch.Tensor) -> torch.Tensor:

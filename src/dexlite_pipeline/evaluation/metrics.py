@@ -257,8 +257,9 @@ def filter_flags(arrays: Mapping[str, np.ndarray], thresholds: Mapping[str, floa
         return None
     passing = ~invalid_flags(arrays)
     for name, limit in thresholds.items():
+        values = np.asarray(arrays[names[name]], dtype=np.float64)
         with np.errstate(invalid="ignore"):
-            passing &= np.asarray(arrays[names[name]], dtype=np.float64) < limit
+            passing &= (values <= limit) if name == "penetration_mm" else (values < limit)  # the depth may reach its cap
     return passing
 
 

@@ -98,7 +98,7 @@ def train_from_lift_shards(
 
     from dexlite_pipeline.device import resolve_device
     from dexlite_pipeline.energy.config import EnergyConfig
-    from dexlite_pipeline.energy.grasp_energy import GraspEnergy
+    from dexlite_pipeline.energy.grasp_energy import GraspEnergy, max_scale_by_object
     from dexlite_pipeline.hand import ShadowHand
     from dexlite_pipeline.model.data import TrainingDataError, build_training_data, select_training_grasps, split_validation
     from dexlite_pipeline.model.training import fit_training_codes, grasp_energy_terms, train_cvae
@@ -124,7 +124,8 @@ def train_from_lift_shards(
     margin_m = self_penetration_margin_m
     planes = load_support_planes(table, stability_path)
     energy = GraspEnergy.from_assets(
-        hand, assets, EnergyConfig(object_points=settings.energy_object_points, self_penetration_margin_m=margin_m), support_planes=planes
+        hand, assets, EnergyConfig(object_point_spacing_m=settings.energy_point_spacing_m, self_penetration_margin_m=margin_m), support_planes=planes,
+        max_scale=max_scale_by_object(grasps.object_id, grasps.scale),
     )
     train_index, val_index = split_validation(len(grasps), settings.validation_fraction, seed)
     energy_terms = grasp_energy_terms(energy, settings.contact_samples, seed)

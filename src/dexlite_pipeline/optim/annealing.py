@@ -263,12 +263,14 @@ def optimize(
             result = energy(hand_pose, object_index=object_index, scale=scale, contact_index=contacts)
         total = result.total.detach()
         tracker.replace_last(total, result.terms)
+    with torch.no_grad():  # the judged depth: sphere distances from the mesh near the surface
+        depth = energy.penetration(energy.hand.forward(hand_pose), object_index, scale.to(hand_pose.dtype), exact=True).depth_m
     return OptimizationResult(
         hand_pose=hand_pose,
         contact_index=contacts,
         terms={k: v.detach() for k, v in result.terms.items()},
         total=total,
-        penetration_mm=result.penetration_mm,
+        penetration_mm=depth * 1000.0,
         contact_distance_mm=result.contact_distance_mm,
         trace=torch.stack(tracker.trace),
         trace_iterations=torch.as_tensor(tracker.trace_iterations),

@@ -100,7 +100,7 @@ class PostOptimizeConfig:
 
     annealing: AnnealingSchedule = POST_SCHEDULE  # the random starts' schedule (DexGraspNet's, 200 steps)
     energy_weights: EnergyWeights = field(default_factory=EnergyWeights)  # E_post = Σ weight · term
-    energy_object_points: int = 2000  # object surface points for E_pen
+    energy_point_spacing_m: float = 0.002  # mean spacing of E_pen's object surface points at the grasp's scale, m
     start_contact_samples: int = 64  # sampled grasps start from the best of this many near-surface 4-sets (0: nearest pads)
     final_contact_samples: int = 64  # after the last step, keep the best of this many contact sets (0: off)
     keep_best: bool = True  # return each grasp's lowest-E_post visited state instead of the last one

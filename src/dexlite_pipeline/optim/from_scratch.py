@@ -46,7 +46,7 @@ def synthesize(
     """
     started = time.perf_counter()
     hand = ShadowHand(device)
-    energy = GraspEnergy.from_assets(hand, assets, energy_config, support_planes=support_planes)
+    energy = GraspEnergy.from_assets(hand, assets, energy_config, support_planes=support_planes, max_scale=max(config.scales))
     term_names = tuple(term.name for term in energy.terms)
     hulls = HullSampler(assets)
     per_object = config.grasps_per_object * len(config.scales)

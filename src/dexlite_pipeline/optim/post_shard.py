@@ -14,7 +14,7 @@ import numpy as np
 import torch
 
 from dexlite_pipeline.io.grasp_store import GraspSet
-from dexlite_pipeline.energy.grasp_energy import GraspEnergy
+from dexlite_pipeline.energy.grasp_energy import GraspEnergy, max_scale_by_object
 from dexlite_pipeline.optim.post import RefinedGrasps, refine
 
 if TYPE_CHECKING:
@@ -104,8 +104,8 @@ def post_optimize_shard(
         attrs.update(store_attrs(True))
     if object_ids:
         assets = [load_asset(objects_dirs, oid) for oid in object_ids]
-        energy_config = EnergyConfig(weights=settings.energy_weights, object_points=settings.energy_object_points, self_penetration_margin_m=margin_m)
-        energy = GraspEnergy.from_assets(hand, assets, energy_config, support_planes=planes)
+        energy_config = EnergyConfig(weights=settings.energy_weights, object_point_spacing_m=settings.energy_point_spacing_m, self_penetration_margin_m=margin_m)
+        energy = GraspEnergy.from_assets(hand, assets, energy_config, support_planes=planes, max_scale=max_scale_by_object(sampled.object_id[valid], sampled.scale[valid]))
     generator = shard_generator("post_optimize", seed, shard)
 
     def optimize_rows(rows: GraspSet, init_pose: torch.Tensor | None, start_contacts: str) -> RefinedGrasps:

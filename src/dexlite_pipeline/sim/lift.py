@@ -2,9 +2,14 @@
 
 Per grasp (docs/design.md, "Physics tests"):
 
-1. Initial penetration: the larger of the deepest hand surface point inside the object's
-   SDF and the deepest hand-object contact MuJoCo finds at the grasp pose; deeper than
-   ``max_initial_penetration_m`` fails at once with reason ``initial_penetration``.
+1. Start depth: the grasp's penetration depth against the object's mesh, the one measure
+   the energy filter and the report use too (``energy.terms.PenetrationTerm``: object points
+   inside the hand's shapes and the hand's spheres inside the object, exact near the
+   surface); deeper than ``max_initial_penetration_m`` (2 mm by default) fails at once with
+   reason ``initial_penetration``: a finger that starts deeper would have had to pass
+   through the object, and MuJoCo's push-out would preload the grip. The overlap MuJoCo
+   itself sees at the start (hand against the convex pieces, which bulge past the mesh) is
+   recorded as ``initial_hull_overlap_mm``, not judged.
 2. Squeeze target (geometric): every finger with a link within
    ``squeeze_contact_distance_m`` of the object moves its joints along the gradient that
    pushes those links into the object, the largest joint change being ``squeeze_rad``;
@@ -80,7 +85,8 @@ class LiftOutcome:
     lift_ratio: np.ndarray  # float32, NaN where not simulated
     lift_success: np.ndarray  # bool
     failure_reason: np.ndarray  # object (str), '' on success
-    initial_penetration_mm: np.ndarray  # float32
+    initial_penetration_mm: np.ndarray  # float32, the start depth against the mesh
+    initial_hull_overlap_mm: np.ndarray  # float32, deepest hand contact with the convex pieces at the start
     six_dir_translation_m: np.ndarray  # float32 (B, 6)
     six_dir_rotation_deg: np.ndarray  # float32 (B, 6)
     table_depth_mm: np.ndarray  # float32, deepest hand point below the table (tabletop mode; NaN otherwise)
@@ -93,6 +99,7 @@ class LiftOutcome:
             lift_success=np.zeros(count, bool),
             failure_reason=np.full(count, "", dtype=object),
             initial_penetration_mm=np.full(count, np.nan, np.float32),
+            initial_hull_overlap_mm=np.full(count, np.nan, np.float32),
             six_dir_translation_m=np.full((count, 6), np.nan, np.float32),
             six_dir_rotation_deg=np.full((count, 6), np.nan, np.float32),
         )
@@ -395,6 +402,7 @@ class LiftTask:
     scale: np.ndarray  # (B,) float64
     config: LiftConfig
     table: SupportPlane | None = None  # the object's table (tabletop mode); None: floating
+    max_scale: float = 0.0  # the largest scale of this object's grasps in the call (its depth measure's point set)
 
 
 class _WorkerState:
@@ -409,6 +417,21 @@ class _WorkerState:
         self.hand = hand
         self.assets: OrderedDict[tuple, ObjectAsset] = OrderedDict()
         self.simulators: OrderedDict[tuple, GraspSimulator] = OrderedDict()
+        self.measures: OrderedDict[tuple, object] = OrderedDict()
+
+    def get_measure(self, asset: ObjectAsset, max_scale: float, spacing_m: float):
+        """The penetration measure (a one-object ``GraspEnergy``) of ``asset`` for grasps up to ``max_scale``."""
+        from dexlite_pipeline.energy.config import EnergyConfig
+        from dexlite_pipeline.energy.grasp_energy import GraspEnergy
+
+        key = (str(asset.directory), float(max_scale), float(spacing_m))
+        if key not in self.measures:
+            config = EnergyConfig(object_point_spacing_m=spacing_m)
+            self.measures[key] = GraspEnergy.from_assets(self.hand, [asset], config, max_scale=float(max_scale))
+            while len(self.measures) > SCENE_CACHE:
+                self.measures.popitem(last=False)
+        self.measures.move_to_end(key)
+        return self.measures[key]
 
     def get_asset(self, dirs: list[str], object_id: str) -> ObjectAsset:
         key = (tuple(dirs), object_id)
@@ -441,6 +464,15 @@ def _squeeze_plans(hand: ShadowHand, asset: ObjectAsset, hand_pose: np.ndarray, 
     return np.concatenate(targets).astype(np.float64), np.concatenate(depth).astype(np.float64)
 
 
+def start_depth_m(measure, hand_pose: np.ndarray, scale: np.ndarray) -> np.ndarray:
+    """(B,) penetration depth (m) of grasps on the measure's one object, exact near the surface."""
+    pose = torch.as_tensor(hand_pose, dtype=measure.hand.dtype, device=measure.device)
+    s = torch.as_tensor(scale, dtype=measure.hand.dtype, device=measure.device)
+    with torch.no_grad():
+        result = measure.penetration(measure.hand.forward(pose), torch.zeros(len(pose), dtype=torch.long, device=measure.device), s, exact=True)
+    return result.depth_m.cpu().numpy().astype(np.float64)
+
+
 def _error_reason(exc: Exception) -> str:
     return f"object_error: {str(exc).splitlines()[0] if str(exc) else type(exc).__name__}"
 
@@ -448,16 +480,15 @@ def _error_reason(exc: Exception) -> str:
 def run_task(task: LiftTask, state: _WorkerState) -> tuple[np.ndarray, LiftOutcome]:
     """Lift-test one object's grasps with one worker's caches; never raises for a bad object.
 
-    Initial penetration is the larger of the deepest hand surface point inside the
-    object's SDF (sees a link buried in the object) and the deepest hand-object contact
-    MuJoCo finds at the grasp pose (exact for the simulated capsules, boxes and convex
-    pieces, so it also sees an object edge cutting into a finger).
+    The start depth is the penetration measure against the mesh (module docstring, step 1).
     """
     cfg = task.config
     out = LiftOutcome.empty(len(task.indices))
     try:
         asset = state.get_asset(task.objects_dirs, task.object_id)
-        targets, hand_in_object = _squeeze_plans(state.hand, asset, task.hand_pose, task.scale, cfg)
+        targets, _ = _squeeze_plans(state.hand, asset, task.hand_pose, task.scale, cfg)
+        measure = state.get_measure(asset, max(task.max_scale, float(task.scale.max())), cfg.penetration_point_spacing_m)
+        depth = start_depth_m(measure, task.hand_pose, task.scale)
     except Exception as exc:  # one bad object must not stop the others: record it per grasp
         log.warning("object %s: %s", task.object_id, exc)
         out.failure_reason[:] = _error_reason(exc)
@@ -475,9 +506,9 @@ def run_task(task: LiftTask, state: _WorkerState) -> tuple[np.ndarray, LiftOutco
         except Exception as exc:
             out.failure_reason[i] = _error_reason(exc)
             continue
-        penetration = max(hand_in_object[i], sim.initial_contact_depth_m(task.hand_pose[i], quats[i]), 0.0)
-        out.initial_penetration_mm[i] = penetration * 1000.0
-        if penetration > cfg.max_initial_penetration_m:
+        out.initial_penetration_mm[i] = depth[i] * 1000.0
+        out.initial_hull_overlap_mm[i] = sim.initial_contact_depth_m(task.hand_pose[i], quats[i]) * 1000.0
+        if depth[i] > cfg.max_initial_penetration_m:
             out.failure_reason[i] = "initial_penetration"
             continue
         ratio, reason = sim.lift(task.hand_pose[i], quats[i], targets[i])
@@ -496,6 +527,7 @@ def make_tasks(grasps: GraspSet, indices: np.ndarray, objects_dirs: list[str], c
     for object_id in sorted(set(object_ids.tolist())):
         rows = indices[object_ids == object_id]
         rows = rows[np.argsort(grasps.scale[rows], kind="stable")]
+        max_scale = float(grasps.scale[rows].max())
         for start in range(0, len(rows), TASK_GRASPS):
             part = rows[start : start + TASK_GRASPS]
             tasks.append(
@@ -507,6 +539,7 @@ def make_tasks(grasps: GraspSet, indices: np.ndarray, objects_dirs: list[str], c
                     scale=grasps.scale[part].astype(np.float64),
                     config=config,
                     table=None if support_planes is None else support_planes.get(str(object_id)),
+                    max_scale=max_scale,
                 )
             )
     return tasks
@@ -595,6 +628,7 @@ def _as_arrays(out: LiftOutcome, config: LiftConfig) -> dict[str, np.ndarray]:
         "lift_success": out.lift_success,
         "failure_reason": out.failure_reason,
         "initial_penetration_mm": out.initial_penetration_mm,
+        "initial_hull_overlap_mm": out.initial_hull_overlap_mm,
     }
     if config.six_directions:
         with np.errstate(invalid="ignore"):

@@ -328,7 +328,7 @@ def synthesize_with_model(assets, scales: dict, n: int, config, loaded, model_pa
     import torch
 
     from dexlite_pipeline.energy.config import EnergyConfig
-    from dexlite_pipeline.energy.grasp_energy import GraspEnergy
+    from dexlite_pipeline.energy.grasp_energy import GraspEnergy, max_scale_by_object
     from dexlite_pipeline.hand import ShadowHand
     from dexlite_pipeline.io.grasp_store import GraspSet
     from dexlite_pipeline.model.checkpoint import cloud_reading
@@ -366,9 +366,10 @@ def synthesize_with_model(assets, scales: dict, n: int, config, loaded, model_pa
     hand = ShadowHand(device)
     energy = GraspEnergy.from_assets(
         hand, assets,
-        EnergyConfig(weights=post_config.energy_weights, object_points=post_config.energy_object_points,
+        EnergyConfig(weights=post_config.energy_weights, object_point_spacing_m=post_config.energy_point_spacing_m,
                      self_penetration_margin_m=config.energy.self_penetration_margin_m),
         support_planes=support_planes,
+        max_scale=max_scale_by_object([assets[i].object_id for i in object_index], scale),
     )  # fmt: skip
     log.info("post-optimizing %d grasps, %d iterations", len(object_index), post_config.annealing.iterations)
     refined = refine(
