@@ -198,6 +198,7 @@ def _held_table():
         "filter_E_fc": np.array([0.1, 0.1, 0.5, 0.1, 0.1, np.nan]),
         "filter_E_dis": np.full(6, 0.001),
         "E_pen": np.zeros(6),
+        "penetration_mm": np.full(6, 0.5),
         "invalid_reason": np.array(["", "", "", "", "", "non-finite hand_pose"], dtype=object),
         metrics.TOUCHED_PATCHES: touched,
         metrics.COVERAGE_PATCHES: np.full(6, 4),

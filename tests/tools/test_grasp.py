@@ -57,6 +57,7 @@ def test_grasp_writes_every_output_for_an_obj_and_an_stl(grasp_run):
     for name in ("hand_pose", "object_id", "scale", "lift_success", "failure_reason", "six_dir_success", "six_dir_passed", "E_fc", "E_pen", "distinct_label"):
         assert name in held.arrays and name in every.arrays
     assert held.hand_pose.shape[1:] == (28,)
+    assert (np.asarray(every.arrays["initial_penetration_mm"])[lifted] <= 2.0 + 1e-4).all()  # the start cap (2 mm) holds for every held grasp
     for object_id in set(held.object_id):
         assert (out / "dexgraspnet" / "dataset" / f"{object_id}.npy").is_file()
         assert (out / "dexgraspnet" / "meshdata" / object_id / "coacd" / "decomposed.obj").is_file()

@@ -79,7 +79,7 @@ def synthesize(
         outputs["E_total"].append(result.total.cpu().numpy())
         for name in term_names:
             outputs[name].append(result.terms[name].cpu().numpy())
-        batch_pass = config.thresholds.passes({k: result.terms[k].cpu().numpy() for k in TERM_NAMES})
+        batch_pass = config.thresholds.passes({**{k: result.terms[k].cpu().numpy() for k in TERM_NAMES}, "penetration_mm": result.penetration_mm.cpu().numpy()})
         log.info("batch %d/%d done: %d grasps in %.0f s, %.1f%% pass the energy thresholds", batch_number, batches, len(obj), result.seconds, 100 * batch_pass.mean())
 
     arrays = {k: np.concatenate(v).astype(np.float32) if k not in ("contact_index",) else np.concatenate(v) for k, v in outputs.items()}
