@@ -27,7 +27,7 @@ SCALE = 0.08  # sphere radius in metres
 
 @pytest.fixture(scope="module")
 def sphere_energy(hand, sphere_objects):
-    return GraspEnergy.from_assets(hand, [load_asset(sphere_objects, "sphere"), load_asset(sphere_objects, "box")])
+    return GraspEnergy.from_assets(hand, [load_asset(sphere_objects, "sphere"), load_asset(sphere_objects, "box")], max_scale=SCALE)
 
 
 def _sphere_sdf(energy, points):
@@ -126,7 +126,7 @@ def _poses_near_sphere(count: int, seed: int) -> torch.Tensor:
 def _used_object_depths(energy, hand, frames, index, scale):
     """(B, P) depth of each of the grasp's own object points in the hand (0 for points past its count) and their weights (B,)."""
     count, weight = energy.penetration.point_counts(index, scale)
-    points = energy.penetration.object_points[index] * scale[:, None, None]
+    points = energy.penetration.object_points[index, : int(count.max())] * scale[:, None, None]
     depth = hand.collision_signed_distance(frames, points).clamp(min=0)
     used = torch.arange(points.shape[1])[None, :] < count[:, None]
     return depth * used, weight
@@ -155,7 +155,7 @@ def test_penetration_culling_is_exact(hand, sphere_energy):
 
 @pytest.fixture(scope="module")
 def fine_sphere_energy(hand, fine_sphere_objects):
-    return GraspEnergy.from_assets(hand, [load_asset(fine_sphere_objects, "sphere")], EnergyConfig(object_point_spacing_m=0.001))
+    return GraspEnergy.from_assets(hand, [load_asset(fine_sphere_objects, "sphere")], EnergyConfig(object_point_spacing_m=0.002), max_scale=SCALE)
 
 
 def test_penetration_culling_is_exact_at_box_corners(hand, fine_sphere_energy):
@@ -297,15 +297,24 @@ def test_energy_and_gradient_equal_the_dense_reference(hand, sphere_energy):
 def test_point_clusters_cover_every_point_once_within_their_radius(sphere_energy):
     from dexlite_pipeline.energy.point_clusters import build_point_clusters
 
+    from dexlite_pipeline.energy.point_clusters import LEAVES_PER_PARENT, PADDING
+
     points = sphere_energy.penetration.object_points
-    clusters = build_point_clusters(points, leaf_size=8)
-    assert clusters.members.shape[2] <= 8
+    counts = (points < PADDING / 2).all(-1).sum(-1)
+    assert counts[0] != counts[1], "the two objects' sequences differ in length (one is padded)"
+    clusters = build_point_clusters(points, leaf_size=8, counts=counts)
+    assert clusters.members.shape[2] <= 8 and clusters.radius.shape[1] % LEAVES_PER_PARENT == 0
     for o in range(len(points)):
         members = clusters.members[o]
         valid = members >= 0
-        assert torch.equal(members[valid].sort().values, torch.arange(points.shape[1]))
+        assert torch.equal(members[valid].sort().values, torch.arange(int(counts[o])))  # every real point once, no padding
         spread = (points[o][members.clamp(min=0)] - clusters.centre[o][:, None]).norm(dim=-1)
         assert (spread[valid] <= clusters.radius[o][:, None].expand_as(spread)[valid]).all()
+        # every cluster's sphere inside its parent's
+        parent = torch.arange(clusters.radius.shape[1]) // LEAVES_PER_PARENT
+        reach = (clusters.centre[o] - clusters.parent_centre[o][parent]).norm(dim=-1) + clusters.radius[o]
+        real = (members >= 0).any(dim=1)
+        assert (reach[real] <= clusters.parent_radius[o][parent][real]).all()
 
 
 def test_batch_with_nothing_near_the_object(sphere_energy):

@@ -12,6 +12,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+# Mean spacing (m) of the object points of the judged penetration depth: every check of whether a grasp starts
+# inside its object (the energy filter, the optimizers' reported depth and contact resolution, the lift test's
+# start check) samples this densely, whatever spacing the energy's own E_pen uses (``object_point_spacing_m``).
+JUDGED_POINT_SPACING_M = 0.002
+
 # DexGraspNet's success criteria: a grasp passes when each term is below its value (E_dis, E_pen in metres).
 DEXGRASPNET_THRESHOLDS: dict[str, float] = {"E_fc": 0.3, "E_dis": 0.005, "E_pen": 0.001}
 
@@ -64,5 +69,5 @@ class EnergyConfig:
     """Config section ``energy``: term weights and how the terms are sampled."""
 
     weights: EnergyWeights = field(default_factory=EnergyWeights)
-    object_point_spacing_m: float = 0.002  # mean spacing of E_pen's object surface points at the grasp's scale, m
+    object_point_spacing_m: float = 0.004  # mean spacing of E_pen's object surface points at the grasp's scale, m
     self_penetration_margin_m: float = 0.02  # E_spen distance below which keypoint pairs are penalized

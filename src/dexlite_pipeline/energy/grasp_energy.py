@@ -16,8 +16,9 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from dexlite_pipeline.energy.config import EnergyConfig, EnergyWeights
+from dexlite_pipeline.energy.config import JUDGED_POINT_SPACING_M, EnergyConfig, EnergyWeights
 from dexlite_pipeline.energy.link_map import LinkFrameMap
+from dexlite_pipeline.energy.point_clusters import PADDING
 from dexlite_pipeline.energy.terms import (
     ContactDistanceTerm,
     EnergyContext,
@@ -36,8 +37,6 @@ from dexlite_pipeline.objects.surface_distance import SurfaceDistance, surface_p
 DEFAULT_MAX_SCALE = 0.15
 # At most this many E_pen points per object (a 30 cm box at 2 mm spacing needs ~45,000); beyond it the spacing grows.
 MAX_OBJECT_POINTS = 200_000
-# Normalized coordinates of the points that pad shorter sequences: far outside any hand (never inside a shape).
-PADDING_POINT = 1.0e3
 
 # The terms of the grasp energy, in the order of ``EnergyResult.terms`` and of the weighted sum.
 TERM_CLASSES: tuple[type[EnergyTerm], ...] = (ForceClosureTerm, ContactDistanceTerm, PenetrationTerm, SelfPenetrationTerm, JointLimitTerm)
@@ -92,10 +91,12 @@ class GraspEnergy:
         object_area: torch.Tensor | None = None,
         point_spacing_m: float | None = None,
         surface: SurfaceDistance | None = None,
+        judged_points: torch.Tensor | None = None,
     ) -> None:
         """``support_planes`` (n_objects, 4): per bank object the table's normal and offset per unit scale
         (tabletop mode; adds E_table). None: floating objects, the five terms only. ``object_points``,
-        ``object_area``, ``point_spacing_m`` and ``surface``: see ``PenetrationTerm``."""
+        ``object_area``, ``point_spacing_m`` and ``surface``: see ``PenetrationTerm``. ``judged_points``: the
+        objects' points ``JUDGED_POINT_SPACING_M`` apart for the judged depth (``judge``); None: E_pen's own."""
         self.hand = hand
         self.bank = sdf_bank
         self.weights = weights
@@ -113,6 +114,8 @@ class GraspEnergy:
             point_spacing_m=point_spacing_m,
             surface=surface,
         )
+        self._judge: PenetrationTerm | None = self.penetration if judged_points is None else None
+        self._judged_points = judged_points
         self.terms: list[EnergyTerm] = [self.force_closure, self.contact_distance, self.penetration, self.self_penetration, self.joint_limits]
         self.support_planes = None
         if support_planes is not None:
@@ -135,6 +138,9 @@ class GraspEnergy:
         bank = SdfBank(assets, device=hand.device, dtype=hand.dtype)
         meshes = [asset.load_mesh() for asset in assets]
         points, area = object_point_sets(assets, meshes, config.object_point_spacing_m, max_scale)
+        judged = None
+        if config.object_point_spacing_m != JUDGED_POINT_SPACING_M:
+            judged = torch.as_tensor(object_point_sets(assets, meshes, JUDGED_POINT_SPACING_M, max_scale)[0], dtype=hand.dtype)
         planes = None
         if support_planes is not None:
             rows = [(*support_planes.get(a.object_id).normal, support_planes.get(a.object_id).offset) for a in assets]
@@ -149,7 +155,23 @@ class GraspEnergy:
             object_area=torch.as_tensor(area, dtype=hand.dtype),
             point_spacing_m=config.object_point_spacing_m,
             surface=SurfaceDistance.from_meshes(bank, meshes),
+            judged_points=judged,
         )
+
+    @property
+    def judge(self) -> PenetrationTerm:
+        """The penetration measure that judges a grasp's start depth: E_pen's term on points
+        ``JUDGED_POINT_SPACING_M`` apart (built on first use; E_pen's own term when it samples that densely)."""
+        if self._judge is None:
+            self._judge = PenetrationTerm(
+                self.hand,
+                self.bank,
+                self._judged_points.to(self.device, self.hand.dtype),
+                object_area=self.penetration.object_area,
+                point_spacing_m=JUDGED_POINT_SPACING_M,
+                surface=self.penetration.surface,
+            )
+        return self._judge
 
     def support(self, object_index: torch.Tensor, scale: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor] | tuple[None, None]:
         """Per grasp, the table's normal (B, 3) and offset in metres (B,); (None, None) for floating objects."""
@@ -233,7 +255,8 @@ class GraspEnergy:
 
         Computes the link frames, the contact points (chosen or, with ``contact_index`` None,
         the four candidates nearest the surface) with their signed distances and normals, and
-        the penetration result, each once for all terms.
+        the penetration result, each once for all terms. ``exact_penetration``: also the judged
+        depth (``judge``, against the mesh), in ``judged_depth_m``.
         """
         if hand_pose is not None:
             frames = self.hand.forward(hand_pose)
@@ -259,8 +282,14 @@ class GraspEnergy:
             contact_points=points,
             contact_distance=distance,
             contact_normal=normal,
-            penetration=self.penetration(frames, object_index, scale, exact=exact_penetration),
+            penetration=self.penetration(frames, object_index, scale),
+            judged_depth_m=self.judged_depth_m(frames, object_index, scale) if exact_penetration else None,
         )
+
+    def judged_depth_m(self, frames: HandFrames, object_index: torch.Tensor, scale: torch.Tensor) -> torch.Tensor:
+        """(B,) the judged penetration depth (m, detached): ``judge`` with sphere distances from the mesh."""
+        with torch.no_grad():
+            return self.judge(frames, object_index, scale.to(self.hand.dtype), exact=True).depth_m
 
     def __call__(
         self,
@@ -291,7 +320,7 @@ class GraspEnergy:
             exact_penetration=exact_penetration,
         )
         terms = {term.name: term.evaluate(context) for term in self.terms}
-        deepest = context.penetration.depth_m
+        deepest = context.penetration.depth_m if context.judged_depth_m is None else context.judged_depth_m
         return EnergyResult(
             terms=terms,
             total=weighted_sum(self.weights, terms, ((term.name, term.weight_key) for term in self.terms)),
@@ -330,7 +359,7 @@ def object_point_sets(assets: list[ObjectAsset], meshes, spacing_m: float, max_s
         areas.append(area)
         sequences.append(surface_point_sequence(mesh, count))
     width = max(len(p) for p in sequences)
-    points = np.full((len(assets), width, 3), PADDING_POINT, dtype=np.float32)
+    points = np.full((len(assets), width, 3), PADDING, dtype=np.float32)  # shorter sequences padded far from any hand
     for o, sequence in enumerate(sequences):
         points[o, : len(sequence)] = sequence
     return points, np.asarray(areas)

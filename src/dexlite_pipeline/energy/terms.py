@@ -30,7 +30,7 @@ from dexlite_pipeline.hand.model import (
     shape_signed_distance,
 )
 from dexlite_pipeline.energy.link_map import LinkFrameMap
-from dexlite_pipeline.energy.point_clusters import build_point_clusters
+from dexlite_pipeline.energy.point_clusters import LEAVES_PER_PARENT, PADDING, build_point_clusters
 from dexlite_pipeline.energy.spheres import build_hand_spheres
 from dexlite_pipeline.objects.assets import SdfBank
 from dexlite_pipeline.objects.surface_distance import SurfaceDistance
@@ -68,6 +68,7 @@ class EnergyContext:
     penetration: PenetrationResult  # E_pen and the deepest penetration each way
     support_normal: torch.Tensor | None = None  # (B, 3) table's upward normal (tabletop mode; None: floating)
     support_offset_m: torch.Tensor | None = None  # (B,) table height term: n·x + offset ≥ 0 above the table
+    judged_depth_m: torch.Tensor | None = None  # (B,) the judged penetration depth, when asked for (``GraspEnergy.judge``)
 
 
 class EnergyTerm:
@@ -228,10 +229,10 @@ class PenetrationTerm(EnergyTerm):
         self.object_points = object_points  # (n_objects, P, 3), normalized frame
         self.object_area = object_area
         self.point_spacing_m = point_spacing_m
-        self.clusters = build_point_clusters(object_points, cluster_size)
-        # [m, |m|² − ρ², ρ, 1] per cluster (see ``_clusters_near``).
-        centre, rho = self.clusters.centre, self.clusters.radius[..., None]
-        self.cluster_aug = torch.cat([centre, centre.square().sum(-1, keepdim=True) - rho.square(), rho, torch.ones_like(rho)], dim=-1)
+        self.clusters = build_point_clusters(object_points, cluster_size, counts=(object_points < PADDING / 2).all(-1).sum(-1))
+        # [m, |m|² − ρ², ρ, 1] per cluster and per parent (see ``_clusters_near``).
+        self.cluster_aug = self._augmented(self.clusters.centre, self.clusters.radius)
+        self.parent_aug = self._augmented(self.clusters.parent_centre, self.clusters.parent_radius)
         self.radius = hand.shape_bounding_radius
         self.interpolation_error = sdf_bank.voxel_size * 3**0.5 / 2  # normalized units, per object
         # Trilinear interpolation of an exact SDF f (1-Lipschitz) errs by at most
@@ -275,9 +276,46 @@ class PenetrationTerm(EnergyTerm):
         return PenetrationResult(obj_energy + hand_energy, obj_max, hand_max)
 
     def _object_in_hand(self, frames, active, object_index, scale):
-        """Σ over the grasp's object points of their weighted depth inside the active shapes (deepest shape per point)."""
+        """Σ over the grasp's object points of their weighted depth inside the active shapes (deepest shape per point),
+        and each grasp's deepest point (detached)."""
         batch = object_index.shape[0]
-        count, weight = self.point_counts(object_index, scale)
+        _, weight = self.point_counts(object_index, scale)
+        grasp, depth, share, deepest_max = self._inside_points(frames, active, object_index, scale)
+        return depth.new_zeros(batch).index_add(0, grasp, depth * share * weight[grasp]), deepest_max
+
+    def _active_shapes(self, frames, object_index, scale) -> torch.Tensor:
+        """(B, S) shapes one of whose spheres reaches the object within its covering gap and the grid's error (no autograd)."""
+        with torch.no_grad():
+            centre = self.sphere_map(frames)
+            distance, _ = self.bank.signed_distance(centre, object_index[:, None], scale[:, None], with_normal=False)
+            sphere_depth = distance + self.spheres.radius
+            reach = sphere_depth.new_full((object_index.shape[0], len(self.radius)), -torch.inf)
+            reach = reach.scatter_reduce(1, self.spheres.shape.expand(object_index.shape[0], -1), sphere_depth, "amax")
+            margin = (self.interpolation_error[object_index] * scale)[:, None] + self.spheres.shape_gap[None, :]
+            return reach > -margin
+
+    def excess(self, frames: HandFrames, object_index: torch.Tensor, scale: torch.Tensor, allowed_m: float) -> torch.Tensor:
+        """(B,) Σ max(0, depth − ``allowed_m``)² over the hand's spheres and the grasp's object points, differentiable.
+
+        The squared excess of the same two directions as the depth, with the spheres' distances from the
+        mesh near the surface: zero exactly when the depth is within ``allowed_m``. Contact resolution
+        (``optim.contact_resolution``) descends it.
+        """
+        radius = self.spheres.radius
+        centre = self.sphere_map(frames)
+        if self.surface is not None:
+            distance = self.surface.signed_distance(centre, object_index[:, None], scale[:, None], band_m=radius)
+        else:
+            distance, _ = self.bank.signed_distance(centre, object_index[:, None], scale[:, None], with_normal=False)
+        spheres = torch.relu(distance + radius - allowed_m).square().sum(dim=1)
+        grasp, depth, _, _ = self._inside_points(frames, self._active_shapes(frames, object_index, scale), object_index, scale)
+        return spheres.index_add(0, grasp, torch.relu(depth - allowed_m).square())
+
+    def _inside_points(self, frames, active, object_index, scale):
+        """The grasp's own object points inside its active shapes, each once at its deepest shape:
+        (grasp (N,), depth (N,) with gradients, share (N,) of exact ties, per-grasp deepest (B,) detached)."""
+        batch = object_index.shape[0]
+        count, _ = self.point_counts(object_index, scale)
         with torch.no_grad():
             pair_b, pair_s = active.nonzero(as_tuple=True)
             frame = self.shape_map(frames)[pair_b, pair_s]  # (A, 3, 4): [R | c]
@@ -296,7 +334,7 @@ class PenetrationTerm(EnergyTerm):
         frame = self.shape_map.rows(frames, grasp, shape)
         local = self._apply(self._to_local(frame, scale[grasp]), self.object_points[object_index[grasp], cand_point])
         depth = shape_signed_distance(local, self.hand.shape_kind[shape], self.hand.shape_size[shape])
-        return depth.new_zeros(batch).index_add(0, grasp, depth * share * weight[grasp]), deepest_max
+        return grasp, depth, share, deepest_max
 
     @staticmethod
     def _to_local(frame: torch.Tensor, scale: torch.Tensor) -> torch.Tensor:
@@ -351,11 +389,20 @@ class PenetrationTerm(EnergyTerm):
     def _capsule_distance(local, size):
         return capsule_signed_distance(local, size[..., 0], size[..., 1])
 
-    def _clusters_near(self, centre, pair_b, pair_s, pair_object, pair_scale):
-        """(pair, cluster) whose bounding spheres meet, |m − c|² − (R + ρ)² < 0, by one product per object.
+    @staticmethod
+    def _augmented(centre: torch.Tensor, radius: torch.Tensor) -> torch.Tensor:
+        """[m, |m|² − ρ², ρ, 1] per sphere (centre m, radius ρ), for ``_clusters_near``'s products."""
+        rho = radius[..., None]
+        return torch.cat([centre, centre.square().sum(-1, keepdim=True) - rho.square(), rho, torch.ones_like(rho)], dim=-1)
 
-        With m̃ = [m, |m|² − ρ², ρ, 1] per cluster and c̃ = [−2c, 1, −2R, |c|² − R²] per pair, m̃·c̃ is
-        exactly that difference (normalized units; a slack relative to the largest terms covers float32 cancellation).
+    def _clusters_near(self, centre, pair_b, pair_s, pair_object, pair_scale):
+        """(pair, cluster) whose bounding spheres meet, |m − c|² − (R + ρ)² < 0: parents first, then their clusters.
+
+        With m̃ = [m, |m|² − ρ², ρ, 1] per sphere and c̃ = [−2c, 1, −2R, |c|² − R²] per pair, m̃·c̃ is
+        exactly that difference (normalized units; a slack relative to the largest terms covers float32
+        cancellation). A cluster's sphere lies in its parent's, so a parent that misses the shape's sphere
+        rules out its clusters: one product per object against the parents, then one row per
+        (pair, parent) hit against that parent's ``LEAVES_PER_PARENT`` clusters.
         """
         centre_n = centre / pair_scale[:, None]
         reach_n = self.radius.index_select(0, pair_s) / pair_scale
@@ -363,12 +410,18 @@ class PenetrationTerm(EnergyTerm):
         centre_aug = torch.cat([-2 * centre_n, torch.ones_like(centre_sq), -2 * reach_n[:, None], centre_sq - reach_n[:, None].square()], dim=1)
         slack_n = self.CULL_SLACK_RELATIVE * (1 + centre_sq + reach_n[:, None].square())
         pairs, clusters = [], []
+        leaves = torch.arange(LEAVES_PER_PARENT, device=centre.device)
         for obj in torch.unique(pair_object).tolist():
             sel = (pair_object == obj).nonzero().squeeze(1)
-            gap = centre_aug.index_select(0, sel) @ self.cluster_aug[obj].T  # (a, C)
-            local_pair, cluster = (gap < slack_n.index_select(0, sel)).nonzero(as_tuple=True)
-            pairs.append(sel.index_select(0, local_pair))
-            clusters.append(cluster)
+            gap = centre_aug.index_select(0, sel) @ self.parent_aug[obj].T  # (a, parents)
+            local_pair, parent = (gap < slack_n.index_select(0, sel)).nonzero(as_tuple=True)
+            pair = sel.index_select(0, local_pair)
+            cluster = (parent[:, None] * LEAVES_PER_PARENT + leaves).reshape(-1)  # (hits·16,)
+            pair = pair.repeat_interleave(LEAVES_PER_PARENT)
+            gap = (centre_aug.index_select(0, pair) * self.cluster_aug[obj].index_select(0, cluster)).sum(-1)
+            near = (gap < slack_n.index_select(0, pair)[:, 0]).nonzero().squeeze(1)
+            pairs.append(pair.index_select(0, near))
+            clusters.append(cluster.index_select(0, near))
         empty = pair_b.new_zeros(0)
         return (torch.cat(pairs), torch.cat(clusters)) if pairs else (empty, empty)
 

@@ -74,7 +74,7 @@ class TrainConfig:
     validation_fraction: float = 0.1
     min_grasps: int = 8
     max_training_objects: int = 0  # train on a seeded subset of this many training objects (0 = all): the learning curve
-    energy_point_spacing_m: float = 0.004  # mean spacing of E_pen's object points in the loss, m (coarser: training cost)
+    energy_point_spacing_m: float = 0.006  # mean spacing of E_pen's object points in the loss, m (coarser: training cost)
     contact_samples: int = 32
     rotation_augmentation: bool = False
     fixed_clouds: bool = True

@@ -16,6 +16,11 @@ Each iteration of ``optimize`` has three parts, each its own piece here:
 * track (``Tracker``): the energy trace of the kept state, its terms, pose snapshots at
   chosen iterations and the acceptance counts.
 
+With ``resolve_penetration_to_m``, the run ends with contact resolution
+(``optim.contact_resolution``): grasps deeper in the object than that back out of it, and the
+reported terms are those of the resolved poses. ``penetration_mm`` is always the judged depth
+(against the mesh), not the grid's.
+
 Optionally (``final_contact_samples``), a last search over many contact sets for the final
 poses picks the best (``GraspEnergy.best_contacts``): the random walk over contact indices
 rarely lands on the best set once T is low. With ``contact_search_every`` the same search
@@ -36,6 +41,7 @@ from dexlite_pipeline.energy.grasp_energy import CONTACT_COUNT, EnergyResult, Gr
 from dexlite_pipeline.hand.model import JOINTS, ROTATION, TRANSLATION
 from dexlite_pipeline.hand.rotation import euler_xyz_to_matrix, matrix_to_euler_xyz, matrix_to_rot6d, rot6d_to_matrix
 from dexlite_pipeline.optim.config import AnnealingConfig
+from dexlite_pipeline.optim.contact_resolution import penetration_depth_m, resolve_contacts
 
 log = logging.getLogger(__name__)
 
@@ -263,8 +269,17 @@ def optimize(
             result = energy(hand_pose, object_index=object_index, scale=scale, contact_index=contacts)
         total = result.total.detach()
         tracker.replace_last(total, result.terms)
-    with torch.no_grad():  # the judged depth: sphere distances from the mesh near the surface
-        depth = energy.penetration(energy.hand.forward(hand_pose), object_index, scale.to(hand_pose.dtype), exact=True).depth_m
+    if config.resolve_penetration_to_m > 0:
+        resolved = resolve_contacts(energy, hand_pose, object_index, scale, config.resolve_penetration_to_m)
+        if bool((resolved.steps > 0).any()):
+            hand_pose = resolved.hand_pose
+            with torch.no_grad():
+                result = energy(hand_pose, object_index=object_index, scale=scale, contact_index=contacts)
+            total = result.total.detach()
+            tracker.replace_last(total, result.terms)
+        depth = resolved.depth_m
+    else:
+        depth = penetration_depth_m(energy, hand_pose, object_index, scale)
     return OptimizationResult(
         hand_pose=hand_pose,
         contact_index=contacts,

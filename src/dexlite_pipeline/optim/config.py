@@ -39,6 +39,7 @@ class AnnealingConfig(AnnealingSchedule):
     final_contact_samples: int = 0  # after the last step, search this many contact sets per grasp (0: off, DexGraspNet)
     contact_search_every: int = 0  # also run that search every this many iterations (0: only after the last step)
     keep_best: bool = False  # end in each grasp's lowest-energy visited state (False: the last state, DexGraspNet)
+    resolve_penetration_to_m: float = 0.0  # last phase: back grasps deeper than this out of the object (0: off)
 
     @classmethod
     def from_schedule(cls, schedule: AnnealingSchedule, **run_options) -> "AnnealingConfig":
@@ -81,12 +82,14 @@ class OptimizeGraspsConfig:
     final_contact_samples: int = 1024  # contact sets searched per grasp after the last step (0: off, DexGraspNet)
     contact_search_every: int = 100  # also search every this many iterations (0: only after the last step)
     keep_best: bool = False  # end in the last accepted state (DexGraspNet); true: the lowest-energy visited state
+    resolve_penetration_to_m: float = 0.0015  # contact resolution: back grasps deeper than this out (m; 0: off)
 
     def optimizer_config(self) -> AnnealingConfig:
         """The optimizer's settings for one run: the schedule with this section's run options."""
         return AnnealingConfig.from_schedule(
             self.annealing, trace_every=self.trace_every, final_contact_samples=self.final_contact_samples,
             contact_search_every=self.contact_search_every, keep_best=self.keep_best,
+            resolve_penetration_to_m=self.resolve_penetration_to_m,
         )
 
 
@@ -100,7 +103,7 @@ class PostOptimizeConfig:
 
     annealing: AnnealingSchedule = POST_SCHEDULE  # the random starts' schedule (DexGraspNet's, 200 steps)
     energy_weights: EnergyWeights = field(default_factory=EnergyWeights)  # E_post = Σ weight · term
-    energy_point_spacing_m: float = 0.002  # mean spacing of E_pen's object surface points at the grasp's scale, m
+    energy_point_spacing_m: float = 0.004  # mean spacing of E_pen's object surface points at the grasp's scale, m
     start_contact_samples: int = 64  # sampled grasps start from the best of this many near-surface 4-sets (0: nearest pads)
     final_contact_samples: int = 64  # after the last step, keep the best of this many contact sets (0: off)
     keep_best: bool = True  # return each grasp's lowest-E_post visited state instead of the last one
@@ -110,6 +113,7 @@ class PostOptimizeConfig:
     batch_size: int = 1024  # grasps per optimizer batch (a shard is cut into batches of this size)
     random_baseline: bool = True  # also run the random-init baseline (held-out objects' grasps)
     random_init: InitConfig = field(default_factory=InitConfig)
+    resolve_penetration_to_m: float = 0.0015  # contact resolution: back grasps deeper than this out (m; 0: off)
 
     def optimizer_config(self, learned_start: bool = False) -> AnnealingConfig:
         """The optimizer's settings: ``annealing`` for random starts; for learned (CVAE) starts the same
@@ -117,7 +121,10 @@ class PostOptimizeConfig:
         schedule = self.annealing
         if learned_start:
             schedule = dataclasses.replace(schedule, starting_temperature=self.learned_start_temperature, step_size=self.learned_start_step_size)
-        return AnnealingConfig.from_schedule(schedule, trace_every=1, final_contact_samples=self.final_contact_samples, keep_best=self.keep_best)
+        return AnnealingConfig.from_schedule(
+            schedule, trace_every=1, final_contact_samples=self.final_contact_samples, keep_best=self.keep_best,
+            resolve_penetration_to_m=self.resolve_penetration_to_m,
+        )
 
     def budget(self) -> tuple[int, ...]:
         """The budget-curve iterations within this run's length."""

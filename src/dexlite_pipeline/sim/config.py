@@ -33,7 +33,6 @@ class LiftConfig:
     contact_condim: int = 3  # MuJoCo contact dimensionality of the object's geoms: 3 sliding friction, 4 + torsional,
     # 6 + rolling (the write-up's test: 6)
     max_initial_penetration_m: float = 0.002  # a grasp starting deeper in the object (penetration measure, m) fails before simulation
-    penetration_point_spacing_m: float = 0.002  # mean spacing of the object points of that measure at the grasp's scale, m
     control_substeps: int = 10  # simulation steps per control update (targets and mocap)
     multi_contact: bool = True  # MuJoCo's multi-point convex contacts (its default); off: ~15% faster, ~1% of outcomes change
     six_directions: bool = False  # also run the six-direction test
@@ -45,7 +44,7 @@ class LiftConfig:
     def __post_init__(self) -> None:
         positive = (
             "timestep_s", "object_mass_kg", "finger_kp", "impratio", "close_s", "lift_height_m", "lift_s",
-            "max_initial_penetration_m", "penetration_point_spacing_m", "six_dir_duration_s", "six_dir_max_translation_m", "six_dir_max_rotation_deg",
+            "max_initial_penetration_m", "six_dir_duration_s", "six_dir_max_translation_m", "six_dir_max_rotation_deg",
         )  # fmt: skip
         for name in positive:
             if not getattr(self, name) > 0:

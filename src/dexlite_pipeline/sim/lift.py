@@ -419,14 +419,14 @@ class _WorkerState:
         self.simulators: OrderedDict[tuple, GraspSimulator] = OrderedDict()
         self.measures: OrderedDict[tuple, object] = OrderedDict()
 
-    def get_measure(self, asset: ObjectAsset, max_scale: float, spacing_m: float):
-        """The penetration measure (a one-object ``GraspEnergy``) of ``asset`` for grasps up to ``max_scale``."""
-        from dexlite_pipeline.energy.config import EnergyConfig
+    def get_measure(self, asset: ObjectAsset, max_scale: float):
+        """The judged penetration measure (a one-object ``GraspEnergy``) of ``asset`` for grasps up to ``max_scale``."""
+        from dexlite_pipeline.energy.config import JUDGED_POINT_SPACING_M, EnergyConfig
         from dexlite_pipeline.energy.grasp_energy import GraspEnergy
 
-        key = (str(asset.directory), float(max_scale), float(spacing_m))
+        key = (str(asset.directory), float(max_scale))
         if key not in self.measures:
-            config = EnergyConfig(object_point_spacing_m=spacing_m)
+            config = EnergyConfig(object_point_spacing_m=JUDGED_POINT_SPACING_M)
             self.measures[key] = GraspEnergy.from_assets(self.hand, [asset], config, max_scale=float(max_scale))
             while len(self.measures) > SCENE_CACHE:
                 self.measures.popitem(last=False)
@@ -468,9 +468,8 @@ def start_depth_m(measure, hand_pose: np.ndarray, scale: np.ndarray) -> np.ndarr
     """(B,) penetration depth (m) of grasps on the measure's one object, exact near the surface."""
     pose = torch.as_tensor(hand_pose, dtype=measure.hand.dtype, device=measure.device)
     s = torch.as_tensor(scale, dtype=measure.hand.dtype, device=measure.device)
-    with torch.no_grad():
-        result = measure.penetration(measure.hand.forward(pose), torch.zeros(len(pose), dtype=torch.long, device=measure.device), s, exact=True)
-    return result.depth_m.cpu().numpy().astype(np.float64)
+    depth = measure.judged_depth_m(measure.hand.forward(pose), torch.zeros(len(pose), dtype=torch.long, device=measure.device), s)
+    return depth.cpu().numpy().astype(np.float64)
 
 
 def _error_reason(exc: Exception) -> str:
@@ -487,7 +486,7 @@ def run_task(task: LiftTask, state: _WorkerState) -> tuple[np.ndarray, LiftOutco
     try:
         asset = state.get_asset(task.objects_dirs, task.object_id)
         targets, _ = _squeeze_plans(state.hand, asset, task.hand_pose, task.scale, cfg)
-        measure = state.get_measure(asset, max(task.max_scale, float(task.scale.max())), cfg.penetration_point_spacing_m)
+        measure = state.get_measure(asset, max(task.max_scale, float(task.scale.max())))
         depth = start_depth_m(measure, task.hand_pose, task.scale)
     except Exception as exc:  # one bad object must not stop the others: record it per grasp
         log.warning("object %s: %s", task.object_id, exc)
