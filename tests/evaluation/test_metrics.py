@@ -100,8 +100,10 @@ def test_summarize_grasps_columns():
         "filter_E_fc": np.array([0.1, 0.2, 0.3, 0.4]),  # the filter's energies (its contact search)
         "filter_E_dis": np.array([0.001, 0.001, 0.01, 0.001]),
         "E_pen": np.zeros(n),
+        "initial_penetration_mm": np.array([0.7, 3.0, np.nan, 1.0]),
     }
     out = metrics.summarize_grasps(arrays, LIMITS, entropy_bins=4)
+    assert out["held_start_depth_median_mm"] == pytest.approx(0.7) and out["held_start_depth_p90_mm"] == pytest.approx(0.7)  # the one held grasp
     assert out["lift_success_rate"] == 0.25
     assert out["object_success_rate"] == 0.5
     assert out["six_dir_success_rate"] == 0.0

@@ -339,7 +339,7 @@ def summarize_grasps(
     Uses whichever of these arrays are present (absent ones give NaN columns, never a
     made-up number): lift_success, six_dir_success, penetration_mm, contact_distance_mm,
     E_fc, E_dis, E_pen, hand_pose, object_id, scale, invalid_reason, touched_patches,
-    coverage_patches. Invalid grasps are in ``n_grasps`` and fail every success rate and the
+    coverage_patches, initial_penetration_mm (the held grasps' start depth: median and p90). Invalid grasps are in ``n_grasps`` and fail every success rate and the
     filter; joint diversity uses the valid ones. ``thresholds``: the equal energy filter
     (energy name -> limit) behind ``energy_threshold_pass_rate`` and the ``filtered_*`` columns.
     """
@@ -374,6 +374,10 @@ def summarize_grasps(
         "joint_entropy_std_bits": float(np.std(entropy)) if len(joints) else math.nan,
     }
     held = held_flags(arrays)
+    start_depth = np.asarray(arrays["initial_penetration_mm"], dtype=np.float64)[held] if "initial_penetration_mm" in arrays else np.zeros(0)
+    start_depth = start_depth[np.isfinite(start_depth)]
+    out["held_start_depth_median_mm"] = float(np.median(start_depth)) if len(start_depth) else math.nan  # the lift test's start depth
+    out["held_start_depth_p90_mm"] = float(np.percentile(start_depth, 90)) if len(start_depth) else math.nan
     held_joints = np.asarray(arrays["hand_pose"], dtype=np.float64)[held, 6:]
     out["held_joint_entropy_bits"] = float(np.mean(joint_entropy_bits(held_joints, joint_limits_rad, entropy_bins))) if len(held_joints) else math.nan
     out.update(diversity_columns(arrays, held, diversity) if lift is not None else _nan_diversity(""))

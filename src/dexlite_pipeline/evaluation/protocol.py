@@ -294,6 +294,9 @@ def simulate(
     start = time.perf_counter()
     lifted = run_lift_tests(selected, objects_dirs, lift_cfg, threads, support_planes=support_planes)
     lifted.pop("table_depth_mm", None)  # measured for every mode by the caller (energy.table_clearance.grasp_table_depths)
+    too_deep = np.asarray(lifted["lift_success"], bool) & (np.asarray(lifted["initial_penetration_mm"]) > 1000.0 * lift_cfg.max_initial_penetration_m + 1e-4)
+    if too_deep.any():  # the lift test refuses such starts; a held one would mean the start check was bypassed
+        raise RuntimeError(f"{int(too_deep.sum())} held grasps start deeper than lift.max_initial_penetration_m ({lift_cfg.max_initial_penetration_m} m)")
     arrays.update(lifted)
     lift_s = time.perf_counter() - start
     if writeup_protocol is not None and writeup_protocol.enabled:
