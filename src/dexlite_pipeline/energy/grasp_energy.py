@@ -31,12 +31,14 @@ from dexlite_pipeline.energy.terms import (
 )
 from dexlite_pipeline.hand.model import JOINTS, HandFrames, ShadowHand
 from dexlite_pipeline.objects.assets import ObjectAsset, SdfBank
-from dexlite_pipeline.objects.surface_distance import SurfaceDistance, surface_point_sequence
+from dexlite_pipeline.objects.surface_distance import SurfaceDistance, sharp_edge_points, surface_point_sequence
 
 # Largest grasp scale an object's E_pen points are drawn for when the caller names none (DexGraspNet's largest).
 DEFAULT_MAX_SCALE = 0.15
 # At most this many E_pen points per object (a 30 cm box at 2 mm spacing needs ~45,000); beyond it the spacing grows.
 MAX_OBJECT_POINTS = 200_000
+# Spacing of the judged measure's points along sharp edges, normalized units (0.4 mm at scale 0.1, 1.2 mm on a 30 cm box).
+EDGE_POINT_SPACING = 0.004
 
 # The terms of the grasp energy, in the order of ``EnergyResult.terms`` and of the weighted sum.
 TERM_CLASSES: tuple[type[EnergyTerm], ...] = (ForceClosureTerm, ContactDistanceTerm, PenetrationTerm, SelfPenetrationTerm, JointLimitTerm)
@@ -92,11 +94,13 @@ class GraspEnergy:
         point_spacing_m: float | None = None,
         surface: SurfaceDistance | None = None,
         judged_points: torch.Tensor | None = None,
+        judged_leading: torch.Tensor | None = None,
     ) -> None:
         """``support_planes`` (n_objects, 4): per bank object the table's normal and offset per unit scale
         (tabletop mode; adds E_table). None: floating objects, the five terms only. ``object_points``,
         ``object_area``, ``point_spacing_m`` and ``surface``: see ``PenetrationTerm``. ``judged_points``: the
-        objects' points ``JUDGED_POINT_SPACING_M`` apart for the judged depth (``judge``); None: E_pen's own."""
+        objects' points for the judged depth (``judge``: their sharp edges' points, ``judged_leading`` per
+        object, then points ``JUDGED_POINT_SPACING_M`` apart); None: E_pen's own."""
         self.hand = hand
         self.bank = sdf_bank
         self.weights = weights
@@ -116,6 +120,7 @@ class GraspEnergy:
         )
         self._judge: PenetrationTerm | None = self.penetration if judged_points is None else None
         self._judged_points = judged_points
+        self._judged_leading = judged_leading
         self.terms: list[EnergyTerm] = [self.force_closure, self.contact_distance, self.penetration, self.self_penetration, self.joint_limits]
         self.support_planes = None
         if support_planes is not None:
@@ -137,10 +142,8 @@ class GraspEnergy:
         """
         bank = SdfBank(assets, device=hand.device, dtype=hand.dtype)
         meshes = [asset.load_mesh() for asset in assets]
-        points, area = object_point_sets(assets, meshes, config.object_point_spacing_m, max_scale)
-        judged = None
-        if config.object_point_spacing_m != JUDGED_POINT_SPACING_M:
-            judged = torch.as_tensor(object_point_sets(assets, meshes, JUDGED_POINT_SPACING_M, max_scale)[0], dtype=hand.dtype)
+        points, area, _ = object_point_sets(assets, meshes, config.object_point_spacing_m, max_scale)
+        judged_points, _, judged_edges = object_point_sets(assets, meshes, JUDGED_POINT_SPACING_M, max_scale, with_edges=True)
         planes = None
         if support_planes is not None:
             rows = [(*support_planes.get(a.object_id).normal, support_planes.get(a.object_id).offset) for a in assets]
@@ -155,13 +158,14 @@ class GraspEnergy:
             object_area=torch.as_tensor(area, dtype=hand.dtype),
             point_spacing_m=config.object_point_spacing_m,
             surface=SurfaceDistance.from_meshes(bank, meshes),
-            judged_points=judged,
+            judged_points=torch.as_tensor(judged_points, dtype=hand.dtype),
+            judged_leading=torch.as_tensor(judged_edges),
         )
 
     @property
     def judge(self) -> PenetrationTerm:
-        """The penetration measure that judges a grasp's start depth: E_pen's term on points
-        ``JUDGED_POINT_SPACING_M`` apart (built on first use; E_pen's own term when it samples that densely)."""
+        """The penetration measure that judges a grasp's start depth: E_pen's term on the objects' sharp
+        edges and points ``JUDGED_POINT_SPACING_M`` apart (built on first use)."""
         if self._judge is None:
             self._judge = PenetrationTerm(
                 self.hand,
@@ -170,6 +174,7 @@ class GraspEnergy:
                 object_area=self.penetration.object_area,
                 point_spacing_m=JUDGED_POINT_SPACING_M,
                 surface=self.penetration.surface,
+                leading_points=self._judged_leading,
             )
         return self._judge
 
@@ -339,16 +344,18 @@ def max_scale_by_object(object_ids, scales) -> dict[str, float]:
     return largest
 
 
-def object_point_sets(assets: list[ObjectAsset], meshes, spacing_m: float, max_scale=None) -> tuple[np.ndarray, np.ndarray]:
-    """E_pen's points (n_objects, P, 3), normalized frame, padded with far points, and each mesh's area (n_objects,).
+def object_point_sets(
+    assets: list[ObjectAsset], meshes, spacing_m: float, max_scale=None, with_edges: bool = False
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Points (n_objects, P, 3), normalized frame, padded with far points; each mesh's area and leading edge-point count (n_objects,).
 
-    ``meshes``: the assets' normalized meshes (trimesh.Trimesh), in the same order.
-
-    Each object gets the first area·s²/spacing² points of its ``surface_point_sequence`` for its
-    largest scale s (``max_scale``: float, mapping object id -> scale, or None), at most
-    ``MAX_OBJECT_POINTS``.
+    ``meshes``: the assets' normalized meshes (trimesh.Trimesh), in the same order. Each object
+    gets the first area·s²/spacing² points of its ``surface_point_sequence`` for its largest scale
+    s (``max_scale``: float, mapping object id -> scale, or None), at most ``MAX_OBJECT_POINTS``.
+    ``with_edges``: first, points along its sharp edges (``sharp_edge_points``, ``EDGE_POINT_SPACING``
+    apart in normalized units whatever the scale, so every grasp of the object uses all of them).
     """
-    areas, sequences = [], []
+    areas, sequences, leading = [], [], []
     for asset, mesh in zip(assets, meshes):
         if isinstance(max_scale, Mapping):
             scale = float(max_scale.get(asset.object_id, DEFAULT_MAX_SCALE))
@@ -356,10 +363,12 @@ def object_point_sets(assets: list[ObjectAsset], meshes, spacing_m: float, max_s
             scale = float(DEFAULT_MAX_SCALE if max_scale is None else max_scale)
         area = float(mesh.area)
         count = int(min(MAX_OBJECT_POINTS, max(1, np.ceil(area * scale**2 / spacing_m**2))))
+        edges = sharp_edge_points(mesh, EDGE_POINT_SPACING) if with_edges else np.zeros((0, 3), np.float32)
         areas.append(area)
-        sequences.append(surface_point_sequence(mesh, count))
+        leading.append(len(edges))
+        sequences.append(np.concatenate([edges, surface_point_sequence(mesh, count)]))
     width = max(len(p) for p in sequences)
     points = np.full((len(assets), width, 3), PADDING, dtype=np.float32)  # shorter sequences padded far from any hand
     for o, sequence in enumerate(sequences):
         points[o, : len(sequence)] = sequence
-    return points, np.asarray(areas)
+    return points, np.asarray(areas), np.asarray(leading)

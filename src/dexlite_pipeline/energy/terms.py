@@ -218,17 +218,21 @@ class PenetrationTerm(EnergyTerm):
         object_area: torch.Tensor | None = None,
         point_spacing_m: float | None = None,
         surface: SurfaceDistance | None = None,
+        leading_points: torch.Tensor | None = None,
     ) -> None:
         """``object_points`` (n_objects, P, 3), normalized frame, each object's sequence padded to P with
         far-away points; ``object_area`` (n_objects,) normalized surface areas and ``point_spacing_m``
         give each grasp its points (None: every point, each standing for ``REFERENCE_POINT_AREA_M2``);
-        ``surface`` gives exact distances near the surface (None: the grid's)."""
+        ``surface`` gives exact distances near the surface (None: the grid's). ``leading_points`` (n_objects,):
+        how many points at the front of each object's set every grasp uses, before its area prefix
+        (the judged measure's sharp-edge points); None: none."""
         self.hand = hand
         self.bank = sdf_bank
         self.surface = surface
         self.object_points = object_points  # (n_objects, P, 3), normalized frame
         self.object_area = object_area
         self.point_spacing_m = point_spacing_m
+        self.leading_points = torch.zeros(object_points.shape[0], dtype=torch.long, device=object_points.device) if leading_points is None else leading_points.to(object_points.device)
         self.clusters = build_point_clusters(object_points, cluster_size, counts=(object_points < PADDING / 2).all(-1).sum(-1))
         # [m, |m|² − ρ², ρ, 1] per cluster and per parent (see ``_clusters_near``).
         self.cluster_aug = self._augmented(self.clusters.centre, self.clusters.radius)
@@ -248,8 +252,10 @@ class PenetrationTerm(EnergyTerm):
         if self.object_area is None or self.point_spacing_m is None:
             return torch.full_like(object_index, total), torch.ones_like(scale)
         area_m2 = self.object_area.to(scale.dtype)[object_index] * scale.square()
-        count = torch.ceil(area_m2 / self.point_spacing_m**2).clamp(1, total).long()
-        return count, area_m2 / count / self.REFERENCE_POINT_AREA_M2
+        leading = self.leading_points[object_index]
+        area_points = torch.ceil(area_m2 / self.point_spacing_m**2).long()
+        count = (leading + area_points).clamp(1, total)
+        return count, area_m2 / (count - leading).clamp(min=1) / self.REFERENCE_POINT_AREA_M2
 
     def evaluate(self, context: EnergyContext) -> torch.Tensor:
         return context.penetration.energy

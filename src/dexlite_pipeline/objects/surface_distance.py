@@ -22,6 +22,8 @@ from dexlite_pipeline.objects.mesh_distance import MeshDistance
 
 SQRT3_HALF = 3**0.5 / 2
 SEQUENCE_CHUNK = 1024  # points per independently seeded chunk of ``surface_point_sequence``
+SHARP_EDGE_ANGLE_RAD = 0.5  # an edge whose faces' normals differ by more (~29°) is a crease (``sharp_edge_points``)
+MAX_EDGE_POINTS = 50_000
 
 
 class SurfaceDistance:
@@ -92,3 +94,25 @@ def surface_point_sequence(mesh, count: int, seed: int = 0) -> np.ndarray:
         chunks.append((1 - root)[:, None] * a + (root * (1 - r2))[:, None] * b + (root * r2)[:, None] * c)
     points = np.concatenate(chunks) if chunks else np.zeros((0, 3))
     return points[: int(count)].astype(np.float32)
+
+
+def sharp_edge_points(mesh, spacing: float, min_angle_rad: float = SHARP_EDGE_ANGLE_RAD, max_points: int = MAX_EDGE_POINTS) -> np.ndarray:
+    """(K, 3) points along the mesh's sharp edges, ``spacing`` apart (normalized units), ends included.
+
+    An edge is sharp where its two faces' normals differ by more than ``min_angle_rad``: there the
+    surface has a crease that points spread over the area reach only within about their spacing,
+    while an edge cutting into a finger is the part of the object deepest in it. At most
+    ``max_points`` (the spacing grows beyond that).
+    """
+    if len(mesh.faces) == 0:
+        return np.zeros((0, 3), np.float32)
+    sharp = np.asarray(mesh.face_adjacency_angles) > min_angle_rad
+    ends = np.asarray(mesh.vertices, np.float64)[np.asarray(mesh.face_adjacency_edges)[sharp]]  # (E, 2, 3)
+    if len(ends) == 0:
+        return np.zeros((0, 3), np.float32)
+    length = np.linalg.norm(ends[:, 1] - ends[:, 0], axis=1)
+    spacing = max(spacing, float(length.sum()) / max_points)
+    steps = np.maximum(1, np.ceil(length / spacing).astype(np.int64))
+    edge = np.repeat(np.arange(len(ends)), steps + 1)
+    t = np.concatenate([np.linspace(0.0, 1.0, k + 1) for k in steps])
+    return (ends[edge, 0] + t[:, None] * (ends[edge, 1] - ends[edge, 0])).astype(np.float32)
