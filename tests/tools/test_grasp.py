@@ -71,7 +71,8 @@ def test_grasp_writes_every_output_for_an_obj_and_an_stl(grasp_run):
     assert "| surface touched |" in summary
     for object_id in ("user-box", "user-cup"):  # a percentage where the object has held grasps, 0% where none held
         row = next(line for line in summary.splitlines() if line.startswith(f"| {object_id} |"))
-        touched = row.split("|")[7].strip()
+        deepest, touched = row.split("|")[7].strip(), row.split("|")[8].strip()
+        assert deepest == "-" or float(deepest) <= 2.0, row  # the deepest start of a held grasp, within the cap
         assert touched.endswith("%") and (touched != "0%") == bool((lifted & (every.object_id == object_id)).any()), row
     view = out / "view.html"
     assert view.is_file() == bool(len(held)) and (("`view.html`" in summary) == bool(len(held)))

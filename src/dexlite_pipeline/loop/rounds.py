@@ -180,7 +180,7 @@ def validate_round(
     """The refined grasps of ``post_path`` with the checks a new grasp must pass, and ``drop_reason`` per grasp.
 
     In order: refined at all (``NOT_OPTIMIZED``), below every threshold of ``thresholds`` (``EnergyThresholds``) with
-    the equal filter's contacts (``ENERGY_FILTER``; E_pen the refined one), the lift test (``LIFT_TEST``) and, with
+    the equal filter's contacts (``ENERGY_FILTER``; E_pen and the penetration depth the refined ones), the lift test (``LIFT_TEST``) and, with
     ``six_directions``, the six-direction test (``SIX_DIRECTIONS``); ``lift`` is the ``LiftConfig``, ``support_planes``
     the tables (tabletop mode). Only grasps that passed the checks before are simulated (the others keep NaN results),
     or with ``simulate_all`` every refined grasp (the held-out check: success per attempt, as the evaluation counts it).
@@ -203,8 +203,9 @@ def validate_round(
         arrays[name] = np.full(n, np.nan, np.float32)
     for name, values in found.items():
         arrays[name][rows] = values
-    refined_pen = np.asarray(arrays.get("E_pen", np.full(n, np.nan)), np.float64)  # absent when no row was refined
-    passing = filter_flags({"hand_pose": post.hand_pose, **arrays, "E_pen": refined_pen}, thresholds.limits())
+    # E_pen and the judged depth are the refined pose's; absent when no row was refined
+    refined = {name: np.asarray(arrays.get(name, np.full(n, np.nan)), np.float64) for name in ("E_pen", "penetration_mm")}
+    passing = filter_flags({"hand_pose": post.hand_pose, **arrays, **refined}, thresholds.limits())
     reason[(reason == "") & ~passing] = ENERGY_FILTER
     rows = np.flatnonzero(optimized if simulate_all else reason == "")
     lift = dataclasses.replace(lift, six_directions=six_directions)

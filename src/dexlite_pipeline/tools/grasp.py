@@ -539,14 +539,20 @@ def per_object_rows(grasps, labels: np.ndarray, sources, sizes: dict, prepared_i
         mask = grasps.object_id == object_id
         lift, six = held_all[mask], six_all[mask]
         reasons = np.asarray(grasps.arrays["failure_reason"], dtype=object)[mask & ~held_all]
+        start = np.asarray(grasps.arrays.get("initial_penetration_mm", np.full(len(grasps), np.nan)), np.float64)[mask & held_all]
         rows.append({
             "object_id": object_id, "file": file_of.get(object_id, ""), "size": sizes.get(object_id),
             "radii_m": sorted({round(float(s), 4) for s in grasps.scale[mask]}), "grasps": int(mask.sum()),
             "lift": int(lift.sum()), "six_dir": int(six.sum()), "both": int((lift & six).sum()),
             "distinct": len(set(labels[mask & held_all].tolist())), "failures": failure_counts(reasons),
             "coverage": (coverage or {}).get(object_id, math.nan),
+            "start_depth_max_mm": float(np.nanmax(start)) if np.isfinite(start).any() else math.nan,
         })  # fmt: skip
     return rows
+
+
+def _depth(mm: float) -> str:
+    return "-" if mm != mm else f"{mm:.1f}"
 
 
 def _percent(share: float) -> str:
@@ -643,7 +649,8 @@ def summary_markdown(
         f"**{_share(lift, total)} grasps held the object in the lift test, {distinct} of them distinct; {_share(both, total)} also "
         f"passed the six-direction test** ({len(rows)} object(s), {size_rule}, {method}, {seconds / 60:.1f} min).",
         "",
-        f"A grasp *holds* when the hand lifts the object {lift_config.lift_height_m:g} m and keeps at least "
+        f"A grasp *holds* when it starts at most {1000 * lift_config.max_initial_penetration_m:g} mm inside the object (measured "
+        f"against its mesh, both ways) and the hand lifts the object {lift_config.lift_height_m:g} m and keeps at least "
         f"{100 * lift_config.success_lift_ratio:.0f}% of that rise (MuJoCo, object {lift_config.object_mass_kg:g} kg, "
         f"friction {lift_config.friction:g}); the six-direction test pushes the held object with "
         f"{lift_config.six_dir_force_per_kg_n:g} N/kg along ±x, ±y, ±z (gravity off) and passes when it moves less than "
@@ -661,16 +668,18 @@ def summary_markdown(
         lines.append(f"No grasp held: `grasps.zarr` is empty and no `dexgraspnet/` was written. `all_grasps.zarr` holds all {total} with their failure reasons.")
     lines += [
         "",
-        "| object | file | size (cm) | grasps | held | distinct held | surface touched | six-direction passed | held and six-direction passed | why the others failed |",
-        "| --- | --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | --- |",
+        "| object | file | size (cm) | grasps | held | distinct held | deepest start of a held grasp (mm) | surface touched | six-direction passed "
+        "| held and six-direction passed | why the others failed |",
+        "| --- | --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | --- |",
     ]
     for r in rows:
         size = _size_text(r["size"]) if r["size"] is not None and not request.resize_to_training else (
             "radius " + ", ".join(f"{100 * s:.3g}" for s in r["radii_m"]))
         reasons = ", ".join(f"{reason} {count}" for reason, count in r["failures"].items()) or "-"
         lines.append(f"| {r['object_id']} | {Path(r['file']).name} | {size} | {r['grasps']} | {_share(r['lift'], r['grasps'])} | "
-                     f"{r['distinct']} | {_percent(r.get('coverage', math.nan))} | {_share(r['six_dir'], r['grasps'])} | {_share(r['both'], r['grasps'])} | {reasons} |")
-    lines.append(f"| **all** | | | {total} | {_share(lift, total)} | {distinct} | | {_share(six, total)} | {_share(both, total)} | |")
+                     f"{r['distinct']} | {_depth(r.get('start_depth_max_mm', math.nan))} | {_percent(r.get('coverage', math.nan))} | "
+                     f"{_share(r['six_dir'], r['grasps'])} | {_share(r['both'], r['grasps'])} | {reasons} |")
+    lines.append(f"| **all** | | | {total} | {_share(lift, total)} | {distinct} | | | {_share(six, total)} | {_share(both, total)} | |")
     lines += source_lines(request, rows)
     if rejected:
         lines += ["", "## Meshes not tried", ""]
