@@ -286,7 +286,7 @@ class PenetrationTerm(EnergyTerm):
         and each grasp's deepest point (detached)."""
         batch = object_index.shape[0]
         _, weight = self.point_counts(object_index, scale)
-        grasp, depth, share, deepest_max = self._inside_points(frames, active, object_index, scale)
+        grasp, depth, share, deepest_max, _ = self._inside_points(frames, active, object_index, scale)
         return depth.new_zeros(batch).index_add(0, grasp, depth * share * weight[grasp]), deepest_max
 
     def _active_shapes(self, frames, object_index, scale) -> torch.Tensor:
@@ -300,12 +300,15 @@ class PenetrationTerm(EnergyTerm):
             margin = (self.interpolation_error[object_index] * scale)[:, None] + self.spheres.shape_gap[None, :]
             return reach > -margin
 
-    def excess(self, frames: HandFrames, object_index: torch.Tensor, scale: torch.Tensor, allowed_m: float) -> torch.Tensor:
+    def excess(
+        self, frames: HandFrames, object_index: torch.Tensor, scale: torch.Tensor, allowed_m: float, shapes: torch.Tensor | None = None
+    ) -> torch.Tensor:
         """(B,) Σ max(0, depth − ``allowed_m``)² over the hand's spheres and the grasp's object points, differentiable.
 
         The squared excess of the same two directions as the depth, with the spheres' distances from the
-        mesh near the surface: zero exactly when the depth is within ``allowed_m``. Contact resolution
-        (``optim.contact_resolution``) descends it.
+        mesh near the surface: zero exactly when the depth is within ``allowed_m``. ``shapes`` (S,) bool:
+        only the excess of these hand shapes (their spheres, the object points deepest in them); None: all.
+        Contact resolution (``optim.contact_resolution``) descends it.
         """
         radius = self.spheres.radius
         centre = self.sphere_map(frames)
@@ -313,13 +316,18 @@ class PenetrationTerm(EnergyTerm):
             distance = self.surface.signed_distance(centre, object_index[:, None], scale[:, None], band_m=radius)
         else:
             distance, _ = self.bank.signed_distance(centre, object_index[:, None], scale[:, None], with_normal=False)
-        spheres = torch.relu(distance + radius - allowed_m).square().sum(dim=1)
-        grasp, depth, _, _ = self._inside_points(frames, self._active_shapes(frames, object_index, scale), object_index, scale)
-        return spheres.index_add(0, grasp, torch.relu(depth - allowed_m).square())
+        sphere_excess = torch.relu(distance + radius - allowed_m).square()
+        if shapes is not None:
+            sphere_excess = sphere_excess * shapes[self.spheres.shape].to(sphere_excess.dtype)
+        grasp, depth, _, _, shape = self._inside_points(frames, self._active_shapes(frames, object_index, scale), object_index, scale)
+        point_excess = torch.relu(depth - allowed_m).square()
+        if shapes is not None:
+            point_excess = point_excess * shapes[shape].to(point_excess.dtype)
+        return sphere_excess.sum(dim=1).index_add(0, grasp, point_excess)
 
     def _inside_points(self, frames, active, object_index, scale):
         """The grasp's own object points inside its active shapes, each once at its deepest shape:
-        (grasp (N,), depth (N,) with gradients, share (N,) of exact ties, per-grasp deepest (B,) detached)."""
+        (grasp (N,), depth (N,) with gradients, share (N,) of exact ties, per-grasp deepest (B,) detached, shape (N,))."""
         batch = object_index.shape[0]
         count, _ = self.point_counts(object_index, scale)
         with torch.no_grad():
@@ -340,7 +348,7 @@ class PenetrationTerm(EnergyTerm):
         frame = self.shape_map.rows(frames, grasp, shape)
         local = self._apply(self._to_local(frame, scale[grasp]), self.object_points[object_index[grasp], cand_point])
         depth = shape_signed_distance(local, self.hand.shape_kind[shape], self.hand.shape_size[shape])
-        return grasp, depth, share, deepest_max
+        return grasp, depth, share, deepest_max, shape
 
     @staticmethod
     def _to_local(frame: torch.Tensor, scale: torch.Tensor) -> torch.Tensor:

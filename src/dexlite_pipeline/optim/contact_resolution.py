@@ -5,11 +5,14 @@ with some grasps pressed a few millimetres into the object, and the lift test re
 that starts deeper than its cap (a hand could not have reached it without passing through the
 object). Filtering those afterwards wastes them; instead every optimization ends here: a grasp
 whose penetration depth (the measure of ``energy.terms.PenetrationTerm``, against the mesh)
-exceeds ``allowed_m`` moves, a small step at a time, down the gradient of its squared excess
-depth (``PenetrationTerm.excess``) in its joint angles and palm position, the palm's orientation
-kept, until it is within ``allowed_m`` or the steps run out. Fingers open along the direction
-that takes them out of the object (their closing direction reversed) and the palm backs off
-where it is the part inside; a finger that only touches is not moved. Grasps already within
+exceeds ``allowed_m`` moves, a small step at a time, until it is within ``allowed_m`` or the
+steps run out: its joint angles down the gradient of its squared excess depth
+(``PenetrationTerm.excess``), so a finger inside the object opens along its closing direction
+reversed, and its palm position, orientation kept, for the first ``FINGERS_FIRST_STEPS`` steps
+down the gradient of the palm's own excess only, so the palm backs off where the palm is inside
+and stays put where a finger can get out alone (moving it pulls every other contact off the
+surface), then down the whole hand's, for a finger that its joints cannot take out (one pressed
+in along its length). A finger that only touches is not moved. Grasps already within
 ``allowed_m`` are returned unchanged.
 """
 
@@ -25,6 +28,8 @@ from dexlite_pipeline.hand.model import JOINTS
 JOINT_STEP_RAD = 0.005  # largest joint change per step (a fingertip ~10 cm from its joint moves ≤ 0.5 mm)
 TRANSLATION_STEP_M = 0.0002  # palm movement per step where the palm's gradient points out
 RESOLUTION_STEPS = 60  # at most this many steps (≤ 0.3 rad and 12 mm in all)
+FINGERS_FIRST_STEPS = 20  # steps in which the palm backs off only where the palm itself is inside
+PALM_LINK = "robot0:palm"  # the link whose shapes move only with the palm (no joint between them)
 
 
 @dataclass
@@ -52,17 +57,21 @@ def resolve_contacts(
     depth = depth_before.clone()
     taken = torch.zeros(len(pose), dtype=torch.long, device=pose.device)
     limits = energy.hand.joint_limits.to(pose.dtype)
-    for _ in range(steps):
+    palm = energy.hand.shape_link == energy.hand.link_names.index(PALM_LINK)  # (S,) the palm's own shapes
+    for step in range(steps):
         rows = (depth > allowed_m).nonzero().squeeze(1)
         if len(rows) == 0:
             break
         moving = pose[rows].clone().requires_grad_(True)
-        excess = energy.judge.excess(energy.hand.forward(moving), object_index[rows], scale[rows], allowed_m)
-        (gradient,) = torch.autograd.grad(excess.sum(), moving)
-        joint_gradient = gradient[:, JOINTS]
+        frames = energy.hand.forward(moving)
+        whole = energy.judge.excess(frames, object_index[rows], scale[rows], allowed_m)
+        (gradient,) = torch.autograd.grad(whole.sum(), moving, retain_graph=step < FINGERS_FIRST_STEPS)
+        joint_gradient, palm_gradient = gradient[:, JOINTS], gradient[:, :3]
+        if step < FINGERS_FIRST_STEPS:  # the palm moves for its own shapes only, while the fingers may still get out alone
+            palm_only = energy.judge.excess(frames, object_index[rows], scale[rows], allowed_m, shapes=palm)
+            palm_gradient = torch.autograd.grad(palm_only.sum(), moving)[0][:, :3] if bool(palm_only.gt(0).any()) else torch.zeros_like(palm_gradient)
         largest = joint_gradient.abs().amax(dim=1, keepdim=True)
         joint_step = torch.where(largest > 0, joint_gradient / largest.clamp(min=1e-30), torch.zeros_like(joint_gradient)) * JOINT_STEP_RAD
-        palm_gradient = gradient[:, :3]
         palm_norm = palm_gradient.norm(dim=1, keepdim=True)
         palm_step = torch.where(palm_norm > 0, palm_gradient / palm_norm.clamp(min=1e-30), torch.zeros_like(palm_gradient)) * TRANSLATION_STEP_M
         updated = pose[rows].clone()
