@@ -451,17 +451,15 @@ class _WorkerState:
         return self.simulators[key]
 
 
-def _squeeze_plans(hand: ShadowHand, asset: ObjectAsset, hand_pose: np.ndarray, scale: np.ndarray, config: LiftConfig) -> tuple[np.ndarray, np.ndarray]:
-    """Squeeze targets (B, 22) and hand-in-object depth (B,) of one object's grasps, in torch batches."""
+def _squeeze_plans(hand: ShadowHand, asset: ObjectAsset, hand_pose: np.ndarray, scale: np.ndarray, config: LiftConfig) -> np.ndarray:
+    """Squeeze targets (B, 22) of one object's grasps, in torch batches."""
     bank = SdfBank([asset], device=hand.device)
-    targets, depth = [], []
+    targets = []
     for start in range(0, len(hand_pose), PREP_BATCH):
         pose = torch.as_tensor(hand_pose[start : start + PREP_BATCH], dtype=hand.dtype, device=hand.device)
         s = torch.as_tensor(scale[start : start + PREP_BATCH], dtype=hand.dtype, device=hand.device)
-        plan = squeeze_targets(hand, bank, pose, s, config)
-        targets.append(plan.targets.cpu().numpy())
-        depth.append(plan.hand_in_object_m.cpu().numpy())
-    return np.concatenate(targets).astype(np.float64), np.concatenate(depth).astype(np.float64)
+        targets.append(squeeze_targets(hand, bank, pose, s, config).targets.cpu().numpy())
+    return np.concatenate(targets).astype(np.float64)
 
 
 def start_depth_m(measure, hand_pose: np.ndarray, scale: np.ndarray) -> np.ndarray:
@@ -485,7 +483,7 @@ def run_task(task: LiftTask, state: _WorkerState) -> tuple[np.ndarray, LiftOutco
     out = LiftOutcome.empty(len(task.indices))
     try:
         asset = state.get_asset(task.objects_dirs, task.object_id)
-        targets, _ = _squeeze_plans(state.hand, asset, task.hand_pose, task.scale, cfg)
+        targets = _squeeze_plans(state.hand, asset, task.hand_pose, task.scale, cfg)
         measure = state.get_measure(asset, max(task.max_scale, float(task.scale.max())))
         depth = start_depth_m(measure, task.hand_pose, task.scale)
     except Exception as exc:  # one bad object must not stop the others: record it per grasp
