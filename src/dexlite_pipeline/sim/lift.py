@@ -421,13 +421,11 @@ class _WorkerState:
 
     def get_measure(self, asset: ObjectAsset, max_scale: float):
         """The judged penetration measure (a one-object ``GraspEnergy``) of ``asset`` for grasps up to ``max_scale``."""
-        from dexlite_pipeline.energy.config import JUDGED_POINT_SPACING_M, EnergyConfig
         from dexlite_pipeline.energy.grasp_energy import GraspEnergy
 
         key = (str(asset.directory), float(max_scale))
-        if key not in self.measures:
-            config = EnergyConfig(object_point_spacing_m=JUDGED_POINT_SPACING_M)
-            self.measures[key] = GraspEnergy.from_assets(self.hand, [asset], config, max_scale=float(max_scale))
+        if key not in self.measures:  # only its ``judge`` is used: E_pen's own points stay at the default, coarser spacing
+            self.measures[key] = GraspEnergy.from_assets(self.hand, [asset], max_scale=float(max_scale))
             while len(self.measures) > SCENE_CACHE:
                 self.measures.popitem(last=False)
         self.measures.move_to_end(key)
