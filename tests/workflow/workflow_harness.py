@@ -156,9 +156,12 @@ def snakemake_env(extra: dict[str, str] | None = None) -> dict[str, str]:
 
 
 def snakemake_command(workdir: Path, *args: str) -> list[str]:
+    """The command line of a run in ``workdir``: with the Snakefile found there when ``workdir`` is a
+    checkout itself (as a user runs it), else the frozen checkout's."""
+    snakefile = workdir / "Snakefile" if (workdir / "Snakefile").is_file() else checkout() / "Snakefile"
     return [
         str(BIN_DIR / "snakemake"),
-        "--snakefile", str(checkout() / "Snakefile"),
+        "--snakefile", str(snakefile),
         "--directory", str(workdir),
         "--configfile", str(workdir / "config.yaml"),
         *args,

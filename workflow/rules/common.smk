@@ -106,6 +106,21 @@ def code_hash(*modules):
     return _package_code_hash(*(m if "." in m else f"dexlite_pipeline.stages.{m}" for m in modules))
 
 
+def checkout_file(relative):
+    """A file of this checkout (``relative`` to the Snakefile's folder) as a rule's input path.
+
+    Relative to the working directory when the checkout is the working directory or inside it (a
+    plain `snakemake` in the checkout), so that a finished run whose folder is moved or copied (a
+    renamed checkout, a cluster filesystem mounted elsewhere) names the same inputs and plans
+    nothing; absolute when the run directory is elsewhere (`--directory`), which then does not
+    depend on where that directory is."""
+    path = Path(workflow.basedir) / relative
+    try:
+        return str(path.resolve().relative_to(Path.cwd().resolve()))
+    except ValueError:
+        return str(path)
+
+
 def mesh_dir_files(wildcards):
     """The mesh files of objects.mesh_dirs and heldout_mesh_dirs, as the object loader picks
     them: a new file changes prepare_objects' input set and an edited one is newer than its

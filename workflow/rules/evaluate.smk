@@ -99,7 +99,7 @@ REPORT_LOOP_OPTION = "--loop {input.loop} " if LOOP_ROUNDS else ""
 
 rule report:
     input:
-        unpack(lambda wc: {"learning_curve": str(LEARNING_CURVE)} if LEARNING_CURVE.is_file() else {}),
+        unpack(lambda wc: {"learning_curve": checkout_file("docs/learning_curve.csv")} if LEARNING_CURVE.is_file() else {}),
         unpack(lambda wc: {"loop": f"{RESULTS}/loop.csv"} if LOOP_ROUNDS else {}),
         metrics=f"{RESULTS}/eval/metrics.csv",
         per_object=f"{RESULTS}/eval/per_object.csv",

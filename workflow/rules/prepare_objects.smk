@@ -1,6 +1,6 @@
 # The benchmark split (objects always held out) is data the stage reads: editing it reruns the stage.
-BENCHMARK_SPLIT = str(Path(workflow.basedir) / "src" / "dexlite_pipeline" / "objects" / "benchmark_split.yaml")
-HOUSEHOLD_SPLIT = str(Path(workflow.basedir) / "src" / "dexlite_pipeline" / "objects" / "household_split.yaml")
+BENCHMARK_SPLIT = checkout_file("src/dexlite_pipeline/objects/benchmark_split.yaml")
+HOUSEHOLD_SPLIT = checkout_file("src/dexlite_pipeline/objects/household_split.yaml")
 
 
 rule prepare_objects:

@@ -13,7 +13,7 @@ def shipped_model_input(wildcards):
     """The shipped model file (sample.shipped_model, relative to this checkout) when configured: an input, so
     replacing it reruns sampling."""
     path = config["sample"].get("shipped_model") or ""
-    return {"shipped": str(Path(workflow.basedir) / path)} if path else {}
+    return {"shipped": checkout_file(path)} if path else {}
 
 
 rule sample_grasps:
