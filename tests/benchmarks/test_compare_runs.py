@@ -1,4 +1,4 @@
-"""benchmarks/compare_runs.py: equal runs compare equal through renames; a moved value, a lost row or a changed array
+"""benchmarks/experiments/compare_runs.py: equal runs compare equal through renames; a moved value, a lost row or a changed array
 is found; time columns are ignored."""
 
 from pathlib import Path

@@ -1,4 +1,4 @@
-"""benchmarks/grasp_check_meshes.py: per-mesh counts read from a dexlite grasp output folder."""
+"""benchmarks/experiments/grasp_check_meshes.py: per-mesh counts read from a dexlite grasp output folder."""
 
 import numpy as np
 

@@ -1,4 +1,4 @@
-"""benchmarks/loop_round_yield.py: variant settings and the refusal of a run folder without the round's inputs."""
+"""benchmarks/experiments/loop_round_yield.py: variant settings and the refusal of a run folder without the round's inputs."""
 
 from pathlib import Path
 

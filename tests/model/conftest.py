@@ -1,52 +1,17 @@
-"""Tiny object assets and grasp sets for the model tests (built once per session in a temp dir)."""
+"""Small model configurations and random point clouds for the model tests; every model test runs on one torch thread.
+
+The sphere and box assets and the grasp-like poses on them are in tests/conftest.py (the optimizer tests use them too).
+"""
 
 from __future__ import annotations
 
 import pytest
 import torch
 
-OBJECT_IDS = ("box", "sphere")
-SURFACE_POINTS = 256
-
 
 @pytest.fixture(autouse=True)
-def one_torch_thread():
-    """Small tensors run fastest on one thread, and a shared, loaded machine punishes spinning OpenMP workers."""
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(threads)
-
-
-@pytest.fixture(scope="session")
-def tiny_objects(tmp_path_factory):
-    """A sphere and a box as prepared assets (coarse SDF grid, few surface samples)."""
-    import trimesh
-
-    from dexlite_pipeline.objects.build import write_asset
-    from dexlite_pipeline.objects.config import AssetBuildSettings
-
-    root = tmp_path_factory.mktemp("objects")
-    settings = AssetBuildSettings(sdf_resolution=24, surface_points=SURFACE_POINTS)
-    meshes = {"sphere": trimesh.creation.icosphere(subdivisions=2, radius=1 / 1.03), "box": trimesh.creation.box(extents=[1.2, 0.9, 0.7])}
-    for object_id in OBJECT_IDS:
-        write_asset(meshes[object_id], object_id, root, settings, {"source": "test"}, convex_pieces=[meshes[object_id]])
-    return root
-
-
-@pytest.fixture(scope="session")
-def tiny_assets(tiny_objects):
-    from dexlite_pipeline.objects.assets import load_asset
-
-    return [load_asset(tiny_objects, oid) for oid in OBJECT_IDS]
-
-
-@pytest.fixture(scope="session")
-def make_grasps():
-    """``make_grasps(hand, count, seed)``: grasp-like poses on the tiny objects, alternating box and sphere."""
-    from demo_grasps import facing_grasps
-
-    return lambda hand, count, seed: facing_grasps(hand, OBJECT_IDS, count, seed)
+def model_tests_on_one_thread(one_torch_thread):
+    """Every model test runs on one torch thread (``one_torch_thread``)."""
 
 
 @pytest.fixture

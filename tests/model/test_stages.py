@@ -34,7 +34,7 @@ def _model_outputs(folder):
 
 
 @pytest.fixture
-def pipeline_inputs(tmp_path, hand, tiny_objects, make_grasps):
+def pipeline_inputs(tmp_path, hand, sphere_box_objects, make_grasps):
     """A catalog (box: train, sphere: held out), a stability table and one lift shard."""
     catalog_dir = tmp_path / "catalog"
     catalog_dir.mkdir()
@@ -43,7 +43,7 @@ def pipeline_inputs(tmp_path, hand, tiny_objects, make_grasps):
     grasps = make_grasps(hand, 16, seed=7)  # alternating box / sphere
     grasps.arrays["lift_success"] = np.arange(16) % 4 != 0
     write_grasp_store(tmp_path / "lift.zarr", grasps)
-    return tmp_path, ["--objects", str(catalog_dir), "--objects", str(tiny_objects)]
+    return tmp_path, ["--objects", str(catalog_dir), "--objects", str(sphere_box_objects)]
 
 
 @pytest.mark.slow
@@ -155,7 +155,7 @@ def test_lift_shards_keep_optimized_contacts_and_drop_imported_ones(tmp_path, ha
     assert (contacts[[1, 3, 4, 5]] == -1).all()
 
 
-def test_post_optimize_on_tables_raises_starts_and_keeps_random_palms_above(tmp_path, hand, tiny_objects, make_grasps):
+def test_post_optimize_on_tables_raises_starts_and_keeps_random_palms_above(tmp_path, hand, sphere_box_objects, make_grasps):
     """Tabletop mode: sampled starts with a hand in the table are raised above it before refinement (the shift
     recorded, the sampled pose kept as raw_hand_pose), E_post includes E_table, random palms start above the
     table, every row records its plane; an object without a resting pose is a reason, not a crash."""
@@ -169,7 +169,7 @@ def test_post_optimize_on_tables_raises_starts_and_keeps_random_palms_above(tmp_
     pd.DataFrame({"object_id": ["box", "sphere"], "stable": [True, True], "support_nx": [0.0, np.nan], "support_ny": [0.0, np.nan],
                   "support_nz": [1.0, np.nan], "support_offset": [0.35, np.nan]}).to_parquet(tmp_path / "stability.parquet")
     cfg = json.dumps({**CONFIG, "scene": {"table": True}})
-    args = ["post-optimize", "--config-json", cfg, "--sample", str(tmp_path / "sample.zarr"), "--objects", str(tiny_objects), "--shard", "000",
+    args = ["post-optimize", "--config-json", cfg, "--sample", str(tmp_path / "sample.zarr"), "--objects", str(sphere_box_objects), "--shard", "000",
             "--stability", str(tmp_path / "stability.parquet"), "--out", str(tmp_path / "post.zarr"), "--random-out", str(tmp_path / "random.zarr")]
     assert main(args) == 0
     post, baseline = read_grasp_store(tmp_path / "post.zarr"), read_grasp_store(tmp_path / "random.zarr")

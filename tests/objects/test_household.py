@@ -206,24 +206,3 @@ def test_renaming_clashing_ids_keeps_the_real_radius():
     clashing = [MeshSource("user-mug", "user", f"/tmp/{d}/mug.obj", real_radius_m=0.08) for d in ("a", "b")]
     renamed = make_ids_unique(clashing)
     assert len({s.object_id for s in renamed}) == 2 and all(s.real_radius_m == 0.08 for s in renamed)
-
-
-def test_check_mesh_script_writes_metres_and_the_millimetre_mug(tmp_path, capsys):
-    import importlib.util
-    from pathlib import Path
-
-    script = Path(__file__).resolve().parents[2] / "benchmarks" / "make_household_meshes.py"
-    spec = importlib.util.spec_from_file_location("make_household_meshes", script)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    assert module.main([str(tmp_path / "m")]) == 0
-    assert module.main([str(tmp_path / "mm"), "--units", "mm"]) == 0
-    assert sorted(p.name for p in (tmp_path / "m").glob("*.obj")) == ["bowl.obj", "cereal_box.obj", "mug.obj", "wine_bottle.obj"]
-    load = lambda path: trimesh.load(path, force="mesh")  # noqa: E731
-    mug_m = load(tmp_path / "m" / "mug.obj")
-    assert mug_m.is_watertight and mug_m.extents[2] == pytest.approx(0.095)
-    assert load(tmp_path / "m" / "wine_bottle.obj").extents[2] == pytest.approx(0.30)
-    assert load(tmp_path / "m" / "mm" / "mug.obj").extents == pytest.approx(mug_m.extents * 1000, rel=1e-6)
-    assert load(tmp_path / "mm" / "cereal_box.obj").extents == pytest.approx([200.0, 70.0, 300.0])
-    assert not (tmp_path / "mm" / "mm").exists()
-    assert "wine_bottle.obj: 0.075 x 0.075 x 0.3 m" in capsys.readouterr().out

@@ -252,7 +252,7 @@ def main() -> None:
     parser.add_argument("--out", type=Path, default=Path("src/dexlite_pipeline/data/shadow-hand-large"))
     parser.add_argument("--command", default="snakemake --cores 2 all --configfile config/profiles/large.yaml")
     parser.add_argument("--wall-log", type=Path, default=None, help="GNU `time -v` output of the run (its wall time)")
-    parser.add_argument("--curve", type=Path, default=None, help="learning-curve table (benchmarks/learning_curve.py) to record")
+    parser.add_argument("--curve", type=Path, default=None, help="learning-curve table (benchmarks/experiments/learning_curve.py) to record")
     parser.add_argument("--check-train-objects", type=int, default=3)
     parser.add_argument("--check-heldout-objects", type=int, default=4)
     parser.add_argument("--check-grasps", type=int, default=16, help="raw samples per benchmark object in the check")

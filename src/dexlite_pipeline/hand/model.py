@@ -5,7 +5,7 @@ flat tensors; forward kinematics then runs over a batch of 28-vectors with no Py
 work per grasp. pytorch-kinematics 0.10 cannot parse MJCF under mujoco 4, so the chain is
 built here from the compiled MjModel; ``tests/hand`` checks it against MuJoCo's forward
 kinematics and against pytorch-kinematics on the same chain (``hand.pk_chain``; speeds:
-``benchmarks/bench_kinematics.py``).
+``benchmarks/timing/bench_kinematics.py``).
 
 Frames: ``hand_pose`` = [t (3, m), static-xyz Euler (3, rad), 22 joints (rad)] is the pose
 of ``robot0:palm`` in the object frame. Every point set below is returned in the object frame.

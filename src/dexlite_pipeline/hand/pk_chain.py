@@ -2,7 +2,7 @@
 
 pytorch-kinematics is an independent implementation of batched tree kinematics; the tests
 use it as a reference for ``ShadowHand`` (``tests/hand/test_pk_reference.py``) and
-``benchmarks/bench_kinematics.py`` times the two against each other. Its own MJCF loader
+``benchmarks/timing/bench_kinematics.py`` times the two against each other. Its own MJCF loader
 cannot read the hand under mujoco 4 (its joint-type table is keyed by enum members, so
 every joint is a ``KeyError``), so the chain is assembled here from ``pk.Frame``,
 ``pk.Link`` and ``pk.Joint`` objects using the same MjModel that ``ShadowHand`` compiles

@@ -471,7 +471,7 @@ def write_mesh_obj(mesh, path: Path) -> None:
 
 
 # --------------------------------------------------------------------------- the check meshes
-# Fixed instances in no split, for `dexlite grasp` checks (benchmarks/make_household_meshes.py).
+# Fixed instances in no split, for `dexlite grasp` checks (benchmarks/experiments/make_household_meshes.py).
 
 CHECK_OBJECTS: dict[str, tuple[str, dict]] = {
     "mug": ("mug", {"height": 0.095, "rim_radius": 0.041, "base_radius": 0.039, "wall": 0.004, "base_thickness": 0.006,

@@ -1,6 +1,6 @@
 """The learning curve's table and plot: held-out success against the number of training objects.
 
-Rows come from ``benchmarks/learning_curve.py`` (one per point and method: ``point``, ``seed``,
+Rows come from ``benchmarks/experiments/learning_curve.py`` (one per point and method: ``point``, ``seed``,
 ``training_objects``, ``training_grasps``, optionally ``training_steps``, ``method``, ``n_grasps``,
 the lift and six-direction rates with Wilson 95% bounds, ``seconds_per_grasp``); the report shows
 the checked-in curve (``docs/learning_curve.csv``) of the shipped model's run. The curve proper is

@@ -1,6 +1,6 @@
 """What one data-loop round keeps, per sampling setting: one round redone beside a finished run.
 
-    python benchmarks/loop_round_yield.py RUN_DIR OUT_DIR --variant NAME[:KEY=VALUE,...] [--variant ...]
+    python benchmarks/experiments/loop_round_yield.py RUN_DIR OUT_DIR --variant NAME[:KEY=VALUE,...] [--variant ...]
         [--configfile FILE ...] [--round 1]
 
 ``RUN_DIR`` is a finished workflow folder (``config.yaml``, ``results/`` with the round's previous model and grasp

@@ -1,6 +1,6 @@
 """`dexlite grasp` on the household check meshes over several seeds: held and distinct held grasps per mesh.
 
-    python benchmarks/grasp_check_meshes.py OUT_DIR [--seeds 0 1 2] [--threads 1] [-- EXTRA dexlite grasp ARGS]
+    python benchmarks/experiments/grasp_check_meshes.py OUT_DIR [--seeds 0 1 2] [--threads 1] [-- EXTRA dexlite grasp ARGS]
 
 Writes the check meshes (``make_household_meshes.py``: a mug with a handle and a 4 mm wall, a bowl, a 30 cm wine
 bottle and a cereal box in metres, and the same mug in millimetres), then per seed runs the default command on the

@@ -15,8 +15,8 @@ model: they are read from the run. For CVAE + post-optimization each point also 
 generated grasps after which it, training CPU time included, costs fewer CPU-seconds per
 lift-successful grasp than each of them (``break_even_grasps``; inf: never).
 
-    python benchmarks/learning_curve.py --run RUN --counts 10 40 160 --seeds 0      # train and evaluate the points
-    python benchmarks/learning_curve.py --run RUN --tabulate --out docs/learning_curve  # table and plot only
+    python benchmarks/experiments/learning_curve.py --run RUN --counts 10 40 160 --seeds 0      # train and evaluate the points
+    python benchmarks/experiments/learning_curve.py --run RUN --tabulate --out docs/learning_curve  # table and plot only
 
 ``--out`` gets ``<out>.csv`` (one row per point and method) and ``<out>.png``; the Markdown table
 is printed. Each point's Snakemake log is ``<point>/curve.log``.

@@ -1,8 +1,8 @@
 """Hand forward kinematics: the project's ``ShadowHand`` against pytorch-kinematics.
 
-    python benchmarks/bench_kinematics.py             # batches 1/256/1024/4096, 2 and 1 threads
-    python benchmarks/bench_kinematics.py --quick     # small sizes, to check it runs
-    python benchmarks/bench_kinematics.py --threads 1 --batches 1024
+    python benchmarks/timing/bench_kinematics.py             # batches 1/256/1024/4096, 2 and 1 threads
+    python benchmarks/timing/bench_kinematics.py --quick     # small sizes, to check it runs
+    python benchmarks/timing/bench_kinematics.py --threads 1 --batches 1024
 
 Times the 23 link frames (rotation and translation in the object frame) of a batch of
 random hand poses (joints uniform within their limits, palm anywhere) on the CPU, in
@@ -18,7 +18,7 @@ a fixed random weighting of all frame entries w.r.t. all 28 pose entries, i.e. j
 angles and palm pose, as one optimizer step needs). The implementations are timed in
 turn, round after round, so load from other jobs on the shared cores hits all of them
 alike; each cell is the median wall time of its rounds (the row note gives the minimum).
-``run(quick)`` returns the rows for ``benchmarks/run_all.py``.
+``run(quick)`` returns the rows for ``benchmarks/timing/run_all.py``.
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """Check a finished run's held grasps against the tables of its objects' resting poses.
 
-    python benchmarks/table_clearance.py results/
+    python benchmarks/experiments/table_clearance.py results/
 
 For every lift-validated and evaluated store of the run, per store: grasps, held grasps, and
 held grasps with a hand point below the table (deeper than ``tabletop.TABLE_TOLERANCE_M``),
@@ -19,7 +19,8 @@ import numpy as np
 
 def main(argv: list[str] | None = None) -> int:
     from dexlite_pipeline.io.grasp_store import read_grasp_store
-    from dexlite_pipeline.tabletop import TABLE_TOLERANCE_M, SupportPlanes, grasp_table_depths
+    from dexlite_pipeline.energy.table_clearance import grasp_table_depths
+    from dexlite_pipeline.tabletop import TABLE_TOLERANCE_M, SupportPlanes
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("results", help="a run's results/ folder")

@@ -1,6 +1,6 @@
 """Held per attempt under start caps of 1, 2, 3, 5 and 10 mm, from one simulation of a run's evaluated grasps.
 
-    python benchmarks/start_cap_rates.py RESULTS_DIR [--threads 2] [--out rates.csv]
+    python benchmarks/experiments/start_cap_rates.py RESULTS_DIR [--threads 2] [--out rates.csv]
 
 The lift test's start check refuses a grasp before simulating it; what happens after does not
 depend on the cap. So every grasp under ``RESULTS_DIR/eval/sim/`` is lift-tested once (no

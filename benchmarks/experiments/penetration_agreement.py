@@ -1,6 +1,6 @@
 """How deep a run's grasps start, by the lift test's measure and by dense exact distances to the mesh.
 
-    python benchmarks/penetration_agreement.py RESULTS_DIR [--held-only] [--max-grasps 400] [--recompute] [--out agreement.csv]
+    python benchmarks/experiments/penetration_agreement.py RESULTS_DIR [--held-only] [--max-grasps 400] [--recompute] [--out agreement.csv]
 
 Reads every grasp store under ``RESULTS_DIR/eval/sim/`` (the evaluation's simulated grasps, with
 ``initial_penetration_mm``, the lift test's start depth) and computes for each grasp (the held ones

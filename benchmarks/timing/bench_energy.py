@@ -1,8 +1,8 @@
 """Energy and optimization benchmark: cost of an energy step and of optimization from scratch.
 
-    python benchmarks/bench_energy.py                 # full: batches 64/256/1024, optimization from scratch on 4 objects
-    python benchmarks/bench_energy.py --quick         # small sizes, to check it runs
-    python benchmarks/bench_energy.py --objects results/objects   # prepared objects instead of built ones
+    python benchmarks/timing/bench_energy.py                 # full: batches 64/256/1024, optimization from scratch on 4 objects
+    python benchmarks/timing/bench_energy.py --quick         # small sizes, to check it runs
+    python benchmarks/timing/bench_energy.py --objects results/objects   # prepared objects instead of built ones
 
 1. Time of one energy-and-gradient step (forward kinematics, all five terms, backward) for
    batches of 64, 256 and 1024 grasps with the hands AT the object: poses come from a short
@@ -21,7 +21,7 @@
 
 Objects: the default pipeline's kind (pybullet_data random meshes, normalized like
 DexGraspNet, SDF grid at the config's resolution), built into a temporary folder.
-``run(quick)`` returns the rows for ``benchmarks/run_all.py``.
+``run(quick)`` returns the rows for ``benchmarks/timing/run_all.py``.
 """
 
 from __future__ import annotations
@@ -36,7 +36,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def build_objects(directory: Path, count: int, seed: int, resolution: int) -> list[str]:

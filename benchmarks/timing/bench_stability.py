@@ -1,9 +1,9 @@
 """Object preparation and stability-filter benchmark.
 
-    python benchmarks/bench_stability.py                  # full: the default 40 objects, config.yaml settings
-    python benchmarks/bench_stability.py --quick          # 6 objects, small grids: checks that it runs
-    python benchmarks/bench_stability.py --objects 20 --workers 2
-    python benchmarks/bench_stability.py --prepared results/objects   # stability only, on prepared objects
+    python benchmarks/timing/bench_stability.py                  # full: the default 40 objects, config.yaml settings
+    python benchmarks/timing/bench_stability.py --quick          # 6 objects, small grids: checks that it runs
+    python benchmarks/timing/bench_stability.py --objects 20 --workers 2
+    python benchmarks/timing/bench_stability.py --prepared results/objects   # stability only, on prepared objects
 
 1. ``prepare_objects`` on the first N embedded objects of the default selection (seeded
    pybullet_data mix, the ``objects`` settings of config.yaml): wall time, wall and CPU
@@ -18,7 +18,7 @@
 
 On a shared machine the wall time depends on the other jobs; CPU seconds show what one
 dedicated core costs. ``run(quick)`` returns rows (benchmark, size, value, unit, note) for
-``benchmarks/run_all.py``.
+``benchmarks/timing/run_all.py``.
 """
 
 from __future__ import annotations
@@ -30,7 +30,7 @@ import tempfile
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def _children_cpu_s() -> float:

@@ -1,7 +1,7 @@
 """Write the household check meshes for `dexlite grasp` checks.
 
-    python benchmarks/make_household_meshes.py OUT_DIR               # metres, plus OUT_DIR/mm/mug.obj
-    python benchmarks/make_household_meshes.py OUT_DIR --units mm    # all four in millimetres
+    python benchmarks/experiments/make_household_meshes.py OUT_DIR               # metres, plus OUT_DIR/mm/mug.obj
+    python benchmarks/experiments/make_household_meshes.py OUT_DIR --units mm    # all four in millimetres
 
 Four objects at their real size, in no split (fixed parameters, not drawn from a seed; see
 ``objects.household.CHECK_OBJECTS``): ``mug.obj`` (9.5 cm tall, 4 mm wall, a handle),

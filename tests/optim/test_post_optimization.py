@@ -3,13 +3,15 @@
 import dataclasses
 
 import numpy as np
+import pytest
 import torch
 
 from dexlite_pipeline.energy.config import EnergyConfig
 from dexlite_pipeline.energy.grasp_energy import GraspEnergy
-from dexlite_pipeline.optim.config import PostOptimizeConfig
+from dexlite_pipeline.optim.config import AnnealingSchedule, PostOptimizeConfig
 from dexlite_pipeline.optim.post import refine
-from dexlite_pipeline.optim.config import AnnealingSchedule
+
+pytestmark = pytest.mark.usefixtures("one_torch_thread")  # small tensors on a shared machine
 
 
 def test_post_optimization_lowers_e_post(hand, tiny_assets, make_grasps):

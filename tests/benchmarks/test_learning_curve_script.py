@@ -1,28 +1,22 @@
-"""benchmarks/learning_curve.py: point folders, their config overlay, the table and the break-even arithmetic."""
+"""benchmarks/experiments/learning_curve.py: point folders, their config overlay, the table and the break-even arithmetic."""
 
-import importlib.util
 import json
 import math
-import sys
 from pathlib import Path
 
 import pandas as pd
+import pytest
 import torch
 
-SCRIPT = Path(__file__).resolve().parents[2] / "benchmarks" / "learning_curve.py"
 RATES = ("lift_success_rate", "lift_success_ci95_low", "lift_success_ci95_high", "six_dir_success_rate", "six_dir_success_ci95_low", "six_dir_success_ci95_high")
 
 
-def _load():
-    spec = importlib.util.spec_from_file_location("learning_curve_script", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module
-    spec.loader.exec_module(module)
-    return module
+@pytest.fixture(scope="module")
+def curve(benchmark_script):
+    return benchmark_script("learning_curve")
 
 
-def test_point_folders_and_overlays_name_their_budget():
-    curve = _load()
+def test_point_folders_and_overlays_name_their_budget(curve):
     run = Path("/runs/large")
     assert curve.point_dir(run, 40, 1) == run / "curve" / "n40_seed1"
     assert curve.point_dir(run, 0, 0, 16000) == run / "curve" / "nall_seed0_steps16000"
@@ -30,8 +24,7 @@ def test_point_folders_and_overlays_name_their_budget():
     assert curve.point_overlay(0, 0, 16000)["train"] == {"max_training_objects": 0, "max_steps": 16000}
 
 
-def test_break_even_solves_equal_cost_per_successful_grasp():
-    curve = _load()
+def test_break_even_solves_equal_cost_per_successful_grasp(curve):
     # CVAE: 100 CPU-s of training, then 0.2 s per grasp at 40%; random: 0.1 s per grasp at 10% (1 s per success)
     n = curve.break_even_grasps(100.0, 0.4, 0.2, 0.1, 0.1)
     assert math.isclose(n, 500.0)
@@ -51,8 +44,7 @@ def _metrics(folder: Path, rates: dict) -> None:
     (folder / "logs" / "benchmarks" / "train_cvae.tsv").write_text("s\tcpu_time\n12.0\t100.0\n")
 
 
-def test_table_holds_every_point_its_steps_and_the_run_baselines(tmp_path):
-    curve = _load()
+def test_table_holds_every_point_its_steps_and_the_run_baselines(curve, tmp_path):
     _metrics(tmp_path, {"cvae_raw": 0.1, "cvae_post": 0.4, "random_post": 0.1, "optimization": 0.6})
     for name in ("n10_seed0", "nall_seed0_steps16000"):
         point = tmp_path / "curve" / name

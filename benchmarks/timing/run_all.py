@@ -1,10 +1,10 @@
 """All benchmarks of the pipeline in one table.
 
-    python benchmarks/run_all.py            # full sizes (tens of minutes on 2 busy CPU cores)
-    python benchmarks/run_all.py --quick    # small sizes, e.g. to check that everything runs
-    python benchmarks/run_all.py --only object_scaling lift --csv bench.csv
+    python benchmarks/timing/run_all.py            # full sizes (tens of minutes on 2 busy CPU cores)
+    python benchmarks/timing/run_all.py --quick    # small sizes, e.g. to check that everything runs
+    python benchmarks/timing/run_all.py --only object_scaling lift --csv bench.csv
 
-Each component measures itself in ``benchmarks/bench_<name>.py``, which exposes
+Each component measures itself in ``benchmarks/timing/bench_<name>.py``, which exposes
 ``run(quick: bool) -> list[dict]`` (keys benchmark, size, value, unit, note): hand FK +
 energy step time against batch size and optimization from scratch grasps/s (``bench_energy``), hand
 FK alone against pytorch-kinematics (``bench_kinematics``), the
@@ -148,7 +148,7 @@ def bench_object_scaling(ctx: Context) -> list[Row]:
 
 
 def external_benchmarks() -> dict[str, Callable[[Context], list[Row]]]:
-    """``benchmarks/bench_*.py`` modules of the other components, wrapped as benchmarks."""
+    """``benchmarks/timing/bench_*.py`` modules of the other components, wrapped as benchmarks."""
     found = {}
     for path in sorted(BENCH_DIR.glob("bench_*.py")):
 

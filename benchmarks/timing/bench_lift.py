@@ -1,10 +1,10 @@
 """MuJoCo lift-test throughput on real grasps: grasps/s on N worker threads.
 
-    DEXLITE_DEXGRASPNET_ROOT=DIR python benchmarks/bench_lift.py   # real DexGraspNet grasps in DIR, 2 workers
-    python benchmarks/bench_lift.py --count 128 --six-directions
-    python benchmarks/bench_lift.py --grasps G.zarr --objects DIR   # any grasp store
-    python benchmarks/bench_lift.py --single-contact         # lift.multi_contact off (~15% faster)
-    python benchmarks/bench_lift.py --quick                  # 32 grasps: checks that it runs
+    DEXLITE_DEXGRASPNET_ROOT=DIR python benchmarks/timing/bench_lift.py   # real DexGraspNet grasps in DIR, 2 workers
+    python benchmarks/timing/bench_lift.py --count 128 --six-directions
+    python benchmarks/timing/bench_lift.py --grasps G.zarr --objects DIR   # any grasp store
+    python benchmarks/timing/bench_lift.py --single-contact         # lift.multi_contact off (~15% faster)
+    python benchmarks/timing/bench_lift.py --quick                  # 32 grasps: checks that it runs
 
 Real grasps matter here: a held object costs the full 1,350 steps with contacts, a
 dropped one is cheap (no contacts, and the rest of its fall is extrapolated), so

@@ -1,4 +1,4 @@
-"""Grasp-like hand poses built in closed form, for the model tests and benchmarks (not for training data).
+"""Grasp-like hand poses built in closed form, for the model and optimizer tests and the timing benchmarks (not training data).
 
 The object's centre is put in front of the palm (palm frame −y, where the finger pads
 face), just off the palm for an object of radius ``scale``, with the fingers half closed

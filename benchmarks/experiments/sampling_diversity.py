@@ -1,9 +1,9 @@
 """Success and diversity of the shipped model's sample + post-optimization path, per sampling setting, beside
 optimization from scratch on the same objects with the same number of attempts.
 
-    python benchmarks/sampling_diversity.py --objects 12 --attempts 16 --seeds 0 1 [--settings NAME ...]
+    python benchmarks/experiments/sampling_diversity.py --objects 12 --attempts 16 --seeds 0 1 [--settings NAME ...]
         [--objects-dir DIR] [--model PATH] [--threads 1] [--csv OUT.csv]
-    python benchmarks/sampling_diversity.py --tabulate OUT.csv [MORE.csv ...]
+    python benchmarks/experiments/sampling_diversity.py --tabulate OUT.csv [MORE.csv ...]
 
 Objects: ``--objects`` of the benchmark split (the first ones, or after ``--skip-objects``) (``objects/benchmark_split.yaml``, never trained
 on), prepared with the checkout's ``objects`` settings into ``--objects-dir`` (reused when already there).
@@ -244,7 +244,7 @@ def main() -> None:
     import torch
 
     from dexlite_pipeline.model.shipped import model_or_shipped
-    from dexlite_pipeline.tools.grasp import default_config
+    from dexlite_pipeline.config import default_config
 
     torch.set_num_threads(1)
     unknown = [s for s in args.settings if s not in SETTINGS and s not in BASELINES]

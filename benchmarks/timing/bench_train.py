@@ -1,9 +1,9 @@
 """CVAE training speed: optimizer steps per second at the default configuration.
 
-    python benchmarks/bench_train.py [--threads 2] [--steps 300] [--grasps 256] [--objects 8]
+    python benchmarks/timing/bench_train.py [--threads 2] [--steps 300] [--grasps 256] [--objects 8]
 
 Trains the default model (config.yaml's ``train`` section: sizes, batch, clouds per batch,
-points per cloud, energy weights) on grasp-like poses (``tests/model/demo_grasps.py``) over
+points per cloud, energy weights) on grasp-like poses (``tests/demo_grasps.py``) over
 ``--objects`` primitives at three scales, so the batches hold as many clouds as a real run's.
 Steps per second do not depend on what the grasps are, only on the batch composition and
 the network sizes. Prints one table row: steps/s and the seconds the default budget
@@ -22,8 +22,8 @@ import numpy as np
 import torch
 import yaml
 
-# The grasp-like poses of the model tests (tests/model/demo_grasps.py), shared rather than copied.
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "model"))
+# The grasp-like poses of the model and post-optimization tests (tests/demo_grasps.py), shared rather than copied.
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "tests"))
 
 
 def main() -> None:
@@ -47,7 +47,7 @@ def main() -> None:
     from dexlite_pipeline.objects.build import write_asset
     from dexlite_pipeline.objects.config import AssetBuildSettings
 
-    config_path = Path(__file__).resolve().parents[1] / "config.yaml"
+    config_path = Path(__file__).resolve().parents[2] / "config.yaml"
     section = yaml.safe_load(config_path.read_text())["train"]
     default = from_section(TrainConfig, section, "config.train")
     with tempfile.TemporaryDirectory() as root:

@@ -1,10 +1,10 @@
 """Post-optimization throughput (200 annealed iterations on E_post) and CVAE sampling throughput.
 
-    python benchmarks/bench_post_optimize.py [--threads 2] [--batches 256 1024] [--objects DIR ...]
+    python benchmarks/timing/bench_post_optimize.py [--threads 2] [--batches 256 1024] [--objects DIR ...]
 
 Objects: ``--objects`` prepared-object dirs (every asset in them is used), or by default
 four primitives prepared at the default SDF resolution in a temporary folder. Poses:
-grasp-like poses with the hand at the object (``tests/model/demo_grasps.py``), as CVAE samples
+grasp-like poses with the hand at the object (``tests/demo_grasps.py``), as CVAE samples
 are, so the timing is the one of hands in contact, not of hands far away. Sampling uses
 a freshly initialized model of the reference sizes (its speed does not depend on the
 weights) at 512 points per cloud. Prints one table row per measurement.
@@ -21,8 +21,8 @@ from pathlib import Path
 import numpy as np
 import torch
 
-# The grasp-like poses of the model tests (tests/model/demo_grasps.py), shared rather than copied.
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "model"))
+# The grasp-like poses of the model and post-optimization tests (tests/demo_grasps.py), shared rather than copied.
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "tests"))
 
 
 def prepare_primitives(root: str) -> list[str]:
@@ -91,7 +91,7 @@ def measure(assets, batches, iterations: int, sample_grasps: int) -> list[dict]:
 
 
 def run(quick: bool = False) -> list[dict]:
-    """Entry point for ``benchmarks/run_all.py``: small sizes when ``quick``."""
+    """Entry point for ``benchmarks/timing/run_all.py``: small sizes when ``quick``."""
     from dexlite_pipeline.objects.assets import load_asset
 
     with tempfile.TemporaryDirectory() as tmp:

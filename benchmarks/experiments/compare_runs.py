@@ -1,6 +1,6 @@
 """Compare two pipeline runs' results folders value for value: did a code change move any result?
 
-    python benchmarks/compare_runs.py BEFORE/results AFTER/results [--rename-path OLD=NEW ...]
+    python benchmarks/experiments/compare_runs.py BEFORE/results AFTER/results [--rename-path OLD=NEW ...]
         [--rename-column OLD=NEW ...] [--rename-value OLD=NEW ...] [--ignore-columns REGEX]
 
 Compared, for every file found under both folders (after renaming BEFORE's paths):

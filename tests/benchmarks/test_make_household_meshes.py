@@ -1,0 +1,19 @@
+"""benchmarks/experiments/make_household_meshes.py: the check meshes in metres and in millimetres, at the sizes they name."""
+
+import pytest
+import trimesh
+
+
+def test_check_mesh_script_writes_metres_and_the_millimetre_mug(tmp_path, capsys, benchmark_script):
+    module = benchmark_script("make_household_meshes")
+    assert module.main([str(tmp_path / "m")]) == 0
+    assert module.main([str(tmp_path / "mm"), "--units", "mm"]) == 0
+    assert sorted(p.name for p in (tmp_path / "m").glob("*.obj")) == ["bowl.obj", "cereal_box.obj", "mug.obj", "wine_bottle.obj"]
+    load = lambda path: trimesh.load(path, force="mesh")  # noqa: E731
+    mug_m = load(tmp_path / "m" / "mug.obj")
+    assert mug_m.is_watertight and mug_m.extents[2] == pytest.approx(0.095)
+    assert load(tmp_path / "m" / "wine_bottle.obj").extents[2] == pytest.approx(0.30)
+    assert load(tmp_path / "m" / "mm" / "mug.obj").extents == pytest.approx(mug_m.extents * 1000, rel=1e-6)
+    assert load(tmp_path / "mm" / "cereal_box.obj").extents == pytest.approx([200.0, 70.0, 300.0])
+    assert not (tmp_path / "mm" / "mm").exists()
+    assert "wine_bottle.obj: 0.075 x 0.075 x 0.3 m" in capsys.readouterr().out
