@@ -204,3 +204,36 @@ def test_contact_resolution_backs_buried_fingertips_out_to_the_allowed_depth(rea
     bowl = GraspEnergy.from_assets(hand, [load_asset(root, "bowl")], EnergyConfig(), max_scale=1.0)
     wall = resolve_contacts(bowl, _fingertip_poses(hand, points, normals, np.full(4, 0.004)), torch.zeros(4, dtype=torch.long), torch.ones(4), 0.0015)
     assert (wall.depth_m.numpy() <= 0.0015 + 1e-6).all()
+
+
+def test_contact_resolution_lifts_the_hand_out_of_the_table(real_size_objects):
+    """On a table, resolution also ends every grasp wholly above it (the lift test's own check), still within the
+    allowed depth in the object; a grasp clear of both is untouched, and without a table nothing moves for it."""
+    from dexlite_pipeline.energy.table_clearance import HandTableClearance, hand_table_depth
+    from dexlite_pipeline.objects.rest_pose import SupportPlane
+    from dexlite_pipeline.optim.contact_resolution import resolve_contacts
+    from dexlite_pipeline.tabletop import SupportPlanes
+
+    root, _ = real_size_objects
+    hand = ShadowHand()
+    top = np.tile([0.03, -0.02, 0.035], (4, 1))
+    pose = _fingertip_poses(hand, top, np.tile([0.0, 0.0, 1.0], (4, 1)), np.array([0.001, 0.003, 0.001, 0.0]))
+    normal = np.array([0.2, -0.1, 1.0]) / np.linalg.norm([0.2, -0.1, 1.0])  # a table tilted against the object frame
+    pose[2:, :3] += torch.as_tensor(normal * 0.05, dtype=pose.dtype)  # the last two start 5 cm higher: clear of the table
+    lowest = HandTableClearance(hand).lowest_heights(hand.forward(pose), torch.as_tensor(np.tile(normal, (4, 1)), dtype=pose.dtype), torch.zeros(4))
+    plane = SupportPlane(tuple(normal), -float(lowest[:2].min(dim=1).values.max()) - 0.002)  # the first two 2 mm or more below it
+    before = hand_table_depth(hand, pose.numpy(), plane, np.ones(4))
+    assert (before[:2] >= 0.002 - 1e-6).all() and (before[2:] == 0).all(), before
+    tabletop = GraspEnergy.from_assets(hand, [load_asset(root, "box")], EnergyConfig(), max_scale=1.0, support_planes=SupportPlanes({"box": plane}))
+    index, scale = torch.zeros(4, dtype=torch.long), torch.ones(4)
+
+    resolved = resolve_contacts(tabletop, pose, index, scale, allowed_m=0.0015)
+
+    after = hand_table_depth(hand, resolved.hand_pose.numpy(), plane, np.ones(4))
+    assert (after <= 1e-6).all(), after  # the lift test's tolerance (tabletop.TABLE_TOLERANCE_M)
+    assert np.allclose(resolved.table_depth_m.numpy(), after, atol=1e-6)
+    assert (resolved.depth_m.numpy() <= 0.0015 + 1e-6).all(), resolved.depth_m
+    assert (resolved.steps[:2] > 0).all() and (resolved.steps[2:] == 0).all() and torch.equal(resolved.hand_pose[2:], pose[2:])
+    floating = GraspEnergy.from_assets(hand, [load_asset(root, "box")], EnergyConfig(), max_scale=1.0)
+    without_table = resolve_contacts(floating, pose, index, scale, allowed_m=0.0015)
+    assert (without_table.table_depth_m == 0).all() and torch.equal(without_table.hand_pose[[0, 2, 3]], pose[[0, 2, 3]])

@@ -14,6 +14,13 @@ and stays put where a finger can get out alone (moving it pulls every other cont
 surface), then down the whole hand's, for a finger that its joints cannot take out (one pressed
 in along its length). A finger that only touches is not moved. Grasps already within
 ``allowed_m`` are returned unchanged.
+
+On a table (tabletop mode: the energy has support planes) the hand must also end wholly above
+it: the lift test refuses a grasp with any hand shape below the table, and the optimizer's E_table
+(linear in depth, like E_pen) leaves some grasps a few millimetres in it. Each shape's lowest point
+below ``TABLE_CLEARANCE_M`` above the table adds its squared shortfall to the excess descended, with
+the same split between the palm and the fingers, and a grasp is resolved only when no shape
+reaches below the table.
 """
 
 from __future__ import annotations
@@ -23,23 +30,52 @@ from dataclasses import dataclass
 import torch
 
 from dexlite_pipeline.energy.grasp_energy import GraspEnergy
-from dexlite_pipeline.hand.model import JOINTS
+from dexlite_pipeline.hand.model import JOINTS, HandFrames
 
 JOINT_STEP_RAD = 0.005  # largest joint change per step (a fingertip ~10 cm from its joint moves ≤ 0.5 mm)
 TRANSLATION_STEP_M = 0.0002  # palm movement per step where the palm's gradient points out
 RESOLUTION_STEPS = 60  # at most this many steps (≤ 0.3 rad and 12 mm in all)
 FINGERS_FIRST_STEPS = 20  # steps in which the palm backs off only where the palm itself is inside
 PALM_LINK = "robot0:palm"  # the link whose shapes move only with the palm (no joint between them)
+TABLE_CLEARANCE_M = 1e-4  # the excess pushes each shape's lowest point this far above the table (m), so a grasp ends clear of it
 
 
 @dataclass
 class ResolvedContacts:
-    """Poses after resolution (B, 28), their depth before and after (m), and how many steps each took."""
+    """Poses after resolution (B, 28), their depth in the object before and after (m), how far below the table the
+    hand reaches after (m, 0 when clear or floating), and how many steps each took."""
 
     hand_pose: torch.Tensor
     depth_before_m: torch.Tensor
     depth_m: torch.Tensor
+    table_depth_m: torch.Tensor
     steps: torch.Tensor
+
+
+class TableShortfall:
+    """How far each hand shape's lowest point lies under ``TABLE_CLEARANCE_M`` above its grasp's table (tabletop mode)."""
+
+    def __init__(self, energy: GraspEnergy) -> None:
+        from dexlite_pipeline.energy.table_clearance import HandTableClearance
+
+        self.energy = energy
+        self.clearance = HandTableClearance(energy.hand)
+
+    def heights(self, frames: HandFrames, object_index: torch.Tensor, scale: torch.Tensor) -> torch.Tensor:
+        """(B, S) height of each shape's lowest point above the table, m (negative: below)."""
+        normal, offset = self.energy.support(object_index, scale)
+        return self.clearance.lowest_heights(frames, normal, offset)
+
+    def excess(self, frames: HandFrames, object_index: torch.Tensor, scale: torch.Tensor, shapes: torch.Tensor | None = None) -> torch.Tensor:
+        """(B,) Σ max(0, clearance − height)² over the hand's shapes (``shapes`` (S,) bool: only these), differentiable."""
+        shortfall = torch.relu(TABLE_CLEARANCE_M - self.heights(frames, object_index, scale)).square()
+        if shapes is not None:
+            shortfall = shortfall * shapes.to(shortfall.dtype)
+        return shortfall.sum(dim=1)
+
+    def depth_m(self, frames: HandFrames, object_index: torch.Tensor, scale: torch.Tensor) -> torch.Tensor:
+        """(B,) the deepest hand point below the table, m (0 when the hand is wholly above it)."""
+        return (-self.heights(frames, object_index, scale)).clamp(min=0).amax(dim=1)
 
 
 def penetration_depth_m(energy: GraspEnergy, hand_pose: torch.Tensor, object_index: torch.Tensor, scale: torch.Tensor) -> torch.Tensor:
@@ -50,25 +86,39 @@ def penetration_depth_m(energy: GraspEnergy, hand_pose: torch.Tensor, object_ind
 def resolve_contacts(
     energy: GraspEnergy, hand_pose: torch.Tensor, object_index: torch.Tensor, scale: torch.Tensor, allowed_m: float, steps: int = RESOLUTION_STEPS
 ) -> ResolvedContacts:
-    """Back each grasp deeper than ``allowed_m`` out of its object (module docstring)."""
+    """Back each grasp deeper than ``allowed_m`` out of its object, and out of its table (module docstring)."""
     pose = hand_pose.detach().clone()
     scale = scale.to(pose.dtype)
-    depth_before = penetration_depth_m(energy, pose, object_index, scale)
+    table = TableShortfall(energy) if energy.support_planes is not None else None
+
+    def depths(poses: torch.Tensor, rows: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        in_object = penetration_depth_m(energy, poses, object_index[rows], scale[rows])
+        if table is None:
+            return in_object, torch.zeros_like(in_object)
+        with torch.no_grad():
+            return in_object, table.depth_m(energy.hand.forward(poses), object_index[rows], scale[rows])
+
+    every = torch.arange(len(pose), device=pose.device)
+    depth_before, table_depth = depths(pose, every)
     depth = depth_before.clone()
     taken = torch.zeros(len(pose), dtype=torch.long, device=pose.device)
     limits = energy.hand.joint_limits.to(pose.dtype)
     palm = energy.hand.shape_link == energy.hand.link_names.index(PALM_LINK)  # (S,) the palm's own shapes
     for step in range(steps):
-        rows = (depth > allowed_m).nonzero().squeeze(1)
+        rows = ((depth > allowed_m) | (table_depth > 0)).nonzero().squeeze(1)
         if len(rows) == 0:
             break
         moving = pose[rows].clone().requires_grad_(True)
         frames = energy.hand.forward(moving)
-        whole = energy.judge.excess(frames, object_index[rows], scale[rows], allowed_m)
-        (gradient,) = torch.autograd.grad(whole.sum(), moving, retain_graph=step < FINGERS_FIRST_STEPS)
+        obj, sc = object_index[rows], scale[rows]
+        whole = energy.judge.excess(frames, obj, sc, allowed_m)
+        palm_only = energy.judge.excess(frames, obj, sc, allowed_m, shapes=palm) if step < FINGERS_FIRST_STEPS else None
+        if table is not None:
+            whole = whole + table.excess(frames, obj, sc)
+            palm_only = palm_only + table.excess(frames, obj, sc, shapes=palm) if palm_only is not None else None
+        (gradient,) = torch.autograd.grad(whole.sum(), moving, retain_graph=palm_only is not None)
         joint_gradient, palm_gradient = gradient[:, JOINTS], gradient[:, :3]
-        if step < FINGERS_FIRST_STEPS:  # the palm moves for its own shapes only, while the fingers may still get out alone
-            palm_only = energy.judge.excess(frames, object_index[rows], scale[rows], allowed_m, shapes=palm)
+        if palm_only is not None:  # the palm moves for its own shapes only, while the fingers may still get out alone
             palm_gradient = torch.autograd.grad(palm_only.sum(), moving)[0][:, :3] if bool(palm_only.gt(0).any()) else torch.zeros_like(palm_gradient)
         largest = joint_gradient.abs().amax(dim=1, keepdim=True)
         joint_step = torch.where(largest > 0, joint_gradient / largest.clamp(min=1e-30), torch.zeros_like(joint_gradient)) * JOINT_STEP_RAD
@@ -79,5 +129,5 @@ def resolve_contacts(
         updated[:, :3] = updated[:, :3] - palm_step
         pose[rows] = updated
         taken[rows] += 1
-        depth[rows] = penetration_depth_m(energy, updated, object_index[rows], scale[rows])
-    return ResolvedContacts(hand_pose=pose, depth_before_m=depth_before, depth_m=depth, steps=taken)
+        depth[rows], table_depth[rows] = depths(updated, rows)
+    return ResolvedContacts(hand_pose=pose, depth_before_m=depth_before, depth_m=depth, table_depth_m=table_depth, steps=taken)
