@@ -1,0 +1,193 @@
+"""Grasp synthesis of ``dexlite grasp``: CVAE samples refined by post-optimization (sections ``sample`` and
+``post_optimize``), energy optimization from scratch (section ``optimize_grasps``), and the top-up that adds
+batches of optimization from scratch to the objects with too few distinct held grasps.
+
+Scales: at the real size an object's scale is the mesh file's unit in metres divided by the asset's
+``normalization_factor``; with ``resize_to_training`` it takes the configured training scales.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import math
+from collections.abc import Callable
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from dexlite_pipeline.sharding import shard_generator
+from dexlite_pipeline.tools.grasp.request import UNIT_METRES, GraspRequest, GraspToolError
+from dexlite_pipeline.tools.grasp.selection import distinct_labels, distinct_per_object
+
+if TYPE_CHECKING:
+    import torch
+
+    from dexlite_pipeline.io.grasp_store import GraspSet
+    from dexlite_pipeline.objects.assets import ObjectAsset
+    from dexlite_pipeline.settings import PipelineConfig
+    from dexlite_pipeline.tabletop import SupportPlanes
+
+log = logging.getLogger("dexlite.grasp")
+
+# A missing array of one source is filled for the other source's rows with this value, by dtype kind.
+NOT_MADE = {"f": np.nan, "i": -1, "u": 0, "b": False, "O": ""}
+
+
+def object_scales(assets: list[ObjectAsset], request: GraspRequest, configured: tuple[float, ...]) -> dict[str, tuple[float, ...]]:
+    """Scales per object: the real size (file unit in metres / normalization factor), or the configured ones."""
+    if request.resize_to_training:
+        return {a.object_id: tuple(configured) for a in assets}
+    unit_m = UNIT_METRES[request.units]
+    scales = {}
+    for asset in assets:
+        factor = float(asset.meta.get("normalization_factor", math.nan))
+        if not math.isfinite(factor) or factor <= 0:
+            raise GraspToolError(f"{asset.object_id}: asset has no normalization factor; cannot keep its real size")
+        scales[asset.object_id] = (unit_m / factor,)
+    return scales
+
+
+def _balanced_rows(per_scale: int, scale_count: int, wanted: int) -> np.ndarray:
+    """Rows of a scale-major block (``per_scale`` grasps per scale) taking ``wanted``, the scales in turn."""
+    k = np.arange(per_scale * scale_count)
+    order = np.lexsort((k // per_scale, k % per_scale))
+    return np.sort(order[:wanted])
+
+
+def synthesize_from_scratch(
+    assets: list[ObjectAsset], scales: dict[str, tuple[float, ...]], n: int, config: PipelineConfig, device: torch.device, seed: int,
+    support_planes: SupportPlanes | None = None,
+) -> GraspSet:
+    """``n`` grasps per object by energy optimization from convex-hull starts (section ``optimize_grasps``)."""
+    from dexlite_pipeline.io.grasp_store import GraspSet
+    from dexlite_pipeline.optim.from_scratch import synthesize
+
+    generator = shard_generator("optimize_grasps", seed, 0)
+    parts = []
+    for number, asset in enumerate(assets, start=1):
+        object_scales = scales[asset.object_id]
+        per_scale = -(-n // len(object_scales))
+        optimize_config = dataclasses.replace(config.optimize_grasps, grasps_per_object=per_scale, scales=object_scales)
+        log.info("object %d/%d %s: optimizing %d grasps, %d iterations", number, len(assets), asset.object_id,
+                 per_scale * len(object_scales), optimize_config.annealing.iterations)
+        grasps, _ = synthesize([asset], optimize_config, config.energy, generator, device, support_planes=support_planes)
+        parts.append(grasps.select(_balanced_rows(per_scale, len(object_scales), n)))
+    grasps = GraspSet.concatenate(parts)
+    grasps.arrays["method"] = np.full(len(grasps), "optimization", dtype=object)
+    return grasps
+
+
+def synthesize_with_model(
+    assets: list[ObjectAsset], scales: dict[str, tuple[float, ...]], n: int, config: PipelineConfig, loaded: tuple, model_path: str,
+    device: torch.device, seed: int, support_planes: SupportPlanes | None = None,
+) -> GraspSet:
+    """``n`` CVAE samples per object, refined by post-optimization (sections ``sample``, ``post_optimize``)."""
+    import torch
+
+    from dexlite_pipeline.energy.config import EnergyConfig
+    from dexlite_pipeline.energy.grasp_energy import GraspEnergy, max_scale_by_object
+    from dexlite_pipeline.hand import ShadowHand
+    from dexlite_pipeline.io.grasp_store import GraspSet
+    from dexlite_pipeline.model.checkpoint import cloud_reading
+    from dexlite_pipeline.model.data import ObjectClouds
+    from dexlite_pipeline.optim.post import refine
+    from dexlite_pipeline.model.sampling import synthesize
+
+    sample_config, post_config = config.sample, config.post_optimize
+    model, checkpoint = loaded
+    points, fixed = cloud_reading(checkpoint, sample_config.points_per_cloud)
+    clouds = ObjectClouds(assets, device)
+    object_index = np.repeat(np.arange(len(assets)), n)
+    scale = np.concatenate([np.resize(np.asarray(scales[a.object_id], np.float32), n) for a in assets])
+    trained = sorted(float(s) for s in sample_config.scales)  # the training grasps' scales
+    outside = sorted({round(float(s), 4) for s in scale if not min(trained) * 0.8 <= s <= max(trained) * 1.25})
+    if outside:
+        log.info("object radii %s m are outside the model's training radii %s m: expect fewer grasps that hold", outside, trained)
+    generator = shard_generator("grasp_tool_post_optimize", seed, 0)
+    log.info("sampling %d grasps from %s", len(object_index), model_path)
+    prior, anchor_rule = sample_config.latent_prior, sample_config.anchor_rule
+    if len(model.codes_mu) == 0 or len(model.codes_condition) == 0:  # a model saved without its training codes
+        log.warning("%s holds no training codes: sampling from N(0, I) at uniform points instead of %s / %s", model_path, prior, anchor_rule)
+        prior, anchor_rule = "standard", "uniform"
+    poses = synthesize(
+        model, clouds, object_index, scale, points, generator, prior, sample_config.latent_temperature, fixed, anchor_rule,
+        sample_config.neighbour_clouds, sample_config.anchor_region_m, sample_config.debias_training, sample_config.match_candidates,
+        sample_config.debias_codes,
+    )
+    if support_planes is not None:  # tabletop: samples whose hand starts below the table are raised above it first
+        from dexlite_pipeline.energy.table_clearance import raise_above_table
+
+        starts = GraspSet({"hand_pose": poses.detach().cpu().numpy(), "object_id": np.asarray([assets[i].object_id for i in object_index], dtype=object),
+                           "scale": scale})  # fmt: skip
+        poses = torch.as_tensor(raise_above_table(starts, support_planes)[0].hand_pose, dtype=poses.dtype, device=poses.device)
+    hand = ShadowHand(device)
+    energy = GraspEnergy.from_assets(
+        hand, assets,
+        EnergyConfig(weights=post_config.energy_weights, object_point_spacing_m=post_config.energy_point_spacing_m,
+                     self_penetration_margin_m=config.energy.self_penetration_margin_m),
+        support_planes=support_planes,
+        max_scale=max_scale_by_object([assets[i].object_id for i in object_index], scale),
+    )  # fmt: skip
+    log.info("post-optimizing %d grasps, %d iterations", len(object_index), post_config.annealing.iterations)
+    refined = refine(
+        energy, poses, torch.as_tensor(object_index, device=device), torch.as_tensor(scale, device=device), post_config, generator, "surface"
+    )
+    arrays = {k: v for k, v in refined.arrays.items() if not k.startswith("trace_") and k != "energy_trace"}
+    arrays["object_id"] = np.asarray([assets[i].object_id for i in object_index], dtype=object)
+    arrays["scale"] = scale
+    arrays["method"] = np.full(len(object_index), "cvae_post", dtype=object)
+    return GraspSet(arrays)
+
+
+def objects_to_top_up(assets: list[ObjectAsset], grasps: GraspSet, labels: np.ndarray, min_distinct: int) -> list[ObjectAsset]:
+    """The assets whose grasps so far give fewer than ``min_distinct`` distinct held grasps (none when it is 0)."""
+    counts = distinct_per_object(grasps, labels)
+    return [a for a in assets if counts[a.object_id] < min_distinct]
+
+
+def top_up_until_distinct(
+    assets: list[ObjectAsset], tested: GraspSet, config: PipelineConfig, min_distinct: int, max_batches: int,
+    optimized_batch: Callable[[list[ObjectAsset], int], GraspSet],
+) -> tuple[GraspSet, list[str], list[ObjectAsset]]:
+    """Add batches of optimization from scratch to the objects with fewer than ``min_distinct`` distinct held grasps.
+
+    ``optimized_batch(chosen_assets, batch)`` makes and tests batch ``batch`` (0-based) for the chosen objects; after
+    each batch the objects are counted again over every grasp so far (all sources together) and only those still
+    short get the next one, for at most ``max_batches`` batches. Returns the grasps with the batches appended, the
+    object ids that got at least one batch, and the assets still short after the last batch."""
+    short = objects_to_top_up(assets, tested, distinct_labels(tested, config), min_distinct)
+    topped_up: list[str] = []
+    for batch in range(max_batches):
+        if not short:
+            break
+        if batch:
+            log.info("top-up batch %d/%d: still fewer than %d distinct held grasps for %d object(s) (%s)", batch + 1, max_batches,
+                     min_distinct, len(short), ", ".join(a.object_id for a in short))  # fmt: skip
+        topped_up += [a.object_id for a in short if a.object_id not in topped_up]
+        tested = concatenate_sources([tested, optimized_batch(short, batch)])
+        short = objects_to_top_up(short, tested, distinct_labels(tested, config), min_distinct)
+    return tested, topped_up, short
+
+
+def top_up_seed(seed: int, batch: int) -> int:
+    """The random seed of top-up batch ``batch`` (0-based): batch 0 has ``seed`` itself, so its grasps are those of
+    ``--from-scratch``; later batches get independent streams derived from (seed, batch)."""
+    return seed if batch == 0 else int(np.random.SeedSequence([seed, batch]).generate_state(1)[0])
+
+
+def concatenate_sources(parts: list[GraspSet]) -> GraspSet:
+    """The grasp sets of both sources as one; an array only one source has is filled for the other's rows (``NOT_MADE``)."""
+    from dexlite_pipeline.io.grasp_store import GraspSet
+
+    names = list(dict.fromkeys(k for part in parts for k in part.arrays))
+    examples = {k: next(part.arrays[k] for part in parts if k in part.arrays) for k in names}
+    arrays = {
+        k: np.concatenate([
+            part.arrays[k] if k in part.arrays
+            else np.full((len(part), *examples[k].shape[1:]), NOT_MADE[examples[k].dtype.kind], dtype=examples[k].dtype)
+            for part in parts
+        ])
+        for k in names
+    }  # fmt: skip
+    return GraspSet(arrays, dict(parts[0].attrs))
