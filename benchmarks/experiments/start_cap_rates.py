@@ -25,7 +25,7 @@ CAPS_MM = (1.0, 2.0, 3.0, 5.0, 10.0)
 def main() -> None:
     import pandas as pd
 
-    from dexlite_pipeline.evaluation.metrics import wilson_interval
+    from dexlite_pipeline.evaluation.rates import wilson_interval
     from dexlite_pipeline.io.grasp_store import GraspSet, read_grasp_store
     from dexlite_pipeline.sim.config import LiftConfig
     from dexlite_pipeline.sim.lift import run_lift_tests

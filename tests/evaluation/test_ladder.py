@@ -10,7 +10,9 @@ from dexlite_pipeline.hand.rotation import euler_xyz_to_matrix, matrix_to_euler_
 from dexlite_pipeline.io.grasp_store import GraspSet
 from dexlite_pipeline.model.pose import pose_errors
 from dexlite_pipeline.evaluation.config import EvaluateConfig
-from dexlite_pipeline.evaluation.protocol import BUDGET_SUCCESS, budget_rows, convergence_ratio, metrics_tables, rung_of
+from dexlite_pipeline.evaluation.convergence import convergence_ratio
+from dexlite_pipeline.evaluation.protocol import BUDGET_SUCCESS
+from dexlite_pipeline.evaluation.tables import budget_rows, metrics_tables, rung_of
 
 
 def _poses(count: int, seed: int = 0) -> torch.Tensor:

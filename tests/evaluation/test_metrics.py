@@ -5,30 +5,30 @@ import math
 import numpy as np
 import pytest
 
-from dexlite_pipeline.evaluation import metrics
+from dexlite_pipeline.evaluation import convergence, metrics, rates
 
 LIMITS = np.tile(np.array([[0.0, 1.0]]), (22, 1))
 
 
 def test_rate_one_in_four():
-    assert metrics.rate(np.array([True, False, False, False])) == 0.25
-    assert math.isnan(metrics.rate(np.array([], dtype=bool)))
+    assert rates.rate(np.array([True, False, False, False])) == 0.25
+    assert math.isnan(rates.rate(np.array([], dtype=bool)))
 
 
 def test_wilson_interval_known_values():
-    low, high = metrics.wilson_interval(np.array([True] * 5 + [False] * 5))
+    low, high = rates.wilson_interval(np.array([True] * 5 + [False] * 5))
     assert (low, high) == (pytest.approx(0.2366, abs=1e-4), pytest.approx(0.7634, abs=1e-4))
-    low, high = metrics.wilson_interval(np.zeros(10, dtype=bool))
+    low, high = rates.wilson_interval(np.zeros(10, dtype=bool))
     assert low == 0.0 and high == pytest.approx(0.2775, abs=1e-4)  # not degenerate at zero successes
-    low, high = metrics.wilson_interval(np.ones(80, dtype=bool))
+    low, high = rates.wilson_interval(np.ones(80, dtype=bool))
     assert high == pytest.approx(1.0) and low == pytest.approx(0.9542, abs=1e-4)
-    assert all(math.isnan(v) for v in metrics.wilson_interval(np.array([], dtype=bool)))
+    assert all(math.isnan(v) for v in rates.wilson_interval(np.array([], dtype=bool)))
 
 
 def test_object_success_rate_counts_objects_with_any_success():
     ids = np.array(["a", "a", "b", "b", "c"])
     success = np.array([False, True, False, False, False])
-    assert metrics.object_success_rate(ids, success) == pytest.approx(1 / 3)
+    assert rates.object_success_rate(ids, success) == pytest.approx(1 / 3)
 
 
 def test_mean_and_p95_ignore_non_finite():
@@ -72,15 +72,15 @@ def test_first_iteration_meeting_thresholds():
         "E_dis": np.array([[0.01, 0.01, 0.004, 0.001], [0.0, 0.0, 0.0, 0.0]]),
         "E_pen": np.array([[0.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 0.0]]),
     }
-    first = metrics.first_iteration_meeting(traces)
+    first = convergence.first_iteration_meeting(traces)
     assert first.tolist() == [2, -1]
-    summary = metrics.convergence_summary(first, iteration_of_column=np.array([0, 10, 20, 30]))
+    summary = convergence.convergence_summary(first, iteration_of_column=np.array([0, 10, 20, 30]))
     assert summary == {"threshold_reached_fraction": 0.5, "threshold_iteration_median": 20.0}
 
 
 def test_trace_quartiles():
     trace = np.tile(np.arange(5.0)[:, None], (1, 3))  # grasps 0..4 at every iteration
-    q = metrics.trace_quartiles(trace)
+    q = convergence.trace_quartiles(trace)
     assert q.shape == (3, 3)
     assert np.allclose(q[:, 0], [1.0, 2.0, 3.0])
 
@@ -153,25 +153,25 @@ def test_cluster_bootstrap_is_wider_than_wilson_when_objects_decide_success():
     is plausible for another 5 objects, which is the honest answer.
     """
     ids, flags = _clustered([1, 1, 0, 0, 0])
-    wilson = metrics.wilson_interval(flags)
-    low, high = metrics.cluster_bootstrap_interval(ids, flags, seed=0)
+    wilson = rates.wilson_interval(flags)
+    low, high = rates.cluster_bootstrap_interval(ids, flags, seed=0)
     assert wilson == (pytest.approx(0.300, abs=1e-3), pytest.approx(0.510, abs=1e-3))
     assert low <= 0.05 and high >= 0.75
     assert high - low > 3 * (wilson[1] - wilson[0])
-    assert (low, high) == metrics.cluster_bootstrap_interval(ids, flags, seed=0)  # seeded: the same interval again
+    assert (low, high) == rates.cluster_bootstrap_interval(ids, flags, seed=0)  # seeded: the same interval again
 
 
 def test_cluster_bootstrap_collapses_when_every_object_has_the_same_rate():
     ids, flags = _clustered([0.25] * 5)
-    assert metrics.cluster_bootstrap_interval(ids, flags, seed=0) == (pytest.approx(0.25), pytest.approx(0.25))
-    assert all(math.isnan(v) for v in metrics.cluster_bootstrap_interval(np.array([]), np.array([], dtype=bool), seed=0))
+    assert rates.cluster_bootstrap_interval(ids, flags, seed=0) == (pytest.approx(0.25), pytest.approx(0.25))
+    assert all(math.isnan(v) for v in rates.cluster_bootstrap_interval(np.array([]), np.array([], dtype=bool), seed=0))
 
 
 def test_summary_has_bootstrap_columns_beside_wilson():
     ids, flags = _clustered([1, 1, 0, 0, 0])
     arrays = {"hand_pose": np.zeros((len(ids), 28)), "object_id": ids, "lift_success": flags}
     out = metrics.summarize_grasps(arrays, LIMITS, bootstrap_seed=0)
-    assert (out["lift_success_boot_ci95_low"], out["lift_success_boot_ci95_high"]) == metrics.cluster_bootstrap_interval(ids, flags, seed=0)
+    assert (out["lift_success_boot_ci95_low"], out["lift_success_boot_ci95_high"]) == rates.cluster_bootstrap_interval(ids, flags, seed=0)
     assert out["lift_success_ci95_high"] < out["lift_success_boot_ci95_high"]
     assert math.isnan(out["six_dir_success_boot_ci95_low"])  # not measured: no interval either
 
@@ -254,7 +254,8 @@ def test_seconds_per_outcome():
 
 def test_metrics_tables_give_cost_per_held_and_distinct_held_grasp_for_every_method():
     """Two methods, the same synthetic table: each has both per-attempt and after-filter columns (none filtered alone)."""
-    from dexlite_pipeline.evaluation.protocol import EvaluateConfig, metrics_tables
+    from dexlite_pipeline.evaluation.config import EvaluateConfig
+    from dexlite_pipeline.evaluation.tables import metrics_tables
     from dexlite_pipeline.io.grasp_store import GraspSet
 
     one = _held_table()

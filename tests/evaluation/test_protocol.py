@@ -13,7 +13,7 @@ import pytest
 from dexlite_pipeline.cli import main
 from dexlite_pipeline.io.grasp_store import GraspSet
 from dexlite_pipeline.evaluation.config import EvaluateConfig
-from dexlite_pipeline.evaluation.protocol import method_grasps, sample_rows_of, select_grasps, stage_seconds_per_grasp
+from dexlite_pipeline.evaluation.selection import method_grasps, sample_rows_of, select_grasps, stage_seconds_per_grasp
 from dexlite_pipeline.evaluation.step_keys import METHOD_SOURCES
 
 from report_synthetic import OBJECT_ID, post_store, simulated_shard
@@ -45,7 +45,7 @@ def test_select_grasps_caps_per_object_keeps_split_and_keeps_invalid_as_chosen_r
 
 def test_a_renamed_method_draws_with_its_frozen_label():
     """The optimization method draws the rows its old name "seed" drew, so a seed keeps choosing the same grasps."""
-    from dexlite_pipeline.evaluation.protocol import row_priorities
+    from dexlite_pipeline.evaluation.selection import row_priorities
 
     grasps = _set(["a"] * 12 + ["b"] * 7)
     cfg = EvaluateConfig(grasps_per_object=3)

@@ -11,7 +11,7 @@ from dexlite_pipeline.report.page import build_report_html, run_settings_html, t
 from dexlite_pipeline.report.pictures import outcome_of, pick_examples
 from dexlite_pipeline.report.plots import OBJECT_MARKER_LABEL, success_figure
 from dexlite_pipeline.report.tables import compact_table_html, headline_rows, headline_sentence, ladder_html
-from dexlite_pipeline.evaluation.metrics import method_label, percent_text, seconds_text
+from dexlite_pipeline.evaluation.labels import method_label, percent_text, seconds_text
 
 
 def _metrics(six_dir_rate: float) -> pd.DataFrame:

@@ -19,7 +19,7 @@ from dexlite_pipeline.hand import JOINT_NAMES
 from dexlite_pipeline.hand.rotation import matrix_to_euler_xyz
 from dexlite_pipeline.io.grasp_store import GraspSet
 from dexlite_pipeline.objects.assets import SdfBank
-from dexlite_pipeline.sim.lift import object_signed_distance
+from dexlite_pipeline.sim.squeeze import object_signed_distance
 
 BAR_IDS = ("round_bar", "square_bar")
 SCALE = 0.08  # bars 16 cm long, 4 cm thick

@@ -13,7 +13,9 @@ from bar_grasps import JOINT, SCALE, grasp_set
 
 from dexlite_pipeline.objects.assets import SdfBank, load_asset
 from dexlite_pipeline.sim.config import LiftConfig
-from dexlite_pipeline.sim.lift import DIRECTIONS, run_lift_tests, squeeze_targets
+from dexlite_pipeline.sim.lift import run_lift_tests
+from dexlite_pipeline.sim.simulator import DIRECTIONS
+from dexlite_pipeline.sim.squeeze import squeeze_targets
 
 
 def test_constructed_hook_grasp_touches_without_penetration(hand, objects_dir, hooks):
@@ -156,8 +158,8 @@ def test_lost_object_early_exit_matches_full_simulation_and_held_grasp_runs_ever
     the full simulation's ratio; a held object is simulated for the whole timeline."""
     import mujoco
 
-    from dexlite_pipeline.sim.lift import GraspSimulator, _palm_quaternions
     from dexlite_pipeline.sim.scene import LiftScene
+    from dexlite_pipeline.sim.simulator import GraspSimulator, _palm_quaternions
 
     config = LiftConfig()
     asset = load_asset(objects_dir, "square_bar")

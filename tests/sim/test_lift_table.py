@@ -18,8 +18,9 @@ from bar_grasps import SCALE, grasp_set
 from dexlite_pipeline.hand.rotation import euler_xyz_to_matrix, matrix_to_euler_xyz
 from dexlite_pipeline.objects.assets import load_asset
 from dexlite_pipeline.sim.config import LiftConfig
-from dexlite_pipeline.sim.lift import GraspSimulator, _palm_quaternions, run_lift_tests
+from dexlite_pipeline.sim.lift import run_lift_tests
 from dexlite_pipeline.sim.scene import LiftScene
+from dexlite_pipeline.sim.simulator import GraspSimulator, _palm_quaternions
 from dexlite_pipeline.objects.rest_pose import SupportPlane
 from dexlite_pipeline.tabletop import HAND_IN_TABLE, SupportPlanes
 

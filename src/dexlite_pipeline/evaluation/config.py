@@ -17,7 +17,7 @@ METHODS = (
     "cvae_recon", "cvae_recon_post", "cvae_prior_train", "cvae_prior_train_post", "shipped_raw", "shipped_post",
 )  # fmt: skip
 # Frozen random-stream labels: a method's seeded draws (the evaluation's choice of grasps per
-# object, protocol.select_grasps; the report's pictured grasps, report.pictures.pick_examples)
+# object, selection.select_grasps; the report's pictured grasps, report.pictures.pick_examples)
 # hash a label, and a method renamed after results were published keeps its old label there, so
 # that a seed still draws the same grasps. Never change these values.
 FROZEN_DRAW_LABELS = {"optimization": "seed"}  # "seed": the method's name before issue 23

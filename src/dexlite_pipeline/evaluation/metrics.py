@@ -1,19 +1,12 @@
-"""Evaluation metrics for a set of grasps: success, contact quality, diversity, cost, convergence.
+"""Evaluation metrics for a set of grasps: success, contact quality, diversity, cost.
 
 Every function takes plain numpy arrays so it can be tested on known answers and reused
 outside the pipeline. Conventions (stated once, used in the CSV column names):
 
 - rates are fractions in [0, 1]; NaN when there is nothing to measure (never 0 by default);
   the per-grasp success rates come with a 95% Wilson score interval (``_ci95_low`` /
-  ``_ci95_high``): with 80 grasps a rate of 20% is 12–30%, so a difference of a few points
-  between methods is not a finding. Wilson treats the grasps as independent, but they come
-  in clusters (16 each from 5 objects) and grasps of one object succeed or fail together,
-  so the rates also get an object-level (cluster) bootstrap 95% interval
-  (``_boot_ci95_low`` / ``_boot_ci95_high``): objects resampled with replacement. It is
-  wider than Wilson's when success depends strongly on the object (two of five objects
-  always hold, three never: 0–80% against Wilson's 30–51%); with as few as 5 objects it
-  is itself rough (it sees only the spread the sampled objects show) and can come out
-  narrower, so read the two together;
+  ``_ci95_high``) and an object-level (cluster) bootstrap 95% interval (``_boot_ci95_low`` /
+  ``_boot_ci95_high``); ``evaluation.rates`` computes both and says when they differ;
 - a grasp whose pose or scale is unusable (``invalid_reason`` not empty) is not simulated
   but counts as a failure in every success rate (``n_invalid`` of ``n_grasps``), so a
   method cannot raise its rate by emitting NaN poses; diversity is measured on the others;
@@ -56,9 +49,7 @@ outside the pipeline. Conventions (stated once, used in the CSV column names):
   ``filtered_*`` columns are the same measures on the passing grasps only, so a method's
   ``filtered_lift_success_rate`` is held / passing, and ``filtered_distinct_held_*`` and
   ``filtered_surface_coverage_mean`` count only held grasps that pass.
-- **convergence**: the DexGraspNet success thresholds (E_fc < 0.3, E_dis < 5 mm,
-  E_pen < 1 mm, energies in metres) are checked per grasp per iteration of a post-
-  optimization trace; a grasp "converges" at the first iteration where all hold.
+- **convergence** columns: ``evaluation.convergence``.
 """
 
 from __future__ import annotations
@@ -71,72 +62,10 @@ import numpy as np
 from dexlite_pipeline.energy.config import DEXGRASPNET_THRESHOLDS
 from dexlite_pipeline.evaluation.config import JOINT_ENTROPY_BINS, PCA_COMPONENTS, DiversityConfig
 from dexlite_pipeline.evaluation.diversity import distinct_grasp_labels
+from dexlite_pipeline.evaluation.rates import cluster_bootstrap_interval, object_success_rate, rate, wilson_interval
 
 TOUCHED_PATCHES = "touched_patches"  # (N, K) bool: surface patches each grasp touches (aggregate step)
 COVERAGE_PATCHES = "coverage_patches"  # (N,) patches of each grasp's object (0: coverage not measured)
-
-BOOTSTRAP_RESAMPLES = 4000
-
-
-def rate(flags: np.ndarray) -> float:
-    """Fraction of true values; NaN for an empty array."""
-    flags = np.asarray(flags, dtype=bool).reshape(-1)
-    return float(flags.mean()) if flags.size else math.nan
-
-
-def wilson_interval(flags: np.ndarray, z: float = 1.959964) -> tuple[float, float]:
-    """95% (for the default z) Wilson score interval of the success fraction of ``flags``; NaNs when empty.
-
-    Unlike the normal approximation it stays inside [0, 1] and is not degenerate at 0 or
-    all successes: 0 of 10 gives (0, 0.278).
-    """
-    flags = np.asarray(flags, dtype=bool).reshape(-1)
-    n = flags.size
-    if n == 0:
-        return math.nan, math.nan
-    p = float(flags.mean())
-    denominator = 1.0 + z * z / n
-    centre = (p + z * z / (2 * n)) / denominator
-    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / denominator
-    return max(0.0, centre - half), min(1.0, centre + half)
-
-
-def cluster_bootstrap_interval(
-    cluster_ids: np.ndarray, flags: np.ndarray, seed: int, resamples: int = BOOTSTRAP_RESAMPLES, level: float = 0.95
-) -> tuple[float, float]:
-    """Percentile interval of the success fraction when whole clusters (objects) are resampled with replacement.
-
-    Each resample draws as many clusters as there are and pools their grasps, so the
-    spread reflects how much success varies between objects, not only between grasps.
-    Seeded, so the same inputs give the same interval. NaNs when empty; a single
-    cluster gives its own rate at both ends (nothing to resample between).
-    """
-    flags = np.asarray(flags, dtype=bool).reshape(-1)
-    if flags.size == 0:
-        return math.nan, math.nan
-    _, cluster = np.unique(np.asarray(cluster_ids).astype(str), return_inverse=True)
-    n_clusters = int(cluster.max()) + 1
-    grasps = np.bincount(cluster, minlength=n_clusters).astype(np.float64)
-    successes = np.bincount(cluster, weights=flags.astype(np.float64), minlength=n_clusters)
-    draws = np.random.default_rng(seed).integers(0, n_clusters, size=(resamples, n_clusters))
-    offsets = (np.arange(resamples)[:, None] * n_clusters + draws).ravel()
-    multiplicity = np.bincount(offsets, minlength=resamples * n_clusters).reshape(resamples, n_clusters)
-    rates = (multiplicity @ successes) / (multiplicity @ grasps)
-    tail = (1.0 - level) / 2 * 100
-    low, high = np.percentile(rates, [tail, 100 - tail])
-    return float(low), float(high)
-
-
-def object_success_rate(object_ids: np.ndarray, success: np.ndarray) -> float:
-    """Fraction of objects with at least one successful grasp; NaN with no grasps."""
-    object_ids = np.asarray(object_ids).astype(str)
-    success = np.asarray(success, dtype=bool)
-    if object_ids.size == 0:
-        return math.nan
-    unique, inverse = np.unique(object_ids, return_inverse=True)
-    any_success = np.zeros(len(unique), dtype=bool)
-    np.logical_or.at(any_success, inverse, success)
-    return float(any_success.mean())
 
 
 def mean_and_p95(values: np.ndarray) -> tuple[float, float]:
@@ -194,44 +123,6 @@ def pca_cumulative_explained_variance(features: np.ndarray, components: Sequence
         return {k: math.nan for k in components}
     cumulative = np.cumsum(variance) / total
     return {k: float(cumulative[min(k, len(cumulative)) - 1]) for k in components}
-
-
-def first_iteration_meeting(traces: Mapping[str, np.ndarray], thresholds: Mapping[str, float] = DEXGRASPNET_THRESHOLDS) -> np.ndarray:
-    """Per grasp, the first iteration at which every traced energy is below its threshold; -1 if never.
-
-    ``traces`` maps energy names to (N, T) arrays, one column per recorded iteration.
-    """
-    missing = [name for name in thresholds if name not in traces]
-    if missing:
-        raise ValueError(f"energy traces missing: {', '.join(missing)}")
-    meets = None
-    for name, limit in thresholds.items():
-        below = np.asarray(traces[name], dtype=np.float64) < limit
-        meets = below if meets is None else meets & below
-    reached = meets.any(axis=1)
-    return np.where(reached, meets.argmax(axis=1), -1)
-
-
-def trace_quartiles(trace: np.ndarray) -> np.ndarray:
-    """(3, T) 25th, 50th and 75th percentiles over grasps of an (N, T) per-iteration trace."""
-    trace = np.asarray(trace, dtype=np.float64)
-    if trace.shape[0] == 0:
-        return np.full((3, trace.shape[1] if trace.ndim == 2 else 0), math.nan)
-    return np.nanpercentile(trace, [25, 50, 75], axis=0)
-
-
-def convergence_summary(first_iterations: np.ndarray, iteration_of_column: np.ndarray | None = None) -> dict[str, float]:
-    """Fraction of grasps that ever meet the thresholds and the median iteration at which they do."""
-    first = np.asarray(first_iterations)
-    reached = first >= 0
-    if iteration_of_column is not None:
-        iterations = np.asarray(iteration_of_column)[first[reached]]
-    else:
-        iterations = first[reached]
-    return {
-        "threshold_reached_fraction": rate(reached),
-        "threshold_iteration_median": float(np.median(iterations)) if iterations.size else math.nan,
-    }
 
 
 def held_flags(arrays: Mapping[str, np.ndarray]) -> np.ndarray:
@@ -458,80 +349,3 @@ def per_object_rows(
         })  # fmt: skip
         rows.append(row)
     return rows
-
-
-# ---------------------------------------------------------------- display helpers (report)
-# Readable names for the method ids of metrics.csv; an id not listed here is shown by
-# ``method_label``'s fallback (words of the id, "+ post-optimization" for a ``_post`` suffix).
-METHOD_LABELS = {
-    "optimization": "Optimization from scratch",
-    "cvae_raw": "CVAE samples, raw",
-    "cvae_post": "CVAE samples + post-optimization",
-    "random_post": "Random start + post-optimization",
-    "dexgraspnet": "DexGraspNet grasps (imported)",
-    "cvae_recon": "CVAE reconstructions, raw",
-    "cvae_recon_post": "CVAE reconstructions + post-optimization",
-    "cvae_prior_train": "CVAE samples on training objects, raw",
-    "cvae_prior_train_post": "CVAE samples on training objects + post-optimization",
-    "shipped_raw": "Shipped model's samples, raw",
-    "shipped_post": "Shipped model's samples + post-optimization",
-}
-SPLIT_LABELS = {"heldout": "held-out objects", "train": "training objects"}
-# The learning ladder's rungs (metrics.csv column ``rung``), in the order they are read.
-RUNG_LABELS = {
-    "fit": "1 · fit: training grasps encoded and decoded",
-    "in_distribution": "2 · in distribution: samples on training objects",
-    "heldout": "3 · held out: samples on unseen objects",
-}
-
-
-def method_label(method: str) -> str:
-    """A reader's name for a method id (``cvae_post`` -> "CVAE samples + post-optimization")."""
-    method = str(method)
-    if method in METHOD_LABELS:
-        return METHOD_LABELS[method]
-    base, post = (method[: -len("_post")], True) if method.endswith("_post") else (method, False)
-    words = " ".join("CVAE" if w == "cvae" else w for w in base.split("_") if w)
-    words = words[:1].upper() + words[1:]
-    return f"{words} + post-optimization" if post else words
-
-
-def split_label(split: str) -> str:
-    return SPLIT_LABELS.get(str(split), str(split))
-
-
-def rung_label(rung: str) -> str:
-    return RUNG_LABELS.get(str(rung), str(rung))
-
-
-def percent_text(fraction) -> str:
-    """A fraction as a percentage with one decimal ("17.5%"); "not run" for NaN or None."""
-    try:
-        value = float(fraction)
-    except (TypeError, ValueError):
-        return "not run"
-    return f"{100 * value:.1f}%" if math.isfinite(value) else "not run"
-
-
-def interval_text(low, high) -> str:
-    """A 95% interval of fractions as whole percentages ("43–66"); empty when either end is missing."""
-    try:
-        low, high = float(low), float(high)
-    except (TypeError, ValueError):
-        return ""
-    if not (math.isfinite(low) and math.isfinite(high)):
-        return ""
-    return f"{100 * low:.0f}–{100 * high:.0f}"
-
-
-def seconds_text(seconds) -> str:
-    """Seconds per grasp for a table cell: "0.35 s", "21 ms", "—" when unknown."""
-    try:
-        value = float(seconds)
-    except (TypeError, ValueError):
-        return "—"
-    if not math.isfinite(value):
-        return "—"
-    if value < 0.1:
-        return f"{1000 * value:.2g} ms" if value * 1000 < 10 else f"{1000 * value:.0f} ms"
-    return f"{value:.2g} s" if value < 10 else f"{value:.0f} s"

@@ -71,9 +71,9 @@ def simulate_shard(
     """
     from dexlite_pipeline.device import resolve_device
     from dexlite_pipeline.evaluation.protocol import (
-        BUDGET_POSES, BUDGET_SUCCESS, evaluate_config_from, fit_error_arrays, method_grasps, require_split_objects, sample_rows_of,
-        select_grasps, simulate, simulate_budget, stage_seconds_per_grasp,
+        BUDGET_SUCCESS, evaluate_config_from, fit_error_arrays, require_split_objects, simulate, simulate_budget,
     )  # fmt: skip
+    from dexlite_pipeline.evaluation.selection import BUDGET_POSES, method_grasps, sample_rows_of, select_grasps, stage_seconds_per_grasp
     from dexlite_pipeline.objects.assets import available_object_ids
     from dexlite_pipeline.sharding import shard_objects
     from dexlite_pipeline.sim.config import lift_config_from
@@ -182,11 +182,10 @@ def aggregate_evaluation(
     ``config``: the config mapping (the aggregate keys of evaluate; recorded); ``diversity`` and
     ``seed`` (the bootstrap's) are its typed values.
     """
-    from dexlite_pipeline.evaluation.metrics import BOOTSTRAP_RESAMPLES
-    from dexlite_pipeline.evaluation.protocol import (
-        budget_rows, concatenate_shards, convergence_ratio, convergence_rows, coverage_arrays, evaluate_config_from, iterations_to_reach,
-        metrics_tables, require_split_objects,
-    )  # fmt: skip
+    from dexlite_pipeline.evaluation.convergence import convergence_ratio, convergence_rows, iterations_to_reach
+    from dexlite_pipeline.evaluation.protocol import coverage_arrays, evaluate_config_from, require_split_objects
+    from dexlite_pipeline.evaluation.rates import BOOTSTRAP_RESAMPLES
+    from dexlite_pipeline.evaluation.tables import budget_rows, concatenate_shards, metrics_tables
     from dexlite_pipeline.hand import ShadowHand
     from dexlite_pipeline.io.grasp_store import empty_grasp_set
 

@@ -63,7 +63,8 @@ def load_report_inputs(files: EvaluationFiles, sim_paths: list[str], history_pat
 
     import pandas as pd
 
-    from dexlite_pipeline.evaluation.protocol import concatenate_shards, evaluate_config_from
+    from dexlite_pipeline.evaluation.protocol import evaluate_config_from
+    from dexlite_pipeline.evaluation.tables import concatenate_shards
     from dexlite_pipeline.evaluation.step_keys import REPORT_KEYS
     from dexlite_pipeline.io.grasp_store import read_grasp_store
     from dexlite_pipeline.report.run_facts import run_facts

@@ -16,7 +16,8 @@ from collections.abc import Mapping
 import numpy as np
 
 from dexlite_pipeline.evaluation.config import draw_label
-from dexlite_pipeline.evaluation.metrics import invalid_flags, method_label
+from dexlite_pipeline.evaluation.labels import method_label
+from dexlite_pipeline.evaluation.metrics import invalid_flags
 from dexlite_pipeline.io.grasp_store import GraspSet
 from dexlite_pipeline.report.inputs import ReportInputs
 from dexlite_pipeline.report.plots import img_tag, pyplot

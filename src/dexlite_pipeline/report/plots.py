@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from dexlite_pipeline.evaluation.metrics import method_label, split_label
+from dexlite_pipeline.evaluation.labels import method_label, split_label
 from dexlite_pipeline.io.grasp_store import GraspSet
 from dexlite_pipeline.report.tables import headline_rows
 

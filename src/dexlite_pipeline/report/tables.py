@@ -11,7 +11,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from dexlite_pipeline.evaluation.metrics import interval_text, method_label, percent_text, rung_label, seconds_text, split_label
+from dexlite_pipeline.evaluation.labels import interval_text, method_label, percent_text, rung_label, seconds_text, split_label
 
 
 # Every column of metrics.csv worth a reader's look, for the folded full table at the end.

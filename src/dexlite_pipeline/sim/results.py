@@ -15,7 +15,8 @@ import numpy as np
 
 from dexlite_pipeline.io.grasp_store import GraspSet
 from dexlite_pipeline.sim.config import LiftConfig
-from dexlite_pipeline.sim.lift import DIRECTIONS, run_lift_tests
+from dexlite_pipeline.sim.lift import run_lift_tests
+from dexlite_pipeline.sim.simulator import DIRECTIONS
 
 log = logging.getLogger(__name__)
 
