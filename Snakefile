@@ -9,8 +9,8 @@ include: "workflow/rules/optimize_grasps.smk"
 include: "workflow/rules/import_dexgraspnet.smk"
 include: "workflow/rules/curate.smk"
 include: "workflow/rules/train_cvae.smk"
-include: "workflow/rules/lift_validate.smk"  # after train_cvae.smk: uses its objects-dir helpers
-include: "workflow/rules/loop.smk"  # after train_cvae.smk: uses its objects-dir helpers
+include: "workflow/rules/lift_validate.smk"
+include: "workflow/rules/loop.smk"
 include: "workflow/rules/sample_grasps.smk"
 include: "workflow/rules/post_optimize.smk"
 include: "workflow/rules/evaluate.smk"

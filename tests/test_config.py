@@ -10,7 +10,9 @@ from pathlib import Path
 import pytest
 import yaml
 
-from dexlite_pipeline.config import ConfigError, from_section, load_config, load_schema, merge_config, validate_config
+from dexlite_pipeline.config import (
+    RETIRED_KEYS, ConfigError, from_section, load_config, load_schema, merge_config, retired_keys_message, validate_config,
+)  # fmt: skip
 from dexlite_pipeline.settings import PipelineConfig, build_config
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -93,6 +95,15 @@ def test_a_shared_shape_is_one_type_wherever_it_appears():
     assert hints["optimize_grasps"]["init"] is hints["post_optimize"]["random_init"] is InitConfig
 
 
+def test_the_coacd_settings_are_one_type_with_one_set_of_defaults():
+    """Section objects and the asset build settings take their coacd_* fields, defaults included, from CoacdSettings."""
+    from dexlite_pipeline.objects.config import AssetBuildSettings, CoacdSettings, ObjectsConfig
+
+    coacd = {f.name: f.default for f in dataclasses.fields(CoacdSettings)}
+    for cls in (ObjectsConfig, AssetBuildSettings):
+        assert issubclass(cls, CoacdSettings) and {f.name: f.default for f in dataclasses.fields(cls) if f.name.startswith("coacd_")} == coacd
+
+
 @pytest.mark.parametrize("profile", sorted(p.name for p in (ROOT / "config" / "profiles").glob("*.yaml")))
 def test_profiles_over_the_default_config_validate_and_build(config, profile):
     merged = merge_config(config, yaml.safe_load((ROOT / "config" / "profiles" / profile).read_text()))
@@ -117,6 +128,51 @@ def test_a_string_where_a_list_is_expected_is_one_clear_error(tmp_path, capsys):
     error = capsys.readouterr().err.strip()
     assert error == f'dexlite prepare-objects: error: --config-json: objects.mesh_dirs: expected a list (array), got a string "{tmp_path}"'
     assert not (tmp_path / "out").exists()
+
+
+def _dotted(tree: dict, prefix: str = "") -> set[str]:
+    """Every key of a key tree (``_schema_tree``) as a dotted path."""
+    return {path for key, sub in tree.items() for path in {f"{prefix}{key}"} | (_dotted(sub, f"{prefix}{key}.") if sub else set())}
+
+
+def test_every_retired_key_is_gone_and_its_replacement_exists(config):
+    """The hints name keys the schema no longer has and replacements it has; no key of config.yaml gets a hint."""
+    schema = load_schema()
+    keys = _dotted(_schema_tree(schema, schema))
+    assert not set(RETIRED_KEYS) & keys
+    assert {entry.replacement for entry in RETIRED_KEYS.values()} - {None} <= keys
+    assert retired_keys_message(config) == ""
+
+
+@pytest.mark.parametrize(
+    "old, hint",
+    [
+        ({"seed_grasps": {"grasps_per_object": 8}}, "config key seed_grasps was renamed optimize_grasps ("),
+        ({"energy": {"object_points": 2000}}, "config key energy.object_points was renamed energy.object_point_spacing_m (a count of E_pen's "
+                                              "object points per object became their mean spacing in metres"),
+        ({"evaluate": {"seed_protocol": {"enabled": True}}}, "config key evaluate.seed_protocol was renamed evaluate.writeup_protocol ("),
+        ({"lift": {"penetration_point_spacing_m": 0.002}}, "config key lift.penetration_point_spacing_m was removed ("),
+        # a key that moved out of a renamed section, with the section's new name already in place
+        ({"optimize_grasps": {"annealing": {"keep_best": True}}}, "config key optimize_grasps.annealing.keep_best was renamed optimize_grasps.keep_best ("),
+    ],
+)  # fmt: skip
+def test_an_old_key_fails_naming_its_replacement(config, tmp_path, old, hint):
+    path = tmp_path / "old.yaml"
+    path.write_text(yaml.safe_dump(merge_config(config, old)))
+    with pytest.raises(ConfigError) as error:
+        load_config(path)
+    assert str(error.value).startswith(f"{path}: {hint}") and "\n" not in str(error.value)
+
+
+def test_a_stage_given_an_old_key_names_its_replacement(tmp_path, capsys):
+    from dexlite_pipeline.cli import main
+
+    cfg = json.dumps({"seed": 0, "objects": {"builtin_count": 0}, "energy": {"object_points": 2000}})
+    out = tmp_path / "out"
+    assert main(["prepare-objects", "--config-json", cfg, "--catalog", str(out / "catalog.parquet"), "--record", str(out / "prepare_config.json")]) == 2
+    error = capsys.readouterr().err.strip()
+    assert error.startswith("dexlite prepare-objects: error: --config-json: config key energy.object_points was renamed energy.object_point_spacing_m (")
+    assert not out.exists()
 
 
 def test_library_sections_check_types_without_the_schema():

@@ -66,7 +66,8 @@ def run_stage(command: str, config: dict, arguments: list[str], log_path: Path) 
 def round_yield(run_dir: Path, out: Path, config: dict, round_number: int) -> dict:
     """Run the round's training part with ``config`` into ``out``; returns the counts and CPU-seconds."""
     from dexlite_pipeline.io.grasp_store import read_grasp_store
-    from dexlite_pipeline.loop.rounds import DROP_REASONS, stores_cpu_seconds
+    from dexlite_pipeline.loop.round_basics import DROP_REASONS
+    from dexlite_pipeline.loop.summary import stores_cpu_seconds
 
     results = run_dir / "results"
     model = results / ("model/cvae.pt" if round_number == 1 else f"round_{round_number - 1}/model/cvae.pt")

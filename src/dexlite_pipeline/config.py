@@ -97,8 +97,87 @@ def schema_errors(config: dict, where: str, partial: bool = False) -> list[str]:
     return [_error_line(e, where) for e in errors if not (partial and e.validator == "required")]
 
 
+@dataclasses.dataclass(frozen=True)
+class RetiredKey:
+    """A config key that no longer exists: the dotted path of the key that took its place (None: nothing
+    did) and, in one line, what a user of an old config needs to know to move its value."""
+
+    replacement: str | None
+    note: str
+
+
+_SPACING_NOTE = ("a count of E_pen's object points per object became their mean spacing in metres at the grasp's scale: "
+                 "do not copy the number, config.yaml has the default")
+_ANNEALING_KEYS = ("contact_switch_probability", "iterations", "rmsprop_eps", "rmsprop_mu", "starting_temperature", "step_size",
+                   "step_size_decay", "step_size_period", "temperature_decay", "temperature_period")  # fmt: skip
+_WEIGHT_KEYS = ("dis", "fc", "joints", "pen", "spen")
+_THRESHOLD_KEYS = ("max_e_dis_m", "max_e_fc", "max_e_pen_m")
+
+# Every config key that was renamed or removed, by its old dotted path: a config that still has one fails
+# with where its value goes now (``retired_keys_message``), not with a bare unknown-key error of the schema.
+RETIRED_KEYS: dict[str, RetiredKey] = {
+    "seed_grasps": RetiredKey("optimize_grasps", 'the grasp optimization from scratch; "seed" means a random seed only; same keys'),
+    **{f"seed_grasps.annealing.{key}": RetiredKey(f"optimize_grasps.{key}", "a setting of the optimization, not of the annealing "
+                                                                          "schedule it shares with post_optimize")
+       for key in ("contact_search_every", "final_contact_samples", "keep_best", "trace_every")},
+    **{f"seed_grasps.thresholds.{key.replace('max_e', 'max_E')}": RetiredKey(f"optimize_grasps.thresholds.{key}", "threshold names are lower case")
+       for key in _THRESHOLD_KEYS},
+    **{f"curate.{key}": RetiredKey(f"curate.thresholds.{key}", "the thresholds are one mapping, as optimize_grasps.thresholds")
+       for key in _THRESHOLD_KEYS},
+    **{f"post_optimize.{key}": RetiredKey(f"post_optimize.annealing.{key}", "the annealing schedule is one mapping, as optimize_grasps.annealing")
+       for key in _ANNEALING_KEYS},
+    **{f"{section}.weight_{key}": RetiredKey(f"{section}.energy_weights.{key}", "the energy weights are one mapping, as energy.weights")
+       for section in ("train", "post_optimize") for key in _WEIGHT_KEYS},
+    "energy.object_points": RetiredKey("energy.object_point_spacing_m", _SPACING_NOTE),
+    "post_optimize.energy_object_points": RetiredKey("post_optimize.energy_point_spacing_m", _SPACING_NOTE),
+    "train.energy_object_points": RetiredKey("train.energy_point_spacing_m", _SPACING_NOTE),
+    "lift.penetration_point_spacing_m": RetiredKey(None, "the start-depth check of the lift test always samples the object surface 2 mm apart"),
+    "stability.time_step_s": RetiredKey("stability.timestep_s", "one spelling of the physics step in seconds, as lift.timestep_s"),
+    "train.model.translation_from_point": RetiredKey("train.model.pose_frame", "true is pose_frame: point, false is pose_frame: object"),
+    "evaluate.seed_protocol": RetiredKey("evaluate.writeup_protocol", "the DexLite write-up's lenient lift test; \"seed\" means a random "
+                                                                      "seed only; same keys"),
+    "evaluate.seed_passing_only": RetiredKey(None, "every method is counted over all its attempts, and after evaluate.filter_thresholds "
+                                                   "in the filtered_* columns"),
+}  # fmt: skip
+
+
+def _retired_key(path: str) -> RetiredKey | None:
+    """The ``RETIRED_KEYS`` entry of dotted ``path``, also when its section is spelled with the new name
+    (``optimize_grasps.annealing.keep_best`` is ``seed_grasps.annealing.keep_best``)."""
+    if path in RETIRED_KEYS:
+        return RETIRED_KEYS[path]
+    for old, entry in RETIRED_KEYS.items():
+        new = entry.replacement
+        if new and path.startswith(new + ".") and (moved := RETIRED_KEYS.get(old + path[len(new):])):
+            return moved
+    return None
+
+
+def _dotted_paths(mapping: dict, prefix: str = ""):
+    """Every key of a nested mapping as a dotted path, each section before its keys."""
+    for key, value in mapping.items():
+        path = f"{prefix}{key}"
+        yield path
+        if isinstance(value, dict):
+            yield from _dotted_paths(value, f"{path}.")
+
+
+def retired_keys_message(config: dict) -> str:
+    """One line naming every renamed or removed key (``RETIRED_KEYS``) in ``config`` and where its value goes;
+    "" when there is none."""
+    hints = []
+    for path in _dotted_paths(config):
+        if entry := _retired_key(path):
+            outcome = f"was renamed {entry.replacement}" if entry.replacement else "was removed"
+            hints.append(f"config key {path} {outcome} ({entry.note})")
+    return "; ".join(hints)
+
+
 def validate_config(config: dict, where: str = "config", partial: bool = False) -> dict:
-    """Validate ``config`` against the schema; raise ConfigError naming the key and what was expected."""
+    """Validate ``config`` against the schema; raise ConfigError naming the key and what was expected
+    (for a renamed or removed key: its replacement, ``retired_keys_message``)."""
+    if retired := retired_keys_message(config):
+        raise ConfigError(f"{where}: {retired}")
     errors = schema_errors(config, where, partial)
     if errors:
         raise ConfigError(errors[0])

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from dexlite_pipeline.config import from_section, parse_config_json
+from dexlite_pipeline.config import ConfigError, from_section, parse_config_json, retired_keys_message
 from dexlite_pipeline.curation.config import CurateConfig
 from dexlite_pipeline.energy.config import EnergyConfig
 from dexlite_pipeline.evaluation.config import DiversityConfig, EvaluateConfig
@@ -55,7 +55,10 @@ class PipelineConfig:
 
 
 def build_config(mapping: dict | None, where: str = "config") -> PipelineConfig:
-    """The typed tree of a config mapping; absent sections and keys take their defaults."""
+    """The typed tree of a config mapping; absent sections and keys take their defaults, and a renamed or
+    removed key fails naming its replacement (``config.retired_keys_message``)."""
+    if retired := retired_keys_message(mapping or {}):
+        raise ConfigError(f"{where}: {retired}")
     return from_section(PipelineConfig, mapping, where)
 
 

@@ -35,29 +35,36 @@ class CodeEdit:
     not_planned: frozenset[str]  # stages the edit cannot affect
 
 
-# The data loop's stages (loop.smk) all import loop.rounds, which imports what any round step needs
-# (sampling, the lift test, training's shard reader), so an edit of those changes every loop stage's hash.
+# The data loop's stages (loop.smk): each imports the loop module of its own step (loop.sample_round, loop.merge, ...)
+# and the few the steps share, so an edit changes the hash of the loop stages that run the edited code only.
 LOOP_STAGES = frozenset({
     "loop_initial_set", "loop_sample", "loop_post_optimize", "loop_validate", "loop_merge", "loop_train", "loop_summary", "loop_table",
 })  # fmt: skip
+READS_FINAL_MODEL = frozenset({"sample_grasps", "post_optimize", "evaluate_simulate", "evaluate"})
 
 EDITS = {
-    # the network: training and sampling run it (and the loop's stages); the plan is training onwards,
-    # and the loop's round 0 set, whose stage imports the training's shard reader
+    # the network: training and sampling run it, and the loop's steps that train, sample or load a model (round 0's set,
+    # whose stage imports the training's shard reader; the summary reads a round model's checkpoint); the plan is
+    # training onwards and the loop's round 0 set
     "network": CodeEdit(
-        "model/network.py", frozenset({"train_cvae", "sample_grasps"}) | LOOP_STAGES, frozenset({"train_cvae", "loop_initial_set"}),
-        UPSTREAM_OF_LIFT | {"lift_validate"},
+        "model/network.py", frozenset({"train_cvae", "sample_grasps", "loop_initial_set", "loop_sample", "loop_train", "loop_summary"}),
+        frozenset({"train_cvae", "loop_initial_set"}), UPSTREAM_OF_LIFT | {"lift_validate"},
     ),
-    # the lift test: lift validation and the evaluation's simulation (and the report, which
-    # reads the evaluation's protocol) run it, and the loop's validation; nothing before lift validation reruns
+    # the lift test: lift validation and the evaluation's simulation (and the report, which reads the evaluation's
+    # protocol) run it, and of the loop only its validation; nothing before lift validation reruns
     "lift test": CodeEdit(
-        "sim/lift.py", frozenset({"lift_validate", "evaluate_simulate", "evaluate", "report"}) | LOOP_STAGES, frozenset({"lift_validate"}),
+        "sim/lift.py", frozenset({"lift_validate", "evaluate_simulate", "evaluate", "report", "loop_validate"}), frozenset({"lift_validate"}),
         UPSTREAM_OF_LIFT,
     ),
     # the optimizer: optimization from scratch and post-optimization (the loop's too) run it; preparation and stability do not
     "optimizer": CodeEdit(
         "optim/annealing.py", frozenset({"optimize_grasps", "post_optimize", "loop_post_optimize"}),
         frozenset({"optimize_grasps", "post_optimize", "loop_post_optimize"}), frozenset({"prepare_objects", "stability_filter", "import_dexgraspnet"}),
+    ),
+    # the loop table: only its own stage runs it; the plan is that stage and the report that shows the table
+    "loop table": CodeEdit(
+        "loop/table.py", frozenset({"loop_table"}), frozenset({"loop_table"}),
+        UPSTREAM_OF_LIFT | {"lift_validate", "train_cvae"} | (LOOP_STAGES - {"loop_table"}) | READS_FINAL_MODEL,
     ),
 }
 

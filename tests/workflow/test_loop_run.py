@@ -15,7 +15,8 @@ from workflow_harness import job_blocks, option_value, planned_commands, run_sna
 from dexlite_pipeline.config import merge_config
 from dexlite_pipeline.evaluation.diversity import distinct_grasp_labels
 from dexlite_pipeline.io.grasp_store import read_grasp_store
-from dexlite_pipeline.loop.rounds import DROP_REASONS, grasp_groups
+from dexlite_pipeline.loop.merge import grasp_groups
+from dexlite_pipeline.loop.round_basics import DROP_REASONS
 
 pytestmark = pytest.mark.slow
 

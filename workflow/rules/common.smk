@@ -1,5 +1,6 @@
 # Shared helpers for the rules: config validation, per-stage params, code hashes, input
-# files read from outside results/, threads, shard lists.
+# files read from outside results/, threads, shard lists, the prepared-object folders and
+# repeatable options of the stages' command lines.
 #
 # Rerun contract: a rule's params hold (1) the config sections it uses, as canonical JSON
 # (stage_params), and (2) a hash of its stage code and everything that code imports from
@@ -25,8 +26,11 @@ from snakemake.utils import validate
 sys.path.append(str(Path(workflow.basedir) / "src"))
 
 from dexlite_pipeline.codehash import code_hash as _package_code_hash
-from dexlite_pipeline.config import SCHEMA_PATH, section_json
+from dexlite_pipeline.config import SCHEMA_PATH, retired_keys_message, section_json
 
+# A renamed or removed key (config.RETIRED_KEYS) fails with its replacement, before the schema's bare unknown-key error.
+if retired := retired_keys_message(config):
+    raise WorkflowError(retired)
 validate(config, str(SCHEMA_PATH))
 
 RESULTS = "results"
@@ -140,6 +144,19 @@ def dexgraspnet_files(wildcards):
     grasp_files = sorted((root / "dataset").glob("*.npy"))
     meshes = [root / "meshdata" / path.stem / "coacd" / "decomposed.obj" for path in grasp_files]
     return [str(path) for path in [*grasp_files, *meshes] if path.is_file()]
+
+
+def learning_objects_dirs():
+    """Prepared-object folders the stages after curation read (plus the DexGraspNet import's when configured)."""
+    dirs = [f"{RESULTS}/objects"]
+    if config["dexgraspnet"]["root"]:
+        dirs.append(f"{RESULTS}/dexgraspnet/objects")
+    return dirs
+
+
+def learning_cli_options(option, paths):
+    """``--option path`` for each of ``paths``: a repeatable option of a stage's command line."""
+    return " ".join(f"--{option} {p}" for p in paths)
 
 
 def round_model(round_number):

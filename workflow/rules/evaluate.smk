@@ -1,7 +1,6 @@
 # Evaluation on held-out objects: simulate each shard of every method's grasps (on each object's
 # table in tabletop mode; in both modes the resting poses give each grasp's reach below the table),
 # then tabulate, then build the HTML report. Which methods are read comes from config.evaluate.methods.
-# learning_objects_dirs / learning_cli_options come from train_cvae.smk (included before).
 # Each step tracks only the evaluate keys it reads (evaluation.step_keys): a report-only setting
 # reruns the report, a metric setting the aggregate step and the report, not the simulation.
 from dexlite_pipeline.evaluation.step_keys import AGGREGATE_KEYS, SIMULATE_KEYS, SOURCE_OPTIONS, sources_of, with_evaluate_keys

@@ -3,9 +3,8 @@
 # filtered by energy, lift- and six-direction-tested (on each object's table in tabletop mode), the new
 # distinct ones join round r-1's set and round r's model trains on it, warm-started. Every round's model
 # (round 0's included) is also checked on the held-out objects (part "heldout", a small cap). Outputs go to
-# results/round_<r>/; results/loop.csv has a row per round. learning_objects_dirs / learning_cli_options
-# come from train_cvae.smk (included before). The rules track loop's keys one by one, never loop.rounds: more
-# or fewer rounds add or drop rounds' jobs and rerun what reads the final model, not the rounds kept.
+# results/round_<r>/; results/loop.csv has a row per round. The rules track loop's keys one by one, never
+# loop.rounds: more or fewer rounds add or drop rounds' jobs and rerun what reads the final model, not the rounds kept.
 
 ROUND = f"{RESULTS}/round_{{round}}"
 

@@ -1,18 +1,6 @@
 # Learning: train the PointNet + CVAE on the lift-validated grasps of training objects.
 
 
-def learning_objects_dirs():
-    """Prepared-object folders the learning stages read (plus the DexGraspNet import when configured)."""
-    dirs = [f"{RESULTS}/objects"]
-    if config["dexgraspnet"]["root"]:
-        dirs.append(f"{RESULTS}/dexgraspnet/objects")
-    return dirs
-
-
-def learning_cli_options(option, paths):
-    return " ".join(f"--{option} {p}" for p in paths)
-
-
 rule train_cvae:
     input:
         lift=expand(f"{RESULTS}/lift/shard_{{shard}}.zarr", shard=SHARDS),

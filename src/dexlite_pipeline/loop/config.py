@@ -1,7 +1,7 @@
 """The data loop's config type: section ``loop``.
 
 A leaf of the config tree (``settings``): it imports no loop code, so a stage's code hash
-(``codehash``) covers this shape without the rounds' computation (``loop.rounds``).
+(``codehash``) covers this shape without the rounds' computation (the other ``loop`` modules).
 """
 
 from __future__ import annotations

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import argparse
 
-from dexlite_pipeline.loop.rounds import PARTS
+from dexlite_pipeline.loop.round_basics import PARTS
 
 
 def add_round_shard_arguments(parser: argparse.ArgumentParser, config_sections: str, out_help: str) -> None:

@@ -12,8 +12,30 @@ from dataclasses import dataclass
 
 
 @dataclass(frozen=True)
-class ObjectsConfig:
-    """Config section ``objects`` (see config.yaml for the meaning of each key)."""
+class CoacdSettings:
+    """How CoACD splits an object into the convex pieces MuJoCo and PyBullet collide (``objects.build.convex_decomposition``):
+    the ``coacd_*`` keys of config section ``objects``, fields of both ``ObjectsConfig`` and ``AssetBuildSettings``.
+
+    The defaults are config.yaml's. The concavity threshold is DexGraspNet's (CoACD's own: 0.05); at most 16 pieces
+    per object (CoACD's own: no cap, -1). The search effort, 60 tree-search iterations of 10 nodes to depth 2 on 1000
+    surface samples, is below CoACD's own (150, 20, 3, 2000): several times faster for a slightly less tight
+    decomposition, so that 40 objects prepare in minutes on 2 cores. Everything that decomposes takes these from
+    config section ``objects``: ``prepare_objects``, ``dexlite grasp`` (the package's config.yaml, under its
+    ``--config-json``) and benchmarks/timing/bench_stability.py; tests lower the effort (10, 5, 1, 300) to prepare in
+    seconds. The DexGraspNet import runs no CoACD: its meshes come with their pieces.
+    """
+
+    coacd_threshold: float = 0.08  # concavity below which a piece is split no further (CoACD's range: 0.01-1)
+    coacd_max_convex_hull: int = 16  # pieces per object at most (-1: no cap)
+    coacd_mcts_iterations: int = 60  # Monte Carlo tree-search iterations for each cut
+    coacd_mcts_nodes: int = 10  # child nodes the search expands per node
+    coacd_mcts_max_depth: int = 2  # depth of the search: cuts looked ahead
+    coacd_resolution: int = 1000  # surface samples the concavity (a Hausdorff distance) is measured on
+
+
+@dataclass(frozen=True)
+class ObjectsConfig(CoacdSettings):
+    """Config section ``objects`` (see config.yaml for the meaning of each key; the ``coacd_*`` keys: ``CoacdSettings``)."""
 
     builtin_count: int = 40
     benchmark_heldout: bool = True  # embedded objects of the benchmark split are always held out (never trained on)
@@ -27,12 +49,6 @@ class ObjectsConfig:
     sdf_padding: float = 0.25
     sdf_exact_band: float = 0.2
     surface_points: int = 4096
-    coacd_threshold: float = 0.08
-    coacd_max_convex_hull: int = 16
-    coacd_mcts_iterations: int = 60
-    coacd_mcts_nodes: int = 10
-    coacd_mcts_max_depth: int = 2
-    coacd_resolution: int = 1000
 
     def build_settings(self, seed: int) -> AssetBuildSettings:
         """The asset build settings this section implies (same-named fields)."""
@@ -41,20 +57,13 @@ class ObjectsConfig:
 
 
 @dataclass(frozen=True)
-class AssetBuildSettings:
-    """How an asset's arrays are made (the relevant part of the ``objects`` config)."""
+class AssetBuildSettings(CoacdSettings):
+    """How an asset's arrays and convex pieces are made (the relevant part of the ``objects`` config:
+    ``ObjectsConfig.build_settings``)."""
 
     sdf_resolution: int = 96
     sdf_padding: float = 0.25
     surface_points: int = 4096
-    coacd_threshold: float = 0.08
-    coacd_max_convex_hull: int = 16
-    # CoACD search effort (its defaults: 150 iterations, 20 nodes, depth 3, 2000 samples):
-    # lower values trade a slightly less tight decomposition for a several-fold speed-up.
-    coacd_mcts_iterations: int = 150
-    coacd_mcts_nodes: int = 20
-    coacd_mcts_max_depth: int = 3
-    coacd_resolution: int = 2000
     # Grid points whose distance may be within this band of the surface (normalized units)
     # get the exact distance; the rest are interpolated from a 4x coarser exact grid
     # (sign exact, error at most one coarse cell diagonal). None: exact everywhere.

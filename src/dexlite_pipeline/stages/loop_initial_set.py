@@ -13,7 +13,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from dexlite_pipeline.io.grasp_store import write_grasp_store
-    from dexlite_pipeline.loop.rounds import initial_set
+    from dexlite_pipeline.loop.initial_set import initial_set
 
     write_grasp_store(args.out, initial_set(args.lift, args.objects), {"stage": "loop_initial_set", "round": 0, "sources": args.lift})
     return 0

@@ -1,5 +1,5 @@
 """Stage ``loop_merge`` (one round): round r's grasp set, round r-1's plus the round's validated grasps that are
-new distinct grasps (``loop.rounds.merge_round``); the candidates per object and reason go in its attributes."""
+new distinct grasps (``loop.merge.merge_round``); the candidates per object and reason go in its attributes."""
 
 from __future__ import annotations
 
@@ -16,7 +16,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from dexlite_pipeline.io.grasp_store import write_grasp_store
-    from dexlite_pipeline.loop.rounds import merge_round_stores, process_cpu_seconds
+    from dexlite_pipeline.loop.merge import merge_round_stores
+    from dexlite_pipeline.loop.round_basics import process_cpu_seconds
     from dexlite_pipeline.settings import stage_config
 
     merged, attrs = merge_round_stores(args.previous, args.validated, stage_config(args.config_json).diversity, args.round)

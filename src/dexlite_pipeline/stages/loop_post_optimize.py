@@ -2,7 +2,7 @@
 
 The pipeline's post-optimization (``optim.post_shard``) as the ``post_optimize`` stage runs it, on each
 object's table in tabletop mode, without the random-start baseline, from a random stream of the round's own; the
-training part for ``loop.post_iterations`` steps when set (``loop.rounds.round_post_optimize_config``).
+training part for ``loop.post_iterations`` steps when set (``loop.post_optimize_round.round_post_optimize_config``).
 """
 
 from __future__ import annotations
@@ -21,7 +21,8 @@ def run(args: argparse.Namespace) -> int:
     import dataclasses
 
     from dexlite_pipeline.io.grasp_store import write_grasp_store
-    from dexlite_pipeline.loop.rounds import process_cpu_seconds, round_post_optimize_config, round_seed
+    from dexlite_pipeline.loop.post_optimize_round import round_post_optimize_config
+    from dexlite_pipeline.loop.round_basics import process_cpu_seconds, round_seed
     from dexlite_pipeline.optim.post_shard import post_optimize_shard
     from dexlite_pipeline.settings import stage_config
 

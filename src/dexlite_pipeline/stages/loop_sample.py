@@ -2,7 +2,7 @@
 
 Part ``train``: round r's candidates, sampled by round r-1's model on every stable training object of the
 shard with the loop's associated points (``loop.anchor_rule``); part ``heldout``: round r's model on the held-out objects, the
-round's small held-out check (``loop.rounds.sample_round``).
+round's small held-out check (``loop.sample_round.sample_round``).
 """
 
 from __future__ import annotations
@@ -20,7 +20,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from dexlite_pipeline.device import resolve_device
     from dexlite_pipeline.io.grasp_store import write_grasp_store
-    from dexlite_pipeline.loop.rounds import process_cpu_seconds, sample_round
+    from dexlite_pipeline.loop.round_basics import process_cpu_seconds
+    from dexlite_pipeline.loop.sample_round import sample_round
     from dexlite_pipeline.settings import stage_config
 
     config = stage_config(args.config_json)

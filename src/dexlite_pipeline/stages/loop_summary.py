@@ -24,7 +24,7 @@ def run(args: argparse.Namespace) -> int:
     import json
 
     from dexlite_pipeline.atomic import atomic_path
-    from dexlite_pipeline.loop.rounds import round_summary
+    from dexlite_pipeline.loop.summary import round_summary
     from dexlite_pipeline.settings import stage_config
 
     table, row = round_summary(

@@ -15,7 +15,7 @@ def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from dexlite_pipeline.atomic import atomic_path
-    from dexlite_pipeline.loop.rounds import loop_table
+    from dexlite_pipeline.loop.table import loop_table
 
     table = loop_table([json.loads(Path(p).read_text()) for p in args.row])
     with atomic_path(args.out) as tmp:

@@ -1,5 +1,5 @@
 """Stage ``loop_train`` (one round): round r's model, round r-1's trained on for ``loop.train_steps`` more steps
-on round r's grasp set (``model.trainer``, warm start, ``loop.rounds.round_training_config``); the same files as
+on round r's grasp set (``model.trainer``, warm start, ``loop.train_round.round_training_config``); the same files as
 ``train_cvae``."""
 
 from __future__ import annotations
@@ -25,7 +25,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     import dataclasses
 
-    from dexlite_pipeline.loop.rounds import process_cpu_seconds, round_seed, round_training_config
+    from dexlite_pipeline.loop.round_basics import process_cpu_seconds, round_seed
+    from dexlite_pipeline.loop.train_round import round_training_config
     from dexlite_pipeline.model.trainer import train_from_lift_shards, write_trained_model
     from dexlite_pipeline.settings import stage_config
 

@@ -20,7 +20,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from dexlite_pipeline.device import resolve_device
     from dexlite_pipeline.io.grasp_store import write_grasp_store
-    from dexlite_pipeline.loop.rounds import HELDOUT, process_cpu_seconds, validate_round
+    from dexlite_pipeline.loop.round_basics import HELDOUT, process_cpu_seconds
+    from dexlite_pipeline.loop.validate_round import validate_round
     from dexlite_pipeline.settings import stage_config
     from dexlite_pipeline.tabletop import load_support_planes
 
