@@ -102,13 +102,25 @@ def test_invalid_grasps_are_flagged_in_place_and_valid_ones_simulated(objects_di
 def test_six_directions_fail_open_hand_and_hold_gravity_direction_of_hook(objects_dir, hooks):
     open_hand = hooks["square_bar"].copy()
     open_hand[6:] = 0.0
+    open_hand[6 + JOINT["THJ3"]] = 1.222  # the thumb clear of the bar: the grasp starts, and drops
     grasps = grasp_set([hooks["square_bar"], open_hand], ["square_bar", "square_bar"])
-    result = run_lift_tests(grasps, [objects_dir], LiftConfig(six_directions=True), threads=1)
+    result = run_lift_tests(grasps, [objects_dir], LiftConfig(six_directions=True, six_dir_exhaustive=True), threads=1)
     assert result["six_dir_translation_m"].shape == (2, 6) and result["six_dir_passed"].shape == (2, 6)
     down = DIRECTIONS.index("-z")
     assert result["six_dir_passed"][0, down]  # the hook holds the bar against a downward pull, like gravity
     assert not result["six_dir_success"][1]
     assert not result["six_dir_passed"][1].all()
+    assert np.isfinite(result["six_dir_translation_m"]).all()  # exhaustive: every direction of every started grasp
+
+    # By default only a grasp that lifted is pushed, up to its first failed direction: the same verdicts, fewer pushes.
+    quick = run_lift_tests(grasps, [objects_dir], LiftConfig(six_directions=True), threads=1)
+    assert quick["lift_success"].tolist() == [True, False] == result["lift_success"].tolist()
+    assert np.isnan(quick["six_dir_translation_m"][1]).all() and not quick["six_dir_success"][1]
+    assert quick["six_dir_success"][0] == result["six_dir_success"][0]
+    failed = np.flatnonzero(~result["six_dir_passed"][0])
+    pushed = 6 if len(failed) == 0 else failed[0] + 1
+    np.testing.assert_array_equal(quick["six_dir_translation_m"][0, :pushed], result["six_dir_translation_m"][0, :pushed])
+    assert np.isnan(quick["six_dir_translation_m"][0, pushed:]).all()
 
 
 @pytest.mark.slow

@@ -40,6 +40,8 @@ class LiftConfig:
     six_dir_duration_s: float = 2.0  # force applied this long in each direction
     six_dir_max_translation_m: float = 0.05  # allowed object displacement
     six_dir_max_rotation_deg: float = 15.0  # allowed object rotation
+    six_dir_exhaustive: bool = False  # every started grasp, all six directions (per-direction diagnostics); False: only
+    # grasps that lifted, up to the first direction that fails (a held grasp's pass or fail is the same, for less CPU)
 
     def __post_init__(self) -> None:
         positive = (

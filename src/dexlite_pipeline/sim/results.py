@@ -39,7 +39,11 @@ def summarize(results: dict[str, np.ndarray]) -> dict:
         six = np.asarray(results["six_dir_success"], bool)
         summary["n_six_dir_success"] = int(six.sum())
         summary["six_dir_success_rate"] = float(six.mean()) if n else None
-        summary["six_dir_pass_rate_by_direction"] = {d: float(v) for d, v in zip(DIRECTIONS, np.asarray(results["six_dir_passed"]).mean(axis=0))} if n else {}
+        # Per direction, of the grasps pushed that way (by default only lifted grasps are pushed, up to their first failed direction).
+        pushed = np.isfinite(np.asarray(results["six_dir_translation_m"], float)).sum(axis=0)
+        passed = np.asarray(results["six_dir_passed"], bool).sum(axis=0)
+        summary["six_dir_pass_rate_by_direction"] = {d: float(p / t) if t else None for d, p, t in zip(DIRECTIONS, passed, pushed)}
+        summary["six_dir_pushed_by_direction"] = {d: int(t) for d, t in zip(DIRECTIONS, pushed)}
     return summary
 
 
@@ -56,8 +60,10 @@ def format_summary(summary: dict, config: LiftConfig) -> str:
     for reason, count in summary["failure_reasons"].items():
         lines.append(f"  failed: {reason}: {count}")
     if "six_dir_success_rate" in summary:
-        by_dir = ", ".join(f"{d} {100 * v:.0f}%" for d, v in summary["six_dir_pass_rate_by_direction"].items())
-        lines.append(f"six-direction test: {summary['n_six_dir_success']}/{n} pass all six ({100 * summary['six_dir_success_rate']:.1f}%); {by_dir}")
+        pushed = summary["six_dir_pushed_by_direction"]
+        by_dir = ", ".join(f"{d} {100 * v:.0f}% of {pushed[d]}" for d, v in summary["six_dir_pass_rate_by_direction"].items() if v is not None)
+        lines.append(f"six-direction test: {summary['n_six_dir_success']}/{n} pass all six ({100 * summary['six_dir_success_rate']:.1f}%); "
+                     f"per direction, of the grasps pushed that way: {by_dir}")
     lines.append(
         f"constants: friction {config.friction}, object mass {config.object_mass_kg} kg, finger kp {config.finger_kp}, "
         f"time step {config.timestep_s} s, squeeze {config.squeeze_rad} rad, lift {config.lift_height_m} m in {config.lift_s} s"

@@ -188,11 +188,12 @@ class GraspSimulator:
         ratio = (object_z - object_z0) / cfg.lift_height_m
         return ratio, ("" if ratio > cfg.success_lift_ratio else "dropped")
 
-    def six_directions(self, pose: np.ndarray, quat: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def six_directions(self, pose: np.ndarray, quat: np.ndarray, target: np.ndarray, stop_at_failure: bool = False) -> tuple[np.ndarray, np.ndarray]:
         """Per direction (6,), the object's largest translation (m) and rotation (deg) under the force.
 
         A direction stops early once either limit is exceeded (it has failed); the values
-        are then those at that moment.
+        are then those at that moment. ``stop_at_failure``: no direction after a failed one is
+        pushed (its values stay NaN): the grasp has failed the test.
         """
         import mujoco
 
@@ -226,6 +227,8 @@ class GraspSimulator:
                     if worst_t >= cfg.six_dir_max_translation_m or worst_r >= cfg.six_dir_max_rotation_deg:
                         break
                 translation[k], rotation[k] = worst_t, worst_r
+                if stop_at_failure and (worst_t >= cfg.six_dir_max_translation_m or worst_r >= cfg.six_dir_max_rotation_deg):
+                    break
             d.xfrc_applied[:] = 0.0
         finally:
             m.opt.gravity[:] = gravity

@@ -1,0 +1,206 @@
+"""Speed of this checkout's library against an earlier commit's, as ratios measured side by side.
+
+    python benchmarks/timing/versus.py --base d39ef80 --objects RUN/results/objects            # energy step
+    python benchmarks/timing/versus.py --base d39ef80 --objects RUN/results/objects --lift RUN/results/eval/sim/shard_000.zarr
+
+The machine is shared and its speed drifts, so absolute times mean little and two runs of
+one code differ by 10-30%. This script measures both versions of the library in the same
+run, alternating them (base, current, base, current, ...) in fresh processes, with the SAME
+measuring code (this file) and the SAME inputs, and reports each case's ratio
+current / base of the per-version minimum over rounds. The base library is the ``src/``
+folder of ``--base`` (a commit, extracted with ``git archive`` into a temporary folder).
+
+Cases (each a function of this module, run in a child process with one torch thread):
+
+- ``energy_step``: CPU µs per grasp of one energy-and-gradient step (kinematics, every term,
+  backward) at batches of 64, 256 and 1024, the post-optimization's weights and contacts,
+  hands at the object: the poses come from ``--poses`` (made once by the current library
+  from a short optimization on the first four objects of ``--objects``, so both versions
+  evaluate the same poses).
+- ``lift``: CPU s per tested grasp of the lift and six-direction tests (each version's default
+  ``lift`` settings) on up to ``--lift-grasps`` grasps of a grasp store (``--lift``), e.g. an
+  evaluation shard of the default run: the realistic mix of outcomes.
+
+The child prints one JSON line per measurement; the parent collects them.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+BATCHES = (64, 256, 1024)
+
+
+# ----------------------------------------------------------------------------- child side
+def make_poses(objects_dir: str, out: str, count: int = 64, seed: int = 0) -> None:
+    """Poses touching the first four objects of ``objects_dir`` (a short optimization), saved for both versions."""
+    import numpy as np
+    import torch
+
+    from dexlite_pipeline.energy.config import EnergyConfig
+    from dexlite_pipeline.energy.grasp_energy import GraspEnergy
+    from dexlite_pipeline.hand.model import ShadowHand
+    from dexlite_pipeline.objects.assets import load_asset, ok_object_ids
+    from dexlite_pipeline.optim.annealing import optimize
+    from dexlite_pipeline.optim.config import AnnealingConfig, InitConfig
+    from dexlite_pipeline.optim.init import HullSampler, initial_poses
+
+    torch.set_num_threads(1)
+    ids = sorted(ok_object_ids([objects_dir]))[:4]
+    assets = [load_asset([objects_dir], i) for i in ids]
+    hand = ShadowHand()
+    energy = GraspEnergy.from_assets(hand, assets, EnergyConfig(), max_scale=0.12)
+    generator = torch.Generator().manual_seed(seed)
+    object_index = torch.arange(count) % len(ids)
+    scale = torch.tensor((0.08, 0.1, 0.12))[torch.arange(count) % 3]
+    init = initial_poses(hand, HullSampler(assets), object_index, scale, InitConfig(distance_m=(0.06, 0.09)), generator)
+    schedule = AnnealingConfig(iterations=300, step_size_period=6, temperature_period=4, final_contact_samples=256)
+    result = optimize(energy, init, object_index, scale, schedule, generator)
+    np.savez(out, object_ids=np.asarray(ids), hand_pose=result.hand_pose.numpy(), contact_index=result.contact_index.numpy(),
+             object_index=object_index.numpy(), scale=scale.numpy())
+
+
+def energy_step(objects_dir: str, poses: str, repeats: int = 7) -> list[dict]:
+    """CPU µs per grasp and step at each batch size (minimum over ``repeats`` steps)."""
+    import numpy as np
+    import torch
+
+    from dexlite_pipeline.energy.config import EnergyConfig
+    from dexlite_pipeline.energy.grasp_energy import GraspEnergy
+    from dexlite_pipeline.hand.model import ShadowHand
+    from dexlite_pipeline.objects.assets import load_asset
+
+    torch.set_num_threads(1)
+    saved = np.load(poses)
+    assets = [load_asset([objects_dir], str(i)) for i in saved["object_ids"]]
+    energy = GraspEnergy.from_assets(ShadowHand(), assets, EnergyConfig(), max_scale=0.12)
+    rows = []
+    for batch in BATCHES:
+        tile = -(-batch // len(saved["hand_pose"]))
+
+        def tiled(name: str) -> torch.Tensor:
+            value = torch.as_tensor(saved[name])
+            return value.repeat(tile, *([1] * (value.dim() - 1)))[:batch]
+
+        pose, contacts, index, scale = tiled("hand_pose"), tiled("contact_index").long(), tiled("object_index").long(), tiled("scale")
+
+        def step() -> None:
+            x = pose.clone().requires_grad_(True)
+            result = energy(x, object_index=index, scale=scale, contact_index=contacts)
+            torch.autograd.grad(result.total.sum(), x)
+
+        step()
+        times = []
+        for _ in range(repeats):
+            started = time.process_time()
+            step()
+            times.append(time.process_time() - started)
+        rows.append({"case": "energy_step", "size": f"batch {batch}", "value": 1e6 * min(times) / batch, "unit": "CPU µs per grasp-step"})
+    return rows
+
+
+def lift(objects_dir: str, grasp_store: str, grasps: int) -> list[dict]:
+    """CPU s per tested grasp of the lift and six-direction tests on the first ``grasps`` grasps of ``grasp_store``,
+    with the library's own default ``lift`` and ``scene`` sections (six directions on)."""
+    import dataclasses
+
+    import numpy as np
+    import torch
+
+    from dexlite_pipeline.config import default_config, from_section
+    from dexlite_pipeline.io.grasp_store import read_grasp_store
+    from dexlite_pipeline.sim.config import LiftConfig, SceneConfig
+    from dexlite_pipeline.sim.lift import run_lift_tests
+    from dexlite_pipeline.tabletop import load_support_planes
+
+    torch.set_num_threads(1)
+    config = default_config()
+    lift_config = dataclasses.replace(from_section(LiftConfig, config.get("lift"), "config.lift"), six_directions=True)
+    scene = from_section(SceneConfig, config.get("scene"), "config.scene")
+    stored = read_grasp_store(grasp_store)
+    chosen = stored.select(np.arange(min(grasps, len(stored))))
+    stability = Path(objects_dir).parent / "stability" / "stability.parquet"
+    planes = load_support_planes(scene.table, str(stability))
+    started = time.process_time()
+    results = run_lift_tests(chosen, [objects_dir], lift_config, 1, support_planes=planes)
+    seconds = time.process_time() - started
+    held = int(np.asarray(results["lift_success"]).sum())
+    return [{"case": "lift", "size": f"{len(chosen)} grasps", "value": seconds / len(chosen), "unit": "CPU s per grasp",
+             "outcomes": {"held": np.asarray(results["lift_success"], bool).tolist(), "six": np.asarray(results["six_dir_success"], bool).tolist()}}]
+
+
+# ----------------------------------------------------------------------------- parent side
+def extract_source(ref: str, destination: Path) -> Path:
+    """``ref``'s ``src/`` folder extracted into ``destination`` (returned: the folder to put on PYTHONPATH)."""
+    archive = subprocess.run(["git", "-C", str(ROOT), "archive", ref, "src"], check=True, capture_output=True).stdout
+    subprocess.run(["tar", "-x", "-C", str(destination)], input=archive, check=True)
+    return destination / "src"
+
+
+def run_child(source: Path, call: str) -> list[dict]:
+    """Run ``call`` (Python source evaluating to a list of rows) in a fresh process on the library at ``source``."""
+    code = f"import json, sys; sys.path.insert(0, {str(Path(__file__).parent)!r}); import versus; print('ROWS', json.dumps({call}))"
+    env = {**os.environ, "PYTHONPATH": str(source), "OMP_NUM_THREADS": "1"}
+    done = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True)
+    if done.returncode != 0:
+        raise RuntimeError(f"{source}: {call} failed:\n{done.stderr[-3000:]}")
+    line = next(line for line in done.stdout.splitlines() if line.startswith("ROWS "))
+    return json.loads(line[5:])
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--base", required=True, help="commit whose library is the baseline")
+    parser.add_argument("--objects", required=True, help="prepared objects (a run's results/objects)")
+    parser.add_argument("--lift", help="grasp store to lift-test (e.g. RUN/results/eval/sim/shard_000.zarr); omit to skip the case")
+    parser.add_argument("--lift-grasps", type=int, default=200)
+    parser.add_argument("--rounds", type=int, default=3, help="alternations of base and current")
+    parser.add_argument("--out", help="write the table as JSON here too")
+    args = parser.parse_args()
+
+    with tempfile.TemporaryDirectory(prefix="versus_") as scratch:
+        base = extract_source(args.base, Path(scratch))
+        current = ROOT / "src"
+        poses = str(Path(scratch) / "poses.npz")
+        run_child(current, f"versus.make_poses({args.objects!r}, {poses!r}) or []")
+        calls = [f"versus.energy_step({args.objects!r}, {poses!r})"]
+        if args.lift:
+            calls.append(f"versus.lift({args.objects!r}, {args.lift!r}, {args.lift_grasps})")
+        best: dict[tuple[str, str, str], dict] = {}
+        for round_number in range(args.rounds):
+            for version, source in (("base", base), ("current", current)):
+                for call in calls:
+                    for row in run_child(source, call):
+                        key = (version, row["case"], row["size"])
+                        if key not in best or row["value"] < best[key]["value"]:
+                            best[key] = row
+                print(f"round {round_number + 1}/{args.rounds}: {version} done", file=sys.stderr, flush=True)
+    table = []
+    for (version, case, size), row in sorted(best.items()):
+        if version != "current":
+            continue
+        before = best[("base", case, size)]
+        table.append({"case": case, "size": size, "base": before["value"], "current": row["value"], "unit": row["unit"],
+                      "ratio": row["value"] / before["value"], "base_row": before, "current_row": row})
+    print(f"| case | size | base ({args.base}) | current | unit | current / base |\n| --- | --- | ---: | ---: | --- | ---: |")
+    for row in table:
+        print(f"| {row['case']} | {row['size']} | {row['base']:.4g} | {row['current']:.4g} | {row['unit']} | {row['ratio']:.2f} |")
+    for row in table:  # outcomes of the same grasps under both versions
+        for name, before in row["base_row"].get("outcomes", {}).items():
+            after = row["current_row"]["outcomes"][name]
+            agree = sum(a == b for a, b in zip(before, after))
+            print(f"{row['case']}, {name}: {sum(before)} / {sum(after)} of {len(before)} (base / current); the two agree on {agree} ({100 * agree / len(before):.1f}%)")
+    if args.out:
+        Path(args.out).write_text(json.dumps(table, indent=1))
+
+
+if __name__ == "__main__":
+    main()
