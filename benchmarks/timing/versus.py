@@ -18,7 +18,7 @@ Cases (each a function of this module, run in a child process with one torch thr
   from a short optimization on the first four objects of ``--objects``, so both versions
   evaluate the same poses).
 - ``lift``: CPU s per tested grasp of the lift and six-direction tests (each version's default
-  ``lift`` settings) on up to ``--lift-grasps`` grasps of a grasp store (``--lift``), e.g. an
+  ``lift`` settings) on ``--lift-grasps`` grasps spread evenly over a grasp store (``--lift``), e.g. an
   evaluation shard of the default run: the realistic mix of outcomes.
 
 The child prints one JSON line per measurement; the parent collects them.
@@ -108,7 +108,7 @@ def energy_step(objects_dir: str, poses: str, repeats: int = 7) -> list[dict]:
 
 
 def lift(objects_dir: str, grasp_store: str, grasps: int) -> list[dict]:
-    """CPU s per tested grasp of the lift and six-direction tests on the first ``grasps`` grasps of ``grasp_store``,
+    """CPU s per tested grasp of the lift and six-direction tests on ``grasps`` grasps spread evenly over ``grasp_store``,
     with the library's own default ``lift`` and ``scene`` sections (six directions on)."""
     import dataclasses
 
@@ -126,7 +126,7 @@ def lift(objects_dir: str, grasp_store: str, grasps: int) -> list[dict]:
     lift_config = dataclasses.replace(from_section(LiftConfig, config.get("lift"), "config.lift"), six_directions=True)
     scene = from_section(SceneConfig, config.get("scene"), "config.scene")
     stored = read_grasp_store(grasp_store)
-    chosen = stored.select(np.arange(min(grasps, len(stored))))
+    chosen = stored.select(np.unique(np.linspace(0, len(stored) - 1, min(grasps, len(stored))).round().astype(int)))  # spread over the store's methods
     stability = Path(objects_dir).parent / "stability" / "stability.parquet"
     planes = load_support_planes(scene.table, str(stability))
     started = time.process_time()
