@@ -1,4 +1,7 @@
-"""config.yaml, its JSON schema and the typed settings classes stay in step; the profiles validate."""
+"""config.yaml, its JSON schema and the typed settings classes stay in step; the profiles validate.
+
+The settings classes are the source: config.yaml and the schema are generated from them (``config_files``).
+"""
 
 from __future__ import annotations
 
@@ -34,6 +37,56 @@ def _key_tree(section: dict, like: dict) -> dict:
 @pytest.fixture(scope="module")
 def config() -> dict:
     return load_config(ROOT / "config.yaml")
+
+
+def test_the_schema_and_the_default_config_are_generated_from_the_settings_classes():
+    """Both files are what ``config_files`` writes from the settings classes' fields (docs/design.md, "Adding a config key")."""
+    from dexlite_pipeline.config_files import REWRITE_COMMAND, generated_files
+
+    stale = [str(path.relative_to(ROOT / "src")) for path, text in generated_files().items() if path.read_text() != text]
+    assert not stale, f"stale: {', '.join(stale)}; rewrite them with `PYTHONPATH=src .venv/bin/{REWRITE_COMMAND}`"
+
+
+def _leaf_settings(cls, prefix: str = ""):
+    """(dotted key, field) of every key below settings class ``cls`` that is not itself a section."""
+    hints = typing.get_type_hints(cls)
+    for f in dataclasses.fields(cls):
+        if dataclasses.is_dataclass(hints[f.name]):
+            yield from _leaf_settings(hints[f.name], f"{prefix}{f.name}.")
+        else:
+            yield f"{prefix}{f.name}", f
+
+
+def test_every_key_is_a_documented_setting():
+    """Each key of the tree is a ``config.setting`` field with a comment (what config.yaml says about it)."""
+    undocumented = [key for key, f in _leaf_settings(PipelineConfig) if not f.metadata.get("doc")]
+    assert not undocumented, f"keys without setting(doc=...): {', '.join(undocumented)}"
+
+
+def test_result_neutral_keys_and_rule_keys_come_from_the_settings():
+    """The workflow's untracked keys (common.smk) and the keys each loop and evaluation rule passes are marked on the fields."""
+    from dexlite_pipeline.config import result_neutral_keys
+    from dexlite_pipeline.evaluation.step_keys import AGGREGATE_KEYS, REPORT_KEYS, SIMULATE_KEYS
+    from dexlite_pipeline.loop.config import loop_rule_sections
+
+    assert result_neutral_keys(PipelineConfig) == {
+        "curate": ("energy_batch_size",), "evaluate": ("energy_batch_size",), "optimize_grasps": ("progress_every",)}
+    assert set(SIMULATE_KEYS) == {"methods", "splits", "grasps_per_object", "ladder_grasps_per_object", "six_directions",
+                                  "energy_batch_size", "writeup_protocol"}  # fmt: skip
+    assert set(AGGREGATE_KEYS) == {"methods", "splits", "entropy_bins", "pca_components", "filter_thresholds"}
+    assert REPORT_KEYS == ("rendered_per_method",)
+    assert loop_rule_sections("loop_post_optimize") == (
+        "seed", "device", "post_optimize", "scene", "energy.self_penetration_margin_m", "loop.post_iterations")
+
+
+def test_the_config_tree_imports_without_numpy():
+    """The workflow imports the settings classes while it parses (common.smk): standard library and PyYAML only."""
+    import subprocess
+    import sys
+
+    code = "import sys, dexlite_pipeline.settings, dexlite_pipeline.evaluation.step_keys; print(sorted({'numpy', 'torch', 'jsonschema'} & set(sys.modules)))"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=ROOT)
+    assert out.stdout.strip() == "[]"
 
 
 def test_config_has_exactly_the_sections_the_code_reads(config):

@@ -34,7 +34,7 @@ LAYERS = (
     ("optim", ("optim",)),  # post-optimization refines the model's samples (model.methods)
     ("evaluation", ("evaluation",)),
     ("loop", ("loop",)),  # the data loop's rounds: sampling, refinement, checks and training of the components below
-    ("settings", ("settings",)),  # the typed config tree over every component's config module
+    ("settings", ("settings", "config_files")),  # the typed config tree over every component's config module; the files written from it
     ("report", ("report",)),
     ("stages and tools", ("stages", "tools")),
     ("commands", ("commands",)),

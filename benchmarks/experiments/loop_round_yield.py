@@ -25,14 +25,6 @@ from pathlib import Path
 import pandas as pd
 import yaml
 
-STAGE_SECTIONS = {  # what each stage's rule passes (workflow/rules/loop.smk)
-    "loop-sample": ("seed", "device", "shards", "sample", "loop"),
-    "loop-post-optimize": ("seed", "device", "post_optimize", "scene", "energy.self_penetration_margin_m", "loop.post_iterations"),
-    "loop-validate": ("device", "curate.thresholds", "energy.weights", "lift", "scene", "loop.six_directions"),
-    "loop-merge": ("diversity",),
-}
-
-
 def parse_variant(text: str) -> tuple[str, dict]:
     """``NAME[:key=value,...]`` -> (name, nested overlay); values are read as YAML (numbers, booleans, words)."""
     name, _, settings = text.partition(":")
@@ -53,9 +45,10 @@ def parse_variant(text: str) -> tuple[str, dict]:
 
 def run_stage(command: str, config: dict, arguments: list[str], log_path: Path) -> None:
     from dexlite_pipeline.config import section_json
+    from dexlite_pipeline.loop.config import LOOP_RULE_SECTIONS, loop_rule_sections
 
-    sections = STAGE_SECTIONS.get(command)
-    config_json = ["--config-json", section_json(config, *sections)] if sections else []
+    rule = command.replace("-", "_")  # the config the stage's rule passes it (workflow/rules/loop.smk)
+    config_json = ["--config-json", section_json(config, *loop_rule_sections(rule))] if rule in LOOP_RULE_SECTIONS else []
     full = [sys.executable, "-m", "dexlite_pipeline.cli", command, *config_json, *arguments]
     with open(log_path, "w") as log:
         done = subprocess.run(full, stdout=log, stderr=subprocess.STDOUT)

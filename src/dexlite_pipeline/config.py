@@ -210,6 +210,70 @@ def merge_config(base: dict, overlay: dict) -> dict:
     return out
 
 
+# JSON-schema keywords ``setting`` takes, by their Python spelling.
+_SCHEMA_KEYWORDS = {
+    "minimum": "minimum", "maximum": "maximum", "exclusive_minimum": "exclusiveMinimum", "exclusive_maximum": "exclusiveMaximum",
+    "enum": "enum", "pattern": "pattern", "min_items": "minItems", "max_items": "maxItems", "unique_items": "uniqueItems",
+    "items": "items",
+}  # fmt: skip
+
+
+def setting(default: Any = dataclasses.MISSING, doc: str = "", *, factory: Any = None, required: bool = False,
+            result_neutral: bool = False, rules: tuple[str, ...] = (), docs: dict[str, str] | None = None, **schema: Any) -> Any:
+    """A config key: a dataclass field with its default and everything else the key needs, in one place.
+
+    ``doc`` is the key's comment in the default config.yaml (units, why), ``schema`` its JSON-schema
+    constraints beyond the type its annotation gives (``minimum``, ``exclusive_minimum``, ``maximum``,
+    ``enum``, ``pattern``, ``min_items``, ``unique_items``, ``items``: constraints of a list's items);
+    ``required``: the schema requires the key in a whole config. ``result_neutral``: changing the value
+    cannot change any output, so the workflow passes it to the stage without rerunning it (common.smk's
+    RESULT_NEUTRAL_KEYS). ``rules``: for a section whose rules take it key by key (``loop``, ``evaluate``),
+    the rules that pass this key to their stage (``rule_keys``). A nested section (``factory`` its class)
+    may document its keys for this place in ``docs`` (key -> comment; the class's own docs elsewhere).
+    ``config_files`` writes the schema and config.yaml from these fields: docs/design.md, "Adding a config key".
+    """
+    unknown = sorted(set(schema) - set(_SCHEMA_KEYWORDS))
+    if unknown:
+        raise TypeError(f"setting(): unknown schema keyword(s) {', '.join(unknown)} (known: {', '.join(_SCHEMA_KEYWORDS)})")
+    metadata = {
+        "doc": doc.strip(), "required": required, "result_neutral": result_neutral, "rules": tuple(rules), "docs": dict(docs or {}),
+        "schema": _schema_keywords(schema),
+    }  # fmt: skip
+    if factory is not None:
+        return dataclasses.field(default_factory=factory, metadata=metadata)
+    return dataclasses.field(default=default, metadata=metadata)
+
+
+def _schema_keywords(schema: dict) -> dict:
+    """``setting``'s schema keywords in JSON-schema spelling, tuples as lists (``items`` too)."""
+    return {_SCHEMA_KEYWORDS.get(key, key): _schema_keywords(value) if isinstance(value, dict) else list(value) if isinstance(value, tuple)
+            else value for key, value in schema.items()}  # fmt: skip
+
+
+def setting_fields(cls: type) -> list[dataclasses.Field]:
+    """The fields of settings class ``cls`` in config.yaml's order: its own first, then those it inherits."""
+    own = cls.__dict__.get("__annotations__", {})
+    fields = dataclasses.fields(cls)
+    return [f for f in fields if f.name in own] + [f for f in fields if f.name not in own]
+
+
+def rule_keys(cls: type, rule: str) -> tuple[str, ...]:
+    """The keys of settings class ``cls`` whose ``setting(rules=...)`` names ``rule``, in field order."""
+    return tuple(f.name for f in setting_fields(cls) if rule in f.metadata.get("rules", ()))
+
+
+def result_neutral_keys(cls: type) -> dict[str, tuple[str, ...]]:
+    """Section -> its keys marked ``setting(result_neutral=True)``, for every section of the config tree ``cls``."""
+    hints = typing.get_type_hints(cls)
+    neutral = {}
+    for f in setting_fields(cls):
+        if dataclasses.is_dataclass(hints[f.name]):
+            keys = tuple(g.name for g in setting_fields(hints[f.name]) if g.metadata.get("result_neutral"))
+            if keys:
+                neutral[f.name] = keys
+    return neutral
+
+
 def from_section(cls: type[T], section: dict[str, Any] | None, where: str) -> T:
     """Build dataclass ``cls`` from a config mapping: unknown keys are errors, missing keys take defaults."""
     section = dict(section or {})

@@ -6,9 +6,10 @@ and shared shapes are one type wherever they appear: ``EnergyWeights`` (``energy
 ``train.energy_weights``, ``post_optimize.energy_weights``), ``AnnealingSchedule``
 (``optimize_grasps.annealing``, ``post_optimize.annealing``), ``EnergyThresholds``
 (``optimize_grasps.thresholds``, ``curate.thresholds``) and ``InitConfig`` (``optimize_grasps.init``,
-``post_optimize.random_init``). The dataclass defaults are the defaults: ``config.yaml`` lists
-the same values so that the file documents every key (``tests/test_config.py`` holds the
-classes, the schema and the file to each other).
+``post_optimize.random_init``). The dataclass fields are the one source of every key: default,
+comment and schema constraints (``config.setting``); the schema and the documented default
+``config.yaml`` are generated from them (``config_files``; ``tests/test_config.py`` fails when
+either is stale).
 
 The section classes live in leaf modules (each component's ``config`` module) that import no
 pipeline code but ``dexlite_pipeline.config`` and each other: a stage imports this tree without importing other components' code, so its code hash
@@ -17,9 +18,9 @@ pipeline code but ``dexlite_pipeline.config`` and each other: a stage imports th
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
-from dexlite_pipeline.config import ConfigError, from_section, parse_config_json, retired_keys_message
+from dexlite_pipeline.config import ConfigError, from_section, parse_config_json, retired_keys_message, setting
 from dexlite_pipeline.curation.config import CurateConfig
 from dexlite_pipeline.energy.config import EnergyConfig
 from dexlite_pipeline.evaluation.config import DiversityConfig, EvaluateConfig
@@ -35,24 +36,32 @@ from dexlite_pipeline.sim.config import LiftConfig, SceneConfig
 class PipelineConfig:
     """The whole of ``config.yaml``."""
 
-    seed: int = 0  # global random seed; every stage derives its own from it
-    device: str = "auto"  # auto (CUDA when present, else CPU), cpu, cuda, cuda:N
-    shards: int = 2  # grasp-heavy stages split objects into this many groups
-    objects: ObjectsConfig = field(default_factory=ObjectsConfig)
-    dexgraspnet: DexGraspNetConfig = field(default_factory=DexGraspNetConfig)
-    diversity: DiversityConfig = field(default_factory=DiversityConfig)
-    scene: SceneConfig = field(default_factory=SceneConfig)
-    stability: StabilityConfig = field(default_factory=StabilityConfig)
-    curate: CurateConfig = field(default_factory=CurateConfig)
-    energy: EnergyConfig = field(default_factory=EnergyConfig)
-    lift: LiftConfig = field(default_factory=LiftConfig)
-    evaluate: EvaluateConfig = field(default_factory=EvaluateConfig)
-    train: TrainConfig = field(default_factory=TrainConfig)
-    sample: SampleConfig = field(default_factory=SampleConfig)
-    post_optimize: PostOptimizeConfig = field(default_factory=PostOptimizeConfig)
-    optimize_grasps: OptimizeGraspsConfig = field(default_factory=OptimizeGraspsConfig)
-    loop: LoopConfig = field(default_factory=LoopConfig)
-
+    seed: int = setting(0, "global random seed; every stage derives its own from it", minimum=0, required=True)
+    device: str = setting(
+        "auto", "auto (CUDA when present, else CPU), cpu, cuda, cuda:N", pattern="^(auto|cpu|cuda(:[0-9]+)?)$", required=True)
+    shards: int = setting(2, "grasp-heavy stages split objects into this many groups", minimum=1, required=True)
+    objects: ObjectsConfig = setting(factory=ObjectsConfig, required=True)
+    dexgraspnet: DexGraspNetConfig = setting(factory=DexGraspNetConfig, required=True)
+    diversity: DiversityConfig = setting(factory=DiversityConfig, doc="when two grasps of one object count as one (evaluate, dexlite grasp)")
+    scene: SceneConfig = setting(
+        factory=SceneConfig, doc='where the object is (stages from optimize_grasps on; docs/design.md, "Tabletop mode")')
+    stability: StabilityConfig = setting(
+        factory=StabilityConfig, doc="PyBullet table test (stability_filter): later stages use stable objects only")
+    curate: CurateConfig = setting(factory=CurateConfig)
+    energy: EnergyConfig = setting(
+        factory=EnergyConfig, doc="optimization from scratch, curation, evaluation (training and post-optimization: weights of their own)")
+    lift: LiftConfig = setting(factory=LiftConfig, doc="MuJoCo lift test (lift_validate, evaluate, `dexlite lift-test`); echoed in outputs")
+    evaluate: EvaluateConfig = setting(factory=EvaluateConfig)
+    train: TrainConfig = setting(
+        factory=TrainConfig, doc="PointNet + CVAE training (the default fits its data in minutes on 2 CPU cores; the write-up's "
+        "values: config/profiles/writeup_gpu.yaml, --configfile it on a GPU machine)")
+    sample: SampleConfig = setting(factory=SampleConfig)
+    post_optimize: PostOptimizeConfig = setting(factory=PostOptimizeConfig)
+    optimize_grasps: OptimizeGraspsConfig = setting(
+        factory=OptimizeGraspsConfig, doc="grasp optimization from scratch (DexGraspNet's optimizer, retuned shorter schedule)")
+    loop: LoopConfig = setting(
+        factory=LoopConfig, doc="the data loop (Dex1B): each round samples with the last model, keeps the new distinct grasps that "
+        'hold and retrains (docs/design.md, "The data loop"); results/round_<r>/, results/loop.csv')
 
 def build_config(mapping: dict | None, where: str = "config") -> PipelineConfig:
     """The typed tree of a config mapping; absent sections and keys take their defaults, and a renamed or

@@ -26,7 +26,8 @@ from snakemake.utils import validate
 sys.path.append(str(Path(workflow.basedir) / "src"))
 
 from dexlite_pipeline.codehash import code_hash as _package_code_hash
-from dexlite_pipeline.config import SCHEMA_PATH, retired_keys_message, section_json
+from dexlite_pipeline.config import SCHEMA_PATH, result_neutral_keys, retired_keys_message, section_json
+from dexlite_pipeline.settings import PipelineConfig
 
 # A renamed or removed key (config.RETIRED_KEYS) fails with its replacement, before the schema's bare unknown-key error.
 if retired := retired_keys_message(config):
@@ -44,16 +45,14 @@ SHARD_THREADS = 1
 # Its post-deploy script installs the checkout named by DEXLITE_SOURCE: this one.
 CONDA_ENV = str(Path(workflow.basedir) / "envs" / "dexlite.yaml")
 os.environ.setdefault("DEXLITE_SOURCE", str(workflow.basedir))
-# Config keys that cannot change any output reach their stage but never rerun it: log
-# cadence, and the batch size of energy evaluation (energies are computed grasp by grasp;
-# batches of 1, 37, 256 and 1000 gave bit-identical results on CPU). The optimizers' batch
-# sizes (optimize_grasps.batch_size, post_optimize.batch_size) do change results (their step
-# uses the batch-mean squared gradient) and stay tracked.
-RESULT_NEUTRAL_KEYS = {
-    "optimize_grasps": ("progress_every",),
-    "curate": ("energy_batch_size",),
-    "evaluate": ("energy_batch_size",),
-}
+# Config keys that cannot change any output reach their stage but never rerun it: section ->
+# its keys marked setting(result_neutral=True) in the settings classes. Today log cadence
+# (optimize_grasps.progress_every) and the batch size of energy evaluation (curate. and
+# evaluate.energy_batch_size: energies are computed grasp by grasp; batches of 1, 37, 256 and
+# 1000 gave bit-identical results on CPU). The optimizers' batch sizes (optimize_grasps.batch_size,
+# post_optimize.batch_size) do change results (their step uses the batch-mean squared gradient)
+# and stay tracked.
+RESULT_NEUTRAL_KEYS = result_neutral_keys(PipelineConfig)
 # Files the object loader reads from objects.mesh_dirs / heldout_mesh_dirs: those directly in
 # each folder with one of these suffixes, in any case (objects.sources.folder_sources; that
 # module needs numpy, so it is not imported at parse time: tests/workflow/test_input_reruns.py

@@ -5,6 +5,8 @@
 # (round 0's included) is also checked on the held-out objects (part "heldout", a small cap). Outputs go to
 # results/round_<r>/; results/loop.csv has a row per round. The rules track loop's keys one by one, never
 # loop.rounds: more or fewer rounds add or drop rounds' jobs and rerun what reads the final model, not the rounds kept.
+# What each rule passes its stage: loop.config.loop_rule_sections (a loop key names its rules in its setting).
+from dexlite_pipeline.loop.config import loop_rule_sections
 
 ROUND = f"{RESULTS}/round_{{round}}"
 
@@ -49,10 +51,7 @@ rule loop_sample:
     output:
         directory(f"{ROUND}/{{part}}/sample_{{shard}}.zarr"),
     params:
-        cfg=stage_params(
-            "seed", "device", "shards", "sample", "loop.grasps_per_object", "loop.heldout_grasps_per_object", "loop.anchor_rule",
-            "loop.match_candidates",
-        ),
+        cfg=stage_params(*loop_rule_sections("loop_sample")),
         code=code_hash("loop_sample"),
         objects=learning_cli_options("objects", learning_objects_dirs()),
     threads: SHARD_THREADS
@@ -75,7 +74,7 @@ rule loop_post_optimize:
     output:
         directory(f"{ROUND}/{{part}}/post_{{shard}}.zarr"),
     params:
-        cfg=stage_params("seed", "device", "post_optimize", "scene", "energy.self_penetration_margin_m", "loop.post_iterations"),
+        cfg=stage_params(*loop_rule_sections("loop_post_optimize")),
         code=code_hash("loop_post_optimize"),
         objects=learning_cli_options("objects", learning_objects_dirs()),
     threads: SHARD_THREADS
@@ -98,7 +97,7 @@ rule loop_validate:
     output:
         directory(f"{ROUND}/{{part}}/validated_{{shard}}.zarr"),
     params:
-        cfg=stage_params("device", "curate.thresholds", "energy.weights", "lift", "scene", "loop.six_directions"),
+        cfg=stage_params(*loop_rule_sections("loop_validate")),
         code=code_hash("loop_validate"),
         objects=learning_cli_options("objects", learning_objects_dirs()),
     threads: SHARD_THREADS
@@ -120,7 +119,7 @@ rule loop_merge:
     output:
         directory(f"{RESULTS}/round_{{round,[1-9][0-9]*}}/grasps.zarr"),
     params:
-        cfg=stage_params("diversity"),
+        cfg=stage_params(*loop_rule_sections("loop_merge")),
         code=code_hash("loop_merge"),
         validated=lambda wc, input: learning_cli_options("validated", input.validated),
     threads: 1
@@ -146,7 +145,7 @@ rule loop_train:
         history=f"{ROUND}/model/history.csv",
         curves=f"{ROUND}/model/training_curves.png",
     params:
-        cfg=stage_params("seed", "device", "train", "scene", "energy.self_penetration_margin_m", "loop.train_steps", "loop.fine_tune_learning_rate_factor"),
+        cfg=stage_params(*loop_rule_sections("loop_train")),
         code=code_hash("loop_train"),
         objects=learning_cli_options("objects", learning_objects_dirs()),
     threads: all_cores()
@@ -194,7 +193,7 @@ rule loop_summary:
         table=f"{ROUND}/summary.csv",
         row=f"{ROUND}/round.json",
     params:
-        cfg=stage_params("diversity"),
+        cfg=stage_params(*loop_rule_sections("loop_summary")),
         code=code_hash("loop_summary"),
         options=lambda wc, input: loop_summary_options(input),
         objects=learning_cli_options("objects", learning_objects_dirs()),

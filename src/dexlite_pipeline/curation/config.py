@@ -6,8 +6,9 @@ A leaf of the config tree (``settings``): it imports no curation code, so a stag
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
+from dexlite_pipeline.config import setting
 from dexlite_pipeline.energy.config import EnergyThresholds
 
 THRESHOLDED_TERMS = ("E_fc", "E_dis", "E_pen", "penetration_mm")  # the arrays EnergyThresholds.limits() names
@@ -18,18 +19,29 @@ IMPORTED_ORIGIN = "dexgraspnet"  # ``origin`` of grasps read from a DexGraspNet 
 class CurateConfig:
     """Config section ``curate``."""
 
-    thresholds: EnergyThresholds = field(default_factory=EnergyThresholds)  # keep grasps below every threshold
-    duplicate_translation_m: float = 0.005  # palm positions closer than this ...
-    duplicate_rotation_deg: float = 10.0  # ... and palm orientations closer than this ...
-    duplicate_joint_rad: float = 0.1  # ... and every joint closer than this: near-duplicates
-    max_grasps_per_object: int = 200  # cap per object after deduplication (0 = no cap)
-    imported_thresholded_terms: tuple[str, ...] = ("E_dis",)  # thresholds applied to imported DexGraspNet grasps
-    energy_batch_size: int = 256  # grasps per batch when computing energies of imported grasps
-    force_closure: bool = True  # check the force closure of the actual contacts (off: DexGraspNet's curation)
-    force_closure_min_epsilon: float = 0.01  # keep grasps whose Ferrari–Canny epsilon exceeds this (0: any force closure)
-    force_closure_contact_distance_m: float = 0.001  # hand links this close to the object are contacts
-    force_closure_friction: float = 0.6  # friction coefficient of the contacts' cones
-    force_closure_cone_edges: int = 8  # edges of the linearized friction cones
+    thresholds: EnergyThresholds = setting(
+        factory=EnergyThresholds, doc="keep grasps below every threshold (DexGraspNet's success criteria)")
+    duplicate_translation_m: float = setting(
+        0.005, "two grasps of one object and scale closer than this in palm position, ...", minimum=0)
+    duplicate_rotation_deg: float = setting(10.0, "... this in palm orientation, ...", minimum=0, maximum=180)
+    duplicate_joint_rad: float = setting(
+        0.1, "... and this in every joint are near-duplicates: the better one is kept", minimum=0)
+    max_grasps_per_object: int = setting(200, "cap per object after deduplication, best first (0 = no cap)", minimum=0)
+    imported_thresholded_terms: tuple[str, ...] = setting(
+        ("E_dis",), "thresholds that also apply to imported DexGraspNet grasps (their makers filtered E_fc/E_pen with "
+        "contacts and a penetration measure not stored; see curate.py)", items={"enum": THRESHOLDED_TERMS}, unique_items=True)
+    energy_batch_size: int = setting(
+        256, "grasps per batch when computing the energies of imported grasps", minimum=1, result_neutral=True)
+    force_closure: bool = setting(
+        True, "keep only grasps whose actual contacts are in force closure with friction (see curate.py): fewer curated "
+        "grasps, more of which hold (measurements: docs/results.md); false: DexGraspNet's curation")
+    force_closure_min_epsilon: float = setting(
+        0.01, "Ferrari–Canny epsilon must exceed this: wrench resisted in every direction per N of total normal force, "
+        "torques over the object scale (0 = any force closure)", minimum=0)
+    force_closure_contact_distance_m: float = setting(
+        0.001, "hand links this close to the object are contacts (E_dis < 5 mm over 4 contacts)", minimum=0)
+    force_closure_friction: float = setting(0.6, "friction coefficient of the contact cones (the lift test's)", minimum=0)
+    force_closure_cone_edges: int = setting(8, "edges of the linearized friction cones", minimum=3)
 
     def __post_init__(self) -> None:
         unknown = sorted(set(self.imported_thresholded_terms) - set(THRESHOLDED_TERMS))

@@ -6,8 +6,9 @@ A leaf of the config tree (``settings``): it imports no evaluation code, so a st
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
+from dexlite_pipeline.config import setting
 from dexlite_pipeline.energy.config import EnergyThresholds
 
 JOINT_ENTROPY_BINS = 100  # default bins per joint of the joint-angle entropy (evaluation.metrics)
@@ -41,10 +42,13 @@ LADDER_SPLIT = "train"
 class DiversityConfig:
     """Section ``diversity`` of config.yaml: when two grasps count as one."""
 
-    distinct_translation_m: float = 0.02  # palms closer than this (m) ...
-    distinct_rotation_deg: float = 30.0  # ... and turned less than this (deg) from each other are one grasp
-    coverage_patches: int = 256  # surface patches per object for the coverage share (farthest-point centres)
-    coverage_contact_m: float = 0.005  # a hand contact candidate this close to the surface (m) touches its patch
+    distinct_translation_m: float = setting(0.02, "palms closer than this (m) ...", exclusive_minimum=0)
+    distinct_rotation_deg: float = setting(
+        30.0, "... and turned less than this (deg) from each other are one grasp", exclusive_minimum=0, maximum=180)
+    coverage_patches: int = setting(
+        256, "surface coverage: each object's surface in this many ~equal-area patches (farthest-point centres)", minimum=1)
+    coverage_contact_m: float = setting(
+        0.005, "a hand contact candidate within this of the surface (m) touches its patch (the lift test's 5 mm)", exclusive_minimum=0)
 
     def __post_init__(self):
         if self.distinct_translation_m <= 0 or self.distinct_rotation_deg <= 0:
@@ -60,11 +64,12 @@ class WriteupProtocolConfig:
     Its physics differs from ours in these constants (lift test only); everything else is ours.
     """
 
-    enabled: bool = True
-    friction: float = 2.0
-    preclose_rad: float = 0.07
-    contact_condim: int = 6
-    success_lift_ratio: float = 0.7
+    enabled: bool = setting(True, "also lift-test every evaluated grasp under the write-up's test")
+    friction: float = setting(2.0, "the write-up's MuJoCo test: friction 2 ...", minimum=0)
+    preclose_rad: float = setting(0.07, "... fingers' flexion targets closed a further 0.07 rad ...", minimum=0)
+    contact_condim: int = setting(6, "... torsional and rolling friction (condim 6) ...", enum=(1, 3, 4, 6))
+    success_lift_ratio: float = setting(
+        0.7, "... and success at a lift ratio above 0.7 (its 10 ms step and kp 100 are not copied)", exclusive_minimum=0, maximum=1)
 
     def lift_overrides(self) -> dict:
         return {"friction": self.friction, "preclose_rad": self.preclose_rad, "contact_condim": self.contact_condim,
@@ -75,17 +80,40 @@ class WriteupProtocolConfig:
 class EvaluateConfig:
     """Config section ``evaluate``."""
 
-    methods: tuple[str, ...] = METHODS  # methods to evaluate (missing inputs are reported, not invented)
-    splits: tuple[str, ...] = ("heldout",)  # object splits to evaluate (catalog column ``split``)
-    grasps_per_object: int = 16  # cap per (method, object) on simulated grasps
-    six_directions: bool = True  # also run the six-direction disturbance test
-    filter_thresholds: EnergyThresholds = field(default_factory=EnergyThresholds)  # the energy filter every method is also counted after
-    entropy_bins: int = JOINT_ENTROPY_BINS  # bins per joint of the joint-angle entropy
-    pca_components: tuple[int, ...] = PCA_COMPONENTS  # k of the cumulative PCA explained variance columns
-    energy_batch_size: int = 256  # grasps per energy evaluation batch
-    rendered_per_method: int = 2  # successes and failures pictured per method in the report
-    ladder_grasps_per_object: int = 8  # cap per (ladder method, training object) on simulated grasps
-    writeup_protocol: WriteupProtocolConfig = field(default_factory=WriteupProtocolConfig)  # the write-up's lenient test beside ours
+    # rules: the evaluation steps that read the key (evaluation.step_keys): evaluate_simulate, evaluate (the aggregate
+    # step) and report; a key changed reruns only those
+    methods: tuple[str, ...] = setting(
+        METHODS, "rows of metrics.csv (dexgraspnet only when dexgraspnet.root is set); cvae_recon* and cvae_prior_train* are "
+        "the learning ladder's fit and in-distribution rungs (training objects); shipped_* the shipped model "
+        "(sample.shipped_model) on held-out objects it never trained on; missing inputs are reported, not invented",
+        items={"enum": METHODS}, unique_items=True, rules=("evaluate_simulate", "evaluate"))
+    splits: tuple[str, ...] = setting(
+        ("heldout",), "object splits evaluated: train and/or heldout (catalog column split; a split with no objects is an error)",
+        items={"enum": SPLITS}, min_items=1, unique_items=True, rules=("evaluate_simulate", "evaluate"))
+    grasps_per_object: int = setting(
+        16, "cap on simulated grasps per (method, object), seeded choice; cvae_raw, cvae_post and random_post share the choice "
+        "(the same sampled rows); chosen grasps with invalid poses count as failures (n_invalid); metrics.csv's boot_ci95 "
+        "columns resample objects", minimum=1, rules=("evaluate_simulate",))
+    six_directions: bool = setting(
+        True, "also run the six-direction disturbance test (DexGraspBench)", rules=("evaluate_simulate",))
+    filter_thresholds: EnergyThresholds = setting(
+        factory=EnergyThresholds, rules=("evaluate",),
+        doc="equal filtering: every method (all attempts of optimization too) is counted per attempt and after these "
+        "thresholds (filtered_* columns; as curate.thresholds), E_fc and E_dis with the contacts of one search for every "
+        "grasp (evaluation.filter_energy), never a method's own contacts or flags")
+    entropy_bins: int = setting(
+        JOINT_ENTROPY_BINS, "bins over each joint's range for the joint-angle entropy (DexGraspNet)", minimum=2, rules=("evaluate",))
+    pca_components: tuple[int, ...] = setting(
+        PCA_COMPONENTS, "k of the cumulative PCA explained-variance columns", items={"minimum": 1}, min_items=1, rules=("evaluate",))
+    energy_batch_size: int = setting(
+        256, "grasps per energy evaluation batch", minimum=1, result_neutral=True, rules=("evaluate_simulate",))
+    rendered_per_method: int = setting(2, "successes and failures pictured per method in report.html", minimum=0, rules=("report",))
+    ladder_grasps_per_object: int = setting(
+        8, "cap on simulated grasps per (ladder method, training object)", minimum=1, rules=("evaluate_simulate",))
+    writeup_protocol: WriteupProtocolConfig = setting(
+        factory=WriteupProtocolConfig, rules=("evaluate_simulate",),
+        doc="every evaluated grasp is also lift-tested under the own, more lenient test of the DexLite write-up (Murali, "
+        "README), reported in columns writeup_protocol_* beside ours (never in place of it); lift test only, ~0.1 s a grasp")
 
     def __post_init__(self) -> None:
         unknown = sorted(set(self.methods) - set(METHODS))

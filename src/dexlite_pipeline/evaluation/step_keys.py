@@ -6,22 +6,24 @@ The workflow passes each step only its keys of the ``evaluate`` section (Snakema
 rule's params), and the steps themselves drop every other key before reading the section,
 so a step behaves the same whether the rule or a user calling the CLI with the whole
 section runs it. The report step reads the whole config (it is the last stage and records it).
-This module imports nothing heavy: the workflow imports it while it parses the rules.
+This module imports nothing heavy (the config tree): the workflow imports it while it parses the rules.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 
-# evaluate --step simulate: which grasps are chosen and how they are measured
-SIMULATE_KEYS = (
-    "methods", "splits", "grasps_per_object", "ladder_grasps_per_object", "six_directions", "energy_batch_size", "writeup_protocol",
-)  # fmt: skip
-# evaluate --step aggregate: which rows metrics.csv has, how diversity is measured and the equal energy filter
-# (the aggregate step also reads the config section diversity: its rule tracks that section too)
-AGGREGATE_KEYS = ("methods", "splits", "entropy_bins", "pca_components", "filter_thresholds")
+from dexlite_pipeline.config import rule_keys
+from dexlite_pipeline.evaluation.config import EvaluateConfig
+
+# Each key of EvaluateConfig names the rules that read it (``setting(rules=...)``).
+# evaluate --step simulate (rule evaluate_simulate): which grasps are chosen and how they are measured
+SIMULATE_KEYS = rule_keys(EvaluateConfig, "evaluate_simulate")
+# evaluate --step aggregate (rule evaluate): which rows metrics.csv has, how diversity is measured and the equal energy
+# filter (the aggregate step also reads the config section diversity: its rule tracks that section too)
+AGGREGATE_KEYS = rule_keys(EvaluateConfig, "evaluate")
 # dexlite report: pictures per method (its rule passes the whole config, which the report shows)
-REPORT_KEYS = ("rendered_per_method",)
+REPORT_KEYS = rule_keys(EvaluateConfig, "report")
 
 
 def with_evaluate_keys(config: Mapping, keys: Sequence[str]) -> dict:

@@ -8,11 +8,15 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from dexlite_pipeline.config import setting
+
 
 @dataclass(frozen=True)
 class DexGraspNetConfig:
     """Config section ``dexgraspnet``: where the download is and how its objects are split."""
 
-    root: str = ""  # a DexGraspNet download (dataset/, meshdata/); empty = not used
-    heldout_fraction: float = 0.0  # share of imported objects held out for evaluation (seeded, per object code)
-    heldout_object_codes: tuple[str, ...] = ()  # object codes always held out
+    root: str = setting("", "a DexGraspNet download (dataset/, meshdata/); empty = not used", required=True)
+    heldout_fraction: float = setting(
+        0.0, "share of imported objects held out for evaluation (seeded per object code)", minimum=0, maximum=1)
+    heldout_object_codes: tuple[str, ...] = setting(
+        (), "object codes always held out (the rest are training objects)", unique_items=True)

@@ -7,9 +7,9 @@ A leaf of the config tree (``settings``): it imports no model code, so a stage's
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
-from dexlite_pipeline.config import json_ready
+from dexlite_pipeline.config import json_ready, setting
 from dexlite_pipeline.energy.config import EnergyWeights
 from dexlite_pipeline.model.shipped import SHIPPED_MODEL_RELATIVE
 
@@ -21,13 +21,18 @@ POSE_FRAMES = ("object", "point", "surface", "hand")
 class ModelConfig:
     """Network sizes (the reference values are the write-up's), the pose frame and PointNet's inputs."""
 
-    pointnet_widths: tuple[int, ...] = (64, 128, 1024, 256)
-    encoder_hidden: tuple[int, ...] = (256, 512, 256)
-    decoder_hidden: tuple[int, ...] = (256, 512, 256)
-    latent_dim: int = 256
-    normalization: str = "batch"
-    pose_frame: str = "surface"
-    point_normals: bool = True
+    pointnet_widths: tuple[int, ...] = setting(
+        (64, 128, 1024, 256), "1-D conv widths; the last is the per-point/global feature size", items={"minimum": 1}, min_items=1)
+    encoder_hidden: tuple[int, ...] = setting((256, 512, 256), "encoder MLP hidden widths", items={"minimum": 1})
+    decoder_hidden: tuple[int, ...] = setting((256, 512, 256), "decoder MLP hidden widths", items={"minimum": 1})
+    latent_dim: int = setting(256, "latent size", minimum=1)
+    normalization: str = setting(
+        "batch", "PointNet norm: none (one cloud per batch) or batch (needs clouds_per_batch >= 2)", enum=NORMALIZATIONS)
+    pose_frame: str = setting(
+        "surface", "frame of the palm pose the networks see: object, point (translation from the associated point), surface "
+        "(position and rotation in a frame at that point, x along its normal) or hand (surface, turned about the normal to the "
+        "palm's roll, which becomes an input)", enum=POSE_FRAMES)
+    point_normals: bool = setting(True, "PointNet reads each point's outward normal beside its position (6 input channels)")
 
     def __post_init__(self) -> None:
         if self.normalization not in NORMALIZATIONS:
@@ -64,28 +69,44 @@ LR_SCHEDULES = ("constant", "cosine")
 class TrainConfig:
     """Config section ``train`` (two documented profiles: the default and ``config/profiles/writeup_gpu.yaml``)."""
 
-    profile: str = "default"
-    epochs: int = 100000
-    max_steps: int = 8000
-    batch_size: int = 64
-    clouds_per_batch: int = 4
-    points_per_cloud: int = 256
-    learning_rate: float = 2e-3
-    validation_fraction: float = 0.1
-    min_grasps: int = 8
-    max_training_objects: int = 0  # train on a seeded subset of this many training objects (0 = all): the learning curve
-    energy_point_spacing_m: float = 0.006  # mean spacing of E_pen's object points in the loss, m (coarser: training cost)
-    contact_samples: int = 32
-    rotation_augmentation: bool = False
-    fixed_clouds: bool = True
-    lr_schedule: str = "cosine"
-    lr_warmup_steps: int = 200
-    grad_clip_norm: float = 1.0
-    energy_warmup_fraction: float = 0.3
-    weight_recon: float = 1.0
-    weight_kl: float = 1e-5
-    energy_weights: EnergyWeights = field(default_factory=lambda: EnergyWeights(fc=0.0, dis=0.0, pen=0.0, spen=0.0, joints=0.0, table=0.0))
-    model: ModelConfig = field(default_factory=lambda: ModelConfig(normalization="none"))
+    profile: str = setting("default", "label recorded in cvae.pt")
+    epochs: int = setting(100000, "passes over the training grasps (the step budget, max_steps, ends training first)", minimum=1)
+    max_steps: int = setting(8000, "optimizer-step budget (0 = epochs only)", minimum=0)
+    batch_size: int = setting(64, "grasps per step", minimum=1)
+    clouds_per_batch: int = setting(
+        4, "distinct (object, scale) clouds per step: PointNet runs once per cloud; one cloud holds only a few grasps, so "
+        "several make a batch of useful size", minimum=1)
+    points_per_cloud: int = setting(256, "object surface points fed to PointNet (the write-up: 2048)", minimum=1)
+    learning_rate: float = setting(2e-3, "Adam peak learning rate (the write-up: 1e-4 over 100 epochs)", exclusive_minimum=0)
+    validation_fraction: float = setting(
+        0.1, "share of the grasps held out for the validation curve (seeded)", minimum=0, maximum=0.9)
+    min_grasps: int = setting(8, "fewer lift-successful training grasps is an error", minimum=1)
+    max_training_objects: int = setting(
+        0, "train on a seeded subset of this many training objects with grasps (0 = all): the learning curve", minimum=0)
+    energy_point_spacing_m: float = setting(
+        0.006, "mean spacing of E_pen's object points in the loss, m (coarser than the checks: training cost)", exclusive_minimum=0)
+    contact_samples: int = setting(
+        32, "loss contacts of grasps without stored contacts (imported): best of this many near-surface pad 4-sets per decoded "
+        "pose (0 = nearest four pads); optimized grasps use the contacts they were made with", minimum=0)
+    rotation_augmentation: bool = setting(
+        False, "turn each cloud and its grasps about the vertical axis by a random angle every step")
+    fixed_clouds: bool = setting(
+        True, "each object's cloud is one fixed farthest-point subset (false: a new random subset every step, which moves each "
+        "grasp's associated point by ~1 cm)")
+    lr_schedule: str = setting("cosine", "constant, or cosine decay to 0 over the planned steps after the warm-up", enum=LR_SCHEDULES)
+    lr_warmup_steps: int = setting(200, "linear learning-rate warm-up, steps", minimum=0)
+    grad_clip_norm: float = setting(1.0, "clip the gradient's global norm to this (0 = off)", minimum=0)
+    energy_warmup_fraction: float = setting(0.3, "energy weights ramp 0 -> full over this share of the steps", minimum=0, maximum=1)
+    weight_recon: float = setting(
+        1.0, "reconstruction squared error, summed over translation (0.1 m), rotation matrix, joints (rad)", minimum=0)
+    weight_kl: float = setting(
+        1e-5, "KL divergence to N(0, I); small, so each grasp keeps a distinct code (sampling draws from the codes' aggregate, "
+        "sample.latent_prior, not from N(0, I))", minimum=0)
+    energy_weights: EnergyWeights = setting(
+        factory=lambda: EnergyWeights(fc=0.0, dis=0.0, pen=0.0, spen=0.0, joints=0.0, table=0.0),
+        doc="energy terms of the decoded pose in the loss (all 0: not computed; the write-up's are 1/100/100/10/1)")
+    model: ModelConfig = setting(
+        factory=lambda: ModelConfig(normalization="none"), doc="the networks (sizes: the write-up's), the pose frame and PointNet's inputs")
 
     def __post_init__(self) -> None:
         if self.batch_size < 1 or self.clouds_per_batch < 1 or self.points_per_cloud < 1 or self.epochs < 1:
@@ -109,24 +130,47 @@ ANCHOR_RULES = ("uniform", "matched", "debiased", "spread")
 class SampleConfig:
     """Config section ``sample``."""
 
-    synthesis_grasps_per_object: int = 32  # held-out objects: pure synthesis
-    expansion_grasps_per_object: int = 16  # training objects with lift-validated grasps
-    scales: tuple[float, ...] = (0.08, 0.10, 0.12)  # synthesis scales, dealt in turn (those of the training grasps)
-    expansion_latent_std: float = 0.5  # sigma of the latent perturbation
-    expansion_point_fraction: float = 0.5  # share of expansions that move the associated point instead
-    expansion_point_neighbours: int = 16  # the moved point is one of this many nearest cloud points
-    points_per_cloud: int = 0  # 0 = the value the model was trained with
-    ladder: bool = True  # also sample the learning ladder's rows on training objects (reconstructions, prior samples)
-    ladder_grasps_per_object: int = 0  # ladder rows per training object and rung (0: every training grasp, synthesis_grasps_per_object prior samples)
-    shipped_model: str = str(SHIPPED_MODEL_RELATIVE)  # pretrained model (path in the checkout) also sampled on held-out objects (rows shipped_raw); "" = none
-    latent_prior: str = "neighbours"  # where synthesis draws latents: standard N(0, I), the training codes' aggregate or its nearest clouds' codes
-    latent_temperature: float = 1.0  # scale of the latent noise (of N(0, I), or of each training code's posterior sigma)
-    anchor_rule: str = "matched"  # associated points of pure synthesis: uniform, matched to each latent's training grasp, debiased or spread
-    neighbour_clouds: int = 8  # latent prior ``neighbours``: codes of this many nearest training clouds
-    anchor_region_m: float = 0.02  # anchor rule ``debiased``: a drawn associated point counts against cloud points this close (m)
-    debias_training: bool = False  # anchor rule ``debiased``: counts start from the training grasps matching each point
-    match_candidates: int = 1  # anchor rule ``matched``: debiased draw among this many best-matching points (1: the best)
-    debias_codes: bool = True  # training-code priors: a cloud's draws prefer codes it has drawn less (weight / (count + 1))
+    synthesis_grasps_per_object: int = setting(32, "pure synthesis (cvae_raw) per held-out object", minimum=0)
+    expansion_grasps_per_object: int = setting(16, "dataset expansion per training object with lift-validated grasps", minimum=0)
+    scales: tuple[float, ...] = setting(
+        (0.08, 0.10, 0.12), "object scales (≈ radius, m) dealt in turn to synthesized grasps: those of the training grasps "
+        "(optimize_grasps.scales); the model is not asked to extrapolate in size", items={"exclusive_minimum": 0}, min_items=1)
+    expansion_latent_std: float = setting(0.5, "σ of the latent perturbation z = μ + σ·ε", minimum=0)
+    expansion_point_fraction: float = setting(
+        0.5, "share of expansions that move the associated point instead of z", minimum=0, maximum=1)
+    expansion_point_neighbours: int = setting(
+        16, "the moved associated point is one of its this-many nearest cloud points", minimum=1)
+    points_per_cloud: int = setting(0, "PointNet points per cloud (0 = as trained)", minimum=0)
+    ladder: bool = setting(
+        True, "also sample the learning ladder's rows on training objects (reconstructions of the training grasps, pure "
+        "synthesis on training objects)")
+    ladder_grasps_per_object: int = setting(
+        0, "ladder rows per training object and rung: a seeded choice of its training grasps to reconstruct and as many prior "
+        "samples (0 = every training grasp and synthesis_grasps_per_object prior samples); large runs cap it near evaluate's "
+        "cap", minimum=0)
+    shipped_model: str = setting(
+        str(SHIPPED_MODEL_RELATIVE), "the pretrained model (path in this checkout) also sampled on the held-out objects it never "
+        'trained on (methods shipped_raw, shipped_post); "" = none')
+    latent_prior: str = setting(
+        "neighbours", "latents of new grasps: standard N(0, I); aggregate (any training grasp's code with its posterior noise); "
+        "neighbours (codes of the training clouds whose global PointNet feature is nearest the new object's: a conditional "
+        "prior read off the data)", enum=LATENT_PRIORS)
+    latent_temperature: float = setting(
+        1.0, "scale of the latent noise (of N(0, I), or of each training code's posterior σ)", minimum=0)
+    anchor_rule: str = setting(
+        "matched", "associated point of a synthesized grasp: uniform over the cloud; matched (the point whose local feature is "
+        "nearest that of the training grasp its latent came from); debiased (weight 1/(count+1), count = earlier draws "
+        "nearby, Dex1B); spread (farthest point)", enum=ANCHOR_RULES)
+    neighbour_clouds: int = setting(
+        8, "latent_prior neighbours: how many nearest training clouds (object and scale) lend their codes", minimum=1)
+    anchor_region_m: float = setting(
+        0.02, "anchor_rule debiased: a drawn associated point counts against the cloud points within this (m)", exclusive_minimum=0)
+    debias_training: bool = setting(
+        False, "anchor_rule debiased: counts start from how many training grasps' local features match each point")
+    match_candidates: int = setting(
+        1, "anchor_rule matched: draw among this many best-matching points, debiased (1 = the best match)", minimum=1)
+    debias_codes: bool = setting(
+        True, "latent_prior aggregate / neighbours: a cloud's draws prefer training codes it drew less (1/(count+1))")
 
     def __post_init__(self) -> None:
         if not self.scales or min(self.scales) <= 0:

@@ -10,6 +10,8 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass
 
+from dexlite_pipeline.config import setting
+
 
 @dataclass(frozen=True)
 class CoacdSettings:
@@ -25,30 +27,43 @@ class CoacdSettings:
     seconds. The DexGraspNet import runs no CoACD: its meshes come with their pieces.
     """
 
-    coacd_threshold: float = 0.08  # concavity below which a piece is split no further (CoACD's range: 0.01-1)
-    coacd_max_convex_hull: int = 16  # pieces per object at most (-1: no cap)
-    coacd_mcts_iterations: int = 60  # Monte Carlo tree-search iterations for each cut
-    coacd_mcts_nodes: int = 10  # child nodes the search expands per node
-    coacd_mcts_max_depth: int = 2  # depth of the search: cuts looked ahead
-    coacd_resolution: int = 1000  # surface samples the concavity (a Hausdorff distance) is measured on
+    coacd_threshold: float = setting(
+        0.08, "CoACD concavity threshold: a piece below it is split no further (DexGraspNet: 0.08; CoACD's range: 0.01-1)",
+        exclusive_minimum=0, maximum=1)
+    coacd_max_convex_hull: int = setting(16, "cap on convex pieces per object (-1 = no cap)", minimum=-1)
+    coacd_mcts_iterations: int = setting(
+        60, "CoACD search effort: tree-search iterations for each cut (its default: 150); with the nodes, depth and resolution "
+        "below CoACD's defaults several times faster, so 40 objects prepare in minutes on 2 cores", minimum=1)
+    coacd_mcts_nodes: int = setting(10, "child nodes the search expands per node (CoACD's default: 20)", minimum=1)
+    coacd_mcts_max_depth: int = setting(2, "depth of the search: cuts looked ahead (CoACD's default: 3)", minimum=1)
+    coacd_resolution: int = setting(
+        1000, "surface samples CoACD uses to measure concavity, a Hausdorff distance (its default: 2000)", minimum=100)
 
 
 @dataclass(frozen=True)
 class ObjectsConfig(CoacdSettings):
-    """Config section ``objects`` (see config.yaml for the meaning of each key; the ``coacd_*`` keys: ``CoacdSettings``)."""
+    """Config section ``objects`` (the ``coacd_*`` keys: ``CoacdSettings``)."""
 
-    builtin_count: int = 40
-    benchmark_heldout: bool = True  # embedded objects of the benchmark split are always held out (never trained on)
-    benchmark_objects: int = 4  # the first this many benchmark-split objects are added to the run, held out
-    household_count: int = 0  # generated household objects (objects.household) added for training, at real size in metres
-    household_benchmark_objects: int = 0  # the first this many household-split objects are added to the run, held out
-    mesh_dirs: tuple[str, ...] = ()
-    heldout_mesh_dirs: tuple[str, ...] = ()
-    heldout_fraction: float = 0.2
-    sdf_resolution: int = 96
-    sdf_padding: float = 0.25
-    sdf_exact_band: float = 0.2
-    surface_points: int = 4096
+    builtin_count: int = setting(40, "objects taken from pybullet_data (0 = none)", minimum=0, required=True)
+    benchmark_heldout: bool = setting(
+        True, "the benchmark split's objects (src/dexlite_pipeline/objects/benchmark_split.yaml) are always held out, in every "
+        "profile, so every model is compared on the same objects")
+    benchmark_objects: int = setting(
+        4, "the first this many benchmark-split objects are added, held out: objects that no model (this run's nor the shipped "
+        "one) ever trained on, where the shipped model is measured", minimum=0)
+    household_count: int = setting(
+        0, "generated household objects (mugs, bowls, bottles, boxes, tools; real size, metres) to train on", minimum=0)
+    household_benchmark_objects: int = setting(
+        0, "the first this many objects of the household split (objects/household_split.yaml), held out", minimum=0)
+    mesh_dirs: tuple[str, ...] = setting((), "folders of .obj/.stl meshes to add", required=True)
+    heldout_mesh_dirs: tuple[str, ...] = setting((), "folders whose meshes are always held out for evaluation", required=True)
+    heldout_fraction: float = setting(0.2, "of the remaining objects, held out by a seeded split", minimum=0, maximum=1)
+    sdf_resolution: int = setting(96, "grid points per axis of the signed distance grid", minimum=16, maximum=256)
+    sdf_padding: float = setting(0.25, "grid margin beyond the unit ball, normalized units", exclusive_minimum=0)
+    sdf_exact_band: float = setting(
+        0.2, "exact distance within this of the surface (normalized units; 2 cm at scale 0.1), farther out interpolated from a "
+        "4x coarser exact grid (sign exact)", exclusive_minimum=0)
+    surface_points: int = setting(4096, "surface samples (with normals) per object", minimum=64)
 
     def build_settings(self, seed: int) -> AssetBuildSettings:
         """The asset build settings this section implies (same-named fields)."""
@@ -73,15 +88,17 @@ class AssetBuildSettings(CoacdSettings):
 
 @dataclass(frozen=True)
 class StabilityConfig:
-    """Config section ``stability`` (see config.yaml for each key)."""
+    """Config section ``stability``: the PyBullet table test of ``stability_filter``."""
 
-    scale: float = 0.1
-    duration_s: float = 2.0
-    timestep_s: float = 0.004166667
-    tilt_deg: float = 3.0
-    max_lateral_m: float = 0.05
-    max_rotation_deg: float = 7.0
-    friction: float = 0.5
-    density_kg_m3: float = 500.0
-    solver_iterations: int = 50
-    collision_margin_m: float = 0.0005
+    scale: float = setting(0.1, "object scale in the test (normalized mesh x scale, so ~ radius in m)", exclusive_minimum=0)
+    duration_s: float = setting(2.0, "simulated time", exclusive_minimum=0)
+    timestep_s: float = setting(0.004166667, "physics step (PyBullet's default 1/240 s)", exclusive_minimum=0, maximum=0.05)
+    tilt_deg: float = setting(
+        3.0, "start tilted this much about a seeded horizontal axis (a perfectly balanced cone on its tip never falls in a "
+        "perfect simulation)", minimum=0, maximum=45)
+    max_lateral_m: float = setting(0.05, "stable if the centre of mass moves less than this sideways", exclusive_minimum=0)
+    max_rotation_deg: float = setting(7.0, "... and the object turns less than this", exclusive_minimum=0)
+    friction: float = setting(0.5, "lateral friction of object and table (rolling/spinning friction 0)", minimum=0)
+    density_kg_m3: float = setting(500.0, "uniform density for mass and inertia (DexGraspNet's Isaac test: 500)", exclusive_minimum=0)
+    solver_iterations: int = setting(50, "PyBullet constraint solver iterations per step", minimum=1)
+    collision_margin_m: float = setting(0.0005, "contact margin of object and table shapes", minimum=0)

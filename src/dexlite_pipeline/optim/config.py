@@ -9,8 +9,9 @@ start type (``optimize_grasps.init``, ``post_optimize.random_init``).
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
+from dexlite_pipeline.config import setting
 from dexlite_pipeline.energy.config import EnergyThresholds, EnergyWeights
 
 
@@ -19,16 +20,17 @@ class AnnealingSchedule:
     """The annealing schedule: step size, temperature and their decay (config ``optimize_grasps.annealing``,
     ``post_optimize.annealing``). Defaults: DexGraspNet's constants (6000 steps from scratch)."""
 
-    iterations: int = 6000
-    step_size: float = 0.005  # scaled-gradient step at iteration 0
-    step_size_decay: float = 0.95  # step size × this every step_size_period iterations
-    step_size_period: int = 50
-    rmsprop_mu: float = 0.98  # weight of the NEW batch-mean squared gradient (DexGraspNet)
-    rmsprop_eps: float = 1e-8
-    contact_switch_probability: float = 0.5  # per contact and iteration
-    starting_temperature: float = 18.0  # Metropolis T0 (energy units)
-    temperature_decay: float = 0.95  # T × this every temperature_period iterations
-    temperature_period: int = 30
+    iterations: int = setting(6000, "annealed optimizer steps", minimum=0)
+    step_size: float = setting(0.005, "scaled-gradient step at iteration 0", exclusive_minimum=0)
+    step_size_decay: float = setting(0.95, "step size × this every step_size_period iterations", exclusive_minimum=0, maximum=1)
+    step_size_period: int = setting(50, "iterations between step-size decays", minimum=1)
+    rmsprop_mu: float = setting(0.98, "weight of the new batch-mean squared gradient (DexGraspNet)", minimum=0, maximum=1)
+    rmsprop_eps: float = setting(1e-8, "added to the root of the squared-gradient average that scales the step", exclusive_minimum=0)
+    contact_switch_probability: float = setting(
+        0.5, "each contact re-drawn with this probability per step", minimum=0, maximum=1)
+    starting_temperature: float = setting(18.0, "Metropolis T0 (energy units)", exclusive_minimum=0)
+    temperature_decay: float = setting(0.95, "T × this every temperature_period iterations", exclusive_minimum=0, maximum=1)
+    temperature_period: int = setting(30, "iterations between temperature decays", minimum=1)
 
 
 @dataclass(frozen=True)
@@ -57,9 +59,14 @@ class AnnealingConfig(AnnealingSchedule):
 class InitConfig:
     """Where optimization from scratch starts (DexGraspNet: palm 0.2–0.3 m out, ±30°, σ 10%)."""
 
-    distance_m: tuple[float, float] = (0.2, 0.3)  # palm origin distance from the hull point
-    jitter_deg: float = 30.0  # tilt of the approach away from the inward normal
-    joint_sigma_fraction: float = 0.1  # joint noise σ as a fraction of the joint range
+    distance_m: tuple[float, float] = setting((0.2, 0.3), "palm distance from the hull point", items={"minimum": 0})
+    jitter_deg: float = setting(30.0, "approach tilt away from the inward normal", minimum=0, maximum=90)
+    joint_sigma_fraction: float = setting(0.1, "joint noise σ as a fraction of each range", minimum=0)
+
+
+# Both optimizers end with contact resolution (optim.contact_resolution): the doc of their resolve_penetration_to_m.
+RESOLVE_PENETRATION_DOC = ("contact resolution, the last phase: grasps deeper in the object than this (penetration measure, m) "
+                           "back out of it until within it (0 = off; the lift test's start cap is 2 mm)")
 
 
 # The default from-scratch schedule: DexGraspNet's shortened to 2000 steps from 0.1-0.15 m, its
@@ -71,18 +78,29 @@ FROM_SCRATCH_SCHEDULE = AnnealingSchedule(iterations=2000, step_size_period=17, 
 class OptimizeGraspsConfig:
     """Config section ``optimize_grasps``."""
 
-    grasps_per_object: int = 32  # starts per object and scale
-    scales: tuple[float, ...] = (0.08, 0.1, 0.12)  # object scales, about the object radius in metres
-    batch_size: int = 512  # grasps optimized together (changes results: the step uses batch statistics)
-    progress_every: int = 100  # iterations between progress lines in the log
-    thresholds: EnergyThresholds = field(default_factory=EnergyThresholds)
-    init: InitConfig = field(default_factory=lambda: InitConfig(distance_m=(0.1, 0.15)))
-    annealing: AnnealingSchedule = FROM_SCRATCH_SCHEDULE
-    trace_every: int = 10  # iterations between rows of the energy trace
-    final_contact_samples: int = 1024  # contact sets searched per grasp after the last step (0: off, DexGraspNet)
-    contact_search_every: int = 100  # also search every this many iterations (0: only after the last step)
-    keep_best: bool = False  # end in the last accepted state (DexGraspNet); true: the lowest-energy visited state
-    resolve_penetration_to_m: float = 0.0015  # contact resolution: back grasps deeper than this out (m; 0: off)
+    grasps_per_object: int = setting(
+        32, "starts per object and scale (force-closure curation keeps ~1 in 8 of them as training data)", minimum=1)
+    scales: tuple[float, ...] = setting(
+        (0.08, 0.1, 0.12), "object scales (about the object radius in metres)", items={"exclusive_minimum": 0}, min_items=1)
+    batch_size: int = setting(
+        512, "grasps optimized together (several objects per batch; changes results: the step uses batch statistics)", minimum=1)
+    progress_every: int = setting(100, "iterations between progress lines in the log", minimum=1, result_neutral=True)
+    thresholds: EnergyThresholds = setting(
+        factory=EnergyThresholds, doc="passes_energy_thresholds (DexGraspNet's success criteria)")
+    init: InitConfig = setting(
+        factory=lambda: InitConfig(distance_m=(0.1, 0.15)), doc="convex-hull start",
+        docs={"distance_m": "palm distance from the hull point (DexGraspNet: 0.2-0.3)"})
+    annealing: AnnealingSchedule = setting(
+        FROM_SCRATCH_SCHEDULE, "DexGraspNet's schedule shortened to 2000 steps, its periods scaled to match (why: docs/results.md)",
+        docs={"iterations": "optimizer steps (DexGraspNet: 6000)",
+              "step_size_period": "iterations between step-size decays (DexGraspNet: 50 over 6000 steps)",
+              "temperature_period": "iterations between temperature decays (DexGraspNet: 30 over 6000 steps)"})
+    trace_every: int = setting(10, "iterations between rows of the energy trace", minimum=1)
+    final_contact_samples: int = setting(
+        1024, "contact sets searched per grasp after the last step (0: off, as DexGraspNet)", minimum=0)
+    contact_search_every: int = setting(100, "also search every this many iterations (0: only after the last step)", minimum=0)
+    keep_best: bool = setting(False, "end in the last accepted state (DexGraspNet); true: the lowest-energy visited state")
+    resolve_penetration_to_m: float = setting(0.0015, RESOLVE_PENETRATION_DOC, minimum=0)
 
     def optimizer_config(self) -> AnnealingConfig:
         """The optimizer's settings for one run: the schedule with this section's run options."""
@@ -101,19 +119,31 @@ POST_SCHEDULE = AnnealingSchedule(iterations=200)
 class PostOptimizeConfig:
     """Config section ``post_optimize`` (the write-up's post-optimization)."""
 
-    annealing: AnnealingSchedule = POST_SCHEDULE  # the random starts' schedule (DexGraspNet's, 200 steps)
-    energy_weights: EnergyWeights = field(default_factory=EnergyWeights)  # E_post = Σ weight · term
-    energy_point_spacing_m: float = 0.004  # mean spacing of E_pen's object surface points at the grasp's scale, m
-    start_contact_samples: int = 64  # sampled grasps start from the best of this many near-surface 4-sets (0: nearest pads)
-    final_contact_samples: int = 64  # after the last step, keep the best of this many contact sets (0: off)
-    keep_best: bool = True  # return each grasp's lowest-E_post visited state instead of the last one
-    learned_start_temperature: float = 0.5  # T0 for CVAE starts, which are already close: few uphill moves accepted
-    learned_start_step_size: float = 0.002  # step size at iteration 0 for CVAE starts
-    budget_iterations: tuple[int, ...] = (0, 25, 50, 100, 200)  # poses kept after these iterations for the budget curve
-    batch_size: int = 1024  # grasps per optimizer batch (a shard is cut into batches of this size)
-    random_baseline: bool = True  # also run the random-init baseline (held-out objects' grasps)
-    random_init: InitConfig = field(default_factory=InitConfig)
-    resolve_penetration_to_m: float = 0.0015  # contact resolution: back grasps deeper than this out (m; 0: off)
+    annealing: AnnealingSchedule = setting(
+        POST_SCHEDULE, "the optimizer's schedule for random starts (the write-up's: DexGraspNet's over 200 steps)")
+    energy_weights: EnergyWeights = setting(
+        factory=EnergyWeights, doc="E_post = fc·E_fc + dis·E_dis + pen·E_pen + spen·E_spen + joints·E_joints (+ table·E_table on a table)")
+    energy_point_spacing_m: float = setting(
+        0.004, "mean spacing of E_pen's object surface points at the grasp's scale, m (the judged depth: 2 mm)", exclusive_minimum=0)
+    start_contact_samples: int = setting(
+        64, "a sampled grasp starts from the best of this many near-surface pad 4-sets (0 = nearest four pads)", minimum=0)
+    final_contact_samples: int = setting(
+        64, "after the last step, the best of this many contact sets is kept (0 = off, DexGraspNet)", minimum=0)
+    keep_best: bool = setting(
+        True, "end each grasp in its lowest-E_post visited state, not the last: at T0 = 18 the walk accepts nearly every step "
+        "and wanders away from grasps that hold")
+    learned_start_temperature: float = setting(
+        0.5, "CVAE starts (already close to a grasp) run with this T0 and learned_start_step_size instead: at T0 18 the walk "
+        "accepts nearly every step and wanders off", exclusive_minimum=0)
+    learned_start_step_size: float = setting(
+        0.002, "... and this step size at iteration 0 (18 / 0.005: the write-up's schedule)", exclusive_minimum=0)
+    budget_iterations: tuple[int, ...] = setting(
+        (0, 25, 50, 100, 200), "poses kept after these iterations and lift-tested (the budget curve)", items={"minimum": 0},
+        unique_items=True)
+    batch_size: int = setting(1024, "grasps per optimizer batch (a shard is cut into batches of this size)", minimum=1)
+    random_baseline: bool = setting(True, "also post-optimize from random convex-hull starts (same budget, held-out objects)")
+    random_init: InitConfig = setting(factory=InitConfig, doc="the random starts (DexGraspNet's)")
+    resolve_penetration_to_m: float = setting(0.0015, RESOLVE_PENETRATION_DOC, minimum=0)
 
     def optimizer_config(self, learned_start: bool = False) -> AnnealingConfig:
         """The optimizer's settings: ``annealing`` for random starts; for learned (CVAE) starts the same

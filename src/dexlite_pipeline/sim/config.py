@@ -9,39 +9,55 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass
 
-from dexlite_pipeline.config import ConfigError, from_section
+from dexlite_pipeline.config import ConfigError, from_section, setting
 
 
 @dataclass(frozen=True)
 class LiftConfig:
     """Constants of the lift test (section ``lift`` of config.yaml)."""
 
-    timestep_s: float = 0.002  # MuJoCo step
-    friction: float = 0.6  # sliding friction of hand and object geoms (DexGraspBench's value)
-    object_mass_kg: float = 0.1  # object mass (DexGraspBench); inertia scaled to match
-    finger_kp: float = 5.0  # position gain of the 22 finger actuators, N·m/rad
-    impratio: float = 10.0  # frictional-to-normal impedance ratio (elliptic cones)
-    squeeze_rad: float = 0.1  # largest joint change of a touching finger's squeeze target
-    squeeze_contact_distance_m: float = 0.005  # a finger touches if one of its links is this close
-    close_s: float = 0.25  # ramp of the finger targets from grasp pose to squeeze target
-    hold_s: float = 0.25  # hold before lifting
-    lift_height_m: float = 1.0  # hand rise
-    lift_s: float = 2.0  # duration of the rise (smooth profile)
-    final_hold_s: float = 0.2  # hold at the top
-    success_lift_ratio: float = 0.9  # success if dz_object / dz_hand is above this
-    preclose_rad: float = 0.0  # added to the finger flexion joints' (J2, J1, J0) closing targets, rad (the lift test of the DexLite write-up (Murali): 0.07)
-    contact_condim: int = 3  # MuJoCo contact dimensionality of the object's geoms: 3 sliding friction, 4 + torsional,
-    # 6 + rolling (the write-up's test: 6)
-    max_initial_penetration_m: float = 0.002  # a grasp starting deeper in the object (penetration measure, m) fails before simulation
-    control_substeps: int = 10  # simulation steps per control update (targets and mocap)
-    multi_contact: bool = True  # MuJoCo's multi-point convex contacts (its default); off: ~15% faster, ~1% of outcomes change
-    six_directions: bool = False  # also run the six-direction test
-    six_dir_force_per_kg_n: float = 10.0  # external force per kg of object mass (DexGraspBench: 10 N/kg)
-    six_dir_duration_s: float = 2.0  # force applied this long in each direction
-    six_dir_max_translation_m: float = 0.05  # allowed object displacement
-    six_dir_max_rotation_deg: float = 15.0  # allowed object rotation
-    six_dir_exhaustive: bool = False  # every started grasp, all six directions (per-direction diagnostics); False: only
-    # grasps that lifted, up to the first direction that fails (a held grasp's pass or fail is the same, for less CPU)
+    timestep_s: float = setting(0.002, "simulation step (pinned: results move with it)", exclusive_minimum=0, maximum=0.05)
+    friction: float = setting(
+        0.6, "sliding friction of hand and object: DexGraspBench's value for the same mass and gains; conservative (real "
+        "DexGraspNet grasps at 0.6 and 1.0: docs/results.md)", minimum=0)
+    object_mass_kg: float = setting(
+        0.1, "every object weighs this (DexGraspBench); inertia from its convex pieces, rescaled", exclusive_minimum=0)
+    finger_kp: float = setting(
+        5.0, "position gain of the 22 finger actuators, N·m/rad (the gym model's 1.0 lets grasps that hold slip)", exclusive_minimum=0)
+    impratio: float = setting(
+        10.0, "elliptic friction cones with this impedance ratio (MuJoCo's pyramidal default lets grasps that hold slip)",
+        exclusive_minimum=0)
+    squeeze_rad: float = setting(0.1, "touching fingers' targets go this far past the grasp (largest joint change), rad", minimum=0)
+    squeeze_contact_distance_m: float = setting(0.005, "a finger touches if one of its links is within this of the object", minimum=0)
+    close_s: float = setting(0.25, "finger targets ramp from the grasp pose to the squeeze target", exclusive_minimum=0)
+    hold_s: float = setting(0.25, "hold before lifting", minimum=0)
+    lift_height_m: float = setting(1.0, "the hand rises this far (gravity along the object frame's -z)", exclusive_minimum=0)
+    lift_s: float = setting(2.0, "... in this time, smooth cosine profile", exclusive_minimum=0)
+    final_hold_s: float = setting(0.2, "hold at the top before measuring", minimum=0)
+    success_lift_ratio: float = setting(0.9, "success if dz_object / dz_hand exceeds this", exclusive_minimum=0, maximum=1)
+    preclose_rad: float = setting(
+        0.0, "extra closure added to the four fingers' flexion-joint (J2, J1, J0) targets, rad (the lift test of the DexLite "
+        "write-up (Murali): 0.07)", minimum=0)
+    contact_condim: int = setting(
+        3, "MuJoCo contact dimensionality of the object (3: sliding friction; 4: + torsional; 6: + torsional, rolling; the "
+        "write-up's test: 6)", enum=(1, 3, 4, 6))
+    max_initial_penetration_m: float = setting(
+        0.002, "a grasp starting deeper in the object fails before simulation (penetration measure against the mesh, m)",
+        exclusive_minimum=0)
+    control_substeps: int = setting(10, "simulation steps per control update (finger targets, palm mocap)", minimum=1)
+    multi_contact: bool = setting(
+        True, "MuJoCo's multi-point convex contacts (its default); false: faster lift tests (~15%) that change a few outcomes "
+        "(~1%; docs/results.md)")
+    six_directions: bool = setting(False, "also run the six-direction test in lift_validate (evaluate has its own switch)")
+    six_dir_force_per_kg_n: float = setting(
+        10.0, "six-direction test: force per kg of object mass, N/kg (DexGraspBench: 10, i.e. ~1 g)", minimum=0)
+    six_dir_duration_s: float = setting(
+        2.0, "... applied this long along each of +x, -x, +y, -y, +z, -z (gravity off)", exclusive_minimum=0)
+    six_dir_max_translation_m: float = setting(0.05, "... a direction passes if the object moves less than this", exclusive_minimum=0)
+    six_dir_max_rotation_deg: float = setting(15.0, "... and rotates less than this", exclusive_minimum=0)
+    six_dir_exhaustive: bool = setting(
+        False, "true: test every started grasp in all six directions (per-direction diagnostics); false: only grasps that "
+        "lifted, up to the first direction that fails (a held grasp's result is the same, for less CPU)")
 
     def __post_init__(self) -> None:
         positive = (
@@ -87,4 +103,6 @@ def lift_config_from(config: dict | None, **overrides) -> LiftConfig:
 class SceneConfig:
     """Config section ``scene``: whether the object stands on a table (tabletop) or floats (DexGraspNet-style)."""
 
-    table: bool = True  # tabletop mode; false: floating objects, exactly the behaviour before tabletop mode
+    table: bool = setting(
+        True, "tabletop: the object rests in its stable pose on a table no hand point may go below; false: floating objects, "
+        "gravity along the object frame's -z (DexGraspNet-style, exactly the behaviour before tabletop mode)")
