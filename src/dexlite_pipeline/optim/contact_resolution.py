@@ -92,11 +92,12 @@ def resolve_contacts(
     table = TableShortfall(energy) if energy.support_planes is not None else None
 
     def depths(poses: torch.Tensor, rows: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        in_object = penetration_depth_m(energy, poses, object_index[rows], scale[rows])
-        if table is None:
-            return in_object, torch.zeros_like(in_object)
+        """(depth in the object, depth below the table) of ``poses``, grasps ``rows``, from one kinematics pass."""
         with torch.no_grad():
-            return in_object, table.depth_m(energy.hand.forward(poses), object_index[rows], scale[rows])
+            frames = energy.hand.forward(poses)
+            in_object = energy.judged_depth_m(frames, object_index[rows], scale[rows])
+            below = table.depth_m(frames, object_index[rows], scale[rows]) if table is not None else torch.zeros_like(in_object)
+        return in_object, below
 
     every = torch.arange(len(pose), device=pose.device)
     depth_before, table_depth = depths(pose, every)
