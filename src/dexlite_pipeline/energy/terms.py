@@ -245,6 +245,7 @@ class PenetrationTerm(EnergyTerm):
         link_count = len(hand.link_names)
         self.sphere_map = LinkFrameMap.for_points(self.spheres.centre_local, self.spheres.link, link_count)
         self.shape_map = LinkFrameMap.for_frames(hand.shape_rot, hand.shape_pos, hand.shape_link, link_count)
+        self._kernel = None  # ``PenetrationKernel``, built on the first CPU evaluation
 
     def point_counts(self, object_index: torch.Tensor, scale: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """Per grasp, how many of its object's points it uses (B,) and the E_pen weight of each (B,)."""
@@ -261,7 +262,21 @@ class PenetrationTerm(EnergyTerm):
         return context.penetration.energy
 
     def __call__(self, frames: HandFrames, object_index: torch.Tensor, scale: torch.Tensor, exact: bool = False) -> PenetrationResult:
-        """E_pen and the depths of a batch; ``exact``: sphere depths from the mesh (``SurfaceDistance``) near the surface."""
+        """E_pen and the depths of a batch; ``exact``: sphere depths from the mesh (``SurfaceDistance``) near the surface.
+
+        On the CPU the grid measure runs as one compiled pass (``energy.penetration_kernel``); elsewhere, and for
+        ``exact``, as torch operations (``evaluate_with_torch``), which the kernel is tested against."""
+        if not exact and self.object_points.device.type == "cpu":
+            if self._kernel is None:
+                from dexlite_pipeline.energy.penetration_kernel import PenetrationKernel  # imports numba (~1 s): only when used
+
+                self._kernel = PenetrationKernel(self)
+            count, weight = self.point_counts(object_index, scale)
+            return PenetrationResult(*self._kernel(frames, object_index, scale, count, weight))
+        return self.evaluate_with_torch(frames, object_index, scale, exact)
+
+    def evaluate_with_torch(self, frames: HandFrames, object_index: torch.Tensor, scale: torch.Tensor, exact: bool = False) -> PenetrationResult:
+        """``__call__`` as torch operations, on any device."""
         batch = object_index.shape[0]
         radius = self.spheres.radius
         with torch.no_grad():

@@ -1,0 +1,112 @@
+"""The compiled E_pen (``energy.penetration_kernel``) against the torch operations it replaces on the CPU."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from dexlite_pipeline.energy.config import EnergyConfig
+from dexlite_pipeline.energy.grasp_energy import GraspEnergy
+from dexlite_pipeline.hand.model import HandFrames
+from dexlite_pipeline.objects.assets import load_asset
+
+SCALES = (0.07, 0.08, 0.1)
+
+
+@pytest.fixture(scope="module")
+def energy(hand, sphere_objects):
+    assets = [load_asset(sphere_objects, "sphere"), load_asset(sphere_objects, "box")]
+    return GraspEnergy.from_assets(hand, assets, EnergyConfig(object_point_spacing_m=0.002), max_scale=max(SCALES))
+
+
+def _poses(count: int, seed: int) -> torch.Tensor:
+    """Hands around the objects' centres, palm 2–8 cm away, fingers from open to curled into each other."""
+    g = torch.Generator().manual_seed(seed)
+    pose = torch.zeros(count, 28)
+    pose[:, :3] = torch.nn.functional.normalize(torch.randn(count, 3, generator=g), dim=1) * (0.02 + 0.06 * torch.rand(count, 1, generator=g))
+    pose[:, 3:6] = torch.pi * (2 * torch.rand(count, 3, generator=g) - 1)
+    pose[:, 6:] = 1.4 * torch.rand(count, 22, generator=g)
+    return pose
+
+
+def _evaluate(term, hand, pose, object_index, scale, use_torch: bool):
+    frames = hand.forward(pose)
+    rotation = frames.rotation.detach().clone().requires_grad_(True)
+    translation = frames.translation.detach().clone().requires_grad_(True)
+    call = term.evaluate_with_torch if use_torch else term
+    result = call(HandFrames(rotation, translation), object_index, scale)
+    grad_rotation, grad_translation = torch.autograd.grad(result.energy.sum(), (rotation, translation), allow_unused=True)
+    zeros = torch.zeros_like
+    return (
+        result.energy.detach(),
+        result.object_in_hand_max_m,
+        result.hand_in_object_max_m,
+        zeros(rotation) if grad_rotation is None else grad_rotation,
+        zeros(translation) if grad_translation is None else grad_translation,
+    )
+
+
+def test_kernel_equals_the_torch_operations(hand, energy):
+    """Energy, both depths and the gradient in every link frame agree (two objects, three scales, deep and curled hands)."""
+    count = 96
+    pose = _poses(count, seed=11)
+    object_index = torch.arange(count) % 2
+    scale = torch.tensor(SCALES)[torch.arange(count) % 3]
+    kernel = _evaluate(energy.penetration, hand, pose, object_index, scale, use_torch=False)
+    reference = _evaluate(energy.penetration, hand, pose, object_index, scale, use_torch=True)
+    assert (reference[0] > 1e-4).sum() >= count // 3, "the poses should penetrate"
+    assert (reference[2] > 0.01).sum() >= 5, "some links buried deep"
+    for name, got, want in zip(("energy", "object in hand", "hand in object", "d/d rotation", "d/d translation"), kernel, reference):
+        tolerance = 1e-5 * float(want.abs().max()) + 1e-7
+        assert torch.allclose(got, want, rtol=1e-4, atol=tolerance), name
+
+
+def test_a_grasp_is_evaluated_the_same_alone_and_in_a_batch(hand, energy):
+    """Bit for bit: the kernel computes each grasp on its own (the frames are the batch's, sliced)."""
+    count = 24
+    frames = hand.forward(_poses(count, seed=12))
+    object_index = torch.arange(count) % 2
+    scale = torch.tensor(SCALES)[torch.arange(count) % 3]
+
+    def evaluate(rows):
+        rotation = frames.rotation.detach()[rows].clone().requires_grad_(True)
+        translation = frames.translation.detach()[rows].clone().requires_grad_(True)
+        result = energy.penetration(HandFrames(rotation, translation), object_index[rows], scale[rows])
+        gradient = torch.autograd.grad(result.energy.sum(), (rotation, translation))
+        return (result.energy.detach(), result.object_in_hand_max_m, result.hand_in_object_max_m, *gradient)
+
+    batch = evaluate(torch.arange(count))
+    assert (batch[0] > 0).sum() >= 6
+    for row in (0, 7, 23):
+        for got, want in zip(evaluate(torch.tensor([row])), batch):
+            assert torch.equal(got[0], want[row])
+
+
+def test_without_gradient_nothing_is_attached(hand, energy):
+    pose = _poses(8, seed=13)
+    with torch.no_grad():
+        result = energy.penetration(hand.forward(pose), torch.zeros(8, dtype=torch.long), torch.full((8,), 0.08))
+    assert not result.energy.requires_grad and result.energy.shape == (8,)
+
+
+def test_grid_distance_and_gradient_equal_the_bank(hand, energy):
+    """The kernel's grid lookup at points inside, near and outside the grid box equals SdfBank's, gradient included."""
+    from dexlite_pipeline.energy.penetration_kernel import _grid_distance
+
+    g = torch.Generator().manual_seed(14)
+    points = (torch.rand(200, 3, generator=g) * 2 - 1) * 0.15  # metres; the objects reach 0.08-0.1, the grids a little beyond
+    index = torch.arange(200) % 2
+    scale = torch.full((200,), 0.08)
+    x = points.clone().requires_grad_(True)
+    distance, _ = energy.bank.signed_distance(x, index, scale, with_normal=False)
+    (gradient,) = torch.autograd.grad(distance.sum(), x)
+    energy.penetration(hand.forward(torch.zeros(1, 28)), torch.zeros(1, dtype=torch.long), torch.full((1,), 0.08))  # builds the kernel
+    volumes, grid_min, voxel_size = energy.penetration._kernel.static[:3]
+    out = np.empty(3)
+    for i in range(200):
+        o = int(index[i])
+        p = points[i].double().numpy() / 0.08
+        value = _grid_distance(volumes, o, volumes.shape[1], grid_min, voxel_size[o], p[0], p[1], p[2], out) * 0.08
+        assert value == pytest.approx(float(distance[i].detach()), abs=2e-6)
+        assert np.allclose(out, gradient[i].double().numpy(), rtol=1e-4, atol=1e-4)
