@@ -62,6 +62,24 @@ def test_kernel_equals_the_torch_operations(hand, energy):
         assert torch.allclose(got, want, rtol=1e-4, atol=tolerance), name
 
 
+def test_hit_buffers_grow_without_changing_the_result(hand, energy):
+    """Grasps with more object points inside the hand than the buffers hold are evaluated again with longer ones."""
+    count = 12
+    pose = _poses(count, seed=15)
+    object_index = torch.arange(count) % 2
+    scale = torch.tensor(SCALES)[torch.arange(count) % 3]
+    kernel = energy.penetration.kernel
+    default = _evaluate(energy.penetration, hand, pose, object_index, scale, use_torch=False)
+    kernel.initial_hits = 2
+    try:
+        small = _evaluate(energy.penetration, hand, pose, object_index, scale, use_torch=False)
+    finally:
+        kernel.initial_hits = type(kernel).initial_hits
+    assert (default[1] > 0).sum() >= 4, "some grasps must have object points inside the hand"
+    for got, want in zip(small, default):
+        assert torch.equal(got, want)
+
+
 def test_a_grasp_is_evaluated_the_same_alone_and_in_a_batch(hand, energy):
     """Bit for bit: the kernel computes each grasp on its own (the frames are the batch's, sliced)."""
     count = 24
@@ -101,8 +119,7 @@ def test_grid_distance_and_gradient_equal_the_bank(hand, energy):
     x = points.clone().requires_grad_(True)
     distance, _ = energy.bank.signed_distance(x, index, scale, with_normal=False)
     (gradient,) = torch.autograd.grad(distance.sum(), x)
-    energy.penetration(hand.forward(torch.zeros(1, 28)), torch.zeros(1, dtype=torch.long), torch.full((1,), 0.08))  # builds the kernel
-    volumes, grid_min, voxel_size = energy.penetration._kernel.static[:3]
+    volumes, grid_min, voxel_size = energy.penetration.kernel.static[:3]
     out = np.empty(3)
     for i in range(200):
         o = int(index[i])

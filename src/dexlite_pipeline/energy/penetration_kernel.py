@@ -7,17 +7,21 @@ of a step). This module computes the same quantities grasp by grasp in one loop:
 - hand in object: every sphere's centre from its link frame, its trilinear SDF value and
   gradient (the grid's, as ``SdfBank.signed_distance``), the deepest sphere per shape
   (which shapes are active), and Σ d(c) over the centres inside the object;
-- object in hand: for each active shape, the object's clusters whose bounding spheres
-  meet the shape's (parents first), their member points among the grasp's own prefix,
+- object in hand: for each active shape, the object's clusters (``point_clusters``) whose
+  parent's and own bounding sphere the shape may reach (the shape's depth, 1-Lipschitz, at
+  the sphere's centre above −radius), their member points among the grasp's own prefix,
   each point's analytic depth in the capsule or box; a point inside several shapes counts
   once, at its deepest (exact ties share it, as ``torch.amax``'s gradient does);
 - the gradient of E_pen with respect to each link's rotation (3, 3) and translation (3),
   accumulated in the same pass, so backward is one multiplication.
 
-The candidate culling may admit more clusters than the torch path (it is only a bound);
-which points count is decided by the exact depth test, so both paths count the same
-points. Arithmetic is float64 inside; the grids and points are read as stored (float32).
-Each grasp is computed on its own, so its result never depends on the rest of its batch.
+The culling may admit more clusters than the torch path (it is only a bound); which points
+count is decided by the exact depth test, so both paths count the same points. Arithmetic is
+float64 inside; the grids and points are read as stored (float32). Each grasp is computed on
+its own, so its result never depends on the rest of its batch. The culling loops read the
+clusters as one array per coordinate and are written without calls or allocations, so they
+compile to vector code; hot loops never reassign an array (numba would then count references
+at every iteration, which measured 2x slower).
 """
 
 from __future__ import annotations
@@ -28,22 +32,16 @@ import numba
 import numpy as np
 import torch
 
+from dexlite_pipeline.energy.point_clusters import LEAVES_PER_PARENT, PADDING
 from dexlite_pipeline.hand.model import CAPSULE
 
-# Culling slack in normalized units², added to the squared reach of the bounding-sphere tests
-# (admits a few more clusters; never drops one to rounding).
-_SPHERE_SLACK = 1e-6
 # Slack of the cluster-centre depth test, metres (rounding never drops a cluster).
 _DEPTH_SLACK_M = 1e-6
-# Depth of the walk's stack: a tree over n clusters is ⌈log₂ n⌉ deep and the walk holds at most one node per level plus one.
-_STACK_SIZE = 128
-# Hits per grasp before the buffers grow (doubling).
-_INITIAL_HITS = 1024
 # sqrt(1e-18): the torch path's guard inside square roots, kept so depths match it exactly.
 _SQRT_EPS = 1e-18
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, inline="always")
 def _axis_gradient(u, uc, top, grad_u, h, outside):
     """One axis of the distance's gradient: the interpolant's where the clamp passes it, else the grid box's."""
     if 0.0 <= u <= top:
@@ -53,7 +51,7 @@ def _axis_gradient(u, uc, top, grad_u, h, outside):
     return 0.0
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, inline="always")
 def _grid_distance(volumes, o, g, gmin, h, x, y, z, gradient):
     """SdfBank's distance at normalized point (x, y, z) of object o, in normalized units (positive inside);
     its gradient, metres of distance per metre of point, is written into ``gradient`` (3,)."""
@@ -101,7 +99,14 @@ def _shape_depth(kind, size0, size1, size2, lx, ly, lz):
     return -(outside + min(max(qx, qy, qz), 0.0))
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, inline="always")
+def _depth_at(kind, size0, size1, size2, r00, r01, r02, r10, r11, r12, r20, r21, r22, px, py, pz, s, x, y, z):
+    """``_shape_depth`` of the normalized point (x, y, z) at scale ``s``, for a shape at [R | p] (metres)."""
+    vx, vy, vz = s * x - px, s * y - py, s * z - pz
+    return _shape_depth(kind, size0, size1, size2, r00 * vx + r10 * vy + r20 * vz, r01 * vx + r11 * vy + r21 * vz, r02 * vx + r12 * vy + r22 * vz)
+
+
+@numba.njit(cache=True, nogil=True, inline="always")
 def _shape_depth_gradient(kind, size0, size1, size2, lx, ly, lz, gradient):
     """The gradient (3,) of ``_shape_depth`` at a point inside the shape, written into ``gradient``."""
     if kind == CAPSULE:
@@ -126,10 +131,15 @@ def _one_grasp(
     volumes, grid_min, voxel_size, interpolation_error,
     sphere_centre, sphere_radius, sphere_link, sphere_shape,
     shape_link, shape_rot, shape_pos, shape_kind, shape_size, shape_radius, shape_gap,
-    points, cluster_members, tree_centre, tree_radius, tree_child, tree_cluster,
-    energy, object_max, hand_max, grad_rotation, grad_translation,
+    points, parent_x, parent_y, parent_z, parent_r, cluster_x, cluster_y, cluster_z, cluster_r, member_x, member_y, member_z, member_index, leaves_per_parent,
+    energy, object_max, hand_max, grad_rotation, grad_translation, hit_point, hit_shape, hit_depth,
 ):
+    """E_pen of grasp ``b`` into ``energy[b]`` etc.; returns the number of hits, which must not exceed the buffers'
+    length (else nothing is final: the caller calls again with longer buffers)."""
     g = volumes.shape[1]
+    if want_gradient:
+        grad_rotation[b] = 0.0
+        grad_translation[b] = 0.0
     h = voxel_size[o]
     shape_count = shape_link.shape[0]
     reach = np.full(shape_count, -np.inf)
@@ -161,11 +171,11 @@ def _one_grasp(
     # Object in hand: points of the grasp's prefix inside the active shapes.
     margin = interpolation_error[o] * s
     frame = np.zeros((shape_count, 12))  # per shape [R row-major | c], metres
-    hit_point = np.empty(_INITIAL_HITS, np.int64)
-    hit_shape = np.empty(_INITIAL_HITS, np.int64)
-    hit_depth = np.empty(_INITIAL_HITS)
+    capacity = hit_point.shape[0]
     hits = 0
-    stack = np.empty(_STACK_SIZE, np.int64)
+    width = member_index.shape[1] // cluster_x.shape[1]  # points per cluster slot
+    parent_open = np.empty(parent_x.shape[1], np.bool_)
+    leaf_open = np.empty(leaves_per_parent, np.bool_)
     for shape in range(shape_count):
         if not reach[shape] > -(margin + shape_gap[shape]):
             continue
@@ -183,51 +193,37 @@ def _one_grasp(
         size0, size1, size2 = shape_size[shape, 0], shape_size[shape, 1], shape_size[shape, 2]
         mx, my, mz = px / s, py / s, pz / s
         rho = shape_radius[shape] / s
-        # Depth-first walk of the object's cluster tree, opening a node only if its sphere meets the shape's
-        # bounding sphere and the shape's depth (1-Lipschitz) at its centre comes within its radius.
-        top = 1
-        stack[0] = 0
-        while top > 0:
-            top -= 1
-            node = stack[top]
-            radius = tree_radius[o, node]
-            nx, ny, nz = tree_centre[o, node, 0], tree_centre[o, node, 1], tree_centre[o, node, 2]
-            if (mx - nx) ** 2 + (my - ny) ** 2 + (mz - nz) ** 2 >= (rho + radius) ** 2 + _SPHERE_SLACK:
+        # Two levels of culling, each one vectorizable loop: the shape's depth (1-Lipschitz) at each parent sphere's
+        # centre must come within its radius, then at each of its clusters'; then the clusters' points themselves.
+        parents = parent_x.shape[1]
+        for j in range(parents):
+            parent_open[j] = _depth_at(kind, size0, size1, size2, r00, r01, r02, r10, r11, r12, r20, r21, r22, px, py, pz, s,
+                                       parent_x[o, j], parent_y[o, j], parent_z[o, j]) + parent_r[o, j] * s > -_DEPTH_SLACK_M
+        for j in range(parents):
+            if not parent_open[j]:
                 continue
-            vx, vy, vz = s * nx - px, s * ny - py, s * nz - pz
-            lx = r00 * vx + r10 * vy + r20 * vz
-            ly = r01 * vx + r11 * vy + r21 * vz
-            lz = r02 * vx + r12 * vy + r22 * vz
-            if _shape_depth(kind, size0, size1, size2, lx, ly, lz) + radius * s <= -_DEPTH_SLACK_M:
-                continue
-            cluster = tree_cluster[o, node]
-            if cluster < 0:
-                stack[top] = tree_child[o, node, 0]
-                stack[top + 1] = tree_child[o, node, 1]
-                top += 2
-                continue
-            for slot in range(cluster_members.shape[2]):
-                point = cluster_members[o, cluster, slot]
-                if point < 0:
-                    break
-                if point >= count:
+            first = j * leaves_per_parent
+            for c in range(leaves_per_parent):
+                cluster = first + c
+                leaf_open[c] = _depth_at(kind, size0, size1, size2, r00, r01, r02, r10, r11, r12, r20, r21, r22, px, py, pz, s,
+                                         cluster_x[o, cluster], cluster_y[o, cluster], cluster_z[o, cluster]) + cluster_r[o, cluster] * s > -_DEPTH_SLACK_M
+            for c in range(leaves_per_parent):
+                if not leaf_open[c]:
                     continue
-                vx = s * points[o, point, 0] - px
-                vy = s * points[o, point, 1] - py
-                vz = s * points[o, point, 2] - pz
-                lx = r00 * vx + r10 * vy + r20 * vz
-                ly = r01 * vx + r11 * vy + r21 * vz
-                lz = r02 * vx + r12 * vy + r22 * vz
-                depth = _shape_depth(kind, size0, size1, size2, lx, ly, lz)
-                if depth > 0.0:
-                    if hits == hit_point.shape[0]:
-                        hit_point = np.concatenate((hit_point, np.empty(hits, np.int64)))
-                        hit_shape = np.concatenate((hit_shape, np.empty(hits, np.int64)))
-                        hit_depth = np.concatenate((hit_depth, np.empty(hits)))
-                    hit_point[hits] = point
-                    hit_shape[hits] = shape
-                    hit_depth[hits] = depth
-                    hits += 1
+                start = (first + c) * width
+                for m in range(start, start + width):
+                    depth = _depth_at(kind, size0, size1, size2, r00, r01, r02, r10, r11, r12, r20, r21, r22, px, py, pz, s,
+                                      member_x[o, m], member_y[o, m], member_z[o, m])
+                    if depth > 0.0:
+                        point = member_index[o, m]
+                        if point >= 0 and point < count:
+                            if hits < capacity:
+                                hit_point[hits] = point
+                                hit_shape[hits] = shape
+                                hit_depth[hits] = depth
+                            hits += 1
+    if hits > capacity:
+        return hits  # the caller grows the buffers and calls again
     object_energy = 0.0
     deepest_point = 0.0
     if hits > 0:
@@ -280,15 +276,16 @@ def _one_grasp(
                                                          + grad_frame[shape, 3 * a + 2] * shape_rot[shape, j, 2] + grad_frame[shape, 9 + a] * shape_pos[shape, j])
     object_max[b] = deepest_point
     energy[b] = object_energy + hand_energy
+    return hits
 
 
 @numba.njit(cache=True, nogil=True)
 def _penetration_batch(
-    rotation, translation, object_index, scale, count, weight, want_gradient,
+    rotation, translation, object_index, scale, count, weight, want_gradient, initial_hits,
     volumes, grid_min, voxel_size, interpolation_error,
     sphere_centre, sphere_radius, sphere_link, sphere_shape,
     shape_link, shape_rot, shape_pos, shape_kind, shape_size, shape_radius, shape_gap,
-    points, cluster_members, tree_centre, tree_radius, tree_child, tree_cluster,
+    points, parent_x, parent_y, parent_z, parent_r, cluster_x, cluster_y, cluster_z, cluster_r, member_x, member_y, member_z, member_index, leaves_per_parent,
 ):
     batch, links = rotation.shape[0], rotation.shape[1]
     energy = np.zeros(batch)
@@ -296,68 +293,47 @@ def _penetration_batch(
     hand_max = np.zeros(batch)
     grad_rotation = np.zeros((batch, links, 3, 3)) if want_gradient else np.zeros((0, links, 3, 3))
     grad_translation = np.zeros((batch, links, 3)) if want_gradient else np.zeros((0, links, 3))
+    hit_point = np.empty(initial_hits, np.int64)
+    hit_shape = np.empty(initial_hits, np.int64)
+    hit_depth = np.empty(initial_hits)
     for b in range(batch):
-        _one_grasp(
-            b, rotation, translation, object_index[b], scale[b], count[b], weight[b], want_gradient,
-            volumes, grid_min, voxel_size, interpolation_error,
-            sphere_centre, sphere_radius, sphere_link, sphere_shape,
-            shape_link, shape_rot, shape_pos, shape_kind, shape_size, shape_radius, shape_gap,
-            points, cluster_members, tree_centre, tree_radius, tree_child, tree_cluster,
-            energy, object_max, hand_max, grad_rotation, grad_translation,
-        )
+        while True:
+            hits = _one_grasp(
+                b, rotation, translation, object_index[b], scale[b], count[b], weight[b], want_gradient,
+                volumes, grid_min, voxel_size, interpolation_error,
+                sphere_centre, sphere_radius, sphere_link, sphere_shape,
+                shape_link, shape_rot, shape_pos, shape_kind, shape_size, shape_radius, shape_gap,
+                points, parent_x, parent_y, parent_z, parent_r, cluster_x, cluster_y, cluster_z, cluster_r, member_x, member_y, member_z, member_index, leaves_per_parent,
+                energy, object_max, hand_max, grad_rotation, grad_translation, hit_point, hit_shape, hit_depth,
+            )
+            if hits <= hit_point.shape[0]:
+                break
+            hit_point = np.empty(2 * hits, np.int64)  # rare: a hand deep in a densely sampled object
+            hit_shape = np.empty(2 * hits, np.int64)
+            hit_depth = np.empty(2 * hits)
     return energy, object_max, hand_max, grad_rotation, grad_translation
 
-@numba.njit(cache=True)
-def _build_tree(centre, radius, count, tree_centre, tree_radius, tree_child, tree_cluster):
-    """Binary tree over clusters 0 … count − 1 (halving the index range; the clusters come in the k-d tree's
-    depth-first order, so a range is compact in space); node 0 is the root, each node's sphere holds its
-    clusters' spheres. Returns the number of nodes written."""
-    lo_of = np.empty(2 * count, np.int64)
-    hi_of = np.empty(2 * count, np.int64)
-    lo_of[0], hi_of[0] = 0, count
-    nodes = 1
-    for node in range(2 * count - 1):  # parents before children, so the loop meets each node after it is made
-        if node >= nodes:
-            break
-        lo, hi = lo_of[node], hi_of[node]
-        weight = hi - lo
-        for a in range(3):
-            total = 0.0
-            for c in range(lo, hi):
-                total += centre[c, a]
-            tree_centre[node, a] = total / weight
-        largest = 0.0
-        for c in range(lo, hi):
-            gap = math.sqrt((centre[c, 0] - tree_centre[node, 0]) ** 2 + (centre[c, 1] - tree_centre[node, 1]) ** 2
-                            + (centre[c, 2] - tree_centre[node, 2]) ** 2) + radius[c]
-            largest = max(largest, gap)
-        tree_radius[node] = largest * (1 + 1e-6) + 1e-7
-        if weight == 1:
-            tree_cluster[node] = lo
-            continue
-        tree_cluster[node] = -1
-        mid = (lo + hi) // 2
-        for child, (a, b) in enumerate(((lo, mid), (mid, hi))):
-            lo_of[nodes], hi_of[nodes] = a, b
-            tree_child[node, child] = nodes
-            nodes += 1
-    return nodes
+def cluster_arrays(clusters, object_points: torch.Tensor) -> tuple[np.ndarray, ...]:
+    """``PointClusters`` as flat float64 arrays per object, one per coordinate (so the culling loops vectorize):
+    parent centres x, y, z and radii (n, P); cluster centres x, y, z and radii (n, C); the members' points x, y, z
+    (n, C·L), L slots per cluster in order, and their indices (n, C·L), −1 for empty slots (placed far away)."""
+    def coordinates(tensor):
+        values = tensor.detach().cpu().double().numpy()
+        return tuple(np.ascontiguousarray(values[..., a]) for a in range(3))
 
+    def radii(tensor):
+        return np.ascontiguousarray(tensor.detach().cpu().double().numpy())
 
-def cluster_trees(centre: np.ndarray, radius: np.ndarray, members: np.ndarray) -> tuple[np.ndarray, ...]:
-    """Per object, ``_build_tree`` over its clusters that hold points: centres (n, N, 3), radii (n, N),
-    children (n, N, 2) and the cluster of each leaf (n, N), −1 for inner nodes, N the most nodes of any object."""
-    counts = [int((m[:, 0] >= 0).sum()) for m in members]  # padding clusters (no members) come last
-    width = max(2 * max(counts) - 1, 1)
-    objects = len(counts)
-    tree_centre = np.full((objects, width, 3), 1e9)
-    tree_radius = np.zeros((objects, width))
-    tree_child = np.zeros((objects, width, 2), np.int64)
-    tree_cluster = np.full((objects, width), -1, np.int64)
-    for o, count in enumerate(counts):
-        if count:
-            _build_tree(centre[o], radius[o], count, tree_centre[o], tree_radius[o], tree_child[o], tree_cluster[o])
-    return tree_centre, tree_radius, tree_child, tree_cluster
+    members = clusters.members.detach().cpu().numpy().astype(np.int64)
+    objects, count, width = members.shape
+    member_index = members.reshape(objects, count * width)
+    member_points = np.take_along_axis(object_points.detach().cpu().double().numpy(), np.clip(member_index, 0, None)[..., None], axis=1)
+    member_points[member_index < 0] = PADDING
+    return (
+        *coordinates(clusters.parent_centre), radii(clusters.parent_radius),
+        *coordinates(clusters.centre), radii(clusters.radius),
+        *coordinates(torch.from_numpy(member_points)), member_index,
+    )
 
 
 class _AttachGradient(torch.autograd.Function):
@@ -376,6 +352,8 @@ class _AttachGradient(torch.autograd.Function):
 
 class PenetrationKernel:
     """The static arrays of one ``PenetrationTerm`` as NumPy views, and its compiled evaluation."""
+
+    initial_hits = 1024  # hits (object points inside a shape) one grasp may have before the buffers grow
 
     def __init__(self, term) -> None:
         def array(tensor, dtype):
@@ -400,8 +378,8 @@ class PenetrationKernel:
             array(term.radius, np.float64),
             array(spheres.shape_gap, np.float64),
             array(term.object_points, np.float32),
-            array(clusters.members, np.int64),
-            *cluster_trees(array(clusters.centre, np.float64), array(clusters.radius, np.float64), array(clusters.members, np.int64)),
+            *cluster_arrays(clusters, term.object_points),
+            LEAVES_PER_PARENT,
         )
 
     def __call__(self, frames, object_index: torch.Tensor, scale: torch.Tensor, count: torch.Tensor, weight: torch.Tensor):
@@ -416,6 +394,7 @@ class PenetrationKernel:
             count.numpy().astype(np.int64, copy=False),
             weight.detach().numpy().astype(np.float64),
             want_gradient,
+            self.initial_hits,
             *self.static,
         )
         dtype = rotation.dtype

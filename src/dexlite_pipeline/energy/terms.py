@@ -267,13 +267,18 @@ class PenetrationTerm(EnergyTerm):
         On the CPU the grid measure runs as one compiled pass (``energy.penetration_kernel``); elsewhere, and for
         ``exact``, as torch operations (``evaluate_with_torch``), which the kernel is tested against."""
         if not exact and self.object_points.device.type == "cpu":
-            if self._kernel is None:
-                from dexlite_pipeline.energy.penetration_kernel import PenetrationKernel  # imports numba (~1 s): only when used
-
-                self._kernel = PenetrationKernel(self)
             count, weight = self.point_counts(object_index, scale)
-            return PenetrationResult(*self._kernel(frames, object_index, scale, count, weight))
+            return PenetrationResult(*self.kernel(frames, object_index, scale, count, weight))
         return self.evaluate_with_torch(frames, object_index, scale, exact)
+
+    @property
+    def kernel(self):
+        """The compiled CPU pass (``penetration_kernel.PenetrationKernel``), built on first use (importing numba takes ~1 s)."""
+        if self._kernel is None:
+            from dexlite_pipeline.energy.penetration_kernel import PenetrationKernel
+
+            self._kernel = PenetrationKernel(self)
+        return self._kernel
 
     def evaluate_with_torch(self, frames: HandFrames, object_index: torch.Tensor, scale: torch.Tensor, exact: bool = False) -> PenetrationResult:
         """``__call__`` as torch operations, on any device."""
