@@ -110,7 +110,7 @@ def test_without_gradient_nothing_is_attached(hand, energy):
 
 def test_grid_distance_and_gradient_equal_the_bank(hand, energy):
     """The kernel's grid lookup at points inside, near and outside the grid box equals SdfBank's, gradient included."""
-    from dexlite_pipeline.energy.penetration_kernel import _grid_distance
+    from dexlite_pipeline.energy.grid_kernel import grid_distance
 
     g = torch.Generator().manual_seed(14)
     points = (torch.rand(200, 3, generator=g) * 2 - 1) * 0.15  # metres; the objects reach 0.08-0.1, the grids a little beyond
@@ -124,6 +124,57 @@ def test_grid_distance_and_gradient_equal_the_bank(hand, energy):
     for i in range(200):
         o = int(index[i])
         p = points[i].double().numpy() / 0.08
-        value = _grid_distance(volumes, o, volumes.shape[1], grid_min, voxel_size[o], p[0], p[1], p[2], out) * 0.08
+        value = grid_distance(volumes, o, volumes.shape[1], grid_min, voxel_size[o], p[0], p[1], p[2], out) * 0.08
         assert value == pytest.approx(float(distance[i].detach()), abs=2e-6)
         assert np.allclose(out, gradient[i].double().numpy(), rtol=1e-4, atol=1e-4)
+
+
+def test_self_penetration_kernel_equals_the_torch_operations(hand, energy):
+    """E_spen and its gradient in every link frame, curled fingers (many close pairs) and open hands."""
+    pose = _poses(48, seed=16)
+    frames = hand.forward(pose)
+    results = []
+    for call in (energy.self_penetration, energy.self_penetration.evaluate_with_torch):
+        rotation = frames.rotation.detach().clone().requires_grad_(True)
+        translation = frames.translation.detach().clone().requires_grad_(True)
+        value = call(HandFrames(rotation, translation))
+        results.append((value.detach(), *torch.autograd.grad(value.sum(), (rotation, translation))))
+    assert (results[1][0] > 0).sum() >= 10, "the poses should press fingers together"
+    for name, got, want in zip(("E_spen", "d/d rotation", "d/d translation"), *results):
+        assert torch.allclose(got, want, rtol=1e-4, atol=1e-5 * float(want.abs().max())), name
+
+
+def test_contact_kernel_equals_the_bank(hand, energy, sphere_objects):
+    """Points, distances and normals of chosen contacts, and the gradient of a loss of all three in the frames,
+    equal ``SdfBank.signed_distance``'s (pads inside, on and off the objects, some beyond the grid box). The
+    reference runs in float64 like the kernel: just outside the grid box the normal's Jacobian divides by the
+    distance to the box, and float32 rounding there is not a difference worth testing."""
+    from dexlite_pipeline.objects.assets import SdfBank
+
+    count = 64
+    pose = _poses(count, seed=17)
+    pose[::8, :3] *= 6.0  # hands far out: contacts outside the grid box
+    frames = hand.forward(pose)
+    object_index = torch.arange(count) % 2
+    scale = torch.tensor(SCALES)[torch.arange(count) % 3]
+    contacts = torch.randint(0, len(hand.contact_link), (count, 4), generator=torch.Generator().manual_seed(18))
+    weights = [torch.randn(shape, generator=torch.Generator().manual_seed(19 + i), dtype=torch.float64)
+               for i, shape in enumerate(((count, 4, 3), (count, 4), (count, 4, 3)))]
+    bank64 = SdfBank([load_asset(sphere_objects, "sphere"), load_asset(sphere_objects, "box")], dtype=torch.float64)
+    bank64.grid_min, bank64.voxel_size = energy.bank.grid_min.double(), energy.bank.voxel_size.double()  # the kernel's (float32) values
+    results = []
+    for use_kernel in (True, False):
+        rotation = frames.rotation.detach().double().clone().requires_grad_(True)
+        translation = frames.translation.detach().double().clone().requires_grad_(True)
+        moved = HandFrames(rotation, translation)
+        if use_kernel:
+            points, distance, normal = energy.contact_kernel(moved, contacts, object_index, scale)
+        else:
+            points = moved.transform(hand.contact_points_local.double(), hand.contact_link)
+            points = torch.gather(points, 1, contacts[..., None].expand(-1, -1, 3))
+            distance, normal = bank64.signed_distance(points, object_index[:, None], scale.double()[:, None])
+        loss = sum((value * weight).sum() for value, weight in zip((points, distance, normal), weights))
+        results.append((points.detach(), distance.detach(), normal.detach(), *torch.autograd.grad(loss, (rotation, translation))))
+    assert (results[1][1] > 0).sum() >= 8 and (results[1][1] < -0.05).sum() >= 8, "contacts inside and far outside"
+    for name, got, want in zip(("points", "distance", "normal", "d/d rotation", "d/d translation"), *results):
+        assert torch.allclose(got, want, rtol=1e-4, atol=1e-6 * float(want.abs().max())), name

@@ -110,6 +110,7 @@ class GraspEnergy:
         self.joint_limits = JointLimitTerm(hand.joint_limits)
         self.self_penetration = SelfPenetrationTerm(hand, self_penetration_margin_m)
         self.candidate_map = LinkFrameMap.for_points(hand.contact_points_local, hand.contact_link, len(hand.link_names))
+        self._contact_kernel = None
         self.penetration = PenetrationTerm(
             hand,
             sdf_bank,
@@ -194,6 +195,15 @@ class GraspEnergy:
         return self.bank.indices(object_ids)
 
     # ------------------------------------------------------------------ contacts
+    @property
+    def contact_kernel(self):
+        """The chosen contacts' points, distances and normals compiled for the CPU (``energy.contact_kernel``), built on first use."""
+        if self._contact_kernel is None:
+            from dexlite_pipeline.energy.contact_kernel import ContactKernel  # imports numba: only when used
+
+            self._contact_kernel = ContactKernel(self.bank, self.hand.contact_points_local, self.hand.contact_link)
+        return self._contact_kernel
+
     def contact_points(self, frames: HandFrames, contact_index: torch.Tensor) -> torch.Tensor:
         """(B, 4, 3) object-frame positions of the chosen contact candidates (only those are computed)."""
         batch = torch.arange(contact_index.shape[0], device=contact_index.device)[:, None].expand_as(contact_index)
@@ -273,8 +283,11 @@ class GraspEnergy:
         scale = scale.to(self.hand.dtype)
         if contact_index is None:
             contact_index = self.nearest_contacts(frames, object_index, scale)
-        points = self.contact_points(frames, contact_index)
-        distance, normal = self.bank.signed_distance(points, object_index[:, None], scale[:, None])
+        if self.device.type == "cpu":
+            points, distance, normal = self.contact_kernel(frames, contact_index, object_index, scale)
+        else:
+            points = self.contact_points(frames, contact_index)
+            distance, normal = self.bank.signed_distance(points, object_index[:, None], scale[:, None])
         support_normal, support_offset_m = self.support(object_index, scale)
         return EnergyContext(
             support_normal=support_normal,

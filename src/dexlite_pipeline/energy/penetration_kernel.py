@@ -5,7 +5,7 @@ energy step on per-operation overhead and on gathering candidate rows (measured:
 of a step). This module computes the same quantities grasp by grasp in one loop:
 
 - hand in object: every sphere's centre from its link frame, its trilinear SDF value and
-  gradient (the grid's, as ``SdfBank.signed_distance``), the deepest sphere per shape
+  gradient (the grid's, ``grid_kernel``), the deepest sphere per shape
   (which shapes are active), and Σ d(c) over the centres inside the object;
 - object in hand: for each active shape, the object's clusters (``point_clusters``) whose
   parent's and own bounding sphere the shape may reach (the shape's depth, 1-Lipschitz, at
@@ -32,6 +32,8 @@ import numba
 import numpy as np
 import torch
 
+from dexlite_pipeline.energy.frame_gradient import attach, frame_arrays, wants_gradient
+from dexlite_pipeline.energy.grid_kernel import grid_distance
 from dexlite_pipeline.energy.point_clusters import LEAVES_PER_PARENT, PADDING
 from dexlite_pipeline.hand.model import CAPSULE
 
@@ -39,52 +41,6 @@ from dexlite_pipeline.hand.model import CAPSULE
 _DEPTH_SLACK_M = 1e-6
 # sqrt(1e-18): the torch path's guard inside square roots, kept so depths match it exactly.
 _SQRT_EPS = 1e-18
-
-
-@numba.njit(cache=True, nogil=True, inline="always")
-def _axis_gradient(u, uc, top, grad_u, h, outside):
-    """One axis of the distance's gradient: the interpolant's where the clamp passes it, else the grid box's."""
-    if 0.0 <= u <= top:
-        return grad_u / h
-    if outside > 0.0:
-        return -(u - uc) * h / outside
-    return 0.0
-
-
-@numba.njit(cache=True, nogil=True, inline="always")
-def _grid_distance(volumes, o, g, gmin, h, x, y, z, gradient):
-    """SdfBank's distance at normalized point (x, y, z) of object o, in normalized units (positive inside);
-    its gradient, metres of distance per metre of point, is written into ``gradient`` (3,)."""
-    top = g - 1 - 1e-4
-    ux = (x - gmin[o, 0]) / h
-    uy = (y - gmin[o, 1]) / h
-    uz = (z - gmin[o, 2]) / h
-    ucx, ucy, ucz = min(max(ux, 0.0), top), min(max(uy, 0.0), top), min(max(uz, 0.0), top)
-    outside = math.sqrt(((ux - ucx) * h) ** 2 + ((uy - ucy) * h) ** 2 + ((uz - ucz) * h) ** 2)
-    bx, by, bz = int(math.floor(ucx)), int(math.floor(ucy)), int(math.floor(ucz))
-    fx, fy, fz = ucx - bx, ucy - by, ucz - bz
-    c000 = volumes[o, bx, by, bz]
-    c100 = volumes[o, bx + 1, by, bz]
-    c010 = volumes[o, bx, by + 1, bz]
-    c110 = volumes[o, bx + 1, by + 1, bz]
-    c001 = volumes[o, bx, by, bz + 1]
-    c101 = volumes[o, bx + 1, by, bz + 1]
-    c011 = volumes[o, bx, by + 1, bz + 1]
-    c111 = volumes[o, bx + 1, by + 1, bz + 1]
-    c00 = c000 + (c100 - c000) * fx
-    c10 = c010 + (c110 - c010) * fx
-    c01 = c001 + (c101 - c001) * fx
-    c11 = c011 + (c111 - c011) * fx
-    c0 = c00 + (c10 - c00) * fy
-    c1 = c01 + (c11 - c01) * fy
-    value = c0 + (c1 - c0) * fz
-    gx = ((c100 - c000) * (1 - fy) + (c110 - c010) * fy) * (1 - fz) + ((c101 - c001) * (1 - fy) + (c111 - c011) * fy) * fz
-    gy = (c10 - c00) * (1 - fz) + (c11 - c01) * fz
-    gz = c1 - c0
-    gradient[0] = _axis_gradient(ux, ucx, top, gx, h, outside)
-    gradient[1] = _axis_gradient(uy, ucy, top, gy, h, outside)
-    gradient[2] = _axis_gradient(uz, ucz, top, gz, h, outside)
-    return value - outside
 
 
 @numba.njit(cache=True, nogil=True, inline="always")
@@ -153,7 +109,7 @@ def _one_grasp(
         cx = rotation[b, link, 0, 0] * x + rotation[b, link, 0, 1] * y + rotation[b, link, 0, 2] * z + translation[b, link, 0]
         cy = rotation[b, link, 1, 0] * x + rotation[b, link, 1, 1] * y + rotation[b, link, 1, 2] * z + translation[b, link, 1]
         cz = rotation[b, link, 2, 0] * x + rotation[b, link, 2, 1] * y + rotation[b, link, 2, 2] * z + translation[b, link, 2]
-        distance = _grid_distance(volumes, o, g, grid_min, h, cx / s, cy / s, cz / s, gradient) * s
+        distance = grid_distance(volumes, o, g, grid_min, h, cx / s, cy / s, cz / s, gradient) * s
         depth = distance + sphere_radius[k]
         shape = sphere_shape[k]
         if depth > reach[shape]:
@@ -336,20 +292,6 @@ def cluster_arrays(clusters, object_points: torch.Tensor) -> tuple[np.ndarray, .
     )
 
 
-class _AttachGradient(torch.autograd.Function):
-    """E_pen (B,) computed outside autograd, attached to the link frames with its precomputed gradient."""
-
-    @staticmethod
-    def forward(ctx, rotation, translation, energy, grad_rotation, grad_translation):
-        ctx.save_for_backward(grad_rotation, grad_translation)
-        return energy
-
-    @staticmethod
-    def backward(ctx, grad_energy):
-        grad_rotation, grad_translation = ctx.saved_tensors
-        return grad_energy[:, None, None, None] * grad_rotation, grad_energy[:, None, None] * grad_translation, None, None, None
-
-
 class PenetrationKernel:
     """The static arrays of one ``PenetrationTerm`` as NumPy views, and its compiled evaluation."""
 
@@ -384,23 +326,17 @@ class PenetrationKernel:
 
     def __call__(self, frames, object_index: torch.Tensor, scale: torch.Tensor, count: torch.Tensor, weight: torch.Tensor):
         """(energy (B,) attached to the frames' graph, object-in-hand max (B,), hand-in-object max (B,)), in metres."""
-        rotation, translation = frames.rotation, frames.translation
-        want_gradient = torch.is_grad_enabled() and (rotation.requires_grad or translation.requires_grad)
+        rotation, translation = frame_arrays(frames)
         energy, object_max, hand_max, grad_rotation, grad_translation = _penetration_batch(
-            np.ascontiguousarray(rotation.detach().numpy(), dtype=np.float64),
-            np.ascontiguousarray(translation.detach().numpy(), dtype=np.float64),
+            rotation,
+            translation,
             object_index.numpy().astype(np.int64, copy=False),
             scale.detach().numpy().astype(np.float64),
             count.numpy().astype(np.int64, copy=False),
             weight.detach().numpy().astype(np.float64),
-            want_gradient,
+            wants_gradient(frames),
             self.initial_hits,
             *self.static,
         )
-        dtype = rotation.dtype
-        energy_t = torch.from_numpy(energy).to(dtype)
-        if want_gradient:
-            energy_t = _AttachGradient.apply(
-                rotation, translation, energy_t, torch.from_numpy(grad_rotation).to(dtype), torch.from_numpy(grad_translation).to(dtype)
-            )
-        return energy_t, torch.from_numpy(object_max).to(dtype), torch.from_numpy(hand_max).to(dtype)
+        dtype = frames.rotation.dtype
+        return attach(frames, energy, grad_rotation, grad_translation), torch.from_numpy(object_max).to(dtype), torch.from_numpy(hand_max).to(dtype)

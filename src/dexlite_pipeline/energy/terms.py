@@ -143,11 +143,23 @@ class SelfPenetrationTerm(EnergyTerm):
         self.margin_m = margin_m
         self.pairs = torch.triu(hand.keypoint_pair_mask, diagonal=1).nonzero(as_tuple=True)
         self.keypoint_map = LinkFrameMap.for_points(hand.keypoints_local, hand.keypoint_link, len(hand.link_names))
+        self._kernel = None  # ``SelfPenetrationKernel``, built on the first CPU call
 
     def evaluate(self, context: EnergyContext) -> torch.Tensor:
         return self(context.frames)
 
     def __call__(self, frames: HandFrames) -> torch.Tensor:
+        """(B,) E_spen; on the CPU compiled (``energy.self_penetration_kernel``), elsewhere ``evaluate_with_torch``."""
+        if frames.translation.device.type == "cpu":
+            if self._kernel is None:
+                from dexlite_pipeline.energy.self_penetration_kernel import SelfPenetrationKernel  # imports numba: only when used
+
+                self._kernel = SelfPenetrationKernel(self.hand.keypoints_local, self.hand.keypoint_link, *self.pairs, self.margin_m)
+            return self._kernel(frames)
+        return self.evaluate_with_torch(frames)
+
+    def evaluate_with_torch(self, frames: HandFrames) -> torch.Tensor:
+        """``__call__`` as torch operations, on any device."""
         first, second = self.pairs
         with torch.no_grad():
             keypoints = self.keypoint_map.transposed(frames)  # (K, 3, B)

@@ -103,6 +103,7 @@ class ShadowHand:
         if np.abs(model.jnt_pos).max() > 0:
             raise RuntimeError("joint anchors off the body origin are not supported")
         self._build_levels()
+        self._kinematics = None  # ``kinematics_kernel.HandKinematics``, built on the first CPU call
 
         self._build_shapes(model, as_t)
         self._build_point_sets(as_t, contacts_per_link, surface_points_per_shape)
@@ -257,6 +258,19 @@ class ShadowHand:
 
     def forward_parts(self, palm_rot: torch.Tensor, palm_t: torch.Tensor, joints: torch.Tensor) -> HandFrames:
         """Like ``forward`` with the palm rotation given as a matrix (for 6D optimizers).
+
+        On the CPU, compiled (``hand.kinematics_kernel``, forward and backward); elsewhere ``forward_parts_torch``.
+        """
+        if palm_rot.device.type == "cpu":
+            if self._kinematics is None:
+                from dexlite_pipeline.hand.kinematics_kernel import HandKinematics  # imports numba: only when used
+
+                self._kinematics = HandKinematics(self._parent, self._offset_pos, self._offset_rot, self._body_joint, self._joint_axis)
+            return HandFrames(*self._kinematics.forward(palm_rot, palm_t, joints))
+        return self.forward_parts_torch(palm_rot, palm_t, joints)
+
+    def forward_parts_torch(self, palm_rot: torch.Tensor, palm_t: torch.Tensor, joints: torch.Tensor) -> HandFrames:
+        """``forward_parts`` as torch operations, on any device.
 
         Each link: R = R_parent · R_offset · R_joint(q), t = t_parent + R_parent · p_offset,
         computed a tree level at a time (see ``_build_levels``).
