@@ -166,10 +166,10 @@ def test_acceptance_and_keep_best_pieces():
     """Downhill proposals are always accepted; the kept-best state is each grasp's running minimum."""
     from dexlite_pipeline.optim.annealing import KeepBest, WalkState, _Kept, metropolis_accept
 
-    generator = torch.Generator().manual_seed(0)
+    uniform = torch.rand(4, generator=torch.Generator().manual_seed(0))
     old = torch.tensor([1.0, 1.0, 1.0, 5.0])
-    assert metropolis_accept(old, old - 0.5, temperature=1e-3, generator=generator).all()
-    assert not metropolis_accept(old, old + 10.0, temperature=1e-3, generator=generator).any()
+    assert metropolis_accept(old, old - 0.5, temperature=1e-3, uniform=uniform).all()
+    assert not metropolis_accept(old, old + 10.0, temperature=1e-3, uniform=uniform).any()
 
     def walk(total):
         total = torch.as_tensor(total)
@@ -181,3 +181,51 @@ def test_acceptance_and_keep_best_pieces():
         best.update(walk(totals))
     assert best.best.total.tolist() == [2.0, 0.5, 1.0] and best.best.grad is None
     assert best.best.state[:, 0].tolist() == [2.0, 0.5, 1.0] and best.best.result.terms["E_fc"].tolist() == [4.0, 1.0, 2.0]
+
+
+def test_a_grasp_refines_the_same_alone_and_in_a_batch(hand, setup):
+    """With each grasp's own random stream and RMSProp statistic, a grasp's walk does not depend on its batch:
+    the same start, key and seed give the same result alone, in a batch of six, and in another order."""
+    import dataclasses
+
+    from dexlite_pipeline.optim.grasp_random import GraspRandom
+
+    energy, hulls = setup
+    object_index, scale = _batch(6)
+    init = initial_poses(hand, hulls, object_index, scale, InitConfig(distance_m=(0.06, 0.09)), torch.Generator().manual_seed(5))
+    config = dataclasses.replace(SHORT, rmsprop_statistic="grasp", final_contact_samples=16, contact_search_every=20)
+    keys = torch.tensor([11, 12, 13, 14, 15, 16])
+
+    def run(rows):
+        return optimize(energy, init[rows], object_index[rows], scale[rows], config, torch.Generator().manual_seed(0),
+                        random=GraspRandom(7, keys[rows]))
+
+    batch = run(torch.arange(6))
+    assert (batch.hand_pose != init).any()
+    shuffled = run(torch.tensor([5, 3, 1, 0, 2, 4]))
+    for position, row in enumerate((5, 3, 1, 0, 2, 4)):
+        assert torch.equal(shuffled.hand_pose[position], batch.hand_pose[row])
+    for row in (0, 4):
+        alone = run(torch.tensor([row]))
+        assert torch.equal(alone.hand_pose[0], batch.hand_pose[row]) and torch.equal(alone.contact_index[0], batch.contact_index[row])
+    # The batch statistic (DexGraspNet's) couples the grasps: the same grasp walks differently alone.
+    coupled = dataclasses.replace(config, rmsprop_statistic="batch")
+    together = optimize(energy, init, object_index, scale, coupled, torch.Generator().manual_seed(0), random=GraspRandom(7, keys))
+    alone = optimize(energy, init[:1], object_index[:1], scale[:1], coupled, torch.Generator().manual_seed(0), random=GraspRandom(7, keys[:1]))
+    assert not torch.equal(alone.hand_pose[0], together.hand_pose[0])
+
+
+def test_grasp_random_streams_are_uniform_and_independent():
+    from dexlite_pipeline.optim.grasp_random import GraspRandom
+
+    random = GraspRandom(3, torch.arange(2000))
+    draws = random.uniform(1, GraspRandom.SWITCH, 8)
+    assert draws.shape == (2000, 8) and 0 <= float(draws.min()) and float(draws.max()) < 1
+    assert abs(float(draws.mean()) - 0.5) < 0.01 and abs(float(draws.var()) - 1 / 12) < 0.005
+    assert not torch.equal(draws, random.uniform(2, GraspRandom.SWITCH, 8))  # another iteration
+    assert not torch.equal(draws, random.uniform(1, GraspRandom.ACCEPT, 8))  # another stream
+    assert not torch.equal(draws, GraspRandom(4, torch.arange(2000)).uniform(1, GraspRandom.SWITCH, 8))  # another seed
+    assert torch.equal(draws[7:9], GraspRandom(3, torch.tensor([7, 8])).uniform(1, GraspRandom.SWITCH, 8))  # a grasp's own numbers
+    weighted = random.weighted(torch.tensor([[0.0, 1.0, 3.0]]).expand(2000, -1), 1, GraspRandom.CONTACT_SEARCH, 4)
+    share = torch.bincount(weighted.flatten(), minlength=3).double() / weighted.numel()
+    assert share[0] == 0 and abs(float(share[2]) - 0.75) < 0.02

@@ -229,13 +229,15 @@ class GraspEnergy:
         samples: int,
         generator: torch.Generator,
         closeness_m: float = 0.002,
+        draw=None,
     ) -> torch.Tensor:
         """(B, 4) contacts minimizing the contact-dependent energy, w_fc·E_fc + w_dis·E_dis, for fixed poses.
 
         Searches ``samples`` random 4-sets per grasp, drawn with probability ∝ exp(−|d|/closeness)
         so that pads near the surface are preferred, plus the current set (so it never gets
         worse). The pose-only terms do not depend on the contacts, so the total improves by
-        exactly the same amount.
+        exactly the same amount. ``draw(weight (B, N), count)`` -> (B, count) indices replaces the
+        generator's draws (``optim.annealing.Draws``: each grasp's own stream).
         """
         with torch.no_grad():
             frames = self.hand.forward(hand_pose)
@@ -243,7 +245,10 @@ class GraspEnergy:
             distance, normal = self.bank.signed_distance(candidates, object_index[:, None], scale[:, None])
             batch, count = distance.shape
             weight = torch.softmax(-distance.abs() / closeness_m, dim=1).cpu()
-            draws = torch.multinomial(weight, samples * CONTACT_COUNT, replacement=True, generator=generator)
+            if draw is None:
+                draws = torch.multinomial(weight, samples * CONTACT_COUNT, replacement=True, generator=generator)
+            else:
+                draws = draw(weight, samples * CONTACT_COUNT)
             draws = torch.cat([contact_index.cpu()[:, None, :], draws.reshape(batch, samples, CONTACT_COUNT)], dim=1).to(self.device)
             flat = draws.reshape(batch, (samples + 1) * CONTACT_COUNT)
             points = torch.gather(candidates, 1, flat[..., None].expand(-1, -1, 3)).reshape(-1, CONTACT_COUNT, 3)

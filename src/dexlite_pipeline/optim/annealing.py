@@ -42,6 +42,7 @@ from dexlite_pipeline.hand.model import JOINTS, ROTATION, TRANSLATION
 from dexlite_pipeline.hand.rotation import euler_xyz_to_matrix, matrix_to_euler_xyz, matrix_to_rot6d, rot6d_to_matrix
 from dexlite_pipeline.optim.config import AnnealingConfig
 from dexlite_pipeline.optim.contact_resolution import penetration_depth_m, resolve_contacts
+from dexlite_pipeline.optim.grasp_random import GraspRandom
 
 log = logging.getLogger(__name__)
 
@@ -130,33 +131,67 @@ class WalkState:
 class RMSPropProposal:
     """The proposal step: an RMSProp-scaled gradient step plus random contact switches, evaluated.
 
-    The running mean of the squared gradient is one value per state coordinate, shared by
-    the batch (the mean over grasps), and weights the NEW value by ``rmsprop_mu``.
+    The running mean of the squared gradient weights the NEW value by ``rmsprop_mu``; with
+    ``rmsprop_statistic`` "batch" it is one value per state coordinate, the mean over the batch's
+    grasps (DexGraspNet), with "grasp" each grasp keeps its own.
     """
 
-    def __init__(self, config: AnnealingConfig, evaluate: StateEnergy, candidate_count: int, generator: torch.Generator, like: torch.Tensor) -> None:
+    def __init__(self, config: AnnealingConfig, evaluate: StateEnergy, candidate_count: int, draws: "Draws", like: torch.Tensor) -> None:
         self.config = config
         self.evaluate = evaluate
         self.candidate_count = candidate_count
-        self.generator = generator
-        self.square_avg = torch.zeros(like.shape[1], dtype=like.dtype, device=like.device)
+        self.draws = draws
+        self.per_grasp = config.rmsprop_statistic == "grasp"
+        self.square_avg = torch.zeros(like.shape if self.per_grasp else like.shape[1], dtype=like.dtype, device=like.device)
 
     def __call__(self, walk: WalkState, iteration: int) -> WalkState:
         """The proposal for ``iteration`` (1-based) from ``walk``; draws the switch mask, then the new indices."""
         config = self.config
-        batch, device = walk.state.shape[0], walk.state.device
-        self.square_avg = config.rmsprop_mu * walk.grad.square().mean(0) + (1 - config.rmsprop_mu) * self.square_avg
+        square = walk.grad.square() if self.per_grasp else walk.grad.square().mean(0)
+        self.square_avg = config.rmsprop_mu * square + (1 - config.rmsprop_mu) * self.square_avg
         step = config.step_size_at(iteration - 1) * walk.grad / (self.square_avg.sqrt() + config.rmsprop_eps)
         proposal = walk.state - step
-        switch = (torch.rand(batch, CONTACT_COUNT, generator=self.generator) < config.contact_switch_probability).to(device)
-        redrawn = random_contacts(batch, self.candidate_count, self.generator, device)
+        switch = self.draws.switches(iteration, config.contact_switch_probability)
+        redrawn = self.draws.contacts(iteration, self.candidate_count)
         return self.evaluate(proposal, torch.where(switch, redrawn, walk.contacts))
 
 
-def metropolis_accept(old_total: torch.Tensor, new_total: torch.Tensor, temperature: float, generator: torch.Generator) -> torch.Tensor:
-    """(B,) bool: accept each proposal with probability min(1, exp((E_old − E_new)/T)); one uniform draw per grasp."""
-    uniform = torch.rand(old_total.shape[0], generator=generator).to(old_total.device)
-    return uniform < torch.exp((old_total - new_total) / temperature)
+class Draws:
+    """The walk's random draws: from the run's generator in batch order, or, with ``random`` (``GraspRandom``),
+    from each grasp's own stream, so that a grasp walks the same alone or in any batch."""
+
+    def __init__(self, batch: int, generator: torch.Generator, device, random: GraspRandom | None = None) -> None:
+        self.batch, self.generator, self.device, self.random = batch, generator, device, random
+
+    def contacts(self, iteration: int, candidate_count: int) -> torch.Tensor:
+        """(B, 4) contact indices drawn uniformly among the candidates (iteration 0: the start)."""
+        if self.random is None:
+            return random_contacts(self.batch, candidate_count, self.generator, self.device)
+        stream = GraspRandom.INITIAL_CONTACTS if iteration == 0 else GraspRandom.REDRAW
+        return self.random.integers(candidate_count, iteration, stream, CONTACT_COUNT).to(self.device)
+
+    def switches(self, iteration: int, probability: float) -> torch.Tensor:
+        """(B, 4) bool: which contacts are re-drawn."""
+        if self.random is None:
+            return (torch.rand(self.batch, CONTACT_COUNT, generator=self.generator) < probability).to(self.device)
+        return (self.random.uniform(iteration, GraspRandom.SWITCH, CONTACT_COUNT) < probability).to(self.device)
+
+    def acceptance(self, iteration: int) -> torch.Tensor:
+        """(B,) uniforms for the Metropolis test."""
+        if self.random is None:
+            return torch.rand(self.batch, generator=self.generator).to(self.device)
+        return self.random.uniform(iteration, GraspRandom.ACCEPT, 1)[:, 0].to(self.device)
+
+    def contact_search(self, iteration: int):
+        """The draw of ``GraspEnergy.best_contacts``: None (its generator) or a weighted draw from the grasps' streams."""
+        if self.random is None:
+            return None
+        return lambda weight, count: self.random.weighted(weight, iteration, GraspRandom.CONTACT_SEARCH, count)
+
+
+def metropolis_accept(old_total: torch.Tensor, new_total: torch.Tensor, temperature: float, uniform: torch.Tensor) -> torch.Tensor:
+    """(B,) bool: accept each proposal with probability min(1, exp((E_old − E_new)/T)); ``uniform`` (B,), one draw per grasp."""
+    return uniform.to(old_total.dtype) < torch.exp((old_total - new_total) / temperature)
 
 
 class KeepBest:
@@ -169,12 +204,12 @@ class KeepBest:
         self.best = self.best.where(walk.total < self.best.total, replace(walk, grad=None))
 
 
-def search_contacts(energy: GraspEnergy, walk: WalkState, evaluate: StateEnergy, samples: int, generator: torch.Generator) -> WalkState:
+def search_contacts(energy: GraspEnergy, walk: WalkState, evaluate: StateEnergy, samples: int, generator: torch.Generator, draw=None) -> WalkState:
     """The walk re-evaluated at the best of ``samples`` contact sets per grasp for its current poses (never worse).
 
     Run every ``contact_search_every`` iterations, so the next gradient steps pull the chosen contacts onto the surface.
     """
-    contacts = energy.best_contacts(state_to_pose(walk.state), evaluate.object_index, evaluate.scale, walk.contacts, samples, generator)
+    contacts = energy.best_contacts(state_to_pose(walk.state), evaluate.object_index, evaluate.scale, walk.contacts, samples, generator, draw=draw)
     return evaluate(walk.state, contacts)
 
 
@@ -224,6 +259,7 @@ def optimize(
     progress: Callable[[int, torch.Tensor], None] | None = None,
     progress_every: int = 100,
     snapshot_iterations: tuple[int, ...] = (),
+    random: GraspRandom | None = None,
 ) -> OptimizationResult:
     """Run the annealed optimizer on a batch of grasps from ``init_pose`` (B, 28).
 
@@ -232,7 +268,9 @@ def optimize(
     ``progress(iteration, total_energy)`` is called every ``progress_every`` iterations
     with the walking chain's energy.
     ``snapshot_iterations``: also return the kept pose (the best so far with ``keep_best``)
-    after each of these iterations, for budget curves.
+    after each of these iterations, for budget curves. ``random`` (``GraspRandom``): the walk's
+    draws from each grasp's own stream instead of ``generator``; with ``rmsprop_statistic`` "grasp"
+    (and the CPU's compiled energy) a grasp then refines the same alone or in any batch.
     """
     started = time.perf_counter()
     device = energy.device
@@ -240,20 +278,21 @@ def optimize(
     candidate_count = len(energy.hand.contact_link)
     evaluate = StateEnergy(energy, object_index, scale)
     state = pose_to_state(init_pose.to(device, energy.hand.dtype)).detach()
-    contacts = random_contacts(batch, candidate_count, generator, device) if contact_index is None else contact_index.to(device)
+    draws = Draws(batch, generator, device, random)
+    contacts = draws.contacts(0, candidate_count) if contact_index is None else contact_index.to(device)
 
     walk = evaluate(state, contacts)
-    propose = RMSPropProposal(config, evaluate, candidate_count, generator, like=state)
+    propose = RMSPropProposal(config, evaluate, candidate_count, draws, like=state)
     best = KeepBest(walk) if config.keep_best else None
     tracker = Tracker(config, walk, init_pose, snapshot_iterations)
     searching = config.final_contact_samples and config.contact_search_every
     for iteration in range(1, config.iterations + 1):
         proposal = propose(walk, iteration)
-        accept = metropolis_accept(walk.total, proposal.total, config.temperature_at(iteration), generator)
+        accept = metropolis_accept(walk.total, proposal.total, config.temperature_at(iteration), draws.acceptance(iteration))
         tracker.count(accept)
         walk = walk.where(accept, proposal)
         if searching and iteration % config.contact_search_every == 0 and iteration < config.iterations:
-            walk = search_contacts(energy, walk, evaluate, config.final_contact_samples, generator)
+            walk = search_contacts(energy, walk, evaluate, config.final_contact_samples, generator, draws.contact_search(iteration))
         if best is not None:
             best.update(walk)
         tracker.record(iteration, walk if best is None else best.best)
@@ -264,7 +303,8 @@ def optimize(
     hand_pose = state_to_pose(final.state).detach()
     contacts, total, result = final.contacts, final.total, final.result
     if config.final_contact_samples > 0:
-        contacts = energy.best_contacts(hand_pose, object_index, scale, contacts, config.final_contact_samples, generator)
+        contacts = energy.best_contacts(hand_pose, object_index, scale, contacts, config.final_contact_samples, generator,
+                                        draw=draws.contact_search(config.iterations + 1))
         with torch.no_grad():
             result = energy(hand_pose, object_index=object_index, scale=scale, contact_index=contacts)
         total = result.total.detach()
