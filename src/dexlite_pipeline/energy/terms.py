@@ -486,10 +486,23 @@ class TableTerm(EnergyTerm):
     def __init__(self, hand: ShadowHand) -> None:
         from dexlite_pipeline.energy.table_clearance import HandTableClearance
 
+        self.hand = hand
         self.clearance = HandTableClearance(hand)
+        self._kernel = None  # ``TableKernel``, built on the first CPU call
 
     def evaluate(self, context: EnergyContext) -> torch.Tensor:
         return self(context.frames, context.support_normal, context.support_offset_m)
 
     def __call__(self, frames: HandFrames, normal: torch.Tensor, offset_m: torch.Tensor) -> torch.Tensor:
+        """(B,) E_table; on the CPU compiled (``energy.table_kernel``), elsewhere ``evaluate_with_torch``."""
+        if frames.translation.device.type == "cpu":
+            if self._kernel is None:
+                from dexlite_pipeline.energy.table_kernel import TableKernel  # imports numba: only when used
+
+                self._kernel = TableKernel(self.hand, self.clearance.half_extent, self.clearance.radius)
+            return self._kernel(frames, normal, offset_m)
+        return self.evaluate_with_torch(frames, normal, offset_m)
+
+    def evaluate_with_torch(self, frames: HandFrames, normal: torch.Tensor, offset_m: torch.Tensor) -> torch.Tensor:
+        """``__call__`` as torch operations, on any device."""
         return torch.relu(-self.clearance.lowest_heights(frames, normal, offset_m)).sum(dim=1)

@@ -1,4 +1,4 @@
-"""The compiled E_pen (``energy.penetration_kernel``) against the torch operations it replaces on the CPU."""
+"""The compiled CPU passes of the energy (``energy.*_kernel``) against the torch operations they replace."""
 
 from __future__ import annotations
 
@@ -178,3 +178,24 @@ def test_contact_kernel_equals_the_bank(hand, energy, sphere_objects):
     assert (results[1][1] > 0).sum() >= 8 and (results[1][1] < -0.05).sum() >= 8, "contacts inside and far outside"
     for name, got, want in zip(("points", "distance", "normal", "d/d rotation", "d/d translation"), *results):
         assert torch.allclose(got, want, rtol=1e-4, atol=1e-6 * float(want.abs().max())), name
+
+
+def test_table_kernel_equals_the_torch_operations(hand):
+    """E_table and its gradient in every link frame on tilted tables cutting through the hand."""
+    from dexlite_pipeline.energy.terms import TableTerm
+
+    count = 48
+    frames = hand.forward(_poses(count, seed=21))
+    g = torch.Generator().manual_seed(22)
+    normal = torch.nn.functional.normalize(torch.tensor([0.0, 0.0, 1.0]) + 0.4 * torch.randn(count, 3, generator=g), dim=1)
+    offset = 0.06 * torch.randn(count, generator=g)
+    term = TableTerm(hand)
+    results = []
+    for call in (term, term.evaluate_with_torch):
+        rotation = frames.rotation.detach().clone().requires_grad_(True)
+        translation = frames.translation.detach().clone().requires_grad_(True)
+        value = call(HandFrames(rotation, translation), normal, offset)
+        results.append((value.detach(), *torch.autograd.grad(value.sum(), (rotation, translation))))
+    assert (results[1][0] > 0).sum() >= 10 and (results[1][0] == 0).sum() >= 5, "hands through and above their tables"
+    for name, got, want in zip(("E_table", "d/d rotation", "d/d translation"), *results):
+        assert torch.allclose(got, want, rtol=1e-4, atol=1e-5 * float(want.abs().max())), name
