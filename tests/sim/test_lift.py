@@ -165,6 +165,30 @@ def test_configure_writes_constants_in_place_without_recompiling(objects_dir):
     assert not model.opt.disableflags & multi_ccd_off and model.body_mass[scene.object_body] == pytest.approx(0.1)
 
 
+def test_settled_directions_stop_early_with_the_same_verdicts(objects_dir, hooks, monkeypatch):
+    """A direction in which the grip has settled passes without its full two seconds: the same verdict per direction
+    as with ``six_dir_settle_factor`` 0 (always the full duration), for far fewer steps."""
+    import mujoco
+
+    steps = []
+    mj_step = mujoco.mj_step
+
+    def counting_step(m, d, nstep=1):
+        steps.append(nstep)
+        mj_step(m, d, nstep=nstep)
+
+    monkeypatch.setattr(mujoco, "mj_step", counting_step)
+    grasps = grasp_set([hooks["square_bar"]], ["square_bar"])
+    verdicts, costs = [], []
+    for factor in (0.0, LiftConfig().six_dir_settle_factor):
+        steps.clear()
+        result = run_lift_tests(grasps, [objects_dir], LiftConfig(six_directions=True, six_dir_exhaustive=True, six_dir_settle_factor=factor), threads=1)
+        verdicts.append(result["six_dir_passed"][0].tolist())
+        costs.append(sum(steps))
+    assert verdicts[0] == verdicts[1] and any(verdicts[0])
+    assert costs[1] < 0.7 * costs[0]
+
+
 def test_lost_object_early_exit_matches_full_simulation_and_held_grasp_runs_every_step(hand, objects_dir, hooks, monkeypatch):
     """A dropped object is extrapolated once provably out of reach (here while the fingers still close), giving
     the full simulation's ratio; a held object is simulated for the whole timeline."""

@@ -55,6 +55,11 @@ class LiftConfig:
         2.0, "... applied this long along each of +x, -x, +y, -y, +z, -z (gravity off)", exclusive_minimum=0)
     six_dir_max_translation_m: float = setting(0.05, "... a direction passes if the object moves less than this", exclusive_minimum=0)
     six_dir_max_rotation_deg: float = setting(15.0, "... and rotates less than this", exclusive_minimum=0)
+    six_dir_settle_factor: float = setting(
+        3.0, "a direction passes before its full duration once, over the last six_dir_settle_s (and after twice that), "
+        "the object has moved and turned so slowly that even this many times faster for the time left it would stay "
+        "within the limits (a settled grip only creeps under a constant force); 0: always the full duration", minimum=0)
+    six_dir_settle_s: float = setting(0.1, "... the window of that test, s", exclusive_minimum=0)
     six_dir_exhaustive: bool = setting(
         False, "true: test every started grasp in all six directions (per-direction diagnostics); false: only grasps that "
         "lifted, up to the first direction that fails (a held grasp's result is the same, for less CPU)")

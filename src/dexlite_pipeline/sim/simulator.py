@@ -9,6 +9,7 @@ six-direction rotations in degrees.
 
 from __future__ import annotations
 
+import collections
 import math
 
 import numpy as np
@@ -43,6 +44,8 @@ class GraspSimulator:
         self.close_chunks = config.chunks(config.close_s) or [1]
         self.six_dir_chunks = config.chunks(config.six_dir_duration_s) or [1]
         self.schedule = self._lift_schedule()
+        # Chunks in the settle window (0: settling off); the test starts once twice the window has passed.
+        self.settle_chunks = max(1, round(config.steps(config.six_dir_settle_s) / config.control_substeps)) if config.six_dir_settle_factor > 0 else 0
         self.total_steps = sum(steps for steps, _, _ in self.schedule)
 
     def _lift_schedule(self) -> list[tuple[int, float | None, float | None]]:
@@ -116,6 +119,19 @@ class GraspSimulator:
         object_top = d.xipos[s.object_body, 2] + s.object_radius_m
         hand_bottom = d.xpos[s.palm_body, 2] - s.hand_reach_m
         return bool(object_top < hand_bottom and d.qvel[s.object_qvel][2] < d.qvel[s.palm_qvel][2])
+
+    def _settled(self, recent, worst_t: float, worst_r: float, seconds_left: float) -> bool:
+        """Record the object's speed and turn rate now; True once the window is full (after twice its length) and even
+        ``six_dir_settle_factor`` times the window's fastest rates for ``seconds_left`` keep it within the limits."""
+        cfg, s, d = self.config, self.scene, self.scene.data
+        velocity = d.qvel[s.object_qvel]
+        recent.append((float(np.linalg.norm(velocity[:3])), math.degrees(float(np.linalg.norm(velocity[3:])))))
+        recent_full = len(recent) == recent.maxlen
+        if not recent_full or seconds_left > cfg.six_dir_duration_s - 2 * cfg.six_dir_settle_s:
+            return False
+        speed = max(v for v, _ in recent) * cfg.six_dir_settle_factor
+        rate = max(w for _, w in recent) * cfg.six_dir_settle_factor
+        return worst_t + speed * seconds_left < cfg.six_dir_max_translation_m and worst_r + rate * seconds_left < cfg.six_dir_max_rotation_deg
 
     def _ballistic_z(self, remaining_steps: int) -> float:
         """Object COM height after ``remaining_steps`` of free fall, by MuJoCo's semi-implicit Euler update."""
@@ -191,8 +207,9 @@ class GraspSimulator:
     def six_directions(self, pose: np.ndarray, quat: np.ndarray, target: np.ndarray, stop_at_failure: bool = False) -> tuple[np.ndarray, np.ndarray]:
         """Per direction (6,), the object's largest translation (m) and rotation (deg) under the force.
 
-        A direction stops early once either limit is exceeded (it has failed); the values
-        are then those at that moment. ``stop_at_failure``: no direction after a failed one is
+        A direction stops early once either limit is exceeded (it has failed), or once the object has
+        settled (``six_dir_settle_factor``: so slow over the last ``six_dir_settle_s`` that even several times
+        faster it could not reach a limit in the time left; it has passed); the values are then those at that moment. ``stop_at_failure``: no direction after a failed one is
         pushed (its values stay NaN): the grasp has failed the test.
         """
         import mujoco
@@ -219,13 +236,18 @@ class GraspSimulator:
                 d.xfrc_applied[:] = 0.0
                 d.xfrc_applied[s.object_body, :3] = force * direction
                 worst_t = worst_r = 0.0
+                recent = collections.deque(maxlen=self.settle_chunks)  # (speed m/s, turn rate deg/s) at the last chunks' ends
+                remaining = sum(self.six_dir_chunks)
                 for steps in self.six_dir_chunks:
                     mujoco.mj_step(m, d, nstep=steps)
+                    remaining -= steps
                     worst_t = max(worst_t, float(np.linalg.norm(d.xipos[s.object_body] - com0)))
                     qw = min(1.0, abs(float(d.qpos[s.object_qpos][3])))
                     worst_r = max(worst_r, math.degrees(2.0 * math.acos(qw)))
                     if worst_t >= cfg.six_dir_max_translation_m or worst_r >= cfg.six_dir_max_rotation_deg:
                         break
+                    if self.settle_chunks and self._settled(recent, worst_t, worst_r, remaining * cfg.timestep_s):
+                        break  # settled: passes this direction
                 translation[k], rotation[k] = worst_t, worst_r
                 if stop_at_failure and (worst_t >= cfg.six_dir_max_translation_m or worst_r >= cfg.six_dir_max_rotation_deg):
                     break
