@@ -165,9 +165,9 @@ def test_configure_writes_constants_in_place_without_recompiling(objects_dir):
     assert not model.opt.disableflags & multi_ccd_off and model.body_mass[scene.object_body] == pytest.approx(0.1)
 
 
-def test_settled_directions_stop_early_with_the_same_verdicts(objects_dir, hooks, monkeypatch):
-    """A direction in which the grip has settled passes without its full two seconds: the same verdict per direction
-    as with ``six_dir_settle_factor`` 0 (always the full duration), for far fewer steps."""
+@pytest.fixture
+def simulated_steps(monkeypatch):
+    """A list that grows by the number of MuJoCo steps of every ``mj_step`` call made while the test runs."""
     import mujoco
 
     steps = []
@@ -178,6 +178,13 @@ def test_settled_directions_stop_early_with_the_same_verdicts(objects_dir, hooks
         mj_step(m, d, nstep=nstep)
 
     monkeypatch.setattr(mujoco, "mj_step", counting_step)
+    return steps
+
+
+def test_settled_directions_stop_early_with_the_same_verdicts(objects_dir, hooks, simulated_steps):
+    """A direction in which the grip has settled passes without its full two seconds: the same verdict per direction
+    as with ``six_dir_settle_factor`` 0 (always the full duration), for far fewer steps."""
+    steps = simulated_steps
     grasps = grasp_set([hooks["square_bar"]], ["square_bar"])
     verdicts, costs = [], []
     for factor in (0.0, LiftConfig().six_dir_settle_factor):
@@ -189,25 +196,16 @@ def test_settled_directions_stop_early_with_the_same_verdicts(objects_dir, hooks
     assert costs[1] < 0.7 * costs[0]
 
 
-def test_lost_object_early_exit_matches_full_simulation_and_held_grasp_runs_every_step(hand, objects_dir, hooks, monkeypatch):
+def test_lost_object_early_exit_matches_full_simulation_and_held_grasp_runs_every_step(hand, objects_dir, hooks, monkeypatch, simulated_steps):
     """A dropped object is extrapolated once provably out of reach (here while the fingers still close), giving
     the full simulation's ratio; a held object is simulated for the whole timeline."""
-    import mujoco
-
     from dexlite_pipeline.sim.scene import LiftScene
     from dexlite_pipeline.sim.simulator import GraspSimulator, _palm_quaternions
 
     config = LiftConfig()
     asset = load_asset(objects_dir, "square_bar")
     sim = GraspSimulator(LiftScene.build(asset.convex_paths, SCALE, config), config)
-    steps = []
-    mj_step = mujoco.mj_step
-
-    def counting_step(m, d, nstep=1):
-        steps.append(nstep)
-        mj_step(m, d, nstep=nstep)
-
-    monkeypatch.setattr(mujoco, "mj_step", counting_step)
+    steps = simulated_steps
 
     def lift(pose):
         steps.clear()
