@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 import torch
 
@@ -34,19 +35,50 @@ class PointClusters:
     parent_radius: torch.Tensor
 
 
-def _median_split(points: np.ndarray, leaf_size: int) -> list[np.ndarray]:
-    """Index sets of at most ``leaf_size`` points, by recursive median cuts along the widest axis."""
-    pending, leaves = [np.arange(len(points))], []
+@numba.njit(cache=True)
+def _median_split(points: np.ndarray, leaf_size: int) -> tuple[np.ndarray, np.ndarray]:
+    """Index sets of at most ``leaf_size`` points, by recursive median cuts along the widest axis (first of equal
+    extents), the lower half first: a permutation of the points and each leaf's (start, stop) in it, depth-first."""
+    order = np.arange(points.shape[0])
+    bounds = np.empty((max(1, 2 * points.shape[0] // max(leaf_size // 2, 1) + 2), 2), np.int64)
+    leaves = 0
+    pending = [(0, points.shape[0])]
     while pending:
-        index = pending.pop()
-        if len(index) <= leaf_size:
-            leaves.append(index)
+        lo, hi = pending.pop()
+        if hi - lo <= leaf_size:
+            bounds[leaves, 0], bounds[leaves, 1] = lo, hi
+            leaves += 1
             continue
-        extent = points[index].max(axis=0) - points[index].min(axis=0)
-        order = index[np.argsort(points[index, int(np.argmax(extent))], kind="stable")]
-        half = len(order) // 2
-        pending += [order[half:], order[:half]]
-    return leaves
+        index = order[lo:hi]
+        axis, widest = 0, -1.0
+        for a in range(3):
+            extent = points[index, a].max() - points[index, a].min()
+            if extent > widest:
+                axis, widest = a, extent
+        order[lo:hi] = index[np.argsort(points[index, axis], kind="mergesort")]
+        half = (hi - lo) // 2
+        pending.append((lo + half, hi))
+        pending.append((lo, lo + half))
+    return order, bounds[:leaves]
+
+
+@numba.njit(cache=True)
+def _leaf_spheres(points, order, bounds, centre, radius, members) -> None:
+    """Each leaf's mean point, the distance to its farthest member (rounded up, so float32 keeps it a bound) and
+    its members, written into ``centre`` (C, 3), ``radius`` (C,), ``members`` (C, L)."""
+    for c in range(bounds.shape[0]):
+        start, stop = bounds[c, 0], bounds[c, 1]
+        for a in range(3):
+            total = 0.0
+            for i in range(start, stop):
+                total += points[order[i], a]
+            centre[c, a] = total / (stop - start)
+        farthest = 0.0
+        for i in range(start, stop):
+            p = order[i]
+            farthest = max(farthest, np.sqrt((points[p, 0] - centre[c, 0]) ** 2 + (points[p, 1] - centre[c, 1]) ** 2 + (points[p, 2] - centre[c, 2]) ** 2))
+            members[c, i - start] = p
+        radius[c] = farthest * (1 + 1e-6) + 1e-7
 
 
 def build_point_clusters(points: torch.Tensor, leaf_size: int = 8, counts=None) -> PointClusters:
@@ -59,18 +91,15 @@ def build_point_clusters(points: torch.Tensor, leaf_size: int = 8, counts=None) 
     """
     objects = points.detach().cpu().double().numpy()
     counts = [objects.shape[1]] * len(objects) if counts is None else [int(c) for c in counts]
-    all_leaves = [_median_split(p[:c], leaf_size) for p, c in zip(objects, counts)]
-    cluster_count = max(len(leaves) for leaves in all_leaves)
+    splits = [_median_split(np.ascontiguousarray(p[:c]), leaf_size) for p, c in zip(objects, counts)]
+    cluster_count = max(len(bounds) for _, bounds in splits)
     cluster_count = -(-cluster_count // LEAVES_PER_PARENT) * LEAVES_PER_PARENT
-    width = max(max(len(leaf) for leaf in leaves) for leaves in all_leaves)
+    width = max(int((bounds[:, 1] - bounds[:, 0]).max()) if len(bounds) else 0 for _, bounds in splits)
     centre = np.full((len(objects), cluster_count, 3), PADDING)
     radius = np.zeros((len(objects), cluster_count))
     members = np.full((len(objects), cluster_count, width), -1, dtype=np.int64)
-    for o, (object_points, leaves) in enumerate(zip(objects, all_leaves)):
-        for c, leaf in enumerate(leaves):
-            centre[o, c] = object_points[leaf].mean(axis=0)
-            radius[o, c] = np.linalg.norm(object_points[leaf] - centre[o, c], axis=1).max() * (1 + 1e-6) + 1e-7
-            members[o, c, : len(leaf)] = leaf
+    for o, (order, bounds) in enumerate(splits):
+        _leaf_spheres(objects[o], order, bounds, centre[o], radius[o], members[o])
     groups = centre.reshape(len(objects), -1, LEAVES_PER_PARENT, 3)
     group_radius = radius.reshape(len(objects), -1, LEAVES_PER_PARENT)
     parent_centre = groups.mean(axis=2)
