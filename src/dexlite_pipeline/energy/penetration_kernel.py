@@ -86,7 +86,7 @@ def _one_grasp(
     b, rotation, translation, o, s, count, weight, want_gradient,
     volumes, grid_min, voxel_size, interpolation_error,
     sphere_centre, sphere_radius, sphere_link, sphere_shape,
-    shape_link, shape_rot, shape_pos, shape_kind, shape_size, shape_radius, shape_gap,
+    shape_link, shape_rot, shape_pos, shape_kind, shape_size, shape_gap,
     points, parent_x, parent_y, parent_z, parent_r, cluster_x, cluster_y, cluster_z, cluster_r, member_x, member_y, member_z, member_index, leaves_per_parent,
     energy, object_max, hand_max, grad_rotation, grad_translation, hit_point, hit_shape, hit_depth,
 ):
@@ -147,8 +147,6 @@ def _one_grasp(
         px, py, pz = frame[shape, 9], frame[shape, 10], frame[shape, 11]
         kind = shape_kind[shape]
         size0, size1, size2 = shape_size[shape, 0], shape_size[shape, 1], shape_size[shape, 2]
-        mx, my, mz = px / s, py / s, pz / s
-        rho = shape_radius[shape] / s
         # Two levels of culling, each one vectorizable loop: the shape's depth (1-Lipschitz) at each parent sphere's
         # centre must come within its radius, then at each of its clusters'; then the clusters' points themselves.
         parents = parent_x.shape[1]
@@ -240,7 +238,7 @@ def _penetration_batch(
     rotation, translation, object_index, scale, count, weight, want_gradient, initial_hits,
     volumes, grid_min, voxel_size, interpolation_error,
     sphere_centre, sphere_radius, sphere_link, sphere_shape,
-    shape_link, shape_rot, shape_pos, shape_kind, shape_size, shape_radius, shape_gap,
+    shape_link, shape_rot, shape_pos, shape_kind, shape_size, shape_gap,
     points, parent_x, parent_y, parent_z, parent_r, cluster_x, cluster_y, cluster_z, cluster_r, member_x, member_y, member_z, member_index, leaves_per_parent,
 ):
     batch, links = rotation.shape[0], rotation.shape[1]
@@ -258,7 +256,7 @@ def _penetration_batch(
                 b, rotation, translation, object_index[b], scale[b], count[b], weight[b], want_gradient,
                 volumes, grid_min, voxel_size, interpolation_error,
                 sphere_centre, sphere_radius, sphere_link, sphere_shape,
-                shape_link, shape_rot, shape_pos, shape_kind, shape_size, shape_radius, shape_gap,
+                shape_link, shape_rot, shape_pos, shape_kind, shape_size, shape_gap,
                 points, parent_x, parent_y, parent_z, parent_r, cluster_x, cluster_y, cluster_z, cluster_r, member_x, member_y, member_z, member_index, leaves_per_parent,
                 energy, object_max, hand_max, grad_rotation, grad_translation, hit_point, hit_shape, hit_depth,
             )
@@ -268,6 +266,7 @@ def _penetration_batch(
             hit_shape = np.empty(2 * hits, np.int64)
             hit_depth = np.empty(2 * hits)
     return energy, object_max, hand_max, grad_rotation, grad_translation
+
 
 def cluster_arrays(clusters, object_points: torch.Tensor) -> tuple[np.ndarray, ...]:
     """``PointClusters`` as flat float64 arrays per object, one per coordinate (so the culling loops vectorize):
@@ -317,7 +316,6 @@ class PenetrationKernel:
             array(hand.shape_pos, np.float64),
             array(hand.shape_kind, np.int64),
             array(hand.shape_size, np.float64),
-            array(term.radius, np.float64),
             array(spheres.shape_gap, np.float64),
             array(term.object_points, np.float32),
             *cluster_arrays(clusters, term.object_points),
