@@ -27,8 +27,8 @@ class AnnealingSchedule:
     rmsprop_mu: float = setting(0.98, "weight of the new squared gradient in its running average (DexGraspNet)", minimum=0, maximum=1)
     rmsprop_eps: float = setting(1e-8, "added to the root of the squared-gradient average that scales the step", exclusive_minimum=0)
     rmsprop_statistic: str = setting(
-        "batch", "batch: the squared gradient averaged over the batch (DexGraspNet; a grasp's steps then depend on its batch); "
-        "grasp: each grasp's own (its result does not depend on its batch)", enum=("batch", "grasp"))
+        "grasp", "grasp: each grasp's own squared-gradient average (its steps do not depend on its batch; more grasps pass "
+        "the energy thresholds: docs/results.md); batch: the average over the batch (DexGraspNet)", enum=("batch", "grasp"))
     contact_switch_probability: float = setting(
         0.5, "each contact re-drawn with this probability per step", minimum=0, maximum=1)
     starting_temperature: float = setting(18.0, "Metropolis T0 (energy units)", exclusive_minimum=0)
@@ -86,7 +86,7 @@ class OptimizeGraspsConfig:
     scales: tuple[float, ...] = setting(
         (0.08, 0.1, 0.12), "object scales (about the object radius in metres)", items={"exclusive_minimum": 0}, min_items=1)
     batch_size: int = setting(
-        512, "grasps optimized together (several objects per batch; results depend on it: the batch statistic and draws in batch order)", minimum=1)
+        512, "grasps optimized together (several objects per batch; results depend on it: starts and contacts are drawn in batch order)", minimum=1)
     progress_every: int = setting(100, "iterations between progress lines in the log", minimum=1, result_neutral=True)
     thresholds: EnergyThresholds = setting(
         factory=EnergyThresholds, doc="passes_energy_thresholds (DexGraspNet's success criteria)")
