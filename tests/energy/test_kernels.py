@@ -119,7 +119,8 @@ def test_grid_distance_and_gradient_equal_the_bank(hand, energy):
     x = points.clone().requires_grad_(True)
     distance, _ = energy.bank.signed_distance(x, index, scale, with_normal=False)
     (gradient,) = torch.autograd.grad(distance.sum(), x)
-    volumes, grid_min, voxel_size = energy.penetration.kernel.static[:3]
+    arrays = energy.penetration.kernel.static
+    volumes, grid_min, voxel_size = arrays.volumes, arrays.grid_min, arrays.voxel_size
     out = np.empty(3)
     for i in range(200):
         o = int(index[i])

@@ -27,6 +27,7 @@ at every iteration, which measured 2x slower).
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numba
 import numpy as np
@@ -83,15 +84,14 @@ def _shape_depth_gradient(kind, size0, size1, size2, lx, ly, lz, gradient):
 
 @numba.njit(cache=True, nogil=True)
 def _one_grasp(
-    b, rotation, translation, o, s, count, weight, want_gradient,
-    volumes, grid_min, voxel_size, interpolation_error,
-    sphere_centre, sphere_radius, sphere_link, sphere_shape,
-    shape_link, shape_rot, shape_pos, shape_kind, shape_size, shape_gap,
-    points, parent_x, parent_y, parent_z, parent_r, cluster_x, cluster_y, cluster_z, cluster_r, member_x, member_y, member_z, member_index, leaves_per_parent,
+    b, rotation, translation, o, s, count, weight, want_gradient, arrays,
     energy, object_max, hand_max, grad_rotation, grad_translation, hit_point, hit_shape, hit_depth,
 ):
     """E_pen of grasp ``b`` into ``energy[b]`` etc.; returns the number of hits, which must not exceed the buffers'
     length (else nothing is final: the caller calls again with longer buffers)."""
+    (volumes, grid_min, voxel_size, interpolation_error, sphere_centre, sphere_radius, sphere_link, sphere_shape, shape_link,
+     shape_rot, shape_pos, shape_kind, shape_size, shape_gap, points, parent_x, parent_y, parent_z, parent_r, cluster_x,
+     cluster_y, cluster_z, cluster_r, member_x, member_y, member_z, member_index, leaves_per_parent) = arrays
     g = volumes.shape[1]
     if want_gradient:
         grad_rotation[b] = 0.0
@@ -234,13 +234,7 @@ def _one_grasp(
 
 
 @numba.njit(cache=True, nogil=True)
-def _penetration_batch(
-    rotation, translation, object_index, scale, count, weight, want_gradient, initial_hits,
-    volumes, grid_min, voxel_size, interpolation_error,
-    sphere_centre, sphere_radius, sphere_link, sphere_shape,
-    shape_link, shape_rot, shape_pos, shape_kind, shape_size, shape_gap,
-    points, parent_x, parent_y, parent_z, parent_r, cluster_x, cluster_y, cluster_z, cluster_r, member_x, member_y, member_z, member_index, leaves_per_parent,
-):
+def _penetration_batch(rotation, translation, object_index, scale, count, weight, want_gradient, initial_hits, arrays):
     batch, links = rotation.shape[0], rotation.shape[1]
     energy = np.zeros(batch)
     object_max = np.zeros(batch)
@@ -253,11 +247,7 @@ def _penetration_batch(
     for b in range(batch):
         while True:
             hits = _one_grasp(
-                b, rotation, translation, object_index[b], scale[b], count[b], weight[b], want_gradient,
-                volumes, grid_min, voxel_size, interpolation_error,
-                sphere_centre, sphere_radius, sphere_link, sphere_shape,
-                shape_link, shape_rot, shape_pos, shape_kind, shape_size, shape_gap,
-                points, parent_x, parent_y, parent_z, parent_r, cluster_x, cluster_y, cluster_z, cluster_r, member_x, member_y, member_z, member_index, leaves_per_parent,
+                b, rotation, translation, object_index[b], scale[b], count[b], weight[b], want_gradient, arrays,
                 energy, object_max, hand_max, grad_rotation, grad_translation, hit_point, hit_shape, hit_depth,
             )
             if hits <= hit_point.shape[0]:
@@ -291,6 +281,39 @@ def cluster_arrays(clusters, object_points: torch.Tensor) -> tuple[np.ndarray, .
     )
 
 
+class PenetrationArrays(NamedTuple):
+    """The static arrays of one ``PenetrationTerm`` the compiled pass reads, in its order (passed as a plain tuple)."""
+
+    volumes: np.ndarray  # (n, g, g, g) SDF grids, normalized units, positive inside
+    grid_min: np.ndarray  # (n, 3)
+    voxel_size: np.ndarray  # (n,)
+    interpolation_error: np.ndarray  # (n,) the grid's error bound, normalized units
+    sphere_centre: np.ndarray  # (K, 3) in link frames, m
+    sphere_radius: np.ndarray  # (K,)
+    sphere_link: np.ndarray  # (K,)
+    sphere_shape: np.ndarray  # (K,)
+    shape_link: np.ndarray  # (S,)
+    shape_rot: np.ndarray  # (S, 3, 3) in link frames
+    shape_pos: np.ndarray  # (S, 3)
+    shape_kind: np.ndarray  # (S,) CAPSULE or BOX
+    shape_size: np.ndarray  # (S, 3)
+    shape_gap: np.ndarray  # (S,) covering gap of the shape's spheres, m
+    points: np.ndarray  # (n, P, 3) object points, normalized
+    parent_x: np.ndarray  # (n, C / 16) and the next three: parent spheres
+    parent_y: np.ndarray
+    parent_z: np.ndarray
+    parent_r: np.ndarray
+    cluster_x: np.ndarray  # (n, C) and the next three: cluster spheres
+    cluster_y: np.ndarray
+    cluster_z: np.ndarray
+    cluster_r: np.ndarray
+    member_x: np.ndarray  # (n, C·L) and the next two: member points; member_index: their indices, −1 empty
+    member_y: np.ndarray
+    member_z: np.ndarray
+    member_index: np.ndarray
+    leaves_per_parent: int
+
+
 class PenetrationKernel:
     """The static arrays of one ``PenetrationTerm`` as NumPy views, and its compiled evaluation."""
 
@@ -302,7 +325,7 @@ class PenetrationKernel:
 
         bank, hand, spheres, clusters = term.bank, term.hand, term.spheres, term.clusters
         g = bank.resolution
-        self.static = (
+        self.static = PenetrationArrays(
             array(bank.volumes, np.float32).reshape(-1, g, g, g),
             array(bank.grid_min, np.float64),
             array(bank.voxel_size, np.float64),
@@ -334,7 +357,7 @@ class PenetrationKernel:
             weight.detach().numpy().astype(np.float64),
             wants_gradient(frames),
             self.initial_hits,
-            *self.static,
+            tuple(self.static),  # a plain tuple: numba's cache then names no class of this module
         )
         dtype = frames.rotation.dtype
         return attach(frames, energy, grad_rotation, grad_translation), torch.from_numpy(object_max).to(dtype), torch.from_numpy(hand_max).to(dtype)
