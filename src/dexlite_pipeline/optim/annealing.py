@@ -7,7 +7,8 @@ Each iteration of ``optimize`` has three parts, each its own piece here:
   re-drawn with probability ``contact_switch_probability``, and the energy of the result.
   It is DexGraspNet's variant of RMSProp, kept on purpose because it gives more passing
   grasps than the standard form: the running mean puts weight ``mu`` on the NEW squared
-  gradient, averaged over the batch.
+  gradient; by default each grasp keeps its own (``rmsprop_statistic`` "grasp"), DexGraspNet
+  averages it over the batch ("batch").
 * accept (``metropolis_accept``, ``WalkState.where``, ``KeepBest``): each proposal is
   accepted with Metropolis probability exp((E_old − E_new)/T), T = T0·decay^⌊k/period⌋; a
   rejected grasp keeps its old pose, contacts and gradient. With ``keep_best`` each grasp
@@ -96,7 +97,7 @@ class StateEnergy:
 
     def __call__(self, state: torch.Tensor, contacts: torch.Tensor) -> "WalkState":
         """Evaluate at ``state``; NaN and ±inf in the gradient become 0, as one grasp's NaN would otherwise
-        reach every grasp through the batch-shared RMSProp mean."""
+        stall it (and, with the batch statistic, reach every grasp through the RMSProp mean)."""
         x = state.detach().requires_grad_(True)
         result = self.energy(
             palm_rot=rot6d_to_matrix(x[:, _R6]), palm_t=x[:, _T], joints=x[:, _Q],
