@@ -89,3 +89,23 @@ def test_narrow_band_equals_exact_grid_near_surface_with_correct_sign():
     assert (np.sign(banded) == np.sign(exact)).all()
     coarse_voxel = voxel * 47 / (47 // 4)  # the coarse grid spans the same box with 4x fewer cells
     assert np.abs(banded - exact).max() <= coarse_voxel * np.sqrt(3)
+
+
+def test_watertight_mesh_distances_equal_the_winding_number_signed_ones():
+    """The pseudonormal sign used for closed meshes gives the generalized winding number's distances; an open mesh
+    keeps igl's default, the winding number (a pseudonormal sign is undefined across a hole)."""
+    import igl
+
+    from dexlite_pipeline.objects.build import _grid_points, _igl_signed_distance
+
+    mesh = normalize_mesh(trimesh.creation.torus(1.0, 0.35, major_sections=24, minor_sections=12))[0]
+    points = _grid_points(np.full(3, -1.3), 2.6 / 23, 24)
+    vertices, faces = np.asarray(mesh.vertices, np.float64), np.asarray(mesh.faces, np.int64)
+    winding = -igl.signed_distance(points, vertices, faces, igl.SIGNED_DISTANCE_TYPE_WINDING_NUMBER)[0]
+    assert mesh.is_watertight
+    np.testing.assert_allclose(_igl_signed_distance(points, mesh), winding, atol=1e-12)
+    assert (winding > 0).any() and (winding < 0).any()
+    opened = trimesh.Trimesh(mesh.vertices, mesh.faces[10:], process=False)
+    assert not opened.is_watertight
+    default = -igl.signed_distance(points, vertices, np.asarray(opened.faces, np.int64), igl.SIGNED_DISTANCE_TYPE_DEFAULT)[0]
+    np.testing.assert_allclose(_igl_signed_distance(points, opened), default, atol=1e-12)

@@ -229,3 +229,50 @@ def test_grasp_random_streams_are_uniform_and_independent():
     weighted = random.weighted(torch.tensor([[0.0, 1.0, 3.0]]).expand(2000, -1), 1, GraspRandom.CONTACT_SEARCH, 4)
     share = torch.bincount(weighted.flatten(), minlength=3).double() / weighted.numel()
     assert share[0] == 0 and abs(float(share[2]) - 0.75) < 0.02
+
+
+def test_hopeless_grasps_stop_where_they_are_and_the_others_walk_on_unchanged(hand, setup):
+    """At a checkpoint, grasps above the E_fc / E_dis limits stop in their kept state and are reported with the
+    iteration; with each grasp's own draws and statistic the grasps that go on end exactly as without the stop."""
+    import dataclasses
+
+    from dexlite_pipeline.optim.config import HopelessStopConfig
+    from dexlite_pipeline.optim.grasp_random import GraspRandom
+
+    energy, hulls = setup
+    object_index, scale = _batch(6)
+    init = initial_poses(hand, hulls, object_index, scale, InitConfig(distance_m=(0.06, 0.09)), torch.Generator().manual_seed(5))
+    config = dataclasses.replace(SHORT, rmsprop_statistic="grasp", final_contact_samples=16, contact_search_every=20, trace_every=1)
+    keys = torch.arange(6)
+
+    def run(stop):
+        return optimize(energy, init, object_index, scale, dataclasses.replace(config, stop_hopeless=stop), torch.Generator().manual_seed(0),
+                        random=GraspRandom(7, keys), snapshot_iterations=(30, 60))
+
+    free = run(HopelessStopConfig())
+    assert (free.stopped_at_iteration == 0).all()
+    at_30 = free.term_traces["E_fc"][30]  # the kept state's E_fc after iteration 30
+    limit = float(at_30.median())  # half of them are above it
+    stopped = run(HopelessStopConfig(iterations=(30,), max_e_fc=(limit,), max_e_dis_m=(10.0,)))
+    hopeless = at_30 > limit
+    assert 0 < int(hopeless.sum()) < 6
+    assert torch.equal(stopped.stopped_at_iteration, torch.where(hopeless, 30, 0))
+    going_on = ~hopeless
+    assert torch.equal(stopped.hand_pose[going_on], free.hand_pose[going_on])
+    assert torch.equal(stopped.contact_index[going_on], free.contact_index[going_on])
+    # A stopped grasp ends in its pose after iteration 30 (the final contact search may change only its contacts).
+    torch.testing.assert_close(stopped.hand_pose[hopeless], free.snapshots[30][hopeless])
+    torch.testing.assert_close(stopped.snapshots[60][hopeless], free.snapshots[30][hopeless])
+    # Its trace stays where it stopped; the others' traces are those of the free run.
+    trace_fc = stopped.term_traces["E_fc"]
+    assert torch.equal(trace_fc[31:-1, hopeless], trace_fc[30:31, hopeless].expand(len(trace_fc) - 32, -1))
+    assert torch.equal(trace_fc[:, going_on], free.term_traces["E_fc"][:, going_on])
+
+
+def test_hopeless_stop_config_needs_one_limit_of_each_per_checkpoint():
+    from dexlite_pipeline.optim.config import HopelessStopConfig
+
+    with pytest.raises(ValueError, match="one entry per checkpoint"):
+        HopelessStopConfig(iterations=(300, 600), max_e_fc=(4.0,), max_e_dis_m=(1.0, 1.0))
+    assert HopelessStopConfig(iterations=(300,), max_e_fc=(4.0,), max_e_dis_m=(0.02,)).limits_at(300) == (4.0, 0.02)
+    assert HopelessStopConfig(iterations=(300,), max_e_fc=(4.0,), max_e_dis_m=(0.02,)).limits_at(301) is None

@@ -26,10 +26,16 @@ logging.getLogger("trimesh.sample").addFilter(_not_short_sample_warning)
 
 
 def _igl_signed_distance(points: np.ndarray, mesh) -> np.ndarray:
-    """Exact signed distance of ``points`` to ``mesh``, positive inside (igl's sign is the opposite)."""
+    """Exact signed distance of ``points`` to ``mesh``, positive inside (igl's sign is the opposite).
+
+    A watertight mesh takes its sign from the angle-weighted pseudonormal of the nearest feature (exact for a
+    closed, consistently oriented surface, and ~1.5x faster than the default generalized winding number, which
+    any other mesh keeps: it tolerates holes).
+    """
     import igl
 
-    distance = igl.signed_distance(points, np.asarray(mesh.vertices, np.float64), np.asarray(mesh.faces, np.int64))[0]
+    sign_type = igl.SIGNED_DISTANCE_TYPE_PSEUDONORMAL if mesh.is_watertight and mesh.is_winding_consistent else igl.SIGNED_DISTANCE_TYPE_DEFAULT
+    distance = igl.signed_distance(points, np.asarray(mesh.vertices, np.float64), np.asarray(mesh.faces, np.int64), sign_type)[0]
     return -distance
 
 

@@ -68,6 +68,7 @@ class OptimizationResult:
     seconds: float
     snapshots: dict[int, torch.Tensor] | None = None  # iteration -> (B, 28) kept pose after it (``snapshot_iterations``
     # of ``optimize``; iteration 0 is the start)
+    stopped_at_iteration: torch.Tensor | None = None  # (B,) iteration a hopeless grasp stopped at (0: it walked every iteration)
 
 
 def pose_to_state(hand_pose: torch.Tensor) -> torch.Tensor:
@@ -94,6 +95,10 @@ class StateEnergy:
         self.energy = energy
         self.object_index = object_index
         self.scale = scale
+
+    def take(self, rows: torch.Tensor) -> "StateEnergy":
+        """The same energy for the grasps at ``rows`` only."""
+        return StateEnergy(self.energy, self.object_index[rows], self.scale[rows])
 
     def __call__(self, state: torch.Tensor, contacts: torch.Tensor) -> "WalkState":
         """Evaluate at ``state``; NaN and ±inf in the gradient become 0, as one grasp's NaN would otherwise
@@ -128,6 +133,12 @@ class WalkState:
             grad,
         )
 
+    def take(self, rows: torch.Tensor) -> "WalkState":
+        """The grasps at ``rows`` (index tensor) only."""
+        result = _Kept({k: v.detach()[rows] for k, v in self.result.terms.items()}, self.result.penetration_mm[rows],
+                       self.result.contact_distance_mm[rows])
+        return WalkState(self.state[rows], self.contacts[rows], self.total[rows], result, None if self.grad is None else self.grad[rows])
+
 
 class RMSPropProposal:
     """The proposal step: an RMSProp-scaled gradient step plus random contact switches, evaluated.
@@ -144,6 +155,13 @@ class RMSPropProposal:
         self.draws = draws
         self.per_grasp = config.rmsprop_statistic == "grasp"
         self.square_avg = torch.zeros(like.shape if self.per_grasp else like.shape[1], dtype=like.dtype, device=like.device)
+
+    def take(self, rows: torch.Tensor) -> None:
+        """Go on with the grasps at ``rows`` only (each keeps its own statistic; the batch statistic stays as it is)."""
+        self.evaluate = self.evaluate.take(rows)
+        self.draws = self.draws.take(rows)
+        if self.per_grasp:
+            self.square_avg = self.square_avg[rows]
 
     def __call__(self, walk: WalkState, iteration: int) -> WalkState:
         """The proposal for ``iteration`` (1-based) from ``walk``; draws the switch mask, then the new indices."""
@@ -163,6 +181,10 @@ class Draws:
 
     def __init__(self, batch: int, generator: torch.Generator, device, random: GraspRandom | None = None) -> None:
         self.batch, self.generator, self.device, self.random = batch, generator, device, random
+
+    def take(self, rows: torch.Tensor) -> "Draws":
+        """The draws of the grasps at ``rows`` only (their own streams with ``random``)."""
+        return Draws(len(rows), self.generator, self.device, None if self.random is None else self.random.take(rows))
 
     def contacts(self, iteration: int, candidate_count: int) -> torch.Tensor:
         """(B, 4) contact indices drawn uniformly among the candidates (iteration 0: the start)."""
@@ -204,6 +226,9 @@ class KeepBest:
     def update(self, walk: WalkState) -> None:
         self.best = self.best.where(walk.total < self.best.total, replace(walk, grad=None))
 
+    def take(self, rows: torch.Tensor) -> None:
+        self.best = self.best.take(rows)
+
 
 def search_contacts(energy: GraspEnergy, walk: WalkState, evaluate: StateEnergy, samples: int, generator: torch.Generator, draw=None) -> WalkState:
     """The walk re-evaluated at the best of ``samples`` contact sets per grasp for its current poses (never worse).
@@ -215,7 +240,11 @@ def search_contacts(energy: GraspEnergy, walk: WalkState, evaluate: StateEnergy,
 
 
 class Tracker:
-    """What ``optimize`` reports besides the final state: energy and term traces, snapshots, acceptance counts."""
+    """What ``optimize`` reports besides the final state: energy and term traces, snapshots, acceptance counts.
+
+    Rows are the run's grasps; once hopeless grasps have stopped (``optimize``), ``active`` names the rows still
+    walking, and a stopped grasp's trace and snapshots stay where it stopped.
+    """
 
     def __init__(self, config: AnnealingConfig, start: WalkState, init_pose: torch.Tensor, snapshot_iterations: tuple[int, ...]) -> None:
         self.config = config
@@ -225,19 +254,24 @@ class Tracker:
         self.trace_iterations = [0]
         self.term_traces = {name: [value.detach().clone()] for name, value in start.result.terms.items()}
         self.snapshots = {0: init_pose.detach().to(start.state.device, start.state.dtype).clone()} if 0 in snapshot_iterations else {}
+        self.stopped_pose = torch.zeros(init_pose.shape, dtype=start.state.dtype, device=start.state.device)  # stopped grasps' kept poses
 
-    def count(self, accept: torch.Tensor) -> None:
-        self.accepted += accept.long()
+    def count(self, accept: torch.Tensor, active: torch.Tensor) -> None:
+        self.accepted[active] += accept.long()
 
-    def record(self, iteration: int, kept: WalkState) -> None:
+    def record(self, iteration: int, kept: WalkState, active: torch.Tensor) -> None:
         """After ``iteration``: a trace row every ``trace_every`` iterations and at the last, a snapshot if asked."""
         if iteration % self.config.trace_every == 0 or iteration == self.config.iterations:
-            self.trace.append(kept.total.clone())
+            self.trace.append(_scatter(self.trace[-1], active, kept.total))
             self.trace_iterations.append(iteration)
             for name, value in kept.result.terms.items():
-                self.term_traces[name].append(value.detach().clone())
+                self.term_traces[name].append(_scatter(self.term_traces[name][-1], active, value.detach()))
         if iteration in self.snapshot_iterations:
-            self.snapshots[iteration] = state_to_pose(kept.state).detach()
+            self.snapshots[iteration] = _scatter(self.stopped_pose, active, state_to_pose(kept.state).detach())
+
+    def stop(self, rows: torch.Tensor, stopped: WalkState) -> None:
+        """The grasps at run rows ``rows`` stop walking in states ``stopped``."""
+        self.stopped_pose[rows] = state_to_pose(stopped.state).detach()
 
     def replace_last(self, total: torch.Tensor, terms: dict[str, torch.Tensor]) -> None:
         """Overwrite the last trace row (after the final contact search changed the final state's energy)."""
@@ -247,6 +281,23 @@ class Tracker:
 
     def acceptance_rate(self, dtype: torch.dtype) -> torch.Tensor:
         return self.accepted.to(dtype) / max(self.config.iterations, 1)
+
+
+def _scatter(full: torch.Tensor, rows: torch.Tensor, values: torch.Tensor) -> torch.Tensor:
+    """A copy of ``full`` with ``values`` at ``rows`` (just ``values`` while every grasp is still walking)."""
+    if len(rows) == full.shape[0]:
+        return values.clone()
+    out = full.clone()
+    out[rows] = values
+    return out
+
+
+def hopeless(kept: WalkState, limits: tuple[float, float]) -> torch.Tensor:
+    """(B,) bool: grasps whose kept state is too far from the energy thresholds to be worth more steps: E_fc or E_dis
+    above ``limits`` (max E_fc, max E_dis in m; ``HopelessStopConfig``)."""
+    max_e_fc, max_e_dis_m = limits
+    terms = kept.result.terms
+    return (terms["E_fc"].detach() > max_e_fc) | (terms["E_dis"].detach() > max_e_dis_m)
 
 
 def optimize(
@@ -287,20 +338,42 @@ def optimize(
     best = KeepBest(walk) if config.keep_best else None
     tracker = Tracker(config, walk, init_pose, snapshot_iterations)
     searching = config.final_contact_samples and config.contact_search_every
+    active = torch.arange(batch, device=device)  # the run's rows still walking
+    stopped_at = torch.zeros(batch, dtype=torch.long, device=device)  # iteration a hopeless grasp stopped at (0: walked to the end)
+    stopped = WalkState(torch.zeros_like(state), torch.zeros_like(contacts), walk.total, walk.result)  # their states, by run row
     for iteration in range(1, config.iterations + 1):
         proposal = propose(walk, iteration)
-        accept = metropolis_accept(walk.total, proposal.total, config.temperature_at(iteration), draws.acceptance(iteration))
-        tracker.count(accept)
+        accept = metropolis_accept(walk.total, proposal.total, config.temperature_at(iteration), propose.draws.acceptance(iteration))
+        tracker.count(accept, active)
         walk = walk.where(accept, proposal)
         if searching and iteration % config.contact_search_every == 0 and iteration < config.iterations:
-            walk = search_contacts(energy, walk, evaluate, config.final_contact_samples, generator, draws.contact_search(iteration))
+            walk = search_contacts(energy, walk, propose.evaluate, config.final_contact_samples, generator, propose.draws.contact_search(iteration))
         if best is not None:
             best.update(walk)
-        tracker.record(iteration, walk if best is None else best.best)
+        kept = walk if best is None else best.best
+        tracker.record(iteration, kept, active)
         if progress is not None and iteration % progress_every == 0:
             progress(iteration, walk.total)
+        limits = config.stop_hopeless.limits_at(iteration)
+        if limits is not None and len(active):
+            stopping = hopeless(kept, limits)
+            if bool(stopping.any()):
+                rows = active[stopping]
+                stopped_at[rows] = iteration
+                stopped.state[rows], stopped.contacts[rows] = kept.state[stopping], kept.contacts[stopping]
+                tracker.stop(rows, kept.take(torch.nonzero(stopping).squeeze(1)))
+                going_on = torch.nonzero(~stopping).squeeze(1)
+                active, walk = active[going_on], walk.take(going_on)
+                propose.take(going_on)
+                if best is not None:
+                    best.take(going_on)
 
     final = walk if best is None else best.best
+    if len(active) < batch:  # stopped grasps end where they stopped, the others where their walk ended
+        stopped.state[active], stopped.contacts[active] = final.state, final.contacts
+        with torch.no_grad():
+            result = energy(state_to_pose(stopped.state), object_index=object_index, scale=scale, contact_index=stopped.contacts)
+        final = WalkState(stopped.state, stopped.contacts, result.total.detach(), result)
     hand_pose = state_to_pose(final.state).detach()
     contacts, total, result = final.contacts, final.total, final.result
     if config.final_contact_samples > 0:
@@ -334,6 +407,7 @@ def optimize(
         acceptance_rate=tracker.acceptance_rate(final.state.dtype),
         seconds=time.perf_counter() - started,
         snapshots=tracker.snapshots,
+        stopped_at_iteration=stopped_at,
     )
 
 

@@ -31,6 +31,13 @@ from dexlite_pipeline.tabletop import store_arrays
 log = logging.getLogger(__name__)
 
 
+def start_rows(object_scales: list[tuple[float, ...]], grasps_per_scale: int, dtype: torch.dtype) -> tuple[torch.Tensor, torch.Tensor]:
+    """Object index and scale of every start: object-major, then scale-major, ``grasps_per_scale`` of each."""
+    object_index = torch.cat([torch.full((grasps_per_scale * len(scales),), i, dtype=torch.long) for i, scales in enumerate(object_scales)])
+    scale = torch.cat([torch.tensor(scales, dtype=dtype).repeat_interleave(grasps_per_scale) for scales in object_scales])
+    return object_index, scale
+
+
 def synthesize(
     assets: list[ObjectAsset],
     config: OptimizeGraspsConfig,
@@ -38,22 +45,29 @@ def synthesize(
     generator: torch.Generator,
     device: torch.device | str = "cpu",
     support_planes=None,
+    object_scales: list[tuple[float, ...]] | None = None,
 ) -> tuple[GraspSet, dict]:
     """Optimize ``grasps_per_object`` grasps per object and scale; returns the grasps and run statistics.
 
     ``support_planes`` (``tabletop.SupportPlanes``; tabletop mode): starts above each object's table,
     E_table in the energy, and the grasps record E_table and their support plane. None: floating objects.
+    ``object_scales``: each object's own scales (one tuple per asset, e.g. its real size) instead of
+    ``config.scales`` for all; the objects are still optimized together in batches of ``batch_size``.
     """
     started = time.perf_counter()
     hand = ShadowHand(device)
-    energy = GraspEnergy.from_assets(hand, assets, energy_config, support_planes=support_planes, max_scale=max(config.scales))
+    if object_scales is None:
+        object_scales = [tuple(config.scales)] * len(assets)
+    if len(object_scales) != len(assets) or not all(object_scales):
+        raise ValueError(f"object_scales: expected one non-empty tuple of scales per object ({len(assets)}), got {object_scales}")
+    object_index, scale = start_rows(object_scales, config.grasps_per_object, hand.dtype)
+    energy = GraspEnergy.from_assets(hand, assets, energy_config, support_planes=support_planes,
+                                     max_scale={a.object_id: max(s) for a, s in zip(assets, object_scales)})
     term_names = tuple(term.name for term in energy.terms)
     hulls = HullSampler(assets)
-    per_object = config.grasps_per_object * len(config.scales)
-    object_index = torch.arange(len(assets)).repeat_interleave(per_object)
-    scale = torch.tensor(config.scales, dtype=hand.dtype).repeat_interleave(config.grasps_per_object).repeat(len(assets))
     total = len(object_index)
-    outputs: dict[str, list] = {k: [] for k in ("hand_pose", "init_pose", "contact_index", "acceptance_rate", "penetration_mm", "contact_distance_mm", "E_total", *term_names)}
+    outputs: dict[str, list] = {k: [] for k in ("hand_pose", "init_pose", "contact_index", "acceptance_rate", "penetration_mm", "contact_distance_mm",
+                                                "E_total", "stopped_at_iteration", *term_names)}
     batches = max(1, -(-total // config.batch_size))
     for batch_number, start in enumerate(range(0, total, config.batch_size), start=1):
         rows = slice(start, start + config.batch_size)
@@ -77,12 +91,14 @@ def synthesize(
         outputs["penetration_mm"].append(result.penetration_mm.cpu().numpy())
         outputs["contact_distance_mm"].append(result.contact_distance_mm.cpu().numpy())
         outputs["E_total"].append(result.total.cpu().numpy())
+        outputs["stopped_at_iteration"].append(result.stopped_at_iteration.cpu().numpy().astype(np.int32))
         for name in term_names:
             outputs[name].append(result.terms[name].cpu().numpy())
         batch_pass = config.thresholds.passes({**{k: result.terms[k].cpu().numpy() for k in TERM_NAMES}, "penetration_mm": result.penetration_mm.cpu().numpy()})
-        log.info("batch %d/%d done: %d grasps in %.0f s, %.1f%% pass the energy thresholds", batch_number, batches, len(obj), result.seconds, 100 * batch_pass.mean())
+        log.info("batch %d/%d done: %d grasps in %.0f s, %.1f%% pass the energy thresholds, %d stopped early (hopeless)", batch_number, batches,
+                 len(obj), result.seconds, 100 * batch_pass.mean(), int((result.stopped_at_iteration > 0).sum()))
 
-    arrays = {k: np.concatenate(v).astype(np.float32) if k not in ("contact_index",) else np.concatenate(v) for k, v in outputs.items()}
+    arrays = {k: np.concatenate(v) if k in ("contact_index", "stopped_at_iteration") else np.concatenate(v).astype(np.float32) for k, v in outputs.items()}
     arrays["object_id"] = np.asarray([assets[i].object_id for i in object_index.tolist()], dtype=object)
     arrays["scale"] = scale.numpy().astype(np.float32)
     arrays["passes_energy_thresholds"] = config.thresholds.passes(arrays)
@@ -93,6 +109,7 @@ def synthesize(
         "grasps": total,
         "passing": int(arrays["passes_energy_thresholds"].sum()),
         "pass_fraction": float(arrays["passes_energy_thresholds"].mean()) if total else 0.0,
+        "stopped_early": int((arrays["stopped_at_iteration"] > 0).sum()),
         "seconds": seconds,
         "seconds_per_grasp": seconds / total if total else 0.0,
     }

@@ -41,6 +41,7 @@ def empty_optimized_grasps(table: bool = False) -> GraspSet:
     for name in ("acceptance_rate", "penetration_mm", "contact_distance_mm", "E_total", *TERM_NAMES):
         grasps.arrays[name] = np.zeros(0, np.float32)
     grasps.arrays["passes_energy_thresholds"] = np.zeros(0, bool)
+    grasps.arrays["stopped_at_iteration"] = np.zeros(0, np.int32)
     if table:
         grasps.arrays["E_table"] = np.zeros(0, np.float32)
         grasps.arrays.update(store_arrays(np.zeros((0, 3)), np.zeros(0)))
@@ -92,7 +93,7 @@ def optimize_shard(
     if assets:
         grasps, stats = synthesize(assets, settings, energy, shard_generator("optimize_grasps", seed, shard), device, support_planes=planes)
     else:
-        grasps, stats = empty_optimized_grasps(planes is not None), {"grasps": 0, "passing": 0, "pass_fraction": 0.0, "seconds": 0.0, "seconds_per_grasp": 0.0}
+        grasps, stats = empty_optimized_grasps(planes is not None), {"grasps": 0, "passing": 0, "pass_fraction": 0.0, "stopped_early": 0, "seconds": 0.0, "seconds_per_grasp": 0.0}
     attrs = {
         "stage": "optimize_grasps",
         "shard": f"{shard:03d}",

@@ -40,6 +40,12 @@ class GraspRandom:
         self.keys = keys.astype(np.uint64)
         self.seed = _splitmix64(np.asarray([seed & 0xFFFFFFFFFFFFFFFF], dtype=np.uint64))[0]
 
+    def take(self, rows: torch.Tensor) -> "GraspRandom":
+        """The streams of the grasps at ``rows`` (each keeps its own numbers)."""
+        taken = object.__new__(GraspRandom)
+        taken.keys, taken.seed = self.keys[rows.cpu().numpy()], self.seed
+        return taken
+
     def uniform(self, iteration: int, stream: int, count: int) -> torch.Tensor:
         """(B, count) float64 uniforms in [0, 1) for ``iteration`` and ``stream``."""
         with np.errstate(over="ignore"):

@@ -262,7 +262,8 @@ def make_tasks(grasps: GraspSet, indices: np.ndarray, objects_dirs: list[str], c
     return tasks
 
 
-def run_lift_tests(grasps: GraspSet, objects_dirs, config: LiftConfig, threads: int = 1, support_planes: SupportPlanes | None = None) -> dict[str, np.ndarray]:
+def run_lift_tests(grasps: GraspSet, objects_dirs, config: LiftConfig, threads: int = 1, support_planes: SupportPlanes | None = None,
+                   known_failures: np.ndarray | None = None) -> dict[str, np.ndarray]:
     """Lift-test every grasp; per-grasp arrays aligned with ``grasps``.
 
     ``support_planes`` (tabletop mode): each object rests on its table (module docstring); the
@@ -270,8 +271,10 @@ def run_lift_tests(grasps: GraspSet, objects_dirs, config: LiftConfig, threads: 
     ``invalid_grasp: no resting pose``. None: floating objects.
 
     Invalid grasps (non-finite pose or scale, object missing from the assets) are kept,
-    flagged with ``failure_reason = 'invalid_grasp: <reason>'`` and not simulated. Work
-    runs on ``threads`` threads of this process.
+    flagged with ``failure_reason = 'invalid_grasp: <reason>'`` and not simulated.
+    ``known_failures`` (N,) reasons, '' for a grasp to test: a caller that knows a grasp fails (an
+    optimization stopped as hopeless) keeps it out of the simulation; it fails with
+    ``failure_reason = 'not_tested: <reason>'``. Work runs on ``threads`` threads of this process.
     Returns ``lift_ratio``, ``lift_success``, ``failure_reason``, ``initial_penetration_mm``
     and, with ``config.six_directions``, ``six_dir_success``, ``six_dir_passed`` (N, 6),
     ``six_dir_translation_m`` (N, 6) and ``six_dir_rotation_deg`` (N, 6) in ``sim.simulator.DIRECTIONS`` order.
@@ -285,6 +288,10 @@ def run_lift_tests(grasps: GraspSet, objects_dirs, config: LiftConfig, threads: 
         reasons[(reasons == "") & no_plane] = "no resting pose (tabletop mode)"
     invalid = reasons != ""
     out.failure_reason[invalid] = np.asarray([f"invalid_grasp: {r}" for r in reasons[invalid]], dtype=object)
+    if known_failures is not None:
+        known = (np.asarray(known_failures, dtype=object) != "") & ~invalid
+        out.failure_reason[known] = np.asarray([f"not_tested: {r}" for r in np.asarray(known_failures, dtype=object)[known]], dtype=object)
+        invalid = invalid | known
     tasks = make_tasks(grasps, np.flatnonzero(~invalid), dirs, config, support_planes)
     label = "lift + six-direction test" if config.six_directions else "lift test"
     progress = ProgressLog(log, label, int((~invalid).sum()), unit="grasps")

@@ -71,14 +71,16 @@ def format_summary(summary: dict, config: LiftConfig) -> str:
     return "\n".join(lines)
 
 
-def lift_grasp_set(grasps: GraspSet, objects_dirs, config: LiftConfig, threads: int, support_planes=None) -> tuple[GraspSet, dict]:
+def lift_grasp_set(grasps: GraspSet, objects_dirs, config: LiftConfig, threads: int, support_planes=None,
+                   known_failures: np.ndarray | None = None) -> tuple[GraspSet, dict]:
     """The input grasps with the lift-test arrays added, attributes recording constants and summary.
 
     ``support_planes`` (tabletop mode): each object on its table; the grasps also record their
     support plane (NaN for an object without one, whose grasps are flagged invalid).
+    ``known_failures``: reasons of grasps not to simulate (``run_lift_tests``).
     """
     start = time.perf_counter()
-    results = run_lift_tests(grasps, objects_dirs, config, threads, support_planes)
+    results = run_lift_tests(grasps, objects_dirs, config, threads, support_planes, known_failures)
     seconds = time.perf_counter() - start
     arrays = dict(grasps.arrays)
     previous = arrays.pop("failure_reason", None)

@@ -64,15 +64,18 @@ def synthesize_from_scratch(
     from dexlite_pipeline.optim.from_scratch import synthesize
 
     generator = shard_generator("optimize_grasps", seed, 0)
-    parts = []
-    for number, asset in enumerate(assets, start=1):
-        object_scales = scales[asset.object_id]
-        per_scale = -(-n // len(object_scales))
-        optimize_config = dataclasses.replace(config.optimize_grasps, grasps_per_object=per_scale, scales=object_scales)
-        log.info("object %d/%d %s: optimizing %d grasps, %d iterations", number, len(assets), asset.object_id,
-                 per_scale * len(object_scales), optimize_config.annealing.iterations)
-        grasps, _ = synthesize([asset], optimize_config, config.energy, generator, device, support_planes=support_planes)
-        parts.append(grasps.select(_balanced_rows(per_scale, len(object_scales), n)))
+    object_scales = [tuple(scales[a.object_id]) for a in assets]
+    per_scale = -(-n // min(len(s) for s in object_scales))  # enough of each scale for n per object, the scales in turn
+    optimize_config = dataclasses.replace(config.optimize_grasps, grasps_per_object=per_scale)
+    log.info("optimizing %d grasps on %d object(s) together, %d iterations", per_scale * sum(len(s) for s in object_scales), len(assets),
+             optimize_config.annealing.iterations)
+    optimized, _ = synthesize(assets, optimize_config, config.energy, generator, device, support_planes=support_planes,
+                              object_scales=object_scales)
+    parts, start = [], 0
+    for object_scale in object_scales:
+        block = per_scale * len(object_scale)
+        parts.append(optimized.select(start + _balanced_rows(per_scale, len(object_scale), n)))
+        start += block
     grasps = GraspSet.concatenate(parts)
     grasps.arrays["method"] = np.full(len(grasps), "optimization", dtype=object)
     return grasps
