@@ -1,0 +1,408 @@
+"""A learned grasp evaluator: the probability that a simulated grasp holds its object.
+
+The network sees the hand-object geometry, not raw pose numbers. The hand is a fixed set of
+points spread over its collision shapes (``ShadowHand.surface_points`` with
+``hand_points_per_shape`` per shape), moved into the object frame by the hand's forward
+kinematics. Each hand point contributes its position, its height above the object surface
+(along the outward normal of the nearest cloud point: negative inside), its distance to that
+point and that normal. The object contributes a PointNet global feature of its cloud. An MLP
+reads [global feature, all hand-point features in a fixed order] and returns two logits:
+"held" (``lift_success``) and "six-direction success" (``six_dir_success``).
+
+A *cloud* is one object at one scale: ``ObjectClouds.draw_fixed`` with ``points_per_cloud``
+farthest-point samples in metres with normals. Farthest-point order means the first
+``pointnet_points`` of a cloud are themselves an even subset, which PointNet reads; the hand
+points are measured against the whole cloud.
+
+Training splits validation by object, so the validation score estimates the score on objects
+never seen, and the weights of the epoch with the lowest validation loss are kept.
+"""
+
+from __future__ import annotations
+
+import copy
+import json
+import logging
+import math
+import os
+import time
+from dataclasses import asdict, dataclass, field, replace
+
+import numpy as np
+import torch
+from torch import nn
+
+from dexlite_pipeline.atomic import atomic_path
+from dexlite_pipeline.hand.model import ShadowHand
+from dexlite_pipeline.io.grasp_store import GraspSet, invalid_grasp_reasons
+from dexlite_pipeline.model.data import ObjectClouds, cloud_keys
+from dexlite_pipeline.model.network import PointNet, _mlp
+from dexlite_pipeline.model.pose import TRANSLATION_UNIT_M
+from dexlite_pipeline.objects.assets import ObjectAssetError, load_asset
+from dexlite_pipeline.progress import ProgressLog
+
+log = logging.getLogger(__name__)
+FILE_FORMAT = "dexlite-grasp-evaluator"
+FILE_VERSION = 1
+HEADS = ("held", "six_dir")
+NEVER_SIMULATED_PREFIXES = ("invalid_grasp", "not_tested")
+
+
+class EvaluatorDataError(ValueError):
+    """Grasp stores that give no usable training examples."""
+
+
+@dataclass(frozen=True)
+class EvaluatorConfig:
+    """Sizes and training settings of the grasp evaluator (defaults: a few thousand grasps in ~1-2 min on 2 CPU cores)."""
+
+    points_per_cloud: int = 512  # object surface points per cloud; hand points are measured against all of them
+    pointnet_points: int = 128  # the first (farthest-point) points of each cloud that PointNet reads
+    pointnet_widths: tuple[int, ...] = (32, 64, 128)  # PointNet layer widths; the last is the global feature size
+    hand_points_per_shape: int = 6  # hand surface points per collision shape (6 -> 114 points)
+    hidden_sizes: tuple[int, ...] = (128, 64)  # MLP hidden layers after [global feature, hand-point features]
+    distance_scale_m: float = 0.02  # heights and distances enter as tanh(d / this), metres
+    epochs: int = 30  # passes over the training grasps
+    batch_size: int = 128  # grasps per step
+    learning_rate: float = 1e-3  # AdamW step size
+    weight_decay: float = 1e-4  # AdamW decoupled weight decay
+    six_dir_loss_weight: float = 0.5  # weight of the six-direction loss beside the held loss (1)
+    validation_fraction: float = 0.2  # share of the OBJECTS whose grasps form the validation set
+    seed: int = 0  # initial weights, object split and batch order
+
+    def __post_init__(self) -> None:
+        if not 0 < self.pointnet_points <= self.points_per_cloud:
+            raise ValueError(f"pointnet_points must be in 1..points_per_cloud ({self.points_per_cloud}), got {self.pointnet_points}")
+        if self.epochs < 1 or self.batch_size < 1 or self.hand_points_per_shape < 1:
+            raise ValueError("epochs, batch_size and hand_points_per_shape must be >= 1")
+        if not 0.0 <= self.validation_fraction < 1.0:
+            raise ValueError(f"validation_fraction must be in [0, 1), got {self.validation_fraction}")
+
+
+class GraspEvaluator(nn.Module):
+    """PointNet of the object cloud + per-hand-point geometry -> logits (B, 2): [held, six-direction success].
+
+    The hand (forward kinematics, not learned) is built on ``device``; the module must stay there.
+    """
+
+    def __init__(self, config: EvaluatorConfig, device: torch.device | str = "cpu") -> None:
+        super().__init__()
+        self.config = config
+        self.hand = ShadowHand(device, surface_points_per_shape=config.hand_points_per_shape)
+        self.hand_point_count = int(self.hand.surface_points_local.shape[0])
+        self.pointnet = PointNet(config.pointnet_widths, normalization="none", normals=True)
+        self.head = _mlp(config.pointnet_widths[-1] + 8 * self.hand_point_count, config.hidden_sizes, len(HEADS))
+        self.to(device)
+
+    def hand_points(self, hand_pose: torch.Tensor) -> torch.Tensor:
+        """(B, K, 3) hand surface points in the object frame (metres) for poses (B, 28)."""
+        return self.hand.surface_points(self.hand.forward(hand_pose))
+
+    def hand_point_features(self, clouds: torch.Tensor, hand_points: torch.Tensor) -> torch.Tensor:
+        """(B, K, 8) per hand point: position / 0.1 m, tanh(height above surface / s), tanh(distance / s), nearest normal.
+
+        ``clouds`` (B, P, 6) is each grasp's own cloud; s = ``distance_scale_m``.
+        """
+        nearest = torch.cdist(hand_points.detach(), clouds[..., :3]).argmin(dim=2, keepdim=True).expand(-1, -1, 6)  # (B, K, 6)
+        surface = clouds.gather(1, nearest)
+        offset = hand_points - surface[..., :3]
+        normal = surface[..., 3:6]
+        scale = self.config.distance_scale_m
+        height = torch.tanh((offset * normal).sum(-1, keepdim=True) / scale)
+        distance = torch.tanh(offset.norm(dim=-1, keepdim=True) / scale)
+        return torch.cat([hand_points / TRANSLATION_UNIT_M, height, distance, normal], dim=-1)
+
+    def forward(self, clouds: torch.Tensor, hand_pose: torch.Tensor, cloud_index: torch.Tensor | None = None) -> torch.Tensor:
+        """Logits (B, 2) for clouds (C, P, 6: metres at the grasp's scale in the object frame, outward normal) and poses (B, 28).
+
+        ``cloud_index`` (B,) names each grasp's cloud, so PointNet runs once per cloud; None: C == B, one cloud per grasp.
+        """
+        if clouds.shape[-1] != 6:
+            raise ValueError(f"clouds must hold positions and normals, (C, P, 6), got {tuple(clouds.shape)}")
+        if cloud_index is None:
+            cloud_index = torch.arange(len(hand_pose), device=clouds.device)
+        global_feature, _ = self.pointnet(clouds[:, : self.config.pointnet_points])
+        features = self.hand_point_features(clouds[cloud_index], self.hand_points(hand_pose))
+        return self.head(torch.cat([global_feature[cloud_index], features.flatten(1)], dim=1))
+
+
+@dataclass
+class EvaluatorExamples:
+    """Simulated grasps with their labels and the clouds of their objects."""
+
+    hand_pose: np.ndarray  # (N, 28) float32
+    object_id: np.ndarray  # (N,) str
+    scale: np.ndarray  # (N,) float32, object scale (~radius, m)
+    held: np.ndarray  # (N,) bool, lift_success
+    six_dir: np.ndarray  # (N,) bool, six_dir_success (False where unknown)
+    six_dir_known: np.ndarray  # (N,) bool, whether the store had six_dir_success
+    clouds: ObjectClouds
+    object_index: np.ndarray  # (N,) int64 into ``clouds``
+    excluded: dict[str, int] = field(default_factory=dict)  # reason -> grasps left out
+
+    def __len__(self) -> int:
+        return len(self.hand_pose)
+
+
+def _exclusion_reasons(grasps: GraspSet, object_ids: set[str] | None) -> np.ndarray:
+    """Per grasp '' if it is a usable example, else why not (never simulated first, then bad values, then the object filter)."""
+    reasons = np.full(len(grasps), "", dtype=object)
+    failure = grasps.arrays.get("failure_reason")
+    if failure is not None:
+        for prefix in NEVER_SIMULATED_PREFIXES:
+            never = np.array([str(r).startswith(prefix) for r in failure], dtype=bool)
+            reasons[never & (reasons == "")] = f"never simulated ({prefix})"
+    bad = invalid_grasp_reasons(grasps)
+    reasons[(reasons == "") & (bad != "")] = bad[(reasons == "") & (bad != "")]
+    if object_ids is not None:
+        outside = np.array([str(o) not in object_ids for o in grasps.object_id], dtype=bool)
+        reasons[(reasons == "") & outside] = "object not in object_ids"
+    return reasons
+
+
+def _load_assets(objects_dirs: list[str], ids: list[str]) -> tuple[list, set[str]]:
+    """Assets of ``ids`` (surface samples cut to the smallest count, so one ``ObjectClouds`` holds them) and the ids without one."""
+    assets, missing = [], set()
+    for object_id in ids:
+        try:
+            assets.append(load_asset(objects_dirs, object_id))
+        except ObjectAssetError as exc:
+            log.warning("evaluator examples: %s", exc)
+            missing.add(object_id)
+    if assets:
+        fewest = min(len(a.surface_points) for a in assets)
+        if any(len(a.surface_points) != fewest for a in assets):
+            log.warning("objects hold different numbers of surface samples; every cloud is drawn from the first %d", fewest)
+            assets = [replace(a, surface_points=a.surface_points[:fewest], surface_normals=a.surface_normals[:fewest]) for a in assets]
+    return assets, missing
+
+
+def evaluator_examples(stores: list[GraspSet], objects_dirs: list[str], object_ids: set[str] | None = None) -> EvaluatorExamples:
+    """Training examples from simulated grasp stores, restricted to ``object_ids`` when given.
+
+    Left out, with counts per reason in ``excluded``: grasps never simulated (``failure_reason``
+    starting with ``invalid_grasp`` or ``not_tested``), non-finite poses or scales, objects outside
+    ``object_ids`` (held-out objects never enter), objects without a prepared asset.
+    Raises ``EvaluatorDataError`` when a non-empty store has no ``lift_success`` or nothing is left.
+    """
+    kept: list[dict[str, np.ndarray]] = []
+    reasons_all: list[np.ndarray] = []
+    for grasps in stores:
+        if len(grasps) == 0:
+            continue
+        if "lift_success" not in grasps.arrays:
+            raise EvaluatorDataError("a grasp store has no lift_success array (not a simulated store)")
+        reasons = _exclusion_reasons(grasps, object_ids)
+        reasons_all.append(reasons)
+        keep = reasons == ""
+        six_dir = grasps.arrays.get("six_dir_success")
+        kept.append({
+            "hand_pose": np.asarray(grasps.hand_pose[keep], np.float32),
+            "object_id": np.asarray([str(o) for o in grasps.object_id[keep]], dtype=object),
+            "scale": np.asarray(grasps.scale[keep], np.float32),
+            "held": np.asarray(grasps.arrays["lift_success"][keep], bool),
+            "six_dir": np.zeros(int(keep.sum()), bool) if six_dir is None else np.asarray(six_dir[keep], bool),
+            "six_dir_known": np.full(int(keep.sum()), six_dir is not None),
+        })
+    arrays = {k: np.concatenate([part[k] for part in kept]) for k in kept[0]} if kept else {}
+    reasons = np.concatenate(reasons_all) if reasons_all else np.zeros(0, dtype=object)
+    excluded = {str(r): int((reasons == r).sum()) for r in sorted(set(reasons.tolist()) - {""})}
+    ids = sorted(set(arrays["object_id"].tolist())) if arrays else []
+    assets, missing = _load_assets(objects_dirs, ids)
+    if missing:
+        has_asset = np.array([o not in missing for o in arrays["object_id"]], dtype=bool)
+        excluded["object has no prepared asset"] = int((~has_asset).sum())
+        arrays = {k: v[has_asset] for k, v in arrays.items()}
+    if not assets or len(arrays["hand_pose"]) == 0:
+        raise EvaluatorDataError(f"no simulated grasps left for the evaluator (excluded: {excluded or 'none'})")
+    clouds = ObjectClouds(assets)
+    object_index = np.array([clouds.index_of[o] for o in arrays["object_id"]], dtype=np.int64)
+    log.info("evaluator examples: %d kept; excluded %s", len(object_index), excluded or "none")
+    return EvaluatorExamples(**arrays, clouds=clouds, object_index=object_index, excluded=excluded)
+
+
+@dataclass
+class TrainingHistory:
+    """Per-epoch rows and the facts of one training run."""
+
+    epochs: list[dict] = field(default_factory=list)  # epoch, step, seconds, train_loss, val_loss, val_auc_held, val_auc_six_dir
+    train_object_ids: list[str] = field(default_factory=list)
+    validation_object_ids: list[str] = field(default_factory=list)
+    pos_weight: dict[str, float] = field(default_factory=dict)  # negatives / positives of the training split, per head
+    best_epoch: int = 0  # the epoch whose weights were kept (lowest validation loss; the last without validation)
+
+
+def split_objects(object_ids: np.ndarray, fraction: float, seed: int) -> tuple[list[str], list[str]]:
+    """Seeded (train, validation) object ids; validation gets at least one object when ``fraction`` > 0 and there are two or more."""
+    ordered = sorted(set(str(o) for o in object_ids))
+    count = int(round(len(ordered) * fraction))
+    if fraction > 0 and len(ordered) > 1:
+        count = min(max(count, 1), len(ordered) - 1)
+    order = np.random.default_rng([seed, 0xE7A1]).permutation(len(ordered))
+    validation = sorted(ordered[i] for i in order[:count])
+    return sorted(set(ordered) - set(validation)), validation
+
+
+def _batch_inputs(clouds: ObjectClouds, object_index, scale, hand_pose, keys, index: np.ndarray, points: int, device):
+    """(clouds (C, P, 6), poses (B, 28), cloud_index (B,)) for the grasps ``index``: one cloud per distinct (object, scale) key."""
+    _, first, inverse = np.unique(keys[index], return_index=True, return_inverse=True)
+    rows = index[first]
+    drawn = clouds.draw_fixed(torch.as_tensor(object_index[rows]), torch.as_tensor(scale[rows], dtype=torch.float32), points)
+    return drawn.to(device), torch.as_tensor(hand_pose[index], device=device), torch.as_tensor(inverse.reshape(-1), device=device)
+
+
+def _predict(model: GraspEvaluator, clouds: ObjectClouds, object_index, scale, hand_pose, batch_size: int) -> torch.Tensor:
+    """Logits (N, 2) of grasps (N,) without gradients, in batches of ``batch_size``."""
+    device, keys = next(model.parameters()).device, cloud_keys(object_index, scale)
+    with torch.no_grad():
+        parts = [
+            model(*_batch_inputs(clouds, object_index, scale, hand_pose, keys, np.arange(start, min(start + batch_size, len(keys))),
+                                 model.config.points_per_cloud, device)).cpu()
+            for start in range(0, len(keys), batch_size)
+        ]
+    return torch.cat(parts) if parts else torch.zeros(0, len(HEADS))
+
+
+def _pos_weight(labels: np.ndarray) -> float:
+    positives = int(labels.sum())
+    return float(np.clip((len(labels) - positives) / positives, 0.01, 100.0)) if positives else 1.0
+
+
+def _loss(logits: torch.Tensor, labels: torch.Tensor, weight: torch.Tensor, pos_weight: torch.Tensor) -> torch.Tensor:
+    """Mean over grasps of the weighted BCE summed over the heads (weight 0: label unknown)."""
+    bce = nn.functional.binary_cross_entropy_with_logits(logits, labels, weight=weight, pos_weight=pos_weight, reduction="none")
+    return bce.sum(1).mean()
+
+
+def train_evaluator(
+    examples: EvaluatorExamples, config: EvaluatorConfig = EvaluatorConfig(), device: torch.device | str = "cpu"
+) -> tuple[GraspEvaluator, TrainingHistory]:
+    """Train an evaluator on ``examples``; deterministic for ``config.seed`` and the torch thread count.
+
+    Validation is a seeded share of the objects. Each head's BCE weighs positives by the
+    training split's negatives / positives, so a rare outcome is not ignored; the six-direction
+    loss counts only grasps whose store had that label.
+    """
+    device = torch.device(device)
+    train_ids, val_ids = split_objects(examples.object_id, config.validation_fraction, config.seed)
+    in_train = np.isin(examples.object_id.astype(str), train_ids)
+    train_index, val_index = np.flatnonzero(in_train), np.flatnonzero(~in_train)
+    keys = cloud_keys(examples.object_id, examples.scale)
+    labels = torch.as_tensor(np.stack([examples.held, examples.six_dir], axis=1), dtype=torch.float32)
+    known = torch.as_tensor(np.stack([np.ones(len(examples), bool), examples.six_dir_known], axis=1), dtype=torch.float32)
+    known[:, 1] *= config.six_dir_loss_weight
+    history = TrainingHistory(train_object_ids=train_ids, validation_object_ids=val_ids)
+    history.pos_weight = {
+        "held": _pos_weight(examples.held[train_index]),
+        "six_dir": _pos_weight(examples.six_dir[train_index][examples.six_dir_known[train_index]]),
+    }
+    pos_weight = torch.tensor([history.pos_weight[h] for h in HEADS], device=device)
+    with torch.random.fork_rng(devices=[]):
+        torch.manual_seed(config.seed)
+        model = GraspEvaluator(config, device)
+    optimizer = torch.optim.AdamW(model.parameters(), lr=config.learning_rate, weight_decay=config.weight_decay)
+    rng = np.random.default_rng([config.seed, 0xBA7C4])
+    steps_per_epoch = math.ceil(len(train_index) / config.batch_size)
+    progress = ProgressLog(log, "evaluator training", steps_per_epoch * config.epochs, unit="steps")
+    log.info("evaluator: %d training grasps on %d objects, %d validation grasps on %d objects, pos_weight %s",
+             len(train_index), len(train_ids), len(val_index), len(val_ids), history.pos_weight)
+    best_loss, best_state, step, started = math.inf, None, 0, time.perf_counter()
+    for epoch in range(1, config.epochs + 1):
+        model.train()
+        order = rng.permutation(train_index)
+        total = 0.0
+        for start in range(0, len(order), config.batch_size):
+            batch = order[start : start + config.batch_size]
+            inputs = _batch_inputs(examples.clouds, examples.object_index, examples.scale, examples.hand_pose, keys, batch,
+                                   config.points_per_cloud, device)
+            loss = _loss(model(*inputs), labels[batch].to(device), known[batch].to(device), pos_weight)
+            optimizer.zero_grad(set_to_none=True)
+            loss.backward()
+            optimizer.step()
+            total += float(loss.detach()) * len(batch)
+            step += 1
+            progress.advance()
+        row = {"epoch": epoch, "step": step, "seconds": round(time.perf_counter() - started, 3), "train_loss": total / max(len(order), 1)}
+        if len(val_index):
+            model.eval()
+            val_logits = _predict(model, examples.clouds, examples.object_index[val_index], examples.scale[val_index],
+                                  examples.hand_pose[val_index], 4 * config.batch_size)
+            row["val_loss"] = float(_loss(val_logits, labels[val_index], known[val_index], pos_weight.cpu()))
+            row["val_auc_held"] = roc_auc(val_logits[:, 0].numpy(), examples.held[val_index])
+            six_known = examples.six_dir_known[val_index]
+            row["val_auc_six_dir"] = roc_auc(val_logits[six_known, 1].numpy(), examples.six_dir[val_index][six_known])
+            if row["val_loss"] < best_loss:
+                best_loss, best_state, history.best_epoch = row["val_loss"], copy.deepcopy(model.state_dict()), epoch
+        history.epochs.append(row)
+        log.info("evaluator epoch %d: %s", epoch, ", ".join(f"{k} {v:.4g}" for k, v in row.items() if k != "epoch"))
+    if best_state is not None:
+        model.load_state_dict(best_state)
+    else:
+        history.best_epoch = config.epochs
+    model.eval()
+    return model, history
+
+
+def score_grasps(
+    model: GraspEvaluator, hand_pose: np.ndarray, clouds: ObjectClouds, object_id: np.ndarray, scale: np.ndarray,
+    head: str = "held", batch_size: int = 512,
+) -> np.ndarray:
+    """Probabilities (N,) from ``head`` ('held' or 'six_dir') for poses (N, 28) of objects ``object_id`` (N,) in ``clouds`` at ``scale`` (N,)."""
+    object_id = np.asarray([str(o) for o in object_id], dtype=object)
+    unknown = sorted(set(object_id.tolist()) - set(clouds.object_ids))
+    if unknown:
+        raise ValueError(f"objects not in the clouds: {', '.join(unknown[:5])}")
+    object_index = np.array([clouds.index_of[o] for o in object_id], dtype=np.int64)
+    was_training = model.training
+    model.eval()
+    logits = _predict(model, clouds, object_index, np.asarray(scale, np.float32), np.asarray(hand_pose, np.float32).reshape(-1, 28), batch_size)
+    model.train(was_training)
+    return torch.sigmoid(logits[:, HEADS.index(head)]).numpy()
+
+
+def roc_auc(scores: np.ndarray, labels: np.ndarray) -> float:
+    """Area under the ROC curve: P(a positive scores above a negative), ties counting one half; NaN without both classes.
+
+    Rank-based (Mann-Whitney U): the positives' rank sum, with tied scores sharing their mean rank.
+    """
+    scores = np.asarray(scores, dtype=np.float64).reshape(-1)
+    labels = np.asarray(labels, dtype=bool).reshape(-1)
+    positives, negatives = int(labels.sum()), int((~labels).sum())
+    if positives == 0 or negatives == 0:
+        return float("nan")
+    order = np.argsort(scores, kind="stable")
+    sorted_scores = scores[order]
+    starts = np.flatnonzero(np.r_[True, sorted_scores[1:] != sorted_scores[:-1]])
+    ends = np.r_[starts[1:], len(scores)]  # each tie group is sorted positions [start, end)
+    mean_rank = (starts + ends + 1) / 2.0  # mean of the 1-based ranks start+1 .. end
+    ranks = np.empty(len(scores))
+    ranks[order] = np.repeat(mean_rank, ends - starts)
+    return float((ranks[labels].sum() - positives * (positives + 1) / 2.0) / (positives * negatives))
+
+
+def save_evaluator(path: str | os.PathLike, model: GraspEvaluator, config: EvaluatorConfig, meta: dict | None = None) -> None:
+    """Write weights, config and ``meta`` (JSON-ready: objects, counts, history) to ``path`` atomically."""
+    meta = dict(meta or {})
+    try:
+        json.dumps(meta)
+    except TypeError as exc:
+        raise ValueError(f"{path}: evaluator meta is not JSON-serializable: {exc}") from exc
+    state = {k: v.detach().cpu() for k, v in model.state_dict().items()}
+    payload = {"format": FILE_FORMAT, "version": FILE_VERSION, "config": asdict(config), "state_dict": state, "meta": meta}
+    with atomic_path(path) as tmp:
+        torch.save(payload, tmp)
+
+
+def load_evaluator(path: str | os.PathLike, device: torch.device | str = "cpu") -> tuple[GraspEvaluator, dict]:
+    """(model in eval mode on ``device``, meta) from a file written by ``save_evaluator``."""
+    payload = torch.load(path, map_location="cpu", weights_only=True)
+    if not isinstance(payload, dict) or payload.get("format") != FILE_FORMAT:
+        raise ValueError(f"{path}: not a grasp evaluator file")
+    if payload.get("version") != FILE_VERSION:
+        raise ValueError(f"{path}: evaluator file version {payload.get('version')}, this code reads {FILE_VERSION}")
+    settings = dict(payload["config"])
+    config = EvaluatorConfig(**{k: tuple(v) if isinstance(v, list) else v for k, v in settings.items()})
+    model = GraspEvaluator(config, device)
+    model.load_state_dict(payload["state_dict"])
+    model.eval()
+    return model, payload["meta"]
