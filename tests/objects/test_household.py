@@ -151,6 +151,15 @@ def test_collect_sources_adds_household_objects_written_in_metres(tmp_path):
     assert collect_sources(0, [], [], seed=0) == []
 
 
+def test_household_first_takes_the_next_objects_of_the_same_order(tmp_path):
+    """Campaign batches: objects [first, first + count) of the round-robin order, so consecutive batches tile it."""
+    whole = collect_sources(0, [], [], seed=0, household_count=7, household_dir=tmp_path / "whole")
+    first = collect_sources(0, [], [], seed=0, household_count=4, household_dir=tmp_path / "a")
+    rest = collect_sources(0, [], [], seed=0, household_count=3, household_first=4, household_dir=tmp_path / "b")
+    assert [s.object_id for s in first + rest] == [s.object_id for s in whole]
+    assert not {s.object_id for s in whole} & set(household_benchmark_list())
+
+
 def test_household_source_errors_name_the_key(tmp_path):
     with pytest.raises(ObjectSourceError, match="objects.household_benchmark_objects"):
         collect_sources(0, [], [], seed=0, household_benchmark_objects=len(household_benchmark_list()) + 1, household_dir=tmp_path)

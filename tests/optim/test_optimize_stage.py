@@ -142,3 +142,25 @@ def test_floating_mode_reads_no_resting_pose_and_adds_nothing(optim_objects, tmp
     assert grasps.attrs["scene"] == {"table": False}
     assert not {"E_table", "support_normal", "support_offset_m"} & set(grasps.arrays)
     assert _run(optim_objects, plain, tmp_path / "t.zarr") == 2  # tabletop mode needs the resting poses
+
+
+def test_real_size_optimizes_objects_known_in_metres_at_their_own_scale(optim_objects, tmp_path):
+    """With ``real_size`` an object whose file is known to be in metres (it records ``real_radius_m``) gets its real
+    scale, 1 / normalization factor, as many starts as the configured scales give; any other object keeps the scales."""
+    objects = tmp_path / "objects"
+    shutil.copytree(optim_objects, objects)
+    meta_path = objects / "assets" / "box" / "meta.json"
+    meta = json.loads(meta_path.read_text())
+    meta.update(normalization_factor=8.0, real_radius_m=0.11)  # the file's box was 8 times smaller than the normalized one
+    meta_path.write_text(json.dumps(meta))
+    both_stable = tmp_path / "both_stable.parquet"
+    pd.DataFrame({"object_id": ["sphere", "box"], "stable": [True, True], **BOTH_REST}).to_parquet(both_stable)
+    real = {**CONFIG, "optimize_grasps": {**CONFIG["optimize_grasps"], "real_size": True}}
+    assert _run(objects, both_stable, tmp_path / "real.zarr", real) == 0
+    grasps = read_grasp_store(tmp_path / "real.zarr")
+    box, sphere = grasps.object_id == "box", grasps.object_id == "sphere"
+    assert box.sum() == sphere.sum() == 6  # 3 starts x 2 configured scales each
+    np.testing.assert_allclose(grasps.scale[box], 0.125)
+    assert sorted(set(grasps.scale[sphere].tolist())) == pytest.approx([0.08, 0.1])
+    assert grasps.attrs["objects_at_real_size"] == ["box"]
+    np.testing.assert_allclose(grasps.arrays["support_offset_m"][box], 0.3 * 0.125, rtol=1e-6)

@@ -25,7 +25,6 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-import torch
 
 log = logging.getLogger(__name__)
 CATALOG_NAME = "catalog.parquet"
@@ -58,6 +57,15 @@ class ObjectAsset:
     @property
     def convex_paths(self) -> list[Path]:
         return sorted((self.directory / "convex").glob("*.obj"))
+
+    @property
+    def real_scale(self) -> float | None:
+        """The scale at which the object has its real size: 1 / the normalization factor, for an object whose file is
+        known to be in metres (generated household objects record ``real_radius_m``); None for any other."""
+        factor = self.meta.get("normalization_factor")
+        if self.meta.get("real_radius_m") is None or not isinstance(factor, (int, float)) or not factor > 0:
+            return None
+        return 1.0 / float(factor)
 
     def load_mesh(self):
         """The normalized mesh as a trimesh.Trimesh."""
@@ -222,9 +230,14 @@ class SdfBank:
     inside, with the outward unit normal (B, P, 3). Trilinear interpolation written with
     gathers, so gradients flow to the points. Outside the grid the value at the nearest
     grid point minus the distance to the grid box is used (a continuous lower bound).
+    (torch is imported where it is used: preparing objects, which imports this module, needs no torch.)
     """
 
-    def __init__(self, assets: list[ObjectAsset], device: torch.device | str = "cpu", dtype: torch.dtype = torch.float32) -> None:
+    def __init__(self, assets: list[ObjectAsset], device: torch.device | str = "cpu", dtype: torch.dtype | None = None) -> None:
+        """``dtype``: of the grids (default float32)."""
+        import torch
+
+        dtype = torch.float32 if dtype is None else dtype
         if not assets:
             raise ObjectAssetError("SdfBank needs at least one object")
         shapes = {a.sdf.shape for a in assets}
@@ -240,6 +253,8 @@ class SdfBank:
 
     def indices(self, object_ids) -> torch.Tensor:
         """Bank indices (B,) for a sequence of object ids."""
+        import torch
+
         try:
             return torch.as_tensor([self.index_of[str(o)] for o in object_ids], device=self.device)
         except KeyError as exc:
@@ -255,6 +270,8 @@ class SdfBank:
         batch shape (e.g. (N,) for a flat (N, 3) list). The grids are indexed in place (no
         per-grasp copy of a grid). ``with_normal=False`` skips the normal (returns None).
         """
+        import torch
+
         g = self.resolution
         shape = points_m.shape[:-1]
         # Per-object and per-scale values stay broadcastable (e.g. (B, 1)): gathered once per grasp, not per point.

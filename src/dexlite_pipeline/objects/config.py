@@ -53,6 +53,9 @@ class ObjectsConfig(CoacdSettings):
         "one) ever trained on, where the shipped model is measured", minimum=0)
     household_count: int = setting(
         0, "generated household objects (mugs, bowls, bottles, boxes, tools; real size, metres) to train on", minimum=0)
+    household_first: int = setting(
+        0, "training household objects to skip first (in their round-robin order): a campaign batch takes objects "
+        "household_first to household_first + household_count", minimum=0)
     household_benchmark_objects: int = setting(
         0, "the first this many objects of the household split (objects/household_split.yaml), held out", minimum=0)
     mesh_dirs: tuple[str, ...] = setting((), "folders of .obj/.stl meshes to add", required=True)

@@ -232,9 +232,9 @@ def household_benchmark_list() -> list[str]:
     return [str(o) for o in record.get("object_ids") or []]
 
 
-def household_sources(training_count: int, benchmark_count: int, folder) -> list[MeshSource]:
-    """Generated household objects: the first ``training_count`` training ones (round-robin over the
-    families, never an object of the household split) and the first ``benchmark_count`` of the
+def household_sources(training_count: int, benchmark_count: int, folder, training_first: int = 0) -> list[MeshSource]:
+    """Generated household objects: ``training_count`` training ones from the ``training_first``-th on (round-robin
+    over the families, never an object of the household split) and the first ``benchmark_count`` of the
     household split (always held out). Their meshes (metres) are written to ``folder`` as
     ``<id>.obj``; other ``household-*.obj`` files there (from an earlier, larger run) are removed.
     """
@@ -249,7 +249,8 @@ def household_sources(training_count: int, benchmark_count: int, folder) -> list
         raise ObjectSourceError("objects.household_count / household_benchmark_objects: no folder given to write the generated meshes to")
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
-    wanted = [(i, "household", False) for i in training_household_ids(training_count, frozenset(split))]
+    training = training_household_ids(training_first + training_count, frozenset(split))[training_first:] if training_count > 0 else []
+    wanted = [(i, "household", False) for i in training]
     wanted += [(i, "household_benchmark", True) for i in split[:benchmark_count]]
     sources = []
     for object_id, kind, heldout in wanted:
@@ -274,6 +275,7 @@ def collect_sources(
     household_count: int = 0,
     household_benchmark_objects: int = 0,
     household_dir=None,
+    household_first: int = 0,
 ) -> list[MeshSource]:
     """Every object to prepare: embedded default, generated household objects, user folders, always-held-out folders.
 
@@ -281,7 +283,8 @@ def collect_sources(
     ``benchmark_objects``: the first this many objects of the benchmark split are added (held
     out), so that a small run is also measured on objects that no model ever trains on.
     ``household_count`` / ``household_benchmark_objects``: generated household objects for
-    training / from the household split (held out), their meshes written to ``household_dir``.
+    training (from the ``household_first``-th on) / from the household split (held out), their meshes
+    written to ``household_dir``.
     """
     # A file listed twice (a folder repeated, or in both lists) is one object; held out wins.
     user: dict[str, MeshSource] = {}
@@ -293,5 +296,5 @@ def collect_sources(
         builtin = [dataclasses.replace(s, always_heldout=True) if s.object_id in benchmark else s for s in builtin]
     drawn = {s.object_id for s in builtin}
     builtin += [s for s in benchmark_sources(benchmark_objects) if s.object_id not in drawn]
-    household = household_sources(household_count, household_benchmark_objects, household_dir)
+    household = household_sources(household_count, household_benchmark_objects, household_dir, household_first)
     return make_ids_unique(builtin + household + list(user.values()))

@@ -111,6 +111,9 @@ class OptimizeGraspsConfig:
         32, "starts per object and scale (force-closure curation keeps ~1 in 8 of them as training data)", minimum=1)
     scales: tuple[float, ...] = setting(
         (0.08, 0.1, 0.12), "object scales (about the object radius in metres)", items={"exclusive_minimum": 0}, min_items=1)
+    real_size: bool = setting(
+        False, "objects whose files are known to be in metres (generated household objects) are optimized at their real size, "
+        "as many starts as the scales give the others, instead of at the scales")
     batch_size: int = setting(
         512, "grasps optimized together (several objects per batch; results depend on it: starts and contacts are drawn in batch order)", minimum=1)
     progress_every: int = setting(100, "iterations between progress lines in the log", minimum=1, result_neutral=True)

@@ -15,15 +15,18 @@ from __future__ import annotations
 
 import logging
 import time
+import zlib
+
 import numpy as np
 import torch
 
 from dexlite_pipeline.energy.config import EnergyConfig
 from dexlite_pipeline.energy.grasp_energy import TERM_NAMES, GraspEnergy
-from dexlite_pipeline.hand.model import ShadowHand
+from dexlite_pipeline.hand.model import POSE_DIM, ShadowHand
 from dexlite_pipeline.io.grasp_store import GraspSet
 from dexlite_pipeline.objects.assets import ObjectAsset
 from dexlite_pipeline.optim.annealing import optimize
+from dexlite_pipeline.optim.grasp_random import GraspRandom
 from dexlite_pipeline.optim.config import OptimizeGraspsConfig
 from dexlite_pipeline.optim.init import HullSampler, initial_poses
 from dexlite_pipeline.tabletop import store_arrays
@@ -38,6 +41,36 @@ def start_rows(object_scales: list[tuple[float, ...]], grasps_per_scale: int, dt
     return object_index, scale
 
 
+def _object_key(object_id: str) -> int:
+    """A 32-bit number of an object id (stable across runs and machines)."""
+    return zlib.crc32(object_id.encode())
+
+
+def grasp_keys(assets: list[ObjectAsset], object_index: torch.Tensor) -> torch.Tensor:
+    """(B,) each start's key: its object's key and its number among that object's starts (``GraspRandom``'s keys)."""
+    index = object_index.cpu()
+    number = torch.zeros_like(index)
+    for obj in torch.unique(index).tolist():
+        rows = (index == obj).nonzero(as_tuple=True)[0]
+        number[rows] = torch.arange(len(rows))
+    object_keys = torch.tensor([_object_key(a.object_id) for a in assets], dtype=torch.long)
+    return object_keys[index] * (1 << 24) + number
+
+
+def keyed_starts(hand: ShadowHand, hulls: HullSampler, assets: list[ObjectAsset], object_index: torch.Tensor, scale: torch.Tensor,
+                 config: OptimizeGraspsConfig, seed: int, energy: GraspEnergy | None) -> torch.Tensor:
+    """(B, 28) starts drawn object by object, each from a generator of (``seed``, its object's key): an object's starts
+    do not depend on the other objects. ``energy`` (tabletop mode): its support planes keep the palms above the table."""
+    init = torch.zeros(len(object_index), POSE_DIM, dtype=hand.dtype)
+    for obj in torch.unique(object_index.cpu()).tolist():
+        rows = (object_index.cpu() == obj).nonzero(as_tuple=True)[0]
+        generator = torch.Generator().manual_seed(int(np.random.SeedSequence([seed, _object_key(assets[obj].object_id)]).generate_state(1)[0]))
+        obj_rows, scale_rows = object_index[rows].to(hand.device), scale[rows].to(hand.device)
+        support = energy.support(obj_rows, scale_rows) if energy is not None else None
+        init[rows] = initial_poses(hand, hulls, obj_rows, scale_rows, config.init, generator, support=support).cpu()
+    return init
+
+
 def synthesize(
     assets: list[ObjectAsset],
     config: OptimizeGraspsConfig,
@@ -46,6 +79,7 @@ def synthesize(
     device: torch.device | str = "cpu",
     support_planes=None,
     object_scales: list[tuple[float, ...]] | None = None,
+    keyed_seed: int | None = None,
 ) -> tuple[GraspSet, dict]:
     """Optimize ``grasps_per_object`` grasps per object and scale; returns the grasps and run statistics.
 
@@ -53,6 +87,9 @@ def synthesize(
     E_table in the energy, and the grasps record E_table and their support plane. None: floating objects.
     ``object_scales``: each object's own scales (one tuple per asset, e.g. its real size) instead of
     ``config.scales`` for all; the objects are still optimized together in batches of ``batch_size``.
+    ``keyed_seed``: every random draw of a grasp (its start and its walk) comes from streams keyed by this seed, its
+    object's id and its start number instead of ``generator`` in batch order, so an object's grasps are the same
+    whichever other objects are optimized beside it (``keyed_starts``, ``GraspRandom``).
     """
     started = time.perf_counter()
     hand = ShadowHand(device)
@@ -66,6 +103,9 @@ def synthesize(
     term_names = tuple(term.name for term in energy.terms)
     hulls = HullSampler(assets)
     total = len(object_index)
+    if keyed_seed is not None:
+        keys = grasp_keys(assets, object_index)
+        keyed_init = keyed_starts(hand, hulls, assets, object_index, scale, config, keyed_seed, energy if support_planes is not None else None)
     outputs: dict[str, list] = {k: [] for k in ("hand_pose", "init_pose", "contact_index", "acceptance_rate", "penetration_mm", "contact_distance_mm",
                                                 "E_total", "stopped_at_iteration", *term_names)}
     batches = max(1, -(-total // config.batch_size))
@@ -73,8 +113,11 @@ def synthesize(
         rows = slice(start, start + config.batch_size)
         obj = object_index[rows].to(device)
         sc = scale[rows].to(device)
-        support = energy.support(obj, sc) if support_planes is not None else None
-        init = initial_poses(hand, hulls, obj, sc, config.init, generator, support=support)
+        if keyed_seed is None:
+            support = energy.support(obj, sc) if support_planes is not None else None
+            init, random = initial_poses(hand, hulls, obj, sc, config.init, generator, support=support), None
+        else:
+            init, random = keyed_init[rows].to(device), GraspRandom(keyed_seed, keys[rows])
         batch_started = time.perf_counter()
 
         def progress(iteration: int, energy_now: torch.Tensor, batch_number=batch_number, batch_started=batch_started) -> None:
@@ -83,7 +126,8 @@ def synthesize(
                 batch_number, batches, iteration, config.annealing.iterations, float(energy_now.median()), time.perf_counter() - batch_started,
             )
 
-        result = optimize(energy, init, obj, sc, config.optimizer_config(), generator, progress=progress, progress_every=config.progress_every)
+        result = optimize(energy, init, obj, sc, config.optimizer_config(), generator, progress=progress, progress_every=config.progress_every,
+                          random=random)
         outputs["hand_pose"].append(result.hand_pose.cpu().numpy())
         outputs["init_pose"].append(init.cpu().numpy())
         outputs["contact_index"].append(result.contact_index.cpu().numpy().astype(np.int16))

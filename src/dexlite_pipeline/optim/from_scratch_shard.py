@@ -48,6 +48,12 @@ def empty_optimized_grasps(table: bool = False) -> GraspSet:
     return grasps
 
 
+def real_size_scales(assets, settings: OptimizeGraspsConfig) -> list[tuple[float, ...]]:
+    """Each object's scales with ``real_size``: its real scale once per configured scale (the same number of starts as the
+    others) where it is known (``ObjectAsset.real_scale``), else the configured scales."""
+    return [(a.real_scale,) * len(settings.scales) if a.real_scale else tuple(settings.scales) for a in assets]
+
+
 def optimize_shard(
     objects_dirs: list[str], stability_path: str, shard: int, *, shards: int, optimize_grasps: OptimizeGraspsConfig, energy: EnergyConfig,
     scene: SceneConfig, seed: int, device: str,
@@ -90,8 +96,10 @@ def optimize_shard(
         shard, len(object_ids), len(assets), settings.grasps_per_object * len(settings.scales), len(settings.scales),
         settings.annealing.iterations, device,
     )
+    object_scales = real_size_scales(assets, settings) if settings.real_size else None
     if assets:
-        grasps, stats = synthesize(assets, settings, energy, shard_generator("optimize_grasps", seed, shard), device, support_planes=planes)
+        grasps, stats = synthesize(assets, settings, energy, shard_generator("optimize_grasps", seed, shard), device, support_planes=planes,
+                                   object_scales=object_scales)
     else:
         grasps, stats = empty_optimized_grasps(planes is not None), {"grasps": 0, "passing": 0, "pass_fraction": 0.0, "stopped_early": 0, "seconds": 0.0, "seconds_per_grasp": 0.0}
     attrs = {
@@ -101,6 +109,7 @@ def optimize_shard(
         "config": {"optimize_grasps": json_ready(settings), "energy": json_ready(energy), "scene": json_ready(scene)},
         **store_attrs(scene.table),
         "objects": [a.object_id for a in assets],
+        "objects_at_real_size": [a.object_id for a in assets if settings.real_size and a.real_scale],
         "failed_objects": failed,
         **stats,
         "passing_per_hour": stats["passing"] / stats["seconds"] * 3600 if stats["seconds"] else 0.0,

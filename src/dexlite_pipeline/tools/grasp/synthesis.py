@@ -70,7 +70,7 @@ def synthesize_from_scratch(
     log.info("optimizing %d grasps on %d object(s) together, %d iterations", per_scale * sum(len(s) for s in object_scales), len(assets),
              optimize_config.annealing.iterations)
     optimized, _ = synthesize(assets, optimize_config, config.energy, generator, device, support_planes=support_planes,
-                              object_scales=object_scales)
+                              object_scales=object_scales, keyed_seed=seed)  # an object's grasps whatever other meshes are given
     parts, start = [], 0
     for object_scale in object_scales:
         block = per_scale * len(object_scale)
