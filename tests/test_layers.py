@@ -33,6 +33,7 @@ LAYERS = (
     ("model", ("model",)),  # trainer reads curation's origin labels
     ("optim", ("optim",)),  # post-optimization refines the model's samples (model.methods)
     ("evaluation", ("evaluation",)),
+    ("dataset", ("dataset",)),  # the grasp dataset kept in the repository: distinct labels from evaluation.diversity
     ("loop", ("loop",)),  # the data loop's rounds: sampling, refinement, checks and training of the components below
     ("settings", ("settings", "config_files")),  # the typed config tree over every component's config module; the files written from it
     ("report", ("report",)),
