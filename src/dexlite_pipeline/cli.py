@@ -26,6 +26,7 @@ USER_COMMANDS: dict[str, tuple[str, str]] = {
     "render": ("commands.render", "render one grasp (hand and object) to a PNG"),
     "import-dexgraspnet": ("stages.import_dexgraspnet", "import a DexGraspNet download as a grasp store plus object assets"),
     "export-dexgraspnet": ("commands.export_dexgraspnet", "write a grasp store in the DexGraspNet layout"),
+    "dataset-add": ("commands.dataset_add", "add a finished run's data stages to a grasp dataset as one batch (campaigns)"),
 }
 # The pipeline's stages, in the order they run (Snakemake calls them, one rule each).
 PIPELINE_STAGES: dict[str, tuple[str, str]] = {

@@ -1,0 +1,96 @@
+"""A finished run's data stages as one dataset batch: its lift-tested grasps, its objects and what they cost.
+
+A campaign batch is a workflow run of the data stages (prepare -> stability -> optimize -> curate -> lift-validate)
+on a range of objects; ``run_batch`` reads what it made — ``results/lift/shard_*.zarr`` (every curated grasp with
+its lift and six-direction outcome), ``results/optimized`` (which objects were optimized), the object catalog, the
+stability table (each object's resting pose) — and the rules' CPU times from ``logs/benchmarks``.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from dexlite_pipeline.dataset.layout import OPTIONAL_ARRAYS, REQUIRED_ARRAYS
+from dexlite_pipeline.dataset.validation import DatasetError
+from dexlite_pipeline.io.grasp_store import GraspSet, read_grasp_store
+
+# Snakemake rule -> the batches.csv cpu_seconds key (the data stages and what they need).
+STAGE_RULES = ("prepare_objects", "stability_filter", "optimize_grasps", "curate", "lift_validate")
+
+
+@dataclass
+class RunBatch:
+    """One run's grasps (the dataset's arrays), its objects (objects.csv rows), CPU-s per stage and the stages' config."""
+
+    grasps: GraspSet
+    objects: object  # pandas.DataFrame
+    cpu_seconds: dict[str, float]
+    config: dict
+    protocol: str
+
+
+def _stores(folder: Path, what: str) -> list[GraspSet]:
+    paths = sorted(folder.glob("shard_*.zarr"))
+    if not paths:
+        raise DatasetError(f"{folder}: no shard_*.zarr ({what}); run the data stages first")
+    return [read_grasp_store(p) for p in paths]
+
+
+def lift_protocol(lift_config: dict) -> str:
+    """One sentence of the test a held grasp passed, from the lift stage's recorded settings."""
+    six = (f"; six directions: {lift_config['six_dir_force_per_kg_n']:g} N/kg for {lift_config['six_dir_duration_s']:g} s along ±x, ±y, ±z, "
+           f"less than {100 * lift_config['six_dir_max_translation_m']:g} cm and {lift_config['six_dir_max_rotation_deg']:g}°"
+           if lift_config.get("six_directions") else "")
+    return (f"held: MuJoCo lift test on the object's table, the hand starting at most {1000 * lift_config['max_initial_penetration_m']:g} mm "
+            f"inside the object, lifted {lift_config['lift_height_m']:g} m keeping {100 * lift_config['success_lift_ratio']:g}% of the rise "
+            f"(object {lift_config['object_mass_kg']:g} kg, friction {lift_config['friction']:g}){six}")
+
+
+def stage_cpu_seconds(logs: Path) -> dict[str, float]:
+    """Rule -> CPU-s summed over its jobs (snakemake's benchmark files); rules without a file are left out."""
+    import pandas as pd
+
+    seconds = {}
+    for rule in STAGE_RULES:
+        files = sorted(logs.glob(f"{rule}.tsv")) + sorted(logs.glob(f"{rule}_[0-9]*.tsv"))
+        if files:
+            seconds[rule] = round(float(sum(pd.read_csv(f, sep="\t")["cpu_time"].iloc[0] for f in files)), 1)
+    return seconds
+
+
+def run_batch(results: str | Path, logs: str | Path | None = None) -> RunBatch:
+    """The batch a run's ``results`` folder holds (``logs``: its ``logs/benchmarks``, default beside ``results``)."""
+    import pandas as pd
+
+    from dexlite_pipeline.objects.assets import load_asset
+
+    results = Path(results)
+    logs = Path(logs) if logs is not None else results.parent / "logs" / "benchmarks"
+    lifted = GraspSet.concatenate(_stores(results / "lift", "lift-validated grasps"))
+    optimized = _stores(results / "optimized", "optimized grasps")
+    if len(lifted) and "six_dir_success" not in lifted.arrays:
+        raise DatasetError(f"{results / 'lift'}: no six_dir_success; a dataset batch needs the six-direction test (lift.six_directions: true)")
+    arrays = {name: lifted.arrays[name] for name in (*REQUIRED_ARRAYS, *OPTIONAL_ARRAYS) if name in lifted.arrays}
+    arrays["source"] = np.full(len(lifted), "optimization", dtype=object)
+    grasps = GraspSet(arrays)
+    optimized_ids = sorted({o for store in optimized for o in store.attrs.get("objects", [])})
+    catalog = pd.read_parquet(results / "objects" / "catalog.parquet").set_index("object_id")
+    stability = pd.read_parquet(results / "stability" / "stability.parquet").set_index("object_id")
+    rows = []
+    for object_id in optimized_ids:
+        meta = load_asset(results / "objects", object_id).meta
+        row = {"object_id": object_id, "source": str(catalog.at[object_id, "source"]), "split": str(catalog.at[object_id, "split"]),
+               "real_radius_m": meta.get("real_radius_m") if meta.get("real_radius_m") is not None else np.nan}
+        for column in ("support_nx", "support_ny", "support_nz", "support_offset", "rest_qx", "rest_qy", "rest_qz", "rest_qw"):
+            if column in stability.columns:
+                row[column] = float(stability.at[object_id, column])
+        rows.append(row)
+    lift_attrs = lifted.attrs if len(lifted) else read_grasp_store(sorted((results / "lift").glob("shard_*.zarr"))[0]).attrs
+    config = {"optimize_grasps": optimized[0].attrs.get("config", {}), "lift": lift_attrs.get("lift_config", {}),
+              "curate": lift_attrs.get("config", {}).get("curate", {})}
+    config = json.loads(json.dumps(config, default=str))
+    return RunBatch(grasps, pd.DataFrame(rows), stage_cpu_seconds(logs), config, lift_protocol(lift_attrs.get("lift_config", {})))
