@@ -276,3 +276,19 @@ def test_hopeless_stop_config_needs_one_limit_of_each_per_checkpoint():
         HopelessStopConfig(iterations=(300, 600), max_e_fc=(4.0,), max_e_dis_m=(1.0, 1.0))
     assert HopelessStopConfig(iterations=(300,), max_e_fc=(4.0,), max_e_dis_m=(0.02,)).limits_at(300) == (4.0, 0.02)
     assert HopelessStopConfig(iterations=(300,), max_e_fc=(4.0,), max_e_dis_m=(0.02,)).limits_at(301) is None
+
+
+def test_a_run_whose_grasps_all_stop_ends_where_they_stopped(hand, setup):
+    import dataclasses
+
+    from dexlite_pipeline.optim.config import HopelessStopConfig
+
+    energy, hulls = setup
+    object_index, scale = _batch(4)
+    init = initial_poses(hand, hulls, object_index, scale, InitConfig(distance_m=(0.06, 0.09)), torch.Generator().manual_seed(5))
+    every = HopelessStopConfig(iterations=(20,), max_e_fc=(1e-9,), max_e_dis_m=(1e-9,))  # nothing is within these
+    config = dataclasses.replace(SHORT, trace_every=10, stop_hopeless=every)
+    result = optimize(energy, init, object_index, scale, config, torch.Generator().manual_seed(0), snapshot_iterations=(20, 60))
+    assert (result.stopped_at_iteration == 20).all()
+    torch.testing.assert_close(result.snapshots[60], result.snapshots[20])
+    assert result.trace.shape == (len(result.trace_iterations), 4) and torch.equal(result.trace[-2], result.trace[2])

@@ -19,6 +19,7 @@ from dexlite_pipeline.dataset.validation import DatasetError
 from dexlite_pipeline.io.grasp_store import GraspSet, read_grasp_store
 
 # Snakemake rule -> the batches.csv cpu_seconds key (the data stages and what they need).
+ENERGY_ARRAYS = ("E_fc", "E_dis", "E_pen", "E_spen", "E_joints", "E_table")
 STAGE_RULES = ("prepare_objects", "stability_filter", "optimize_grasps", "curate", "lift_validate")
 
 
@@ -75,18 +76,26 @@ def run_batch(results: str | Path, logs: str | Path | None = None) -> RunBatch:
     if len(lifted) and "six_dir_success" not in lifted.arrays:
         raise DatasetError(f"{results / 'lift'}: no six_dir_success; a dataset batch needs the six-direction test (lift.six_directions: true)")
     arrays = {name: lifted.arrays[name] for name in (*REQUIRED_ARRAYS, *OPTIONAL_ARRAYS) if name in lifted.arrays}
-    arrays["source"] = np.full(len(lifted), "optimization", dtype=object)
+    for name in ENERGY_ARRAYS:  # a term the run did not compute (E_table when floating) is NaN, as the schema says
+        arrays.setdefault(name, np.full(len(lifted), np.nan, np.float32))
+    # What made each grasp: curation's origin (optimization from scratch, or a DexGraspNet import), else optimization.
+    arrays["source"] = np.asarray([str(o) or "optimization" for o in lifted.arrays.get("origin", np.full(len(lifted), "", dtype=object))],
+                                  dtype=object)
     grasps = GraspSet(arrays)
-    optimized_ids = sorted({o for store in optimized for o in store.attrs.get("objects", [])})
-    catalog = pd.read_parquet(results / "objects" / "catalog.parquet").set_index("object_id")
+    # Every object optimized (with or without a held grasp) and every object with a tested grasp (an import's too).
+    object_ids = sorted({o for store in optimized for o in store.attrs.get("objects", [])} | {str(o) for o in grasps.object_id})
+    objects_dirs = [d for d in (results / "objects", results / "dexgraspnet" / "objects") if (d / "catalog.parquet").is_file()]
+    catalog = pd.concat([pd.read_parquet(d / "catalog.parquet") for d in objects_dirs]).drop_duplicates("object_id").set_index("object_id")
     stability = pd.read_parquet(results / "stability" / "stability.parquet").set_index("object_id")
     rows = []
-    for object_id in optimized_ids:
-        meta = load_asset(results / "objects", object_id).meta
+    for object_id in object_ids:
+        if object_id not in catalog.index:
+            raise DatasetError(f"{results}: object {object_id} is in no catalog of {', '.join(str(d) for d in objects_dirs)}")
+        meta = load_asset([str(d) for d in objects_dirs], object_id).meta
         row = {"object_id": object_id, "source": str(catalog.at[object_id, "source"]), "split": str(catalog.at[object_id, "split"]),
                "real_radius_m": meta.get("real_radius_m") if meta.get("real_radius_m") is not None else np.nan}
         for column in ("support_nx", "support_ny", "support_nz", "support_offset", "rest_qx", "rest_qy", "rest_qz", "rest_qw"):
-            if column in stability.columns:
+            if column in stability.columns and object_id in stability.index:
                 row[column] = float(stability.at[object_id, column])
         rows.append(row)
     lift_attrs = lifted.attrs if len(lifted) else read_grasp_store(sorted((results / "lift").glob("shard_*.zarr"))[0]).attrs

@@ -269,9 +269,9 @@ class Tracker:
         if iteration in self.snapshot_iterations:
             self.snapshots[iteration] = _scatter(self.stopped_pose, active, state_to_pose(kept.state).detach())
 
-    def stop(self, rows: torch.Tensor, stopped: WalkState) -> None:
-        """The grasps at run rows ``rows`` stop walking in states ``stopped``."""
-        self.stopped_pose[rows] = state_to_pose(stopped.state).detach()
+    def stop(self, rows: torch.Tensor, state: torch.Tensor) -> None:
+        """The grasps at run rows ``rows`` stop walking in optimizer states ``state``."""
+        self.stopped_pose[rows] = state_to_pose(state).detach()
 
     def replace_last(self, total: torch.Tensor, terms: dict[str, torch.Tensor]) -> None:
         """Overwrite the last trace row (after the final contact search changed the final state's energy)."""
@@ -340,8 +340,12 @@ def optimize(
     searching = config.final_contact_samples and config.contact_search_every
     active = torch.arange(batch, device=device)  # the run's rows still walking
     stopped_at = torch.zeros(batch, dtype=torch.long, device=device)  # iteration a hopeless grasp stopped at (0: walked to the end)
-    stopped = WalkState(torch.zeros_like(state), torch.zeros_like(contacts), walk.total, walk.result)  # their states, by run row
+    stopped_state, stopped_contacts = torch.zeros_like(state), torch.zeros_like(contacts)  # where they stopped, by run row
+    kept = walk
     for iteration in range(1, config.iterations + 1):
+        if not len(active):  # every grasp has stopped: the traces stay where they are
+            tracker.record(iteration, kept, active)
+            continue
         proposal = propose(walk, iteration)
         accept = metropolis_accept(walk.total, proposal.total, config.temperature_at(iteration), propose.draws.acceptance(iteration))
         tracker.count(accept, active)
@@ -355,25 +359,24 @@ def optimize(
         if progress is not None and iteration % progress_every == 0:
             progress(iteration, walk.total)
         limits = config.stop_hopeless.limits_at(iteration)
-        if limits is not None and len(active):
-            stopping = hopeless(kept, limits)
-            if bool(stopping.any()):
-                rows = active[stopping]
-                stopped_at[rows] = iteration
-                stopped.state[rows], stopped.contacts[rows] = kept.state[stopping], kept.contacts[stopping]
-                tracker.stop(rows, kept.take(torch.nonzero(stopping).squeeze(1)))
-                going_on = torch.nonzero(~stopping).squeeze(1)
-                active, walk = active[going_on], walk.take(going_on)
-                propose.take(going_on)
-                if best is not None:
-                    best.take(going_on)
+        stopping = hopeless(kept, limits) if limits is not None else None
+        if stopping is not None and bool(stopping.any()):
+            rows = active[stopping]
+            stopped_at[rows], stopped_state[rows], stopped_contacts[rows] = iteration, kept.state[stopping], kept.contacts[stopping]
+            tracker.stop(rows, kept.state[stopping])
+            going_on = torch.nonzero(~stopping).squeeze(1)
+            active, walk = active[going_on], walk.take(going_on)
+            propose.take(going_on)
+            if best is not None:
+                best.take(going_on)
+            kept = walk if best is None else best.best
 
     final = walk if best is None else best.best
     if len(active) < batch:  # stopped grasps end where they stopped, the others where their walk ended
-        stopped.state[active], stopped.contacts[active] = final.state, final.contacts
+        stopped_state[active], stopped_contacts[active] = final.state, final.contacts
         with torch.no_grad():
-            result = energy(state_to_pose(stopped.state), object_index=object_index, scale=scale, contact_index=stopped.contacts)
-        final = WalkState(stopped.state, stopped.contacts, result.total.detach(), result)
+            result = energy(state_to_pose(stopped_state), object_index=object_index, scale=scale, contact_index=stopped_contacts)
+        final = WalkState(stopped_state, stopped_contacts, result.total.detach(), result)
     hand_pose = state_to_pose(final.state).detach()
     contacts, total, result = final.contacts, final.total, final.result
     if config.final_contact_samples > 0:
