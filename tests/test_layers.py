@@ -35,6 +35,7 @@ LAYERS = (
     ("evaluation", ("evaluation",)),
     ("dataset", ("dataset",)),  # the grasp dataset kept in the repository: distinct labels from evaluation.diversity
     ("loop", ("loop",)),  # the data loop's rounds: sampling, refinement, checks and training of the components below
+    ("evaluator", ("evaluator",)),  # the learned evaluator in the pipeline: on-generator examples (a round's steps), training, ranking
     ("settings", ("settings", "config_files")),  # the typed config tree over every component's config module; the files written from it
     ("report", ("report",)),
     ("stages and tools", ("stages", "tools")),

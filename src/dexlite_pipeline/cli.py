@@ -36,6 +36,8 @@ PIPELINE_STAGES: dict[str, tuple[str, str]] = {
     "curate": ("stages.curate", "filter optimized/imported grasps by stability, energy thresholds and duplicates"),
     "lift-validate": ("stages.lift_validate", "lift-test one shard of curated grasps"),
     "train-cvae": ("stages.train_cvae", "train the PointNet + CVAE grasp model"),
+    "evaluator-examples": ("stages.evaluator_examples", "learned evaluator: the model's syntheses on training objects, refined and simulated"),
+    "train-evaluator": ("stages.train_evaluator", "learned evaluator: train it on the run's simulated grasps of training objects"),
     "sample-grasps": ("stages.sample_grasps", "sample grasps from the trained CVAE"),
     "post-optimize": ("stages.post_optimize", "refine sampled grasps by annealed energy optimization"),
     "loop-initial-set": ("stages.loop_initial_set", "data loop: round 0's grasp set (the first model's training grasps)"),

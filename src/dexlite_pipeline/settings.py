@@ -24,6 +24,7 @@ from dexlite_pipeline.config import ConfigError, from_section, parse_config_json
 from dexlite_pipeline.curation.config import CurateConfig
 from dexlite_pipeline.energy.config import EnergyConfig
 from dexlite_pipeline.evaluation.config import DiversityConfig, EvaluateConfig
+from dexlite_pipeline.evaluator.config import EvaluatorSection
 from dexlite_pipeline.io.config import DexGraspNetConfig
 from dexlite_pipeline.loop.config import LoopConfig
 from dexlite_pipeline.model.config import SampleConfig, TrainConfig
@@ -55,6 +56,9 @@ class PipelineConfig:
     train: TrainConfig = setting(
         factory=TrainConfig, doc="PointNet + CVAE training (the default fits its data in minutes on 2 CPU cores; the write-up's "
         "values: config/profiles/writeup_gpu.yaml, --configfile it on a GPU machine)")
+    evaluator: EvaluatorSection = setting(
+        factory=EvaluatorSection, doc="a learned grasp evaluator trained on the run's simulated grasps ranks the model's samples "
+        '(rows cvae_ranked*; docs/design.md, "The learned evaluator")')
     sample: SampleConfig = setting(factory=SampleConfig)
     post_optimize: PostOptimizeConfig = setting(factory=PostOptimizeConfig)
     optimize_grasps: OptimizeGraspsConfig = setting(

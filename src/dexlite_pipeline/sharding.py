@@ -13,6 +13,8 @@ STREAM_SEEDS = {
     "sample_grasps": lambda seed, shard: seed * 1000 + shard,
     "post_optimize": lambda seed, shard: seed * 1000 + shard + 500,
     "grasp_tool_post_optimize": lambda seed, shard: seed * 1000 + 77,
+    "evaluator_examples": lambda seed, shard: seed * 1000 + shard + 700,  # the trained model's syntheses on training objects
+    "evaluator_ranking": lambda seed, shard: seed * 1000 + shard + 900,  # the pool the ranked rows are chosen from
 }
 
 

@@ -47,3 +47,20 @@ def test_rank_distinct_keeps_the_best_of_near_duplicates_and_never_two():
                 angle = np.degrees(np.arccos(np.clip((np.trace(rotations[i].T @ rotations[j]) - 1) / 2, -1, 1)))
                 assert not (near and angle <= 30.0)
     assert rank_distinct(scores, base, objects, keep_per_object=1).tolist() == [1, 5]
+
+
+def test_rank_distinct_fill_tops_up_with_the_best_remaining_grasps():
+    base = np.zeros((6, 28), np.float32)
+    base[1, :3] = [0.01, 0.0, 0.0]
+    base[1, 3] = np.deg2rad(10.0)
+    base[2, :3] = [0.0, 0.015, 0.0]
+    base[3, :3] = [0.05, 0.0, 0.0]
+    base[4, 3] = np.deg2rad(60.0)
+    base[5] = base[0]
+    scores = np.array([0.6, 0.9, 0.5, 0.2, 0.4, 0.1])
+    objects = np.array(["a", "a", "a", "a", "a", "b"])
+    # three distinct grasps on "a" (1, 4, 3); a fourth slot takes the best of the rest (0), in descending score
+    assert rank_distinct(scores, base, objects, keep_per_object=4, fill=True).tolist() == [1, 0, 4, 3, 5]
+    assert rank_distinct(scores, base, objects, keep_per_object=4).tolist() == [1, 4, 3, 5]
+    assert rank_distinct(scores, base, objects, keep_per_object=9, fill=True).tolist() == [1, 0, 2, 4, 3, 5]
+    assert rank_distinct(scores, base, objects, keep_per_object=2, fill=True).tolist() == [1, 4, 5]  # distinct first

@@ -25,7 +25,7 @@ DESIGN_DOC = REPO / "docs" / "design.md"
 MARKERS = ("<!-- data flow: start -->\n", "<!-- data flow: end -->")
 REGENERATE = "PYTHONPATH=src .venv/bin/python tests/workflow/dataflow.py docs/design.md"
 RESULTS = "results/"
-# The representative config: config.yaml's own settings, plus the data loop and a DexGraspNet import.
+# The representative config: config.yaml's own settings, plus the data loop, a DexGraspNet import and the learned evaluator.
 LOOP_ROUNDS = 2
 # A path read by more stages than this (the object catalog, the stability table) is drawn without its reading
 # edges, which would cross the whole diagram; its node says how many stages read it, and the table names them.
@@ -42,7 +42,10 @@ def collapse(path: str) -> str:
 
 
 def representative_config() -> dict:
-    return merge_config(repo_config(), {"loop": {"rounds": LOOP_ROUNDS}, "dexgraspnet": {"root": str(grasp_fixture())}})
+    from dexlite_pipeline.evaluation.config import METHODS
+
+    return merge_config(repo_config(), {"loop": {"rounds": LOOP_ROUNDS}, "dexgraspnet": {"root": str(grasp_fixture())},
+                                        "evaluator": {"enabled": True}, "evaluate": {"methods": list(METHODS)}})
 
 
 def _paths(field: str) -> list[str]:

@@ -24,6 +24,7 @@ from sample_data import FIXTURE_HELDOUT_OBJECT, GRASP_FIXTURE  # noqa: E402
 import yaml
 
 from dexlite_pipeline.config import merge_config
+from dexlite_pipeline.evaluation.config import METHODS as EVALUATE_METHODS
 
 REPO = Path(__file__).resolve().parents[2]
 GRASP_FIXTURE_PART = GRASP_FIXTURE.relative_to(REPO).as_posix()
@@ -71,7 +72,9 @@ TINY_OVERRIDES: dict = {
     "sample": {"synthesis_grasps_per_object": 4, "expansion_grasps_per_object": 2},
     # 128 steps (the default: 200): with 8, no sampled grasp of the tiny model came below the energy thresholds
     "post_optimize": {"annealing": {"iterations": 128}, "batch_size": 64, "energy_point_spacing_m": 0.006},
-    "evaluate": {"grasps_per_object": 2, "rendered_per_method": 1, "pca_components": [1, 2]},
+    "evaluate": {"grasps_per_object": 2, "rendered_per_method": 1, "pca_components": [1, 2], "methods": list(EVALUATE_METHODS)},
+    # the learned evaluator, small: on-generator examples, training, ranked rows (cvae_ranked*)
+    "evaluator": {"enabled": True, "examples_per_object": 4, "epochs": 3, "pool_factor": 2},
     # two rounds of the data loop (off by default), small, yet large enough that some grasp is kept
     "loop": {"rounds": 2, "grasps_per_object": 8, "train_steps": 20, "heldout_grasps_per_object": 2, "post_iterations": 256},
 }

@@ -16,9 +16,14 @@ def shipped_model_input(wildcards):
     return {"shipped": checkout_file(path)} if path else {}
 
 
+# What the ranking reads besides the sample section, tracked only when it runs (evaluator.enabled)
+RANKING_SECTIONS = ("evaluator.pool_factor", "diversity", "scene") if config["evaluator"]["enabled"] else ()
+
+
 rule sample_grasps:
     input:
         unpack(shipped_model_input),
+        unpack(evaluator_input),  # with evaluator.enabled: rank pooled syntheses on held-out objects (evaluator.smk)
         model=final_model(),  # the data loop's last model (train_cvae's without the loop)
         stability=f"{RESULTS}/stability/stability.parquet",
         # the expansion's seeds: the lift-validated grasps, with or without the data loop (docs/design.md, "The data loop")
@@ -27,11 +32,12 @@ rule sample_grasps:
     output:
         directory(f"{RESULTS}/sample/shard_{{shard}}.zarr"),
     params:
-        cfg=stage_params("seed", "device", "shards", "sample"),
+        cfg=stage_params("seed", "device", "shards", "sample", *RANKING_SECTIONS),
         code=code_hash("sample_grasps"),
         lift=lambda wc, input: learning_cli_options("lift", input.lift),
         objects=learning_cli_options("objects", learning_objects_dirs()),
         shipped=lambda wc, input: f"--shipped-model {shlex.quote(input.shipped)}" if "shipped" in input.keys() else '--shipped-model ""',
+        evaluator=lambda wc, input: f"--evaluator {shlex.quote(input.evaluator)}" if "evaluator" in input.keys() else "",
     threads: SHARD_THREADS
     conda:
         CONDA_ENV
@@ -41,4 +47,4 @@ rule sample_grasps:
         f"{LOGS}/benchmarks/sample_grasps_{{shard}}.tsv"
     shell:
         "dexlite sample-grasps --config-json {params.cfg:q} --model {input.model} --stability {input.stability} "
-        "{params.lift} {params.objects} {params.shipped} --shard {wildcards.shard} --out {output} --threads {threads} > {log} 2>&1"
+        "{params.lift} {params.objects} {params.shipped} {params.evaluator} --shard {wildcards.shard} --out {output} --threads {threads} > {log} 2>&1"

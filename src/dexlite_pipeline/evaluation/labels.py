@@ -19,6 +19,8 @@ METHOD_LABELS = {
     "cvae_prior_train_post": "CVAE samples on training objects + post-optimization",
     "shipped_raw": "Shipped model's samples, raw",
     "shipped_post": "Shipped model's samples + post-optimization",
+    "cvae_ranked": "CVAE samples ranked by the evaluator, raw",
+    "cvae_ranked_post": "CVAE samples ranked by the evaluator + post-optimization",
 }
 SPLIT_LABELS = {"heldout": "held-out objects", "train": "training objects"}
 # The learning ladder's rungs (metrics.csv column ``rung``), in the order they are read.

@@ -37,14 +37,16 @@ def precision_at_fraction(scores: np.ndarray, labels: np.ndarray, fraction: floa
 
 def rank_distinct(
     scores: np.ndarray, hand_pose: np.ndarray, object_index: np.ndarray, keep_per_object: int,
-    translation_m: float = 0.02, rotation_deg: float = 30.0,
+    translation_m: float = 0.02, rotation_deg: float = 30.0, fill: bool = False,
 ) -> np.ndarray:
     """Indices of at most ``keep_per_object`` best-scored grasps per object, no two of one object the same grasp.
 
     "The same grasp" is the project's distinct-grasp rule (``evaluation.diversity``): palms within
     ``translation_m`` (m) and ``rotation_deg`` (deg). Grasps are clustered in descending score
     order, so each cluster's representative is its best-scored grasp, and representatives are
-    pairwise distinct. Returned in descending score order (ties: lower index first; NaN scores last).
+    pairwise distinct. With ``fill``, an object with fewer distinct grasps than ``keep_per_object``
+    is topped up with its best-scored remaining grasps (so every object keeps as many as it has, up
+    to ``keep_per_object``). Returned in descending score order (ties: lower index first; NaN scores last).
     """
     scores = np.asarray(scores, dtype=np.float64).reshape(-1)
     order = np.argsort(-np.nan_to_num(scores, nan=-np.inf), kind="stable")
@@ -56,4 +58,14 @@ def rank_distinct(
         if per_object.get(key, 0) < keep_per_object:
             per_object[key] = per_object.get(key, 0) + 1
             kept.append(order[position])
+    if fill:
+        chosen = set(kept)
+        for position in range(len(order)):
+            key = str(groups[position])
+            if order[position] not in chosen and per_object.get(key, 0) < keep_per_object:
+                per_object[key] = per_object.get(key, 0) + 1
+                kept.append(order[position])
+        rank = np.empty(len(order), np.int64)
+        rank[order] = np.arange(len(order))
+        kept.sort(key=lambda index: rank[index])
     return np.asarray(kept, dtype=np.int64)

@@ -46,6 +46,32 @@ def _sampled_reference(stores) -> np.ndarray | None:
     return np.concatenate([np.asarray(s.arrays["reference_hand_pose"], np.float32).reshape(len(s), 28) for s in stores])
 
 
+# Per-row arrays of the sampled stores that the ranking adds (evaluator.ranking), carried to each paired method's
+# simulated grasps through ``sample_row``: the learned evaluator's score of the sampled pose and its pool's kept share.
+EVALUATOR_COLUMNS = ("evaluator_score", "evaluator_kept_fraction")
+
+
+def _sampled_columns(stores) -> dict[str, np.ndarray]:
+    """The sampled stores' ``EVALUATOR_COLUMNS`` concatenated in order (rows as ``sample_row``); empty when absent."""
+    if not stores or not all(EVALUATOR_COLUMNS[0] in s.arrays for s in stores):
+        return {}
+    return {name: np.concatenate([np.asarray(s.arrays[name], np.float32) for s in stores]) for name in EVALUATOR_COLUMNS}
+
+
+def _evaluator_arrays(selected, columns: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """``EVALUATOR_COLUMNS`` of the selected grasps (NaN for grasps that are not sampled rows), when the stores have them."""
+    if not columns:
+        return {}
+    rows = np.asarray(selected.arrays["sample_row"], np.int64)
+    paired = rows >= 0
+    out = {}
+    for name, values in columns.items():
+        column = np.full(len(rows), np.nan, np.float32)
+        column[paired] = values[rows[paired]]
+        out[name] = column
+    return out
+
+
 def _budget_iterations(stores) -> list[int]:
     """The budget iterations recorded by the post-optimization stores (attribute ``budget_iterations``)."""
     for store in stores:
@@ -96,6 +122,7 @@ def simulate_shard(
         sources["dexgraspnet"] = [s.select(np.isin([str(o) for o in s.object_id], sorted(mine))) for s in sources["dexgraspnet"]]
 
     sampled_reference = _sampled_reference(sources["sample"])
+    evaluator_columns = _sampled_columns(sources["sample"])
     parts, seconds, invalid, missing = [], {}, {}, []
     budget_iterations: list[int] = []
     for method in cfg.methods:
@@ -107,6 +134,7 @@ def simulate_shard(
         selected = select_grasps(grasps, method, split_of, cfg, seed, sample_rows_of(method, sources, known_object_ids))
         arrays = dict(selected.arrays)
         arrays.update(fit_error_arrays(selected, method, sampled_reference))
+        arrays.update(_evaluator_arrays(selected, evaluator_columns))
         budget_poses = arrays.pop(BUDGET_POSES, None)
         if budget_poses is not None and method in BUDGET_METHODS and len(selected):
             budget_iterations = budget_iterations or _budget_iterations(method_sources)

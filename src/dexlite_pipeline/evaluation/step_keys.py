@@ -39,7 +39,7 @@ METHOD_SOURCES = {
     "optimization": "optimized", "random_post": "random_post", "dexgraspnet": "dexgraspnet",
     "cvae_raw": "sample", "cvae_recon": "sample", "cvae_prior_train": "sample",
     "cvae_post": "post", "cvae_recon_post": "post", "cvae_prior_train_post": "post",
-    "shipped_raw": "sample", "shipped_post": "post",
+    "shipped_raw": "sample", "shipped_post": "post", "cvae_ranked": "sample", "cvae_ranked_post": "post",
 }  # fmt: skip
 
 

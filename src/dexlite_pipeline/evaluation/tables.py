@@ -85,6 +85,7 @@ def metrics_tables(
                 row.update({"writeup_protocol_lift_success_rate": rates.rate(lenient), "writeup_protocol_lift_success_ci95_low": low,
                             "writeup_protocol_lift_success_ci95_high": high})
             row.update({name: convergence.get(method, {}).get(name, math.nan) for name in CONVERGENCE_COLUMNS})
+            row.update(evaluator_columns(subset))
             if TABLE_DEPTH in subset:  # tabletop reachability (both modes): held grasps with no hand point below the table
                 from dexlite_pipeline.tabletop import reachable_on_table
 
@@ -95,6 +96,41 @@ def metrics_tables(
     per_object_columns = ["method", "split", "object_id", "n_grasps", "n_invalid", "lift_success_rate", "six_dir_success_rate", "any_lift_success",
                           "penetration_mean_mm", *metrics.PER_OBJECT_DIVERSITY]  # fmt: skip
     return pd.DataFrame(rows), pd.DataFrame(object_rows, columns=per_object_columns)
+
+
+CALIBRATION_BINS = (0.0, 0.2, 0.4, 0.6, 0.8, 1.0)  # the evaluator's predicted probability of "held", binned for calibration
+
+
+def evaluator_columns(subset: Mapping[str, np.ndarray]) -> dict:
+    """How well the learned evaluator's score of each sampled pose (``evaluator_score``) foretells its outcome, for a
+    method's grasps that carry one: ROC AUC for "held" (and six directions), the held rate among the best-scored
+    share its ranking keeps (``evaluator_kept_fraction``) against the rate of all, and calibration per score bin
+    ("low-high: predicted/observed (n)"). Empty when no grasp has a score."""
+    from dexlite_pipeline.evaluation.ranking import precision_at_fraction, roc_auc
+
+    score = np.asarray(subset.get("evaluator_score", []), dtype=np.float64)
+    if not len(score) or not np.isfinite(score).any():
+        return {}
+    tested = np.isfinite(score)
+    if "invalid_reason" in subset:
+        tested &= np.asarray([not str(r) for r in subset["invalid_reason"]], dtype=bool)
+    held = np.asarray(subset["lift_success"], dtype=bool)[tested]
+    score = score[tested]
+    out = {"evaluator_scored": int(tested.sum()), "evaluator_auc_held": roc_auc(score, held)}
+    if "six_dir_success" in subset:
+        out["evaluator_auc_six_dir"] = roc_auc(score, np.asarray(subset["six_dir_success"], dtype=bool)[tested])
+    fraction = float(np.nanmean(np.asarray(subset.get("evaluator_kept_fraction", [np.nan]), dtype=np.float64)))
+    if math.isfinite(fraction):
+        out["evaluator_kept_fraction"] = fraction
+        out["evaluator_held_rate_at_kept"] = precision_at_fraction(score, held, fraction)
+    out["evaluator_held_rate_all"] = float(held.mean()) if len(held) else math.nan
+    cells = []
+    for low, high in zip(CALIBRATION_BINS[:-1], CALIBRATION_BINS[1:]):
+        inside = (score >= low) & ((score < high) if high < 1.0 else (score <= high))
+        if inside.any():
+            cells.append(f"{low:.1f}-{high:.1f}: {score[inside].mean():.2f}/{held[inside].mean():.2f} ({int(inside.sum())})")
+    out["evaluator_calibration"] = "; ".join(cells)
+    return out
 
 
 def budget_rows(simulated: GraspSet, iterations: Sequence[int], methods: Sequence[str]) -> list[dict]:

@@ -5,7 +5,8 @@ points spread over its collision shapes (``ShadowHand.surface_points`` with
 ``hand_points_per_shape`` per shape), moved into the object frame by the hand's forward
 kinematics. Each hand point contributes its position, its height above the object surface
 (along the outward normal of the nearest cloud point: negative inside), its distance to that
-point and that normal. The object contributes a PointNet global feature of its cloud. An MLP
+point, that normal and its height above the object's table (tabletop mode; a grasp without a table reads
+as far above one). The object contributes a PointNet global feature of its cloud. An MLP
 reads [global feature, all hand-point features in a fixed order] and returns two logits:
 "held" (``lift_success``) and "six-direction success" (``six_dir_success``).
 
@@ -43,9 +44,11 @@ from dexlite_pipeline.progress import ProgressLog
 
 log = logging.getLogger(__name__)
 FILE_FORMAT = "dexlite-grasp-evaluator"
-FILE_VERSION = 1
+FILE_VERSION = 2
 HEADS = ("held", "six_dir")
 NEVER_SIMULATED_PREFIXES = ("invalid_grasp", "not_tested")
+HAND_POINT_FEATURES = 9  # per hand point: position (3), height above the surface, distance to it, nearest normal (3), height above the table
+SUPPORT_COLUMNS = 4  # a grasp's table in its object frame: upward unit normal (3) and the origin's height above it (m); NaN = no table
 
 
 class EvaluatorDataError(ValueError):
@@ -91,17 +94,19 @@ class GraspEvaluator(nn.Module):
         self.hand = ShadowHand(device, surface_points_per_shape=config.hand_points_per_shape)
         self.hand_point_count = int(self.hand.surface_points_local.shape[0])
         self.pointnet = PointNet(config.pointnet_widths, normalization="none", normals=True)
-        self.head = _mlp(config.pointnet_widths[-1] + 8 * self.hand_point_count, config.hidden_sizes, len(HEADS))
+        self.head = _mlp(config.pointnet_widths[-1] + HAND_POINT_FEATURES * self.hand_point_count, config.hidden_sizes, len(HEADS))
         self.to(device)
 
     def hand_points(self, hand_pose: torch.Tensor) -> torch.Tensor:
         """(B, K, 3) hand surface points in the object frame (metres) for poses (B, 28)."""
         return self.hand.surface_points(self.hand.forward(hand_pose))
 
-    def hand_point_features(self, clouds: torch.Tensor, hand_points: torch.Tensor) -> torch.Tensor:
-        """(B, K, 8) per hand point: position / 0.1 m, tanh(height above surface / s), tanh(distance / s), nearest normal.
+    def hand_point_features(self, clouds: torch.Tensor, hand_points: torch.Tensor, support: torch.Tensor | None = None) -> torch.Tensor:
+        """(B, K, 9) per hand point: position / 0.1 m, tanh(height above surface / s), tanh(distance / s), nearest normal,
+        tanh(height above the table / s).
 
-        ``clouds`` (B, P, 6) is each grasp's own cloud; s = ``distance_scale_m``.
+        ``clouds`` (B, P, 6) is each grasp's own cloud; s = ``distance_scale_m``; ``support`` (B, 4) each grasp's table
+        (``SUPPORT_COLUMNS``; a row with NaN, or None for all, means no table: the height feature is 1, far above).
         """
         nearest = torch.cdist(hand_points.detach(), clouds[..., :3]).argmin(dim=2, keepdim=True).expand(-1, -1, 6)  # (B, K, 6)
         surface = clouds.gather(1, nearest)
@@ -110,19 +115,28 @@ class GraspEvaluator(nn.Module):
         scale = self.config.distance_scale_m
         height = torch.tanh((offset * normal).sum(-1, keepdim=True) / scale)
         distance = torch.tanh(offset.norm(dim=-1, keepdim=True) / scale)
-        return torch.cat([hand_points / TRANSLATION_UNIT_M, height, distance, normal], dim=-1)
+        above_table = torch.ones_like(height)
+        if support is not None:
+            has_table = torch.isfinite(support).all(dim=1)
+            plane = torch.nan_to_num(support)
+            table_height = torch.tanh(((hand_points * plane[:, None, :3]).sum(-1, keepdim=True) + plane[:, None, 3:4]) / scale)
+            above_table = torch.where(has_table[:, None, None], table_height, above_table)
+        return torch.cat([hand_points / TRANSLATION_UNIT_M, height, distance, normal, above_table], dim=-1)
 
-    def forward(self, clouds: torch.Tensor, hand_pose: torch.Tensor, cloud_index: torch.Tensor | None = None) -> torch.Tensor:
+    def forward(
+        self, clouds: torch.Tensor, hand_pose: torch.Tensor, cloud_index: torch.Tensor | None = None, support: torch.Tensor | None = None
+    ) -> torch.Tensor:
         """Logits (B, 2) for clouds (C, P, 6: metres at the grasp's scale in the object frame, outward normal) and poses (B, 28).
 
         ``cloud_index`` (B,) names each grasp's cloud, so PointNet runs once per cloud; None: C == B, one cloud per grasp.
+        ``support`` (B, 4): each grasp's table (``hand_point_features``); None: no table.
         """
         if clouds.shape[-1] != 6:
             raise ValueError(f"clouds must hold positions and normals, (C, P, 6), got {tuple(clouds.shape)}")
         if cloud_index is None:
             cloud_index = torch.arange(len(hand_pose), device=clouds.device)
         global_feature, _ = self.pointnet(clouds[:, : self.config.pointnet_points])
-        features = self.hand_point_features(clouds[cloud_index], self.hand_points(hand_pose))
+        features = self.hand_point_features(clouds[cloud_index], self.hand_points(hand_pose), support)
         return self.head(torch.cat([global_feature[cloud_index], features.flatten(1)], dim=1))
 
 
@@ -136,6 +150,7 @@ class EvaluatorExamples:
     held: np.ndarray  # (N,) bool, lift_success
     six_dir: np.ndarray  # (N,) bool, six_dir_success (False where unknown)
     six_dir_known: np.ndarray  # (N,) bool, whether the store had six_dir_success
+    support: np.ndarray  # (N, 4) float32, the grasp's table (SUPPORT_COLUMNS), NaN without one
     clouds: ObjectClouds
     object_index: np.ndarray  # (N,) int64 into ``clouds``
     excluded: dict[str, int] = field(default_factory=dict)  # reason -> grasps left out
@@ -177,6 +192,14 @@ def _load_assets(objects_dirs: list[str], ids: list[str]) -> tuple[list, set[str
     return assets, missing
 
 
+def support_of(grasps: GraspSet) -> np.ndarray:
+    """(N, 4) each grasp's table from a store's ``support_normal`` / ``support_offset_m`` (tabletop mode); NaN without them."""
+    normal, offset = grasps.arrays.get("support_normal"), grasps.arrays.get("support_offset_m")
+    if normal is None or offset is None:
+        return np.full((len(grasps), SUPPORT_COLUMNS), np.nan, np.float32)
+    return np.concatenate([np.asarray(normal, np.float32).reshape(-1, 3), np.asarray(offset, np.float32).reshape(-1, 1)], axis=1)
+
+
 def evaluator_examples(stores: list[GraspSet], objects_dirs: list[str], object_ids: set[str] | None = None) -> EvaluatorExamples:
     """Training examples from simulated grasp stores, restricted to ``object_ids`` when given.
 
@@ -203,6 +226,7 @@ def evaluator_examples(stores: list[GraspSet], objects_dirs: list[str], object_i
             "held": np.asarray(grasps.arrays["lift_success"][keep], bool),
             "six_dir": np.zeros(int(keep.sum()), bool) if six_dir is None else np.asarray(six_dir[keep], bool),
             "six_dir_known": np.full(int(keep.sum()), six_dir is not None),
+            "support": support_of(grasps)[keep],
         })
     arrays = {k: np.concatenate([part[k] for part in kept]) for k in kept[0]} if kept else {}
     reasons = np.concatenate(reasons_all) if reasons_all else np.zeros(0, dtype=object)
@@ -243,20 +267,22 @@ def split_objects(object_ids: np.ndarray, fraction: float, seed: int) -> tuple[l
     return sorted(set(ordered) - set(validation)), validation
 
 
-def _batch_inputs(clouds: ObjectClouds, object_index, scale, hand_pose, keys, index: np.ndarray, points: int, device):
-    """(clouds (C, P, 6), poses (B, 28), cloud_index (B,)) for the grasps ``index``: one cloud per distinct (object, scale) key."""
+def _batch_inputs(clouds: ObjectClouds, object_index, scale, hand_pose, support, keys, index: np.ndarray, points: int, device):
+    """(clouds (C, P, 6), poses (B, 28), cloud_index (B,), support (B, 4)) for the grasps ``index``: one cloud per distinct
+    (object, scale) key."""
     _, first, inverse = np.unique(keys[index], return_index=True, return_inverse=True)
     rows = index[first]
     drawn = clouds.draw_fixed(torch.as_tensor(object_index[rows]), torch.as_tensor(scale[rows], dtype=torch.float32), points)
-    return drawn.to(device), torch.as_tensor(hand_pose[index], device=device), torch.as_tensor(inverse.reshape(-1), device=device)
+    return (drawn.to(device), torch.as_tensor(hand_pose[index], device=device), torch.as_tensor(inverse.reshape(-1), device=device),
+            torch.as_tensor(support[index], dtype=torch.float32, device=device))
 
 
-def _predict(model: GraspEvaluator, clouds: ObjectClouds, object_index, scale, hand_pose, batch_size: int) -> torch.Tensor:
+def _predict(model: GraspEvaluator, clouds: ObjectClouds, object_index, scale, hand_pose, support, batch_size: int) -> torch.Tensor:
     """Logits (N, 2) of grasps (N,) without gradients, in batches of ``batch_size``."""
     device, keys = next(model.parameters()).device, cloud_keys(object_index, scale)
     with torch.no_grad():
         parts = [
-            model(*_batch_inputs(clouds, object_index, scale, hand_pose, keys, np.arange(start, min(start + batch_size, len(keys))),
+            model(*_batch_inputs(clouds, object_index, scale, hand_pose, support, keys, np.arange(start, min(start + batch_size, len(keys))),
                                  model.config.points_per_cloud, device)).cpu()
             for start in range(0, len(keys), batch_size)
         ]
@@ -313,8 +339,8 @@ def train_evaluator(
         total = 0.0
         for start in range(0, len(order), config.batch_size):
             batch = order[start : start + config.batch_size]
-            inputs = _batch_inputs(examples.clouds, examples.object_index, examples.scale, examples.hand_pose, keys, batch,
-                                   config.points_per_cloud, device)
+            inputs = _batch_inputs(examples.clouds, examples.object_index, examples.scale, examples.hand_pose, examples.support, keys,
+                                   batch, config.points_per_cloud, device)
             loss = _loss(model(*inputs), labels[batch].to(device), known[batch].to(device), pos_weight)
             optimizer.zero_grad(set_to_none=True)
             loss.backward()
@@ -326,7 +352,7 @@ def train_evaluator(
         if len(val_index):
             model.eval()
             val_logits = _predict(model, examples.clouds, examples.object_index[val_index], examples.scale[val_index],
-                                  examples.hand_pose[val_index], 4 * config.batch_size)
+                                  examples.hand_pose[val_index], examples.support[val_index], 4 * config.batch_size)
             row["val_loss"] = float(_loss(val_logits, labels[val_index], known[val_index], pos_weight.cpu()))
             row["val_auc_held"] = roc_auc(val_logits[:, 0].numpy(), examples.held[val_index])
             six_known = examples.six_dir_known[val_index]
@@ -345,9 +371,10 @@ def train_evaluator(
 
 def score_grasps(
     model: GraspEvaluator, hand_pose: np.ndarray, clouds: ObjectClouds, object_id: np.ndarray, scale: np.ndarray,
-    head: str = "held", batch_size: int = 512,
+    head: str = "held", batch_size: int = 512, support: np.ndarray | None = None,
 ) -> np.ndarray:
-    """Probabilities (N,) from ``head`` ('held' or 'six_dir') for poses (N, 28) of objects ``object_id`` (N,) in ``clouds`` at ``scale`` (N,)."""
+    """Probabilities (N,) from ``head`` ('held' or 'six_dir') for poses (N, 28) of objects ``object_id`` (N,) in ``clouds`` at ``scale`` (N,);
+    ``support`` (N, 4): each grasp's table (``SUPPORT_COLUMNS``), None: no table."""
     object_id = np.asarray([str(o) for o in object_id], dtype=object)
     unknown = sorted(set(object_id.tolist()) - set(clouds.object_ids))
     if unknown:
@@ -355,7 +382,9 @@ def score_grasps(
     object_index = np.array([clouds.index_of[o] for o in object_id], dtype=np.int64)
     was_training = model.training
     model.eval()
-    logits = _predict(model, clouds, object_index, np.asarray(scale, np.float32), np.asarray(hand_pose, np.float32).reshape(-1, 28), batch_size)
+    support = np.full((len(object_id), SUPPORT_COLUMNS), np.nan, np.float32) if support is None else np.asarray(support, np.float32)
+    logits = _predict(model, clouds, object_index, np.asarray(scale, np.float32), np.asarray(hand_pose, np.float32).reshape(-1, 28), support,
+                      batch_size)
     model.train(was_training)
     return torch.sigmoid(logits[:, HEADS.index(head)]).numpy()
 

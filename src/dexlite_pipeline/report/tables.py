@@ -39,7 +39,7 @@ LADDER_COLUMN_LABELS = {
 }
 LENIENT = "writeup_protocol_lift_success"  # the same grasps under the DexLite write-up's (Murali) more lenient lift test (evaluate.writeup_protocol)
 # The methods of the main comparison, in the order the compact table lists them.
-HEADLINE_METHODS = ("cvae_post", "random_post", "cvae_raw", "shipped_post", "shipped_raw", "optimization", "dexgraspnet")
+HEADLINE_METHODS = ("cvae_post", "cvae_ranked_post", "random_post", "cvae_raw", "cvae_ranked", "shipped_post", "shipped_raw", "optimization", "dexgraspnet")
 HEADLINE_METHOD = "cvae_post"  # the pipeline's product: the sentence leads with it when present
 RUNG_ORDER = ("fit", "in_distribution", "heldout")
 # Within a rung: each kind of start raw, then post-optimized; the random-start baseline last.

@@ -1,7 +1,8 @@
 """Stage ``sample_grasps`` (one shard): CVAE grasps for the shard's stable objects.
 
 Held-out objects get pure synthesis (``cvae_raw``), training objects dataset expansion and
-the learning ladder's rows (``model.sample_shard``).
+the learning ladder's rows (``model.sample_shard``); with a trained evaluator (``--evaluator``) also the
+best-scored distinct syntheses of a larger pool on held-out objects (``cvae_ranked``, ``evaluator.ranking``).
 """
 
 from __future__ import annotations
@@ -10,13 +11,15 @@ import argparse
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--config-json", required=True, help="config sections seed, device, shards, sample (canonical JSON)")
+    parser.add_argument("--config-json", required=True, help="config sections seed, device, shards, sample (and with --evaluator: evaluator, diversity, scene) (canonical JSON)")
     parser.add_argument("--model", default=None, help="trained model (cvae.pt; default: the shipped model, src/dexlite_pipeline/data/shadow-hand-large/cvae.pt)")
     parser.add_argument("--shipped-model", default=None, help="pretrained model also sampled on held-out objects it never trained on "
                         "(rows shipped_raw; default: sample.shipped_model, \"\" = none)")
     parser.add_argument("--objects", action="append", required=True, help="prepared objects dir with catalog.parquet (repeatable)")
     parser.add_argument("--stability", required=True, help="stability.parquet of the stability_filter stage")
     parser.add_argument("--lift", action="append", default=[], help="lift-validated grasp shard, the grasps to expand (repeatable)")
+    parser.add_argument("--evaluator", default=None, help="trained grasp evaluator (train_evaluator's evaluator.pt): also rank pooled syntheses "
+                        "on held-out objects (rows cvae_ranked) and score the unranked ones; needs config sections evaluator, diversity, scene")
     parser.add_argument("--shard", required=True, type=int, help="shard number, e.g. 000")
     parser.add_argument("--out", required=True, help="output grasp store (.zarr)")
 
@@ -33,5 +36,14 @@ def run(args: argparse.Namespace) -> int:
         str(model_or_shipped(args.model)), args.objects, args.stability, args.lift, args.shard, shards=config.shards, sample=config.sample,
         seed=config.seed, device=config.device, shipped_model=shipped or None,
     )
+    if args.evaluator:
+        from dexlite_pipeline.evaluator.ranking import rank_shard
+
+        grasps, attrs["ranking"] = rank_shard(
+            grasps, str(model_or_shipped(args.model)), args.evaluator, args.objects, args.stability, args.shard, shards=config.shards,
+            sample=config.sample, section=config.evaluator, diversity=config.diversity, table=config.scene.table, seed=config.seed,
+            device=config.device,
+        )
+        attrs["ranked_seconds_per_grasp"] = attrs["ranking"]["ranked_seconds_per_grasp"]
     write_grasp_store(args.out, grasps, attrs)
     return 0

@@ -1,0 +1,42 @@
+"""The learned evaluator's config type: section ``evaluator``.
+
+A leaf of the config tree (``settings``): it imports no evaluator code, so a stage's code hash
+(``codehash``) covers this shape without the network or the simulation.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from dexlite_pipeline.config import ConfigError, setting
+
+
+@dataclass(frozen=True)
+class EvaluatorSection:
+    """Config section ``evaluator``: whether the pipeline trains a grasp evaluator and ranks the model's samples by it."""
+
+    enabled: bool = setting(
+        False, "train a grasp evaluator on the run's simulated grasps (training objects only) and add the evaluation rows "
+        "cvae_ranked / cvae_ranked_post (list them in evaluate.methods): the model draws pool_factor x more pure syntheses "
+        "per held-out object and keeps the best-scored distinct ones")
+    examples_per_object: int = setting(
+        48, "on-generator examples: the trained model's pure syntheses per stable training object, post-optimized and "
+        "simulated (every one, held or not) as the evaluation does; ~1 CPU s each", minimum=0)
+    pool_factor: int = setting(
+        4, "ranked rows: draw this many times sample.synthesis_grasps_per_object per held-out object, keep the best-scored "
+        "distinct ones (diversity's rule), topped up with the next best when fewer are distinct", minimum=1)
+    epochs: int = setting(40, "passes over the training examples", minimum=1)
+    hand_points_per_shape: int = setting(6, "hand surface points per collision shape the network reads (6 -> 114 points)", minimum=1)
+    validation_fraction: float = setting(
+        0.2, "share of the training OBJECTS whose grasps only validate (the epoch with the lowest validation loss is kept)",
+        minimum=0, exclusive_maximum=1)
+
+    def __post_init__(self) -> None:
+        for name in ("examples_per_object",):
+            if getattr(self, name) < 0:
+                raise ConfigError(f"evaluator.{name} must be >= 0, got {getattr(self, name)}")
+        for name in ("pool_factor", "epochs", "hand_points_per_shape"):
+            if getattr(self, name) < 1:
+                raise ConfigError(f"evaluator.{name} must be >= 1, got {getattr(self, name)}")
+        if not 0 <= self.validation_fraction < 1:
+            raise ConfigError(f"evaluator.validation_fraction must be in [0, 1), got {self.validation_fraction}")

@@ -1,0 +1,62 @@
+# The learned grasp evaluator (config section evaluator; nothing here runs with evaluator.enabled false): the final
+# model's syntheses on every stable training object, refined and simulated (on-generator examples), then an evaluator
+# trained on those and the lift-validated grasps of the training objects. sample_grasps ranks a larger pool of
+# syntheses on held-out objects by it (rows cvae_ranked*, listed in evaluate.methods).
+
+RANKED_METHODS = {"cvae_ranked", "cvae_ranked_post"}
+if RANKED_METHODS & set(config["evaluate"]["methods"]) and not config["evaluator"]["enabled"]:
+    raise WorkflowError("evaluate.methods: cvae_ranked and cvae_ranked_post need the learned evaluator (evaluator.enabled: true); drop them or enable it")
+
+
+def evaluator_input(wildcards):
+    """The trained evaluator when evaluator.enabled: an input of sample_grasps, which then ranks by it."""
+    return {"evaluator": f"{RESULTS}/evaluator/evaluator.pt"} if config["evaluator"]["enabled"] else {}
+
+
+rule evaluator_examples:
+    input:
+        model=final_model(),
+        stability=f"{RESULTS}/stability/stability.parquet",
+        catalog=f"{RESULTS}/objects/catalog.parquet",
+    output:
+        directory(f"{RESULTS}/evaluator/examples_{{shard}}.zarr"),
+    params:
+        cfg=stage_params("seed", "device", "shards", "sample", "post_optimize", "scene", "curate", "energy", "lift", "evaluator.examples_per_object"),
+        code=code_hash("evaluator_examples"),
+        objects=learning_cli_options("objects", learning_objects_dirs()),
+    threads: SHARD_THREADS
+    conda:
+        CONDA_ENV
+    log:
+        f"{LOGS}/evaluator/examples_{{shard}}.log",
+    benchmark:
+        f"{LOGS}/benchmarks/evaluator_examples_{{shard}}.tsv"
+    shell:
+        "dexlite evaluator-examples --config-json {params.cfg:q} --model {input.model} --stability {input.stability} {params.objects} "
+        "--shard {wildcards.shard} --out {output} --threads {threads} > {log} 2>&1"
+
+
+rule train_evaluator:
+    input:
+        lift=expand(f"{RESULTS}/lift/shard_{{shard}}.zarr", shard=SHARDS),
+        examples=expand(f"{RESULTS}/evaluator/examples_{{shard}}.zarr", shard=SHARDS),
+        catalog=f"{RESULTS}/objects/catalog.parquet",
+    output:
+        model=f"{RESULTS}/evaluator/evaluator.pt",
+        facts=f"{RESULTS}/evaluator/training.json",
+    params:
+        cfg=stage_params("seed", "device", "evaluator.epochs", "evaluator.hand_points_per_shape", "evaluator.validation_fraction"),
+        code=code_hash("train_evaluator"),
+        lift=lambda wc, input: learning_cli_options("lift", input.lift),
+        examples=lambda wc, input: learning_cli_options("examples", input.examples),
+        objects=learning_cli_options("objects", learning_objects_dirs()),
+    threads: all_cores()
+    conda:
+        CONDA_ENV
+    log:
+        f"{LOGS}/evaluator/train.log",
+    benchmark:
+        f"{LOGS}/benchmarks/train_evaluator.tsv"
+    shell:
+        "dexlite train-evaluator --config-json {params.cfg:q} {params.lift} {params.examples} {params.objects} "
+        "--out {output.model} --facts {output.facts} --threads {threads} > {log} 2>&1"
