@@ -33,6 +33,7 @@ PIPELINE_STAGES: dict[str, tuple[str, str]] = {
     "prepare-objects": ("stages.prepare_objects", "normalize meshes, decompose, build SDF grids and point clouds"),
     "stability-filter": ("stages.stability_filter", "PyBullet table-stability test of prepared objects"),
     "optimize-grasps": ("stages.optimize_grasps", "grasps by energy optimization from scratch (one shard)"),
+    "dataset-grasps": ("stages.dataset_grasps", "a grasp dataset's grasps of the training objects, as training data (dataset.root)"),
     "curate": ("stages.curate", "filter optimized/imported grasps by stability, energy thresholds and duplicates"),
     "lift-validate": ("stages.lift_validate", "lift-test one shard of curated grasps"),
     "train-cvae": ("stages.train_cvae", "train the PointNet + CVAE grasp model"),

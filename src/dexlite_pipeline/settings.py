@@ -25,7 +25,7 @@ from dexlite_pipeline.curation.config import CurateConfig
 from dexlite_pipeline.energy.config import EnergyConfig
 from dexlite_pipeline.evaluation.config import DiversityConfig, EvaluateConfig
 from dexlite_pipeline.evaluator.config import EvaluatorSection
-from dexlite_pipeline.io.config import DexGraspNetConfig
+from dexlite_pipeline.io.config import DexGraspNetConfig, GraspDatasetConfig
 from dexlite_pipeline.loop.config import LoopConfig
 from dexlite_pipeline.model.config import SampleConfig, TrainConfig
 from dexlite_pipeline.objects.config import ObjectsConfig, StabilityConfig
@@ -43,6 +43,9 @@ class PipelineConfig:
     shards: int = setting(2, "grasp-heavy stages split objects into this many groups", minimum=1, required=True)
     objects: ObjectsConfig = setting(factory=ObjectsConfig, required=True)
     dexgraspnet: DexGraspNetConfig = setting(factory=DexGraspNetConfig, required=True)
+    dataset: GraspDatasetConfig = setting(
+        factory=GraspDatasetConfig, doc='training grasps from a grasp dataset instead of optimizing them (docs/design.md, "The grasp '
+        'dataset and its campaign")')
     diversity: DiversityConfig = setting(factory=DiversityConfig, doc="when two grasps of one object count as one (evaluate, dexlite grasp)")
     scene: SceneConfig = setting(
         factory=SceneConfig, doc='where the object is (stages from optimize_grasps on; docs/design.md, "Tabletop mode")')

@@ -51,3 +51,31 @@ def test_a_runs_data_stages_become_one_batch_and_its_objects_are_not_added_twice
     assert again.returncode == 2
     assert len(again.stderr.strip().splitlines()) == 1 and sorted(present_objects(dataset))[0] in again.stderr
     assert {p.name: p.read_bytes() for p in sorted(dataset.rglob("*")) if p.is_file()} == before  # nothing written
+
+    # A new run with the dataset as its training data: its training objects that the dataset holds are not optimized,
+    # their grasps come from the dataset (every tested one, with its outcome), and the model trains on them.
+    workdir = tmp_path / "from_dataset"
+    config = copy.deepcopy(complete_run.config)
+    config["dataset"] = {"root": str(dataset)}
+    config["loop"] = {**config["loop"], "rounds": 0}
+    write_config(workdir, config)
+    run_snakemake(workdir, *local_run_args(), "results/model/cvae.pt", timeout_s=900)
+    from dexlite_pipeline.objects.assets import object_splits
+
+    splits = object_splits([workdir / "results" / "objects", workdir / "results" / "dexgraspnet" / "objects"])
+    expected = {o for o in present_objects(dataset) if splits.get(o) == "train"}
+    optimized = [read_grasp_store(p) for p in sorted((workdir / "results" / "optimized").glob("shard_*.zarr"))]
+    skipped = {o for store in optimized for o in store.attrs["objects_from_dataset"]}
+    from dexlite_pipeline.objects.assets import ok_object_ids
+    from dexlite_pipeline.objects.stability import stable_object_ids
+
+    optimizable = ok_object_ids(workdir / "results" / "objects") & stable_object_ids(workdir / "results" / "stability" / "stability.parquet")
+    assert skipped == expected & optimizable and skipped
+    assert not skipped & {o for store in optimized for o in store.attrs["objects"]}  # none of them optimized again
+    from_dataset = GraspSet.concatenate([read_grasp_store(p) for p in sorted((workdir / "results" / "dataset").glob("shard_*.zarr"))])
+    taken = {o for p in sorted((workdir / "results" / "dataset").glob("shard_*.zarr")) for o in read_grasp_store(p).attrs["objects"]}
+    assert taken and taken <= expected
+    dataset_grasps, _ = load_dataset(dataset, sorted(taken))
+    assert len(from_dataset) == len(dataset_grasps)  # held or not
+    assert not {str(o) for o in from_dataset.object_id} - expected  # never a held-out object's grasps
+    assert (workdir / "results" / "model" / "cvae.pt").is_file()

@@ -145,6 +145,33 @@ def dexgraspnet_files(wildcards):
     return [str(path) for path in [*grasp_files, *meshes] if path.is_file()]
 
 
+def dataset_root():
+    """The grasp dataset of dataset.root as a path for rule inputs ("" when not used): relative to the checkout unless absolute."""
+    root = config["dataset"]["root"]
+    if not root:
+        return ""
+    return root if Path(root).is_absolute() else checkout_file(root)
+
+
+def dataset_files(wildcards=None):
+    """The dataset's files (tables and grasp batches): inputs, so an added batch reruns what reads it."""
+    root = dataset_root()
+    if not root:
+        return []
+    if not (Path(root) / "batches.csv").is_file():
+        raise WorkflowError(f"dataset.root: {root} is not a grasp dataset (no batches.csv; dexlite dataset-add makes one)")
+    return [str(Path(root) / name) for name in ("batches.csv", "objects.csv")] + sorted(str(p) for p in (Path(root) / "grasps").glob("*.npz"))
+
+
+def training_grasp_stores():
+    """The stores the learning stages take known grasps from: the lift-validation shards and, with dataset.root, the
+    dataset's shards (dataset_grasps), both of every shard."""
+    stores = expand(f"{RESULTS}/lift/shard_{{shard}}.zarr", shard=SHARDS)
+    if dataset_root():
+        stores += expand(f"{RESULTS}/dataset/shard_{{shard}}.zarr", shard=SHARDS)
+    return stores
+
+
 def learning_objects_dirs():
     """Prepared-object folders the stages after curation read (plus the DexGraspNet import's when configured)."""
     dirs = [f"{RESULTS}/objects"]

@@ -38,7 +38,7 @@ rule evaluator_examples:
 
 rule train_evaluator:
     input:
-        lift=expand(f"{RESULTS}/lift/shard_{{shard}}.zarr", shard=SHARDS),
+        lift=training_grasp_stores(),
         examples=expand(f"{RESULTS}/evaluator/examples_{{shard}}.zarr", shard=SHARDS),
         catalog=f"{RESULTS}/objects/catalog.parquet",
     output:

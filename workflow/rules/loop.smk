@@ -24,7 +24,7 @@ def loop_sample_model(wildcards):
 
 rule loop_initial_set:
     input:
-        lift=expand(f"{RESULTS}/lift/shard_{{shard}}.zarr", shard=SHARDS),
+        lift=training_grasp_stores(),
         catalog=f"{RESULTS}/objects/catalog.parquet",
     output:
         directory(f"{RESULTS}/round_0/grasps.zarr"),

@@ -27,7 +27,7 @@ rule sample_grasps:
         model=final_model(),  # the data loop's last model (train_cvae's without the loop)
         stability=f"{RESULTS}/stability/stability.parquet",
         # the expansion's seeds: the lift-validated grasps, with or without the data loop (docs/design.md, "The data loop")
-        lift=expand(f"{RESULTS}/lift/shard_{{shard}}.zarr", shard=SHARDS),
+        lift=training_grasp_stores(),
         catalog=f"{RESULTS}/objects/catalog.parquet",
     output:
         directory(f"{RESULTS}/sample/shard_{{shard}}.zarr"),

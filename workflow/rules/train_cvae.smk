@@ -3,7 +3,7 @@
 
 rule train_cvae:
     input:
-        lift=expand(f"{RESULTS}/lift/shard_{{shard}}.zarr", shard=SHARDS),
+        lift=training_grasp_stores(),  # lift-validated shards (and the grasp dataset's, dataset.root)
         catalog=f"{RESULTS}/objects/catalog.parquet",
         stability=f"{RESULTS}/stability/stability.parquet",
     output:

@@ -135,6 +135,9 @@ class SampleConfig:
     scales: tuple[float, ...] = setting(
         (0.08, 0.10, 0.12), "object scales (≈ radius, m) dealt in turn to synthesized grasps: those of the training grasps "
         "(optimize_grasps.scales); the model is not asked to extrapolate in size", items={"exclusive_minimum": 0}, min_items=1)
+    real_size: bool = setting(
+        False, "objects whose files are known to be in metres (generated household objects) are sampled at their real size "
+        "instead of at the scales (a model trained on optimize_grasps.real_size grasps)")
     expansion_latent_std: float = setting(0.5, "σ of the latent perturbation z = μ + σ·ε", minimum=0)
     expansion_point_fraction: float = setting(
         0.5, "share of expansions that move the associated point instead of z", minimum=0, maximum=1)

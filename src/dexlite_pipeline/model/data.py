@@ -61,6 +61,7 @@ class ObjectClouds:
     def __init__(self, assets: list[ObjectAsset], device: torch.device | str = "cpu") -> None:
         self.device = torch.device(device)
         self.object_ids = [a.object_id for a in assets]
+        self.real_scales = [a.real_scale for a in assets]  # scale at the object's real size (metres files), else None
         self.index_of = {oid: i for i, oid in enumerate(self.object_ids)}
         sizes = {len(a.surface_points) for a in assets}
         if len(sizes) != 1:

@@ -341,10 +341,14 @@ def synthesis_rows(
     count: int | None = None,
 ) -> SampledRows:
     """``count`` (default ``synthesis_grasps_per_object``) pure syntheses per object (scales dealt in turn
-    from ``config.scales``), labelled ``label``."""
+    from ``config.scales``; with ``config.real_size`` an object known at real size is sampled at it), labelled ``label``."""
     count = config.synthesis_grasps_per_object if count is None else count
     obj = np.repeat([clouds.index_of[o] for o in object_ids], count)
-    scale = np.tile(np.resize(np.asarray(config.scales, np.float32), count), len(object_ids))
+    dealt = np.resize(np.asarray(config.scales, np.float32), count)
+    real = getattr(clouds, "real_scales", None) or [None] * len(clouds.object_ids)
+    scale = np.concatenate([
+        np.full(count, real[clouds.index_of[o]], np.float32) if config.real_size and real[clouds.index_of[o]] else dealt for o in object_ids
+    ]) if object_ids else np.zeros(0, np.float32)
     pose = synthesize(
         model, clouds, obj, scale, points, generator, config.latent_prior, config.latent_temperature, fixed_clouds, config.anchor_rule,
         config.neighbour_clouds, config.anchor_region_m, config.debias_training, config.match_candidates,

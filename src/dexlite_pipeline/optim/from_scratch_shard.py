@@ -56,9 +56,10 @@ def real_size_scales(assets, settings: OptimizeGraspsConfig) -> list[tuple[float
 
 def optimize_shard(
     objects_dirs: list[str], stability_path: str, shard: int, *, shards: int, optimize_grasps: OptimizeGraspsConfig, energy: EnergyConfig,
-    scene: SceneConfig, seed: int, device: str,
+    scene: SceneConfig, seed: int, device: str, skip_objects: set[str] | frozenset = frozenset(),
 ) -> tuple[GraspSet, dict]:
-    """Optimized grasps of one shard: the stable, prepared objects dealt to ``shard`` of ``shards`` (train and held-out).
+    """Optimized grasps of one shard: the stable, prepared objects dealt to ``shard`` of ``shards`` (train and held-out),
+    but ``skip_objects`` (training objects whose grasps come from a grasp dataset; listed in ``objects_from_dataset``).
 
     The config sections it reads come as arguments: ``optimize_grasps``, ``energy``, ``scene``, and the
     top-level ``seed`` and ``device``.
@@ -77,6 +78,8 @@ def optimize_shard(
     settings = optimize_grasps
     device = resolve_device(device)
     object_ids = shard_objects(sorted(ok_object_ids(objects_dirs) & stable_object_ids(stability_path)), shard, shards)
+    from_dataset = [oid for oid in object_ids if oid in skip_objects]
+    object_ids = [oid for oid in object_ids if oid not in skip_objects]
     planes = load_support_planes(scene.table, stability_path)
     assets, failed = [], {}
     for object_id in object_ids:
@@ -111,6 +114,7 @@ def optimize_shard(
         "objects": [a.object_id for a in assets],
         "objects_at_real_size": [a.object_id for a in assets if settings.real_size and a.real_scale],
         "failed_objects": failed,
+        "objects_from_dataset": from_dataset,
         **stats,
         "passing_per_hour": stats["passing"] / stats["seconds"] * 3600 if stats["seconds"] else 0.0,
     }

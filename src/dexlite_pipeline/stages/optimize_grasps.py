@@ -22,6 +22,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--stability", required=True, help="stability table (.parquet)")
     parser.add_argument("--objects", action="append", required=True, help="prepared objects dir with catalog.parquet (repeatable)")
     parser.add_argument("--out", required=True, help="output grasp store (.zarr)")
+    parser.add_argument("--dataset", default=None, help="a grasp dataset (config dataset.root): the training objects it holds are not optimized")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -30,9 +31,14 @@ def run(args: argparse.Namespace) -> int:
     from dexlite_pipeline.settings import stage_config
 
     config = stage_config(args.config_json)
+    from_dataset = set()
+    if args.dataset:
+        from dexlite_pipeline.dataset.for_run import dataset_training_objects
+
+        from_dataset = dataset_training_objects(args.dataset, args.objects)
     grasps, attrs = optimize_shard(
         args.objects, args.stability, args.shard, shards=config.shards, optimize_grasps=config.optimize_grasps, energy=config.energy,
-        scene=config.scene, seed=config.seed, device=config.device,
+        scene=config.scene, seed=config.seed, device=config.device, skip_objects=from_dataset,
     )
     write_grasp_store(args.out, grasps, attrs)
     log.info(
