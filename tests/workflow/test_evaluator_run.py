@@ -13,8 +13,10 @@ from dexlite_pipeline.io.grasp_store import read_grasp_store
 
 
 def _splits(workdir):
-    catalog = pd.read_parquet(workdir / "results" / "objects" / "catalog.parquet")
-    return dict(zip(catalog["object_id"].astype(str), catalog["split"].astype(str)))
+    """Object id -> split over the run's prepared objects (its own and the DexGraspNet import's)."""
+    from dexlite_pipeline.objects.assets import object_splits
+
+    return object_splits([workdir / "results" / "objects", workdir / "results" / "dexgraspnet" / "objects"], ok_only=False)
 
 
 def test_the_evaluator_trains_on_training_objects_only(complete_run):
@@ -53,3 +55,20 @@ def test_ranked_rows_match_the_unranked_count_and_are_measured(complete_run):
     assert rows.loc["cvae_ranked_post", "n_grasps"] == rows.loc["cvae_post", "n_grasps"]  # equal simulated attempts
     assert "evaluator_auc_held" in metrics.columns and rows.loc["cvae_post", "evaluator_scored"] > 0
     assert rows.loc["cvae_ranked_post", "seconds_per_grasp_by_stage"].startswith("ranking=")
+
+
+def test_the_evaluation_measures_the_best_ranked_grasps(complete_run):
+    """The evaluation's cap takes a ranked method's best-ranked grasps of each object (not a random draw of them)."""
+    workdir = complete_run.workdir
+    cap = complete_run.config["evaluate"]["grasps_per_object"]
+    checked = 0
+    for path in sorted((workdir / "results" / "eval" / "sim").glob("shard_*.zarr")):
+        store = read_grasp_store(path)
+        method = store.arrays["method"].astype(str)
+        for name in ("cvae_ranked", "cvae_ranked_post"):
+            mine = method == name
+            for object_id in set(store.object_id[mine].astype(str)):
+                ranks = np.sort(np.asarray(store.arrays["evaluator_rank"], np.float64)[mine & (store.object_id.astype(str) == object_id)])
+                assert ranks.tolist() == list(range(len(ranks))) and len(ranks) <= cap, (name, object_id, ranks)
+                checked += 1
+    assert checked > 0

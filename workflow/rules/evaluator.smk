@@ -1,7 +1,8 @@
 # The learned grasp evaluator (config section evaluator; nothing here runs with evaluator.enabled false): the final
 # model's syntheses on every stable training object, refined and simulated (on-generator examples), then an evaluator
 # trained on those and the lift-validated grasps of the training objects. sample_grasps ranks a larger pool of
-# syntheses on held-out objects by it (rows cvae_ranked*, listed in evaluate.methods).
+# syntheses on held-out objects by it (rows cvae_ranked*, listed in evaluate.methods); with loop.rank_candidates the
+# loop's rounds rank their candidates by it (the examples then come from round 0's model).
 
 RANKED_METHODS = {"cvae_ranked", "cvae_ranked_post"}
 if RANKED_METHODS & set(config["evaluate"]["methods"]) and not config["evaluator"]["enabled"]:
@@ -13,9 +14,15 @@ def evaluator_input(wildcards):
     return {"evaluator": f"{RESULTS}/evaluator/evaluator.pt"} if config["evaluator"]["enabled"] else {}
 
 
+def examples_model():
+    """The model whose samples the evaluator learns from: the one the evaluation samples from (the loop's last), or
+    round 0's when the loop's rounds rank their candidates by the evaluator (which they need before the last model exists)."""
+    return round_model(0) if config["loop"]["rank_candidates"] else final_model()
+
+
 rule evaluator_examples:
     input:
-        model=final_model(),
+        model=examples_model(),
         stability=f"{RESULTS}/stability/stability.parquet",
         catalog=f"{RESULTS}/objects/catalog.parquet",
     output:

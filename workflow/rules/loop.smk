@@ -43,16 +43,28 @@ rule loop_initial_set:
         "dexlite loop-initial-set {params.lift} {params.objects} --out {output} > {log} 2>&1"
 
 
+LOOP_RANKING = bool(config["loop"]["rank_candidates"])
+if LOOP_RANKING and not config["evaluator"]["enabled"]:
+    raise WorkflowError("loop.rank_candidates needs the learned evaluator (evaluator.enabled: true)")
+
+
+def loop_ranking_input(wildcards):
+    """The learned evaluator for a round's candidates on training objects, with loop.rank_candidates."""
+    return evaluator_input(wildcards) if LOOP_RANKING and wildcards.part == "train" else {}
+
+
 rule loop_sample:
     input:
+        unpack(loop_ranking_input),
         model=loop_sample_model,
         stability=f"{RESULTS}/stability/stability.parquet",
         catalog=f"{RESULTS}/objects/catalog.parquet",
     output:
         directory(f"{ROUND}/{{part}}/sample_{{shard}}.zarr"),
     params:
-        cfg=stage_params(*loop_rule_sections("loop_sample")),
+        cfg=stage_params(*loop_rule_sections("loop_sample"), *(("evaluator.pool_factor", "diversity", "scene") if LOOP_RANKING else ())),
         code=code_hash("loop_sample"),
+        evaluator=lambda wc, input: f"--evaluator {input.evaluator}" if "evaluator" in input.keys() else "",
         objects=learning_cli_options("objects", learning_objects_dirs()),
     threads: SHARD_THREADS
     conda:
@@ -62,7 +74,7 @@ rule loop_sample:
     benchmark:
         f"{LOGS}/benchmarks/loop_sample_{{round}}_{{part}}_{{shard}}.tsv"
     shell:
-        "dexlite loop-sample --config-json {params.cfg:q} --model {input.model} --stability {input.stability} {params.objects} "
+        "dexlite loop-sample --config-json {params.cfg:q} --model {input.model} {params.evaluator} --stability {input.stability} {params.objects} "
         "--round {wildcards.round} --part {wildcards.part} --shard {wildcards.shard} --out {output} --threads {threads} > {log} 2>&1"
 
 

@@ -60,6 +60,7 @@ def select_grasps(
     cfg: EvaluateConfig,
     seed: int,
     sample_rows: np.ndarray | None = None,
+    rank: np.ndarray | None = None,
 ) -> GraspSet:
     """The grasps of one method on objects of the evaluated splits, at most ``grasps_per_object`` per object.
 
@@ -68,7 +69,9 @@ def select_grasps(
     of the sampled rows in one draw shared by the paired methods, so they take the same
     source rows; otherwise the method draws over its own rows. A grasp with an unusable
     pose or scale is chosen like any other and kept with its ``invalid_reason``: it is not
-    simulated and counts as a failure. Adds ``method``, ``split``, ``source_row`` (row in
+    simulated and counts as a failure. With ``rank`` (per grasp, lower first: the learned
+    evaluator's ranking of ranked rows) the best-ranked are taken instead of a seeded draw, so a
+    ranked method is measured on its best grasps, as a user would refine them. Adds ``method``, ``split``, ``source_row`` (row in
     the method's grasps), ``sample_row`` (-1 when unpaired) and ``invalid_reason`` arrays.
     """
     object_ids = np.asarray([str(o) for o in grasps.object_id])
@@ -82,6 +85,8 @@ def select_grasps(
         if keys.shape != (len(grasps),):
             raise ValueError(f"{method}: {keys.shape[0]} sampled rows given for {len(grasps)} grasps")
     priority = row_priorities(seed, draw, int(keys.max()) + 1 if len(keys) else 0)[keys]
+    if rank is not None:
+        priority = np.asarray(rank, np.float64)
     chosen: list[int] = []
     for object_id in sorted(set(object_ids[candidate])):
         rows = np.flatnonzero(candidate & (object_ids == object_id))

@@ -48,7 +48,23 @@ def _sampled_reference(stores) -> np.ndarray | None:
 
 # Per-row arrays of the sampled stores that the ranking adds (evaluator.ranking), carried to each paired method's
 # simulated grasps through ``sample_row``: the learned evaluator's score of the sampled pose and its pool's kept share.
-EVALUATOR_COLUMNS = ("evaluator_score", "evaluator_kept_fraction")
+EVALUATOR_COLUMNS = ("evaluator_score", "evaluator_kept_fraction", "evaluator_rank")
+
+
+def ranked_order(method: str, sample_rows, columns: dict[str, np.ndarray]) -> np.ndarray | None:
+    """For a ranked method (``selection.RANKED``), each grasp's place in the evaluator's ranking (lower first), else None."""
+    from dexlite_pipeline.evaluation.selection import RANKED
+
+    if method not in RANKED or sample_rows is None or "evaluator_rank" not in columns:
+        return None
+    rank = np.asarray(columns["evaluator_rank"], np.float64)[np.asarray(sample_rows, np.int64)]
+    return np.where(rank >= 0, rank, np.inf)
+
+
+def ranking_seconds_per_attempt(sample_stores, attempts: int) -> float:
+    """Seconds of the ranking (drawing the whole pool, scoring it) of the shard's sampled stores per ranked grasp simulated."""
+    seconds = sum(float((s.attrs.get("ranking") or {}).get("cpu_seconds") or 0.0) for s in sample_stores)
+    return seconds / attempts if attempts else float("nan")
 
 
 def _sampled_columns(stores) -> dict[str, np.ndarray]:
@@ -131,7 +147,9 @@ def simulate_shard(
             missing.append(method)
             continue
         grasps = method_grasps(method, method_sources)
-        selected = select_grasps(grasps, method, split_of, cfg, seed, sample_rows_of(method, sources, known_object_ids))
+        sample_rows = sample_rows_of(method, sources, known_object_ids)
+        rank = ranked_order(method, sample_rows, evaluator_columns)
+        selected = select_grasps(grasps, method, split_of, cfg, seed, sample_rows, rank)
         arrays = dict(selected.arrays)
         arrays.update(fit_error_arrays(selected, method, sampled_reference))
         arrays.update(_evaluator_arrays(selected, evaluator_columns))
@@ -143,6 +161,8 @@ def simulate_shard(
         parts.append(GraspSet(arrays, {}))
         invalid[method] = selected.attrs["invalid_reasons"]
         seconds[method] = stage_seconds_per_grasp(method, sources)
+        if rank is not None:  # the whole pool's sampling and scoring, over the ranked rows simulated
+            seconds[method]["ranking"] = ranking_seconds_per_attempt(sources["sample"], len(selected))
         n_invalid = sum(invalid[method].values())
         log.info("evaluate shard %s: %s: %d grasps (%d invalid) on %d objects", shard, method, len(selected), n_invalid, len(set(selected.object_id)))
     width = max((p.arrays[BUDGET_SUCCESS].shape[1] for p in parts if BUDGET_SUCCESS in p.arrays), default=0)

@@ -24,6 +24,7 @@ log = logging.getLogger(__name__)
 RANKED_METHOD = "cvae_ranked"  # method label of the ranked pure syntheses
 SCORE = "evaluator_score"  # per sampled row: the evaluator's probability of "held" (NaN where not scored)
 KEPT_FRACTION = "evaluator_kept_fraction"  # per sampled row: the share of its pool ranking keeps (1 / pool_factor)
+RANK = "evaluator_rank"  # per ranked row: its place in its object's ranking (0 = best; distinct grasps first), -1 elsewhere
 
 
 def _supports(planes, object_ids, scale) -> np.ndarray | None:
@@ -34,6 +35,52 @@ def _supports(planes, object_ids, scale) -> np.ndarray | None:
 
     arrays = support_arrays(planes, object_ids, scale)
     return np.concatenate([arrays["support_normal"], arrays["support_offset_m"].reshape(-1, 1)], axis=1).astype(np.float32)
+
+
+def best_distinct(scores: np.ndarray, poses: np.ndarray, object_ids: np.ndarray, keep: int, diversity) -> tuple[np.ndarray, np.ndarray]:
+    """(rows kept, each one's place in its object's ranking): at most ``keep`` best-scored distinct grasps per object
+    (``DiversityConfig``'s rule), topped up with the next best; rows in the input's order, places 0 = best."""
+    from dexlite_pipeline.evaluation.ranking import rank_distinct
+
+    chosen = rank_distinct(scores, poses, object_ids, keep, diversity.distinct_translation_m, diversity.distinct_rotation_deg, fill=True)
+    place = np.empty(len(chosen), np.int32)  # chosen is in ranking order
+    for object_id in set(object_ids[chosen].tolist()):
+        mine = np.flatnonzero(object_ids[chosen] == object_id)
+        place[mine] = np.arange(len(mine))
+    order = np.argsort(chosen, kind="stable")
+    return chosen[order], place[order]
+
+
+def rank_candidates(
+    candidates: GraspSet, evaluator_path: str, objects_dirs: list[str], stability_path: str, keep: int, diversity, table: bool, device: str,
+) -> tuple[GraspSet, dict]:
+    """The ``keep`` best-scored distinct ``candidates`` per object (a data-loop round's, on training objects), with their
+    ``evaluator_score`` and ``evaluator_rank``; and the ranking's attributes (pool and kept counts, CPU seconds)."""
+    from dexlite_pipeline.device import resolve_device
+    from dexlite_pipeline.model.data import ObjectClouds
+    from dexlite_pipeline.model.evaluator import load_evaluator, score_grasps
+    from dexlite_pipeline.objects.assets import load_asset
+    from dexlite_pipeline.tabletop import load_support_planes
+
+    started = time.perf_counter()
+    attrs = {"evaluator": str(evaluator_path), "pool": len(candidates), "kept_per_object": keep}
+    if not len(candidates):
+        return candidates, {**attrs, "kept": 0, "cpu_seconds": 0.0}
+    device = resolve_device(device)
+    evaluator, _ = load_evaluator(evaluator_path, device)
+    planes = load_support_planes(table, stability_path)
+    ids = candidates.object_id.astype(str).astype(object)
+    clouds = ObjectClouds([load_asset(objects_dirs, oid) for oid in sorted(set(ids.tolist()))])
+    scores = score_grasps(evaluator, candidates.hand_pose, clouds, ids, candidates.scale, support=_supports(planes, ids, candidates.scale))
+    chosen, place = best_distinct(scores, np.asarray(candidates.hand_pose), ids, keep, diversity)
+    kept = candidates.select(chosen)
+    kept.arrays[SCORE] = scores[chosen].astype(np.float32)
+    kept.arrays[RANK] = place
+    attrs.update(kept=int(len(chosen)), cpu_seconds=time.perf_counter() - started, pool_mean_score=float(np.mean(scores)),
+                 kept_mean_score=float(np.mean(scores[chosen])))
+    log.info("ranking: %d of %d candidates kept (mean score %.3f -> %.3f)", len(chosen), len(candidates), attrs["pool_mean_score"],
+             attrs["kept_mean_score"])
+    return kept, attrs
 
 
 def rank_shard(
@@ -49,7 +96,6 @@ def rank_shard(
     import torch
 
     from dexlite_pipeline.device import resolve_device
-    from dexlite_pipeline.evaluation.ranking import rank_distinct
     from dexlite_pipeline.loop.round_basics import HELDOUT
     from dexlite_pipeline.loop.round_objects import round_objects
     from dexlite_pipeline.model.checkpoint import cloud_reading, load_checkpoint
@@ -75,6 +121,7 @@ def rank_shard(
     n = len(sampled)
     arrays[SCORE] = np.full(n, np.nan, np.float32)
     arrays[KEPT_FRACTION] = np.full(n, 1.0 / section.pool_factor, np.float32)
+    arrays[RANK] = np.full(n, -1, np.int32)
     attrs = {"pool_factor": section.pool_factor, "kept_per_object": keep, "evaluator": str(evaluator_path),
              "evaluator_train_objects": len(evaluator_meta.get("train_object_ids", [])), "skipped_objects": skipped}
     if not object_ids or keep <= 0:
@@ -92,8 +139,7 @@ def rank_shard(
     pool_pose = pool.hand_pose.cpu().numpy()
     pool_ids = np.asarray(pool.object_id, dtype=object)
     scores = score_grasps(evaluator, pool_pose, clouds, pool_ids, pool.scale, support=_supports(planes, pool_ids, pool.scale))
-    chosen = rank_distinct(scores, pool_pose, pool_ids, keep, diversity.distinct_translation_m, diversity.distinct_rotation_deg, fill=True)
-    chosen = np.sort(chosen)  # the pool's order: object by object
+    chosen, place = best_distinct(scores, pool_pose, pool_ids, keep, diversity)
     seconds = time.perf_counter() - started
 
     raw = np.asarray([str(m) for m in sampled.arrays.get("method", np.full(n, SYNTHESIS, dtype=object))]) == SYNTHESIS
@@ -107,7 +153,7 @@ def rank_shard(
     ranked = {name: np.full((len(chosen), *values.shape[1:]), blank.get(values.dtype.kind, 0), dtype=values.dtype) for name, values in arrays.items()}
     ranked.update({"hand_pose": pool_pose[chosen].astype(sampled.hand_pose.dtype), "object_id": pool_ids[chosen], "scale": pool.scale[chosen].astype(sampled.scale.dtype),
                    "method": np.full(len(chosen), RANKED_METHOD, dtype=object), SCORE: scores[chosen].astype(np.float32),
-                   KEPT_FRACTION: np.full(len(chosen), len(chosen) / len(pool_ids), np.float32)})
+                   KEPT_FRACTION: np.full(len(chosen), len(chosen) / len(pool_ids), np.float32), RANK: place})
     merged = {name: np.concatenate([arrays[name], ranked[name]]) for name in arrays}
     attrs.update(pool=int(len(pool_ids)), kept=int(len(chosen)), cpu_seconds=seconds, ranked_seconds_per_grasp=seconds / len(chosen),
                  pool_mean_score=float(np.mean(scores)), kept_mean_score=float(np.mean(scores[chosen])))

@@ -42,6 +42,9 @@ class LoopConfig:
         "training grasp) or debiased (Dex1B: weight 1/(count+1) over the whole cloud, whose samples rarely refine into grasps "
         "that pass the energy thresholds with a model trained on a few grasps per object); matched keeps 2.5-5x more new "
         "grasps per round (docs/results.md, benchmarks/experiments/loop_round_yield.py)", enum=ANCHOR_RULES, rules=("loop_sample",))
+    rank_candidates: bool = setting(
+        False, "draw evaluator.pool_factor x grasps_per_object candidates per training object and keep the grasps_per_object "
+        "best-scored distinct ones by the learned evaluator (needs evaluator.enabled)", rules=("loop_sample",))
     match_candidates: int = setting(
         1, "matched: a debiased draw among this many best-matching points (1 = the best match)", minimum=1, rules=("loop_sample",))
     post_iterations: int = setting(
