@@ -78,6 +78,9 @@ def shard_dataset_grasps(dataset_dir: str | Path, objects_dirs: list[str], stabi
     taken = []
     for object_id in wanted:
         rows = np.flatnonzero(grasps.object_id.astype(str) == object_id)
+        if not len(rows):
+            left_out[object_id] = "the dataset holds no tested grasp of it (its optimization found none to test)"
+            continue
         try:
             asset = load_asset(objects_dirs, object_id)
         except ObjectAssetError as exc:
