@@ -281,7 +281,7 @@ def test_simulate_step_on_tiny_object(tmp_path, tiny_objects):
     assert result.attrs["lift_config"]["six_directions"] is False
     assert result.attrs["method_seconds_per_grasp"] == {"optimization": {"optimized": 2.0}}
     without_input = {"cvae_raw", "cvae_post", "random_post", "dexgraspnet", "cvae_recon", "cvae_recon_post", "cvae_prior_train", "cvae_prior_train_post",
-                     "shipped_raw", "shipped_post"}
+                     "shipped_raw", "shipped_post", "cvae_ranked", "cvae_ranked_post"}
     assert set(result.attrs["methods_without_input"]) == without_input
 
 

@@ -4,9 +4,10 @@
 # syntheses on held-out objects by it (rows cvae_ranked*, listed in evaluate.methods); with loop.rank_candidates the
 # loop's rounds rank their candidates by it (the examples then come from round 0's model).
 
-RANKED_METHODS = {"cvae_ranked", "cvae_ranked_post"}
-if RANKED_METHODS & set(config["evaluate"]["methods"]) and not config["evaluator"]["enabled"]:
-    raise WorkflowError("evaluate.methods: cvae_ranked and cvae_ranked_post need the learned evaluator (evaluator.enabled: true); drop them or enable it")
+from dexlite_pipeline.evaluation.config import RANKED_METHODS
+
+if not config["evaluator"]["enabled"]:  # without the evaluator there are no ranked rows to measure
+    config["evaluate"]["methods"] = [m for m in config["evaluate"]["methods"] if m not in RANKED_METHODS]
 
 
 def evaluator_input(wildcards):

@@ -19,7 +19,6 @@ METHODS = (
     "cvae_ranked", "cvae_ranked_post",
 )  # fmt: skip
 RANKED_METHODS = ("cvae_ranked", "cvae_ranked_post")  # need the learned evaluator (evaluator.enabled)
-DEFAULT_METHODS = tuple(m for m in METHODS if m not in RANKED_METHODS)
 # Frozen random-stream labels: a method's seeded draws (the evaluation's choice of grasps per
 # object, selection.select_grasps; the report's pictured grasps, report.pictures.pick_examples)
 # hash a label, and a method renamed after results were published keeps its old label there, so
@@ -86,10 +85,10 @@ class EvaluateConfig:
     # rules: the evaluation steps that read the key (evaluation.step_keys): evaluate_simulate, evaluate (the aggregate
     # step) and report; a key changed reruns only those
     methods: tuple[str, ...] = setting(
-        DEFAULT_METHODS, "rows of metrics.csv (dexgraspnet only when dexgraspnet.root is set); cvae_recon* and cvae_prior_train* are "
+        METHODS, "rows of metrics.csv (dexgraspnet only when dexgraspnet.root is set); cvae_recon* and cvae_prior_train* are "
         "the learning ladder's fit and in-distribution rungs (training objects); shipped_* the shipped model "
         "(sample.shipped_model) on held-out objects it never trained on; cvae_ranked* the model's samples ranked by the learned "
-        "evaluator (needs evaluator.enabled); missing inputs are reported, not invented",
+        "evaluator (left out when evaluator.enabled is false); missing inputs are reported, not invented",
         items={"enum": METHODS}, unique_items=True, rules=("evaluate_simulate", "evaluate"))
     splits: tuple[str, ...] = setting(
         ("heldout",), "object splits evaluated: train and/or heldout (catalog column split; a split with no objects is an error)",

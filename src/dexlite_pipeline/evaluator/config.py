@@ -16,9 +16,10 @@ class EvaluatorSection:
     """Config section ``evaluator``: whether the pipeline trains a grasp evaluator and ranks the model's samples by it."""
 
     enabled: bool = setting(
-        False, "train a grasp evaluator on the run's simulated grasps (training objects only) and add the evaluation rows "
-        "cvae_ranked / cvae_ranked_post (list them in evaluate.methods): the model draws pool_factor x more pure syntheses "
-        "per held-out object and keeps the best-scored distinct ones")
+        True, "train a grasp evaluator on the run's simulated grasps (training objects only) and add the evaluation rows "
+        "cvae_ranked / cvae_ranked_post: the model draws pool_factor x more pure syntheses per held-out object and keeps the "
+        "best-scored distinct ones (default run, seeds 0-2: 1.7-2.3x the held grasps per simulated attempt of unranked "
+        "samples, docs/results.md); false drops those rows")
     examples_per_object: int = setting(
         48, "on-generator examples: the trained model's pure syntheses per stable training object, post-optimized and "
         "simulated (every one, held or not) as the evaluation does; ~1 CPU s each", minimum=0)

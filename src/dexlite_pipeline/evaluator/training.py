@@ -5,7 +5,7 @@ Two sources: the lift-validated shards (optimization's curated grasps, mostly he
 an example of the pose the evaluator will be asked about: the sampled pose, before post-optimization, for the
 on-generator examples (``raw_hand_pose``), the stored pose for optimization's grasps (which post-optimization would
 start from). Only the catalogs' training objects enter, whatever the stores hold: a held-out object's grasps
-never reach the training set (the test is ``held_out_never_trained``). Grasps never simulated are left out with
+never reach the training set (tests/evaluator/test_evaluator_training.py, and the tiny run's tests/workflow/test_evaluator_run.py). Grasps never simulated are left out with
 their reason (``EvaluatorExamples.excluded``).
 """
 

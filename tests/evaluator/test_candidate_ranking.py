@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import torch
-from test_training import objects_dir  # noqa: F401  (the module's fixture: four prepared objects and a catalog)
+from test_evaluator_training import objects_dir  # noqa: F401  (the module's fixture: four prepared objects and a catalog)
 
 from dexlite_pipeline.evaluation.config import DiversityConfig
 from dexlite_pipeline.evaluator.ranking import rank_candidates
