@@ -43,22 +43,25 @@ LOOP_STAGES = frozenset({
 READS_FINAL_MODEL = frozenset({"sample_grasps", "post_optimize", "evaluate_simulate", "evaluate"})
 
 EDITS = {
-    # the network: training and sampling run it, and the loop's steps that train, sample or load a model (round 0's set,
+    # the network: training and sampling run it (the evaluator's examples and its PointNet too), and the loop's steps that train,
+    # sample or load a model (round 0's set,
     # whose stage imports the training's shard reader; the summary reads a round model's checkpoint); the plan is
     # training onwards and the loop's round 0 set
     "network": CodeEdit(
-        "model/network.py", frozenset({"train_cvae", "sample_grasps", "loop_initial_set", "loop_sample", "loop_train", "loop_summary"}),
+        "model/network.py", frozenset({"train_cvae", "sample_grasps", "loop_initial_set", "loop_sample", "loop_train", "loop_summary",
+                                       "evaluator_examples", "train_evaluator"}),
         frozenset({"train_cvae", "loop_initial_set"}), UPSTREAM_OF_LIFT | {"lift_validate"},
     ),
     # the lift test: lift validation and the evaluation's simulation (and the report, which reads the evaluation's
     # protocol) run it, and of the loop only its validation; nothing before lift validation reruns
     "lift test": CodeEdit(
-        "sim/lift.py", frozenset({"lift_validate", "evaluate_simulate", "evaluate", "report", "loop_validate"}), frozenset({"lift_validate"}),
+        "sim/lift.py", frozenset({"lift_validate", "evaluate_simulate", "evaluate", "report", "loop_validate", "evaluator_examples"}),
+        frozenset({"lift_validate"}),
         UPSTREAM_OF_LIFT,
     ),
     # the optimizer: optimization from scratch and post-optimization (the loop's too) run it; preparation and stability do not
     "optimizer": CodeEdit(
-        "optim/annealing.py", frozenset({"optimize_grasps", "post_optimize", "loop_post_optimize"}),
+        "optim/annealing.py", frozenset({"optimize_grasps", "post_optimize", "loop_post_optimize", "evaluator_examples"}),
         frozenset({"optimize_grasps", "post_optimize", "loop_post_optimize"}), frozenset({"prepare_objects", "stability_filter", "import_dexgraspnet"}),
     ),
     # the loop table: only its own stage runs it; the plan is that stage and the report that shows the table
@@ -69,13 +72,33 @@ EDITS = {
 }
 
 
+def one_grasp_dataset(folder: Path) -> Path:
+    """A grasp dataset of one tested grasp (so that a dataset.root config has the dataset_grasps rule)."""
+    import numpy as np
+    import pandas as pd
+
+    from dexlite_pipeline.dataset import BatchRecord, add_batch
+    from dexlite_pipeline.dataset.layout import REQUIRED_ARRAYS
+    from dexlite_pipeline.io.grasp_store import GraspSet
+
+    arrays = {name: np.full((1, *spec.trailing_shape), np.nan, np.float32) for name, spec in REQUIRED_ARRAYS.items() if spec.kind == "float32"}
+    arrays.update(object_id=np.array(["user-box"], dtype=object), scale=np.full(1, 0.1, np.float32), lift_success=np.ones(1, bool),
+                  six_dir_success=np.ones(1, bool), failure_reason=np.array([""], dtype=object), source=np.array(["optimization"], dtype=object))
+    arrays["hand_pose"] = np.zeros((1, 28), np.float32)
+    record = BatchRecord(kind="optimization", code_version="0" * 40, config={}, cpu_seconds={}, started_utc="2026-01-01T00:00:00Z",
+                         finished_utc="2026-01-01T00:00:01Z", protocol="test", machine="test")
+    add_batch(folder, GraspSet(arrays, {}), pd.DataFrame({"object_id": ["user-box"], "source": ["user"], "split": ["train"]}), record)
+    return folder
+
+
 @pytest.fixture(scope="module")
 def graph(tmp_path_factory) -> dict[str, set[str]]:
     """The rule graph of the tiny config with a DexGraspNet import configured (every rule in it)."""
     scratch = tmp_path_factory.mktemp("code_reruns")
     download = scratch / "dexgraspnet"
     (download / "dataset").mkdir(parents=True)
-    config = tiny_config(write_tiny_meshes(scratch / "meshes"), dexgraspnet={"root": str(download), "heldout_object_codes": []})
+    config = tiny_config(write_tiny_meshes(scratch / "meshes"), dexgraspnet={"root": str(download), "heldout_object_codes": []},
+                         dataset={"root": str(one_grasp_dataset(scratch / "dataset"))})
     write_config(scratch / "run", config)
     return rule_graph(scratch / "run")
 

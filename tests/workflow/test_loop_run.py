@@ -21,7 +21,8 @@ from dexlite_pipeline.loop.round_basics import DROP_REASONS
 pytestmark = pytest.mark.slow
 
 LOOP_RULES = {"loop_sample", "loop_post_optimize", "loop_validate", "loop_merge", "loop_train", "loop_summary"}
-READS_FINAL_MODEL = {"sample_grasps", "post_optimize", "evaluate_simulate", "evaluate", "report"}
+# the evaluator learns from the final model's samples (evaluator_examples, train_evaluator), and ranks them
+READS_FINAL_MODEL = {"evaluator_examples", "train_evaluator", "sample_grasps", "post_optimize", "evaluate_simulate", "evaluate", "report"}
 
 
 def _distinct(grasps) -> int:

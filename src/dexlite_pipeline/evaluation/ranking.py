@@ -12,9 +12,9 @@ import math
 import numpy as np
 
 from dexlite_pipeline.evaluation.diversity import distinct_grasp_labels, first_of_each_cluster
-from dexlite_pipeline.model.evaluator import roc_auc
+from dexlite_pipeline.model.score_metrics import roc_auc
 
-__all__ = ["precision_at_fraction", "rank_distinct", "roc_auc"]  # roc_auc lives with the evaluator, whose training reports it
+__all__ = ["precision_at_fraction", "rank_distinct", "roc_auc"]  # roc_auc lives in model.score_metrics: the evaluator's training reports it
 
 
 def precision_at_fraction(scores: np.ndarray, labels: np.ndarray, fraction: float) -> float:
