@@ -13,6 +13,7 @@ pytestmark = pytest.mark.slow
 SCENE_RULES = {
     "optimize_grasps", "curate", "lift_validate", "train_cvae", "post_optimize", "evaluate_simulate", "report",
     "loop_post_optimize", "loop_validate", "loop_train",  # the data loop's rounds, on each object's table
+    "evaluator_examples", "sample_grasps",  # the learned evaluator's examples are tested on the table, its ranking reads it
 }  # fmt: skip
 BEFORE_OPTIMIZATION = {"prepare_objects", "stability_filter", "import_dexgraspnet"}
 
