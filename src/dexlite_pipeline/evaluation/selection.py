@@ -176,7 +176,8 @@ def stage_seconds_per_grasp(method: str, sources: Mapping[str, Sequence[GraspSet
     grasp. Those stages run as one-thread jobs (``SHARD_THREADS``), so on a CPU run these are
     CPU-seconds (an upper bound when the core is shared). The ranked rows' sampling is the ranking's
     (``ranked_seconds_per_grasp`` of the sampled stores: drawing the whole pool and scoring it with
-    the evaluator, per kept row). Not included: training (of the model and the evaluator), object
+    the evaluator, per kept row; the simulate step charges it to the ranked grasps it simulates instead,
+    ``shards.ranking_seconds_per_attempt``). Not included: training (of the model and the evaluator), object
     preparation, the evaluation's energies (the filter) and its simulation. DexGraspNet's
     imported grasps carry no cost.
     """

@@ -47,7 +47,8 @@ def _sampled_reference(stores) -> np.ndarray | None:
 
 
 # Per-row arrays of the sampled stores that the ranking adds (evaluator.ranking), carried to each paired method's
-# simulated grasps through ``sample_row``: the learned evaluator's score of the sampled pose and its pool's kept share.
+# simulated grasps through ``sample_row``: the learned evaluator's score of the sampled pose, its pool's kept share and
+# (ranked rows) the row's place in its object's ranking.
 EVALUATOR_COLUMNS = ("evaluator_score", "evaluator_kept_fraction", "evaluator_rank")
 
 
