@@ -174,20 +174,19 @@ def stage_seconds_per_grasp(method: str, sources: Mapping[str, Sequence[GraspSet
     optimization from scratch per optimized grasp (passing or not), sampling per sampled row (model
     loading and every kind of row in the shard included), post-optimization per refined
     grasp. Those stages run as one-thread jobs (``SHARD_THREADS``), so on a CPU run these are
-    CPU-seconds (an upper bound when the core is shared). The ranked rows' sampling is the ranking's
-    (``ranked_seconds_per_grasp`` of the sampled stores: drawing the whole pool and scoring it with
-    the evaluator, per kept row; the simulate step charges it to the ranked grasps it simulates instead,
-    ``shards.ranking_seconds_per_attempt``). Not included: training (of the model and the evaluator), object
+    CPU-seconds (an upper bound when the core is shared). The ranked rows' sampling is the ranking's,
+    which the simulate step adds (``shards.ranking_seconds_per_attempt``: drawing the whole pool and
+    scoring it, over the ranked grasps it simulates). Not included: training (of the model and the evaluator), object
     preparation, the evaluation's energies (the filter) and its simulation. DexGraspNet's
     imported grasps carry no cost.
     """
     stages = {"optimization": ("optimized",), "random_post": ("random_post",), "dexgraspnet": ()}
     stages.update({m: ("sample",) if stage == "sample" else ("sample", "post") for m, (_, stage) in SAMPLED_METHODS.items()})
-    stages.update({m: ("ranking",) if SAMPLED_METHODS[m][1] == "sample" else ("ranking", "post") for m in RANKED})
+    stages.update({m: () if SAMPLED_METHODS[m][1] == "sample" else ("post",) for m in RANKED})
     out = {}
     for stage in stages[method]:
-        sets, key = (sources.get("sample", []), "ranked_seconds_per_grasp") if stage == "ranking" else (sources.get(stage, []), "seconds_per_grasp")
-        weighted = [(float(s.attrs[key]), len(s)) for s in sets if s.attrs.get(key) is not None and len(s)]
+        sets = sources.get(stage, [])
+        weighted = [(float(s.attrs["seconds_per_grasp"]), len(s)) for s in sets if s.attrs.get("seconds_per_grasp") is not None and len(s)]
         if weighted:
             total = sum(n for _, n in weighted)
             out[stage] = sum(t * n for t, n in weighted) / total

@@ -163,7 +163,7 @@ def simulate_shard(
         invalid[method] = selected.attrs["invalid_reasons"]
         seconds[method] = stage_seconds_per_grasp(method, sources)
         if rank is not None:  # the whole pool's sampling and scoring, over the ranked rows simulated
-            seconds[method]["ranking"] = ranking_seconds_per_attempt(sources["sample"], len(selected))
+            seconds[method] = {"ranking": ranking_seconds_per_attempt(sources["sample"], len(selected)), **seconds[method]}
         n_invalid = sum(invalid[method].values())
         log.info("evaluate shard %s: %s: %d grasps (%d invalid) on %d objects", shard, method, len(selected), n_invalid, len(set(selected.object_id)))
     width = max((p.arrays[BUDGET_SUCCESS].shape[1] for p in parts if BUDGET_SUCCESS in p.arrays), default=0)

@@ -44,6 +44,5 @@ def run(args: argparse.Namespace) -> int:
             sample=config.sample, section=config.evaluator, diversity=config.diversity, table=config.scene.table, seed=config.seed,
             device=config.device,
         )
-        attrs["ranked_seconds_per_grasp"] = attrs["ranking"]["ranked_seconds_per_grasp"]
     write_grasp_store(args.out, grasps, attrs)
     return 0
