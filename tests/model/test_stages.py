@@ -199,3 +199,21 @@ def test_training_on_tables_weighs_e_table(pipeline_inputs):
     floating = json.dumps({**CONFIG, "train": train})
     assert main([*args, "--config-json", floating, *_model_outputs(root / "floating")]) == 0
     assert "train_table" not in pd.read_csv(root / "floating" / "history.csv").columns
+
+
+@pytest.mark.slow
+def test_train_seed_sets_the_training_alone(pipeline_inputs):
+    """train.seed trains as the run's seed would, on the same data: training seeds without re-making the data."""
+    root, objects = pipeline_inputs
+
+    def train(folder, config):
+        assert main(["train-cvae", "--config-json", json.dumps(config), "--lift", str(root / "lift.zarr"), *objects, *_model_outputs(root / folder)]) == 0
+        return torch.load(root / folder / "cvae.pt", weights_only=True)
+
+    by_run_seed = train("run_seed_3", {**CONFIG, "seed": 3})
+    by_train_seed = train("train_seed_3", {**CONFIG, "train": {**CONFIG["train"], "seed": 3}})
+    default = train("default", CONFIG)
+    assert by_train_seed["seed"] == by_run_seed["seed"] == 3 and default["seed"] == 0
+    state_3, state_train_3, state_0 = by_run_seed["state_dict"], by_train_seed["state_dict"], default["state_dict"]
+    assert all(torch.equal(state_3[name], state_train_3[name]) for name in state_3)
+    assert not all(torch.equal(state_3[name], state_0[name]) for name in state_3)

@@ -124,6 +124,35 @@ def test_grasp_with_a_model_samples_and_post_optimizes(grasp_run, meshes, tmp_pa
     assert "`--min-distinct 0`: the model's grasps only; optimization from scratch never tops them up." in summary
 
 
+def _untrained_evaluator(path):
+    """A small grasp evaluator with untrained weights saved as ``path``: for testing the ranking's plumbing."""
+    from dexlite_pipeline.model.evaluator import EvaluatorConfig, GraspEvaluator, save_evaluator
+
+    config = EvaluatorConfig(points_per_cloud=64, pointnet_points=32, pointnet_widths=(8, 16), hand_points_per_shape=1, hidden_sizes=(16,))
+    path.parent.mkdir(parents=True, exist_ok=True)
+    save_evaluator(path, GraspEvaluator(config), config, {"train_object_ids": []})
+    return path
+
+
+@pytest.mark.slow
+def test_an_evaluator_ranks_a_pool_of_model_samples_and_keeps_n_distinct(meshes, tmp_path, caplog):
+    """--evaluator: evaluator.pool_factor x --n samples per object scored, the --n best distinct kept and refined, each
+    with its score; the stores name the evaluator."""
+    model, evaluator = _untrained_model(tmp_path / "cvae.pt"), _untrained_evaluator(tmp_path / "evaluator.pt")
+    out = tmp_path / "ranked"
+    config = {**TINY, "evaluator": {"pool_factor": 3}}
+    with caplog.at_level(logging.INFO, logger="dexlite.grasp"):
+        main(["grasp", str(meshes / "box.obj"), "--out", str(out), "--n", "4", "--renders", "0", "--threads", "1", "--model", str(model),
+              "--evaluator", str(evaluator), "--resize-to-training", "--min-distinct", "0", "--config-json", json.dumps(config)])  # fmt: skip
+    every = read_grasp_store(out / "all_grasps.zarr")
+    assert len(every) == 4 and set(every.arrays["source"]) == {"model"}
+    scores = np.asarray(every.arrays["evaluator_score"])
+    assert scores.shape == (4,) and ((scores > 0) & (scores < 1)).all()
+    assert every.attrs["evaluator"] == str(evaluator)
+    assert "kept the 4 best-scored distinct of 12 samples" in caplog.text
+    assert "ranked by a learned evaluator" in every.attrs["method"]
+
+
 @pytest.mark.slow
 def test_too_few_distinct_model_grasps_are_topped_up_by_optimization_from_scratch(grasp_run, meshes, tmp_path, capsys):
     """With --n 2 a model gives at most 2 distinct held grasps and a batch of optimization at most 2 more, fewer than
@@ -470,6 +499,10 @@ BAD_INPUTS = [
     (["{d}/box.obj", "--model", "{d}/garbage.pt"], "--model {d}/garbage.pt: not a readable model file"),
     (["{d}/box.obj", "--model", "{d}/garbage.pt", "--from-scratch"], "--model and --from-scratch exclude each other"),
     (["{d}/box.obj", "--units", "cm", "--resize-to-training"], "--units and --resize-to-training exclude each other"),
+    (["{d}/box.obj", "--evaluator", "{d}/missing.pt"], "--evaluator {d}/missing.pt: no such file"),
+    (["{d}/box.obj", "--evaluator", "{d}/garbage.pt"], "--evaluator {d}/garbage.pt: not a readable grasp evaluator file"),
+    (["{d}/box.obj", "--evaluator", "{d}/garbage.pt", "--no-evaluator"], "--evaluator and --no-evaluator exclude each other"),
+    (["{d}/box.obj", "--evaluator", "{d}/garbage.pt", "--from-scratch"], "--evaluator and --from-scratch exclude each other"),
     (["{d}/box.obj", "--min-distinct", "-1"], "--min-distinct must be 0 or more, got -1"),
     (["{d}/box.obj", "--min-distinct", "few"], "argument --min-distinct: invalid int value: 'few'"),
     (["{d}/box.obj", "--from-scratch", "--min-distinct", "4"], "--min-distinct and --from-scratch exclude each other"),

@@ -59,6 +59,11 @@ CHANGES = [
         "train", "max_steps", frozenset({"train_cvae"}), frozenset({"train_cvae", "sample_grasps", "post_optimize", "evaluate"}),
         frozenset(UPSTREAM_OF_TRAINING),
     ),
+    # the training seed alone (training seeds on the same data): the training and what follows it, no data stage
+    ConfigChange(
+        "train", "seed", frozenset({"train_cvae"}), frozenset({"train_cvae", "sample_grasps", "post_optimize", "evaluate"}),
+        frozenset(UPSTREAM_OF_TRAINING),
+    ),
 ]
 
 

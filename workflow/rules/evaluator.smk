@@ -53,7 +53,7 @@ rule train_evaluator:
         model=f"{RESULTS}/evaluator/evaluator.pt",
         facts=f"{RESULTS}/evaluator/training.json",
     params:
-        cfg=stage_params("seed", "device", "evaluator.epochs", "evaluator.hand_points_per_shape", "evaluator.validation_fraction"),
+        cfg=stage_params("seed", "device", "train.seed", "evaluator.epochs", "evaluator.hand_points_per_shape", "evaluator.validation_fraction"),
         code=code_hash("train_evaluator"),
         lift=lambda wc, input: learning_cli_options("lift", input.lift),
         examples=lambda wc, input: learning_cli_options("examples", input.examples),

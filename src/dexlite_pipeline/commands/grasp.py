@@ -1,10 +1,10 @@
 """``dexlite grasp MESH [MESH ...] --out DIR``: grasps that hold for your own meshes, in one command.
 
 Prepares the meshes (a folder of .obj/.stl files works too) at their real size (``--units``),
-synthesizes grasps (with the shipped model, package data, topped up by optimization from scratch
-for each object where the model gives fewer than ``--min-distinct`` distinct held grasps; by
-optimization from scratch only with ``--from-scratch``), keeps the distinct ones that pass the
-lift test and writes ``DIR/grasps.zarr``, ``DIR/dexgraspnet/``, ``DIR/renders/`` and
+synthesizes grasps (with the shipped model, package data, its samples ranked by the shipped grasp
+evaluator where one ships, topped up by optimization from scratch for each object where the model
+gives fewer than ``--min-distinct`` distinct held grasps; by optimization from scratch only with
+``--from-scratch``), keeps the distinct ones that pass the lift test and writes ``DIR/grasps.zarr``, ``DIR/dexgraspnet/``, ``DIR/renders/`` and
 ``DIR/summary.md`` (``dexlite_pipeline.tools.grasp``). On a table (``scene.table``, the default) each mesh stands in its stable pose, or with
 ``--upright-axis`` up; the log says which. Exit status 0 when some grasp held, 1 when none did
 (the outputs are written all the same), 2 for unusable input (one line, before any work).
@@ -37,6 +37,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--device", default=None, help="auto, cpu, cuda or cuda:N (default: the config's device)")
     parser.add_argument("--model", default=None, help="trained model (cvae.pt) to sample and post-optimize with (default: the shipped "
                         "model, dexlite_pipeline/data/shadow-hand-large/cvae.pt)")
+    parser.add_argument("--evaluator", default=None, metavar="FILE",
+                        help="a learned grasp evaluator (evaluator.pt) that ranks the model's samples: it draws evaluator.pool_factor "
+                        "times --n samples per object and keeps the --n best-scored distinct ones before post-optimization (default: "
+                        "the shipped evaluator with the shipped model, none with --model)")
+    parser.add_argument("--no-evaluator", action="store_true", help="do not rank the model's samples (the first --n samples per object)")
     parser.add_argument("--min-distinct", type=int, default=None, metavar="N",
                         help="with a model: an object whose model grasps give fewer than N distinct held grasps also gets --n grasps by "
                         f"optimization from scratch, and the distinct held grasps are chosen from both (default {DEFAULT_MIN_DISTINCT}: a handful of "
@@ -56,7 +61,7 @@ def run(args: argparse.Namespace) -> int:
     import os
 
     from dexlite_pipeline.config import parse_config_json
-    from dexlite_pipeline.model.shipped import SHIPPED_MODEL_PATH, shipped_model_path
+    from dexlite_pipeline.model.shipped import SHIPPED_MODEL_PATH, shipped_evaluator_path, shipped_model_path
     from dexlite_pipeline.tools.grasp import DEFAULT_MIN_DISTINCT, DEFAULT_TOP_UP_BATCHES, GraspRequest, GraspToolError, run_grasp_tool
 
     if args.from_scratch and args.model:
@@ -69,16 +74,22 @@ def run(args: argparse.Namespace) -> int:
                              "model's grasps; --from-scratch uses optimization only)")  # fmt: skip
     if args.resize_to_training and args.units:
         raise GraspToolError("--units and --resize-to-training exclude each other (resized objects take the training radii whatever their unit)")
-    model = None
+    if args.evaluator and args.no_evaluator:
+        raise GraspToolError("--evaluator and --no-evaluator exclude each other")
+    if args.from_scratch and args.evaluator:
+        raise GraspToolError("--evaluator and --from-scratch exclude each other (the evaluator ranks a model's samples)")
+    model, evaluator = None, None
     if not args.from_scratch:
         model = args.model or (str(shipped_model_path()) if shipped_model_path() else None)
         if model is None:
             raise GraspToolError(f"no shipped model at {SHIPPED_MODEL_PATH} (the package was installed without its data): "
                                  "pass --model FILE or --from-scratch")  # fmt: skip
+        shipped_evaluator = shipped_evaluator_path() if not args.model else None  # the shipped model's own evaluator
+        evaluator = None if args.no_evaluator else args.evaluator or (str(shipped_evaluator) if shipped_evaluator else None)
     request = GraspRequest(
         meshes=args.meshes, out_dir=args.out, grasps_per_object=args.n, units=args.units or "m",
         resize_to_training=args.resize_to_training, distinct=args.distinct, overwrite=args.overwrite, device=args.device,
-        model=model, min_distinct=DEFAULT_MIN_DISTINCT if args.min_distinct is None else args.min_distinct,
+        model=model, evaluator=evaluator, min_distinct=DEFAULT_MIN_DISTINCT if args.min_distinct is None else args.min_distinct,
         top_up_batches=DEFAULT_TOP_UP_BATCHES if args.top_up_batches is None else args.top_up_batches,
         config=parse_config_json(args.config_json), threads=args.threads or os.cpu_count() or 1,
         renders_per_object=args.renders, upright_axis=args.upright_axis,

@@ -27,7 +27,7 @@ KEPT_FRACTION = "evaluator_kept_fraction"  # per sampled row: the share of its p
 RANK = "evaluator_rank"  # per ranked row: its place in its object's ranking (0 = best; distinct grasps first), -1 elsewhere
 
 
-def _supports(planes, object_ids, scale) -> np.ndarray | None:
+def support_rows(planes, object_ids, scale) -> np.ndarray | None:
     """(N, 4) each grasp's table (``model.evaluator.SUPPORT_COLUMNS``) in tabletop mode, None floating."""
     if planes is None:
         return None
@@ -71,7 +71,7 @@ def rank_candidates(
     planes = load_support_planes(table, stability_path)
     ids = candidates.object_id.astype(str).astype(object)
     clouds = ObjectClouds([load_asset(objects_dirs, oid) for oid in sorted(set(ids.tolist()))])
-    scores = score_grasps(evaluator, candidates.hand_pose, clouds, ids, candidates.scale, support=_supports(planes, ids, candidates.scale))
+    scores = score_grasps(evaluator, candidates.hand_pose, clouds, ids, candidates.scale, support=support_rows(planes, ids, candidates.scale))
     chosen, place = best_distinct(scores, np.asarray(candidates.hand_pose), ids, keep, diversity)
     kept = candidates.select(chosen)
     kept.arrays[SCORE] = scores[chosen].astype(np.float32)
@@ -138,7 +138,7 @@ def rank_shard(
                               RANKED_METHOD, pool_size)
     pool_pose = pool.hand_pose.cpu().numpy()
     pool_ids = np.asarray(pool.object_id, dtype=object)
-    scores = score_grasps(evaluator, pool_pose, clouds, pool_ids, pool.scale, support=_supports(planes, pool_ids, pool.scale))
+    scores = score_grasps(evaluator, pool_pose, clouds, pool_ids, pool.scale, support=support_rows(planes, pool_ids, pool.scale))
     chosen, place = best_distinct(scores, pool_pose, pool_ids, keep, diversity)
     seconds = time.perf_counter() - started
 
@@ -148,7 +148,7 @@ def rank_shard(
         rows = np.flatnonzero(finite)
         ids = sampled.object_id[rows].astype(str)
         arrays[SCORE][rows] = score_grasps(evaluator, sampled.hand_pose[rows], clouds, ids, sampled.scale[rows],
-                                           support=_supports(planes, ids, sampled.scale[rows]))
+                                           support=support_rows(planes, ids, sampled.scale[rows]))
     blank = {"f": np.nan, "c": np.nan, "O": "", "U": "", "i": -1, "u": 0, "b": False}  # a ranked row's value of the other arrays
     ranked = {name: np.full((len(chosen), *values.shape[1:]), blank.get(values.dtype.kind, 0), dtype=values.dtype) for name, values in arrays.items()}
     ranked.update({"hand_pose": pool_pose[chosen].astype(sampled.hand_pose.dtype), "object_id": pool_ids[chosen], "scale": pool.scale[chosen].astype(sampled.scale.dtype),

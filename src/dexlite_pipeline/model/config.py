@@ -70,6 +70,9 @@ class TrainConfig:
     """Config section ``train`` (two documented profiles: the default and ``config/profiles/writeup_gpu.yaml``)."""
 
     profile: str = setting("default", "label recorded in cvae.pt")
+    seed: int = setting(
+        -1, "seed of the training alone (initial weights, batches, validation split, the max_training_objects subset; the CVAE's and the "
+        "learned evaluator's): training seeds on the same data; -1 = the run's seed", minimum=-1)
     epochs: int = setting(100000, "passes over the training grasps (the step budget, max_steps, ends training first)", minimum=1)
     max_steps: int = setting(8000, "optimizer-step budget (0 = epochs only)", minimum=0)
     batch_size: int = setting(64, "grasps per step", minimum=1)
@@ -115,6 +118,10 @@ class TrainConfig:
             raise ValueError(f"train.lr_schedule {self.lr_schedule!r} is not one of {', '.join(LR_SCHEDULES)}")
         if self.model.normalization == "batch" and self.clouds_per_batch < 2:
             raise ValueError("train: BatchNorm needs clouds_per_batch >= 2 (one cloud per batch erases object size); use model.normalization: none")
+
+    def training_seed(self, run_seed: int) -> int:
+        """The seed the training uses: ``seed``, or the run's seed ``run_seed`` when it is -1."""
+        return run_seed if self.seed < 0 else self.seed
 
     def weights(self, table: bool = False) -> dict[str, float]:
         """Loss term -> weight: recon and kl, then the energy terms (fc, dis, pen, spen, joints; with ``table``, E_table last)."""

@@ -19,6 +19,15 @@ SHIPPED_MODEL_PATH = PACKAGE_DATA / "shadow-hand-large" / "cvae.pt"
 SHIPPED_MODEL_RELATIVE = Path("src") / "dexlite_pipeline" / "data" / "shadow-hand-large" / "cvae.pt"
 
 
+# The learned grasp evaluator trained with the shipped model (``dexlite grasp`` ranks the shipped model's samples with it).
+SHIPPED_EVALUATOR_PATH = SHIPPED_MODEL_PATH.with_name("evaluator.pt")
+
+
+def shipped_evaluator_path() -> Path | None:
+    """The shipped evaluator file, or None when none ships (or the package was installed without its data)."""
+    return SHIPPED_EVALUATOR_PATH if SHIPPED_EVALUATOR_PATH.is_file() else None
+
+
 def shipped_model_path() -> Path | None:
     """The shipped model file, or None when the package was installed without its data."""
     return SHIPPED_MODEL_PATH if SHIPPED_MODEL_PATH.is_file() else None

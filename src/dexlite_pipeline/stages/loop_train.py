@@ -31,7 +31,7 @@ def run(args: argparse.Namespace) -> int:
     from dexlite_pipeline.settings import stage_config
 
     config = stage_config(args.config_json)
-    config = dataclasses.replace(config, seed=round_seed(config.seed, args.round), train=round_training_config(config.train, config.loop))
+    config = dataclasses.replace(config, seed=round_seed(config.train.training_seed(config.seed), args.round), train=round_training_config(config.train, config.loop))
     trained = train_from_lift_shards(
         [args.grasps], args.objects, train=config.train, self_penetration_margin_m=config.energy.self_penetration_margin_m,
         table=config.scene.table, seed=config.seed, device=config.device, stability_path=args.stability, initial_model_path=args.initial_model,

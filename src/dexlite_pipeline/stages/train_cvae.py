@@ -30,7 +30,7 @@ def run(args: argparse.Namespace) -> int:
     config = stage_config(args.config_json)
     trained = train_from_lift_shards(
         args.lift, args.objects, train=config.train, self_penetration_margin_m=config.energy.self_penetration_margin_m,
-        table=config.scene.table, seed=config.seed, device=config.device, stability_path=args.stability,
+        table=config.scene.table, seed=config.train.training_seed(config.seed), device=config.device, stability_path=args.stability,
     )
     write_trained_model(trained, args.model, args.history, args.curves)
     log.info("wrote %s (%d steps, %d training grasps of %d objects)", args.model, trained.facts["steps"],

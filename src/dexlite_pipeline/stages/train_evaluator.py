@@ -31,8 +31,9 @@ def run(args: argparse.Namespace) -> int:
     from dexlite_pipeline.settings import stage_config
 
     config = stage_config(args.config_json)
-    model, facts = train_from_run(args.lift, args.examples, args.objects, config.evaluator, config.seed, config.device)
-    facts = {**facts, "config": {"seed": config.seed, "evaluator": json_ready(config.evaluator)}}
+    seed = config.train.training_seed(config.seed)
+    model, facts = train_from_run(args.lift, args.examples, args.objects, config.evaluator, seed, config.device)
+    facts = {**facts, "config": {"seed": seed, "evaluator": json_ready(config.evaluator)}}
     save_evaluator(args.out, model, model.config, facts)
     with atomic_path(args.facts) as tmp:
         with open(tmp, "w") as handle:

@@ -47,6 +47,7 @@ class CheckedRequest:
     mapping: dict  # the merged config mapping recorded in the outputs
     device: torch.device
     loaded_model: tuple | None  # (model, checkpoint entries) of ``--model``; None: optimization from scratch
+    loaded_evaluator: tuple | None  # (evaluator, its meta) of ``--evaluator``; None: samples not ranked
     sources: list[MeshSource]
     sizes: dict[str, MeshSize]  # object id -> its mesh's size
     not_tried: list[dict]  # meshes the hand cannot hold: file, reason, kind
@@ -173,20 +174,32 @@ def _raise(message: str):
     raise GraspToolError(message)
 
 
+def _load_file(option: str, path: str, loader, what: str) -> tuple:
+    """``loader(path)``, or a one-line ``GraspToolError`` naming ``option`` and the file: missing, or not ``what``."""
+    file = Path(path)
+    if not file.is_file():
+        raise GraspToolError(f"{option} {path}: no such file")
+    try:
+        return loader(file)
+    except Exception as exc:  # noqa: BLE001 - torch and the file readers raise many types for a bad file
+        cause = exc.__cause__ or exc
+        text = str(cause).splitlines()[0] if str(cause) else ""
+        detail = text if text and len(text) <= 100 else type(cause).__name__  # torch's messages run to many lines
+        raise GraspToolError(f"{option} {path}: not a readable {what} ({detail})") from None
+
+
 def load_model(path: str, device: torch.device) -> tuple:
     """The model and checkpoint entries of ``path``, or a one-line ``GraspToolError``."""
     from dexlite_pipeline.model.checkpoint import load_checkpoint
 
-    file = Path(path)
-    if not file.is_file():
-        raise GraspToolError(f"--model {path}: no such file")
-    try:
-        return load_checkpoint(file, device)
-    except Exception as exc:  # noqa: BLE001 - torch and the checkpoint reader raise many types for a bad file
-        cause = exc.__cause__ or exc
-        text = str(cause).splitlines()[0] if str(cause) else ""
-        detail = text if text and len(text) <= 100 else type(cause).__name__  # torch's messages run to many lines
-        raise GraspToolError(f"--model {path}: not a readable model file ({detail})") from None
+    return _load_file("--model", path, lambda file: load_checkpoint(file, device), "model file")
+
+
+def load_grasp_evaluator(path: str, device: torch.device) -> tuple:
+    """The grasp evaluator and its meta of ``path``, or a one-line ``GraspToolError``."""
+    from dexlite_pipeline.model.evaluator import load_evaluator
+
+    return _load_file("--evaluator", path, lambda file: load_evaluator(file, device), "grasp evaluator file")
 
 
 def check_request(request: GraspRequest) -> CheckedRequest:
@@ -210,7 +223,10 @@ def check_request(request: GraspRequest) -> CheckedRequest:
     if problem:
         raise GraspToolError(problem)
     device = check_device(request.device, "--device") if request.device else check_device(config.device, "config device")
+    if request.evaluator and not request.model:
+        raise GraspToolError("--evaluator ranks a model's samples: it needs a model (not --from-scratch)")
     loaded = load_model(request.model, device) if request.model else None
+    evaluator = load_grasp_evaluator(request.evaluator, device) if request.evaluator else None
     sizes, not_tried, refusals = {}, [], []
     for source in sources:
         size = measure_mesh(source, UNIT_METRES[request.units])
@@ -229,4 +245,4 @@ def check_request(request: GraspRequest) -> CheckedRequest:
     if len(not_tried) == len(sources):
         raise GraspToolError("; ".join(f"{r['file']}: {r['reason']}" for r in not_tried)
                              + f" (if a file is not in {UNIT_NAMES[request.units]}, give its unit with --units)")
-    return CheckedRequest(config, mapping, device, loaded, sources, sizes, not_tried)
+    return CheckedRequest(config, mapping, device, loaded, evaluator, sources, sizes, not_tried)

@@ -24,7 +24,7 @@ def store_attrs(request: GraspRequest, mapping: dict, mesh_files: list[str], met
         "stage": "grasp", "method": method, "config": mapping, "units": request.units,
         "size": "resized to the training scales" if request.resize_to_training else "real size",
         "meshes": mesh_files, "support": support,
-        "min_distinct": request.min_distinct if request.model else None, "topped_up": topped_up,
+        "min_distinct": request.min_distinct if request.model else None, "topped_up": topped_up, "evaluator": request.evaluator,
     }  # fmt: skip
 
 

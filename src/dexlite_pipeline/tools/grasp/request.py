@@ -43,6 +43,9 @@ class GraspRequest:
     overwrite: bool = False  # clear an earlier run's output folder first
     device: str | None = None  # None: the config's device
     model: str | None = None  # trained cvae.pt: sample + post-optimize; None: optimization from scratch
+    # with a model: a learned grasp evaluator (evaluator.pt) that ranks evaluator.pool_factor x n samples per object and
+    # keeps the n best-scored distinct ones before post-optimization; None: the model's first n samples
+    evaluator: str | None = None
     # with a model: objects with fewer distinct held model grasps also get optimization from scratch (0: never)
     min_distinct: int = DEFAULT_MIN_DISTINCT
     top_up_batches: int = DEFAULT_TOP_UP_BATCHES  # at most this many top-up batches of n attempts per object

@@ -100,7 +100,7 @@ class GraspRun:
         config, assets = self.checked.config, self.prepared.assets
         return synthesize_with_model(assets, object_scales(assets, self.request, config.sample.scales), self.request.grasps_per_object, config,
                                      self.checked.loaded_model, self.request.model, self.checked.device, config.seed,
-                                     self.prepared.support_planes)  # fmt: skip
+                                     self.prepared.support_planes, self.checked.loaded_evaluator)  # fmt: skip
 
     def lift_tested(self, grasps: GraspSet, source: str) -> GraspSet:
         """The grasps with their lift and six-direction test results and their ``source``."""
@@ -185,6 +185,9 @@ def first_grasps(run: GraspRun) -> tuple[GraspSet, str]:
     request, checked, record = run.request, run.checked, run.record
     if request.model:
         method = f"CVAE samples + post-optimization ({request.model})"
+        if request.evaluator:
+            method = (f"CVAE samples ranked by a learned evaluator ({request.evaluator}: the best distinct {request.grasps_per_object} of "
+                      f"{request.grasps_per_object * checked.config.evaluator.pool_factor} per object) + post-optimization ({request.model})")
         _step(2, run.steps, "synthesizing %d grasps for each of %d object(s): %s, device %s", request.grasps_per_object, len(run.prepared.assets),
               method, checked.device)  # fmt: skip
     else:

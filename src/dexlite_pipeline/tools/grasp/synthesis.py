@@ -81,11 +81,30 @@ def synthesize_from_scratch(
     return grasps
 
 
+def rank_samples(
+    poses: torch.Tensor, object_ids: np.ndarray, scale: np.ndarray, clouds, evaluator: tuple, n: int, config: PipelineConfig,
+    support_planes: SupportPlanes | None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """(rows kept, their scores): the ``n`` best-scored distinct sampled ``poses`` per object by the learned evaluator
+    (what "distinct" means: section ``diversity``), topped up with the next best where fewer are distinct."""
+    from dexlite_pipeline.evaluator.ranking import best_distinct, support_rows
+    from dexlite_pipeline.model.evaluator import score_grasps
+
+    model, _ = evaluator
+    pose_array = poses.detach().cpu().numpy()
+    scores = score_grasps(model, pose_array, clouds, object_ids, scale, support=support_rows(support_planes, object_ids, scale))
+    chosen, _ = best_distinct(scores, pose_array, object_ids, n, config.diversity)
+    log.info("evaluator: kept the %d best-scored distinct of %d samples (mean predicted held %.2f -> %.2f)", len(chosen), len(scores),
+             float(np.mean(scores)), float(np.mean(scores[chosen])))
+    return chosen, scores[chosen].astype(np.float32)
+
+
 def synthesize_with_model(
     assets: list[ObjectAsset], scales: dict[str, tuple[float, ...]], n: int, config: PipelineConfig, loaded: tuple, model_path: str,
-    device: torch.device, seed: int, support_planes: SupportPlanes | None = None,
+    device: torch.device, seed: int, support_planes: SupportPlanes | None = None, evaluator: tuple | None = None,
 ) -> GraspSet:
-    """``n`` CVAE samples per object, refined by post-optimization (sections ``sample``, ``post_optimize``)."""
+    """``n`` CVAE samples per object, refined by post-optimization (sections ``sample``, ``post_optimize``); with an
+    ``evaluator`` (model, meta), ``evaluator.pool_factor`` x ``n`` samples per object ranked, the ``n`` best distinct kept."""
     import torch
 
     from dexlite_pipeline.energy.config import EnergyConfig
@@ -101,12 +120,17 @@ def synthesize_with_model(
     model, checkpoint = loaded
     points, fixed = cloud_reading(checkpoint, sample_config.points_per_cloud)
     clouds = ObjectClouds(assets, device)
-    object_index = np.repeat(np.arange(len(assets)), n)
-    scale = np.concatenate([np.resize(np.asarray(scales[a.object_id], np.float32), n) for a in assets])
-    trained = sorted(float(s) for s in sample_config.scales)  # the training grasps' scales
+    drawn = n * (config.evaluator.pool_factor if evaluator is not None else 1)  # samples drawn per object
+    object_index = np.repeat(np.arange(len(assets)), drawn)
+    scale = np.concatenate([np.resize(np.asarray(scales[a.object_id], np.float32), drawn) for a in assets])
+    training_scales = (checkpoint.get("training_grasps") or {}).get("scale")
+    # the training grasps' scales (a model trained at real sizes has many), else the configured ones
+    trained = sorted({float(s) for s in np.asarray(training_scales)}) if training_scales is not None and len(training_scales) else \
+        sorted(float(s) for s in sample_config.scales)
     outside = sorted({round(float(s), 4) for s in scale if not min(trained) * 0.8 <= s <= max(trained) * 1.25})
     if outside:
-        log.info("object radii %s m are outside the model's training radii %s m: expect fewer grasps that hold", outside, trained)
+        log.info("object radii %s m are outside the model's training radii (%.3f-%.3f m): expect fewer grasps that hold", outside,
+                 trained[0], trained[-1])
     generator = shard_generator("grasp_tool_post_optimize", seed, 0)
     log.info("sampling %d grasps from %s", len(object_index), model_path)
     prior, anchor_rule = sample_config.latent_prior, sample_config.anchor_rule
@@ -118,6 +142,11 @@ def synthesize_with_model(
         sample_config.neighbour_clouds, sample_config.anchor_region_m, sample_config.debias_training, sample_config.match_candidates,
         sample_config.debias_codes,
     )
+    scores = None
+    if evaluator is not None:
+        ids = np.asarray([assets[i].object_id for i in object_index], dtype=object)
+        chosen, scores = rank_samples(poses, ids, scale, clouds, evaluator, n, config, support_planes)
+        poses, object_index, scale = poses[torch.as_tensor(chosen, device=poses.device)], object_index[chosen], scale[chosen]
     if support_planes is not None:  # tabletop: samples whose hand starts below the table are raised above it first
         from dexlite_pipeline.energy.table_clearance import raise_above_table
 
@@ -140,6 +169,8 @@ def synthesize_with_model(
     arrays["object_id"] = np.asarray([assets[i].object_id for i in object_index], dtype=object)
     arrays["scale"] = scale
     arrays["method"] = np.full(len(object_index), "cvae_post", dtype=object)
+    if scores is not None:
+        arrays["evaluator_score"] = scores  # the evaluator's predicted chance that the sampled pose holds once refined
     return GraspSet(arrays)
 
 
