@@ -58,10 +58,10 @@ def link_data_stages(run: Path, point: Path) -> None:
 
 
 def point_overlay(count: int, seed: int, max_steps: int = 0) -> dict:
-    """Config on top of the run's: the subset, the training seed (and step budget, when given), held-out CVAE rows only."""
+    """Config on top of the run's: the subset, the training seed (``train.seed``: the run's data and sampling seeds stay),
+    the step budget when given, held-out CVAE rows only."""
     return {
-        "seed": seed,
-        "train": {"max_training_objects": count, **({"max_steps": max_steps} if max_steps else {})},
+        "train": {"seed": seed, "max_training_objects": count, **({"max_steps": max_steps} if max_steps else {})},
         "sample": {"ladder": False, "expansion_grasps_per_object": 0},
         "post_optimize": {"random_baseline": False},
         "evaluate": {"methods": list(CURVE_METHODS)},
@@ -112,7 +112,7 @@ def curve_table(run: Path) -> pd.DataFrame:
             print(f"{folder}: no metrics.csv yet, skipped", file=sys.stderr)
             continue
         metrics = pd.read_csv(metrics_path)
-        seed = json.loads((folder / "curve.yaml").read_text())["seed"] if not is_run else _run_seed(run)
+        seed = _point_seed(json.loads((folder / "curve.yaml").read_text())) if not is_run else _run_seed(run)
         facts = {"point": "all" if is_run else folder.name, "seed": seed, **_model_facts(folder), "training_cpu_s": _training_cpu_seconds(folder)}
         for method in CURVE_METHODS:
             row = metrics[(metrics.method == method) & (metrics.split == "heldout")]
@@ -142,6 +142,11 @@ def curve_table(run: Path) -> pd.DataFrame:
                 break_even_grasps(r.training_cpu_s, r.lift_success_rate, r.seconds_per_grasp, rate, seconds) for r in table[post].itertuples()
             ]
     return table
+
+
+def _point_seed(overlay: dict) -> int:
+    """A point's training seed: ``train.seed`` of its overlay (points made before it existed: the run seed they set)."""
+    return int(overlay["train"]["seed"]) if "seed" in overlay.get("train", {}) else int(overlay["seed"])
 
 
 def _run_seed(run: Path) -> int:

@@ -20,8 +20,9 @@ def test_point_folders_and_overlays_name_their_budget(curve):
     run = Path("/runs/large")
     assert curve.point_dir(run, 40, 1) == run / "curve" / "n40_seed1"
     assert curve.point_dir(run, 0, 0, 16000) == run / "curve" / "nall_seed0_steps16000"
-    assert curve.point_overlay(40, 1)["train"] == {"max_training_objects": 40}
-    assert curve.point_overlay(0, 0, 16000)["train"] == {"max_training_objects": 0, "max_steps": 16000}
+    assert curve.point_overlay(40, 1)["train"] == {"seed": 1, "max_training_objects": 40}  # a training seed: the run's data and samples stay
+    assert curve.point_overlay(0, 0, 16000)["train"] == {"seed": 0, "max_training_objects": 0, "max_steps": 16000}
+    assert "seed" not in curve.point_overlay(40, 1)
 
 
 def test_break_even_solves_equal_cost_per_successful_grasp(curve):

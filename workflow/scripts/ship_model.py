@@ -1,19 +1,23 @@
-"""Ship a finished large run's model: a half-precision copy, its card (MODEL_CARD.md) and card.json.
+"""Ship a finished run's model: a half-precision copy, its evaluator, its card (MODEL_CARD.md) and card.json.
 
-    python workflow/scripts/ship_model.py --run RUN --out src/dexlite_pipeline/data/shadow-hand-large \\
-        --curve docs/learning_curve.csv --wall-log RUN.time.log
+    python workflow/scripts/ship_model.py --run RUN [--seed-runs RUN1 RUN2] \
+        --configfile config.yaml config/profiles/household_model.yaml \
+        --command "snakemake --cores 2 all --configfile config.yaml config/profiles/household_model.yaml"
 
-Reads from the run: the model (``results/model/cvae.pt``), its config files, the object catalog,
-the stability table, optimized / curated / lift-validated shards (counts), the evaluation
-(``results/eval/metrics.csv``, ``per_object.csv``) and Snakemake's per-job benchmark files
-(time per stage). Writes to ``--out``: ``cvae.pt`` (weights and codes in float16, loads with
-``torch.load(..., weights_only=True)``), ``training_grasps.zarr`` (the grasps it was trained on), ``card.json`` (everything the card says, machine
-readable; the shipped-model test reads its ``check`` block) and ``MODEL_CARD.md``.
+Reads from the run: the model (``results/model/cvae.pt``), the learned evaluator (``results/evaluator/evaluator.pt``,
+when the run trained one), its config files, the object catalog, the stability table, the grasp shards it trained
+on (the grasp dataset's, ``results/dataset/``, and its own optimized / curated / lift-validated ones: counts), the
+evaluation (``results/eval/metrics.csv``, ``per_object.csv``; held-out rows per split, ``evaluation.subsets``) and
+Snakemake's per-job benchmark files (time per stage). ``--seed-runs``: the same profile at other training seeds
+(``train.seed``), tabulated beside the shipped one. Writes to ``--out``: ``cvae.pt`` (weights and codes in float16,
+loads with ``torch.load(..., weights_only=True)``), ``evaluator.pt``, ``training_grasps.zarr`` (the grasps it was
+trained on), ``card.json`` (everything the card says, machine readable; the shipped-model test reads its ``check``
+block) and ``MODEL_CARD.md``.
 
 The ``check`` block is the learning ladder on a few objects, measured on the shipped copy
 with ``model.shipped_check.shipped_model_check`` (and on the float32 original, for comparison): fit
-errors on training objects and raw lift success on benchmark objects. A test repeats it on
-freshly prepared objects and compares within sampling noise.
+errors on training objects and raw lift success on held-out objects of both splits. A test repeats it on
+freshly rebuilt objects and compares within sampling noise.
 """
 
 from __future__ import annotations
@@ -24,6 +28,7 @@ import json
 import os
 import platform
 import re
+import shutil
 import subprocess
 from pathlib import Path
 
@@ -33,12 +38,16 @@ import torch
 import yaml
 
 from dexlite_pipeline.config import merge_config
+from dexlite_pipeline.evaluation.subsets import split_subsets, subset_rows
 from dexlite_pipeline.io.grasp_store import GraspSet, read_grasp_store, write_grasp_store
 from dexlite_pipeline.model.checkpoint import save_half_precision_copy
+from dexlite_pipeline.model.shipped import SHIPPED_MODEL_DIR
 from dexlite_pipeline.model.shipped_check import shipped_model_check
 from dexlite_pipeline.settings import build_config
 
 CARD_METHODS = ("cvae_raw", "cvae_post", "random_post", "cvae_recon", "cvae_recon_post", "cvae_prior_train", "cvae_prior_train_post")
+# Held-out methods of the card's per-split table, best path first.
+SPLIT_METHODS = ("cvae_ranked_post", "cvae_post", "optimization", "random_post", "shipped_post", "cvae_ranked", "cvae_raw", "shipped_raw")
 
 
 def merged_config(run: Path, configfiles: list[str]) -> dict:
@@ -80,6 +89,8 @@ def data_counts(run: Path) -> dict:
     stability = pd.read_parquet(run / "results" / "stability" / "stability.parquet")
     ok = catalog[catalog.status == "ok"]
     stable = set(stability.loc[stability.stable, "object_id"])
+    from_dataset = store_rows((run / "results" / "dataset").glob("shard_*.zarr"))
+    dataset_held = [s.object_id[np.asarray(s.arrays["lift_success"], bool)] for s in from_dataset if len(s)]
     optimized = store_rows((run / "results" / "optimized").glob("shard_*.zarr"))
     curated = store_rows((run / "results" / "curate").glob("shard_*.zarr"))
     lift = store_rows((run / "results" / "lift").glob("shard_*.zarr"))
@@ -94,6 +105,8 @@ def data_counts(run: Path) -> dict:
         "curated_grasps": sum(len(s) for s in curated),
         "lift_tested_grasps": sum(len(s) for s in lift), "lift_successful_grasps": int(sum(x.sum() for x in lifted)),
         "objects_with_lift_successes": len(set(np.concatenate(lift_ids).tolist())) if lift_ids else 0,
+        "dataset_grasps": sum(len(s) for s in from_dataset), "dataset_held_grasps": int(sum(len(h) for h in dataset_held)),
+        "dataset_objects_with_held_grasps": len(set(np.concatenate(dataset_held).tolist())) if dataset_held else 0,
     }  # fmt: skip
 
 
@@ -110,20 +123,35 @@ def metrics_rows(run: Path) -> list[dict]:
 
 
 def check_objects(run: Path, checkpoint: dict, train_count: int, heldout_count: int) -> tuple[list[str], list[str]]:
-    """The check's objects: the first training objects the model fitted (sorted ids) and the first benchmark objects."""
-    from dexlite_pipeline.objects.sources import benchmark_object_list
-
+    """The check's objects: the first training objects the model fitted (sorted ids) and the first held-out objects
+    of each split the run evaluated (household split, benchmark split), ``heldout_count`` in all."""
     catalog = pd.read_parquet(run / "results" / "objects" / "catalog.parquet")
-    prepared = set(catalog.loc[catalog.status == "ok", "object_id"])
-    train = sorted(o for o in checkpoint["train_object_ids"] if o.startswith("pb-random-"))[:train_count]
-    heldout = [o for o in benchmark_object_list() if o in prepared][:heldout_count]
+    train = sorted(checkpoint["train_object_ids"])[:train_count]
+    splits = list(split_subsets(catalog).values())
+    heldout: list[str] = []
+    for k, ids in enumerate(splits):
+        share = -(-(heldout_count - len(heldout)) // (len(splits) - k))
+        heldout += ids[:share]
     return train, heldout
 
 
-def per_object_rates(run: Path, object_ids: list[str]) -> dict:
-    table = pd.read_csv(run / "results" / "eval" / "per_object.csv")
-    table = table[table.object_id.isin(object_ids) & table.method.isin(["cvae_raw", "cvae_post", "random_post"])]
-    return {f"{r.method}:{r.object_id}": {"n_grasps": int(r.n_grasps), "lift_success_rate": float(r.lift_success_rate)} for r in table.itertuples()}
+def split_rows(run: Path, label: str) -> list[dict]:
+    """The run's held-out rows per split (``evaluation.subsets``), labelled ``label``."""
+    results = run / "results" / "eval"
+    subsets = split_subsets(pd.read_parquet(run / "results" / "objects" / "catalog.parquet"))
+    rows = subset_rows(pd.read_csv(results / "metrics.csv"), pd.read_csv(results / "per_object.csv"), subsets, SPLIT_METHODS)
+    rows.insert(0, "run", label)
+    return json.loads(rows.to_json(orient="records"))
+
+
+def evaluator_facts(run: Path) -> dict | None:
+    """What the run's evaluator training recorded (examples, objects, validation AUC), or None without one."""
+    path = run / "results" / "evaluator" / "training.json"
+    if not path.is_file():
+        return None
+    facts = json.loads(path.read_text())
+    keep = ("examples", "held", "sources", "validation_auc_held", "validation_auc_six_dir", "best_epoch")
+    return {**{k: facts.get(k) for k in keep}, "train_objects": len(facts.get("train_object_ids") or [])}
 
 
 def git_version(run: Path) -> str:
@@ -147,31 +175,37 @@ def percent(value) -> str:
     return "–" if value is None or (isinstance(value, float) and np.isnan(value)) else f"{100 * float(value):.1f}%"
 
 
-def throughput_lines(card: dict) -> list[str]:
-    """Objects and grasps per hour of each data stage (wall clock of its jobs / CPU time)."""
-    times, counts = card["stage_times"], card["data"]
-    out = []
+def _rate(row: dict) -> str:
+    return f"{percent(row['held_rate'])} ({percent(row['held_ci95_low'])}–{percent(row['held_ci95_high'])})"
 
-    def rate(count, rule, key):
-        seconds = times.get(rule, {}).get(key, 0.0)
-        return count / seconds * 3600 if seconds else float("nan")
 
-    out.append(f"{rate(counts['objects_listed'], 'prepare_objects', 'wall_s'):.0f} objects prepared per hour")
-    out.append(f"{rate(counts['optimized_grasps'], 'optimize_grasps', 'cpu_s'):.0f} optimized grasps per CPU-hour")
-    out.append(f"{rate(counts['lift_tested_grasps'], 'lift_validate', 'cpu_s'):.0f} grasps lift-tested per CPU-hour")
-    cpu_hours = sum(times.get(r, {}).get("cpu_s", 0.0) for r in ("prepare_objects", "stability_filter", "optimize_grasps", "curate", "lift_validate")) / 3600
-    if cpu_hours:
-        out.append(f"{counts['lift_successful_grasps'] / cpu_hours:.0f} lift-validated grasps per CPU-hour of the whole data pipeline")
-    return out
+def split_table_lines(rows: list[dict]) -> list[str]:
+    """The card's held-out table: per split, method and training seed."""
+    lines = []
+    for subset in dict.fromkeys(r["subset"] for r in rows):
+        objects = next(r["objects"] for r in rows if r["subset"] == subset)
+        lines += [f"**{subset}** ({objects} objects, at {'their real size' if subset == 'household split' else '8–12 cm'}):", "",
+                  "| method | training seed | attempts | held per attempt | six directions | distinct held / object | CPU-s / distinct held |",
+                  "| --- | --- | ---: | --- | ---: | ---: | ---: |"]  # fmt: skip
+        for method in SPLIT_METHODS:
+            for r in (r for r in rows if r["subset"] == subset and r["method"] == method):
+                lines.append(f"| {method} | {r['run']} | {r['attempts']} | {_rate(r)} | {percent(r['six_dir_rate'])} | "
+                             f"{r['distinct_held_per_object']:.2f} | {r['cpu_seconds_per_distinct_held']:.3f} |")  # fmt: skip
+        lines.append("")
+    return lines
 
 
 def card_markdown(card: dict) -> str:
     counts, training, check = card["data"], card["training"], card["check"]
+    dataset = counts.get("dataset_held_grasps", 0) > 0
+    source = ("lift-validated tabletop grasps of the DexLite grasp dataset (`dataset/`: generated household objects at their real size, "
+              "each standing on its table)" if dataset else "lift-validated grasps of the run's own objects")  # fmt: skip
     lines = [
         f"# Model card: {card['name']}",
         "",
         "A PointNet + CVAE grasp generator for the Shadow Hand (28-D pose: palm translation, palm rotation as XYZ Euler angles,",
-        "22 joint angles), trained by DexLite's large profile on lift-validated grasps of pybullet_data's embedded objects.",
+        f"22 joint angles), trained on {source}, with the learned grasp evaluator that ranks its samples (`evaluator.pt`)."
+        if card.get("evaluator") else f"22 joint angles), trained on {source}.",
         f"`cvae.pt` stores weights and latent codes in float16 ({card['file_megabytes']:.1f} MB); `load_checkpoint` restores float32.",
         "It loads with `torch.load(path, weights_only=True)` (no pickled code).",
         "",
@@ -185,44 +219,69 @@ def card_markdown(card: dict) -> str:
         "",
         "## Data",
         "",
-        f"- Objects: {counts['objects_prepared']} of {counts['objects_listed']} embedded objects prepared, {counts['objects_stable']} table-stable "
-        f"({counts['objects_train_stable']} training, {counts['objects_heldout_stable']} held out: the benchmark split).",
-        f"- Optimized grasps (energy optimization from scratch): {counts['optimized_grasps']}, of which {counts['optimized_grasps_passing_thresholds']} pass the energy thresholds; "
-        f"curated {counts['curated_grasps']}; lift-tested {counts['lift_tested_grasps']}, **{counts['lift_successful_grasps']} hold** "
-        f"on {counts['objects_with_lift_successes']} objects.",
+        f"- Objects: {counts['objects_prepared']} of {counts['objects_listed']} prepared, {counts['objects_stable']} table-stable "
+        f"({counts['objects_train_stable']} training, {counts['objects_heldout_stable']} held out: never trained on).",
+    ]
+    if dataset:
+        lines.append(f"- From the grasp dataset: {counts['dataset_grasps']} tested grasps of the training objects, **{counts['dataset_held_grasps']} "
+                     f"held** on {counts['dataset_objects_with_held_grasps']} objects (the dataset's card, `dataset/CARD.md`, says how each "
+                     "batch made them and its CPU time).")  # fmt: skip
+    if counts["optimized_grasps"]:
+        lines.append(f"- Optimized by the run (energy optimization from scratch): {counts['optimized_grasps']}, of which "
+                     f"{counts['optimized_grasps_passing_thresholds']} pass the energy thresholds; curated {counts['curated_grasps']}; lift-tested "
+                     f"{counts['lift_tested_grasps']}, {counts['lift_successful_grasps']} hold on {counts['objects_with_lift_successes']} objects"
+                     + (" (the held-out objects' reference: optimization from scratch, never trained on)." if dataset else "."))  # fmt: skip
+    lines += [
         f"- Trained on {training['train_grasps']} grasps of {training['train_objects']} objects ({training['validation_grasps']} grasps held for the validation curve).",
         "- The training grasps (pose, object id, scale) are beside the model in `training_grasps.zarr` (the pipeline's grasp-store format) "
-        "and inside `cvae.pt` (`training_grasps`); the objects are pybullet_data's, rebuilt by the command above (its prepare_objects stage).",
+        "and inside `cvae.pt` (`training_grasps`); the objects are rebuilt from their ids by the command above (its prepare_objects stage).",
         "",
         "## Training",
         "",
         f"- {training['steps']} optimizer steps, seed {training['seed']}, {training['wall_s'] / 60:.1f} min wall "
         f"({training['cpu_s'] / 60:.1f} CPU-min) on the machine above.",
+    ]
+    evaluator = card.get("evaluator")
+    if evaluator:
+        auc = evaluator.get("validation_auc_held")
+        lines.append(f"- Evaluator: {evaluator['examples']} examples ({evaluator['held']} held) on {evaluator['train_objects']} training objects "
+                     f"(the model's own refined and simulated samples beside the training grasps); validation ROC AUC for held "
+                     f"{auc:.3f} on training objects it did not fit." if auc is not None else "")  # fmt: skip
+    lines += [
         "",
-        "## Learning ladder and benchmark (the run's evaluation)",
+        "## Held-out objects",
         "",
-        "Fit and in-distribution rows are measured on training objects, held-out rows on the 48-object benchmark split "
-        "(`src/dexlite_pipeline/objects/benchmark_split.yaml`) that no profile trains on; intervals are Wilson 95%.",
+        "Tabletop, the lift test with the hand starting at most 2 mm inside the object, 16 attempts per object and method; "
+        "intervals Wilson 95% over attempts. `cvae_ranked_post`: the evaluator keeps the best-scored distinct quarter of the "
+        "model's samples, which are then post-optimized (what `dexlite grasp` does); `cvae_post`: the model's samples, "
+        "post-optimized; `optimization`: from scratch; `shipped_post`: the model shipped before this one. CPU-seconds count "
+        "sampling, ranking and refinement per attempt (not the simulation), over the distinct held grasps.",
+        "",
+        *split_table_lines(card["splits"]),
+        "## Learning ladder (training objects)",
         "",
         "| method | rung | grasps | lift | six-direction | fit errors (deg / mm) |",
         "| --- | --- | ---: | --- | --- | --- |",
     ]
     for row in card["metrics"]:
+        if row.get("split") != "train":
+            continue
         fit = "" if row.get("fit_rotation_error_deg_median") is None else f"{row['fit_rotation_error_deg_median']:.1f} / {row['fit_translation_error_mm_median']:.1f}"
         lines.append(
             f"| {row['method']} | {row.get('rung') or ''} | {row['n_grasps']} | {percent(row['lift_success_rate'])} "
             f"({percent(row['lift_success_ci95_low'])}–{percent(row['lift_success_ci95_high'])}) | {percent(row.get('six_dir_success_rate'))} | {fit} |"
         )
+    shipped_check, original = check["shipped"], check["float32"]
     lines += [
         "",
         "## Check (repeated by `tests/model/test_shipped_model.py`)",
         "",
-        f"Fit on {len(check['shipped']['fit']['objects'])} training objects ({check['shipped']['fit']['grasps']} training grasps): median "
-        f"{check['shipped']['fit']['rotation_error_deg_median']:.2f}° / {check['shipped']['fit']['translation_error_mm_median']:.2f} mm "
-        f"(float32 original: {check['float32']['fit']['rotation_error_deg_median']:.2f}° / {check['float32']['fit']['translation_error_mm_median']:.2f} mm). "
-        f"Raw samples on {len(check['shipped']['heldout_raw']['objects'])} benchmark objects: "
-        f"{check['shipped']['heldout_raw']['lift_successes']}/{check['shipped']['heldout_raw']['grasps']} hold "
-        f"(float32 original: {check['float32']['heldout_raw']['lift_successes']}/{check['float32']['heldout_raw']['grasps']}).",
+        f"Fit on {len(shipped_check['fit']['objects'])} training objects ({shipped_check['fit']['grasps']} training grasps): median "
+        f"{shipped_check['fit']['rotation_error_deg_median']:.2f}° / {shipped_check['fit']['translation_error_mm_median']:.2f} mm "
+        f"(float32 original: {original['fit']['rotation_error_deg_median']:.2f}° / {original['fit']['translation_error_mm_median']:.2f} mm). "
+        f"Raw samples on {len(shipped_check['heldout_raw']['objects'])} held-out objects (floating, no post-optimization): "
+        f"{shipped_check['heldout_raw']['lift_successes']}/{shipped_check['heldout_raw']['grasps']} hold "
+        f"(float32 original: {original['heldout_raw']['lift_successes']}/{original['heldout_raw']['grasps']}).",
         "",
     ]
     times = card["stage_times"]
@@ -232,14 +291,16 @@ def card_markdown(card: dict) -> str:
                   "| rule | jobs | wall (min) | CPU (min) | share of CPU |", "| --- | ---: | ---: | ---: | ---: |"]  # fmt: skip
         for rule, t in sorted(times.items(), key=lambda item: -item[1]["cpu_s"]):
             lines.append(f"| {rule} | {t['jobs']} | {t['wall_s'] / 60:.1f} | {t['cpu_s'] / 60:.1f} | {100 * t['cpu_s'] / total_cpu:.0f}% |")
-        lines += ["", "Throughput: " + "; ".join(throughput_lines(card)) + ".", ""]
+        lines.append("")
     if card.get("learning_curve"):
         lines += ["## Learning curve", "", "See `docs/learning_curve.md` (table and plot).", ""]
     lines += [
         "## Limits",
         "",
-        "- Measured on pybullet_data's procedural objects at 8–12 cm scale, with MuJoCo's lift test at friction 0.6; other objects and physics are untested.",
-        "- Numbers are from one training seed on one machine; runs are not bit-identical across machines.",
+        "- Trained on generated household shapes (the families of `objects/household.py`) standing on a table, under MuJoCo's lift test "
+        "at friction 0.6 with a 0.1 kg object; other objects, masses and physics are untested."
+        if dataset else "- Measured on the run's objects under MuJoCo's lift test at friction 0.6; other objects and physics are untested.",
+        "- One machine; runs are not bit-identical across machines (the training seeds' spread above is the measure of noise).",
         "",
     ]
     return "\n".join(lines)
@@ -248,26 +309,32 @@ def card_markdown(card: dict) -> str:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--run", required=True, type=Path)
-    parser.add_argument("--configfile", nargs="+", default=["config.yaml", "config/profiles/large.yaml"])
-    parser.add_argument("--out", type=Path, default=Path("src/dexlite_pipeline/data/shadow-hand-large"))
-    parser.add_argument("--command", default="snakemake --cores 2 all --configfile config/profiles/large.yaml")
+    parser.add_argument("--seed-runs", nargs="*", type=Path, default=[], help="the same profile at other training seeds (train.seed)")
+    parser.add_argument("--configfile", nargs="+", default=["config.yaml", "config/profiles/household_model.yaml"])
+    parser.add_argument("--out", type=Path, default=Path("src/dexlite_pipeline/data") / SHIPPED_MODEL_DIR)
+    parser.add_argument("--command", default="snakemake --cores 2 all --configfile config.yaml config/profiles/household_model.yaml")
     parser.add_argument("--wall-log", type=Path, default=None, help="GNU `time -v` output of the run (its wall time)")
     parser.add_argument("--curve", type=Path, default=None, help="learning-curve table (benchmarks/experiments/learning_curve.py) to record")
     parser.add_argument("--check-train-objects", type=int, default=3)
     parser.add_argument("--check-heldout-objects", type=int, default=4)
-    parser.add_argument("--check-grasps", type=int, default=16, help="raw samples per benchmark object in the check")
+    parser.add_argument("--check-grasps", type=int, default=16, help="raw samples per held-out object in the check")
     parser.add_argument("--threads", type=int, default=2)
     args = parser.parse_args()
 
     run = args.run.resolve()
     source = run / "results" / "model" / "cvae.pt"
     checkpoint = torch.load(source, map_location="cpu", weights_only=True)
-    args.out.mkdir(parents=True, exist_ok=True)
+    if args.out.exists():
+        shutil.rmtree(args.out)  # the shipped files of another model go (git history keeps them)
+    args.out.mkdir(parents=True)
     shipped = save_half_precision_copy(source, args.out / "cvae.pt")
+    evaluator_file = run / "results" / "evaluator" / "evaluator.pt"
+    if evaluator_file.is_file():
+        shutil.copyfile(evaluator_file, args.out / "evaluator.pt")
     training = checkpoint["training_grasps"]
     write_grasp_store(args.out / "training_grasps.zarr", GraspSet({
         "hand_pose": training["hand_pose"].numpy(), "object_id": np.asarray(training["object_id"], dtype=object), "scale": training["scale"].numpy(),
-    }), {"description": "the grasps the shipped model was trained on (lift-validated optimized grasps of the large run)", "code_version": git_version(run)})  # fmt: skip
+    }), {"description": "the grasps the shipped model was trained on", "code_version": git_version(run)})  # fmt: skip
     raw_config = merged_config(run, args.configfile)
     config = build_config(raw_config)
     train_ids, heldout_ids = check_objects(run, checkpoint, args.check_train_objects, args.check_heldout_objects)
@@ -278,6 +345,9 @@ def main() -> None:
     }
     times = stage_times(run)
     wall = wall_seconds(args.wall_log)
+    seed_of = {run: checkpoint.get("seed")}
+    for other in args.seed_runs:
+        seed_of[other.resolve()] = torch.load(other / "results" / "model" / "cvae.pt", map_location="cpu", weights_only=True).get("seed")
     card = {
         "name": args.out.name,
         "date": datetime.date.today().isoformat(),
@@ -295,8 +365,9 @@ def main() -> None:
             "validation_grasps": checkpoint.get("validation_grasps"), "train_objects": len(checkpoint.get("train_object_ids") or []),
             "wall_s": times.get("train_cvae", {}).get("wall_s", float("nan")), "cpu_s": times.get("train_cvae", {}).get("cpu_s", float("nan")),
         },  # fmt: skip
+        "evaluator": evaluator_facts(run) if evaluator_file.is_file() else None,
         "metrics": metrics_rows(run),
-        "benchmark_per_object": per_object_rates(run, heldout_ids),
+        "splits": [row for path, seed in seed_of.items() for row in split_rows(path, f"{seed} (shipped)" if path == run else str(seed))],
         "check": {**check, "threads": args.threads, "seed": 0},
         "learning_curve": json.loads(pd.read_csv(args.curve).to_json(orient="records")) if args.curve else None,
     }

@@ -12,11 +12,12 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-# this file is dexlite_pipeline/model/shipped.py; the model is dexlite_pipeline/data/shadow-hand-large/cvae.pt
+# this file is dexlite_pipeline/model/shipped.py; the model is dexlite_pipeline/data/<SHIPPED_MODEL_DIR>/cvae.pt
 PACKAGE_DATA = Path(__file__).resolve().parents[1] / "data"
-SHIPPED_MODEL_PATH = PACKAGE_DATA / "shadow-hand-large" / "cvae.pt"
+SHIPPED_MODEL_DIR = "shadow-hand-large"
+SHIPPED_MODEL_PATH = PACKAGE_DATA / SHIPPED_MODEL_DIR / "cvae.pt"
 # The same file as a path in a source checkout (config.yaml's sample.shipped_model, read by the workflow).
-SHIPPED_MODEL_RELATIVE = Path("src") / "dexlite_pipeline" / "data" / "shadow-hand-large" / "cvae.pt"
+SHIPPED_MODEL_RELATIVE = Path("src") / "dexlite_pipeline" / "data" / SHIPPED_MODEL_DIR / "cvae.pt"
 
 
 # The learned grasp evaluator trained with the shipped model (``dexlite grasp`` ranks the shipped model's samples with it).

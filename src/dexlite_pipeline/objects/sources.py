@@ -265,6 +265,25 @@ def household_sources(training_count: int, benchmark_count: int, folder, trainin
     return sources
 
 
+def rebuilt_source_of(object_id: str, folder) -> MeshSource:
+    """The source of an object a run prepared from pybullet_data (``pb-random-NNN``) or the household generator
+    (``household-<family>-NNN``, its mesh written to ``folder``): what rebuilds it from its id alone."""
+    from dexlite_pipeline.objects.household import household_object, parse_household_id, write_mesh_obj
+
+    if object_id.startswith("pb-random-"):
+        return pybullet_random_source_of(object_id)
+    try:
+        parse_household_id(object_id)
+    except ValueError:
+        raise ObjectSourceError(f"{object_id}: neither a pybullet_data object (pb-random-NNN) nor a household one (household-<family>-NNN)") from None
+    generated = household_object(object_id)
+    path = Path(folder) / f"{object_id}.obj"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    write_mesh_obj(generated.mesh, path)
+    kind = "household_benchmark" if object_id in household_benchmark_list() else "household"
+    return MeshSource(object_id, kind, str(path), real_radius_m=generated.real_radius_m)
+
+
 def collect_sources(
     builtin_count: int,
     mesh_dirs,

@@ -1,0 +1,76 @@
+"""Held-out results per object split (household split, benchmark split) over runs that differ in their seed.
+
+    python benchmarks/experiments/split_table.py RUN [RUN ...] [--methods cvae_post cvae_ranked_post optimization ...]
+
+Each RUN is a finished run folder (``results/eval/metrics.csv``, ``per_object.csv``, ``results/objects/catalog.parquet``),
+e.g. the household model's profile at training seeds 0, 1, 2 (``train.seed``). Prints a Markdown table per split: per
+method and run, held per attempt (Wilson 95%), six-direction success, distinct held grasps per object and CPU-seconds per
+distinct held grasp (``dexlite_pipeline.evaluation.subsets``), and the runs pooled (attempts and grasps summed).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from dexlite_pipeline.evaluation.rates import wilson_interval
+from dexlite_pipeline.evaluation.subsets import split_subsets, subset_rows
+
+METHODS = ("cvae_ranked_post", "cvae_post", "optimization", "random_post", "shipped_post", "cvae_ranked", "cvae_raw", "shipped_raw")
+
+
+def run_rows(run: Path, methods) -> pd.DataFrame:
+    results = run / "results"
+    metrics = pd.read_csv(results / "eval" / "metrics.csv")
+    per_object = pd.read_csv(results / "eval" / "per_object.csv")
+    subsets = split_subsets(pd.read_parquet(results / "objects" / "catalog.parquet"))
+    rows = subset_rows(metrics, per_object, subsets, methods)
+    rows.insert(0, "run", run.name)
+    return rows
+
+
+def pooled(rows: pd.DataFrame) -> dict:
+    attempts, held = int(rows["attempts"].sum()), int(rows["held"].sum())
+    low, high = wilson_interval(np.arange(attempts) < held)
+    distinct = (rows["distinct_held_per_object"] * rows["objects"]).sum()
+    seconds = (rows["cpu_seconds_per_distinct_held"] * rows["distinct_held_per_object"] * rows["objects"]).sum()
+    return {"run": "pooled", "attempts": attempts, "held": held, "held_rate": held / attempts, "held_ci95_low": low, "held_ci95_high": high,
+            "six_dir_rate": (rows["six_dir_rate"] * rows["attempts"]).sum() / attempts,
+            "distinct_held_per_object": distinct / rows["objects"].sum(), "cpu_seconds_per_distinct_held": seconds / distinct if distinct else math.nan}  # fmt: skip
+
+
+def markdown(table: pd.DataFrame) -> str:
+    lines = []
+    for subset, part in table.groupby("subset", sort=False):
+        lines += [f"### {subset}", "", "| method | run | attempts | held per attempt | six directions | distinct held / object | CPU-s / distinct held |",
+                  "| --- | --- | ---: | --- | ---: | ---: | ---: |"]  # fmt: skip
+        for method, rows in part.groupby("method", sort=False):
+            entries = [r._asdict() for r in rows.itertuples(index=False)]
+            if len(rows) > 1:
+                entries.append(pooled(rows))
+            for r in entries:
+                lines.append(f"| {method} | {r['run']} | {r['attempts']} | {100 * r['held_rate']:.1f}% ({100 * r['held_ci95_low']:.1f}–"
+                             f"{100 * r['held_ci95_high']:.1f}) | {100 * r['six_dir_rate']:.1f}% | {r['distinct_held_per_object']:.2f} | "
+                             f"{r['cpu_seconds_per_distinct_held']:.3f} |")  # fmt: skip
+        lines.append("")
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("runs", nargs="+", type=Path)
+    parser.add_argument("--methods", nargs="+", default=list(METHODS))
+    args = parser.parse_args(argv)
+    table = pd.concat([run_rows(run, args.methods) for run in args.runs], ignore_index=True)
+    table["method"] = pd.Categorical(table["method"], args.methods, ordered=True)
+    table = table.sort_values(["subset", "method"], kind="stable")
+    print(markdown(table))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

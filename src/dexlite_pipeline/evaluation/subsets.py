@@ -1,0 +1,62 @@
+"""The evaluation's held-out rows restricted to named sets of objects (the household split, the benchmark split).
+
+``metrics.csv`` pools every held-out object of a run; a run that holds out two splits (the household model's
+profile: the 36-object household split and the 48-object benchmark split) is read per split from
+``per_object.csv`` here: attempts, held per attempt with its Wilson 95% interval, six-direction success, distinct
+held grasps per object, and CPU-seconds per distinct held grasp (the method's seconds per attempt from
+``metrics.csv`` times the set's attempts, over the set's distinct held grasps).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Mapping
+
+import numpy as np
+import pandas as pd
+
+from dexlite_pipeline.evaluation.rates import wilson_interval
+
+SUBSET_COLUMNS = ("method", "subset", "objects", "attempts", "held", "held_rate", "held_ci95_low", "held_ci95_high", "six_dir_rate",
+                  "distinct_held_per_object", "cpu_seconds_per_distinct_held")  # fmt: skip
+
+
+def subset_rows(
+    metrics: pd.DataFrame, per_object: pd.DataFrame, subsets: Mapping[str, Iterable[str]], methods: Iterable[str], split: str = "heldout",
+) -> pd.DataFrame:
+    """One row per (method, subset) with evaluated objects: the columns ``SUBSET_COLUMNS``.
+
+    ``subsets``: name -> object ids; ``methods``: the methods wanted (those the run did not evaluate are left out).
+    Held and six-direction counts are rebuilt from each object's rates and attempts (``n_grasps``)."""
+    rows = []
+    table = per_object[per_object["split"] == split]
+    for method in methods:
+        mine = table[table["method"] == method]
+        seconds = metrics.loc[(metrics["method"] == method) & (metrics["split"] == split), "seconds_per_grasp"]
+        seconds_per_attempt = float(seconds.iloc[0]) if len(seconds) else math.nan
+        for name, object_ids in subsets.items():
+            part = mine[mine["object_id"].isin(set(object_ids))]
+            if part.empty:
+                continue
+            attempts = int(part["n_grasps"].sum())
+            held = int(np.rint(part["lift_success_rate"] * part["n_grasps"]).sum())
+            six_dir = float(np.rint(part["six_dir_success_rate"].fillna(0) * part["n_grasps"]).sum())
+            distinct = int(part["n_distinct_held"].sum())
+            low, high = wilson_interval(np.arange(attempts) < held)
+            rows.append({
+                "method": method, "subset": name, "objects": len(part), "attempts": attempts, "held": held,
+                "held_rate": held / attempts if attempts else math.nan, "held_ci95_low": low, "held_ci95_high": high,
+                "six_dir_rate": six_dir / attempts if attempts else math.nan, "distinct_held_per_object": distinct / len(part),
+                "cpu_seconds_per_distinct_held": seconds_per_attempt * attempts / distinct if distinct else math.nan,
+            })  # fmt: skip
+    return pd.DataFrame(rows, columns=list(SUBSET_COLUMNS))
+
+
+def split_subsets(catalog: pd.DataFrame) -> dict[str, list[str]]:
+    """The named held-out object sets of a run's catalog: the household split's and the benchmark split's prepared
+    objects (a set with none is left out)."""
+    from dexlite_pipeline.objects.sources import benchmark_object_ids, household_benchmark_list
+
+    prepared = set(catalog.loc[catalog["status"] == "ok", "object_id"])
+    named = {"household split": household_benchmark_list(), "benchmark split": sorted(benchmark_object_ids())}
+    return {name: [o for o in ids if o in prepared] for name, ids in named.items() if prepared & set(ids)}
