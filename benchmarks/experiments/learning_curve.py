@@ -59,12 +59,13 @@ def link_data_stages(run: Path, point: Path) -> None:
 
 def point_overlay(count: int, seed: int, max_steps: int = 0) -> dict:
     """Config on top of the run's: the subset, the training seed (``train.seed``: the run's data and sampling seeds stay),
-    the step budget when given, held-out CVAE rows only."""
+    the step budget when given, held-out CVAE rows only (no learned evaluator: the curve measures the generator)."""
     return {
         "train": {"seed": seed, "max_training_objects": count, **({"max_steps": max_steps} if max_steps else {})},
         "sample": {"ladder": False, "expansion_grasps_per_object": 0},
         "post_optimize": {"random_baseline": False},
         "evaluate": {"methods": list(CURVE_METHODS)},
+        "evaluator": {"enabled": False},
     }
 
 
