@@ -26,6 +26,9 @@ def test_the_evaluator_trains_on_training_objects_only(complete_run):
     assert facts["examples"] > 0 and facts["train_object_ids"]
     assert all(splits[o] == "train" for o in facts["train_object_ids"]), facts["train_object_ids"]
     assert facts["sources"]["on_generator"]["grasps"] > 0  # the model's own samples, simulated
+    # the record holds the settings the training read, as the run set them (not other stages' keys at their defaults)
+    section = complete_run.config["evaluator"]
+    assert facts["config"]["evaluator"] == {k: section[k] for k in ("epochs", "hand_points_per_shape", "validation_fraction")}
     for path in sorted((workdir / "results" / "evaluator").glob("examples_*.zarr")):
         store = read_grasp_store(path)
         assert all(splits[str(o)] == "train" for o in store.object_id), f"{path}: a held-out object's samples"

@@ -23,6 +23,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--facts", required=True, help="output training facts (.json)")
 
 
+# The keys of section ``evaluator`` the training reads (workflow/rules/evaluator.smk passes only these).
+TRAINING_KEYS = ("epochs", "hand_points_per_shape", "validation_fraction")
+
+
 def run(args: argparse.Namespace) -> int:
     from dexlite_pipeline.atomic import atomic_path
     from dexlite_pipeline.config import json_ready
@@ -33,7 +37,9 @@ def run(args: argparse.Namespace) -> int:
     config = stage_config(args.config_json)
     seed = config.train.training_seed(config.seed)
     model, facts = train_from_run(args.lift, args.examples, args.objects, config.evaluator, seed, config.device)
-    facts = {**facts, "config": {"seed": seed, "evaluator": json_ready(config.evaluator)}}
+    section = json_ready(config.evaluator)
+    used = {key: section[key] for key in TRAINING_KEYS}  # what this stage reads (the section's other keys are other stages')
+    facts = {**facts, "config": {"seed": seed, "evaluator": used}}
     save_evaluator(args.out, model, model.config, facts)
     with atomic_path(args.facts) as tmp:
         with open(tmp, "w") as handle:
