@@ -62,7 +62,7 @@ def rank_candidates(
     from dexlite_pipeline.objects.assets import load_asset
     from dexlite_pipeline.tabletop import load_support_planes
 
-    started = time.perf_counter()
+    started = time.process_time()  # CPU seconds (all threads of this process), not wall time
     attrs = {"evaluator": str(evaluator_path), "pool": len(candidates), "kept_per_object": keep}
     if not len(candidates):
         return candidates, {**attrs, "kept": 0, "cpu_seconds": 0.0}
@@ -76,7 +76,7 @@ def rank_candidates(
     kept = candidates.select(chosen)
     kept.arrays[SCORE] = scores[chosen].astype(np.float32)
     kept.arrays[RANK] = place
-    attrs.update(kept=int(len(chosen)), cpu_seconds=time.perf_counter() - started, pool_mean_score=float(np.mean(scores)),
+    attrs.update(kept=int(len(chosen)), cpu_seconds=time.process_time() - started, pool_mean_score=float(np.mean(scores)),
                  kept_mean_score=float(np.mean(scores[chosen])))
     log.info("ranking: %d of %d candidates kept (mean score %.3f -> %.3f)", len(chosen), len(candidates), attrs["pool_mean_score"],
              attrs["kept_mean_score"])
@@ -107,7 +107,7 @@ def rank_shard(
     from dexlite_pipeline.sharding import shard_generator
     from dexlite_pipeline.tabletop import load_support_planes
 
-    started = time.perf_counter()
+    started = time.process_time()  # CPU seconds (all threads of this process), not wall time
     device = resolve_device(device)
     evaluator, evaluator_meta = load_evaluator(evaluator_path, device)
     planes = load_support_planes(table, stability_path)
@@ -140,7 +140,7 @@ def rank_shard(
     pool_ids = np.asarray(pool.object_id, dtype=object)
     scores = score_grasps(evaluator, pool_pose, clouds, pool_ids, pool.scale, support=support_rows(planes, pool_ids, pool.scale))
     chosen, place = best_distinct(scores, pool_pose, pool_ids, keep, diversity)
-    seconds = time.perf_counter() - started
+    seconds = time.process_time() - started
 
     raw = np.asarray([str(m) for m in sampled.arrays.get("method", np.full(n, SYNTHESIS, dtype=object))]) == SYNTHESIS
     finite = raw & np.isfinite(sampled.hand_pose).all(axis=1) & np.isin(sampled.object_id.astype(str), object_ids)
