@@ -1,11 +1,14 @@
 """Held-out results per object split (household split, benchmark split) over runs that differ in their seed.
 
-    python benchmarks/experiments/split_table.py RUN [RUN ...] [--methods cvae_post cvae_ranked_post optimization ...]
+    python benchmarks/experiments/split_table.py RUN [RUN ...] [--methods cvae_post cvae_ranked_post optimization ...] [--wall-to-cpu]
 
 Each RUN is a finished run folder (``results/eval/metrics.csv``, ``per_object.csv``, ``results/objects/catalog.parquet``),
 e.g. the household model's profile at training seeds 0, 1, 2 (``train.seed``). Prints a Markdown table per split: per
 method and run, held per attempt (Wilson 95%), six-direction success, distinct held grasps per object and CPU-seconds per
-distinct held grasp (``dexlite_pipeline.evaluation.subsets``), and the runs pooled (attempts and grasps summed).
+distinct held grasp (``dexlite_pipeline.evaluation.subsets``), and the runs pooled (attempts and grasps summed); then per
+split and run the learned evaluator's ROC AUC for "held" (its score of each sampled pose against the outcome of the refined
+grasp, ``cvae_post``'s attempts). ``--wall-to-cpu``: for runs made before the stages counted process CPU seconds, each
+stage's seconds per attempt are scaled by its jobs' CPU time over wall time (Snakemake's benchmark files).
 """
 
 from __future__ import annotations
@@ -17,15 +20,30 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from dexlite_pipeline.evaluation.ranking import roc_auc
 from dexlite_pipeline.evaluation.rates import wilson_interval
-from dexlite_pipeline.evaluation.subsets import split_subsets, subset_rows
+from dexlite_pipeline.evaluation.subsets import split_subsets, subset_rows, with_cpu_seconds
 
 METHODS = ("cvae_ranked_post", "cvae_post", "optimization", "random_post", "shipped_post", "cvae_ranked", "cvae_raw", "shipped_raw")
 
 
-def run_rows(run: Path, methods) -> pd.DataFrame:
+def evaluator_auc(run: Path, subsets: dict[str, list[str]]) -> dict[str, float]:
+    """Split -> ROC AUC of the evaluator's score of each unranked sample for its refined grasp's "held" (cvae_post rows)."""
+    from dexlite_pipeline.io.grasp_store import read_grasp_store
+
+    stores = [read_grasp_store(path) for path in sorted((run / "results" / "eval" / "sim").glob("shard_*.zarr"))]
+    rows = [(s.object_id[i], float(s.arrays["evaluator_score"][i]), bool(s.arrays["lift_success"][i]))
+            for s in stores if "evaluator_score" in s.arrays for i in np.flatnonzero(s.arrays["method"].astype(str) == "cvae_post")]
+    table = pd.DataFrame(rows, columns=["object_id", "score", "held"])
+    return {name: roc_auc(part["score"].to_numpy(), part["held"].to_numpy())
+            for name, ids in subsets.items() if len(part := table[table.object_id.isin(ids) & np.isfinite(table.score)])}
+
+
+def run_rows(run: Path, methods, wall_to_cpu: bool = False) -> pd.DataFrame:
     results = run / "results"
     metrics = pd.read_csv(results / "eval" / "metrics.csv")
+    if wall_to_cpu:
+        metrics = with_cpu_seconds(run, metrics)
     per_object = pd.read_csv(results / "eval" / "per_object.csv")
     subsets = split_subsets(pd.read_parquet(results / "objects" / "catalog.parquet"))
     rows = subset_rows(metrics, per_object, subsets, methods)
@@ -64,11 +82,17 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("runs", nargs="+", type=Path)
     parser.add_argument("--methods", nargs="+", default=list(METHODS))
+    parser.add_argument("--wall-to-cpu", action="store_true", help="scale wall seconds per attempt by the jobs' CPU/wall (older runs)")
     args = parser.parse_args(argv)
-    table = pd.concat([run_rows(run, args.methods) for run in args.runs], ignore_index=True)
+    table = pd.concat([run_rows(run, args.methods, args.wall_to_cpu) for run in args.runs], ignore_index=True)
     table["method"] = pd.Categorical(table["method"], args.methods, ordered=True)
     table = table.sort_values(["subset", "method"], kind="stable")
     print(markdown(table))
+    print("| run | " + " | ".join(f"evaluator AUC, held ({name})" for name in ("household split", "benchmark split")) + " |")
+    print("| --- | ---: | ---: |")
+    for run in args.runs:
+        auc = evaluator_auc(run, split_subsets(pd.read_parquet(run / "results" / "objects" / "catalog.parquet")))
+        print(f"| {run.name} | " + " | ".join(f"{auc.get(name, float('nan')):.3f}" for name in ("household split", "benchmark split")) + " |")
     return 0
 
 

@@ -1,5 +1,5 @@
-"""The shipped model (src/dexlite_pipeline/data/shadow-hand-large): it loads weights-only, its card describes it, and on a
-few freshly prepared objects its learning ladder agrees with the card within sampling noise."""
+"""The shipped model (src/dexlite_pipeline/data/, model.shipped.SHIPPED_MODEL_DIR): it loads weights-only, its card describes
+it, its evaluator loads, and on a few freshly rebuilt objects its learning ladder agrees with the card within sampling noise."""
 
 import json
 import math
@@ -26,13 +26,18 @@ def test_shipped_model_loads_weights_only_and_matches_its_card(card):
     payload = torch.load(SHIPPED_MODEL_PATH, map_location="cpu", weights_only=True)
     assert payload["format"] == "dexlite-cvae-1" and payload["stored_dtype"] == "float16"
     assert SHIPPED_MODEL_PATH.stat().st_size / 1e6 == pytest.approx(card["file_megabytes"], rel=1e-6)
-    assert SHIPPED_MODEL_PATH.stat().st_size < 20e6  # a few MB: it lives in the repository
+    # It lives in the repository: float16 weights and latent codes (one code per training grasp: the size grows with the
+    # training set) and the training grasps, nothing else; below the 50 MB a git host takes without large-file storage.
+    stored = sum(v.numel() * v.element_size() for v in payload["state_dict"].values())
+    stored += sum(torch.as_tensor(v).numel() * 4 for k, v in payload["training_grasps"].items() if k != "object_id")
+    assert SHIPPED_MODEL_PATH.stat().st_size < 1.05 * stored + 2e6
+    assert SHIPPED_MODEL_PATH.stat().st_size < 50e6
     training = card["training"]
     assert payload["train_grasps"] == training["train_grasps"] and payload["steps"] == training["steps"]
     assert len(payload["train_object_ids"]) == training["train_objects"] and len(payload["training_grasps"]["object_id"]) == training["train_grasps"]
-    from dexlite_pipeline.objects.sources import benchmark_object_ids
+    from dexlite_pipeline.objects.sources import benchmark_object_ids, household_benchmark_list
 
-    assert not set(payload["train_object_ids"]) & benchmark_object_ids()  # never trained on the benchmark split
+    assert not set(payload["train_object_ids"]) & (benchmark_object_ids() | set(household_benchmark_list()))  # never on a held-out split
     model, _ = load_checkpoint(SHIPPED_MODEL_PATH)
     assert all(p.dtype == torch.float32 for p in model.parameters()) and len(model.codes_mu) == training["train_grasps"]
     from dexlite_pipeline.io.grasp_store import read_grasp_store
@@ -40,6 +45,19 @@ def test_shipped_model_loads_weights_only_and_matches_its_card(card):
     dataset = read_grasp_store(SHIPPED_MODEL_PATH.with_name("training_grasps.zarr"))  # the training data, beside the model
     assert dataset.hand_pose.tolist() == payload["training_grasps"]["hand_pose"].tolist()
     assert dataset.object_id.tolist() == payload["training_grasps"]["object_id"]
+
+
+def test_the_shipped_evaluator_loads_and_never_trained_on_a_held_out_split(card):
+    from dexlite_pipeline.model.evaluator import load_evaluator
+    from dexlite_pipeline.model.shipped import shipped_evaluator_path
+    from dexlite_pipeline.objects.sources import benchmark_object_ids, household_benchmark_list
+
+    path = shipped_evaluator_path()
+    assert path is not None and card["evaluator"] is not None  # the shipped model's samples are ranked by its own evaluator
+    _, meta = load_evaluator(path)
+    trained_on = set(meta["train_object_ids"])
+    assert len(trained_on) == card["evaluator"]["train_objects"]
+    assert not trained_on & (benchmark_object_ids() | set(household_benchmark_list()))
 
 
 def _within_sampling_noise(successes_a: int, successes_b: int, count: int) -> bool:
@@ -55,7 +73,7 @@ def test_shipped_model_repeats_its_card_on_freshly_prepared_objects(card, tmp_pa
     from dexlite_pipeline.config import from_section
     from dexlite_pipeline.objects.config import ObjectsConfig
     from dexlite_pipeline.objects.prepare import prepare_objects
-    from dexlite_pipeline.objects.sources import pybullet_random_source_of
+    from dexlite_pipeline.objects.sources import rebuilt_source_of
     from dexlite_pipeline.settings import build_config
 
     expected = card["check"]["shipped"]
@@ -63,7 +81,7 @@ def test_shipped_model_repeats_its_card_on_freshly_prepared_objects(card, tmp_pa
     # The card records the whole config of the code version that made the model (keys since renamed or removed
     # included); the check reads the sections below, so only they are rebuilt with today's types.
     config = build_config({name: card["config"][name] for name in CHECK_SECTIONS})
-    sources = [pybullet_random_source_of(oid) for oid in [*train_ids, *heldout_ids]]
+    sources = [rebuilt_source_of(oid, tmp_path / "meshes") for oid in [*train_ids, *heldout_ids]]
     objects = from_section(ObjectsConfig, card["config"].get("objects"), "card.objects")
     catalog = prepare_objects(sources, tmp_path, objects, config.seed, workers=2)
     assert (catalog["status"] == "ok").all()

@@ -24,6 +24,7 @@ import trimesh
 
 from dexlite_pipeline.config import default_config
 from dexlite_pipeline.io.grasp_store import read_grasp_store
+from dexlite_pipeline.model.shipped import SHIPPED_MODEL_DIR
 
 ROOT = Path(__file__).resolve().parents[2]
 # A small budget: this checks the installation, not the grasps.
@@ -74,8 +75,9 @@ def _fresh_environment(folder: Path) -> Path:
 def test_a_wheel_in_a_fresh_environment_grasps_with_the_shipped_model(tmp_path):
     wheel = _build_wheel(tmp_path)
     names = set(zipfile.ZipFile(wheel).namelist())
-    for packaged in ("dexlite_pipeline/data/config.yaml", "dexlite_pipeline/data/shadow-hand-large/cvae.pt",
-                     "dexlite_pipeline/data/shadow-hand-large/card.json", "dexlite_pipeline/schemas/config.schema.yaml"):  # fmt: skip
+    shipped_dir = f"dexlite_pipeline/data/{SHIPPED_MODEL_DIR}"
+    for packaged in ("dexlite_pipeline/data/config.yaml", f"{shipped_dir}/cvae.pt", f"{shipped_dir}/evaluator.pt", f"{shipped_dir}/card.json",
+                     "dexlite_pipeline/schemas/config.schema.yaml"):  # fmt: skip
         assert packaged in names
     python = _fresh_environment(tmp_path)
     subprocess.run([sys.executable, "-m", "pip", "--python", str(python), "install", "--no-deps", "--no-index", "-q", str(wheel)],
@@ -96,6 +98,7 @@ def test_a_wheel_in_a_fresh_environment_grasps_with_the_shipped_model(tmp_path):
     every = read_grasp_store(out / "all_grasps.zarr")
     model = every.arrays["source"] == "model"  # 2 grasps give at most 2 distinct held ones: one batch of optimization tops them up
     assert every.arrays["method"][model].tolist() == ["cvae_post"] * 2 and every.arrays["method"][~model].tolist() == ["optimization"] * 2
-    shipped = package / "data" / "shadow-hand-large" / "cvae.pt"
+    shipped = package / "data" / SHIPPED_MODEL_DIR / "cvae.pt"
     assert f"model: {shipped}" in (out / "summary.md").read_text()
+    assert every.attrs["evaluator"] == str(shipped.with_name("evaluator.pt"))  # the shipped evaluator ranks the shipped model's samples
     assert every.attrs["config"]["lift"] == json.loads(json.dumps(default_config()["lift"]))  # the packaged default config

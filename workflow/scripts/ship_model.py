@@ -38,7 +38,7 @@ import torch
 import yaml
 
 from dexlite_pipeline.config import merge_config
-from dexlite_pipeline.evaluation.subsets import split_subsets, subset_rows
+from dexlite_pipeline.evaluation.subsets import split_subsets, subset_rows, with_cpu_seconds
 from dexlite_pipeline.io.grasp_store import GraspSet, read_grasp_store, write_grasp_store
 from dexlite_pipeline.model.checkpoint import save_half_precision_copy
 from dexlite_pipeline.model.shipped import SHIPPED_MODEL_DIR
@@ -135,11 +135,14 @@ def check_objects(run: Path, checkpoint: dict, train_count: int, heldout_count: 
     return train, heldout
 
 
-def split_rows(run: Path, label: str) -> list[dict]:
-    """The run's held-out rows per split (``evaluation.subsets``), labelled ``label``."""
+def split_rows(run: Path, label: str, wall_to_cpu: bool = False) -> list[dict]:
+    """The run's held-out rows per split (``evaluation.subsets``), labelled ``label``; ``wall_to_cpu``: costs of a run
+    made before the stages counted CPU seconds, rescaled by its jobs' CPU over wall time."""
     results = run / "results" / "eval"
     subsets = split_subsets(pd.read_parquet(run / "results" / "objects" / "catalog.parquet"))
-    rows = subset_rows(pd.read_csv(results / "metrics.csv"), pd.read_csv(results / "per_object.csv"), subsets, SPLIT_METHODS)
+    metrics = pd.read_csv(results / "metrics.csv")
+    metrics = with_cpu_seconds(run, metrics) if wall_to_cpu else metrics
+    rows = subset_rows(metrics, pd.read_csv(results / "per_object.csv"), subsets, SPLIT_METHODS)
     rows.insert(0, "run", label)
     return json.loads(rows.to_json(orient="records"))
 
@@ -189,8 +192,9 @@ def split_table_lines(rows: list[dict]) -> list[str]:
                   "| --- | --- | ---: | --- | ---: | ---: | ---: |"]  # fmt: skip
         for method in SPLIT_METHODS:
             for r in (r for r in rows if r["subset"] == subset and r["method"] == method):
+                cost = r["cpu_seconds_per_distinct_held"]  # None (JSON null) where nothing held
                 lines.append(f"| {method} | {r['run']} | {r['attempts']} | {_rate(r)} | {percent(r['six_dir_rate'])} | "
-                             f"{r['distinct_held_per_object']:.2f} | {r['cpu_seconds_per_distinct_held']:.3f} |")  # fmt: skip
+                             f"{r['distinct_held_per_object']:.2f} | {'–' if cost is None else f'{cost:.3f}'} |")  # fmt: skip
         lines.append("")
     return lines
 
@@ -226,7 +230,10 @@ def card_markdown(card: dict) -> str:
         lines.append(f"- From the grasp dataset: {counts['dataset_grasps']} tested grasps of the training objects, **{counts['dataset_held_grasps']} "
                      f"held** on {counts['dataset_objects_with_held_grasps']} objects (the dataset's card, `dataset/CARD.md`, says how each "
                      "batch made them and its CPU time).")  # fmt: skip
-    if counts["optimized_grasps"]:
+    if counts["optimized_grasps"] and dataset and not counts["curated_grasps"]:
+        lines.append(f"- Optimized by the run from scratch on the held-out objects only (the reference it is measured against, never "
+                     f"trained on): {counts['optimized_grasps']} grasps, {counts['optimized_grasps_passing_thresholds']} pass the energy thresholds.")
+    elif counts["optimized_grasps"]:
         lines.append(f"- Optimized by the run (energy optimization from scratch): {counts['optimized_grasps']}, of which "
                      f"{counts['optimized_grasps_passing_thresholds']} pass the energy thresholds; curated {counts['curated_grasps']}; lift-tested "
                      f"{counts['lift_tested_grasps']}, {counts['lift_successful_grasps']} hold on {counts['objects_with_lift_successes']} objects"
@@ -255,7 +262,9 @@ def card_markdown(card: dict) -> str:
         "intervals Wilson 95% over attempts. `cvae_ranked_post`: the evaluator keeps the best-scored distinct quarter of the "
         "model's samples, which are then post-optimized (what `dexlite grasp` does); `cvae_post`: the model's samples, "
         "post-optimized; `optimization`: from scratch; `shipped_post`: the model shipped before this one. CPU-seconds count "
-        "sampling, ranking and refinement per attempt (not the simulation), over the distinct held grasps.",
+        "sampling, ranking and refinement per attempt (not the simulation), over the distinct held grasps"
+        + (" (this run's stages timed wall seconds on shared cores: each stage's are rescaled by its jobs' CPU time over wall time)."
+           if card.get("costs_rescaled_from_wall_time") else "."),
         "",
         *split_table_lines(card["splits"]),
         "## Learning ladder (training objects)",
@@ -319,6 +328,8 @@ def main() -> None:
     parser.add_argument("--check-heldout-objects", type=int, default=4)
     parser.add_argument("--check-grasps", type=int, default=16, help="raw samples per held-out object in the check")
     parser.add_argument("--threads", type=int, default=2)
+    parser.add_argument("--wall-to-cpu", action="store_true",
+                        help="runs made before the stages counted CPU seconds: rescale their costs by the jobs' CPU over wall time")
     args = parser.parse_args()
 
     run = args.run.resolve()
@@ -367,7 +378,8 @@ def main() -> None:
         },  # fmt: skip
         "evaluator": evaluator_facts(run) if evaluator_file.is_file() else None,
         "metrics": metrics_rows(run),
-        "splits": [row for path, seed in seed_of.items() for row in split_rows(path, f"{seed} (shipped)" if path == run else str(seed))],
+        "splits": [row for path, seed in seed_of.items() for row in split_rows(path, f"{seed} (shipped)" if path == run else str(seed), args.wall_to_cpu)],
+        "costs_rescaled_from_wall_time": args.wall_to_cpu,
         "check": {**check, "threads": args.threads, "seed": 0},
         "learning_curve": json.loads(pd.read_csv(args.curve).to_json(orient="records")) if args.curve else None,
     }

@@ -36,7 +36,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--overwrite", action="store_true", help="clear an earlier run's --out folder first")
     parser.add_argument("--device", default=None, help="auto, cpu, cuda or cuda:N (default: the config's device)")
     parser.add_argument("--model", default=None, help="trained model (cvae.pt) to sample and post-optimize with (default: the shipped "
-                        "model, dexlite_pipeline/data/shadow-hand-large/cvae.pt)")
+                        "model, dexlite_pipeline/data/shadow-hand-household/cvae.pt)")
     parser.add_argument("--evaluator", default=None, metavar="FILE",
                         help="a learned grasp evaluator (evaluator.pt) that ranks the model's samples: it draws evaluator.pool_factor "
                         "times --n samples per object and keeps the --n best-scored distinct ones before post-optimization (default: "

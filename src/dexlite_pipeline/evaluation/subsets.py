@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable, Mapping
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -60,3 +61,27 @@ def split_subsets(catalog: pd.DataFrame) -> dict[str, list[str]]:
     prepared = set(catalog.loc[catalog["status"] == "ok", "object_id"])
     named = {"household split": household_benchmark_list(), "benchmark split": sorted(benchmark_object_ids())}
     return {name: [o for o in ids if o in prepared] for name, ids in named.items() if prepared & set(ids)}
+
+
+# Stage names of metrics.csv's seconds_per_grasp_by_stage -> the rule whose jobs ran them.
+STAGE_RULES = {"optimized": "optimize_grasps", "sample": "sample_grasps", "ranking": "sample_grasps", "post": "post_optimize",
+               "random_post": "post_optimize"}
+
+
+def cpu_over_wall(run: Path, rule: str) -> float:
+    """CPU time over wall time of a rule's jobs (Snakemake's benchmark files of the run)."""
+    jobs = [pd.read_csv(path, sep="\t").iloc[0] for path in sorted((run / "logs" / "benchmarks").glob(f"{rule}*.tsv"))]
+    return sum(float(j["cpu_time"]) for j in jobs) / sum(float(j["s"]) for j in jobs)
+
+
+def with_cpu_seconds(run: Path, metrics: pd.DataFrame) -> pd.DataFrame:
+    """``metrics`` of a run made before the stages counted process CPU seconds (their seconds were wall time), with
+    each method's seconds per attempt rebuilt from its stages' wall seconds times their jobs' CPU time over wall time
+    (Snakemake's benchmark files): on shared cores wall time overstates a stage's cost by what it waited."""
+    factor = {rule: cpu_over_wall(run, rule) for rule in set(STAGE_RULES.values())}
+    metrics = metrics.copy()
+    for index, text in metrics["seconds_per_grasp_by_stage"].items():
+        if isinstance(text, str) and text:
+            stages = dict(part.split("=") for part in text.split(";"))
+            metrics.loc[index, "seconds_per_grasp"] = sum(float(v) * factor[STAGE_RULES[k]] for k, v in stages.items())
+    return metrics

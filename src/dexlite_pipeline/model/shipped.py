@@ -1,10 +1,11 @@
 """The pretrained model that ships with the package: where it is and which objects it was trained on.
 
-The model of the large run (``config/profiles/large.yaml``) is package data, in
-``src/dexlite_pipeline/data/shadow-hand-large/`` beside its model card (``MODEL_CARD.md``,
-``card.json``): a checkout, an editable install, ``pip install .`` and a wheel all have it. The
-default run samples it as its own method rows (``shipped_raw`` / ``shipped_post``) on the
-held-out objects it never trained on; ``dexlite grasp`` uses it when no model is given.
+The model of the household profile (``config/profiles/household_model.yaml``: tabletop grasps of the
+grasp dataset's household objects) is package data, in ``src/dexlite_pipeline/data/shadow-hand-household/``
+beside its learned grasp evaluator (``evaluator.pt``) and its model card (``MODEL_CARD.md``, ``card.json``):
+a checkout, an editable install, ``pip install .`` and a wheel all have them. The default run samples it as
+its own method rows (``shipped_raw`` / ``shipped_post``) on the held-out objects it never trained on;
+``dexlite grasp`` uses it, its samples ranked by the evaluator, when no model is given.
 """
 
 from __future__ import annotations
@@ -14,7 +15,7 @@ from pathlib import Path
 
 # this file is dexlite_pipeline/model/shipped.py; the model is dexlite_pipeline/data/<SHIPPED_MODEL_DIR>/cvae.pt
 PACKAGE_DATA = Path(__file__).resolve().parents[1] / "data"
-SHIPPED_MODEL_DIR = "shadow-hand-large"
+SHIPPED_MODEL_DIR = "shadow-hand-household"
 SHIPPED_MODEL_PATH = PACKAGE_DATA / SHIPPED_MODEL_DIR / "cvae.pt"
 # The same file as a path in a source checkout (config.yaml's sample.shipped_model, read by the workflow).
 SHIPPED_MODEL_RELATIVE = Path("src") / "dexlite_pipeline" / "data" / SHIPPED_MODEL_DIR / "cvae.pt"

@@ -12,7 +12,7 @@ import argparse
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--config-json", required=True, help="config sections seed, device, shards, sample (and with --evaluator: evaluator, diversity, scene) (canonical JSON)")
-    parser.add_argument("--model", default=None, help="trained model (cvae.pt; default: the shipped model, src/dexlite_pipeline/data/shadow-hand-large/cvae.pt)")
+    parser.add_argument("--model", default=None, help="trained model (cvae.pt; default: the shipped model, src/dexlite_pipeline/data/shadow-hand-household/cvae.pt)")
     parser.add_argument("--shipped-model", default=None, help="pretrained model also sampled on held-out objects it never trained on "
                         "(rows shipped_raw; default: sample.shipped_model, \"\" = none)")
     parser.add_argument("--objects", action="append", required=True, help="prepared objects dir with catalog.parquet (repeatable)")
