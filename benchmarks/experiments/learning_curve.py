@@ -36,7 +36,7 @@ import pandas as pd
 
 from dexlite_pipeline.report.learning_curve import BASELINES, CURVE_METHODS, curve_markdown, save_curve_figure
 
-DATA_STAGES = ("objects", "stability", "optimized", "curate", "lift")
+DATA_STAGES = ("objects", "stability", "optimized", "curate", "lift", "dataset")  # "dataset": a run trained from the grasp dataset
 RATE_COLUMNS = (
     "lift_success_rate", "lift_success_ci95_low", "lift_success_ci95_high",
     "six_dir_success_rate", "six_dir_success_ci95_low", "six_dir_success_ci95_high",
@@ -62,7 +62,7 @@ def point_overlay(count: int, seed: int, max_steps: int = 0) -> dict:
     the step budget when given, held-out CVAE rows only (no learned evaluator: the curve measures the generator)."""
     return {
         "train": {"seed": seed, "max_training_objects": count, **({"max_steps": max_steps} if max_steps else {})},
-        "sample": {"ladder": False, "expansion_grasps_per_object": 0},
+        "sample": {"ladder": False, "expansion_grasps_per_object": 0, "shipped_model": ""},
         "post_optimize": {"random_baseline": False},
         "evaluate": {"methods": list(CURVE_METHODS)},
         "evaluator": {"enabled": False},
