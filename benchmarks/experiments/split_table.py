@@ -34,7 +34,7 @@ def evaluator_auc(run: Path, subsets: dict[str, list[str]]) -> dict[str, float]:
     stores = [read_grasp_store(path) for path in sorted((run / "results" / "eval" / "sim").glob("shard_*.zarr"))]
     rows = [(s.object_id[i], float(s.arrays["evaluator_score"][i]), bool(s.arrays["lift_success"][i]))
             for s in stores if "evaluator_score" in s.arrays for i in np.flatnonzero(s.arrays["method"].astype(str) == "cvae_post")]
-    table = pd.DataFrame(rows, columns=["object_id", "score", "held"])
+    table = pd.DataFrame(rows, columns=["object_id", "score", "held"]).astype({"score": float, "held": bool})  # empty: no evaluator
     return {name: roc_auc(part["score"].to_numpy(), part["held"].to_numpy())
             for name, ids in subsets.items() if len(part := table[table.object_id.isin(ids) & np.isfinite(table.score)])}
 

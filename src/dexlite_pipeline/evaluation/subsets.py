@@ -69,9 +69,10 @@ STAGE_RULES = {"optimized": "optimize_grasps", "sample": "sample_grasps", "ranki
 
 
 def cpu_over_wall(run: Path, rule: str) -> float:
-    """CPU time over wall time of a rule's jobs (Snakemake's benchmark files of the run)."""
+    """CPU time over wall time of a rule's jobs (Snakemake's benchmark files of the run); NaN when the run has none."""
     jobs = [pd.read_csv(path, sep="\t").iloc[0] for path in sorted((run / "logs" / "benchmarks").glob(f"{rule}*.tsv"))]
-    return sum(float(j["cpu_time"]) for j in jobs) / sum(float(j["s"]) for j in jobs)
+    wall = sum(float(j["s"]) for j in jobs)
+    return sum(float(j["cpu_time"]) for j in jobs) / wall if wall > 0 else math.nan
 
 
 def with_cpu_seconds(run: Path, metrics: pd.DataFrame) -> pd.DataFrame:
