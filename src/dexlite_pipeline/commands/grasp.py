@@ -4,8 +4,8 @@ Prepares the meshes (a folder of .obj/.stl files works too) at their real size (
 synthesizes grasps (with the shipped model, package data, its samples ranked by the shipped grasp
 evaluator where one ships, topped up by optimization from scratch for each object where the model
 gives fewer than ``--min-distinct`` distinct held grasps; by optimization from scratch only with
-``--from-scratch``), keeps the distinct ones that pass the lift test and writes ``DIR/grasps.zarr``, ``DIR/dexgraspnet/``, ``DIR/renders/`` and
-``DIR/summary.md`` (``dexlite_pipeline.tools.grasp``). On a table (``scene.table``, the default) each mesh stands in its stable pose, or with
+``--from-scratch``), keeps the distinct ones that pass the lift test and writes ``DIR/grasps.zarr``,
+``DIR/dexgraspnet/``, ``DIR/renders/`` and ``DIR/summary.md`` (``dexlite_pipeline.tools.grasp``). On a table (``scene.table``, the default) each mesh stands in its stable pose, or with
 ``--upright-axis`` up; the log says which. Exit status 0 when some grasp held, 1 when none did
 (the outputs are written all the same), 2 for unusable input (one line, before any work).
 """
