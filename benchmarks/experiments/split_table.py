@@ -22,7 +22,7 @@ import pandas as pd
 
 from dexlite_pipeline.evaluation.ranking import roc_auc
 from dexlite_pipeline.evaluation.rates import wilson_interval
-from dexlite_pipeline.evaluation.subsets import split_subsets, subset_rows, with_cpu_seconds
+from dexlite_pipeline.evaluation.subsets import run_split_rows, split_subsets
 
 METHODS = ("cvae_ranked_post", "cvae_post", "optimization", "random_post", "shipped_post", "cvae_ranked", "cvae_raw", "shipped_raw")
 
@@ -37,18 +37,6 @@ def evaluator_auc(run: Path, subsets: dict[str, list[str]]) -> dict[str, float]:
     table = pd.DataFrame(rows, columns=["object_id", "score", "held"]).astype({"score": float, "held": bool})  # empty: no evaluator
     return {name: roc_auc(part["score"].to_numpy(), part["held"].to_numpy())
             for name, ids in subsets.items() if len(part := table[table.object_id.isin(ids) & np.isfinite(table.score)])}
-
-
-def run_rows(run: Path, methods, wall_to_cpu: bool = False) -> pd.DataFrame:
-    results = run / "results"
-    metrics = pd.read_csv(results / "eval" / "metrics.csv")
-    if wall_to_cpu:
-        metrics = with_cpu_seconds(run, metrics)
-    per_object = pd.read_csv(results / "eval" / "per_object.csv")
-    subsets = split_subsets(pd.read_parquet(results / "objects" / "catalog.parquet"))
-    rows = subset_rows(metrics, per_object, subsets, methods)
-    rows.insert(0, "run", run.name)
-    return rows
 
 
 def pooled(rows: pd.DataFrame) -> dict:
@@ -84,7 +72,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--methods", nargs="+", default=list(METHODS))
     parser.add_argument("--wall-to-cpu", action="store_true", help="scale wall seconds per attempt by the jobs' CPU/wall (older runs)")
     args = parser.parse_args(argv)
-    table = pd.concat([run_rows(run, args.methods, args.wall_to_cpu) for run in args.runs], ignore_index=True)
+    table = pd.concat([run_split_rows(run, args.methods, run.name, args.wall_to_cpu) for run in args.runs], ignore_index=True)
     table["method"] = pd.Categorical(table["method"], args.methods, ordered=True)
     table = table.sort_values(["subset", "method"], kind="stable")
     print(markdown(table))

@@ -38,7 +38,7 @@ import torch
 import yaml
 
 from dexlite_pipeline.config import merge_config
-from dexlite_pipeline.evaluation.subsets import split_subsets, subset_rows, with_cpu_seconds
+from dexlite_pipeline.evaluation.subsets import run_split_rows, split_subsets
 from dexlite_pipeline.io.grasp_store import GraspSet, read_grasp_store, write_grasp_store
 from dexlite_pipeline.model.checkpoint import save_half_precision_copy
 from dexlite_pipeline.model.shipped import SHIPPED_MODEL_DIR
@@ -136,15 +136,8 @@ def check_objects(run: Path, checkpoint: dict, train_count: int, heldout_count: 
 
 
 def split_rows(run: Path, label: str, wall_to_cpu: bool = False) -> list[dict]:
-    """The run's held-out rows per split (``evaluation.subsets``), labelled ``label``; ``wall_to_cpu``: costs of a run
-    made before the stages counted CPU seconds, rescaled by its jobs' CPU over wall time."""
-    results = run / "results" / "eval"
-    subsets = split_subsets(pd.read_parquet(run / "results" / "objects" / "catalog.parquet"))
-    metrics = pd.read_csv(results / "metrics.csv")
-    metrics = with_cpu_seconds(run, metrics) if wall_to_cpu else metrics
-    rows = subset_rows(metrics, pd.read_csv(results / "per_object.csv"), subsets, SPLIT_METHODS)
-    rows.insert(0, "run", label)
-    return json.loads(rows.to_json(orient="records"))
+    """The run's held-out rows per split (``evaluation.subsets``), labelled ``label``, as JSON records."""
+    return json.loads(run_split_rows(run, SPLIT_METHODS, label, wall_to_cpu).to_json(orient="records"))
 
 
 def evaluator_facts(run: Path) -> dict | None:

@@ -86,3 +86,16 @@ def with_cpu_seconds(run: Path, metrics: pd.DataFrame) -> pd.DataFrame:
             stages = dict(part.split("=") for part in text.split(";"))
             metrics.loc[index, "seconds_per_grasp"] = sum(float(v) * factor[STAGE_RULES[k]] for k, v in stages.items())
     return metrics
+
+
+def run_split_rows(run: Path, methods: Iterable[str], label: str, wall_to_cpu: bool = False) -> pd.DataFrame:
+    """``subset_rows`` of a finished run folder (its metrics, per-object table and catalog) per ``split_subsets``, with a
+    first column ``run`` = ``label``; ``wall_to_cpu``: the costs of a run made before the stages counted CPU seconds,
+    rescaled (``with_cpu_seconds``)."""
+    results = run / "results"
+    metrics = pd.read_csv(results / "eval" / "metrics.csv")
+    metrics = with_cpu_seconds(run, metrics) if wall_to_cpu else metrics
+    subsets = split_subsets(pd.read_parquet(results / "objects" / "catalog.parquet"))
+    rows = subset_rows(metrics, pd.read_csv(results / "eval" / "per_object.csv"), subsets, methods)
+    rows.insert(0, "run", label)
+    return rows
