@@ -131,3 +131,20 @@ def test_debiased_codes_prefer_codes_a_cloud_has_not_drawn():
         crossed.append(pick[3] == pick[0])
     assert np.mean(distinct) == pytest.approx(0.4, abs=0.03)
     assert np.mean(crossed) == pytest.approx(1 / 3, abs=0.03)
+
+
+def test_debiased_codes_draw_only_codes_their_cloud_can_reach():
+    """Each cloud reaches its own codes (weight > 0) only; within them the first draws are all different."""
+    from dexlite_pipeline.model.sampling import debiased_codes
+
+    generator = torch.Generator().manual_seed(3)
+    weights = torch.zeros(6, 1000)
+    weights[:3, [5, 500, 999]] = 1.0  # cloud 0's rows (interleaved with cloud 1's below)
+    weights[3:, [7, 8]] = torch.tensor([1.0, 3.0])
+    cloud = torch.tensor([0, 0, 0, 1, 1, 1])
+    pick = debiased_codes(weights[[0, 3, 1, 4, 2, 5]], cloud[[0, 3, 1, 4, 2, 5]], generator).tolist()
+    assert set(pick[0::2]) <= {5, 500, 999} and set(pick[1::2]) <= {7, 8}
+    seen = [len(set(debiased_codes(weights[:3], cloud[:3], generator).tolist())) for _ in range(500)]
+    assert np.mean([s == 3 for s in seen]) == pytest.approx(0.4, abs=0.06)
+    with pytest.raises(ValueError, match="no training code"):
+        debiased_codes(torch.zeros(2, 4), torch.tensor([0, 0]), generator)

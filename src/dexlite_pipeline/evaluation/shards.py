@@ -36,7 +36,7 @@ if TYPE_CHECKING:
 
 log = logging.getLogger(__name__)
 
-BUDGET_METHODS = ("cvae_post", "random_post")  # methods whose post-optimization budget curve is simulated
+BUDGET_METHODS = ("cvae_post", "cvae_ranked_post", "random_post")  # methods whose post-optimization budget curve is simulated
 
 
 def _sampled_reference(stores) -> np.ndarray | None:

@@ -90,13 +90,25 @@ def sample_latents(
 
 def debiased_codes(weights: torch.Tensor, cloud_index: torch.Tensor, generator: torch.Generator) -> torch.Tensor:
     """(B,) training codes drawn row by row from ``weights`` (B, N), each divided by (count + 1), count = how often
-    earlier rows of the same cloud (``cloud_index`` (B,)) drew that code: Dex1B's inverse-frequency rule over codes."""
-    counts: dict[int, torch.Tensor] = {}
+    earlier rows of the same cloud (``cloud_index`` (B,)) drew that code: Dex1B's inverse-frequency rule over codes.
+
+    Clouds are drawn one after another (rows of a cloud in order); each draw runs over the codes its cloud's rows
+    can reach at all (weight > 0: with the ``neighbours`` prior the few hundred codes of the nearest training
+    clouds, not every code of the model), so a draw costs what its cloud's neighbourhood holds.
+    """
     pick = torch.zeros(len(weights), dtype=torch.long)
-    for row, cloud in enumerate(cloud_index.tolist()):
-        used = counts.setdefault(cloud, torch.zeros(weights.shape[1]))
-        pick[row] = int(torch.multinomial(weights[row] / (used + 1.0), 1, generator=generator))
-        used[pick[row]] += 1.0
+    for cloud in torch.unique(cloud_index).tolist():
+        rows = torch.nonzero(cloud_index == cloud)[:, 0]
+        block = weights[rows]
+        support = torch.nonzero((block > 0).any(dim=0))[:, 0]
+        if len(support) == 0:
+            raise ValueError(f"cloud {cloud}: no training code has a positive weight")
+        block = block[:, support]
+        used = torch.zeros(len(support))
+        for place, row in enumerate(rows.tolist()):
+            local = int(torch.multinomial(block[place] / (used + 1.0), 1, generator=generator))
+            pick[row] = support[local]
+            used[local] += 1.0
     return pick
 
 
