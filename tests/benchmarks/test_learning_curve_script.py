@@ -23,6 +23,8 @@ def test_point_folders_and_overlays_name_their_budget(curve):
     assert curve.point_overlay(40, 1)["train"] == {"seed": 1, "max_training_objects": 40}  # a training seed: the run's data and samples stay
     assert curve.point_overlay(0, 0, 16000)["train"] == {"seed": 0, "max_training_objects": 0, "max_steps": 16000}
     assert "seed" not in curve.point_overlay(40, 1)
+    assert curve.point_dir(run, 0, 0, 0, 4) == run / "curve" / "nall_g4_seed0"
+    assert curve.point_overlay(0, 2, 0, 4)["train"] == {"seed": 2, "max_training_objects": 0, "max_grasps_per_object": 4}
 
 
 def test_break_even_solves_equal_cost_per_successful_grasp(curve):

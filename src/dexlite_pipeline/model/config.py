@@ -71,8 +71,9 @@ class TrainConfig:
 
     profile: str = setting("default", "label recorded in cvae.pt")
     seed: int = setting(
-        -1, "seed of the training alone (initial weights, batches, validation split, the max_training_objects subset; the CVAE's and the "
-        "learned evaluator's): training seeds on the same data; -1 = the run's seed", minimum=-1)
+        -1, "seed of the training alone (initial weights, batches, validation split, the max_training_objects and "
+        "max_grasps_per_object subsets; the CVAE's and the learned evaluator's): training seeds on the same data; -1 = the run's "
+        "seed", minimum=-1)
     epochs: int = setting(100000, "passes over the training grasps (the step budget, max_steps, ends training first)", minimum=1)
     max_steps: int = setting(8000, "optimizer-step budget (0 = epochs only)", minimum=0)
     batch_size: int = setting(64, "grasps per step", minimum=1)
@@ -86,6 +87,9 @@ class TrainConfig:
     min_grasps: int = setting(8, "fewer lift-successful training grasps is an error", minimum=1)
     max_training_objects: int = setting(
         0, "train on a seeded subset of this many training objects with grasps (0 = all): the learning curve", minimum=0)
+    max_grasps_per_object: int = setting(
+        0, "train on a seeded choice of at most this many lift-successful grasps per object (0 = all): the learning curve "
+        "against grasps per object", minimum=0)
     energy_point_spacing_m: float = setting(
         0.006, "mean spacing of E_pen's object points in the loss, m (coarser than the checks: training cost)", exclusive_minimum=0)
     contact_samples: int = setting(

@@ -61,6 +61,24 @@ def training_object_subset(object_ids: set[str], count: int, seed: int) -> set[s
     return {ordered[i] for i in order[:count]}
 
 
+def grasps_per_object_subset(object_ids: np.ndarray, count: int, seed: int) -> np.ndarray:
+    """(K,) sorted row indices: a seeded choice of at most ``count`` rows per object of ``object_ids`` (all when 0).
+
+    One seeded order of all rows; an object keeps its first ``count`` rows in it, so the choice for a
+    smaller count is contained in the choice for a larger one (a learning curve adds grasps without swapping any).
+    """
+    ids = np.asarray(object_ids).astype(str)
+    if count <= 0 or not len(ids):
+        return np.arange(len(ids))
+    order = np.random.default_rng([seed, 0x6A5B5]).permutation(len(ids))
+    place = np.empty(len(ids), np.int64)  # each row's place among its object's rows in the seeded order
+    seen: dict[str, int] = {}
+    for row in order.tolist():
+        place[row] = seen.get(ids[row], 0)
+        seen[ids[row]] = place[row] + 1
+    return np.flatnonzero(place < count)
+
+
 @dataclass
 class TrainedModel:
     """A trained model with what its file records: the run's facts and the grasps it was fitted to."""
@@ -112,6 +130,12 @@ def train_from_lift_shards(
         held = set(lifted.object_id[np.asarray(lifted.arrays["lift_success"], bool)].tolist()) if len(lifted) else set()
         train_ids = training_object_subset(train_ids & held, settings.max_training_objects, seed)
     grasps, excluded = select_training_grasps(lifted, train_ids, available_object_ids(objects_dirs))
+    if settings.max_grasps_per_object > 0:  # the learning curve against grasps per object
+        kept = grasps_per_object_subset(grasps.object_id, settings.max_grasps_per_object, seed)
+        if len(kept) < len(grasps):
+            excluded = {**excluded, "beyond train.max_grasps_per_object": int(len(grasps) - len(kept))}
+            log.info("training grasps: %d of %d kept by train.max_grasps_per_object = %d", len(kept), len(grasps), settings.max_grasps_per_object)
+        grasps = grasps.select(kept)
     if len(grasps) < settings.min_grasps:
         raise TrainingDataError(
             f"{', '.join(lift_paths)}: {len(grasps)} lift-successful grasps of training objects, "
