@@ -181,9 +181,14 @@ def matched_points(
     object has the most similar patch (by the network's own local feature) places it where
     a grasp of that kind fits, instead of at a uniformly random point.
     """
-    wanted = model.codes_condition[code_index, model.config.pointnet_widths[-1] :]  # (B, F)
-    distance = (per_point[cloud_index] - wanted[:, None, :]).pow(2).sum(-1)  # (B, N)
-    return distance.topk(min(candidates, distance.shape[1]), dim=1, largest=False).indices
+    wanted = model.codes_condition[code_index, model.config.pointnet_widths[-1] :].to(per_point.dtype)  # (B, F)
+    keep = min(candidates, per_point.shape[1])
+    chosen = torch.zeros(len(cloud_index), keep, dtype=torch.long, device=per_point.device)
+    for cloud in torch.unique(cloud_index).tolist():  # one (rows, N) distance matrix per cloud, not a (B, N, F) difference
+        rows = torch.nonzero(cloud_index == cloud)[:, 0]
+        distance = torch.cdist(wanted[rows], per_point[cloud])  # (rows, N)
+        chosen[rows] = distance.topk(keep, dim=1, largest=False).indices
+    return chosen
 
 
 def training_point_counts(model: GraspCVAE, per_point: torch.Tensor, chunk: int = 256) -> torch.Tensor:
