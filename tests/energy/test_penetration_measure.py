@@ -237,3 +237,25 @@ def test_contact_resolution_lifts_the_hand_out_of_the_table(real_size_objects):
     floating = GraspEnergy.from_assets(hand, [load_asset(root, "box")], EnergyConfig(), max_scale=1.0)
     without_table = resolve_contacts(floating, pose, index, scale, allowed_m=0.0015)
     assert (without_table.table_depth_m == 0).all() and torch.equal(without_table.hand_pose[[0, 2, 3]], pose[[0, 2, 3]])
+
+
+def test_one_pass_excess_and_depth_match_the_separate_measures(real_size_objects):
+    """Contact resolution reads its depths and both excesses from one pass: the same values as the judged depth and
+    ``excess`` for the whole hand and for the palm's shapes alone."""
+    from dexlite_pipeline.optim.contact_resolution import PALM_LINK
+
+    root, _ = real_size_objects
+    hand = ShadowHand()
+    rng = np.random.default_rng(8)
+    top = np.column_stack([rng.uniform(-0.1, 0.1, 6), rng.uniform(-0.07, 0.07, 6), np.full(6, 0.035)])
+    pose = _fingertip_poses(hand, top, np.tile([0.0, 0.0, 1.0], (6, 1)), np.array([0.0, 0.001, 0.002, 0.004, 0.006, 0.03]))
+    box = GraspEnergy.from_assets(hand, [load_asset(root, "box")], EnergyConfig(), max_scale=1.0)
+    index, scale = torch.zeros(6, dtype=torch.long), torch.ones(6)
+    palm = hand.shape_link == hand.link_names.index(PALM_LINK)
+    frames = hand.forward(pose.clone().requires_grad_(True))
+    whole, palm_only, depth = box.judge.excess_and_depth(frames, index, scale, 0.0015, palm)
+    assert torch.equal(depth, box.judged_depth_m(hand.forward(pose), index, scale))
+    assert torch.equal(whole, box.judge.excess(frames, index, scale, 0.0015))
+    assert torch.equal(palm_only, box.judge.excess(frames, index, scale, 0.0015, shapes=palm))
+    assert (whole[depth <= 0.0015] == 0).all() and (whole[depth > 0.0015] > 0).all()
+    assert (palm_only <= whole).all()

@@ -340,7 +340,17 @@ class PenetrationTerm(EnergyTerm):
         The squared excess of the same two directions as the depth, with the spheres' distances from the
         mesh near the surface: zero exactly when the depth is within ``allowed_m``. ``shapes`` (S,) bool:
         only the excess of these hand shapes (their spheres, the object points deepest in them); None: all.
-        Contact resolution (``optim.contact_resolution``) descends it.
+        """
+        whole, only, _ = self.excess_and_depth(frames, object_index, scale, allowed_m, shapes)
+        return whole if shapes is None else only
+
+    def excess_and_depth(
+        self, frames: HandFrames, object_index: torch.Tensor, scale: torch.Tensor, allowed_m: float, shapes: torch.Tensor | None = None
+    ) -> tuple[torch.Tensor, torch.Tensor | None, torch.Tensor]:
+        """From one pass over the hand's spheres and the object's points: the whole hand's ``excess`` (B,), that of
+        ``shapes`` alone (B,; None without ``shapes``), both differentiable, and the judged depth (B,, m, detached: the
+        ``exact`` measure of ``__call__``, the deeper of the deepest sphere and the deepest object point).
+        Contact resolution (``optim.contact_resolution``) descends the excesses and stops a grasp by the depth.
         """
         radius = self.spheres.radius
         centre = self.sphere_map(frames)
@@ -348,14 +358,17 @@ class PenetrationTerm(EnergyTerm):
             distance = self.surface.signed_distance(centre, object_index[:, None], scale[:, None], band_m=radius)
         else:
             distance, _ = self.bank.signed_distance(centre, object_index[:, None], scale[:, None], with_normal=False)
-        sphere_excess = torch.relu(distance + radius - allowed_m).square()
-        if shapes is not None:
-            sphere_excess = sphere_excess * shapes[self.spheres.shape].to(sphere_excess.dtype)
-        grasp, depth, _, _, shape = self._inside_points(frames, self._active_shapes(frames, object_index, scale), object_index, scale)
+        sphere_depth = distance + radius
+        sphere_excess = torch.relu(sphere_depth - allowed_m).square()
+        grasp, depth, _, deepest_point, shape = self._inside_points(frames, self._active_shapes(frames, object_index, scale), object_index, scale)
         point_excess = torch.relu(depth - allowed_m).square()
+        whole = sphere_excess.sum(dim=1).index_add(0, grasp, point_excess)
+        only = None
         if shapes is not None:
-            point_excess = point_excess * shapes[shape].to(point_excess.dtype)
-        return sphere_excess.sum(dim=1).index_add(0, grasp, point_excess)
+            mine_sphere, mine_point = shapes[self.spheres.shape].to(sphere_excess.dtype), shapes[shape].to(point_excess.dtype)
+            only = (sphere_excess * mine_sphere).sum(dim=1).index_add(0, grasp, point_excess * mine_point)
+        deepest_sphere = sphere_depth.detach().max(dim=1).values.clamp(min=0)
+        return whole, only, torch.maximum(deepest_point, deepest_sphere)
 
     def _inside_points(self, frames, active, object_index, scale):
         """The grasp's own object points inside its active shapes, each once at its deepest shape:

@@ -105,18 +105,31 @@ def resolve_contacts(
     taken = torch.zeros(len(pose), dtype=torch.long, device=pose.device)
     limits = energy.hand.joint_limits.to(pose.dtype)
     palm = energy.hand.shape_link == energy.hand.link_names.index(PALM_LINK)  # (S,) the palm's own shapes
+    rows = ((depth > allowed_m) | (table_depth > 0)).nonzero().squeeze(1)
     for step in range(steps):
-        rows = ((depth > allowed_m) | (table_depth > 0)).nonzero().squeeze(1)
         if len(rows) == 0:
             break
+        # One pass at the rows' current poses gives their depths (which grasps are done) and the excesses to descend.
         moving = pose[rows].clone().requires_grad_(True)
         frames = energy.hand.forward(moving)
         obj, sc = object_index[rows], scale[rows]
-        whole = energy.judge.excess(frames, obj, sc, allowed_m)
-        palm_only = energy.judge.excess(frames, obj, sc, allowed_m, shapes=palm) if step < FINGERS_FIRST_STEPS else None
+        fingers_first = step < FINGERS_FIRST_STEPS
+        whole, palm_only, in_object = energy.judge.excess_and_depth(frames, obj, sc, allowed_m, palm if fingers_first else None)
+        if step > 0:
+            depth[rows] = in_object
+        below = torch.zeros_like(in_object)
         if table is not None:
-            whole = whole + table.excess(frames, obj, sc)
-            palm_only = palm_only + table.excess(frames, obj, sc, shapes=palm) if palm_only is not None else None
+            heights = table.heights(frames, obj, sc)  # (rows, S)
+            shortfall = torch.relu(TABLE_CLEARANCE_M - heights).square()
+            whole = whole + shortfall.sum(dim=1)
+            palm_only = palm_only + (shortfall * palm.to(shortfall.dtype)).sum(dim=1) if palm_only is not None else None
+            below = (-heights.detach()).clamp(min=0).amax(dim=1)
+            if step > 0:
+                table_depth[rows] = below
+        unresolved = (in_object > allowed_m) | (below > 0)
+        if not bool(unresolved.any()):
+            rows = rows[:0]
+            break
         (gradient,) = torch.autograd.grad(whole.sum(), moving, retain_graph=palm_only is not None)
         joint_gradient, palm_gradient = gradient[:, JOINTS], gradient[:, :3]
         if palm_only is not None:  # the palm moves for its own shapes only, while the fingers may still get out alone
@@ -125,10 +138,13 @@ def resolve_contacts(
         joint_step = torch.where(largest > 0, joint_gradient / largest.clamp(min=1e-30), torch.zeros_like(joint_gradient)) * JOINT_STEP_RAD
         palm_norm = palm_gradient.norm(dim=1, keepdim=True)
         palm_step = torch.where(palm_norm > 0, palm_gradient / palm_norm.clamp(min=1e-30), torch.zeros_like(palm_gradient)) * TRANSLATION_STEP_M
+        keep = unresolved.nonzero().squeeze(1)  # resolved rows stay where they are
         updated = pose[rows].clone()
         updated[:, JOINTS] = (updated[:, JOINTS] - joint_step).clamp(limits[:, 0], limits[:, 1])
         updated[:, :3] = updated[:, :3] - palm_step
-        pose[rows] = updated
+        rows = rows[keep]
+        pose[rows] = updated[keep]
         taken[rows] += 1
-        depth[rows], table_depth[rows] = depths(updated, rows)
+    if len(rows):  # the last step's poses: their depths after it
+        depth[rows], table_depth[rows] = depths(pose[rows], rows)
     return ResolvedContacts(hand_pose=pose, depth_before_m=depth_before, depth_m=depth, table_depth_m=table_depth, steps=taken)
