@@ -2,6 +2,7 @@
 
     python benchmarks/timing/versus.py --base d39ef80 --objects RUN/results/objects            # energy step
     python benchmarks/timing/versus.py --base d39ef80 --objects RUN/results/objects --lift RUN/results/eval/sim/shard_000.zarr
+    python benchmarks/timing/versus.py --base d39ef80 --objects RUN/results/objects --samples RUN/results/sample/shard_000.zarr
 
 The machine is shared and its speed drifts, so absolute times mean little and two runs of
 one code differ by 10-30%. This script measures both versions of the library in the same
@@ -17,6 +18,9 @@ Cases (each a function of this module, run in a child process with one torch thr
   hands at the object: the poses come from ``--poses`` (made once by the current library
   from a short optimization on the first four objects of ``--objects``, so both versions
   evaluate the same poses).
+- ``post``: CPU s per grasp of the post-optimization stage (each version's default ``post_optimize``
+  settings, the random baseline off) on ``--post-grasps`` pure syntheses spread evenly over a sample
+  store (``--samples``, e.g. RUN/results/sample/shard_000.zarr), on their tables: the model path's refinement.
 - ``lift``: CPU s per tested grasp of the lift and six-direction tests (each version's default
   ``lift`` settings) on ``--lift-grasps`` grasps spread evenly over a grasp store (``--lift``), e.g. an
   evaluation shard of the default run: the realistic mix of outcomes.
@@ -137,6 +141,47 @@ def lift(objects_dir: str, grasp_store: str, grasps: int) -> list[dict]:
              "outcomes": {"held": np.asarray(results["lift_success"], bool).tolist(), "six": np.asarray(results["six_dir_success"], bool).tolist()}}]
 
 
+def write_post_samples(sample_store: str, out: str, grasps: int) -> None:
+    """``grasps`` pure syntheses (``cvae_raw`` rows) spread evenly over ``sample_store``, written as a store for both versions."""
+    import numpy as np
+
+    from dexlite_pipeline.io.grasp_store import GraspSet, read_grasp_store, write_grasp_store
+
+    stored = read_grasp_store(sample_store)
+    raw = np.flatnonzero(np.asarray(stored.arrays["method"]).astype(str) == "cvae_raw")
+    chosen = raw[np.unique(np.linspace(0, len(raw) - 1, min(grasps, len(raw))).round().astype(int))]
+    kept = ("hand_pose", "object_id", "scale", "method")
+    write_grasp_store(out, GraspSet({k: stored.arrays[k][chosen] for k in kept}, {}), {})
+
+
+def post(objects_dir: str, samples: str) -> list[dict]:
+    """CPU s per grasp of ``post_optimize_shard`` on the store ``samples`` (``write_post_samples``), the library's own default
+    ``post_optimize`` (random baseline off), ``scene`` and ``energy`` sections; outcomes: each grasp ends within the start cap."""
+    import dataclasses
+
+    import numpy as np
+    import torch
+
+    from dexlite_pipeline.config import default_config, from_section
+    from dexlite_pipeline.optim.config import PostOptimizeConfig
+    from dexlite_pipeline.optim.post_shard import post_optimize_shard
+    from dexlite_pipeline.sim.config import SceneConfig
+
+    torch.set_num_threads(1)
+    config = default_config()
+    settings = dataclasses.replace(from_section(PostOptimizeConfig, config.get("post_optimize"), "config.post_optimize"), random_baseline=False)
+    scene = from_section(SceneConfig, config.get("scene"), "config.scene")
+    stability = Path(objects_dir).parent / "stability" / "stability.parquet"
+    started = time.process_time()
+    margin_m = float(config["energy"]["self_penetration_margin_m"])
+    (refined, attrs), _ = post_optimize_shard(samples, [objects_dir], 0, post_optimize=settings, self_penetration_margin_m=margin_m, scene=scene,
+                                              seed=0, device="cpu", stability_path=str(stability))
+    seconds = time.process_time() - started
+    within = (np.asarray(refined.arrays["penetration_mm"]) <= 2.0).tolist()
+    return [{"case": "post", "size": f"{len(refined)} grasps", "value": seconds / len(refined), "unit": "CPU s per grasp (stage)",
+             "optimizer_value": attrs["seconds_per_grasp"], "outcomes": {"within 2 mm": within}}]
+
+
 # ----------------------------------------------------------------------------- parent side
 def extract_source(ref: str, destination: Path) -> Path:
     """``ref``'s ``src/`` folder extracted into ``destination`` (returned: the folder to put on PYTHONPATH)."""
@@ -162,6 +207,8 @@ def main() -> None:
     parser.add_argument("--objects", required=True, help="prepared objects (a run's results/objects)")
     parser.add_argument("--lift", help="grasp store to lift-test (e.g. RUN/results/eval/sim/shard_000.zarr); omit to skip the case")
     parser.add_argument("--lift-grasps", type=int, default=200)
+    parser.add_argument("--samples", help="sample store whose pure syntheses to post-optimize (e.g. RUN/results/sample/shard_000.zarr); omit to skip")
+    parser.add_argument("--post-grasps", type=int, default=256)
     parser.add_argument("--rounds", type=int, default=3, help="alternations of base and current")
     parser.add_argument("--out", help="write the table as JSON here too")
     args = parser.parse_args()
@@ -174,6 +221,10 @@ def main() -> None:
         calls = [f"versus.energy_step({args.objects!r}, {poses!r})"]
         if args.lift:
             calls.append(f"versus.lift({args.objects!r}, {args.lift!r}, {args.lift_grasps})")
+        if args.samples:
+            samples = str(Path(scratch) / "post_samples.zarr")
+            run_child(current, f"versus.write_post_samples({args.samples!r}, {samples!r}, {args.post_grasps}) or []")
+            calls.append(f"versus.post({args.objects!r}, {samples!r})")
         best: dict[tuple[str, str, str], dict] = {}
         for round_number in range(args.rounds):
             for version, source in (("base", base), ("current", current)):
