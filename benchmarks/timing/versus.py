@@ -21,6 +21,9 @@ Cases (each a function of this module, run in a child process with one torch thr
 - ``post``: CPU s per grasp of the post-optimization stage (each version's default ``post_optimize``
   settings, the random baseline off) on ``--post-grasps`` pure syntheses spread evenly over a sample
   store (``--samples``, e.g. RUN/results/sample/shard_000.zarr), on their tables: the model path's refinement.
+- ``optimize``: CPU s per grasp of optimization from scratch (each version's default ``optimize_grasps``
+  settings, ``--optimize-grasps`` starts per object) on the first four objects of ``--objects`` at their real size
+  where known, on their tables.
 - ``lift``: CPU s per tested grasp of the lift and six-direction tests (each version's default
   ``lift`` settings) on ``--lift-grasps`` grasps spread evenly over a grasp store (``--lift``), e.g. an
   evaluation shard of the default run: the realistic mix of outcomes.
@@ -182,6 +185,39 @@ def post(objects_dir: str, samples: str) -> list[dict]:
              "optimizer_value": attrs["seconds_per_grasp"], "outcomes": {"within 2 mm": within}}]
 
 
+def optimize_from_scratch(objects_dir: str, grasps_per_object: int) -> list[dict]:
+    """CPU s per grasp of ``optim.from_scratch.synthesize`` on the first four objects of ``objects_dir`` (real size where
+    known, else the configured scales), the library's own default ``optimize_grasps``, ``energy`` and ``scene`` sections."""
+    import dataclasses
+
+    import numpy as np
+    import torch
+
+    from dexlite_pipeline.config import default_config, from_section
+    from dexlite_pipeline.energy.config import EnergyConfig
+    from dexlite_pipeline.objects.assets import load_asset, ok_object_ids
+    from dexlite_pipeline.optim.config import OptimizeGraspsConfig
+    from dexlite_pipeline.optim.from_scratch import synthesize
+    from dexlite_pipeline.sim.config import SceneConfig
+    from dexlite_pipeline.tabletop import load_support_planes
+
+    torch.set_num_threads(1)
+    config = default_config()
+    settings = dataclasses.replace(from_section(OptimizeGraspsConfig, config.get("optimize_grasps"), "config.optimize_grasps"),
+                                   grasps_per_object=grasps_per_object)
+    energy_config = from_section(EnergyConfig, config.get("energy"), "config.energy")
+    scene = from_section(SceneConfig, config.get("scene"), "config.scene")
+    assets = [load_asset([objects_dir], i) for i in sorted(ok_object_ids([objects_dir]))[:4]]
+    planes = load_support_planes(scene.table, str(Path(objects_dir).parent / "stability" / "stability.parquet"))
+    scales = [(a.real_scale,) if a.real_scale else tuple(settings.scales) for a in assets]
+    started = time.process_time()
+    grasps, _ = synthesize(assets, settings, energy_config, torch.Generator().manual_seed(0), "cpu", support_planes=planes, object_scales=scales)
+    seconds = time.process_time() - started
+    within = (np.asarray(grasps.arrays["penetration_mm"]) <= 2.0).tolist()
+    return [{"case": "optimize", "size": f"{len(grasps)} grasps", "value": seconds / len(grasps), "unit": "CPU s per grasp",
+             "outcomes": {"within 2 mm": within}}]
+
+
 # ----------------------------------------------------------------------------- parent side
 def extract_source(ref: str, destination: Path) -> Path:
     """``ref``'s ``src/`` folder extracted into ``destination`` (returned: the folder to put on PYTHONPATH)."""
@@ -209,6 +245,7 @@ def main() -> None:
     parser.add_argument("--lift-grasps", type=int, default=200)
     parser.add_argument("--samples", help="sample store whose pure syntheses to post-optimize (e.g. RUN/results/sample/shard_000.zarr); omit to skip")
     parser.add_argument("--post-grasps", type=int, default=256)
+    parser.add_argument("--optimize-grasps", type=int, default=0, help="starts per object of the optimize case (0: skip it)")
     parser.add_argument("--rounds", type=int, default=3, help="alternations of base and current")
     parser.add_argument("--out", help="write the table as JSON here too")
     args = parser.parse_args()
@@ -225,6 +262,8 @@ def main() -> None:
             samples = str(Path(scratch) / "post_samples.zarr")
             run_child(current, f"versus.write_post_samples({args.samples!r}, {samples!r}, {args.post_grasps}) or []")
             calls.append(f"versus.post({args.objects!r}, {samples!r})")
+        if args.optimize_grasps:
+            calls.append(f"versus.optimize_from_scratch({args.objects!r}, {args.optimize_grasps})")
         best: dict[tuple[str, str, str], dict] = {}
         for round_number in range(args.rounds):
             for version, source in (("base", base), ("current", current)):
