@@ -77,7 +77,7 @@ def curve_figure(table):
         ax.set_xticks(counts, [str(c) for c in counts])
         ax.minorticks_off()
         ax.set_xlabel("training objects")
-        ax.set_title(f"held-out (benchmark split): {title}")
+        ax.set_title(f"held-out objects: {title}")
         ax.grid(alpha=0.3)
     axes[0].set_ylabel("success rate (%), Wilson 95%")
     handles, labels = axes[0].get_legend_handles_labels()

@@ -240,16 +240,17 @@ def csv_links_html(links: Mapping[str, str]) -> str:
 
 
 def learning_curve_html(curve) -> str:
-    """The shipped model's learning curve (its large run): plot and table."""
+    """The shipped model's learning curve (docs/learning_curve.csv, made on its run): plot and table."""
     from dexlite_pipeline.report.learning_curve import curve_figure
 
     columns = ["point", "seed", "training_objects", "training_grasps", "method", "n_grasps", "lift_success_rate", "lift_success_ci95_low",
                "lift_success_ci95_high", "six_dir_success_rate", "seconds_per_grasp"]  # fmt: skip
     table = curve[[c for c in columns if c in curve.columns]].to_html(index=False, float_format=lambda v: f"{v:.3g}", na_rep="—")
     return (
-        "<h2>Learning curve of the shipped model's run</h2><p class='note'>Held-out success on the benchmark split against the number of "
-        "training objects (nested subsets of the large run's objects, same sampling and post-optimization budget; Wilson 95%). From "
-        "docs/learning_curve.csv of this checkout: it describes the shipped model's training, not this run's.</p>"
+        "<h2>Learning curve of the shipped model's run</h2><p class='note'>Success on the held-out objects of the shipped model's run "
+        "against the number of training objects (nested subsets of that run's training objects, same sampling and post-optimization "
+        "budget; Wilson 95%). From docs/learning_curve.csv of this checkout: it describes the shipped model's training, not this "
+        "run's; docs/learning_curve.md has it per held-out split and against grasps per object.</p>"
         + img_tag(figure_png_base64(curve_figure(curve)), "learning curve") + f"<details><summary>table</summary>{table}</details>"
     )
 
