@@ -24,6 +24,9 @@ Cases (each a function of this module, run in a child process with one torch thr
 - ``optimize``: CPU s per grasp of optimization from scratch (each version's default ``optimize_grasps``
   settings, ``--optimize-grasps`` starts per object) on the first four objects of ``--objects`` at their real size
   where known, on their tables.
+- ``ranking``: CPU s per kept grasp of the learned evaluator's ranking (``evaluator.ranking.rank_shard``: drawing the
+  pool, scoring it) on one shard of a finished run with an evaluator (``--rank-run``, its ``config.yaml`` and
+  ``--rank-seed``), after one warm-up call (the stage ranks in the process that just sampled).
 - ``lift``: CPU s per tested grasp of the lift and six-direction tests (each version's default
   ``lift`` settings) on ``--lift-grasps`` grasps spread evenly over a grasp store (``--lift``), e.g. an
   evaluation shard of the default run: the realistic mix of outcomes.
@@ -218,6 +221,31 @@ def optimize_from_scratch(objects_dir: str, grasps_per_object: int) -> list[dict
              "outcomes": {"within 2 mm": within}}]
 
 
+def ranking(run: str, seed: int, shard: int = 0) -> list[dict]:
+    """CPU s per kept grasp of ``rank_shard`` on shard ``shard`` of ``run`` (its sample store without its ranked rows)."""
+    import numpy as np
+    import torch
+    import yaml
+
+    from dexlite_pipeline.evaluator.ranking import rank_shard
+    from dexlite_pipeline.io.grasp_store import GraspSet, read_grasp_store
+    from dexlite_pipeline.settings import build_config
+
+    torch.set_num_threads(1)
+    config = build_config({**yaml.safe_load(Path(run, "config.yaml").read_text()), "seed": seed})
+    stored = read_grasp_store(f"{run}/results/sample/shard_{shard:03d}.zarr")
+    unranked = np.asarray(stored.arrays["method"]).astype(str) != "cvae_ranked"
+    added = ("evaluator_score", "evaluator_kept_fraction", "evaluator_rank")
+    sampled = GraspSet({k: v[unranked] for k, v in stored.arrays.items() if k not in added}, stored.attrs)
+    arguments = (sampled, f"{run}/results/model/cvae.pt", f"{run}/results/evaluator/evaluator.pt", [f"{run}/results/objects"],
+                 f"{run}/results/stability/stability.parquet", shard)
+    options = dict(shards=config.shards, sample=config.sample, section=config.evaluator, diversity=config.diversity, table=config.scene.table,
+                   seed=seed, device="cpu")
+    rank_shard(*arguments, **options)  # warm-up
+    _, attrs = rank_shard(*arguments, **options)
+    return [{"case": "ranking", "size": f"{attrs['pool']} pooled", "value": attrs["cpu_seconds"] / attrs["kept"], "unit": "CPU s per kept grasp"}]
+
+
 # ----------------------------------------------------------------------------- parent side
 def extract_source(ref: str, destination: Path) -> Path:
     """``ref``'s ``src/`` folder extracted into ``destination`` (returned: the folder to put on PYTHONPATH)."""
@@ -246,6 +274,8 @@ def main() -> None:
     parser.add_argument("--samples", help="sample store whose pure syntheses to post-optimize (e.g. RUN/results/sample/shard_000.zarr); omit to skip")
     parser.add_argument("--post-grasps", type=int, default=256)
     parser.add_argument("--optimize-grasps", type=int, default=0, help="starts per object of the optimize case (0: skip it)")
+    parser.add_argument("--rank-run", help="a finished run with a learned evaluator whose shard 000 the ranking case ranks; omit to skip")
+    parser.add_argument("--rank-seed", type=int, default=0, help="the rank run's seed")
     parser.add_argument("--rounds", type=int, default=3, help="alternations of base and current")
     parser.add_argument("--out", help="write the table as JSON here too")
     args = parser.parse_args()
@@ -262,6 +292,8 @@ def main() -> None:
             samples = str(Path(scratch) / "post_samples.zarr")
             run_child(current, f"versus.write_post_samples({args.samples!r}, {samples!r}, {args.post_grasps}) or []")
             calls.append(f"versus.post({args.objects!r}, {samples!r})")
+        if args.rank_run:
+            calls.append(f"versus.ranking({args.rank_run!r}, {args.rank_seed})")
         if args.optimize_grasps:
             calls.append(f"versus.optimize_from_scratch({args.objects!r}, {args.optimize_grasps})")
         best: dict[tuple[str, str, str], dict] = {}
