@@ -178,8 +178,8 @@ def post(objects_dir: str, samples: str) -> list[dict]:
     settings = dataclasses.replace(from_section(PostOptimizeConfig, config.get("post_optimize"), "config.post_optimize"), random_baseline=False)
     scene = from_section(SceneConfig, config.get("scene"), "config.scene")
     stability = Path(objects_dir).parent / "stability" / "stability.parquet"
-    started = time.process_time()
     margin_m = float(config["energy"]["self_penetration_margin_m"])
+    started = time.process_time()
     (refined, attrs), _ = post_optimize_shard(samples, [objects_dir], 0, post_optimize=settings, self_penetration_margin_m=margin_m, scene=scene,
                                               seed=0, device="cpu", stability_path=str(stability))
     seconds = time.process_time() - started

@@ -66,16 +66,23 @@ class TableShortfall:
         normal, offset = self.energy.support(object_index, scale)
         return self.clearance.lowest_heights(frames, normal, offset)
 
-    def excess(self, frames: HandFrames, object_index: torch.Tensor, scale: torch.Tensor, shapes: torch.Tensor | None = None) -> torch.Tensor:
-        """(B,) Σ max(0, clearance − height)² over the hand's shapes (``shapes`` (S,) bool: only these), differentiable."""
-        shortfall = torch.relu(TABLE_CLEARANCE_M - self.heights(frames, object_index, scale)).square()
-        if shapes is not None:
-            shortfall = shortfall * shapes.to(shortfall.dtype)
-        return shortfall.sum(dim=1)
+    def excess_and_depth(
+        self, frames: HandFrames, object_index: torch.Tensor, scale: torch.Tensor, shapes: torch.Tensor | None = None
+    ) -> tuple[torch.Tensor, torch.Tensor | None, torch.Tensor]:
+        """From one pass: (B,) Σ max(0, clearance − height)² over the hand's shapes, the same over ``shapes`` (S,) bool
+        alone (None without ``shapes``), both differentiable, and (B,) ``depth_m`` (detached)."""
+        heights = self.heights(frames, object_index, scale)
+        shortfall = torch.relu(TABLE_CLEARANCE_M - heights).square()
+        only = (shortfall * shapes.to(shortfall.dtype)).sum(dim=1) if shapes is not None else None
+        return shortfall.sum(dim=1), only, self._below(heights.detach())
 
     def depth_m(self, frames: HandFrames, object_index: torch.Tensor, scale: torch.Tensor) -> torch.Tensor:
         """(B,) the deepest hand point below the table, m (0 when the hand is wholly above it)."""
-        return (-self.heights(frames, object_index, scale)).clamp(min=0).amax(dim=1)
+        return self._below(self.heights(frames, object_index, scale))
+
+    @staticmethod
+    def _below(heights: torch.Tensor) -> torch.Tensor:
+        return (-heights).clamp(min=0).amax(dim=1)
 
 
 def penetration_depth_m(energy: GraspEnergy, hand_pose: torch.Tensor, object_index: torch.Tensor, scale: torch.Tensor) -> torch.Tensor:
@@ -119,11 +126,9 @@ def resolve_contacts(
             depth[rows] = in_object
         below = torch.zeros_like(in_object)
         if table is not None:
-            heights = table.heights(frames, obj, sc)  # (rows, S)
-            shortfall = torch.relu(TABLE_CLEARANCE_M - heights).square()
-            whole = whole + shortfall.sum(dim=1)
-            palm_only = palm_only + (shortfall * palm.to(shortfall.dtype)).sum(dim=1) if palm_only is not None else None
-            below = (-heights.detach()).clamp(min=0).amax(dim=1)
+            table_whole, table_palm, below = table.excess_and_depth(frames, obj, sc, palm if fingers_first else None)
+            whole = whole + table_whole
+            palm_only = palm_only + table_palm if palm_only is not None else None
             if step > 0:
                 table_depth[rows] = below
         unresolved = (in_object > allowed_m) | (below > 0)
