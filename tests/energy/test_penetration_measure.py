@@ -206,6 +206,26 @@ def test_contact_resolution_backs_buried_fingertips_out_to_the_allowed_depth(rea
     assert (wall.depth_m.numpy() <= 0.0015 + 1e-6).all()
 
 
+def test_contact_resolution_steps_grow_with_the_excess_depth(real_size_objects, monkeypatch):
+    """Fingertips 6-9 mm into the box's top back out in fewer steps than with base steps only, to the same end: within
+    1.5 mm and still touching (the last steps, within a millimetre of done, are base steps)."""
+    from dexlite_pipeline.optim import contact_resolution
+
+    root, _ = real_size_objects
+    hand = ShadowHand()
+    rng = np.random.default_rng(5)
+    top = np.column_stack([rng.uniform(-0.1, 0.1, 4), rng.uniform(-0.07, 0.07, 4), np.full(4, 0.035)])
+    pose = _fingertip_poses(hand, top, np.tile([0.0, 0.0, 1.0], (4, 1)), np.array([0.006, 0.007, 0.008, 0.009]))
+    box = GraspEnergy.from_assets(hand, [load_asset(root, "box")], EnergyConfig(), max_scale=1.0)
+    index, scale = torch.zeros(4, dtype=torch.long), torch.ones(4)
+    grown = contact_resolution.resolve_contacts(box, pose, index, scale, allowed_m=0.0015)
+    monkeypatch.setattr(contact_resolution, "MAX_STEP_GROWTH", 1.0)
+    base = contact_resolution.resolve_contacts(box, pose, index, scale, allowed_m=0.0015)
+    for resolved in (grown, base):
+        assert ((resolved.depth_m.numpy() <= 0.0015 + 1e-6) & (resolved.depth_m.numpy() > 0.0005)).all(), resolved.depth_m
+    assert (grown.steps < base.steps).all(), (grown.steps, base.steps)
+
+
 def test_contact_resolution_lifts_the_hand_out_of_the_table(real_size_objects):
     """On a table, resolution also ends every grasp wholly above it (the lift test's own check), still within the
     allowed depth in the object; a grasp clear of both is untouched, and without a table nothing moves for it."""

@@ -269,6 +269,38 @@ def test_hopeless_grasps_stop_where_they_are_and_the_others_walk_on_unchanged(ha
     assert torch.equal(trace_fc[:, going_on], free.term_traces["E_fc"][:, going_on])
 
 
+def test_grasps_stopped_as_hopeless_are_not_backed_out_of_the_object(hand, setup):
+    """With contact resolution, the grasps that walked to the end are resolved as without the stop, and a stopped one
+    ends exactly where it stopped, its depth measured there, though resolution would have moved it."""
+    import dataclasses
+
+    from dexlite_pipeline.optim.config import HopelessStopConfig
+    from dexlite_pipeline.optim.contact_resolution import penetration_depth_m, resolve_contacts
+    from dexlite_pipeline.optim.grasp_random import GraspRandom
+
+    energy, hulls = setup
+    object_index, scale = _batch(6)
+    init = initial_poses(hand, hulls, object_index, scale, InitConfig(distance_m=(0.06, 0.09)), torch.Generator().manual_seed(5))
+    allowed = 1e-4  # nearly any touching finger is moved
+    config = dataclasses.replace(SHORT, rmsprop_statistic="grasp", trace_every=1, resolve_penetration_to_m=allowed)
+
+    def run(stop):
+        return optimize(energy, init, object_index, scale, dataclasses.replace(config, stop_hopeless=stop), torch.Generator().manual_seed(0),
+                        random=GraspRandom(7, torch.arange(6)), snapshot_iterations=(30,))
+
+    free = run(HopelessStopConfig())
+    at_30 = free.term_traces["E_fc"][30]
+    stopped = run(HopelessStopConfig(iterations=(30,), max_e_fc=(float(at_30.median()),), max_e_dis_m=(10.0,)))
+    hopeless = stopped.stopped_at_iteration > 0
+    assert 0 < int(hopeless.sum()) < 6
+    assert torch.equal(stopped.hand_pose[hopeless], stopped.snapshots[30][hopeless])
+    would_move = resolve_contacts(energy, stopped.hand_pose[hopeless], object_index[hopeless], scale[hopeless], allowed)
+    assert (would_move.steps > 0).any(), "the test's premise: resolution would move a stopped grasp"
+    torch.testing.assert_close(stopped.hand_pose[~hopeless], free.hand_pose[~hopeless])
+    depth_mm = penetration_depth_m(energy, stopped.hand_pose, object_index, scale) * 1000
+    torch.testing.assert_close(stopped.penetration_mm, depth_mm)
+
+
 def test_hopeless_stop_config_needs_one_limit_of_each_per_checkpoint():
     from dexlite_pipeline.optim.config import HopelessStopConfig
 

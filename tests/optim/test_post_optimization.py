@@ -48,3 +48,6 @@ def test_post_optimization_config_maps_to_the_optimizer():
     assert (annealing.starting_temperature, annealing.temperature_decay, annealing.temperature_period) == (18.0, 0.95, 30)
     assert annealing.contact_switch_probability == 0.5
     assert dataclasses.astuple(config.energy_weights) == (1.0, 100.0, 100.0, 10.0, 1.0, 100.0)  # E_table last (tabletop mode only)
+    # sampled (learned) starts stop where hopeless; random starts (the baseline) run every iteration
+    assert config.optimizer_config(learned_start=True).stop_hopeless == config.stop_hopeless and config.stop_hopeless.iterations
+    assert annealing.stop_hopeless.iterations == ()

@@ -18,8 +18,8 @@ Each iteration of ``optimize`` has three parts, each its own piece here:
   chosen iterations and the acceptance counts.
 
 With ``resolve_penetration_to_m``, the run ends with contact resolution
-(``optim.contact_resolution``): grasps deeper in the object than that back out of it, and the
-reported terms are those of the resolved poses. ``penetration_mm`` is always the judged depth
+(``optim.contact_resolution``): grasps deeper in the object than that back out of it (not those
+stopped as hopeless, ``stop_hopeless``), and the reported terms are those of the resolved poses. ``penetration_mm`` is always the judged depth
 (against the mesh), not the grid's.
 
 Optionally (``final_contact_samples``), a last search over many contact sets for the final
@@ -386,16 +386,20 @@ def optimize(
             result = energy(hand_pose, object_index=object_index, scale=scale, contact_index=contacts)
         total = result.total.detach()
         tracker.replace_last(total, result.terms)
-    if config.resolve_penetration_to_m > 0:
-        resolved = resolve_contacts(energy, hand_pose, object_index, scale, config.resolve_penetration_to_m)
+    resolving = config.resolve_penetration_to_m > 0 and len(active) > 0
+    if resolving:
+        # Only the grasps that walked to the end: a grasp stopped as hopeless is not worth backing out of the object.
+        resolved = resolve_contacts(energy, hand_pose[active], object_index[active], scale[active], config.resolve_penetration_to_m)
         if bool((resolved.steps > 0).any()):
-            hand_pose = resolved.hand_pose
+            hand_pose = hand_pose.clone()
+            hand_pose[active] = resolved.hand_pose
             with torch.no_grad():
                 result = energy(hand_pose, object_index=object_index, scale=scale, contact_index=contacts)
             total = result.total.detach()
             tracker.replace_last(total, result.terms)
+    if resolving and len(active) == batch:
         depth = resolved.depth_m
-    else:
+    else:  # no resolution, or some grasps stopped: every grasp's depth from one pass
         depth = penetration_depth_m(energy, hand_pose, object_index, scale)
     return OptimizationResult(
         hand_pose=hand_pose,

@@ -5,15 +5,21 @@ with some grasps pressed a few millimetres into the object, and the lift test re
 that starts deeper than its cap (a hand could not have reached it without passing through the
 object). Filtering those afterwards wastes them; instead every optimization ends here: a grasp
 whose penetration depth (the measure of ``energy.terms.PenetrationTerm``, against the mesh)
-exceeds ``allowed_m`` moves, a small step at a time, until it is within ``allowed_m`` or the
-steps run out: its joint angles down the gradient of its squared excess depth
-(``PenetrationTerm.excess``), so a finger inside the object opens along its closing direction
-reversed, and its palm position, orientation kept, for the first ``FINGERS_FIRST_STEPS`` steps
+exceeds ``allowed_m`` moves, a small step at a time (longer while it is far from done, below),
+until it is within ``allowed_m`` or the steps run out: its joint angles down the gradient of its
+squared excess depth (``PenetrationTerm.excess``), so a finger inside the object opens along its
+closing direction reversed, and its palm position, orientation kept, for the first ``FINGERS_FIRST_STEPS`` steps
 down the gradient of the palm's own excess only, so the palm backs off where the palm is inside
 and stays put where a finger can get out alone (moving it pulls every other contact off the
 surface), then down the whole hand's, for a finger that its joints cannot take out (one pressed
 in along its length). A finger that only touches is not moved. Grasps already within
 ``allowed_m`` are returned unchanged.
+
+A grasp far from done takes longer steps: each step is the base step (``JOINT_STEP_RAD``,
+``TRANSLATION_STEP_M``) times its excess depth (in the object beyond ``allowed_m``, or below the
+table) over ``STEP_GROWTH_DEPTH_M``, at least 1 and at most ``MAX_STEP_GROWTH``. Grasps that start
+a centimetre or more inside the object then back out within the steps instead of running out of
+them, in fewer steps, and every grasp ends its resolution with base steps (within a millimetre of done).
 
 On a table (tabletop mode: the energy has support planes) the hand must also end wholly above
 it: the lift test refuses a grasp with any hand shape below the table, and the optimizer's E_table
@@ -34,7 +40,9 @@ from dexlite_pipeline.hand.model import JOINTS, HandFrames
 
 JOINT_STEP_RAD = 0.005  # largest joint change per step (a fingertip ~10 cm from its joint moves ≤ 0.5 mm)
 TRANSLATION_STEP_M = 0.0002  # palm movement per step where the palm's gradient points out
-RESOLUTION_STEPS = 60  # at most this many steps (≤ 0.3 rad and 12 mm in all)
+RESOLUTION_STEPS = 60  # at most this many steps (at base length ≤ 0.3 rad and 12 mm in all)
+STEP_GROWTH_DEPTH_M = 0.001  # a step is the base step times the grasp's excess depth over this (m) ...
+MAX_STEP_GROWTH = 4.0  # ... at most this many times (0.02 rad, 0.8 mm)
 FINGERS_FIRST_STEPS = 20  # steps in which the palm backs off only where the palm itself is inside
 PALM_LINK = "robot0:palm"  # the link whose shapes move only with the palm (no joint between them)
 TABLE_CLEARANCE_M = 1e-4  # the excess pushes each shape's lowest point this far above the table (m), so a grasp ends clear of it
@@ -143,6 +151,8 @@ def resolve_contacts(
         joint_step = torch.where(largest > 0, joint_gradient / largest.clamp(min=1e-30), torch.zeros_like(joint_gradient)) * JOINT_STEP_RAD
         palm_norm = palm_gradient.norm(dim=1, keepdim=True)
         palm_step = torch.where(palm_norm > 0, palm_gradient / palm_norm.clamp(min=1e-30), torch.zeros_like(palm_gradient)) * TRANSLATION_STEP_M
+        growth = (torch.maximum(in_object - allowed_m, below) / STEP_GROWTH_DEPTH_M).clamp(1.0, MAX_STEP_GROWTH)[:, None]
+        joint_step, palm_step = joint_step * growth, palm_step * growth
         keep = unresolved.nonzero().squeeze(1)  # resolved rows stay where they are
         updated = pose[rows].clone()
         updated[:, JOINTS] = (updated[:, JOINTS] - joint_step).clamp(limits[:, 0], limits[:, 1])

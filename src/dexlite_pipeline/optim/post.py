@@ -70,7 +70,8 @@ def refine(
     energy term before (``raw_*``) and after, E_post at every iteration (``energy_trace``,
     (B, iterations + 1): of the accepted state, or with ``keep_best`` of the best state so
     far), the thresholded terms at every iteration
-    (``trace_E_fc``, ``trace_E_dis``, ``trace_E_pen``) and the acceptance rate.
+    (``trace_E_fc``, ``trace_E_dis``, ``trace_E_pen``), the acceptance rate and the iteration at which a hopeless
+    grasp stopped (``stopped_at_iteration``, 0: it ran every iteration; ``post_optimize.stop_hopeless``).
     """
     if start_contacts not in ("surface", "random"):
         raise ValueError(f"start_contacts must be 'surface' or 'random', not {start_contacts!r}")
@@ -98,6 +99,7 @@ def refine(
             "raw_hand_pose": pose.detach().cpu().numpy(),
             "contact_index": result.contact_index.cpu().numpy().astype(np.int16),
             "acceptance_rate": result.acceptance_rate.cpu().numpy(),
+            "stopped_at_iteration": result.stopped_at_iteration.cpu().numpy().astype(np.int32),
             "energy_trace": result.trace.T.cpu().numpy().astype(np.float32),
         }
         for name in TRACED_TERMS:

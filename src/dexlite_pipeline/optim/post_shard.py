@@ -128,8 +128,10 @@ def post_optimize_shard(
             refined.arrays["raw_hand_pose"] = sampled.hand_pose[valid].copy()  # the sampled pose, before the raise
         attrs["trace_iterations"] = refined.trace_iterations.tolist()
         attrs["seconds_per_grasp"] = refined.seconds / int(valid.sum())
-        log.info("shard %03d: post-optimized %d grasps in %.1fs; median E_post %.3g -> %.3g", shard, int(valid.sum()), refined.seconds,
-                 float(np.median(refined.arrays["raw_E_post"])), float(np.median(refined.arrays["E_post"])))
+        attrs["stopped_early"] = int((refined.arrays["stopped_at_iteration"] > 0).sum())
+        log.info("shard %03d: post-optimized %d grasps in %.1fs (%d stopped early as hopeless); median E_post %.3g -> %.3g", shard,
+                 int(valid.sum()), refined.seconds, attrs["stopped_early"], float(np.median(refined.arrays["raw_E_post"])),
+                 float(np.median(refined.arrays["E_post"])))
         arrays = _store_arrays(sampled, refined, reasons, method)
     else:
         attrs["seconds_per_grasp"] = None

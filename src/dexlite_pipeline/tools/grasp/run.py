@@ -125,8 +125,9 @@ class GraspRun:
 
 
 def hopeless_optimizations(grasps: GraspSet) -> np.ndarray | None:
-    """Per grasp, why it is known to fail without a test ('' to test it): an optimization from scratch stopped early
-    as hopeless (``optimize_grasps.stop_hopeless``; about 1 in 70 such grasps holds, against 1 in 2 of the others)."""
+    """Per grasp, why it is known to fail without a test ('' to test it): an optimization from scratch or a
+    post-optimization of a sample stopped early as hopeless (``optimize_grasps.stop_hopeless``: about 1 in 70 such
+    grasps holds, against 1 in 2 of the others; ``post_optimize.stop_hopeless``: it was not backed out of the object)."""
     stopped = grasps.arrays.get("stopped_at_iteration")
     if stopped is None:
         return None
