@@ -103,7 +103,9 @@ def sample_shard(
     Returns the grasps (``hand_pose``, ``object_id``, ``scale``, ``method`` and, for ladder
     reconstructions, the ``reference_hand_pose`` they reproduce; NaN elsewhere) and the
     store attributes. The config it reads comes as arguments: ``shards``, section ``sample``, ``seed`` and ``device``.
+    Its ``seconds_per_grasp`` is the CPU time of the whole call (loading the model and the objects included) per row.
     """
+    started = time.process_time()  # CPU seconds (all threads of this process), not wall time
     from dexlite_pipeline.config import json_ready
     from dexlite_pipeline.device import resolve_device
     from dexlite_pipeline.hand import ShadowHand
@@ -125,7 +127,6 @@ def sample_shard(
     expandable = set(to_expand.object_id.tolist())
     targets = sorted(set(heldout) | expandable | set(ladder_ids))
     generator = shard_generator("sample_grasps", seed, shard)
-    started = time.process_time()  # CPU seconds (all threads of this process), not wall time
     parts: list[SampledRows] = []
     shipped_left_out: dict[str, str] = {}
     if targets:
