@@ -19,7 +19,7 @@ Cases (each a function of this module, run in a child process with one torch thr
   from a short optimization on the first four objects of ``--objects``, so both versions
   evaluate the same poses).
 - ``post``: CPU s per grasp of the post-optimization stage (each version's default ``post_optimize``
-  settings, the random baseline off) on ``--post-grasps`` pure syntheses spread evenly over a sample
+  settings, the random baseline off) on ``--post-grasps`` pure syntheses (``--sample-method``) spread evenly over a sample
   store (``--samples``, e.g. RUN/results/sample/shard_000.zarr), on their tables: the model path's refinement.
 - ``optimize``: CPU s per grasp of optimization from scratch (each version's default ``optimize_grasps``
   settings, ``--optimize-grasps`` starts per object) on the first four objects of ``--objects`` at their real size
@@ -147,17 +147,19 @@ def lift(objects_dir: str, grasp_store: str, grasps: int) -> list[dict]:
              "outcomes": {"held": np.asarray(results["lift_success"], bool).tolist(), "six": np.asarray(results["six_dir_success"], bool).tolist()}}]
 
 
-def write_post_samples(sample_store: str, out: str, grasps: int) -> None:
-    """``grasps`` pure syntheses (``cvae_raw`` rows) spread evenly over ``sample_store``, written as a store for both versions."""
+def write_post_samples(sample_store: str, out: str, grasps: int, method: str = "cvae_raw") -> None:
+    """``grasps`` pure syntheses (``method`` rows: ``cvae_raw``, or ``shipped_raw`` for the shipped model's) spread evenly over
+    ``sample_store``, written as a store for both versions (labelled ``cvae_raw``, the rows the stage refines as samples)."""
     import numpy as np
 
     from dexlite_pipeline.io.grasp_store import GraspSet, read_grasp_store, write_grasp_store
 
     stored = read_grasp_store(sample_store)
-    raw = np.flatnonzero(np.asarray(stored.arrays["method"]).astype(str) == "cvae_raw")
+    raw = np.flatnonzero(np.asarray(stored.arrays["method"]).astype(str) == method)
     chosen = raw[np.unique(np.linspace(0, len(raw) - 1, min(grasps, len(raw))).round().astype(int))]
-    kept = ("hand_pose", "object_id", "scale", "method")
-    write_grasp_store(out, GraspSet({k: stored.arrays[k][chosen] for k in kept}, {}), {})
+    arrays = {k: stored.arrays[k][chosen] for k in ("hand_pose", "object_id", "scale")}
+    arrays["method"] = np.full(len(chosen), "cvae_raw", dtype=object)
+    write_grasp_store(out, GraspSet(arrays, {}), {})
 
 
 def post(objects_dir: str, samples: str) -> list[dict]:
@@ -273,6 +275,7 @@ def main() -> None:
     parser.add_argument("--lift-grasps", type=int, default=200)
     parser.add_argument("--samples", help="sample store whose pure syntheses to post-optimize (e.g. RUN/results/sample/shard_000.zarr); omit to skip")
     parser.add_argument("--post-grasps", type=int, default=256)
+    parser.add_argument("--sample-method", default="cvae_raw", help="the sample rows the post case refines (shipped_raw: the shipped model's)")
     parser.add_argument("--optimize-grasps", type=int, default=0, help="starts per object of the optimize case (0: skip it)")
     parser.add_argument("--rank-run", help="a finished run with a learned evaluator whose shard 000 the ranking case ranks; omit to skip")
     parser.add_argument("--rank-seed", type=int, default=0, help="the rank run's seed")
@@ -290,7 +293,7 @@ def main() -> None:
             calls.append(f"versus.lift({args.objects!r}, {args.lift!r}, {args.lift_grasps})")
         if args.samples:
             samples = str(Path(scratch) / "post_samples.zarr")
-            run_child(current, f"versus.write_post_samples({args.samples!r}, {samples!r}, {args.post_grasps}) or []")
+            run_child(current, f"versus.write_post_samples({args.samples!r}, {samples!r}, {args.post_grasps}, {args.sample_method!r}) or []")
             calls.append(f"versus.post({args.objects!r}, {samples!r})")
         if args.rank_run:
             calls.append(f"versus.ranking({args.rank_run!r}, {args.rank_seed})")

@@ -19,8 +19,8 @@ Each iteration of ``optimize`` has three parts, each its own piece here:
 
 With ``resolve_penetration_to_m``, the run ends with contact resolution
 (``optim.contact_resolution``): grasps deeper in the object than that back out of it (not those
-stopped as hopeless, ``stop_hopeless``), and the reported terms are those of the resolved poses. ``penetration_mm`` is always the judged depth
-(against the mesh), not the grid's.
+stopped as hopeless, ``stop_hopeless``), and the reported terms are those of the resolved poses.
+``penetration_mm`` is always the judged depth (against the mesh), not the grid's.
 
 Optionally (``final_contact_samples``), a last search over many contact sets for the final
 poses picks the best (``GraspEnergy.best_contacts``): the random walk over contact indices

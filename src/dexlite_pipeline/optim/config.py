@@ -39,9 +39,9 @@ class AnnealingSchedule:
 @dataclass(frozen=True)
 class HopelessStopConfig:
     """When a grasp stops optimizing early because it will not reach the energy thresholds (config
-    ``optimize_grasps.stop_hopeless``, ``post_optimize.stop_hopeless``): after each of ``iterations``, a grasp whose kept state has E_fc above the
-    matching ``max_e_fc`` or E_dis above the matching ``max_e_dis_m`` ends there. The lists go together, one entry
-    per checkpoint; empty lists: every grasp runs every iteration."""
+    ``optimize_grasps.stop_hopeless``, ``post_optimize.stop_hopeless``): after each of ``iterations``, a grasp whose
+    kept state has E_fc above the matching ``max_e_fc`` or E_dis above the matching ``max_e_dis_m`` ends there. The
+    lists go together, one entry per checkpoint; empty lists: every grasp runs every iteration."""
 
     iterations: tuple[int, ...] = setting((), "checkpoints, in optimizer iterations", items={"minimum": 1}, unique_items=True)
     max_e_fc: tuple[float, ...] = setting((), "stop a grasp whose force-closure residual E_fc is above this at the checkpoint",

@@ -8,11 +8,11 @@ whose penetration depth (the measure of ``energy.terms.PenetrationTerm``, agains
 exceeds ``allowed_m`` moves, a small step at a time (longer while it is far from done, below),
 until it is within ``allowed_m`` or the steps run out: its joint angles down the gradient of its
 squared excess depth (``PenetrationTerm.excess``), so a finger inside the object opens along its
-closing direction reversed, and its palm position, orientation kept, for the first ``FINGERS_FIRST_STEPS`` steps
-down the gradient of the palm's own excess only, so the palm backs off where the palm is inside
-and stays put where a finger can get out alone (moving it pulls every other contact off the
-surface), then down the whole hand's, for a finger that its joints cannot take out (one pressed
-in along its length). A finger that only touches is not moved. Grasps already within
+closing direction reversed, and its palm position, orientation kept, for the first
+``FINGERS_FIRST_STEPS`` steps down the gradient of the palm's own excess only, so the palm backs off
+where the palm is inside and stays put where a finger can get out alone (moving it pulls every other
+contact off the surface), then down the whole hand's, for a finger that its joints cannot take out
+(one pressed in along its length). A finger that only touches is not moved. Grasps already within
 ``allowed_m`` are returned unchanged.
 
 A grasp far from done takes longer steps: each step is the base step (``JOINT_STEP_RAD``,
