@@ -275,6 +275,18 @@ def _pose(x, yaw_deg=0.0):
     return pose
 
 
+def test_grasps_stopped_as_hopeless_are_known_failures_named_by_their_optimizer():
+    from dexlite_pipeline.io.grasp_store import GraspSet
+    from dexlite_pipeline.tools.grasp.run import hopeless_optimizations
+
+    base = {"hand_pose": np.zeros((3, 28), np.float32), "object_id": np.array(["a", "a", "b"], dtype=object), "scale": np.ones(3, np.float32),
+            "stopped_at_iteration": np.array([0, 300, 600], np.int32)}
+    assert hopeless_optimizations(GraspSet(dict(base))).tolist() == ["", *["optimization stopped early (hopeless)"] * 2]
+    both = hopeless_optimizations(GraspSet({**base, "method": np.array(["cvae_post", "cvae_post", "optimization"], dtype=object)}))
+    assert both.tolist() == ["", "post-optimization of the sample stopped early (hopeless)", "optimization stopped early (hopeless)"]
+    assert hopeless_optimizations(GraspSet({k: v for k, v in base.items() if k != "stopped_at_iteration"})) is None
+
+
 def test_distinct_grasps_keep_the_best_of_each_near_duplicate_group():
     """Palms within 2 cm and 30 degrees are one grasp; its best member (six-direction, directions passed, energy) is kept."""
     from dexlite_pipeline.settings import build_config

@@ -127,11 +127,14 @@ class GraspRun:
 def hopeless_optimizations(grasps: GraspSet) -> np.ndarray | None:
     """Per grasp, why it is known to fail without a test ('' to test it): an optimization from scratch or a
     post-optimization of a sample stopped early as hopeless (``optimize_grasps.stop_hopeless``: about 1 in 70 such
-    grasps holds, against 1 in 2 of the others; ``post_optimize.stop_hopeless``: it was not backed out of the object)."""
+    grasps holds, against 1 in 2 of the others; ``post_optimize.stop_hopeless``: it was not backed out of the object).
+    The model's refined samples (``method`` cvae_post) name the post-optimization."""
     stopped = grasps.arrays.get("stopped_at_iteration")
     if stopped is None:
         return None
-    return np.asarray(["optimization stopped early (hopeless)" if s > 0 else "" for s in np.asarray(stopped)], dtype=object)
+    method = np.asarray(grasps.arrays.get("method", np.full(len(grasps), "optimization", dtype=object))).astype(str)
+    return np.asarray([("post-optimization of the sample" if m == "cvae_post" else "optimization") + " stopped early (hopeless)" if s > 0 else ""
+                       for s, m in zip(np.asarray(stopped), method)], dtype=object)  # fmt: skip
 
 
 def _step(number: int, steps: int, text: str, *args) -> None:
