@@ -43,15 +43,14 @@ def build_objects(directory: Path, count: int, seed: int, resolution: int) -> li
     """Prepare ``count`` embedded pybullet_data meshes (skipping ones that fail the mesh checks)."""
     from dexlite_pipeline.objects.build import write_asset
     from dexlite_pipeline.objects.config import AssetBuildSettings
-    from dexlite_pipeline.objects.prepare import check_mesh, load_source_mesh, normalize_mesh, repair_mesh
+    from dexlite_pipeline.objects.prepare import load_source_mesh, normalize_mesh, prepared_solid
     from dexlite_pipeline.objects.sources import builtin_sources
 
     settings = AssetBuildSettings(sdf_resolution=resolution)
     ids = []
     for source in builtin_sources(count * 3, seed):
         try:
-            mesh = repair_mesh(load_source_mesh(source))
-            check_mesh(mesh)
+            mesh = prepared_solid(load_source_mesh(source))[0]
         except Exception:  # a mesh the pipeline would reject; take the next one
             continue
         mesh, _, _ = normalize_mesh(mesh)

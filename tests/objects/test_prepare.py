@@ -11,7 +11,7 @@ import trimesh
 
 from dexlite_pipeline.objects.assets import CATALOG_COLUMNS
 from dexlite_pipeline.objects.config import ObjectsConfig
-from dexlite_pipeline.objects.prepare import MeshRejected, assign_split, check_mesh, normalize_mesh, prepare_object, prepare_objects, repair_mesh
+from dexlite_pipeline.objects.prepare import MeshRejected, assign_split, check_mesh, normalize_mesh, prepare_object, prepare_objects, prepared_solid
 from dexlite_pipeline.objects.sources import MeshSource, collect_sources
 
 # Small grids, few samples and a light CoACD search keep these tests at a second or two.
@@ -37,12 +37,18 @@ BAD_MESHES = {
     "non-finite vertices": ("nan.obj", _obj_text([(0, 0, 0), (1, 0, 0), (0, 1, 0), ("nan", 0, 1)], TET_FACES)),
     "degenerate: flat": ("flat.obj", _obj_text([(0, 0, 0), (1, 0, 0), (0, 1, 0), (1, 1, 0)], [(0, 1, 2), (1, 3, 2)])),
     "degenerate: only 2": ("folded.obj", _obj_text([(0, 0, 0), (1, 0, 0), (0, 1, 0), (1, 0, 1)], [(0, 1, 2), (0, 3, 1)])),
-    # Two closed tetrahedra sharing one edge: that edge has four faces, no hole to fill.
-    "not watertight after repair": (
-        "bowtie.obj",
-        _obj_text(TET_VERTICES + [(0, -1, 0), (0, 0, -1)], TET_FACES + [(0, 1, 4), (0, 5, 1), (0, 4, 5), (1, 5, 4)]),
-    ),
 }
+# Two closed tetrahedra sharing one edge (four faces on it): one object of two bodies that touch.
+BOWTIE = _obj_text(TET_VERTICES + [(0, -1, 0), (0, 0, -1)], TET_FACES + [(0, 1, 4), (0, 5, 1), (0, 4, 5), (1, 5, 4)])
+
+
+def test_two_closed_bodies_touching_along_an_edge_are_one_object(tmp_path):
+    path = tmp_path / "bowtie.obj"
+    path.write_text(BOWTIE)
+    row = prepare_object(MeshSource("user-bowtie", "user", str(path)), str(tmp_path / "out"), TINY.build_settings(0))
+    assert row["status"] == "ok", row["reason"]
+    assert row["volume_ratio"] == pytest.approx(1.0, abs=0.05)
+    assert row["surface_deviation"] < 0.02 and row["bounds_deviation"] < 0.02
 
 
 @pytest.mark.parametrize("reason", sorted(BAD_MESHES))
@@ -63,7 +69,7 @@ def test_hole_is_filled_and_inverted_winding_fixed():
     assert top_cap.sum() >= 20  # a 24-gon hole: too large for trimesh's own fill_holes
     open_cylinder = trimesh.Trimesh(cylinder.vertices, cylinder.faces[~top_cap][:, ::-1], process=False)
     assert not open_cylinder.is_watertight
-    repaired = repair_mesh(open_cylinder)
+    repaired = prepared_solid(open_cylinder)[0]
     check_mesh(repaired)
     assert repaired.is_watertight and repaired.volume > 0
     assert repaired.volume == pytest.approx(cylinder.volume, rel=0.02)
@@ -73,7 +79,7 @@ def test_overlapping_shells_become_one_solid():
     a = trimesh.creation.box((1.0, 1.0, 1.0))
     b = trimesh.creation.box((1.0, 1.0, 1.0))
     b.apply_translation((0.5, 0, 0))
-    repaired = repair_mesh(trimesh.util.concatenate([a, b]))
+    repaired = prepared_solid(trimesh.util.concatenate([a, b]))[0]
     assert repaired.body_count == 1
     assert repaired.volume == pytest.approx(1.5, rel=1e-6)
 

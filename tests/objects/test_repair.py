@@ -7,7 +7,7 @@ import pytest
 import trimesh
 
 from dexlite_pipeline.objects.config import ObjectsConfig
-from dexlite_pipeline.objects.prepare import check_mesh, prepare_object, repair_mesh
+from dexlite_pipeline.objects.prepare import check_mesh, prepare_object, prepared_solid
 from dexlite_pipeline.objects.sources import MeshSource
 
 TINY = ObjectsConfig(
@@ -48,7 +48,7 @@ def open_bottom_cylinder() -> tuple[trimesh.Trimesh, trimesh.Trimesh]:
 def test_open_bottom_and_holes_meeting_at_a_corner_are_closed_keeping_the_volume():
     closed, damaged = open_bottom_box_with_touching_holes()
     assert not damaged.is_watertight
-    repaired = repair_mesh(damaged)
+    repaired = prepared_solid(damaged)[0]
     check_mesh(repaired)
     assert repaired.is_watertight and repaired.is_winding_consistent
     assert repaired.volume == pytest.approx(closed.volume, rel=0.02)
@@ -58,7 +58,7 @@ def test_duplicated_seam_vertices_are_welded_and_the_open_bottom_closed():
     closed, cup = open_bottom_cylinder()
     damaged = split_seam(cup, jitter_m=1e-6)  # coordinates written with ~6 significant digits
     assert len(damaged.vertices) > len(closed.vertices)
-    repaired = repair_mesh(damaged)
+    repaired = prepared_solid(damaged)[0]
     check_mesh(repaired)
     assert repaired.is_watertight
     assert repaired.volume == pytest.approx(closed.volume, rel=0.01)

@@ -29,7 +29,11 @@ import numpy as np
 log = logging.getLogger(__name__)
 CATALOG_NAME = "catalog.parquet"
 # The catalog's columns, in order: written by object preparation and by the DexGraspNet import.
-CATALOG_COLUMNS = ("object_id", "source", "file", "watertight", "volume", "n_convex_pieces", "status", "reason", "split")
+# preparation: how the file became one solid; surface_deviation (two-sided p99 surface distance), bounds_deviation
+# (largest bounding-box corner difference): prepared solid versus input, fractions of the input's largest extent;
+# volume_ratio: prepared / input volume (NaN where the input is open) (objects.fidelity).
+CATALOG_COLUMNS = ("object_id", "source", "file", "watertight", "volume", "n_convex_pieces", "status", "reason",
+                   "preparation", "surface_deviation", "bounds_deviation", "volume_ratio", "split")
 ASSETS_DIR = "assets"
 
 

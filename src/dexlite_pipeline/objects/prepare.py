@@ -1,6 +1,7 @@
 """Prepare objects: load, validate, repair, normalize, build assets, split, write the catalog.
 
-Each mesh goes through ``load_source_mesh`` -> ``repair_mesh`` -> ``check_mesh`` ->
+Each mesh goes through ``load_source_mesh`` -> ``check_shape`` -> ``prepared_solid`` (one closed
+solid, checked to be the input's shape: ``objects.solidify``, ``objects.fidelity``) ->
 ``normalize_mesh`` -> ``objects.build.write_asset``. A mesh that cannot be used is
 *rejected* with a one-line reason (``MeshRejected``) and stays in the catalog; one bad
 object never stops the others (objects run in a crash-tolerant process pool).
@@ -37,13 +38,17 @@ MIN_FACES = 4
 MIN_EXTENT_RATIO = 1e-3
 # Volume of the normalized mesh (unit ball: 4.19) below this: no solid to grasp.
 MIN_NORMALIZED_VOLUME = 1e-4
-# Vertices closer than this fraction of the bounding-box diagonal are one vertex (welded seams):
-# 14 µm on a 14 cm object, far below the SDF grid and the surface sampling.
-WELD_TOLERANCE = 1e-4
 
 
 class MeshRejected(Exception):
-    """A mesh that cannot become an object; the message is the catalog's one-line reason."""
+    """A mesh that cannot become an object; the message is the catalog's one-line reason.
+
+    ``deviation`` (``fidelity.ShapeDeviation``) when the refusal is that the prepared solid was not the input.
+    """
+
+    def __init__(self, reason: str, deviation=None):
+        super().__init__(reason)
+        self.deviation = deviation
 
 
 def _as_trimesh(loaded):
@@ -79,102 +84,25 @@ def load_source_mesh(source: MeshSource):
     return trimesh.Trimesh(vertices @ rotation.T, faces, process=False)
 
 
-def weld_vertices(mesh, tolerance: float):
-    """Merge vertices closer than ``tolerance`` (mesh units) into one, so split seams become shared edges.
+def prepared_solid(raw, metres_per_unit: float | None = None):
+    """The one closed solid a placed mesh stands for, how it was made and how far it is from the input.
 
-    Exporters often duplicate the vertices of a seam (UV or normal seams, STL triangle
-    soups, coordinates printed with few digits) so that the two sides of the seam are not
-    connected and each looks like the edge of a hole. Exact duplicates are merged by
-    trimesh; this also merges near-duplicates, as clusters of points within ``tolerance``
-    of a neighbour. Faces that collapse are removed by the caller.
+    ``objects.solidify`` makes it (one shell repaired; several bodies united, or remeshed;
+    floating fragments set aside; a file holding several objects refused) and ``objects.fidelity``
+    checks it is the input's shape. Returns (mesh, ``SolidRecord``, ``ShapeDeviation``); raises
+    ``MeshRejected`` with the reason otherwise.
     """
-    import trimesh
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-    from scipy.spatial import cKDTree
+    from dexlite_pipeline.objects.fidelity import NotTheInput, faithful_solid
+    from dexlite_pipeline.objects.solidify import SeveralObjects
 
-    vertices = np.asarray(mesh.vertices, dtype=np.float64)
-    pairs = cKDTree(vertices).query_pairs(tolerance, output_type="ndarray")
-    if len(pairs) == 0:
-        return mesh
-    n = len(vertices)
-    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
-    _, label = connected_components(graph, directed=False)
-    # Each cluster becomes its mean position; faces are re-indexed onto the clusters.
-    counts = np.bincount(label)
-    merged = np.zeros((counts.size, 3))
-    np.add.at(merged, label, vertices)
-    merged /= counts[:, None]
-    return trimesh.Trimesh(merged, label[np.asarray(mesh.faces)], process=False)
-
-
-def _close_with_meshfix(mesh):
-    """Fill every hole (and remove self-intersections) with MeshFix, keeping every component.
-
-    MeshFix (Attene, via the ``pymeshfix`` package) fills each boundary loop with a
-    triangulated, refined patch that follows the surrounding surface, and cleans
-    degenerate or self-intersecting triangles it finds on the way.
-    """
-    import pymeshfix
-    import trimesh
-
-    fixer = pymeshfix.MeshFix(np.asarray(mesh.vertices, dtype=np.float64), np.asarray(mesh.faces, dtype=np.int32))
-    fixer.repair(joincomp=False, remove_smallest_components=False)
-    return trimesh.Trimesh(np.asarray(fixer.points), np.asarray(fixer.faces), process=False)
-
-
-def _union_overlapping_bodies(mesh):
-    """Several closed shells (e.g. overlapping convex hulls) as one solid, when a boolean engine is present."""
-    import trimesh
-
-    bodies = mesh.split(only_watertight=False)
-    if len(bodies) < 2:
-        return mesh
     try:
-        union = trimesh.boolean.union(bodies)
-    except Exception:  # noqa: BLE001 - no engine, or it failed: keep the shells
-        return mesh
-    return union if union.is_watertight and union.volume > 0 else mesh
-
-
-def repair_mesh(mesh):
-    """Weld seams, drop degenerate/duplicate faces, fill holes, fix winding and normals.
-
-    Small holes (triangles, quads) are filled by trimesh; anything still open (open
-    bottoms of scans, larger or irregular holes, boundaries that touch themselves) is
-    closed by MeshFix, whose result is kept only if it is a closed solid. A mesh that is
-    still not a closed surface after this is rejected by ``check_mesh`` with the count of
-    open and non-manifold edges.
-    """
-    import trimesh
-
-    mesh = trimesh.Trimesh(mesh.vertices, mesh.faces, process=True)
-    mesh.merge_vertices(merge_tex=True, merge_norm=True)
-    if len(mesh.vertices):
-        mesh = weld_vertices(mesh, WELD_TOLERANCE * float(np.linalg.norm(mesh.extents)))
-    mesh = _clean_faces(mesh)
-    if len(mesh.faces) == 0:
-        return mesh
-    trimesh.repair.fix_winding(mesh)
-    if not mesh.is_watertight:
-        trimesh.repair.fill_holes(mesh)
-    if not mesh.is_watertight:
-        closed = _clean_faces(_close_with_meshfix(mesh))
-        trimesh.repair.fix_normals(closed, multibody=True)
-        if closed.is_watertight and closed.volume > 0:  # otherwise the input's own defects are reported
-            mesh = closed
-    trimesh.repair.fix_normals(mesh, multibody=True)
-    if mesh.is_watertight:
-        mesh = _union_overlapping_bodies(mesh)
-    return mesh
-
-
-def _clean_faces(mesh):
-    """The mesh without degenerate or repeated faces and unreferenced vertices."""
-    mesh.update_faces(mesh.nondegenerate_faces())
-    mesh.update_faces(mesh.unique_faces())
-    mesh.remove_unreferenced_vertices()
-    return mesh
+        mesh, record, deviation = faithful_solid(raw, metres_per_unit)
+    except SeveralObjects as exc:
+        raise MeshRejected(str(exc)) from None
+    except NotTheInput as exc:
+        raise MeshRejected(str(exc), exc.deviation) from None
+    check_mesh(mesh)
+    return mesh, record, deviation
 
 
 def check_shape(mesh) -> None:
@@ -235,7 +163,8 @@ def _build_key(source: MeshSource, settings: AssetBuildSettings, builder: str) -
     """Hash of everything an asset depends on: file bytes, placement, build settings, builder version."""
     digest = hashlib.sha256()
     digest.update(Path(source.file).read_bytes())
-    digest.update(json.dumps([source.scale_xyz, source.rotation_rpy, dataclasses.asdict(settings), builder], sort_keys=True).encode())
+    digest.update(json.dumps([source.scale_xyz, source.rotation_rpy, source.metres_per_unit, dataclasses.asdict(settings), builder],
+                             sort_keys=True).encode())
     return digest.hexdigest()
 
 
@@ -250,7 +179,9 @@ def _reusable_asset(objects_dir: Path, object_id: str, key: str) -> dict | None:
     return meta if meta.get("build_key") == key else None
 
 
-def _row(source: MeshSource, **values) -> dict:
+def _row(source: MeshSource, deviation=None, **values) -> dict:
+    """The catalog row; ``deviation`` (``fidelity.ShapeDeviation``, or its record from a reused asset's meta.json)
+    fills the prepared-versus-input columns."""
     row = {
         "object_id": source.object_id,
         "source": source.source,
@@ -260,9 +191,22 @@ def _row(source: MeshSource, **values) -> dict:
         "n_convex_pieces": 0,
         "status": "rejected",
         "reason": "",
+        "preparation": "",
+        "surface_deviation": float("nan"),
+        "bounds_deviation": float("nan"),
+        "volume_ratio": float("nan"),
     }
+    if deviation is not None:
+        record = deviation if isinstance(deviation, dict) else deviation.as_record()
+        row["surface_deviation"] = _number(max(v for v in (record["surface_p99_in_to_prepared"], record["surface_p99_prepared_to_in"]) if v is not None))
+        row["bounds_deviation"] = _number(record["bounds_error"])
+        row["volume_ratio"] = _number(record["volume_ratio"])
     row.update(values)
     return row
+
+
+def _number(value) -> float:
+    return float("nan") if value is None else float(value)
 
 
 def prepare_object(source: MeshSource, objects_dir: str, settings: AssetBuildSettings, builder: str = "") -> dict:
@@ -275,12 +219,11 @@ def prepare_object(source: MeshSource, objects_dir: str, settings: AssetBuildSet
         key = _build_key(source, settings, builder)
         previous = _reusable_asset(objects_dir, source.object_id, key)
         if previous is not None:
-            return _row(source, watertight=bool(previous["watertight"]), volume=float(previous["volume"]),
-                        n_convex_pieces=int(previous["n_convex_pieces"]), status="ok")
+            return _row(source, previous["deviation"], watertight=bool(previous["watertight"]), volume=float(previous["volume"]),
+                        n_convex_pieces=int(previous["n_convex_pieces"]), status="ok", preparation=previous["preparation"]["summary"])
         raw = load_source_mesh(source)
         check_shape(raw)  # before repair, which could close a few stray triangles into a "solid"
-        mesh = repair_mesh(raw)
-        check_mesh(mesh)
+        mesh, made, deviation = prepared_solid(raw, source.metres_per_unit)
         mesh, centre, factor = normalize_mesh(mesh)
         if mesh.volume < MIN_NORMALIZED_VOLUME:
             raise MeshRejected(f"degenerate: zero volume ({mesh.volume:.2e} after normalization)")
@@ -295,12 +238,15 @@ def prepare_object(source: MeshSource, objects_dir: str, settings: AssetBuildSet
             "real_radius_m": source.real_radius_m,
             "center_mass": np.asarray(mesh.center_mass).tolist(),
             "build_key": key,
+            # how the file became one solid and how far that solid is from the file's surface (fractions of its size)
+            "preparation": dataclasses.asdict(made) | {"summary": made.summary()},
+            "deviation": deviation.as_record() | {"summary": deviation.summary()},
         }
         summary = write_asset(mesh, source.object_id, objects_dir, settings, meta)
     except MeshRejected as exc:
-        return _row(source, watertight=False if str(exc).startswith("not watertight") else None, reason=str(exc))
-    return _row(source, watertight=summary["watertight"], volume=summary["volume"],
-                n_convex_pieces=summary["n_convex_pieces"], status="ok")
+        return _row(source, exc.deviation, watertight=False if str(exc).startswith("not watertight") else None, reason=str(exc))
+    return _row(source, deviation, watertight=summary["watertight"], volume=summary["volume"],
+                n_convex_pieces=summary["n_convex_pieces"], status="ok", preparation=made.summary())
 
 
 def _crashed_row(source: MeshSource, message: str) -> dict:

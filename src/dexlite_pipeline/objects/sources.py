@@ -66,6 +66,9 @@ class MeshSource:
     # The object's real radius (m: largest vertex distance from its bounding-box centre) when
     # the file's units are known to be metres (generated objects); None when unknown.
     real_radius_m: float | None = None
+    # Metres per unit of the file's coordinates when known (generated objects, `dexlite grasp --units`): sets the
+    # millimetre floor of the prepared-versus-input check; None for files of unknown units.
+    metres_per_unit: float | None = None
 
 
 def pybullet_data_dir() -> Path:
@@ -257,7 +260,8 @@ def household_sources(training_count: int, benchmark_count: int, folder, trainin
         generated = household_object(object_id)
         path = folder / f"{object_id}.obj"
         write_mesh_obj(generated.mesh, path)
-        sources.append(MeshSource(object_id, kind, str(path), always_heldout=heldout, real_radius_m=generated.real_radius_m))
+        sources.append(MeshSource(object_id, kind, str(path), always_heldout=heldout, real_radius_m=generated.real_radius_m,
+                                  metres_per_unit=1.0))
     keep = {Path(s.file).name for s in sources}
     for stale in folder.glob("household-*.obj"):
         if stale.name not in keep:
@@ -281,7 +285,7 @@ def rebuilt_source_of(object_id: str, folder) -> MeshSource:
     path.parent.mkdir(parents=True, exist_ok=True)
     write_mesh_obj(generated.mesh, path)
     kind = "household_benchmark" if object_id in household_benchmark_list() else "household"
-    return MeshSource(object_id, kind, str(path), real_radius_m=generated.real_radius_m)
+    return MeshSource(object_id, kind, str(path), real_radius_m=generated.real_radius_m, metres_per_unit=1.0)
 
 
 def collect_sources(

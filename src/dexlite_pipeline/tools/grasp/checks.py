@@ -4,6 +4,8 @@ output folder. A problem that stops the run is one ``GraspToolError``; a mesh th
 
 from __future__ import annotations
 
+import dataclasses
+
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -219,6 +221,8 @@ def check_request(request: GraspRequest) -> CheckedRequest:
     config, mapping = tool_config(request.config)
     out_dir = Path(request.out_dir)
     sources = mesh_sources(request.meshes)
+    if not request.resize_to_training:  # the file's unit is known: the prepared-versus-input check's millimetre floor
+        sources = [dataclasses.replace(s, metres_per_unit=UNIT_METRES[request.units]) for s in sources]
     problem = output_folder_problem(out_dir, request.overwrite, [s.file for s in sources])
     if problem:
         raise GraspToolError(problem)
