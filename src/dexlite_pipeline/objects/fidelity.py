@@ -168,5 +168,7 @@ def faithful_solid(raw, metres_per_unit: float | None = None, seed: int = 0):
             record.notes.append(f"the {record.route} was not the input ({problem})")
             record.route = VOLUMETRIC
             return remeshed, record, remeshed_deviation
-        log.info("the volumetric remesh was not the input either (%s)", remeshed_deviation.problem(metres_per_unit))
+        remesh_problem = remeshed_deviation.problem(metres_per_unit) if remeshed.is_watertight else "not closed"
+        raise NotTheInput(f"prepared solid is not the input: {problem} ({record.summary()}), and the volumetric remesh's "
+                          f"{remesh_problem}; nothing is grasped on another shape", remeshed_deviation)  # fmt: skip
     raise NotTheInput(f"prepared solid is not the input: {problem} ({record.summary()}); nothing is grasped on another shape", deviation)

@@ -36,6 +36,8 @@ FRAGMENT_SIZE = 0.05
 MAX_FILE_BODIES = 4096
 # The volumetric remesh's grid: this many voxels along the largest extent (0.75 mm on a 12 cm object).
 REMESH_VOXELS = 160
+# The remesh is decimated to at most this many faces (where it stays closed).
+REMESH_MAX_FACES = 20_000
 # Within this many voxels of the surface the remesh evaluates distance and winding number exactly
 # (farther, no surface lies between a node and its nearest coarse node, at most 2 sqrt(3) voxels away).
 NEAR = 3.5
@@ -406,9 +408,24 @@ def volumetric_remesh(bodies: list, closed: bool = False, voxels: int | None = N
     inside |= _enclosed(~inside, counts)
     value = np.where(inside, -np.maximum(distance, 1e-3 * voxel), np.maximum(distance, 1e-3 * voxel))
     out_vertices, out_faces, _ = igl.marching_cubes(value, points, int(counts[0]), int(counts[1]), int(counts[2]), 0.0)
-    mesh = clean_faces(trimesh.Trimesh(out_vertices, out_faces, process=True))
+    mesh = _decimated(clean_faces(trimesh.Trimesh(out_vertices, out_faces, process=True)))
     trimesh.repair.fix_normals(mesh, multibody=True)
     return mesh
+
+
+def _decimated(mesh):
+    """``mesh`` simplified to ``REMESH_MAX_FACES`` faces (quadric decimation, fast-simplification) when it has more and the
+    result is still closed; marching cubes' many small faces would slow the convex decomposition and SDF grid for
+    nothing (the fidelity check measures the result)."""
+    import fast_simplification
+    import trimesh
+
+    if len(mesh.faces) <= REMESH_MAX_FACES:
+        return mesh
+    vertices, faces = fast_simplification.simplify(np.asarray(mesh.vertices, np.float32), np.asarray(mesh.faces, np.int32),
+                                                   target_reduction=1.0 - REMESH_MAX_FACES / len(mesh.faces))  # fmt: skip
+    simple = clean_faces(trimesh.Trimesh(np.asarray(vertices, np.float64), faces, process=True))
+    return simple if simple.is_watertight and simple.is_winding_consistent else mesh
 
 
 def solid_from_mesh(raw) -> tuple[object, SolidRecord, list]:

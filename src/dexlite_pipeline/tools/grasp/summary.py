@@ -55,6 +55,14 @@ def per_object_rows(
     return rows
 
 
+def preparation_text(meta: dict) -> str:
+    """How a prepared object's solid was made from its file and how far it is from the file's surface (its meta.json)."""
+    if "deviation" not in meta:
+        return "prepared before the prepared-versus-mesh check was recorded"
+    notes = "".join(f"; {note}" for note in meta["preparation"].get("notes", []))
+    return f"{meta['preparation']['summary']}{notes}; prepared solid vs the mesh: {meta['deviation']['summary']}"
+
+
 def per_source_counts(grasps: GraspSet, config: PipelineConfig) -> dict[str, dict[str, dict[str, int]]]:
     """Object id -> source -> attempts, held and distinct held grasps among that source's grasps alone."""
     sources = np.asarray(grasps.arrays["source"], dtype=object)
@@ -206,6 +214,11 @@ def summary_markdown(
                      f"{share_text(r['six_dir'], r['grasps'])} | {share_text(r['both'], r['grasps'])} | {reasons} |")
     lines.append(f"| **all** | | | {total} | {share_text(lift, total)} | {distinct} | | | {share_text(six, total)} | {share_text(both, total)} | |")
     lines += source_lines(request, rows)
+    lines += ["", "## How each mesh was prepared", "",
+              "Each mesh becomes one closed solid, checked against the mesh's own surface (two-sided surface distance p99, "
+              "bounding box, volume where the mesh is closed, as percentages of its largest extent); a solid farther from the mesh "
+              "than the tolerance is refused, not grasped.", ""]  # fmt: skip
+    lines += [f"- {r['object_id']}: {r.get('prepared_as', '-')}" for r in rows]
     if rejected:
         lines += ["", "## Meshes not tried", ""]
         lines += [f"- `{r['file']}`: {r['reason']}" for r in rejected]
