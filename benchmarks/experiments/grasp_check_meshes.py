@@ -61,15 +61,20 @@ def per_mesh_counts(out: Path) -> dict[str, dict]:
     return rows
 
 
-def main(argv: list[str] | None = None) -> int:
+def parse_seed_runs(argv: list[str] | None, description: str) -> tuple[argparse.Namespace, list[str]]:
+    """OUT_DIR, --seeds and --threads, and the arguments after ``--`` (for every ``dexlite grasp`` call)."""
     argv = sys.argv[1:] if argv is None else argv
     extra = argv[argv.index("--") + 1:] if "--" in argv else []
     own = argv[: argv.index("--")] if "--" in argv else argv
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(description=description)
     parser.add_argument("out_dir", type=Path)
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
     parser.add_argument("--threads", type=int, default=1)
-    args = parser.parse_args(own)
+    return parser.parse_args(own), extra
+
+
+def main(argv: list[str] | None = None) -> int:
+    args, extra = parse_seed_runs(argv, __doc__.splitlines()[0])
     sys.path.insert(0, str(Path(__file__).resolve().parent))
     from make_household_meshes import write_check_meshes
 

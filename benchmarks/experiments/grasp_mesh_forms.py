@@ -12,7 +12,6 @@ seed: attempts, held, distinct held, and how the mesh was prepared (route and de
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 from pathlib import Path
@@ -31,16 +30,10 @@ def write_forms(folder: Path) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    argv = sys.argv[1:] if argv is None else argv
-    extra = argv[argv.index("--") + 1:] if "--" in argv else []
-    own = argv[: argv.index("--")] if "--" in argv else argv
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("out_dir", type=Path)
-    parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
-    parser.add_argument("--threads", type=int, default=1)
-    args = parser.parse_args(own)
     sys.path.insert(0, str(Path(__file__).resolve().parent))
-    from grasp_check_meshes import per_mesh_counts, run_grasp
+    from grasp_check_meshes import parse_seed_runs, per_mesh_counts, run_grasp
+
+    args, extra = parse_seed_runs(argv, __doc__.splitlines()[0])
 
     meshes = args.out_dir / "meshes"
     if not meshes.is_dir():

@@ -69,6 +69,9 @@ def test_grasp_writes_every_output_for_an_obj_and_an_stl(grasp_run):
     for name in renders:
         assert f"renders/{name}" in summary
     assert "| surface touched |" in summary
+    # how each mesh became its solid, with its deviation from the mesh (the cup's open bottom filled: one-sided surface)
+    assert "- user-box: single shell of 1 body; prepared solid vs the mesh: surface p99 0.00% / 0.00%, box 0.00%, volume 100.0%" in summary
+    assert "- user-cup: " in summary and "prepared solid vs the mesh: surface p99 " in summary
     for object_id in ("user-box", "user-cup"):  # a percentage where the object has held grasps, 0% where none held
         row = next(line for line in summary.splitlines() if line.startswith(f"| {object_id} |"))
         deepest, touched = row.split("|")[7].strip(), row.split("|")[8].strip()
