@@ -60,39 +60,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     import os
 
+    from dexlite_pipeline.api import SHIPPED, grasp_request
     from dexlite_pipeline.config import parse_config_json
-    from dexlite_pipeline.model.shipped import SHIPPED_MODEL_PATH, shipped_evaluator_path, shipped_model_path
-    from dexlite_pipeline.tools.grasp import DEFAULT_MIN_DISTINCT, DEFAULT_TOP_UP_BATCHES, GraspRequest, GraspToolError, run_grasp_tool
+    from dexlite_pipeline.tools.grasp import GraspToolError, run_grasp_tool
 
-    if args.from_scratch and args.model:
-        raise GraspToolError("--model and --from-scratch exclude each other (a model samples grasps; --from-scratch optimizes without one)")
-    if args.from_scratch and args.min_distinct is not None:
-        raise GraspToolError("--min-distinct and --from-scratch exclude each other (--min-distinct tops up a model's grasps "
-                             "with optimization from scratch; --from-scratch uses optimization only)")  # fmt: skip
-    if args.from_scratch and args.top_up_batches is not None:
-        raise GraspToolError("--top-up-batches and --from-scratch exclude each other (the top-up adds optimization from scratch to a "
-                             "model's grasps; --from-scratch uses optimization only)")  # fmt: skip
-    if args.resize_to_training and args.units:
-        raise GraspToolError("--units and --resize-to-training exclude each other (resized objects take the training radii whatever their unit)")
     if args.evaluator and args.no_evaluator:
         raise GraspToolError("--evaluator and --no-evaluator exclude each other")
-    if args.from_scratch and args.evaluator:
-        raise GraspToolError("--evaluator and --from-scratch exclude each other (the evaluator ranks a model's samples)")
-    model, evaluator = None, None
-    if not args.from_scratch:
-        model = args.model or (str(shipped_model_path()) if shipped_model_path() else None)
-        if model is None:
-            raise GraspToolError(f"no shipped model at {SHIPPED_MODEL_PATH} (the package was installed without its data): "
-                                 "pass --model FILE or --from-scratch")  # fmt: skip
-        shipped_evaluator = shipped_evaluator_path() if not args.model else None  # the shipped model's own evaluator
-        evaluator = None if args.no_evaluator else args.evaluator or (str(shipped_evaluator) if shipped_evaluator else None)
-    request = GraspRequest(
-        meshes=args.meshes, out_dir=args.out, grasps_per_object=args.n, units=args.units or "m",
+    request = grasp_request(
+        args.meshes, args.out, args.n, args.units, model=args.model or SHIPPED, evaluator=None if args.no_evaluator else args.evaluator or SHIPPED,
+        from_scratch=args.from_scratch, min_distinct=args.min_distinct, top_up_batches=args.top_up_batches,
         resize_to_training=args.resize_to_training, distinct=args.distinct, overwrite=args.overwrite, device=args.device,
-        model=model, evaluator=evaluator, min_distinct=DEFAULT_MIN_DISTINCT if args.min_distinct is None else args.min_distinct,
-        top_up_batches=DEFAULT_TOP_UP_BATCHES if args.top_up_batches is None else args.top_up_batches,
-        config=parse_config_json(args.config_json), threads=args.threads or os.cpu_count() or 1,
-        renders_per_object=args.renders, upright_axis=args.upright_axis,
+        config=parse_config_json(args.config_json), threads=args.threads or os.cpu_count() or 1, renders=args.renders,
+        upright_axis=args.upright_axis,
     )  # fmt: skip
     outcome = run_grasp_tool(request)
     print(f"{outcome.held}/{outcome.total} grasps held the object in the lift test, {outcome.distinct} distinct "

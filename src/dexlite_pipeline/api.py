@@ -1,0 +1,203 @@
+"""Grasps for meshes from Python: ``dexlite_pipeline.grasp(meshes, ...)``, what ``dexlite grasp`` does, as a function.
+
+```python
+import dexlite_pipeline
+
+result = dexlite_pipeline.grasp(["mug.obj"], n=32, units="m", seed=0)
+for mesh in result.meshes.values():
+    print(mesh.name, mesh.held, "held of", mesh.attempts, "tried;", len(mesh.hand_pose), "distinct kept")
+    palm = mesh.palm_in_mesh[0]          # 4 x 4: the first grasp's palm pose in the mesh file's frame and units
+    joints = dict(zip(mesh.joint_names, mesh.hand_pose[0, 6:]))  # radians, by name
+```
+
+``meshes`` are mesh file paths (.obj/.stl, or folders of them) or in-memory ``trimesh.Trimesh``
+objects (a dict gives them names). The run is ``dexlite grasp``'s (``tools.grasp.run_grasp_tool``:
+the same checks, preparation, synthesis, tests and selection, so the same grasps for the same
+seed); its files go to ``out_dir`` when one is given, else to a temporary folder that is removed
+once the result is read. Input the tool cannot use raises ``GraspToolError`` with one line naming
+the problem.
+"""
+
+from __future__ import annotations
+
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from dexlite_pipeline.tools.grasp.request import (
+    DEFAULT_GRASPS_PER_OBJECT, DEFAULT_MIN_DISTINCT, DEFAULT_TOP_UP_BATCHES, GraspRequest, GraspToolError,
+)  # fmt: skip
+
+SHIPPED = "shipped"  # the model (and its evaluator) that ship with the package
+
+
+@dataclass
+class MeshGrasps:
+    """One mesh's grasps: the kept held grasps (one per distinct grasp unless ``distinct=False``) and why the others failed.
+
+    Poses are DexGraspNet's 28 numbers in the object frame (metres; README, "Grasp store layout");
+    ``palm_in_mesh`` gives the same palm poses as 4 x 4 matrices in the mesh file's own frame and units.
+    """
+
+    name: str  # the object id (user-<file stem>)
+    file: str
+    joint_names: tuple[str, ...]  # the 22 joints of hand_pose[:, 6:], in order
+    hand_pose: np.ndarray  # (K, 28) float32
+    palm_in_mesh: np.ndarray  # (K, 4, 4) float64
+    lift_success: np.ndarray  # (K,) bool
+    six_dir_success: np.ndarray  # (K,) bool: held against pushes from all six directions
+    start_depth_mm: np.ndarray  # (K,) how far the hand starts inside the object
+    distinct_label: np.ndarray  # (K,) int: grasps with one label are near-duplicates
+    source: np.ndarray  # (K,) "model" or "optimization"
+    attempts: int  # grasps tried on this mesh
+    held: int  # of those, held in the lift test (distinct or not)
+    failures: dict[str, int] = field(default_factory=dict)  # why the others failed: reason -> count
+    preparation: dict = field(default_factory=dict)  # how the file became one solid, and its deviation from the file
+
+
+@dataclass
+class GraspResult:
+    """Every mesh's grasps, the meshes not tried (with the reason) and the run's wall time."""
+
+    meshes: dict[str, MeshGrasps]
+    rejected: list[dict]
+    seconds: float
+    out_dir: Path | None  # where the files are (None: not kept)
+
+
+def grasp_request(
+    meshes: list[str], out_dir: str, n: int = DEFAULT_GRASPS_PER_OBJECT, units: str | None = None, *, model: str | None = SHIPPED,
+    evaluator: str | None = SHIPPED, from_scratch: bool = False, min_distinct: int | None = None, top_up_batches: int | None = None,
+    resize_to_training: bool = False, distinct: bool = True, overwrite: bool = False, device: str | None = None,
+    config: dict | None = None, threads: int = 1, renders: int = 0, upright_axis: str | None = None,
+) -> GraspRequest:
+    """The ``GraspRequest`` for these options, refusing contradictory ones (``GraspToolError``).
+
+    ``model``: a cvae.pt, or ``SHIPPED`` (also None); ``evaluator``: an evaluator.pt, ``SHIPPED`` (the shipped model's own
+    evaluator, none for another model) or None (the model's first samples, unranked).
+    """
+    from dexlite_pipeline.model.shipped import SHIPPED_MODEL_PATH, shipped_evaluator_path, shipped_model_path
+
+    if from_scratch and model not in (None, SHIPPED):
+        raise GraspToolError("--model and --from-scratch exclude each other (a model samples grasps; --from-scratch optimizes without one)")
+    if from_scratch and min_distinct is not None:
+        raise GraspToolError("--min-distinct and --from-scratch exclude each other (--min-distinct tops up a model's grasps "
+                             "with optimization from scratch; --from-scratch uses optimization only)")  # fmt: skip
+    if from_scratch and top_up_batches is not None:
+        raise GraspToolError("--top-up-batches and --from-scratch exclude each other (the top-up adds optimization from scratch to a "
+                             "model's grasps; --from-scratch uses optimization only)")  # fmt: skip
+    if resize_to_training and units:
+        raise GraspToolError("--units and --resize-to-training exclude each other (resized objects take the training radii whatever their unit)")
+    if from_scratch and evaluator not in (None, SHIPPED):
+        raise GraspToolError("--evaluator and --from-scratch exclude each other (the evaluator ranks a model's samples)")
+    model_file, evaluator_file = None, None
+    if not from_scratch:
+        model_file = model
+        if model in (None, SHIPPED):
+            if shipped_model_path() is None:
+                raise GraspToolError(f"no shipped model at {SHIPPED_MODEL_PATH} (the package was installed without its data): "
+                                     "pass --model FILE or --from-scratch")  # fmt: skip
+            model_file = str(shipped_model_path())
+        if evaluator == SHIPPED:  # the shipped model's own evaluator; another model has none by default
+            shipped = shipped_evaluator_path() if model in (None, SHIPPED) else None
+            evaluator_file = str(shipped) if shipped else None
+        else:
+            evaluator_file = evaluator
+    return GraspRequest(
+        meshes=[str(m) for m in meshes], out_dir=str(out_dir), grasps_per_object=n, units=units or "m", resize_to_training=resize_to_training,
+        distinct=distinct, overwrite=overwrite, device=device, model=model_file, evaluator=evaluator_file,
+        min_distinct=DEFAULT_MIN_DISTINCT if min_distinct is None else min_distinct,
+        top_up_batches=DEFAULT_TOP_UP_BATCHES if top_up_batches is None else top_up_batches,
+        config=dict(config or {}), threads=threads, renders_per_object=renders, upright_axis=upright_axis,
+    )  # fmt: skip
+
+
+def _mesh_files(meshes, folder: Path) -> list[str]:
+    """Paths for ``meshes``: paths as given; in-memory meshes written to ``folder`` as .obj (named by the dict's keys)."""
+    import trimesh
+
+    items = list(meshes.items()) if isinstance(meshes, dict) else [(None, m) for m in ([meshes] if isinstance(meshes, (str, Path, trimesh.Trimesh)) else meshes)]
+    files = []
+    for k, (name, mesh) in enumerate(items):
+        if isinstance(mesh, trimesh.Trimesh):
+            path = folder / f"{name or f'mesh_{k}'}.obj"
+            if path.exists():
+                raise GraspToolError(f"two in-memory meshes named {path.stem!r}")
+            folder.mkdir(parents=True, exist_ok=True)
+            mesh.export(path)
+            files.append(str(path))
+        elif isinstance(mesh, (str, Path)):
+            files.append(str(mesh))
+        else:
+            raise GraspToolError(f"mesh {name or k}: expected a file path or a trimesh.Trimesh, got {type(mesh).__name__}")
+    if not files:
+        raise GraspToolError("no meshes given")
+    return files
+
+
+def palm_matrices_in_mesh_frame(hand_pose: np.ndarray, scale: np.ndarray, meta: dict) -> np.ndarray:
+    """(K, 4, 4) palm poses in the mesh file's frame and units: the rotation is the object frame's (same axes), the
+    position p / scale / normalization_factor + normalization_centre (README, "Grasp store layout")."""
+    from scipy.spatial.transform import Rotation
+
+    matrices = np.tile(np.eye(4), (len(hand_pose), 1, 1))
+    if len(hand_pose):
+        matrices[:, :3, :3] = Rotation.from_euler("xyz", np.asarray(hand_pose[:, 3:6], np.float64)).as_matrix()
+        position = np.asarray(hand_pose[:, :3], np.float64) / np.asarray(scale, np.float64)[:, None] / meta["normalization_factor"]
+        matrices[:, :3, 3] = position + np.asarray(meta["normalization_centre"])
+    return matrices
+
+
+def read_result(out_dir: Path, seconds: float, rejected: list[dict], keep: bool) -> GraspResult:
+    """The result of a finished run from its output folder (``grasps.zarr``, ``all_grasps.zarr``, the objects' meta.json)."""
+    import json
+
+    from dexlite_pipeline.hand import JOINT_NAMES
+    from dexlite_pipeline.io.grasp_store import read_grasp_store
+    from dexlite_pipeline.tools.grasp.summary import failure_counts
+
+    every = read_grasp_store(out_dir / "all_grasps.zarr")
+    kept = read_grasp_store(out_dir / "grasps.zarr") if (out_dir / "grasps.zarr").exists() else None
+    held_all = np.asarray(every.arrays["lift_success"], bool)
+    meshes = {}
+    for object_id in sorted(set(every.object_id.tolist())):
+        meta = json.loads((out_dir / "objects" / "assets" / object_id / "meta.json").read_text())
+        mine = every.object_id == object_id
+        rows = kept.object_id == object_id if kept is not None else np.zeros(0, bool)
+        pose = np.asarray(kept.hand_pose[rows]) if kept is not None else np.zeros((0, 28), np.float32)
+        scale = np.asarray(kept.scale[rows]) if kept is not None else np.zeros(0, np.float32)
+
+        def column(name, dtype):
+            return np.asarray(kept.arrays[name], dtype)[rows] if kept is not None else np.zeros(0, dtype)
+
+        meshes[object_id] = MeshGrasps(
+            name=object_id, file=meta["file"], joint_names=tuple(JOINT_NAMES), hand_pose=pose,
+            palm_in_mesh=palm_matrices_in_mesh_frame(pose, scale, meta), lift_success=column("lift_success", bool),
+            six_dir_success=column("six_dir_success", bool), start_depth_mm=column("initial_penetration_mm", np.float64),
+            distinct_label=column("distinct_label", np.int64), source=column("source", object),
+            attempts=int(mine.sum()), held=int(held_all[mine].sum()),
+            failures=failure_counts(np.asarray(every.arrays["failure_reason"], dtype=object)[mine & ~held_all]),
+            preparation={"route": meta.get("preparation", {}), "deviation": meta.get("deviation", {})},
+        )  # fmt: skip
+    return GraspResult(meshes, rejected, seconds, out_dir if keep else None)
+
+
+def grasp(meshes, n: int = DEFAULT_GRASPS_PER_OBJECT, units: str | None = None, *, seed: int = 0, out_dir: str | Path | None = None,
+          **options) -> GraspResult:
+    """Grasps that hold for ``meshes`` (paths, folders, ``trimesh.Trimesh`` objects or a dict of them by name), ``n`` per mesh.
+
+    ``units``: the meshes' length unit (m, cm, mm; default m). ``seed``: the run's seed (the config's). ``out_dir``:
+    keep ``dexlite grasp``'s files there (summary.md, grasps.zarr, view.html ...); default: none kept. ``options``:
+    those of ``grasp_request`` (model, evaluator, from_scratch, min_distinct, top_up_batches, device, config,
+    threads, renders, upright_axis, distinct, overwrite, resize_to_training).
+    """
+    from dexlite_pipeline.tools.grasp.run import run_grasp_tool
+
+    config = {**options.pop("config", {}), "seed": seed}
+    with tempfile.TemporaryDirectory(prefix="dexlite-grasp-") as scratch:
+        files = _mesh_files(meshes, Path(scratch) / "meshes")
+        target = Path(out_dir) if out_dir is not None else Path(scratch) / "out"
+        outcome = run_grasp_tool(grasp_request(files, str(target), n, units, config=config, **options))
+        return read_result(target, outcome.seconds, outcome.rejected, keep=out_dir is not None)
