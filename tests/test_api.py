@@ -75,11 +75,17 @@ def test_contradictory_options_are_refused_before_any_work(tmp_path):
 
 
 @pytest.mark.slow
-def test_the_readme_python_example_runs(capsys):
-    """The README's example, as written: the shipped model on an in-memory can."""
+def test_the_readme_python_example_runs_and_gives_the_commands_grasps(tmp_path, capsys):
+    """The README's example, as written (the shipped model on an in-memory can), then ``dexlite grasp`` on the same can
+    with the same seed: the same grasps."""
     text = README.read_text()
     section = text[text.index("## From Python"):text.index("## Install and test")]
     code = re.search(r"```python\n(.*?)```", section, re.S).group(1)
-    exec(compile(code, "README.md", "exec"), {})
+    namespace = {}
+    exec(compile(code, "README.md", "exec"), namespace)
     printed = capsys.readouterr().out
     assert re.search(r"\d+ of 8 held; \d+ distinct kept; failures:", printed), printed
+    namespace["can"].export(tmp_path / "can.obj")
+    main(["grasp", str(tmp_path / "can.obj"), "--out", str(tmp_path / "out"), "--n", "8", "--renders", "0", "--threads", "1",
+          "--config-json", json.dumps({"seed": 0})])  # fmt: skip
+    np.testing.assert_array_equal(read_grasp_store(tmp_path / "out" / "grasps.zarr").hand_pose, namespace["grasps"].hand_pose)

@@ -188,16 +188,26 @@ def grasp(meshes, n: int = DEFAULT_GRASPS_PER_OBJECT, units: str | None = None, 
           **options) -> GraspResult:
     """Grasps that hold for ``meshes`` (paths, folders, ``trimesh.Trimesh`` objects or a dict of them by name), ``n`` per mesh.
 
-    ``units``: the meshes' length unit (m, cm, mm; default m). ``seed``: the run's seed (the config's). ``out_dir``:
+    ``units``: the meshes' length unit (m, cm, mm; default m). ``seed``: the run's seed (the config's). ``threads``
+    (default 1): torch's threads during the run, as ``dexlite grasp --threads``. ``out_dir``:
     keep ``dexlite grasp``'s files there (summary.md, grasps.zarr, view.html ...); default: none kept. ``options``:
     those of ``grasp_request`` (model, evaluator, from_scratch, min_distinct, top_up_batches, device, config,
     threads, renders, upright_axis, distinct, overwrite, resize_to_training).
     """
+    import torch
+
+    from dexlite_pipeline.device import set_threads
     from dexlite_pipeline.tools.grasp.run import run_grasp_tool
 
     config = {**options.pop("config", {}), "seed": seed}
-    with tempfile.TemporaryDirectory(prefix="dexlite-grasp-") as scratch:
-        files = _mesh_files(meshes, Path(scratch) / "meshes")
-        target = Path(out_dir) if out_dir is not None else Path(scratch) / "out"
-        outcome = run_grasp_tool(grasp_request(files, str(target), n, units, config=config, **options))
-        return read_result(target, outcome.seconds, outcome.rejected, keep=out_dir is not None)
+    threads = options.pop("threads", 1)
+    before = torch.get_num_threads()
+    set_threads(threads)  # torch runs on ``threads`` threads as the command does (sums in the same order: the same grasps)
+    try:
+        with tempfile.TemporaryDirectory(prefix="dexlite-grasp-") as scratch:
+            files = _mesh_files(meshes, Path(scratch) / "meshes")
+            target = Path(out_dir) if out_dir is not None else Path(scratch) / "out"
+            outcome = run_grasp_tool(grasp_request(files, str(target), n, units, config=config, threads=threads, **options))
+            return read_result(target, outcome.seconds, outcome.rejected, keep=out_dir is not None)
+    finally:
+        torch.set_num_threads(before)
