@@ -80,9 +80,9 @@ def test_a_union_that_keeps_walls_inside_is_not_the_input():
 
 def test_a_shape_that_no_route_makes_faithfully_is_refused_with_what_changed(monkeypatch):
     """With the remesh made useless (a grid of 4 cells), a can of touching pieces cannot be prepared: refused, not changed."""
-    from dexlite_pipeline.objects import solidify
+    from dexlite_pipeline.objects import remesh, solidify
 
-    monkeypatch.setattr(solidify, "REMESH_VOXELS", 4)
+    monkeypatch.setattr(remesh, "REMESH_VOXELS", 4)
     monkeypatch.setattr(solidify, "union_of_closed_bodies", lambda bodies: trimesh.util.concatenate(bodies))
     given, _ = mesh_forms.can_as_convex_pieces()
     with pytest.raises(NotTheInput, match="prepared solid is not the input: .*32 bodies.*the volumetric remesh") as caught:

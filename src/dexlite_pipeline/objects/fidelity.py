@@ -25,7 +25,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from dexlite_pipeline.objects.solidify import winding_numbers
+from dexlite_pipeline.objects.remesh import winding_numbers
 
 log = logging.getLogger(__name__)
 # Tolerances (fractions of the input's largest extent). Chosen on the awkward-mesh corpus
@@ -153,7 +153,8 @@ def faithful_solid(raw, metres_per_unit: float | None = None, seed: int = 0):
     inside, a hole filling that lost part of a scan), the volumetric remesh. Raises ``NotTheInput``
     when neither is within tolerance and ``solidify.SeveralObjects`` for a file holding several objects.
     """
-    from dexlite_pipeline.objects.solidify import VOLUMETRIC, consistently_wound, solid_from_mesh, volumetric_remesh
+    from dexlite_pipeline.objects.remesh import volumetric_remesh
+    from dexlite_pipeline.objects.solidify import VOLUMETRIC, consistently_wound, solid_from_mesh
 
     solid, record, kept = solid_from_mesh(raw)
     deviation = shape_deviation(kept, solid, record.input_is_closed, seed)
