@@ -1,4 +1,4 @@
-"""``dexlite_pipeline.grasp``: the same grasps as ``dexlite grasp`` for the same seed, in-memory meshes, one clear error."""
+"""``dexlite_pipeline.api.grasp``: the same grasps as ``dexlite grasp`` for the same seed, in-memory meshes, one clear error."""
 
 from __future__ import annotations
 
@@ -10,8 +10,7 @@ import numpy as np
 import pytest
 import trimesh
 
-import dexlite_pipeline
-from dexlite_pipeline.api import GraspToolError, palm_matrices_in_mesh_frame
+from dexlite_pipeline.api import GraspToolError, grasp, palm_matrices_in_mesh_frame
 from dexlite_pipeline.cli import main
 from dexlite_pipeline.io.grasp_store import read_grasp_store
 
@@ -32,7 +31,7 @@ def test_the_api_gives_the_grasps_of_the_command_for_the_same_seed(tmp_path):
     main(["grasp", str(tmp_path / "box.obj"), "--out", str(command_out), "--n", "4", "--renders", "0", "--threads", "1",
           "--from-scratch", "--no-distinct", "--config-json", json.dumps({**TINY, "seed": 3})])  # fmt: skip
     by_command = read_grasp_store(command_out / "all_grasps.zarr")
-    result = dexlite_pipeline.grasp([tmp_path / "box.obj"], n=4, seed=3, from_scratch=True, distinct=False, config=TINY, threads=1)
+    result = grasp([tmp_path / "box.obj"], n=4, seed=3, from_scratch=True, distinct=False, config=TINY, threads=1)
     grasps = result.meshes["user-box"]
     assert result.out_dir is None and grasps.attempts == 4
     held = np.asarray(by_command.arrays["lift_success"], bool)
@@ -40,7 +39,7 @@ def test_the_api_gives_the_grasps_of_the_command_for_the_same_seed(tmp_path):
     kept = read_grasp_store(command_out / "grasps.zarr") if (command_out / "grasps.zarr").exists() else None
     np.testing.assert_array_equal(grasps.hand_pose, kept.hand_pose if kept is not None else np.zeros((0, 28), np.float32))
     # the same run in memory: the same grasps again
-    in_memory = dexlite_pipeline.grasp({"box": box}, n=4, seed=3, from_scratch=True, distinct=False, config=TINY, threads=1)
+    in_memory = grasp({"box": box}, n=4, seed=3, from_scratch=True, distinct=False, config=TINY, threads=1)
     np.testing.assert_array_equal(in_memory.meshes["user-box"].hand_pose, grasps.hand_pose)
     assert grasps.failures == {k: v for k, v in grasps.failures.items() if v > 0} and sum(grasps.failures.values()) == 4 - grasps.held
     assert grasps.preparation["route"]["summary"].startswith("single shell")
@@ -65,13 +64,13 @@ def test_palm_matrices_are_in_the_mesh_files_frame_and_units():
 ])  # fmt: skip
 def test_bad_input_raises_one_error_naming_the_problem(tmp_path, meshes, message):
     with pytest.raises(GraspToolError, match=message) as caught:
-        dexlite_pipeline.grasp(meshes, n=1, from_scratch=True)
+        grasp(meshes, n=1, from_scratch=True)
     assert "\n" not in str(caught.value)
 
 
 def test_contradictory_options_are_refused_before_any_work(tmp_path):
     with pytest.raises(GraspToolError, match="--model and --from-scratch exclude each other"):
-        dexlite_pipeline.grasp([tmp_path / "x.obj"], from_scratch=True, model="other.pt")
+        grasp([tmp_path / "x.obj"], from_scratch=True, model="other.pt")
 
 
 @pytest.mark.slow

@@ -39,6 +39,7 @@ LAYERS = (
     ("settings", ("settings", "config_files")),  # the typed config tree over every component's config module; the files written from it
     ("report", ("report",)),
     ("stages and tools", ("stages", "tools")),
+    ("api", ("api",)),  # dexlite_pipeline.api.grasp: the grasp tool as a function
     ("commands", ("commands",)),
     ("cli", ("cli",)),
 )

@@ -1,9 +1,9 @@
-"""Grasps for meshes from Python: ``dexlite_pipeline.grasp(meshes, ...)``, what ``dexlite grasp`` does, as a function.
+"""Grasps for meshes from Python: ``dexlite_pipeline.api.grasp(meshes, ...)``, what ``dexlite grasp`` does, as a function.
 
 ```python
-import dexlite_pipeline
+from dexlite_pipeline.api import grasp
 
-result = dexlite_pipeline.grasp(["mug.obj"], n=32, units="m", seed=0)
+result = grasp(["mug.obj"], n=32, units="m", seed=0)
 for mesh in result.meshes.values():
     print(mesh.name, mesh.held, "held of", mesh.attempts, "tried;", len(mesh.hand_pose), "distinct kept")
     palm = mesh.palm_in_mesh[0]          # 4 x 4: the first grasp's palm pose in the mesh file's frame and units
