@@ -221,6 +221,12 @@ def _catalog_row(object_id: str, mesh_path: Path, split: str, status: str, reaso
         "n_convex_pieces": int(summary.get("n_convex_pieces", 0)),
         "status": status,
         "reason": reason,
+        # DexGraspNet's mesh and convex pieces are taken as they come (already normalized, grasps made on them):
+        # no solid is made and nothing is compared (objects.fidelity)
+        "preparation": "imported as given (DexGraspNet's mesh and convex pieces)" if status == "ok" else "",
+        "surface_deviation": float("nan"),
+        "bounds_deviation": float("nan"),
+        "volume_ratio": float("nan"),
         "split": split,
     }
 
