@@ -1,0 +1,158 @@
+"""`dexlite grasp` on the household split as generated and turned about the vertical: how much the results depend on yaw.
+
+    python benchmarks/experiments/yaw_sensitivity.py OUT_DIR [--seeds 0 1 2] [--yaws-per-object 1] [--n 16] [--limit K]
+        [--threads 1] [-- EXTRA dexlite grasp ARGS]
+
+The objects are the household split's (``objects/household_split.yaml``: three of each family, never trained on;
+``--limit K``: the first K), generated in metres standing on z = 0 with z up. Per seed, each is written as OBJ into
+``OUT_DIR/seed_<s>/generated/`` as generated and into ``OUT_DIR/seed_<s>/turned/`` turned about the vertical through
+its bounding-box centre by a yaw drawn uniformly from [0, 2π) by ``default_rng([seed, crc32(object id)])``
+(``--yaws-per-object K``: K turned copies ``<id>_yaw<k>.obj``); the yaws go to ``OUT_DIR/seed_<s>/yaws.csv``. Then one
+``dexlite grasp`` call per folder with the shipped model: ``--n`` samples per object ranked by its evaluator,
+post-optimized and lift-tested on a table, no optimization top-up (``--min-distinct 0``), and ``--upright-axis +z``
+so that a turned copy rests in the same pose as the generated mesh and only its heading differs. Arguments after
+``--`` go to both calls.
+
+Writes attempts, held and distinct held grasps per object, form and seed to ``OUT_DIR/yaw_objects.csv``; prints, and
+writes to ``OUT_DIR/yaw_sensitivity.md``, per family and for all objects, per seed and seeds pooled: held per attempt
+(with a Wilson 95% interval on the pooled rows) and mean distinct held grasps per object (per turned copy), as
+generated and turned, and each call's CPU-seconds. A turned mesh also gives the model other inputs, so its samples
+differ even at the same seed: read a difference against the Wilson intervals and the spread between seeds.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import sys
+import zlib
+from pathlib import Path
+
+import numpy as np
+
+FORMS = ("generated", "turned")
+
+
+def yaws_of(object_id: str, seed: int, count: int) -> np.ndarray:
+    """The object's ``count`` seeded yaws (radians, uniform in [0, 2π))."""
+    return np.random.default_rng([seed, zlib.crc32(object_id.encode())]).uniform(0.0, 2 * np.pi, count)
+
+
+def turned_about_vertical(mesh, yaw: float):
+    """A copy of ``mesh`` turned by ``yaw`` about the z axis through its bounding-box centre."""
+    import trimesh
+
+    turned = mesh.copy()
+    turned.apply_transform(trimesh.transformations.rotation_matrix(yaw, [0.0, 0.0, 1.0], point=mesh.bounds.mean(axis=0)))
+    return turned
+
+
+def write_meshes(seed_dir: Path, meshes: dict, seed: int, yaws_per_object: int) -> dict[str, dict[str, tuple[str, float]]]:
+    """Writes ``generated/`` and ``turned/`` and ``yaws.csv``; returns form -> file stem -> (object id, yaw)."""
+    copies: dict[str, dict[str, tuple[str, float]]] = {form: {} for form in FORMS}
+    for form in FORMS:
+        (seed_dir / form).mkdir(parents=True, exist_ok=True)
+    for object_id, mesh in meshes.items():
+        mesh.export(seed_dir / "generated" / f"{object_id}.obj")
+        copies["generated"][object_id] = (object_id, 0.0)
+        for k, yaw in enumerate(yaws_of(object_id, seed, yaws_per_object)):
+            turned_about_vertical(mesh, yaw).export(seed_dir / "turned" / f"{object_id}_yaw{k}.obj")
+            copies["turned"][f"{object_id}_yaw{k}"] = (object_id, float(yaw))
+    with open(seed_dir / "yaws.csv", "w", newline="") as file:
+        writer = csv.writer(file)
+        writer.writerow(["object_id", "file", "yaw_rad", "yaw_deg"])
+        for stem, (object_id, yaw) in copies["turned"].items():
+            writer.writerow([object_id, f"turned/{stem}.obj", f"{yaw:.6f}", f"{np.degrees(yaw):.2f}"])
+    return copies
+
+
+def held_cell(held: int, attempts: int, with_interval: bool) -> str:
+    from dexlite_pipeline.evaluation.rates import wilson_interval
+
+    if not attempts:
+        return "-"
+    text = f"{held}/{attempts} = {100 * held / attempts:.1f}%"
+    if with_interval:
+        low, high = wilson_interval(np.arange(attempts) < held)
+        text += f" ({100 * low:.1f}–{100 * high:.1f}%)"
+    return text
+
+
+def family_table(rows: list[dict], with_interval: bool) -> list[str]:
+    """Per family and for all objects: held per attempt and mean distinct held per object, generated against turned."""
+    from dexlite_pipeline.objects.household import FAMILIES
+
+    lines = ["| family | objects | generated: held / attempts | generated: distinct / object | turned: held / attempts | turned: distinct / object |",
+             "| --- | ---: | ---: | ---: | ---: | ---: |"]  # fmt: skip
+    groups = [(family, [r for r in rows if r["family"] == family]) for family in FAMILIES] + [("**all objects**", rows)]
+    for name, group in groups:
+        if not group:
+            continue
+        cells = []
+        for form in FORMS:
+            mine = [r for r in group if r["form"] == form]
+            cells += [held_cell(sum(r["held"] for r in mine), sum(r["attempts"] for r in mine), with_interval),
+                      f"{np.mean([r['distinct'] for r in mine]):.2f}"]  # fmt: skip
+        lines.append(f"| {name} | {len({r['object_id'] for r in group})} | " + " | ".join(cells) + " |")
+    return lines
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
+    extra = argv[argv.index("--") + 1:] if "--" in argv else []
+    own = argv[: argv.index("--")] if "--" in argv else argv
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("out_dir", type=Path)
+    parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
+    parser.add_argument("--yaws-per-object", type=int, default=1)
+    parser.add_argument("--n", type=int, default=16)
+    parser.add_argument("--limit", type=int, default=None, help="the first K objects of the household split (default: all)")
+    parser.add_argument("--threads", type=int, default=1)
+    args = parser.parse_args(own)
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from grasp_check_meshes import per_mesh_counts, run_grasp
+
+    from dexlite_pipeline.objects.household import household_object, parse_household_id
+    from dexlite_pipeline.objects.sources import household_benchmark_list
+
+    meshes = {object_id: household_object(object_id).mesh for object_id in household_benchmark_list()[: args.limit]}
+    grasp_args = ["--n", str(args.n), "--min-distinct", "0", "--upright-axis", "+z", *extra]
+    report = ["# `dexlite grasp` on the household split, as generated and turned about the vertical", "",
+              f"Command: `{' '.join(['python', *sys.argv])}`", "",
+              f"{len(meshes)} objects, {args.n} grasps each, {args.yaws_per_object} turned cop"
+              f"{'y' if args.yaws_per_object == 1 else 'ies'} per object and seed; `dexlite grasp` arguments: "
+              f"`{' '.join(grasp_args)}`.", ""]  # fmt: skip
+    rows = []
+    for seed in args.seeds:
+        seed_dir = args.out_dir / f"seed_{seed}"
+        copies = write_meshes(seed_dir, meshes, seed, args.yaws_per_object)
+        seed_rows, costs = [], []
+        for form in FORMS:
+            out = seed_dir / f"grasp_{form}"
+            cpu, wall = run_grasp(str(seed_dir / form), out, seed, args.threads, grasp_args, None)
+            costs.append(f"{form} {cpu:.0f} CPU-s ({wall:.0f} s wall)")
+            counts = per_mesh_counts(out)
+            for stem, (object_id, yaw) in copies[form].items():
+                count = counts.get(f"user-{stem}", {"attempts": 0, "held": 0, "distinct": 0})
+                seed_rows.append({"seed": seed, "object_id": object_id, "family": parse_household_id(object_id)[0], "form": form,
+                                  "yaw_deg": round(float(np.degrees(yaw)), 2), "attempts": count["attempts"], "held": count["held"],
+                                  "distinct": count["distinct"]})  # fmt: skip
+        rows += seed_rows
+        missing = sorted({f"{r['object_id']} ({r['form']})" for r in seed_rows if not r["attempts"]})
+        section = [f"## Seed {seed}", "", f"`dexlite grasp` calls: {', '.join(costs)}.", "",
+                   *([f"No grasps recorded (counted as 0 of 0): {', '.join(missing)}.", ""] if missing else []),
+                   *family_table(seed_rows, False), ""]  # fmt: skip
+        print("\n".join(section), flush=True)
+        report += section
+    pooled = [f"## Seeds {', '.join(map(str, args.seeds))} pooled (Wilson 95% intervals)", "", *family_table(rows, True), ""]
+    print("\n".join(pooled))
+    (args.out_dir / "yaw_sensitivity.md").write_text("\n".join(report + pooled))
+    with open(args.out_dir / "yaw_objects.csv", "w", newline="") as file:
+        writer = csv.DictWriter(file, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
