@@ -6,13 +6,12 @@ it. It skips only where Chromium is absent and cannot be installed (not root, or
 ``bash install.sh --test`` installs it as root.
 """
 
-import os
 import re
-import shutil
 import subprocess
 
 import numpy as np
 import pytest
+from headless_chromium import offline_command
 from image_colours import colour_fraction
 from report_synthetic import OBJECT_ID, grasp_poses
 
@@ -29,30 +28,12 @@ from dexlite_pipeline.report.grasp_view import (
 )
 from dexlite_pipeline.report.render import HAND_RGB, OBJECT_RGB, hand_visual
 
-BROWSERS = ("chromium", "chromium-browser", "google-chrome")
-
-
-
-
-def _browser() -> str:
-    found = next((path for name in BROWSERS if (path := shutil.which(name))), None)
-    if found:
-        return found
-    if os.geteuid() == 0 and shutil.which("apt-get"):
-        pytest.fail("chromium is not installed though it can be (root, apt-get): run `bash install.sh --test`")
-    pytest.skip("chromium is not installed and cannot be installed here (not root or no apt-get)")
-
 
 def _screenshot(html_path, png_path, user_dir, size=(900, 700)) -> np.ndarray:
     """Headless Chromium's screenshot of ``html_path`` with no network (every request goes to a closed port)."""
     import matplotlib.image
 
-    command = [
-        _browser(), "--headless", "--no-sandbox", "--disable-gpu", "--enable-unsafe-swiftshader",
-        "--disable-background-networking", "--disable-component-update", "--disable-sync", "--no-first-run",
-        "--proxy-server=127.0.0.1:9", f"--user-data-dir={user_dir}", f"--screenshot={png_path}",
-        f"--window-size={size[0]},{size[1]}", "--virtual-time-budget=20000", html_path.as_uri(),
-    ]
+    command = [*offline_command(user_dir, size, 20000), f"--screenshot={png_path}", html_path.as_uri()]
     subprocess.run(command, check=True, timeout=180, capture_output=True)
     return matplotlib.image.imread(png_path)
 

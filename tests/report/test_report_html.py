@@ -1,4 +1,4 @@
-"""The report page: the result sentence and compact table, the success chart, the learning ladder, the pictured grasps."""
+"""The report page: the result sentence and the wide table of measures, the success chart, the learning ladder, the pictured grasps."""
 
 import numpy as np
 import pandas as pd
@@ -10,7 +10,7 @@ from dexlite_pipeline.report.inputs import ReportInputs
 from dexlite_pipeline.report.page import build_report_html, run_settings_html, training_run_text
 from dexlite_pipeline.report.pictures import outcome_of, pick_examples
 from dexlite_pipeline.report.plots import OBJECT_MARKER_LABEL, success_figure
-from dexlite_pipeline.report.tables import compact_table_html, headline_rows, headline_sentence, ladder_html
+from dexlite_pipeline.report.tables import headline_rows, headline_sentence, ladder_html, measures_table_html
 from dexlite_pipeline.evaluation.labels import method_label, percent_text, seconds_text
 
 
@@ -103,14 +103,14 @@ def test_headline_sentence_gives_both_rates_of_the_product_and_the_comparisons()
     assert with_shipped.count("objects)") == 1
 
 
-def test_compact_table_shows_percentages_with_intervals_and_readable_names():
-    table = compact_table_html(headline_rows(_run_metrics()))
+def test_measures_table_shows_percentages_with_intervals_and_readable_names():
+    table = measures_table_html(headline_rows(_run_metrics()))
     assert table.count("<tr>") == 5  # header and four methods
     order = [table.index(method_label(m)) for m in ("cvae_post", "random_post", "cvae_raw", "optimization")]
     assert order == sorted(order)  # the product first, then its baselines
     assert "<b>17.5%</b> <small>(7–28)</small>" in table and "<b>13.8%</b> <small>(9–24)</small>" in table
     assert "0.175" not in table and "21 ms" in table and "80 on 5" in table
-    without_six = compact_table_html(headline_rows(_run_metrics().assign(six_dir_success_rate=np.nan)))
+    without_six = measures_table_html(headline_rows(_run_metrics().assign(six_dir_success_rate=np.nan)))
     assert without_six.count("not run") == 4
 
 
@@ -136,15 +136,20 @@ def test_ladder_section_lists_rungs_in_order_and_only_when_measured():
     assert ladder_html(_run_metrics()) == "" and ladder_html(_run_metrics().assign(rung=np.nan)) == ""
 
 
-def test_page_order_sentence_table_ladder_plots_settings_csv():
+def test_page_order_first_screen_then_measures_ladder_plots_settings_csv():
     page = build_report_html(ReportInputs(metrics=_with_ladder(_run_metrics()), per_object=None, convergence=None, history=None,
                                           simulated=None, config={"seed": 3}, csv_links={"metrics.csv": "metrics.csv"}))  # fmt: skip
-    marks = ["class='result'", "class='compact'", "<h2>Learning ladder</h2>", "<h2>Success per method</h2>", "<h2>Grasps, drawn at random",
-             "<h2>Run settings</h2>", "href='metrics.csv'"]  # fmt: skip
+    marks = ["id='verdict'", "id='held-chart'", "id='summary-table'", "class='result'", "class='compact'", "<h2>Learning ladder</h2>",
+             "<h2>Grasps, drawn at random", "<h2>Run settings</h2>", "href='metrics.csv'"]  # fmt: skip
     positions = [page.index(mark) for mark in marks]
     assert positions == sorted(positions)
+    assert page.count("data:image/png") == 1  # one split: the first screen's chart is the success chart, not drawn twice
+    assert "<h2>Success per method" not in page
     plain = build_report_html(ReportInputs(metrics=_run_metrics(), per_object=None, convergence=None, history=None, simulated=None))
     assert "Learning ladder" not in plain
+    two_splits = pd.concat([_run_metrics(), _run_metrics().assign(split="train")], ignore_index=True)
+    both = build_report_html(ReportInputs(metrics=two_splits, per_object=None, convergence=None, history=None, simulated=None))
+    assert both.index("id='summary-table'") < both.index("<h2>Success per method, every split</h2>") and both.count("data:image/png") == 2
 
 
 def test_training_steps_shown_are_the_steps_run():
@@ -230,10 +235,10 @@ def test_metrics_without_or_with_empty_ladder_column_render(column):
 def test_lenient_test_column_only_when_measured():
     lenient = _run_metrics().assign(writeup_protocol_lift_success_rate=[0.7, 0.1, 0.4, 0.45], writeup_protocol_lift_success_ci95_low=0.3,
                                     writeup_protocol_lift_success_ci95_high=0.8)  # fmt: skip
-    table = compact_table_html(headline_rows(lenient))
+    table = measures_table_html(headline_rows(lenient))
     assert "lift, the write-up's test" in table and "<td class='rate lenient'><b>40.0%</b> <small>(30–80)</small></td>" in table
-    assert "the write-up's test" not in compact_table_html(headline_rows(_run_metrics()))
-    assert "the write-up's test" not in compact_table_html(headline_rows(_run_metrics().assign(writeup_protocol_lift_success_rate=np.nan)))
+    assert "the write-up's test" not in measures_table_html(headline_rows(_run_metrics()))
+    assert "the write-up's test" not in measures_table_html(headline_rows(_run_metrics().assign(writeup_protocol_lift_success_rate=np.nan)))
 
 
 def test_budget_plot_only_with_budget_rows():
@@ -274,7 +279,7 @@ def _with_diversity(frame: pd.DataFrame) -> pd.DataFrame:
 
 def test_diversity_beside_each_rate_per_attempt_and_after_the_filter():
     frame = _with_diversity(_run_metrics())
-    table = compact_table_html(headline_rows(frame))
+    table = measures_table_html(headline_rows(frame))
     assert table.count("<td class='diversity'>2.5</td><td class='diversity'>31.0%</td>") == 4  # beside the per-attempt rate
     assert table.count("<td class='diversity'>1.2</td><td class='diversity'>20.0%</td>") == 4  # beside the after-filter rate
     assert "<td>40.0% <small>(32)</small></td>" in table and "<b>50.0%</b>" in table and "5.2 s / ∞" in table
@@ -284,11 +289,11 @@ def test_diversity_beside_each_rate_per_attempt_and_after_the_filter():
             "(1.2 distinct held grasps per object, 20.0% of the surface touched); for comparison,") in sentence
     assert "random start + post-optimization 21.2% / 8.8% per attempt, 50.0% after the filter;" in sentence
     none_pass = frame.assign(filtered_n_grasps=0, filtered_lift_success_rate=np.nan, energy_threshold_pass_rate=0.0)
-    assert compact_table_html(headline_rows(none_pass)).count("none pass") == 4
+    assert measures_table_html(headline_rows(none_pass)).count("none pass") == 4
     assert "optimization from scratch 55.0% / 50.0% per attempt, none passing after the filter." in headline_sentence(headline_rows(none_pass), {})
 
 
-def test_run_facts_at_the_top(tmp_path):
+def test_run_facts_below_the_first_screen(tmp_path):
     import datetime as dt
     import os
 
@@ -308,4 +313,5 @@ def test_run_facts_at_the_top(tmp_path):
     assert dict(run_facts({"device": "cpu"}, tmp_path / "absent"))["wall time of the run"].startswith("not measurable")
     page = build_report_html(ReportInputs(metrics=_run_metrics(), per_object=None, convergence=None, history=None, simulated=None,
                                           run_facts=list(facts.items())))  # fmt: skip
-    assert page.index("<td>code commit</td><td>unknown</td>") < page.index("<p class='result'>")
+    # below the first screen, above every method's measures
+    assert page.index("id='summary-table'") < page.index("<td>code commit</td><td>unknown</td>") < page.index("<p class='result'>")

@@ -1,17 +1,20 @@
 """The evaluation report: one self-contained HTML page (every image base64-embedded), assembled here
-from its parts (``report.tables``, ``report.plots``, ``report.pictures``) with the page's own sections
-and style.
+from its parts (``report.first_screen``, ``report.tables``, ``report.plots``, ``report.pictures``) with
+the page's own sections and style.
 
-Read from the top, the page answers in this order: the run's facts (date, code commit, wall
-time, machine); one sentence with the result and a compact table (readable method names,
-lift and six-direction rates side by side with their 95% intervals, the lift rate beside
-the distinct held grasps per object and the surface coverage, per attempt and after the
-equal energy filter, and the CPU-seconds per distinct held grasp); the learning ladder
-when the evaluation measured it; plots (success per method, energies, post-optimization
-convergence, training curves); published numbers for context; pictures of grasps drawn at
-random among each method's successes and failures, with their contacts marked and the
-outcome in large type; and last the run's settings, the physical constants and links to
-the full CSV tables. It opens from disk, no server.
+Read from the top, the page answers in this order: the first screen, whole on a 1280 × 900 screen
+(``first_screen``: a verdict of at most 40 words naming the recommended way of making grasps on
+held-out objects against optimization from scratch, the held-per-attempt chart with the 95%
+intervals, and a table of at most seven columns); the run's facts (date, code commit, wall time,
+machine); every method's measures: the long result sentence and the wide table (lift and
+six-direction rates with their intervals, distinct held grasps per object and surface coverage, per
+attempt and after the equal energy filter, the write-up's lenient test, CPU-seconds per distinct
+held grasp, time per grasp); the learning ladder when the evaluation measured it; plots (energies,
+post-optimization convergence, training curves; success per method again only when several splits
+were evaluated); published numbers for context; pictures of grasps drawn at random among each
+method's successes and failures, with their contacts marked and the outcome in large type; and last
+the run's settings, the physical constants and links to the full CSV tables. It opens from disk, no
+server.
 """
 
 from __future__ import annotations
@@ -24,10 +27,11 @@ from pathlib import Path
 
 import numpy as np
 
+from dexlite_pipeline.report.first_screen import first_screen_html, first_screen_rows
 from dexlite_pipeline.report.inputs import ReportInputs
 from dexlite_pipeline.report.pictures import grasp_gallery, interactive_view_html
 from dexlite_pipeline.report.plots import budget_plot, convergence_plot, figure_png_base64, histogram_plot, img_tag, success_plot, training_plot
-from dexlite_pipeline.report.tables import compact_table_html, format_cell, full_table_html, has_lenient, headline_rows, headline_sentence, ladder_html
+from dexlite_pipeline.report.tables import format_cell, full_table_html, has_lenient, headline_rows, headline_sentence, ladder_html, measures_table_html
 
 
 # Published numbers a reader compares against: (source, result, how it was measured).
@@ -155,8 +159,15 @@ def constants_table_html(lift_config: Mapping) -> str:
 
 
 STYLE = """
-body{font-family:system-ui,sans-serif;margin:1.2em 2em;max-width:1400px;color:#222}
-h1{font-size:22px;margin:0 0 .4em}h2{font-size:18px;margin:1.4em 0 .4em}h3{font-size:15px}
+body{font-family:system-ui,sans-serif;margin:1em 2em;max-width:1400px;color:#222}
+h1{font-size:22px;margin:0 0 .3em}
+p.verdict{font-size:18px;line-height:1.4;max-width:1200px;margin:0 0 .5em}
+.glance{display:flex;gap:16px;align-items:flex-start}.glance .chart{flex:0 1 500px;min-width:0}.glance .chart img{width:100%}
+.glance .summary{flex:1 1 0;min-width:0}.glance .note{margin:.4em 0 0}
+table.summary{font-size:13px;margin:0}table.summary th{vertical-align:bottom;max-width:7.5em}table.summary td{padding:3px 6px}
+table.summary th.name,table.summary td.name{text-align:left;max-width:14em}table.summary td.rate{white-space:nowrap}table.summary tr.best td{background:#eaf5ec}
+.pick{display:inline-block;font-size:10px;color:#1a7f37;border:1px solid #1a7f37;border-radius:3px;padding:0 3px;margin-left:4px}
+div.wide,pre{overflow-x:auto;max-width:100%}div.wide table{width:max-content}h2{font-size:18px;margin:1.4em 0 .4em}h3{font-size:15px}
 p.result{font-size:17px;line-height:1.45;max-width:1150px;margin:.3em 0 .6em}
 table{border-collapse:collapse;font-size:12px;margin:.6em 0}th,td{border:1px solid #ccc;padding:3px 6px;text-align:right}
 th{background:#f0f0f0}td:first-child,th:first-child{text-align:left}
@@ -220,7 +231,7 @@ def definitions_html(lift_config: Mapping) -> str:
         "cvae_raw, cvae_post and random_post are evaluated on the same sampled rows (same "
         "objects and scales). Intervals: ci95 = Wilson (grasps taken as independent); boot_ci95 = object-level bootstrap "
         "(objects resampled with replacement: wider when success depends on the object, rough with few objects), the one the "
-        "compact table and the error bars show.</p>"
+        "tables and the error bars show.</p>"
     )
 
 
@@ -251,7 +262,7 @@ def learning_curve_html(curve) -> str:
         "against the number of training objects (nested subsets of that run's training objects, same sampling and post-optimization "
         "budget; Wilson 95%). From docs/learning_curve.csv of this checkout: it describes the shipped model's training, not this "
         "run's; docs/learning_curve.md has it per held-out split and against grasps per object.</p>"
-        + img_tag(figure_png_base64(curve_figure(curve)), "learning curve") + f"<details><summary>table</summary>{table}</details>"
+        + img_tag(figure_png_base64(curve_figure(curve)), "learning curve") + f"<details><summary>table</summary><div class='wide'>{table}</div></details>"
     )
 
 
@@ -279,37 +290,56 @@ def data_loop_html(table) -> str:
         "the next model on the grown set, warm-started. Held-out columns: a small check of each round's model on the held-out "
         "objects (sampled, post-optimized, lift-tested; per attempt), not the evaluation above, which uses the last round's model. "
         "CPU minutes: the round's jobs (round 0: made by the stages before the loop). Per object: results/round_&lt;r&gt;/summary.csv.</p>"
-        + body
+        + f"<div class='wide'>{body}</div>"
     )
 
 
-def build_report_html(inputs: ReportInputs) -> str:
-    """The whole page as a string."""
-    headline = headline_rows(inputs.metrics)
-    sections = [f"<h1>{html.escape(inputs.title)}</h1>", run_facts_html(inputs.run_facts)]
-    sections.append(f"<p class='result'>{html.escape(headline_sentence(headline, inputs.lift_config))}</p>")
-    sections.append(compact_table_html(headline))
-    sections.append(
+def measures_section_html(headline, lift_config: Mapping) -> str:
+    """Every main method's measures, below the first screen: the long result sentence, the wide table (it scrolls
+    sideways on its own, so the page never gets wider than the screen) and the key to its columns."""
+    lenient = (
+        "; “lift, the write-up's test”: the same grasps under the more lenient lift test of the DexLite write-up (Murali) "
+        "(Wilson interval), for comparison with its published numbers" if has_lenient(headline) else ""
+    )
+    return (
+        "<h2>Every method, every measure</h2>"
+        f"<p class='result'>{html.escape(headline_sentence(headline, lift_config))}</p>"
+        f"<div class='wide'>{measures_table_html(headline)}</div>"
         "<p class='note'>Both tests count with equal weight: “lift test” = the object rose with the hand; "
         "“six pushes” = it stayed put under a push of about its own weight along each of ±x, ±y, ±z in turn. "
-        "Small numbers: object-level bootstrap 95% interval (objects resampled)"
-        + ("; “lift, the write-up's test”: the same grasps under the more lenient lift test of the DexLite write-up (Murali) (Wilson interval), for comparison "
-           "with its published numbers" if has_lenient(headline) else "")
-        + ". Definitions and every column: end of the page.</p>"
+        f"Small numbers: object-level bootstrap 95% interval (objects resampled){lenient}. Definitions and every column: end of the page.</p>"
     )
-    sections.append(ladder_html(inputs.metrics))
+
+
+def plot_sections_html(inputs: ReportInputs, several_splits: bool) -> list[str]:
+    """The plots' sections; success per method only when several splits were evaluated (the first screen shows one split)."""
+    sections = []
     for title, image in (
-        ("Success per method", success_plot(inputs.metrics)),
+        ("Success per method, every split", success_plot(inputs.metrics) if several_splits else None),
         ("Energies and penetration", histogram_plot(inputs.simulated)),
         ("Post-optimization convergence (median, interquartile band)", convergence_plot(inputs.convergence)),
         ("Lift success against the post-optimization budget (Wilson 95% band)", budget_plot(inputs.budget)),
         ("CVAE training curves", training_plot(inputs.history)),
     ):
-        if image is None and title.startswith("Lift success against"):
-            continue  # only runs that lift-test post-optimization budgets have this plot
+        if image is None and title.startswith(("Lift success against", "Success per method")):
+            continue  # only runs that lift-test post-optimization budgets, or evaluate several splits, have these plots
         sections.append(f"<h2>{html.escape(title)}</h2>" + (img_tag(image, title) if image else "<p>Not available in this run.</p>"))
         if title.startswith("Post-optimization convergence"):
             sections.append(convergence_note(inputs.metrics, inputs.convergence))
+    return sections
+
+
+def build_report_html(inputs: ReportInputs) -> str:
+    """The whole page as a string: the first screen, then the run, every measure, the ladder, plots, pictures and settings."""
+    headline = headline_rows(inputs.metrics)
+    first_rows = first_screen_rows(inputs.metrics)
+    several_splits = headline is not None and first_rows is not None and len(headline) > len(first_rows)
+    sections = [f"<h1>{html.escape(inputs.title)}</h1>", first_screen_html(inputs.metrics)]
+    if inputs.run_facts:
+        sections.append("<h2>The run</h2>" + run_facts_html(inputs.run_facts))
+    sections.append(measures_section_html(headline, inputs.lift_config))
+    sections.append(ladder_html(inputs.metrics))
+    sections += plot_sections_html(inputs, several_splits)
     if inputs.data_loop is not None and len(inputs.data_loop):
         sections.append(data_loop_html(inputs.data_loop))
     if inputs.learning_curve is not None and len(inputs.learning_curve):
@@ -331,11 +361,11 @@ def build_report_html(inputs: ReportInputs) -> str:
     )
     if inputs.per_object is not None and len(inputs.per_object):
         per_object = inputs.per_object.to_html(index=False, float_format=lambda v: f"{v:.3g}", na_rep="—")
-        sections.append(f"<h2>Per object</h2><details><summary>{len(inputs.per_object)} rows</summary>{per_object}</details>")
+        sections.append(f"<h2>Per object</h2><details><summary>{len(inputs.per_object)} rows</summary><div class='wide'>{per_object}</div></details>")
     sections.append("<h2>Run settings</h2>" + run_settings_html(inputs.config, inputs.objects_dirs, inputs.history))
     sections.append("<h2>Physical constants of the lift and six-direction tests</h2>" + constants_table_html(inputs.lift_config))
     sections.append(
         "<h2>All numbers</h2>" + csv_links_html(inputs.csv_links) + definitions_html(inputs.lift_config)
-        + "<details><summary>metrics.csv, every method and column</summary>" + full_table_html(inputs.metrics) + "</details>"
+        + "<details><summary>metrics.csv, every method and column</summary><div class='wide'>" + full_table_html(inputs.metrics) + "</div></details>"
     )  # fmt: skip
     return f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{html.escape(inputs.title)}</title><style>{STYLE}</style></head><body>{''.join(sections)}</body></html>"

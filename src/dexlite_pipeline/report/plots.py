@@ -1,5 +1,5 @@
-"""The report's plots, drawn with matplotlib (Agg) and embedded as base64 PNG: success per method,
-energy histograms, post-optimization convergence and budget, CVAE training curves. Each returns
+"""The report's plots, drawn with matplotlib (Agg) and embedded as base64 PNG: success per method (full
+size, and narrow for the first screen), energy histograms, post-optimization convergence and budget, CVAE training curves. Each returns
 None when its input is absent, so the page can say "not available".
 """
 
@@ -9,6 +9,7 @@ import base64
 import html
 import io
 import math
+import textwrap
 
 import numpy as np
 
@@ -49,24 +50,35 @@ def pyplot():
 
 
 def success_figure(metrics_df):
-    """Horizontal bars per method: lift and six-direction success side by side, error bars the object-bootstrap 95% intervals.
+    """The success chart of the main comparison's rows (every split), at the page's full size; None without a lift rate."""
+    frame = headline_rows(metrics_df) if metrics_df is not None and len(metrics_df) else metrics_df
+    return rates_figure(frame, label_chars=40)
+
+
+def rates_figure(frame, width_in: float = 7.5, row_in: float = 0.75, label_chars: int | None = None):
+    """Horizontal bars per row of ``frame``: lift and six-direction success side by side, error bars the object-bootstrap 95% intervals.
 
     The share of objects with at least one lifted grasp is a small marker on the lift bar,
     not a bar of its own (it is high whenever a method lifts anything, and would dominate).
     A rate that was not measured (NaN, e.g. the six-direction test switched off) gets no
-    bar and a "not run" mark, never a bar at 0%. None when no method has a lift rate.
+    bar and a "not run" mark, never a bar at 0%. None when no row has a lift rate.
+    ``width_in`` and ``row_in`` (inches per row) size the figure; ``label_chars`` wraps the
+    method names at that many characters, so a narrow chart keeps its bars wide.
     """
-    frame = headline_rows(metrics_df) if metrics_df is not None and len(metrics_df) else metrics_df
     frame = frame.dropna(subset=["lift_success_rate"]) if frame is not None and len(frame) else frame
     if frame is None or not len(frame):
         return None
     plt = pyplot()
     from matplotlib.patches import Patch
+    from matplotlib.transforms import offset_copy
 
     several_splits = "split" in frame.columns and frame["split"].nunique() > 1
     labels = [method_label(m) + (f" ({split_label(s)})" if several_splits else "") for m, s in zip(frame["method"], frame.get("split", frame["method"]))]
+    if label_chars:
+        labels = [textwrap.fill(label, label_chars) for label in labels]
     y = np.arange(len(frame))[::-1].astype(float)  # first row at the top
-    fig, ax = plt.subplots(figsize=(7.5, 0.75 * len(frame) + 1.1))
+    height_in = row_in * len(frame) + 1.1
+    fig, ax = plt.subplots(figsize=(width_in, height_in))
     height = 0.8 / len(SUCCESS_BARS)
     not_run = []
     for k, (column, name) in enumerate(SUCCESS_BARS):
@@ -94,17 +106,30 @@ def success_figure(metrics_df):
         if shown.any():
             ax.plot(objects[shown], (y + 0.5 * height)[shown], linestyle="none", marker="|", markersize=9, mew=1.5, color="0.25", label=OBJECT_MARKER_LABEL)
     ax.set_yticks(y, labels, fontsize=8)
-    ax.set_xlabel("grasps held (%)")
+    ax.set_xlabel("grasps held per attempt (%)")
     ax.set_xlim(0, 100)
     ax.set_title("error bars: object-level bootstrap 95% interval (objects resampled)", fontsize=8)
-    ax.legend(handles=ax.get_legend_handles_labels()[0] + not_run, fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.45 / (0.75 * len(frame) + 1.1) - 0.1), ncol=3, frameon=False)
     fig.tight_layout()
+    # the legend under the axis label, a fixed distance below the axes whatever the figure's height (the saved box takes it in)
+    below = offset_copy(ax.transAxes, fig=fig, y=-0.45, units="inches")
+    ax.legend(handles=ax.get_legend_handles_labels()[0] + not_run, fontsize=7, loc="upper center", bbox_to_anchor=(0.5, 0.0), bbox_transform=below,
+              ncol=3, frameon=False)  # fmt: skip
     return fig
 
 
 def success_plot(metrics_df) -> str | None:
     """The success bars as base64 PNG (None when there is nothing to show)."""
     fig = success_figure(metrics_df)
+    return figure_png_base64(fig) if fig is not None else None
+
+
+# The first screen's chart: narrow (it sits beside the summary table), a row per method, names wrapped.
+FIRST_SCREEN_CHART = {"width_in": 5.0, "row_in": 0.5, "label_chars": 24}
+
+
+def held_per_attempt_plot(rows) -> str | None:
+    """The first screen's chart of ``rows`` (one split's methods) as base64 PNG, sized to fit beside the summary table; None when empty."""
+    fig = rates_figure(rows, **FIRST_SCREEN_CHART)
     return figure_png_base64(fig) if fig is not None else None
 
 

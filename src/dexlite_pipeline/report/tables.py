@@ -1,5 +1,5 @@
-"""The report's tables as HTML: which rows the main comparison and the learning ladder show, the compact
-table with rates and intervals, the ladder, the folded full table, the one-sentence result, and the
+"""The report's tables as HTML: which rows the main comparison and the learning ladder show, the wide
+table of every method's measures with rates and intervals, the ladder, the folded full table, the one-sentence result, and the
 formatting of their cells. Pure text from metrics.csv's frame; nothing is drawn or read here.
 """
 
@@ -38,7 +38,7 @@ LADDER_COLUMN_LABELS = {
     "fit_joint_error_rad_mean": "joint error (rad, mean)",
 }
 LENIENT = "writeup_protocol_lift_success"  # the same grasps under the DexLite write-up's (Murali) more lenient lift test (evaluate.writeup_protocol)
-# The methods of the main comparison, in the order the compact table lists them.
+# The methods of the main comparison, in the order the tables and charts list them.
 HEADLINE_METHODS = ("cvae_post", "cvae_ranked_post", "random_post", "cvae_raw", "cvae_ranked", "shipped_post", "shipped_raw", "optimization", "dexgraspnet")
 HEADLINE_METHOD = "cvae_post"  # the pipeline's product: the sentence leads with it when present
 RUNG_ORDER = ("fit", "in_distribution", "heldout")
@@ -90,7 +90,8 @@ def format_cell(value) -> str:
     return html.escape(str(value))
 
 
-def _number(value, digits: int = 1) -> str:
+def number_text(value, digits: int = 1) -> str:
+    """A number with ``digits`` decimals; "—" when missing or not finite."""
     try:
         value = float(value)
     except (TypeError, ValueError):
@@ -98,7 +99,7 @@ def _number(value, digits: int = 1) -> str:
     return f"{value:.{digits}f}" if math.isfinite(value) else "—"
 
 
-def _interval_columns(row, name: str) -> tuple[object, object]:
+def interval_columns(row, name: str) -> tuple[object, object]:
     """The object-bootstrap interval of a rate when present, else the Wilson one."""
     for kind in ("_boot_ci95", "_ci95"):
         low, high = row.get(f"{name}{kind}_low"), row.get(f"{name}{kind}_high")
@@ -107,13 +108,13 @@ def _interval_columns(row, name: str) -> tuple[object, object]:
     return None, None
 
 
-def _rate_cell(row, name: str, css: str = "") -> str:
+def rate_cell(row, name: str, css: str = "") -> str:
     """A rate as "17.5%" in bold with its 95% interval in small type."""
     value = row.get(f"{name}_rate")
     text = percent_text(value)
     if text == "not run":
         return f"<td class='rate na {css}'>not run</td>"
-    interval = interval_text(*_interval_columns(row, name))
+    interval = interval_text(*interval_columns(row, name))
     small = f" <small>({interval})</small>" if interval else ""
     return f"<td class='rate {css}'><b>{text}</b>{small}</td>"
 
@@ -146,11 +147,11 @@ LENIENT_HEADER = "<th class='lenient'>lift, the write-up's test</th>"
 def _diversity_cells(row, prefix: str = "") -> list[str]:
     """Distinct held grasps per object and the surface coverage (``prefix`` "filtered_": after the energy filter)."""
     coverage = percent_text(row.get(f"{prefix}surface_coverage_mean"))
-    return [f"<td class='diversity'>{_number(row.get(f'{prefix}distinct_held_per_object_mean'))}</td>",
+    return [f"<td class='diversity'>{number_text(row.get(f'{prefix}distinct_held_per_object_mean'))}</td>",
             f"<td class='diversity'>{coverage if coverage != 'not run' else '—'}</td>"]  # fmt: skip
 
 
-def _cost_text(seconds) -> str:
+def cost_text(seconds) -> str:
     """Seconds for a cost cell; "∞" when attempts cost time and gave nothing."""
     try:
         value = float(seconds)
@@ -162,16 +163,16 @@ def _cost_text(seconds) -> str:
 def _cpu_seconds_cell(row) -> str:
     """CPU-seconds per distinct held grasp, per attempt and after the filter ("5.2 s / 7.1 s")."""
     per_attempt, filtered = (row.get(f"{p}cpu_seconds_per_distinct_held_grasp") for p in ("", "filtered_"))
-    return f"<td>{_cost_text(per_attempt)} / {_cost_text(filtered)}</td>"
+    return f"<td>{cost_text(per_attempt)} / {cost_text(filtered)}</td>"
 
 
 def _filtered_rate_cell(row) -> str:
     """The lift rate after the energy filter; "none pass" when no attempt passed, "—" when the filter was not measured."""
     if not _filter_measured(row):
         return "<td class='rate na'>—</td>"
-    if _finite(row.get("filtered_n_grasps")) and int(row["filtered_n_grasps"]) == 0:
+    if is_finite(row.get("filtered_n_grasps")) and int(row["filtered_n_grasps"]) == 0:
         return "<td class='rate na'>none pass</td>"
-    return _rate_cell(row, "filtered_lift_success")
+    return rate_cell(row, "filtered_lift_success")
 
 
 def _pass_cell(row) -> str:
@@ -190,8 +191,8 @@ FILTER_HEADERS = ("<th class='wrap'>pass the energy filter</th><th class='wrap'>
                   "<th class='wrap'>after the filter: distinct held / object</th><th class='wrap'>after the filter: surface touched</th>")  # fmt: skip
 
 
-def compact_table_html(frame) -> str:
-    """The headline table: readable names, grasps, lift and six-direction rates with intervals, the lift rate beside its
+def measures_table_html(frame) -> str:
+    """The wide table below the first screen: readable names, grasps, lift and six-direction rates with intervals, the lift rate beside its
     distinct held grasps per object and surface coverage, per attempt and after the equal energy filter; cost; quality."""
     if frame is None or not len(frame):
         return "<p>No method was evaluated.</p>"
@@ -209,12 +210,12 @@ def compact_table_html(frame) -> str:
         cells = [f"<td class='name'>{html.escape(method_label(method))} <span class='id'>{html.escape(method)}</span></td>"]
         if several_splits:
             cells.append(f"<td>{html.escape(split_label(row['split']))}</td>")
-        cells += [_grasps_cell(row), _rate_cell(row, "lift_success"), *_diversity_cells(row), _rate_cell(row, "six_dir_success")]
+        cells += [_grasps_cell(row), rate_cell(row, "lift_success"), *_diversity_cells(row), rate_cell(row, "six_dir_success")]
         if lenient:
-            cells.append(_rate_cell(row, LENIENT, "lenient"))
+            cells.append(rate_cell(row, LENIENT, "lenient"))
         cells += [_pass_cell(row), _filtered_rate_cell(row), *_diversity_cells(row, "filtered_"), _cpu_seconds_cell(row)]
         cells += [
-            f"<td>{_number(row.get('penetration_mean_mm'))}</td>", f"<td>{_number(row.get('contact_distance_mean_mm'))}</td>",
+            f"<td>{number_text(row.get('penetration_mean_mm'))}</td>", f"<td>{number_text(row.get('contact_distance_mean_mm'))}</td>",
             f"<td>{seconds_text(row.get('seconds_per_grasp'))}</td>",
         ]  # fmt: skip
         body.append("<tr>" + "".join(cells) + "</tr>")
@@ -261,9 +262,9 @@ def ladder_html(metrics_df) -> str:
         previous = rung
         method = str(row["method"])
         cells += [f"<td class='name'>{html.escape(method_label(method))} <span class='id'>{html.escape(method)}</span></td>",
-                  _grasps_cell(row), _rate_cell(row, "lift_success"), *_diversity_cells(row), _rate_cell(row, "six_dir_success")]  # fmt: skip
+                  _grasps_cell(row), rate_cell(row, "lift_success"), *_diversity_cells(row), rate_cell(row, "six_dir_success")]  # fmt: skip
         if lenient:
-            cells.append(_rate_cell(row, LENIENT, "lenient"))
+            cells.append(rate_cell(row, LENIENT, "lenient"))
         cells += [_pass_cell(row), _filtered_rate_cell(row), *_diversity_cells(row, "filtered_")]
         cells += [f"<td>{format_cell(row[c])}</td>" for c in extra]
         body.append("<tr>" + "".join(cells) + "</tr>")
@@ -271,7 +272,7 @@ def ladder_html(metrics_df) -> str:
         "<h2>Learning ladder</h2><p class='note'>Whether the model learned, rung by rung: its own training grasps encoded and "
         "decoded (the originals all held), samples on the objects it was trained on, and samples on objects it never saw. "
         "A rung it fails explains the rungs above it.</p>"
-        f"<table class='compact'><thead>{head}</thead><tbody>{''.join(body)}</tbody></table>"
+        f"<div class='wide'><table class='compact'><thead>{head}</thead><tbody>{''.join(body)}</tbody></table></div>"
     )
 
 
@@ -324,12 +325,13 @@ def headline_sentence(frame, lift_config: Mapping) -> str:
 
 def _filtered_rate_text(row) -> str:
     """The lift rate after the filter, "none passing" when no attempt passed it."""
-    if _finite(row.get("filtered_n_grasps")) and int(row["filtered_n_grasps"]) == 0:
+    if is_finite(row.get("filtered_n_grasps")) and int(row["filtered_n_grasps"]) == 0:
         return "none passing"
     return percent_text(row.get("filtered_lift_success_rate"))
 
 
-def _finite(value) -> bool:
+def is_finite(value) -> bool:
+    """Whether ``value`` is a finite number (None, text and NaN are not)."""
     try:
         return value is not None and math.isfinite(float(value))
     except (TypeError, ValueError):
@@ -338,23 +340,23 @@ def _finite(value) -> bool:
 
 def _filter_measured(row) -> bool:
     """Whether a metrics row carries the equal energy filter (its pass fraction)."""
-    return _finite(row.get("energy_threshold_pass_rate"))
+    return is_finite(row.get("energy_threshold_pass_rate"))
 
 
 def _diversity_text(row, prefix: str) -> str:
     """" (2.5 distinct held grasps per object, 31.0% of the surface touched)"; empty when not measured."""
-    if not _finite(row.get(f"{prefix}distinct_held_per_object_mean")):
+    if not is_finite(row.get(f"{prefix}distinct_held_per_object_mean")):
         return ""
     coverage = row.get(f"{prefix}surface_coverage_mean")
-    touched = f", {percent_text(coverage)} of the surface touched" if _finite(coverage) else ""
-    return f" ({_number(row[f'{prefix}distinct_held_per_object_mean'])} distinct held grasps per object{touched})"
+    touched = f", {percent_text(coverage)} of the surface touched" if is_finite(coverage) else ""
+    return f" ({number_text(row[f'{prefix}distinct_held_per_object_mean'])} distinct held grasps per object{touched})"
 
 
 def _filter_text(row) -> str:
     """The lead row after the equal energy filter; empty when the filter was not measured."""
     if not _filter_measured(row):
         return ""
-    if _finite(row.get("filtered_n_grasps")) and int(row["filtered_n_grasps"]) == 0:
+    if is_finite(row.get("filtered_n_grasps")) and int(row["filtered_n_grasps"]) == 0:
         return "; none of its attempts pass the energy filter every method goes through"
     return (f"; after the energy filter every method goes through ({percent_text(row['energy_threshold_pass_rate'])} of attempts pass), "
             f"{_filtered_rate_text(row)} held in the lift test{_diversity_text(row, 'filtered_')}")  # fmt: skip
