@@ -179,7 +179,7 @@ def read_result(out_dir: Path, seconds: float, rejected: list[dict], keep: bool)
             distinct_label=column("distinct_label", np.int64), source=column("source", object),
             attempts=int(mine.sum()), held=int(held_all[mine].sum()),
             failures=failure_counts(np.asarray(every.arrays["failure_reason"], dtype=object)[mine & ~held_all]),
-            preparation={"route": meta.get("preparation", {}), "deviation": meta.get("deviation", {})},
+            preparation={"route": meta["preparation"], "deviation": meta["deviation"]},
         )  # fmt: skip
     return GraspResult(meshes, rejected, seconds, out_dir if keep else None)
 

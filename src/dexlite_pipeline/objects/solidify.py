@@ -303,12 +303,11 @@ def solid_from_mesh(raw) -> tuple[object, SolidRecord, list]:
             return shell, record, kept
         record.route = VOLUMETRIC
         return volumetric_remesh([consistently_wound(body) for body in kept], record.input_is_closed), record, kept
-    closed = [b for b in bodies if b.is_watertight]
-    record.input_is_closed = len(closed) == len(bodies)
+    record.input_is_closed = all(body.is_watertight for body in bodies)
     if record.input_is_closed:
-        for body in closed:
+        for body in bodies:
             trimesh.repair.fix_normals(body)
-        union = union_of_closed_bodies(closed)
+        union = union_of_closed_bodies(bodies)
         if union is not None:
             record.route = UNION
             return union, record, kept

@@ -272,7 +272,7 @@ def render_and_summarize(
     preparation = {asset.object_id: asset.meta for asset in prepared.assets}
     for r in rows:
         r["by_source"], r["topped_up"] = by_source.get(r["object_id"], {}), r["object_id"] in topped_up
-        r["prepared_as"] = preparation_text(preparation.get(r["object_id"], {}))
+        r["prepared_as"] = preparation_text(preparation[r["object_id"]])
     summary_path = run.out_dir / "summary.md"
     write_text_atomic(summary_path, summary_markdown(request, rows, prepared.rejected, method, record.step_seconds(), renders, run.lift_config,
                                                      config.diversity, len(kept), view))  # fmt: skip

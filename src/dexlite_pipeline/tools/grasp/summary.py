@@ -57,8 +57,6 @@ def per_object_rows(
 
 def preparation_text(meta: dict) -> str:
     """How a prepared object's solid was made from its file and how far it is from the file's surface (its meta.json)."""
-    if "deviation" not in meta:
-        return "prepared before the prepared-versus-mesh check was recorded"
     notes = "".join(f"; {note}" for note in meta["preparation"].get("notes", []))
     return f"{meta['preparation']['summary']}{notes}; prepared solid vs the mesh: {meta['deviation']['summary']}"
 
