@@ -29,7 +29,7 @@ from dexlite_pipeline.objects.remesh import winding_numbers
 
 log = logging.getLogger(__name__)
 # Tolerances (fractions of the input's largest extent). Chosen on the awkward-mesh corpus
-# (objects.mesh_forms) and pybullet_data's multi-piece objects (docs/results.md): correct
+# (objects.mesh_forms) and pybullet_data's multi-piece objects (docs/results_journal.md): correct
 # preparations stay under a quarter of the surface and box tolerances and within 3% on the volume
 # (the estimate for several bodies is a sampled one); every wrong shape the earlier preparation
 # made exceeded one of them 5x or more.
