@@ -216,7 +216,7 @@ def test_cli_writes_store_catalog_and_report(layout, tmp_path):
     assert len(report) == 8 and set(report["kind"]) >= {"refused_pickle", "missing_mesh", "unknown_joint_names", "non_finite", "wrong_type"}
     catalog = read_catalog(tmp_path / "res" / "objects")
     assert list(catalog.columns) == ["object_id", "source", "file", "watertight", "volume", "n_convex_pieces", "status", "reason",
-                                     "preparation", "surface_deviation", "bounds_deviation", "volume_ratio", "split"]
+                                     "preparation", "surface_deviation", "bounds_deviation", "volume_ratio", "turn_deg", "split"]
     assert set(catalog.loc[catalog["status"] == "ok", "preparation"]) == {"imported as given (DexGraspNet's mesh and convex pieces)"}
     assert catalog.set_index("object_id").loc["box", "split"] == "heldout"
     assert load_asset(tmp_path / "res" / "objects", "box").sdf.shape == (24, 24, 24)

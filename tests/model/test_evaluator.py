@@ -20,6 +20,7 @@ from dexlite_pipeline.model.evaluator import (
     save_evaluator,
     score_grasps,
     train_evaluator,
+    turned_inputs,
 )
 
 HELD_OUT = ("box_wide", "cylinder")
@@ -184,3 +185,29 @@ def test_training_is_deterministic_for_a_seed(objects_dir, simulated):
     assert without_timing(first_history.epochs) == without_timing(second_history.epochs)
     for name, value in first.state_dict().items():
         assert torch.equal(value, second.state_dict()[name]), name
+
+
+def test_turned_inputs_keep_the_hand_object_geometry(trained, objects_dir, simulated):
+    """The augmentation turns cloud, grasps and table together: every height and distance the network reads is unchanged,
+    positions and normals turn, and a grasp's table stays under it."""
+    from dexlite_pipeline.model.evaluator import _batch_inputs
+    from dexlite_pipeline.model.data import ObjectClouds, cloud_keys
+    from dexlite_pipeline.objects.assets import load_asset
+
+    model = trained[0]
+    grasps = simulated.select(np.arange(0, len(simulated), 37))
+    ids = sorted(set(grasps.object_id.tolist()))
+    clouds = ObjectClouds([load_asset(objects_dir, oid) for oid in ids])
+    object_index = np.array([clouds.index_of[o] for o in grasps.object_id], dtype=np.int64)
+    support = np.tile(np.array([[0, 0, 1, 0.05]], np.float32), (len(grasps), 1))
+    keys = cloud_keys(grasps.object_id, grasps.scale)
+    inputs = _batch_inputs(clouds, object_index, grasps.scale, grasps.hand_pose, support, keys, np.arange(len(grasps)), 256, "cpu")
+    angle = torch.linspace(0.3, 5.9, len(inputs[0]))
+    turned = turned_inputs(inputs, angle)
+    with torch.no_grad():
+        plain = model.hand_point_features(inputs[0][inputs[2]], model.hand_points(inputs[1]), inputs[3])
+        moved = model.hand_point_features(turned[0][turned[2]], model.hand_points(turned[1]), turned[3])
+    assert torch.allclose(plain[..., 3:5], moved[..., 3:5], atol=1e-4)  # height above and distance to the surface
+    assert torch.allclose(plain[..., 8], moved[..., 8], atol=1e-4)  # height above the table
+    assert torch.allclose(turned[3], inputs[3])  # an upright table's normal is the turn's axis
+    assert not torch.allclose(plain[..., :3], moved[..., :3], atol=1e-3)  # positions turned

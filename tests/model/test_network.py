@@ -18,6 +18,8 @@ from dexlite_pipeline.model.pose import (
     pose_to_features,
     reconstruction_error,
     rotate_features,
+    turn_stored_poses,
+    vertical_rotation,
     shift_translation,
 )
 from dexlite_pipeline.model.config import TrainConfig
@@ -161,6 +163,21 @@ def test_turning_a_grasp_turns_the_hand_with_the_object(hand):
     assert torch.allclose(turned_links, links @ turn.transpose(1, 2), atol=1e-5)
     back = rotate_features(pose_to_features(turned), turn.transpose(1, 2))
     assert torch.allclose(features_to_pose(back)[:, :3], pose[:, :3], atol=1e-6)
+
+
+def test_turning_a_stored_pose_about_z_matches_turning_its_features(hand):
+    """turn_stored_poses (the evaluator's augmentation, on stored Euler poses) and rotate_features (the model's) agree, and
+    the whole hand turns with the object."""
+    torch.manual_seed(4)
+    pose = torch.cat([torch.randn(6, 3) * 0.1, torch.rand(6, 3) * 6 - 3, torch.rand(6, 22) * 0.5], dim=1)
+    angle = torch.rand(6) * 2 * math.pi
+    turned = turn_stored_poses(pose, angle)
+    turn = vertical_rotation(angle)
+    expected = rotate_features(pose_to_features(pose), turn)
+    assert torch.allclose(pose_to_features(turned), expected, atol=1e-5)
+    assert bool((turned[:, 5] > -math.pi).all() and (turned[:, 5] <= math.pi).all())  # the z angle stays in range
+    links, turned_links = hand.forward(pose).translation, hand.forward(turned).translation
+    assert torch.allclose(turned_links, links @ turn.transpose(1, 2), atol=1e-5)
 
 
 def test_point_frame_moves_the_palm_with_the_associated_point(small_model_config):

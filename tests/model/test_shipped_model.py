@@ -1,6 +1,7 @@
 """The shipped model (src/dexlite_pipeline/data/, model.shipped.SHIPPED_MODEL_DIR): it loads weights-only, its card describes
 it, its evaluator loads, and on a few freshly rebuilt objects its learning ladder agrees with the card within sampling noise."""
 
+import dataclasses
 import json
 import math
 
@@ -81,8 +82,11 @@ def test_shipped_model_repeats_its_card_on_freshly_prepared_objects(card, tmp_pa
     # The card records the whole config of the code version that made the model (keys since renamed or removed
     # included); the check reads the sections below, so only they are rebuilt with today's types.
     config = build_config({name: card["config"][name] for name in CHECK_SECTIONS})
-    sources = [rebuilt_source_of(oid, tmp_path / "meshes") for oid in [*train_ids, *heldout_ids]]
-    objects = from_section(ObjectsConfig, card["config"].get("objects"), "card.objects")
+    # held out as in the run, so prepared at the same seeded yaw when the run turned its held-out objects (objects.heldout_yaw;
+    # a card without the key predates the turn)
+    sources = [rebuilt_source_of(oid, tmp_path / "meshes") for oid in train_ids]
+    sources += [dataclasses.replace(rebuilt_source_of(oid, tmp_path / "meshes"), always_heldout=True) for oid in heldout_ids]
+    objects = from_section(ObjectsConfig, {"heldout_yaw": False, **card["config"].get("objects", {})}, "card.objects")
     catalog = prepare_objects(sources, tmp_path, objects, config.seed, workers=2)
     assert (catalog["status"] == "ok").all()
 

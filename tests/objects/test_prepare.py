@@ -9,9 +9,12 @@ import pandas as pd
 import pytest
 import trimesh
 
-from dexlite_pipeline.objects.assets import CATALOG_COLUMNS
+from dexlite_pipeline.objects.assets import CATALOG_COLUMNS, load_asset
 from dexlite_pipeline.objects.config import ObjectsConfig
-from dexlite_pipeline.objects.prepare import MeshRejected, assign_split, check_mesh, normalize_mesh, prepare_object, prepare_objects, prepared_solid
+from dexlite_pipeline.objects.prepare import (
+    MeshRejected, assign_split, check_mesh, heldout_ids, heldout_turn_deg, normalize_mesh, prepare_object, prepare_objects, prepared_solid,
+    turned_heldout,
+)
 from dexlite_pipeline.objects.sources import MeshSource, collect_sources
 
 # Small grids, few samples and a light CoACD search keep these tests at a second or two.
@@ -152,16 +155,38 @@ def test_unchanged_assets_are_reused_and_stale_ones_removed(tmp_path):
 
 
 def test_split_is_seeded_exact_and_respects_always_heldout():
-    ids = [f"obj-{i:02d}" for i in range(20)]
-    catalog = pd.DataFrame({"object_id": ids + ["bad"], "status": ["ok"] * 20 + ["rejected"]})
-    first = assign_split(catalog.copy(), 0.25, seed=3, always_heldout={"obj-00"})
-    again = assign_split(catalog.copy(), 0.25, seed=3, always_heldout={"obj-00"})
-    other = assign_split(catalog.copy(), 0.25, seed=4, always_heldout={"obj-00"})
-    assert list(first["split"]) == list(again["split"])
-    assert list(first["split"]) != list(other["split"])
-    heldout = set(first.loc[first["split"] == "heldout", "object_id"])
-    assert "obj-00" in heldout and len(heldout) == 1 + round(0.25 * 19)
-    assert first.loc[first["object_id"] == "bad", "split"].item() == ""
+    sources = [MeshSource(f"obj-{i:02d}", "user", "x.obj", always_heldout=i == 0) for i in range(21)]
+    first = heldout_ids(sources, 0.25, seed=3)
+    assert first == heldout_ids(sources, 0.25, seed=3)
+    assert first != heldout_ids(sources, 0.25, seed=4)
+    assert "obj-00" in first and len(first) == 1 + round(0.25 * 20)
+    catalog = pd.DataFrame({"object_id": [s.object_id for s in sources], "status": ["ok"] * 20 + ["rejected"]})
+    split = assign_split(catalog, first)
+    assert set(split.loc[split["split"] == "heldout", "object_id"]) == first - {"obj-20"}
+    assert split.loc[split["object_id"] == "obj-20", "split"].item() == ""
+
+
+def test_heldout_objects_are_turned_about_z_by_their_seeded_yaw(tmp_path):
+    """A held-out object is prepared turned about z by its own seeded angle; its catalog row and meta.json say by how much,
+    and its shape is the unturned asset's turned (the table under it unchanged)."""
+    path = tmp_path / "box.obj"
+    trimesh.creation.box((0.08, 0.04, 0.12)).export(path)
+    plain = MeshSource("user-box", "user", str(path))
+    turned = turned_heldout([plain], {"user-box"}, seed=5)[0]
+    assert turned.turn_deg == heldout_turn_deg("user-box", 5) != heldout_turn_deg("user-box", 6)
+    assert 0 <= turned.turn_deg < 360 and turned_heldout([plain], set(), seed=5)[0].turn_deg == 0
+    rows = [prepare_object(source, str(tmp_path / name), TINY.build_settings(0)) for source, name in ((plain, "plain"), (turned, "turned"))]
+    assert rows[0]["turn_deg"] == 0 and rows[1]["turn_deg"] == pytest.approx(turned.turn_deg)
+    meta = json.loads((tmp_path / "turned" / "assets" / "user-box" / "meta.json").read_text())
+    assert meta["turned_about_z_deg"] == pytest.approx(turned.turn_deg)
+    angle = np.radians(turned.turn_deg)
+    rz = np.array([[np.cos(angle), -np.sin(angle), 0], [np.sin(angle), np.cos(angle), 0], [0, 0, 1]])
+    points = [load_asset([str(tmp_path / name)], "user-box").surface_points for name in ("plain", "turned")]
+    # the turned asset's surface is the plain one's turned: every turned point lies on the turned plain box
+    half = np.array([0.08, 0.04, 0.12]) / 2 / np.linalg.norm([0.04, 0.02, 0.06]) / 1.03
+    back = points[1] @ rz  # turned back
+    assert np.abs(back).max(axis=0) == pytest.approx(half, abs=1e-4)
+    assert points[0][:, 2].min() == pytest.approx(points[1][:, 2].min(), abs=1e-4)
 
 
 def test_cli_stops_at_once_on_a_missing_folder(tmp_path, capsys):

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import copy
+import json
 import subprocess
 import sys
 
@@ -10,6 +11,12 @@ import numpy as np
 import pytest
 
 from workflow_harness import local_run_args, run_snakemake, write_config
+
+
+def optimized_stores(run):
+    from dexlite_pipeline.io.grasp_store import read_grasp_store
+
+    return [read_grasp_store(p) for p in sorted((run / "results" / "optimized").glob("shard_*.zarr"))]
 
 
 @pytest.mark.slow
@@ -29,6 +36,16 @@ def test_a_runs_data_stages_become_one_batch_and_its_objects_are_not_added_twice
 
     lifted = GraspSet.concatenate([read_grasp_store(scratch_copy / p) for p in lift_shards])
     assert "six_dir_success" in lifted.arrays
+    # held-out objects were prepared turned (objects.heldout_yaw): left out, each named with its reason in the batch's record
+    import pandas as pd
+
+    catalog = pd.read_parquet(scratch_copy / "results" / "objects" / "catalog.parquet")
+    turned = set(catalog.loc[catalog["turn_deg"] != 0, "object_id"])
+    assert turned and turned == set(catalog.loc[catalog["split"] == "heldout", "object_id"])
+    record = json.loads(next((dataset / "configs").glob("*.json")).read_text())
+    assert set(record["left_out_objects"]) == turned & (set(lifted.object_id) | {o for s in optimized_stores(scratch_copy) for o in s.attrs["objects"]})
+    assert all("turned" in reason for reason in record["left_out_objects"].values())
+    lifted = lifted.select(np.flatnonzero(~np.isin(lifted.object_id.astype(str), sorted(turned))))
     grasps, objects = load_dataset(dataset)
     assert len(grasps) == len(lifted)  # every lift-tested grasp, held or not
     np.testing.assert_array_equal(grasps.hand_pose, lifted.hand_pose)
@@ -36,8 +53,7 @@ def test_a_runs_data_stages_become_one_batch_and_its_objects_are_not_added_twice
     held = np.asarray(grasps.arrays["lift_success"], bool)
     assert ((np.asarray(grasps.arrays["distinct_label"]) >= 0) == held).all()
     assert set(grasps.arrays["source"]) <= {"optimization", "dexgraspnet"}  # curation's origin of each grasp
-    optimized = [read_grasp_store(p) for p in (scratch_copy / "results" / "optimized").glob("shard_*.zarr")]
-    optimized_ids = {o for store in optimized for o in store.attrs["objects"]}
+    optimized_ids = {o for store in optimized_stores(scratch_copy) for o in store.attrs["objects"]} - turned
     # every optimized object, with or without a held grasp, and every object with a tested grasp (the import's too)
     assert set(objects["object_id"]) == optimized_ids | set(lifted.object_id)
     assert objects.set_index("object_id").loc[sorted(optimized_ids), "support_nz"].notna().all()  # their resting poses (tabletop)

@@ -3,12 +3,14 @@
 A campaign batch is a workflow run of the data stages (prepare -> stability -> optimize -> curate -> lift-validate)
 on a range of objects; ``run_batch`` reads what it made — ``results/lift/shard_*.zarr`` (every curated grasp with
 its lift and six-direction outcome), ``results/optimized`` (which objects were optimized), the object catalog, the
-stability table (each object's resting pose) — and the rules' CPU times from ``logs/benchmarks``.
+stability table (each object's resting pose) — and the rules' CPU times from ``logs/benchmarks``. A held-out object
+prepared at a seeded yaw (``objects.heldout_yaw``) is left out, named with the reason in the batch's config record.
 """
 
 from __future__ import annotations
 
 import json
+import logging
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -17,6 +19,8 @@ import numpy as np
 from dexlite_pipeline.dataset.layout import OPTIONAL_ARRAYS, REQUIRED_ARRAYS
 from dexlite_pipeline.dataset.validation import DatasetError
 from dexlite_pipeline.io.grasp_store import GraspSet, read_grasp_store
+
+log = logging.getLogger(__name__)
 
 # Snakemake rule -> the batches.csv cpu_seconds key (the data stages and what they need).
 ENERGY_ARRAYS = ("E_fc", "E_dis", "E_pen", "E_spen", "E_joints", "E_table")
@@ -87,11 +91,15 @@ def run_batch(results: str | Path, logs: str | Path | None = None) -> RunBatch:
     objects_dirs = [d for d in (results / "objects", results / "dexgraspnet" / "objects") if (d / "catalog.parquet").is_file()]
     catalog = pd.concat([pd.read_parquet(d / "catalog.parquet") for d in objects_dirs]).drop_duplicates("object_id").set_index("object_id")
     stability = pd.read_parquet(results / "stability" / "stability.parquet").set_index("object_id")
-    rows = []
+    rows, left_out = [], {}
     for object_id in object_ids:
         if object_id not in catalog.index:
             raise DatasetError(f"{results}: object {object_id} is in no catalog of {', '.join(str(d) for d in objects_dirs)}")
         meta = load_asset([str(d) for d in objects_dirs], object_id).meta
+        if meta.get("turned_about_z_deg"):
+            left_out[object_id] = (f"prepared turned {meta['turned_about_z_deg']:.1f} deg about z (a held-out object at its seeded "
+                                   "yaw, objects.heldout_yaw): the dataset's objects are rebuilt unturned, which its grasps would not fit")
+            continue
         row = {"object_id": object_id, "source": str(catalog.at[object_id, "source"]), "split": str(catalog.at[object_id, "split"]),
                "real_radius_m": meta.get("real_radius_m") if meta.get("real_radius_m") is not None else np.nan}
         for column in ("support_nx", "support_ny", "support_nz", "support_offset", "rest_qx", "rest_qy", "rest_qz", "rest_qw"):
@@ -102,4 +110,9 @@ def run_batch(results: str | Path, logs: str | Path | None = None) -> RunBatch:
     config = {"optimize_grasps": optimized[0].attrs.get("config", {}), "lift": lift_attrs.get("lift_config", {}),
               "curate": lift_attrs.get("config", {}).get("curate", {})}
     config = json.loads(json.dumps(config, default=str))
+    if left_out:
+        for object_id, reason in left_out.items():
+            log.warning("%s: object %s left out of the batch: %s", results, object_id, reason)
+        config["left_out_objects"] = left_out  # the batch's config record keeps them, with the reason
+        grasps = grasps.select(np.flatnonzero(~np.isin(grasps.object_id.astype(str), sorted(left_out))))
     return RunBatch(grasps, pd.DataFrame(rows), stage_cpu_seconds(logs), config, lift_protocol(lift_attrs.get("lift_config", {})))

@@ -62,7 +62,8 @@ def train_from_run(
                         "held_on_training_objects": int(sum((h & m).sum() for h, m in zip(held, inside)))}
     examples = evaluator_examples([*sources["optimization"], *sources["on_generator"]], objects_dirs, training_ids)
     config = EvaluatorConfig(epochs=section.epochs, hand_points_per_shape=section.hand_points_per_shape,
-                             validation_fraction=section.validation_fraction, seed=int(seed))
+                             validation_fraction=section.validation_fraction, rotation_augmentation=section.rotation_augmentation,
+                             seed=int(seed))
     available = examples.clouds.samples_per_object  # small runs prepare fewer surface samples than the default cloud
     if available < config.points_per_cloud:
         log.info("evaluator clouds: %d points (the objects hold %d surface samples)", available, available)

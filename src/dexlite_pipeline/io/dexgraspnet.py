@@ -227,6 +227,7 @@ def _catalog_row(object_id: str, mesh_path: Path, split: str, status: str, reaso
         "surface_deviation": float("nan"),
         "bounds_deviation": float("nan"),
         "volume_ratio": float("nan"),
+        "turn_deg": 0.0,  # as given: its grasps were made in that frame
         "split": split,
     }
 

@@ -38,7 +38,7 @@ from dexlite_pipeline.hand.model import ShadowHand
 from dexlite_pipeline.io.grasp_store import GraspSet, invalid_grasp_reasons
 from dexlite_pipeline.model.data import ObjectClouds, cloud_keys
 from dexlite_pipeline.model.network import PointNet, _mlp
-from dexlite_pipeline.model.pose import TRANSLATION_UNIT_M
+from dexlite_pipeline.model.pose import TRANSLATION_UNIT_M, turn_stored_poses, vertical_rotation
 from dexlite_pipeline.model.score_metrics import roc_auc
 from dexlite_pipeline.objects.assets import ObjectAssetError, load_asset
 from dexlite_pipeline.progress import ProgressLog
@@ -73,6 +73,9 @@ class EvaluatorConfig:
     six_dir_loss_weight: float = 0.5  # weight of the six-direction loss beside the held loss (1)
     validation_fraction: float = 0.2  # share of the OBJECTS whose grasps form the validation set
     seed: int = 0  # initial weights, object split and batch order
+    # Turn each training cloud, its grasps and their tables about the object's z axis (up on a table) by a random angle
+    # every step: a grasp turned with its object is the same grasp, and a user's file sets that angle arbitrarily.
+    rotation_augmentation: bool = True
 
     def __post_init__(self) -> None:
         if not 0 < self.pointnet_points <= self.points_per_cloud:
@@ -278,6 +281,19 @@ def _batch_inputs(clouds: ObjectClouds, object_index, scale, hand_pose, support,
             torch.as_tensor(support[index], dtype=torch.float32, device=device))
 
 
+def turned_inputs(inputs: tuple, angle_rad: torch.Tensor) -> tuple:
+    """``_batch_inputs``' (clouds, poses, cloud_index, support) with cloud c and its grasps turned about the object's z axis
+    by ``angle_rad[c]``: points and normals, palm pose, and the table's normal (its height is unchanged: the turn is
+    about the origin, along the normal)."""
+    clouds, hand_pose, cloud_index, support = inputs
+    angle_rad = angle_rad.to(clouds.device, clouds.dtype)
+    turn = vertical_rotation(angle_rad)
+    clouds = torch.cat([clouds[..., :3] @ turn.transpose(1, 2), clouds[..., 3:] @ turn.transpose(1, 2)], dim=2)
+    grasp_turn = turn[cloud_index]
+    support = torch.cat([(grasp_turn @ support[:, :3, None])[..., 0], support[:, 3:]], dim=1)
+    return clouds, turn_stored_poses(hand_pose, angle_rad[cloud_index]), cloud_index, support
+
+
 def _predict(model: GraspEvaluator, clouds: ObjectClouds, object_index, scale, hand_pose, support, batch_size: int) -> torch.Tensor:
     """Logits (N, 2) of grasps (N,) without gradients, in batches of ``batch_size``."""
     device, keys = next(model.parameters()).device, cloud_keys(object_index, scale)
@@ -306,7 +322,7 @@ def train_evaluator(
 ) -> tuple[GraspEvaluator, TrainingHistory]:
     """Train an evaluator on ``examples``; deterministic for ``config.seed`` and the torch thread count.
 
-    Validation is a seeded share of the objects. Each head's BCE weighs positives by the
+    Validation is a seeded share of the objects (scored as given, unturned). Each head's BCE weighs positives by the
     training split's negatives / positives, so a rare outcome is not ignored; the six-direction
     loss counts only grasps whose store had that label.
     """
@@ -342,6 +358,8 @@ def train_evaluator(
             batch = order[start : start + config.batch_size]
             inputs = _batch_inputs(examples.clouds, examples.object_index, examples.scale, examples.hand_pose, examples.support, keys,
                                    batch, config.points_per_cloud, device)
+            if config.rotation_augmentation:
+                inputs = turned_inputs(inputs, torch.as_tensor(rng.uniform(0.0, 2 * math.pi, len(inputs[0]))))
             loss = _loss(model(*inputs), labels[batch].to(device), known[batch].to(device), pos_weight)
             optimizer.zero_grad(set_to_none=True)
             loss.backward()

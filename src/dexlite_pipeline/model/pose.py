@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import torch
 
+import math
+
 from dexlite_pipeline.hand.model import JOINTS, ROTATION, TRANSLATION
 from dexlite_pipeline.hand.rotation import euler_xyz_to_matrix, matrix_to_euler_xyz, matrix_to_rot6d, rot6d_to_matrix
 
@@ -33,6 +35,27 @@ def rotate_features(features: torch.Tensor, rotation: torch.Tensor) -> torch.Ten
     """The same grasps (B, 31) of an object turned by ``rotation`` (B, 3, 3) about its origin."""
     palm_rot, palm_t, joints = features_to_parts(features)
     return parts_to_features(rotation @ palm_rot, (rotation @ palm_t[..., None])[..., 0], joints)
+
+
+def vertical_rotation(angle_rad: torch.Tensor) -> torch.Tensor:
+    """(N, 3, 3) rotations about the object frame's z axis by ``angle_rad`` (N,): the turns an object standing on a
+    table (its z axis up, as the pipeline's objects stand) can take without changing how it rests."""
+    cos, sin = angle_rad.cos(), angle_rad.sin()
+    zero, one = torch.zeros_like(angle_rad), torch.ones_like(angle_rad)
+    return torch.stack([cos, -sin, zero, sin, cos, zero, zero, zero, one], dim=1).reshape(-1, 3, 3)
+
+
+def turn_stored_poses(hand_pose: torch.Tensor, angle_rad: torch.Tensor) -> torch.Tensor:
+    """The same grasps (N, 28 stored poses) of objects turned about their z axis by ``angle_rad`` (N,).
+
+    With R = Rz Ry Rx (static xyz Euler), Rz(a) R only adds a to the z angle, wrapped to (-pi, pi]; the palm
+    position turns with the object.
+    """
+    turned = hand_pose.clone()
+    turned[:, TRANSLATION] = (vertical_rotation(angle_rad) @ hand_pose[:, TRANSLATION, None])[..., 0]
+    z_angle = hand_pose[:, ROTATION.start + 2] + angle_rad
+    turned[:, ROTATION.start + 2] = torch.remainder(z_angle + math.pi, 2 * math.pi) - math.pi
+    return turned
 
 
 def shift_translation(features: torch.Tensor, offset_m: torch.Tensor) -> torch.Tensor:

@@ -36,7 +36,7 @@ from dexlite_pipeline.model.data import Batch, TrainingData, cloud_batches, make
 from dexlite_pipeline.model.association import nearest_to_ray
 from dexlite_pipeline.model.config import ENERGY_TERMS, LOSS_TERMS, TABLE_TERM, TrainConfig
 from dexlite_pipeline.model.network import GraspCVAE, anchor_at, kl_divergence
-from dexlite_pipeline.model.pose import features_to_parts, features_to_pose, pose_errors, reconstruction_error, rotate_features
+from dexlite_pipeline.model.pose import features_to_parts, features_to_pose, pose_errors, reconstruction_error, rotate_features, vertical_rotation
 
 log = logging.getLogger(__name__)
 
@@ -79,9 +79,7 @@ def grasp_energy_terms(energy: GraspEnergy, contact_samples: int = 0, seed: int 
 
 def vertical_turns(count: int, generator: torch.Generator, device: torch.device) -> torch.Tensor:
     """(count, 3, 3) rotations about the object frame's z axis (gravity's axis) by uniform random angles."""
-    angle = torch.rand(count, generator=generator).to(device) * (2 * math.pi)
-    cos, sin, zero, one = angle.cos(), angle.sin(), torch.zeros_like(angle), torch.ones_like(angle)
-    return torch.stack([cos, -sin, zero, sin, cos, zero, zero, zero, one], dim=1).reshape(count, 3, 3)
+    return vertical_rotation(torch.rand(count, generator=generator).to(device) * (2 * math.pi))
 
 
 @dataclass

@@ -33,7 +33,7 @@ CATALOG_NAME = "catalog.parquet"
 # (largest bounding-box corner difference): prepared solid versus input, fractions of the input's largest extent;
 # volume_ratio: prepared / input volume (NaN where the input is open) (objects.fidelity).
 CATALOG_COLUMNS = ("object_id", "source", "file", "watertight", "volume", "n_convex_pieces", "status", "reason",
-                   "preparation", "surface_deviation", "bounds_deviation", "volume_ratio", "split")
+                   "preparation", "surface_deviation", "bounds_deviation", "volume_ratio", "turn_deg", "split")
 ASSETS_DIR = "assets"
 
 

@@ -61,6 +61,9 @@ class ObjectsConfig(CoacdSettings):
     mesh_dirs: tuple[str, ...] = setting((), "folders of .obj/.stl meshes to add", required=True)
     heldout_mesh_dirs: tuple[str, ...] = setting((), "folders whose meshes are always held out for evaluation", required=True)
     heldout_fraction: float = setting(0.2, "of the remaining objects, held out by a seeded split", minimum=0, maximum=1)
+    heldout_yaw: bool = setting(
+        True, "turn each held-out object about its z axis (up on the table) by a seeded random angle before it is prepared, so "
+        "held-out rates measure grasping, not the orientation its file happened to have (catalog column turn_deg)")
     sdf_resolution: int = setting(96, "grid points per axis of the signed distance grid", minimum=16, maximum=256)
     sdf_padding: float = setting(0.25, "grid margin beyond the unit ball, normalized units", exclusive_minimum=0)
     sdf_exact_band: float = setting(

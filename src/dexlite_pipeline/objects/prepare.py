@@ -18,6 +18,7 @@ import hashlib
 import json
 import logging
 import shutil
+import zlib
 from pathlib import Path
 
 import numpy as np
@@ -60,7 +61,7 @@ def _as_trimesh(loaded):
 
 
 def load_source_mesh(source: MeshSource):
-    """Read the mesh file and apply the source's placement (URDF scale, then rotation)."""
+    """Read the mesh file and apply the source's placement (URDF scale, then rotation, then its turn about z)."""
     import trimesh
 
     path = Path(source.file)
@@ -81,6 +82,7 @@ def load_source_mesh(source: MeshSource):
         raise MeshRejected("unreadable: face indices out of range")
     vertices = vertices * np.asarray(source.scale_xyz)
     rotation = trimesh.transformations.euler_matrix(*source.rotation_rpy, axes="sxyz")[:3, :3]
+    rotation = trimesh.transformations.rotation_matrix(np.radians(source.turn_deg), [0, 0, 1])[:3, :3] @ rotation
     return trimesh.Trimesh(vertices @ rotation.T, faces, process=False)
 
 
@@ -163,7 +165,7 @@ def _build_key(source: MeshSource, settings: AssetBuildSettings, builder: str) -
     """Hash of everything an asset depends on: file bytes, placement, build settings, builder version."""
     digest = hashlib.sha256()
     digest.update(Path(source.file).read_bytes())
-    digest.update(json.dumps([source.scale_xyz, source.rotation_rpy, source.metres_per_unit, dataclasses.asdict(settings), builder],
+    digest.update(json.dumps([source.scale_xyz, source.rotation_rpy, source.turn_deg, source.metres_per_unit, dataclasses.asdict(settings), builder],
                              sort_keys=True).encode())
     return digest.hexdigest()
 
@@ -195,6 +197,7 @@ def _row(source: MeshSource, deviation=None, **values) -> dict:
         "surface_deviation": float("nan"),
         "bounds_deviation": float("nan"),
         "volume_ratio": float("nan"),
+        "turn_deg": float(source.turn_deg),
     }
     if deviation is not None:
         record = deviation if isinstance(deviation, dict) else deviation.as_record()
@@ -232,10 +235,11 @@ def prepare_object(source: MeshSource, objects_dir: str, settings: AssetBuildSet
             "file": file_label(source.file),
             "placement_scale_xyz": list(source.scale_xyz),
             "placement_rotation_rpy": list(source.rotation_rpy),
+            "turned_about_z_deg": float(source.turn_deg),  # after the placement: a held-out object's seeded yaw
             "normalization_centre": centre.tolist(),
             "normalization_factor": factor,
             # Real radius (m) when the file's units are known to be metres (generated objects), else None.
-            "real_radius_m": source.real_radius_m,
+            "real_radius_m": _real_radius_m(source, raw, factor),
             "center_mass": np.asarray(mesh.center_mass).tolist(),
             "build_key": key,
             # how the file became one solid and how far that solid is from the file's surface (fractions of its size)
@@ -249,20 +253,55 @@ def prepare_object(source: MeshSource, objects_dir: str, settings: AssetBuildSet
                 n_convex_pieces=summary["n_convex_pieces"], status="ok", preparation=made.summary())
 
 
+def _radius_about_box_centre(vertices: np.ndarray) -> float:
+    return float(np.linalg.norm(vertices - (vertices.min(axis=0) + vertices.max(axis=0)) / 2, axis=1).max())
+
+
+def _real_radius_m(source: MeshSource, placed, factor: float) -> float | None:
+    """The prepared object's real radius (m: largest vertex distance from its bounding-box centre), or None when unknown.
+
+    A source's ``real_radius_m`` is its mesh as placed, unturned; a turn about z moves the bounding box's centre, so a turned
+    object's radius is that value times the prepared radius (1 / (``factor`` x 1.03)) over the unturned one of the same
+    placed mesh."""
+    if source.real_radius_m is None or not source.turn_deg:
+        return source.real_radius_m
+    vertices = np.asarray(placed.vertices, dtype=np.float64)
+    angle = np.radians(source.turn_deg)
+    unturn = np.array([[np.cos(angle), np.sin(angle), 0.0], [-np.sin(angle), np.cos(angle), 0.0], [0.0, 0.0, 1.0]])
+    return source.real_radius_m / (factor * RADIUS_MARGIN) / _radius_about_box_centre(vertices @ unturn.T)
+
+
 def _crashed_row(source: MeshSource, message: str) -> dict:
     return _row(source, reason=f"preparation failed: {message.splitlines()[0] if message else 'unknown error'}")
 
 
-def assign_split(catalog, heldout_fraction: float, seed: int, always_heldout: set[str]):
-    """Seeded train/heldout split of the ok objects: a fixed fraction of the rest plus ``always_heldout``.
+def heldout_ids(sources: list[MeshSource], heldout_fraction: float, seed: int) -> set[str]:
+    """The held-out objects: every ``always_heldout`` source plus a seeded ``heldout_fraction`` of the rest.
 
-    Rejected objects get an empty split (they are used nowhere).
+    Drawn from the sources, before preparation, so a held-out object can be turned before it is
+    prepared (``objects.heldout_yaw``); one that is then rejected is held out nowhere.
     """
-    ok = catalog["status"] == "ok"
-    candidates = sorted(oid for oid in catalog.loc[ok, "object_id"] if oid not in always_heldout)
+    always = {s.object_id for s in sources if s.always_heldout}
+    candidates = sorted({s.object_id for s in sources} - always)
     n_heldout = int(round(heldout_fraction * len(candidates)))
     rng = np.random.default_rng([seed, 0x5B117])
-    heldout = {candidates[i] for i in rng.choice(len(candidates), size=n_heldout, replace=False)} | set(always_heldout)
+    return {candidates[i] for i in rng.choice(len(candidates), size=n_heldout, replace=False)} | always
+
+
+def heldout_turn_deg(object_id: str, seed: int) -> float:
+    """A held-out object's seeded yaw, degrees in [0, 360): the same for the same object and seed, whatever else the run holds."""
+    return float(np.random.default_rng([seed, 0x7A1E, zlib.crc32(object_id.encode())]).uniform(0.0, 360.0))
+
+
+def turned_heldout(sources: list[MeshSource], heldout: set[str], seed: int) -> list[MeshSource]:
+    """``sources`` with each held-out one turned about z by its seeded yaw (``heldout_turn_deg``)."""
+    return [dataclasses.replace(s, turn_deg=heldout_turn_deg(s.object_id, seed)) if s.object_id in heldout else s for s in sources]
+
+
+def assign_split(catalog, heldout: set[str]):
+    """The catalog's split column: "heldout" for ``heldout`` (``heldout_ids``), "train" for the other ok objects;
+    rejected objects get an empty split (they are used nowhere)."""
+    ok = catalog["status"] == "ok"
     split = np.where(catalog["object_id"].isin(heldout), "heldout", "train")
     catalog["split"] = np.where(ok, split, "")
     return catalog
@@ -308,6 +347,9 @@ def prepare_objects(
     if len(set(ids)) != len(ids):
         raise ValueError(f"duplicate object ids among sources: {sorted({i for i in ids if ids.count(i) > 1})}")
     settings = config.build_settings(seed)
+    heldout = heldout_ids(sources, config.heldout_fraction, seed)
+    if config.heldout_yaw:
+        sources = turned_heldout(sources, heldout, seed)
     objects_dir.mkdir(parents=True, exist_ok=True)
     task = functools.partial(prepare_object, objects_dir=str(objects_dir), settings=settings, builder=builder_version())
 
@@ -316,7 +358,7 @@ def prepare_objects(
     catalog = pd.DataFrame(rows, columns=list(CATALOG_COLUMNS[:-1]))
     catalog["watertight"] = catalog["watertight"].astype("boolean")
     catalog["n_convex_pieces"] = catalog["n_convex_pieces"].astype("int64")
-    catalog = assign_split(catalog, config.heldout_fraction, seed, {s.object_id for s in sources if s.always_heldout})
+    catalog = assign_split(catalog, heldout)
     catalog = catalog[list(CATALOG_COLUMNS)].sort_values("object_id", kind="stable").reset_index(drop=True)
     remove_stale_assets(objects_dir, set(catalog.loc[catalog["status"] == "ok", "object_id"]))
     with atomic_path(record_path) as tmp:

@@ -69,6 +69,9 @@ class MeshSource:
     # Metres per unit of the file's coordinates when known (generated objects, `dexlite grasp --units`): sets the
     # millimetre floor of the prepared-versus-input check; None for files of unknown units.
     metres_per_unit: float | None = None
+    # Degrees the placed mesh is turned about its z axis (up on the table) before preparation: a held-out object at a
+    # seeded random yaw (``objects.heldout_yaw``), so held-out rates do not depend on the orientation its file had.
+    turn_deg: float = 0.0
 
 
 def pybullet_data_dir() -> Path:
