@@ -75,3 +75,20 @@ def test_collision_signed_distance(hand):
     # Hand surface samples lie on their own shape and so on or inside the union (sd >= 0 up to float error).
     surface = hand.surface_points(frames)
     assert (hand.collision_signed_distance(frames, surface) > -1e-6).all()
+
+
+def test_side_candidates_face_the_thumb_from_the_index_middle_phalanx(hand):
+    """The lateral grasp's candidates: on the surface of the index finger's middle capsule, on its radial side (the
+    link's +x, toward the thumb), after the 140 pads in the contact table."""
+    assert hand.pad_candidate_count == 140 and len(hand.side_contact_link) == 10
+    assert torch.equal(hand.all_contact_link[:140], hand.contact_link)
+    link = hand.link_index["robot0:ffmiddle"]
+    assert set(hand.side_contact_link.tolist()) == {link}
+    capsule = hand._capsule_of_link("robot0:ffmiddle")
+    local = hand.side_contact_points_local - hand.shape_pos[capsule]
+    radius, half = hand.shape_size[capsule, :2]
+    assert torch.allclose(local[:, :2].norm(dim=1), radius.expand(10), atol=1e-6) and bool((local[:, 2].abs() < half).all())
+    assert bool((local[:, 0] / radius > 0.8).all())  # radial side: toward +x, within 37° of it
+    assert hand.candidates_on(("robot0:ffmiddle",)) == tuple(range(10, 20)) + tuple(range(140, 150))
+    thumb_base = hand.forward(torch.zeros(1, 28)).translation[0, hand.link_index["robot0:thbase"]]
+    assert float(thumb_base[0]) > 0  # the thumb is on the +x side of the palm

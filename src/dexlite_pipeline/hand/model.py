@@ -39,6 +39,11 @@ FINGER_CONTACT_LINKS = tuple(
     f"robot0:{finger}{segment}" for finger in ("ff", "mf", "rf", "lf") for segment in ("proximal", "middle", "distal")
 ) + ("robot0:thmiddle", "robot0:thdistal")
 DISTAL_LINKS = ("robot0:ffdistal", "robot0:mfdistal", "robot0:rfdistal", "robot0:lfdistal", "robot0:thdistal")
+# The side of a finger that a lateral (key) pinch presses on: the index finger's middle phalanx, on its radial side
+# (+x of the link, toward the thumb). Its candidates follow the palmar pads in the contact table (``all_contact_*``).
+SIDE_CONTACT_LINKS = ("robot0:ffmiddle",)
+# Directions of the side candidates' columns in the link's x-y plane, radians from +x toward the palmar side (−y).
+SIDE_CONTACT_ANGLES = (0.0, -math.radians(30.0))
 
 CAPSULE, BOX = 0, 1
 
@@ -202,6 +207,18 @@ class ShadowHand:
         self.contact_points_local = as_t(np.array(pts))
         self.contact_link = torch.tensor(ids, device=self.device)
 
+        # Side candidates (``SIDE_CONTACT_LINKS``): columns at ``SIDE_CONTACT_ANGLES``, at the pads' heights.
+        pts, ids = [], []
+        for link in SIDE_CONTACT_LINKS:
+            s = self._capsule_of_link(link)
+            r, half, zc = float(self.shape_size[s, 0]), float(self.shape_size[s, 1]), float(self.shape_pos[s, 2])
+            for angle in SIDE_CONTACT_ANGLES:
+                for h in range(heights):
+                    pts.append([r * math.cos(angle), r * math.sin(angle), zc - half * 0.8 + 1.6 * half * (h + 0.5) / heights])
+                    ids.append(self.link_index[link])
+        self.side_contact_points_local = as_t(np.array(pts))
+        self.side_contact_link = torch.tensor(ids, device=self.device)
+
         # Penetration keypoints on capsule axes, 1 cm in from the ends, ~1.2 cm apart.
         pts, ids = [], []
         for s in self.capsule_ids.tolist():
@@ -306,6 +323,26 @@ class ShadowHand:
         return out
 
     # ---------------------------------------------------------------- point sets
+    @property
+    def pad_candidate_count(self) -> int:
+        """How many palmar pad candidates there are (140): contact indices below it are pads, from it on side candidates."""
+        return len(self.contact_link)
+
+    @property
+    def all_contact_points_local(self) -> torch.Tensor:
+        """(140 + S, 3) the contact table a contact index points into: the palmar pads, then the side candidates."""
+        return torch.cat([self.contact_points_local, self.side_contact_points_local])
+
+    @property
+    def all_contact_link(self) -> torch.Tensor:
+        """(140 + S,) the link of each entry of ``all_contact_points_local``."""
+        return torch.cat([self.contact_link, self.side_contact_link])
+
+    def candidates_on(self, links: tuple[str, ...]) -> tuple[int, ...]:
+        """Indices into the contact table (``all_contact_points_local``) of every candidate on the named links."""
+        wanted = {self.link_index[name] for name in links}
+        return tuple(i for i, link in enumerate(self.all_contact_link.tolist()) if link in wanted)
+
     def contact_candidates(self, frames: HandFrames) -> torch.Tensor:
         """(B, 140, 3) contact candidate points on the palmar side of the finger links."""
         return frames.transform(self.contact_points_local, self.contact_link)
