@@ -63,3 +63,25 @@ def test_invalid_grasps_are_flagged_not_dropped():
     assert "non-finite" in reasons[1]
     assert "scale" in reasons[2]
     assert "object id" in reasons[3]
+
+
+def test_grasp_type_round_trips_and_defaults_to_power(tmp_path):
+    from dexlite_pipeline.io.grasp_store import grasp_types
+
+    typed = _grasps(4)
+    typed.arrays["grasp_type"] = np.array(["power", "pinch", "tripod", "lateral"], dtype=object)
+    back = read_grasp_store(write_grasp_store(tmp_path / "typed.zarr", typed))
+    assert grasp_types(back).tolist() == ["power", "pinch", "tripod", "lateral"]
+    older = read_grasp_store(write_grasp_store(tmp_path / "older.zarr", _grasps(3)))  # written before grasp types existed
+    assert "grasp_type" not in older.arrays and grasp_types(older).tolist() == ["power"] * 3
+
+
+def test_concatenating_typed_and_untyped_grasps_keeps_the_types():
+    """Curation joins optimized shards (typed) with imported grasps (untyped): the imported ones are power grasps."""
+    typed = _grasps(2)
+    typed.arrays["grasp_type"] = np.array(["pinch", "lateral"], dtype=object)
+    joined, left_out = GraspSet.concatenate_common([typed, _grasps(3)])
+    assert left_out == []
+    assert joined.arrays["grasp_type"].tolist() == ["pinch", "lateral", "power", "power", "power"]
+    untyped, _ = GraspSet.concatenate_common([_grasps(2), _grasps(1)])
+    assert "grasp_type" not in untyped.arrays

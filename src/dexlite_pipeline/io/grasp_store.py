@@ -4,6 +4,11 @@ Arrays: ``hand_pose`` float32 (N, 28), ``object_id`` (N,) strings, ``scale`` flo
 and any further per-grasp arrays with first dimension N. Root attributes:
 ``joint_names`` and ``schema_version``, plus whatever the writing stage records
 (its config, provenance).
+
+``grasp_type`` (N,) strings: the grasp type optimization from scratch made the grasp as (``power``, ``pinch``,
+``tripod``, ``lateral``: ``optim.grasp_types``); every optimized store has it, and curation and the lift test carry it.
+A store without it holds power grasps (all stores written before grasp types existed, DexGraspNet imports):
+``grasp_types`` reads it so, and ``GraspSet.concatenate_common`` fills it so for such inputs (``ARRAY_DEFAULTS``).
 """
 
 from __future__ import annotations
@@ -21,6 +26,11 @@ from dexlite_pipeline.hand.model import JOINT_NAMES, POSE_DIM
 
 SCHEMA_VERSION = 1
 REQUIRED_ARRAYS = ("hand_pose", "object_id", "scale")
+GRASP_TYPE = "grasp_type"  # the array naming each grasp's type
+DEFAULT_GRASP_TYPE = "power"  # the type of a grasp in a store without ``grasp_type``
+# Per-grasp arrays whose absence means a known value: concatenating a store that has one with one that lacks it
+# fills the value in rather than leaving the array out.
+ARRAY_DEFAULTS: dict[str, str] = {GRASP_TYPE: DEFAULT_GRASP_TYPE}
 
 
 class GraspStoreError(ValueError):
@@ -71,14 +81,26 @@ class GraspSet:
 
         Sets without rows add no grasps and take no part in choosing the arrays (a shard
         written empty without some array must not strip it from the others). With no rows
-        at all, the first set (or an empty set) is returned as it is.
+        at all, the first set (or an empty set) is returned as it is. An array of
+        ``ARRAY_DEFAULTS`` that some sets lack is filled with its default for their rows.
         """
         with_rows = [s for s in sets if len(s)]
         if not with_rows:
             return (GraspSet(dict(sets[0].arrays), {}) if sets else empty_grasp_set()), []
+        for name, value in ARRAY_DEFAULTS.items():  # an array with a known default is filled in where a set lacks it
+            if any(name in s.arrays for s in with_rows):
+                with_rows = [s if name in s.arrays else GraspSet({**s.arrays, name: np.full(len(s), value, dtype=object)}, s.attrs)
+                             for s in with_rows]
         shared = set.intersection(*(set(s.arrays) for s in with_rows))
         left_out = sorted(set.union(*(set(s.arrays) for s in with_rows)) - shared)
         return GraspSet.concatenate([GraspSet({k: s.arrays[k] for k in shared}) for s in with_rows], attrs={}), left_out
+
+
+def grasp_types(grasps: GraspSet) -> np.ndarray:
+    """(N,) each grasp's type (strings): its ``grasp_type``, or ``power`` for every grasp of a store without one."""
+    if GRASP_TYPE in grasps.arrays:
+        return np.asarray([str(t) for t in grasps.arrays[GRASP_TYPE]], dtype=object)
+    return np.full(len(grasps), DEFAULT_GRASP_TYPE, dtype=object)
 
 
 def empty_grasp_set(attrs: dict | None = None) -> GraspSet:
