@@ -158,7 +158,7 @@ def test_contact_kernel_equals_the_bank(hand, energy, sphere_objects):
     frames = hand.forward(pose)
     object_index = torch.arange(count) % 2
     scale = torch.tensor(SCALES)[torch.arange(count) % 3]
-    contacts = torch.randint(0, len(hand.contact_link), (count, 4), generator=torch.Generator().manual_seed(18))
+    contacts = torch.randint(0, len(hand.all_contact_link), (count, 4), generator=torch.Generator().manual_seed(18))  # pads and side candidates
     weights = [torch.randn(shape, generator=torch.Generator().manual_seed(19 + i), dtype=torch.float64)
                for i, shape in enumerate(((count, 4, 3), (count, 4), (count, 4, 3)))]
     bank64 = SdfBank([load_asset(sphere_objects, "sphere"), load_asset(sphere_objects, "box")], dtype=torch.float64)
@@ -171,7 +171,7 @@ def test_contact_kernel_equals_the_bank(hand, energy, sphere_objects):
         if use_kernel:
             points, distance, normal = energy.contact_kernel(moved, contacts, object_index, scale)
         else:
-            points = moved.transform(hand.contact_points_local.double(), hand.contact_link)
+            points = moved.transform(hand.all_contact_points_local.double(), hand.all_contact_link)
             points = torch.gather(points, 1, contacts[..., None].expand(-1, -1, 3))
             distance, normal = bank64.signed_distance(points, object_index[:, None], scale.double()[:, None])
         loss = sum((value * weight).sum() for value, weight in zip((points, distance, normal), weights))

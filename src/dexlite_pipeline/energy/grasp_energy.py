@@ -17,6 +17,7 @@ import numpy as np
 import torch
 
 from dexlite_pipeline.energy.config import JUDGED_POINT_SPACING_M, EnergyConfig, EnergyWeights
+from dexlite_pipeline.energy.contact_slots import CONTACT_COUNT, ContactSlots
 from dexlite_pipeline.energy.link_map import LinkFrameMap
 from dexlite_pipeline.energy.point_clusters import PADDING
 from dexlite_pipeline.energy.terms import (
@@ -44,7 +45,6 @@ EDGE_POINT_SPACING = 0.004
 TERM_CLASSES: tuple[type[EnergyTerm], ...] = (ForceClosureTerm, ContactDistanceTerm, PenetrationTerm, SelfPenetrationTerm, JointLimitTerm)
 TERM_NAMES = tuple(term.name for term in TERM_CLASSES)  # ("E_fc", "E_dis", "E_pen", "E_spen", "E_joints")
 TERM_WEIGHT_KEYS: dict[str, str] = {term.name: term.weight_key for term in TERM_CLASSES}  # "E_fc" -> "fc", ...
-CONTACT_COUNT = 4
 
 
 def weighted_sum(weights, terms: Mapping[str, torch.Tensor], name_and_key: Iterable[tuple[str, str]]) -> torch.Tensor:
@@ -109,7 +109,9 @@ class GraspEnergy:
         self.contact_distance = ContactDistanceTerm()
         self.joint_limits = JointLimitTerm(hand.joint_limits)
         self.self_penetration = SelfPenetrationTerm(hand, self_penetration_margin_m)
-        self.candidate_map = LinkFrameMap.for_points(hand.contact_points_local, hand.contact_link, len(hand.link_names))
+        self.candidate_map = LinkFrameMap.for_points(hand.contact_points_local, hand.contact_link, len(hand.link_names))  # the pads
+        self.side_candidate_map = LinkFrameMap.for_points(hand.side_contact_points_local, hand.side_contact_link, len(hand.link_names))
+        self.contact_table_map = LinkFrameMap.for_points(hand.all_contact_points_local, hand.all_contact_link, len(hand.link_names))
         self._contact_kernel = None
         self.penetration = PenetrationTerm(
             hand,
@@ -201,13 +203,13 @@ class GraspEnergy:
         if self._contact_kernel is None:
             from dexlite_pipeline.energy.contact_kernel import ContactKernel  # imports numba: only when used
 
-            self._contact_kernel = ContactKernel(self.bank, self.hand.contact_points_local, self.hand.contact_link)
+            self._contact_kernel = ContactKernel(self.bank, self.hand.all_contact_points_local, self.hand.all_contact_link)
         return self._contact_kernel
 
     def contact_points(self, frames: HandFrames, contact_index: torch.Tensor) -> torch.Tensor:
-        """(B, 4, 3) object-frame positions of the chosen contact candidates (only those are computed)."""
+        """(B, 4, 3) object-frame positions of the chosen entries of the contact table (only those are computed)."""
         batch = torch.arange(contact_index.shape[0], device=contact_index.device)[:, None].expand_as(contact_index)
-        return self.candidate_map.rows(frames, batch.reshape(-1), contact_index.reshape(-1)).reshape(*contact_index.shape, 3)
+        return self.contact_table_map.rows(frames, batch.reshape(-1), contact_index.reshape(-1)).reshape(*contact_index.shape, 3)
 
     def nearest_contacts(self, frames: HandFrames, object_index: torch.Tensor, scale: torch.Tensor) -> torch.Tensor:
         """(B, 4) indices of the four candidates closest to the object surface (smallest |d|).
@@ -230,6 +232,7 @@ class GraspEnergy:
         generator: torch.Generator,
         closeness_m: float = 0.002,
         draw=None,
+        slots: ContactSlots | None = None,
     ) -> torch.Tensor:
         """(B, 4) contacts minimizing the contact-dependent energy, w_fc·E_fc + w_dis·E_dis, for fixed poses.
 
@@ -237,19 +240,35 @@ class GraspEnergy:
         so that pads near the surface are preferred, plus the current set (so it never gets
         worse). The pose-only terms do not depend on the contacts, so the total improves by
         exactly the same amount. ``draw(weight (B, N), count)`` -> (B, count) indices replaces the
-        generator's draws (``optim.annealing.Draws``: each grasp's own stream).
+        generator's draws (``optim.annealing.Draws``: each grasp's own stream). ``slots`` (a grasp type's
+        contact template, ``ContactSlots``): contact k is drawn among its slot's candidates only (the weights
+        normalized within the slot; ``draw`` then gets weights (B, 4, N) and returns (B, 4, count)); None: every
+        contact among all 140 pads.
         """
         with torch.no_grad():
             frames = self.hand.forward(hand_pose)
             candidates = self.candidate_map(frames)
+            if slots is not None and slots.candidate_count > candidates.shape[1]:
+                candidates = torch.cat([candidates, self.side_candidate_map(frames)], dim=1)
             distance, normal = self.bank.signed_distance(candidates, object_index[:, None], scale[:, None])
             batch, count = distance.shape
-            weight = torch.softmax(-distance.abs() / closeness_m, dim=1).cpu()
-            if draw is None:
-                draws = torch.multinomial(weight, samples * CONTACT_COUNT, replacement=True, generator=generator)
+            if slots is None:
+                weight = torch.softmax(-distance.abs() / closeness_m, dim=1).cpu()
+                if draw is None:
+                    draws = torch.multinomial(weight, samples * CONTACT_COUNT, replacement=True, generator=generator)
+                else:
+                    draws = draw(weight, samples * CONTACT_COUNT)
+                draws = draws.reshape(batch, samples, CONTACT_COUNT)
             else:
-                draws = draw(weight, samples * CONTACT_COUNT)
-            draws = torch.cat([contact_index.cpu()[:, None, :], draws.reshape(batch, samples, CONTACT_COUNT)], dim=1).to(self.device)
+                closeness = (-distance.abs() / closeness_m).cpu()[:, None, :].expand(batch, CONTACT_COUNT, count)
+                weight = torch.softmax(closeness.masked_fill(~slots.masks(count), -torch.inf), dim=2)  # (B, 4, N)
+                if draw is None:
+                    per_slot = torch.multinomial(weight.reshape(batch * CONTACT_COUNT, count), samples, replacement=True, generator=generator)
+                    per_slot = per_slot.reshape(batch, CONTACT_COUNT, samples)
+                else:
+                    per_slot = draw(weight, samples)
+                draws = per_slot.transpose(1, 2)
+            draws = torch.cat([contact_index.cpu()[:, None, :], draws], dim=1).to(self.device)
             flat = draws.reshape(batch, (samples + 1) * CONTACT_COUNT)
             points = torch.gather(candidates, 1, flat[..., None].expand(-1, -1, 3)).reshape(-1, CONTACT_COUNT, 3)
             normals = torch.gather(normal, 1, flat[..., None].expand(-1, -1, 3)).reshape(-1, CONTACT_COUNT, 3)

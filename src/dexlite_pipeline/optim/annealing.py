@@ -27,6 +27,9 @@ poses picks the best (``GraspEnergy.best_contacts``): the random walk over conta
 rarely lands on the best set once T is low. With ``contact_search_every`` the same search
 also runs during the run, so the gradient then pulls the best contacts found onto the
 surface (it never raises the energy). Results come back as the stored 28-vector pose.
+
+With ``contact_slots`` (a grasp type's contact template, ``energy.contact_slots``) every draw of a contact, at the
+start, in the walk and in the searches, is among the candidates its slot allows; without, among all 140 pads.
 """
 
 from __future__ import annotations
@@ -38,6 +41,7 @@ from dataclasses import dataclass, replace
 
 import torch
 
+from dexlite_pipeline.energy.contact_slots import ContactSlots
 from dexlite_pipeline.energy.grasp_energy import CONTACT_COUNT, EnergyResult, GraspEnergy
 from dexlite_pipeline.hand.model import JOINTS, ROTATION, TRANSLATION
 from dexlite_pipeline.hand.rotation import euler_xyz_to_matrix, matrix_to_euler_xyz, matrix_to_rot6d, rot6d_to_matrix
@@ -177,17 +181,26 @@ class RMSPropProposal:
 
 class Draws:
     """The walk's random draws: from the run's generator in batch order, or, with ``random`` (``GraspRandom``),
-    from each grasp's own stream, so that a grasp walks the same alone or in any batch."""
+    from each grasp's own stream, so that a grasp walks the same alone or in any batch. With ``slots``
+    (``ContactSlots``) each contact is drawn among its slot's candidates (one uniform per contact either way)."""
 
-    def __init__(self, batch: int, generator: torch.Generator, device, random: GraspRandom | None = None) -> None:
-        self.batch, self.generator, self.device, self.random = batch, generator, device, random
+    def __init__(self, batch: int, generator: torch.Generator, device, random: GraspRandom | None = None,
+                 slots: ContactSlots | None = None) -> None:
+        self.batch, self.generator, self.device, self.random, self.slots = batch, generator, device, random, slots
 
     def take(self, rows: torch.Tensor) -> "Draws":
         """The draws of the grasps at ``rows`` only (their own streams with ``random``)."""
-        return Draws(len(rows), self.generator, self.device, None if self.random is None else self.random.take(rows))
+        return Draws(len(rows), self.generator, self.device, None if self.random is None else self.random.take(rows),
+                     None if self.slots is None else self.slots.take(rows))
 
     def contacts(self, iteration: int, candidate_count: int) -> torch.Tensor:
         """(B, 4) contact indices drawn uniformly among the candidates (iteration 0: the start)."""
+        if self.slots is not None:
+            if self.random is None:
+                uniform = torch.rand(self.batch, CONTACT_COUNT, generator=self.generator, dtype=torch.float64)
+            else:
+                uniform = self.random.uniform(iteration, GraspRandom.INITIAL_CONTACTS if iteration == 0 else GraspRandom.REDRAW, CONTACT_COUNT)
+            return self.slots.draw(uniform).to(self.device)
         if self.random is None:
             return random_contacts(self.batch, candidate_count, self.generator, self.device)
         stream = GraspRandom.INITIAL_CONTACTS if iteration == 0 else GraspRandom.REDRAW
@@ -230,12 +243,15 @@ class KeepBest:
         self.best = self.best.take(rows)
 
 
-def search_contacts(energy: GraspEnergy, walk: WalkState, evaluate: StateEnergy, samples: int, generator: torch.Generator, draw=None) -> WalkState:
+def search_contacts(energy: GraspEnergy, walk: WalkState, evaluate: StateEnergy, samples: int, generator: torch.Generator, draw=None,
+                    slots: ContactSlots | None = None) -> WalkState:
     """The walk re-evaluated at the best of ``samples`` contact sets per grasp for its current poses (never worse).
 
     Run every ``contact_search_every`` iterations, so the next gradient steps pull the chosen contacts onto the surface.
+    ``slots``: the grasps' contact templates (None: any pad).
     """
-    contacts = energy.best_contacts(state_to_pose(walk.state), evaluate.object_index, evaluate.scale, walk.contacts, samples, generator, draw=draw)
+    contacts = energy.best_contacts(state_to_pose(walk.state), evaluate.object_index, evaluate.scale, walk.contacts, samples, generator, draw=draw,
+                                    slots=slots)
     return evaluate(walk.state, contacts)
 
 
@@ -312,6 +328,7 @@ def optimize(
     progress_every: int = 100,
     snapshot_iterations: tuple[int, ...] = (),
     random: GraspRandom | None = None,
+    contact_slots: ContactSlots | None = None,
 ) -> OptimizationResult:
     """Run the annealed optimizer on a batch of grasps from ``init_pose`` (B, 28).
 
@@ -322,7 +339,9 @@ def optimize(
     ``snapshot_iterations``: also return the kept pose (the best so far with ``keep_best``)
     after each of these iterations, for budget curves. ``random`` (``GraspRandom``): the walk's
     draws from each grasp's own stream instead of ``generator``; with ``rmsprop_statistic`` "grasp"
-    (and the CPU's compiled energy) a grasp then refines the same alone or in any batch.
+    (and the CPU's compiled energy) a grasp then refines the same alone or in any batch. ``contact_slots``
+    (``ContactSlots``, B grasps): each grasp's contacts are drawn and searched among its template's candidates only
+    (the initial contacts too, unless ``contact_index`` is given); None: among all pads.
     """
     started = time.process_time()  # CPU seconds of this process (all its threads): costs stay true on a shared machine
     device = energy.device
@@ -330,7 +349,7 @@ def optimize(
     candidate_count = len(energy.hand.contact_link)
     evaluate = StateEnergy(energy, object_index, scale)
     state = pose_to_state(init_pose.to(device, energy.hand.dtype)).detach()
-    draws = Draws(batch, generator, device, random)
+    draws = Draws(batch, generator, device, random, contact_slots)
     contacts = draws.contacts(0, candidate_count) if contact_index is None else contact_index.to(device)
 
     walk = evaluate(state, contacts)
@@ -351,7 +370,8 @@ def optimize(
         tracker.count(accept, active)
         walk = walk.where(accept, proposal)
         if searching and iteration % config.contact_search_every == 0 and iteration < config.iterations:
-            walk = search_contacts(energy, walk, propose.evaluate, config.final_contact_samples, generator, propose.draws.contact_search(iteration))
+            walk = search_contacts(energy, walk, propose.evaluate, config.final_contact_samples, generator, propose.draws.contact_search(iteration),
+                                   propose.draws.slots)
         if best is not None:
             best.update(walk)
         kept = walk if best is None else best.best
@@ -381,7 +401,7 @@ def optimize(
     contacts, total, result = final.contacts, final.total, final.result
     if config.final_contact_samples > 0:
         contacts = energy.best_contacts(hand_pose, object_index, scale, contacts, config.final_contact_samples, generator,
-                                        draw=draws.contact_search(config.iterations + 1))
+                                        draw=draws.contact_search(config.iterations + 1), slots=contact_slots)
         with torch.no_grad():
             result = energy(hand_pose, object_index=object_index, scale=scale, contact_index=contacts)
         total = result.total.detach()

@@ -9,9 +9,10 @@ start type (``optimize_grasps.init``, ``post_optimize.random_init``).
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass
 
-from dexlite_pipeline.config import setting
+from dexlite_pipeline.config import ConfigError, setting
 from dexlite_pipeline.energy.config import EnergyThresholds, EnergyWeights
 
 
@@ -93,6 +94,28 @@ class InitConfig:
     joint_sigma_fraction: float = setting(0.1, "joint noise σ as a fraction of each range", minimum=0)
 
 
+@dataclass(frozen=True)
+class GraspTypeShares:
+    """The share of each object's starts optimized as each grasp type (config ``optimize_grasps.grasp_types``; the types
+    are ``optim.grasp_types``). Shares are weights, divided by their sum; a type with share 0 is not made."""
+
+    power: float = setting(1.0, "palm toward the object, four contacts anywhere on the finger pads (DexGraspNet's)", minimum=0)
+    pinch: float = setting(0.0, "precision pinch: thumb tip against index fingertip (middle fingertip optional)", minimum=0)
+    tripod: float = setting(0.0, "thumb tip against index and middle fingertips", minimum=0)
+    lateral: float = setting(0.0, "thumb pad against the side of the index finger's middle phalanx (key pinch)", minimum=0)
+
+    def __post_init__(self) -> None:
+        for name, share in self.shares().items():
+            if not (math.isfinite(share) and share >= 0):
+                raise ConfigError(f"optimize_grasps.grasp_types.{name}: expected a share of at least 0, got {share}")
+        if not sum(self.shares().values()) > 0:
+            raise ConfigError("optimize_grasps.grasp_types: every share is 0; give at least one grasp type a positive share")
+
+    def shares(self) -> dict[str, float]:
+        """Type name -> share, as given (not normalized)."""
+        return {f.name: float(getattr(self, f.name)) for f in dataclasses.fields(self)}
+
+
 # Both optimizers end with contact resolution (optim.contact_resolution): the doc of their resolve_penetration_to_m.
 RESOLVE_PENETRATION_DOC = ("contact resolution, the last phase: grasps deeper in the object than this (penetration measure, m) "
                            "back out of it until within it (0 = off; the lift test's start cap is 2 mm)")
@@ -119,8 +142,11 @@ class OptimizeGraspsConfig:
     progress_every: int = setting(100, "iterations between progress lines in the log", minimum=1, result_neutral=True)
     thresholds: EnergyThresholds = setting(
         factory=EnergyThresholds, doc="passes_energy_thresholds (DexGraspNet's success criteria)")
+    grasp_types: GraspTypeShares = setting(
+        factory=GraspTypeShares, doc="share of each object's starts per grasp type (weights, divided by their sum; optim/grasp_types.py): "
+        "each type starts from its own pre-grasp pose and approach and draws its four contacts from its own contact template")
     init: InitConfig = setting(
-        factory=lambda: InitConfig(distance_m=(0.1, 0.15)), doc="convex-hull start",
+        factory=lambda: InitConfig(distance_m=(0.1, 0.15)), doc="convex-hull start of power grasps (joint_sigma_fraction: of every grasp type)",
         docs={"distance_m": "palm distance from the hull point (DexGraspNet: 0.2-0.3)"})
     annealing: AnnealingSchedule = setting(
         FROM_SCRATCH_SCHEDULE, "DexGraspNet's schedule shortened to 2000 steps, its periods scaled to match (why: docs/results.md)",

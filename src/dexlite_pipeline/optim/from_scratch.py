@@ -9,6 +9,11 @@ The default schedule (config.yaml) is DexGraspNet's compressed to 2,000 iteratio
 size and temperature decaying every 17 and 10 iterations), starting 0.1-0.15 m out, with a
 contact search every 100 iterations: of the schedules measured it keeps the most
 threshold-passing grasps per CPU hour (docs/results.md, the schedule comparison on machine A).
+
+Grasp types (``optim.grasp_types``, ``optimize_grasps.grasp_types``): each object's starts at each scale are dealt
+to the types in the configured shares (``assign_types``), each starts from its own type's pose and draws its
+contacts from its type's template; every grasp records its type (``grasp_type``). With power grasps only (the
+default) the run draws exactly what it drew before grasp types existed.
 """
 
 from __future__ import annotations
@@ -28,7 +33,9 @@ from dexlite_pipeline.objects.assets import ObjectAsset
 from dexlite_pipeline.optim.annealing import optimize
 from dexlite_pipeline.optim.grasp_random import GraspRandom
 from dexlite_pipeline.optim.config import OptimizeGraspsConfig
+from dexlite_pipeline.optim.grasp_types import GRASP_TYPES, POWER_CODE, TYPE_NAMES, assign_types, contact_slots
 from dexlite_pipeline.optim.init import HullSampler, initial_poses
+from dexlite_pipeline.optim.type_starts import FLOATING_UP, RimSampler, TypeGeometry, type_start_poses
 from dexlite_pipeline.tabletop import store_arrays
 
 log = logging.getLogger(__name__)
@@ -57,17 +64,70 @@ def grasp_keys(assets: list[ObjectAsset], object_index: torch.Tensor) -> torch.T
     return object_keys[index] * (1 << 24) + number
 
 
-def keyed_starts(hand: ShadowHand, hulls: HullSampler, assets: list[ObjectAsset], object_index: torch.Tensor, scale: torch.Tensor,
-                 config: OptimizeGraspsConfig, seed: int, energy: GraspEnergy | None) -> torch.Tensor:
-    """(B, 28) starts drawn object by object, each from a generator of (``seed``, its object's key): an object's starts
-    do not depend on the other objects. ``energy`` (tabletop mode): its support planes keep the palms above the table."""
+def start_types(block_count: int, grasps_per_block: int, shares) -> torch.Tensor:
+    """(B,) each start's grasp type (``TYPE_NAMES`` index) for ``start_rows``' blocks of ``grasps_per_block`` starts (one object
+    at one scale): every block is dealt to the types in proportion to ``shares`` (type name -> share; ``assign_types``)."""
+    return torch.as_tensor(assign_types(shares, grasps_per_block)).repeat(block_count)
+
+
+class StartDrawer:
+    """Start poses of every grasp type for one run's objects: the convex-hull starts of power grasps
+    (``optim.init``) and the type starts of the others (``optim.type_starts``, built on first use)."""
+
+    def __init__(self, hand: ShadowHand, assets: list[ObjectAsset], config: OptimizeGraspsConfig, support_planes=None) -> None:
+        self.hand, self.assets, self.config, self.support_planes = hand, assets, config, support_planes
+        self.hulls = HullSampler(assets)
+        self._rims: RimSampler | None = None
+        self._geometry: dict[str, TypeGeometry] = {}
+
+    def rims(self) -> RimSampler:
+        if self._rims is None:
+            up = [FLOATING_UP if self.support_planes is None else self.support_planes.get(a.object_id).normal for a in self.assets]
+            self._rims = RimSampler(self.assets, up)
+        return self._rims
+
+    def geometry(self, name: str) -> TypeGeometry:
+        if name not in self._geometry:
+            self._geometry[name] = TypeGeometry(self.hand, GRASP_TYPES[name])
+        return self._geometry[name]
+
+    def draw(self, object_index: torch.Tensor, scale: torch.Tensor, types: torch.Tensor, generator: torch.Generator,
+             support: tuple[torch.Tensor, torch.Tensor] | None) -> torch.Tensor:
+        """(B, 28) starts of the given types, type by type in ``TYPE_NAMES`` order from ``generator``."""
+        if bool((types == POWER_CODE).all()):
+            return initial_poses(self.hand, self.hulls, object_index, scale, self.config.init, generator, support=support)
+        init = torch.zeros(len(object_index), POSE_DIM, dtype=self.hand.dtype, device=self.hand.device)
+        for code, name in enumerate(TYPE_NAMES):
+            rows = (types == code).nonzero(as_tuple=True)[0]
+            if not len(rows):
+                continue
+            part = None if support is None else tuple(t[rows.to(t.device)] for t in support)
+            obj, sc = object_index[rows.to(object_index.device)], scale[rows.to(scale.device)]
+            if code == POWER_CODE:
+                init[rows] = initial_poses(self.hand, self.hulls, obj, sc, self.config.init, generator, support=part)
+            else:
+                init[rows] = type_start_poses(self.hand, GRASP_TYPES[name], self.geometry(name), self.hulls, self.rims(), obj, sc,
+                                              self.config.init.joint_sigma_fraction, generator, support=part)
+        return init
+
+
+def keyed_starts(starts: StartDrawer, assets: list[ObjectAsset], object_index: torch.Tensor, scale: torch.Tensor, types: torch.Tensor,
+                 seed: int, energy: GraspEnergy | None) -> torch.Tensor:
+    """(B, 28) starts drawn object by object and type by type, each from a generator of (``seed``, its object's key, and for
+    a type other than power its type's number): an object's starts do not depend on the other objects. ``energy``
+    (tabletop mode): its support planes keep the palms above the table."""
+    hand = starts.hand
     init = torch.zeros(len(object_index), POSE_DIM, dtype=hand.dtype)
     for obj in torch.unique(object_index.cpu()).tolist():
-        rows = (object_index.cpu() == obj).nonzero(as_tuple=True)[0]
-        generator = torch.Generator().manual_seed(int(np.random.SeedSequence([seed, _object_key(assets[obj].object_id)]).generate_state(1)[0]))
-        obj_rows, scale_rows = object_index[rows].to(hand.device), scale[rows].to(hand.device)
-        support = energy.support(obj_rows, scale_rows) if energy is not None else None
-        init[rows] = initial_poses(hand, hulls, obj_rows, scale_rows, config.init, generator, support=support).cpu()
+        for code in torch.unique(types).tolist():
+            rows = ((object_index.cpu() == obj) & (types == code)).nonzero(as_tuple=True)[0]
+            if not len(rows):
+                continue
+            entropy = [seed, _object_key(assets[obj].object_id)] + ([] if code == POWER_CODE else [code])
+            generator = torch.Generator().manual_seed(int(np.random.SeedSequence(entropy).generate_state(1)[0]))
+            obj_rows, scale_rows = object_index[rows].to(hand.device), scale[rows].to(hand.device)
+            support = energy.support(obj_rows, scale_rows) if energy is not None else None
+            init[rows] = starts.draw(obj_rows, scale_rows, types[rows], generator, support).cpu()
     return init
 
 
@@ -90,6 +150,8 @@ def synthesize(
     ``keyed_seed``: every random draw of a grasp (its start and its walk) comes from streams keyed by this seed, its
     object's id and its start number instead of ``generator`` in batch order, so an object's grasps are the same
     whichever other objects are optimized beside it (``keyed_starts``, ``GraspRandom``).
+    ``config.grasp_types``: the share of each grasp type among each object's starts (``start_types``); the grasps
+    record their type in ``grasp_type``.
     """
     started = time.process_time()  # CPU seconds (all threads of this process), not wall time
     hand = ShadowHand(device)
@@ -98,14 +160,16 @@ def synthesize(
     if len(object_scales) != len(assets) or not all(object_scales):
         raise ValueError(f"object_scales: expected one non-empty tuple of scales per object ({len(assets)}), got {object_scales}")
     object_index, scale = start_rows(object_scales, config.grasps_per_object, hand.dtype)
+    types = start_types(sum(len(s) for s in object_scales), config.grasps_per_object, config.grasp_types.shares())
+    power_only = bool((types == POWER_CODE).all())
     energy = GraspEnergy.from_assets(hand, assets, energy_config, support_planes=support_planes,
                                      max_scale={a.object_id: max(s) for a, s in zip(assets, object_scales)})
     term_names = tuple(term.name for term in energy.terms)
-    hulls = HullSampler(assets)
+    starts = StartDrawer(hand, assets, config, support_planes)
     total = len(object_index)
     if keyed_seed is not None:
         keys = grasp_keys(assets, object_index)
-        keyed_init = keyed_starts(hand, hulls, assets, object_index, scale, config, keyed_seed, energy if support_planes is not None else None)
+        keyed_init = keyed_starts(starts, assets, object_index, scale, types, keyed_seed, energy if support_planes is not None else None)
     outputs: dict[str, list] = {k: [] for k in ("hand_pose", "init_pose", "contact_index", "acceptance_rate", "penetration_mm", "contact_distance_mm",
                                                 "E_total", "stopped_at_iteration", *term_names)}
     batches = max(1, -(-total // config.batch_size))
@@ -115,9 +179,10 @@ def synthesize(
         sc = scale[rows].to(device)
         if keyed_seed is None:
             support = energy.support(obj, sc) if support_planes is not None else None
-            init, random = initial_poses(hand, hulls, obj, sc, config.init, generator, support=support), None
+            init, random = starts.draw(obj, sc, types[rows], generator, support), None
         else:
             init, random = keyed_init[rows].to(device), GraspRandom(keyed_seed, keys[rows])
+        slots = None if power_only else contact_slots(hand, types[rows])
         batch_started = time.perf_counter()
 
         def progress(iteration: int, energy_now: torch.Tensor, batch_number=batch_number, batch_started=batch_started) -> None:
@@ -127,7 +192,7 @@ def synthesize(
             )
 
         result = optimize(energy, init, obj, sc, config.optimizer_config(), generator, progress=progress, progress_every=config.progress_every,
-                          random=random)
+                          random=random, contact_slots=slots)
         outputs["hand_pose"].append(result.hand_pose.cpu().numpy())
         outputs["init_pose"].append(init.cpu().numpy())
         outputs["contact_index"].append(result.contact_index.cpu().numpy().astype(np.int16))
@@ -145,6 +210,7 @@ def synthesize(
     arrays = {k: np.concatenate(v) if k in ("contact_index", "stopped_at_iteration") else np.concatenate(v).astype(np.float32) for k, v in outputs.items()}
     arrays["object_id"] = np.asarray([assets[i].object_id for i in object_index.tolist()], dtype=object)
     arrays["scale"] = scale.numpy().astype(np.float32)
+    arrays["grasp_type"] = np.asarray([TYPE_NAMES[code] for code in types.tolist()], dtype=object)
     arrays["passes_energy_thresholds"] = config.thresholds.passes(arrays)
     if support_planes is not None:
         arrays.update(store_arrays(*support_planes.arrays(arrays["object_id"], arrays["scale"])))
@@ -154,6 +220,7 @@ def synthesize(
         "passing": int(arrays["passes_energy_thresholds"].sum()),
         "pass_fraction": float(arrays["passes_energy_thresholds"].mean()) if total else 0.0,
         "stopped_early": int((arrays["stopped_at_iteration"] > 0).sum()),
+        "grasp_types": {name: int((arrays["grasp_type"] == name).sum()) for name in TYPE_NAMES if (arrays["grasp_type"] == name).any()},
         "seconds": seconds,
         "seconds_per_grasp": seconds / total if total else 0.0,
     }

@@ -42,6 +42,7 @@ def empty_optimized_grasps(table: bool = False) -> GraspSet:
         grasps.arrays[name] = np.zeros(0, np.float32)
     grasps.arrays["passes_energy_thresholds"] = np.zeros(0, bool)
     grasps.arrays["stopped_at_iteration"] = np.zeros(0, np.int32)
+    grasps.arrays["grasp_type"] = np.zeros(0, dtype=object)
     if table:
         grasps.arrays["E_table"] = np.zeros(0, np.float32)
         grasps.arrays.update(store_arrays(np.zeros((0, 3)), np.zeros(0)))
@@ -104,7 +105,8 @@ def optimize_shard(
         grasps, stats = synthesize(assets, settings, energy, shard_generator("optimize_grasps", seed, shard), device, support_planes=planes,
                                    object_scales=object_scales)
     else:
-        grasps, stats = empty_optimized_grasps(planes is not None), {"grasps": 0, "passing": 0, "pass_fraction": 0.0, "stopped_early": 0, "seconds": 0.0, "seconds_per_grasp": 0.0}
+        grasps, stats = empty_optimized_grasps(planes is not None), {"grasps": 0, "passing": 0, "pass_fraction": 0.0, "stopped_early": 0,
+                                                                     "grasp_types": {}, "seconds": 0.0, "seconds_per_grasp": 0.0}
     attrs = {
         "stage": "optimize_grasps",
         "shard": f"{shard:03d}",

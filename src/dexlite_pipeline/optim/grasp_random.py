@@ -59,7 +59,11 @@ class GraspRandom:
         return (self.uniform(iteration, stream, count) * high).long().clamp(max=high - 1)
 
     def weighted(self, weight: torch.Tensor, iteration: int, stream: int, count: int) -> torch.Tensor:
-        """(B, count) indices drawn with replacement ∝ ``weight`` (B, N) ≥ 0 (inverse CDF, as ``torch.multinomial``)."""
-        cumulative = weight.double().cumsum(dim=1)
-        target = self.uniform(iteration, stream, count) * cumulative[:, -1:]
-        return torch.searchsorted(cumulative, target, right=True).clamp(max=weight.shape[1] - 1)
+        """(B, count) indices drawn with replacement ∝ ``weight`` (B, N) ≥ 0 (inverse CDF, as ``torch.multinomial``).
+
+        Weights (B, S, N), one row per slot (``ContactSlots``), give (B, S, count): each grasp draws S·count uniforms.
+        """
+        cumulative = weight.double().cumsum(dim=-1)
+        uniform = self.uniform(iteration, stream, count * (weight.shape[1] if weight.ndim == 3 else 1)).reshape(*weight.shape[:-1], count)
+        target = uniform * cumulative[..., -1:]
+        return torch.searchsorted(cumulative, target, right=True).clamp(max=weight.shape[-1] - 1)

@@ -1,0 +1,184 @@
+"""Grasp types of optimization from scratch: one contact template, pre-grasp pose and start rule per type.
+
+Optimization from scratch with DexGraspNet's energies finds power grasps: the palm facing the object, four contacts
+anywhere on the 140 palmar pads. Objects that need the fingertips (a bowl's rim, a hammer or spatula lying on the
+table, a plate) get almost none. The grasp taxonomy (Feix et al., "The GRASP taxonomy of human grasp types", 2016)
+names the other ways a hand holds things, and Dexonomy (RSS 2025) synthesizes each type for a robot hand from one
+contact template per hand and type. Here a type is data (``GraspType``):
+
+- ``contact_slots``: for each of the four force-closure contacts, the candidate groups it may be drawn from
+  (``candidate_group``: a link's palmar pads, or its side candidates), enforced in every draw and contact search of the
+  optimizer (``energy.contact_slots``); the energies themselves are unchanged, so the other links are kept out of
+  the object and the table by E_pen and E_table as for power grasps.
+- ``aperture``: the mean pre-grasp joint angles the fingers start from (noise as for power starts): for precision
+  types the participating pads face each other a few centimetres apart and the other fingers are curled away.
+- the start: for power the convex-hull start of ``optim.init`` (section ``optimize_grasps.init``); for the others
+  ``optim.type_starts``: the grasp centre between the opposing pads is placed ``centre_distance_m`` outside a target
+  point, approached either from the side (a convex-hull point, along its inward normal) or from above (palm facing
+  down, at a point of the object's rim: where its upward-facing top ends), the opening across the rim. An object lower
+  on its table than ``low_object_height_m`` is approached from above only; a taller one with share ``above_share``.
+
+The aperture joint values were fitted (then rounded) so that the opposing pads of each precision type face each other
+at the opening named in each type's comment (each side's mean pad normal within 15° of the line between the two
+sides), the other fingers curled, the hand clear of itself; ``tests/optim/test_grasp_types.py`` checks those
+properties.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+from dexlite_pipeline.energy.contact_slots import CONTACT_COUNT, ContactSlots
+from dexlite_pipeline.hand.model import JOINT_NAMES, ShadowHand
+from dexlite_pipeline.optim.init import MEAN_OPEN_POSE
+
+# A finger folded away from a precision grasp: proximal, middle and distal flexion (rad).
+CURLED = (("J2", 1.2), ("J1", 1.2), ("J0", 0.8))
+# Suffix of a candidate group naming a link's side candidates (``ShadowHand.side_contact_points_local``).
+SIDE = ":side"
+
+
+def _curled(*fingers: str) -> tuple[tuple[str, float], ...]:
+    return tuple((f"{finger}{joint}", angle) for finger in fingers for joint, angle in CURLED)
+
+
+@dataclass(frozen=True)
+class GraspType:
+    """One grasp type: its contact template, pre-grasp pose and start rule (module docstring).
+
+    ``contact_slots``: four tuples of candidate groups (``candidate_group``), one per contact; None: every contact
+    may be any palmar pad (power). ``aperture``: (joint name without ``robot0:``, radians) pairs of the mean
+    pre-grasp pose, other joints 0. ``opposition``: the candidate groups of the two sides that close on the object
+    (thumb side, finger side); the grasp centre is midway between their mean positions in the aperture pose and the
+    opening axis runs from the first to the second. None: the power start (``optim.init``). ``centre_distance_m``:
+    range of the grasp centre's start distance outside the target point (m). ``above_share``: share of the starts
+    from above on objects at least ``low_object_height_m`` tall on their table (m); lower ones are approached from
+    above only. ``jitter_deg``: the approach's tilt off the nominal direction, at most this (degrees).
+    """
+
+    name: str
+    contact_slots: tuple[tuple[str, ...], ...] | None
+    aperture: tuple[tuple[str, float], ...]
+    opposition: tuple[tuple[str, ...], tuple[str, ...]] | None = None
+    centre_distance_m: tuple[float, float] = (0.0, 0.0)
+    above_share: float = 0.0
+    low_object_height_m: float = 0.0
+    jitter_deg: float = 0.0
+
+    def __post_init__(self) -> None:
+        if self.contact_slots is not None and len(self.contact_slots) != CONTACT_COUNT:
+            raise ValueError(f"grasp type {self.name}: {len(self.contact_slots)} contact slots, expected {CONTACT_COUNT}")
+        unknown = sorted({joint for joint, _ in self.aperture} - {name.removeprefix("robot0:") for name in JOINT_NAMES})
+        if unknown:
+            raise ValueError(f"grasp type {self.name}: unknown aperture joints {', '.join(unknown)}")
+
+    def aperture_joints(self) -> torch.Tensor:
+        """(22,) float64 the aperture in joint order."""
+        values = dict(self.aperture)
+        return torch.tensor([values.get(name.removeprefix("robot0:"), 0.0) for name in JOINT_NAMES], dtype=torch.float64)
+
+
+POWER = GraspType("power", contact_slots=None, aperture=tuple(MEAN_OPEN_POSE.items()))
+
+# Precision pinch (taxonomy: palmar pinch / tip pinch): thumb tip against index fingertip, the middle fingertip
+# optionally a fourth contact beside the index; ring and little fingers curled. Pads ~7 cm apart.
+PINCH = GraspType(
+    "pinch",
+    contact_slots=(("thdistal",), ("thdistal",), ("ffdistal",), ("ffdistal", "mfdistal")),
+    aperture=(("FFJ2", 0.2), ("FFJ1", 0.5), ("FFJ0", 0.45), ("MFJ2", 0.2), ("MFJ1", 0.5), ("MFJ0", 0.45),
+              ("THJ4", 0.85), ("THJ3", 0.95), ("THJ2", -0.15), ("THJ1", 0.5), *_curled("RF", "LF")),
+    opposition=(("thdistal",), ("ffdistal",)),
+    centre_distance_m=(0.005, 0.03), above_share=0.5, low_object_height_m=0.06, jitter_deg=20.0,
+)
+
+# Tripod (taxonomy: tripod / prismatic 3-finger): thumb tip against the index and middle fingertips; ring and
+# little fingers curled. Thumb pad ~6 cm from the middle of the two finger pads.
+TRIPOD = GraspType(
+    "tripod",
+    contact_slots=(("thdistal",), ("thdistal",), ("ffdistal",), ("mfdistal",)),
+    aperture=(("FFJ3", -0.25), ("FFJ2", 0.55), ("FFJ1", 0.5), ("FFJ0", 0.3), ("MFJ3", -0.25), ("MFJ2", 0.55), ("MFJ1", 0.5),
+              ("MFJ0", 0.3), ("THJ4", 0.8), ("THJ3", 1.1), ("THJ2", -0.05), ("THJ1", 0.5), *_curled("RF", "LF")),
+    opposition=(("thdistal",), ("ffdistal", "mfdistal")),
+    centre_distance_m=(0.005, 0.03), above_share=0.5, low_object_height_m=0.06, jitter_deg=20.0,
+)
+
+# Lateral (taxonomy: lateral / key pinch): the thumb pad presses the object against the radial side of the index
+# finger's middle phalanx; the index is flexed, the other fingers curled. Pads ~4 cm apart.
+LATERAL = GraspType(
+    "lateral",
+    contact_slots=(("thdistal",), ("thdistal",), ("ffmiddle" + SIDE,), ("ffmiddle" + SIDE,)),
+    aperture=(("FFJ3", 0.3), ("FFJ2", 1.2), ("FFJ1", 1.0), ("FFJ0", 0.3), ("THJ4", -0.2), ("THJ3", 0.5), ("THJ0", -0.4),
+              *_curled("MF", "RF", "LF")),
+    opposition=(("thdistal",), ("ffmiddle" + SIDE,)),
+    centre_distance_m=(0.005, 0.025), above_share=0.5, low_object_height_m=0.06, jitter_deg=20.0,
+)
+
+# Every grasp type by name, in the order starts are assigned and drawn (``assign_types``); index = ``type code``.
+GRASP_TYPES: dict[str, GraspType] = {t.name: t for t in (POWER, PINCH, TRIPOD, LATERAL)}
+TYPE_NAMES: tuple[str, ...] = tuple(GRASP_TYPES)
+POWER_CODE = TYPE_NAMES.index("power")
+
+
+def candidate_group(hand: ShadowHand, group: str) -> tuple[int, ...]:
+    """Contact-table indices of a candidate group: ``"<link>"`` its palmar pads, ``"<link>:side"`` its side candidates
+    (link names without ``robot0:``)."""
+    link, side = (group.removesuffix(SIDE), True) if group.endswith(SIDE) else (group, False)
+    name = f"robot0:{link}"
+    if name not in hand.link_index:
+        raise ValueError(f"candidate group {group!r}: no hand link {name}")
+    found = tuple(i for i in hand.candidates_on((name,)) if (i >= hand.pad_candidate_count) == side)
+    if not found:
+        raise ValueError(f"candidate group {group!r}: the hand has no {'side' if side else 'pad'} candidates on {name}")
+    return found
+
+
+def contact_template(hand: ShadowHand, grasp_type: GraspType) -> tuple[tuple[int, ...], ...]:
+    """The four slots of ``grasp_type`` as contact-table indices (power: every pad in each slot)."""
+    if grasp_type.contact_slots is None:
+        return (tuple(range(hand.pad_candidate_count)),) * CONTACT_COUNT
+    return tuple(tuple(sorted({i for group in slot for i in candidate_group(hand, group)})) for slot in grasp_type.contact_slots)
+
+
+def contact_slots(hand: ShadowHand, type_codes: torch.Tensor) -> ContactSlots:
+    """The ``ContactSlots`` of grasps of the given types (``TYPE_NAMES`` indices, (B,))."""
+    return ContactSlots.from_templates([contact_template(hand, GRASP_TYPES[name]) for name in TYPE_NAMES], type_codes)
+
+
+def normalized_shares(shares: Mapping[str, float]) -> dict[str, float]:
+    """``shares`` (type name -> weight ≥ 0) divided by their sum, in ``TYPE_NAMES`` order, zero shares left out.
+
+    ValueError for an unknown name, a negative or non-finite weight, or no positive one."""
+    unknown = sorted(set(shares) - set(TYPE_NAMES))
+    if unknown:
+        raise ValueError(f"unknown grasp type(s) {', '.join(unknown)} (known: {', '.join(TYPE_NAMES)})")
+    bad = sorted(name for name, share in shares.items() if not (math.isfinite(share) and share >= 0))
+    if bad:
+        raise ValueError(f"grasp type share(s) of {', '.join(bad)} must be finite and at least 0")
+    total = sum(shares.values())
+    if total <= 0:
+        raise ValueError("every grasp type share is 0: give at least one type a positive share")
+    return {name: shares[name] / total for name in TYPE_NAMES if shares.get(name, 0) > 0}
+
+
+def assign_types(shares: Mapping[str, float], count: int) -> np.ndarray:
+    """(count,) type codes (``TYPE_NAMES`` indices) of ``count`` consecutive starts in the proportions of ``shares``.
+
+    Start j takes the type furthest behind its share of the first j + 1 starts (ties: the earlier type), so the
+    types are interleaved, every prefix holds each type within one start of its share, and the whole block within
+    one of count · share. The same for every seed and object: a mix is a fixed plan, not a draw.
+    """
+    weights = normalized_shares(shares)
+    codes = np.array([TYPE_NAMES.index(name) for name in weights], dtype=np.int64)
+    share = np.array(list(weights.values()))
+    assigned = np.zeros(len(codes))
+    out = np.empty(count, dtype=np.int64)
+    for j in range(count):
+        pick = int(np.argmax((j + 1) * share - assigned))
+        assigned[pick] += 1
+        out[j] = codes[pick]
+    return out

@@ -1,0 +1,223 @@
+"""Grasp types of optimization from scratch: power grasps unchanged, the precision types' templates, pre-grasp poses,
+starts and mix, and the config key."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+import torch
+
+from dexlite_pipeline.config import ConfigError
+from dexlite_pipeline.energy.config import EnergyConfig
+from dexlite_pipeline.objects.rest_pose import SupportPlane
+from dexlite_pipeline.optim.config import GraspTypeShares, HopelessStopConfig, InitConfig
+from dexlite_pipeline.optim.from_scratch import StartDrawer, synthesize
+from dexlite_pipeline.optim.grasp_types import GRASP_TYPES, TYPE_NAMES, assign_types, candidate_group
+from dexlite_pipeline.optim.type_starts import TypeGeometry
+from dexlite_pipeline.tabletop import SupportPlanes
+
+from power_baseline import ARRAYS, power_run, power_settings, tiny_box_objects
+
+PRECISION = ("pinch", "tripod", "lateral")
+BOX_TABLE = SupportPlanes({"box": SupportPlane((0.0, 0.0, 1.0), 0.3)})  # the box (extents 1.2 x 0.8 x 0.6) lying flat
+
+
+@pytest.fixture(scope="module")
+def box(tmp_path_factory):
+    from dexlite_pipeline.objects.assets import load_asset
+
+    root = tiny_box_objects(tmp_path_factory.mktemp("grasp_type_box"))
+    return root, [load_asset(root, "box")]
+
+
+def only(name: str) -> GraspTypeShares:
+    return GraspTypeShares(**{n: 1.0 if n == name else 0.0 for n in TYPE_NAMES})
+
+
+def short_run(**changes):
+    """``power_settings`` with the given changes (the tiny run of ``power_baseline``)."""
+    return dataclasses.replace(power_settings(), **changes)
+
+
+def links_of(hand, contact_index: np.ndarray) -> np.ndarray:
+    """The link name carrying each contact index, same shape."""
+    names = np.asarray(hand.link_names, dtype=object)
+    return names[hand.all_contact_link.numpy()[np.asarray(contact_index, dtype=np.int64)]]
+
+
+def test_power_only_run_is_unchanged(box, one_torch_thread):
+    """A power-only run draws and optimizes exactly what the code before grasp types did (arrays saved from it)."""
+    from pathlib import Path
+
+    expected = np.load(Path(__file__).resolve().parents[1] / "fixtures" / "power_baseline.npz")
+    got = power_run(box[0])
+    for name in ARRAYS:
+        for key in (name, f"keyed_{name}"):
+            assert np.array_equal(got[key], expected[key]), f"{key} differs from the run before grasp types"
+
+
+def test_power_only_run_records_power(box, one_torch_thread):
+    grasps, stats = synthesize(box[1], short_run(grasps_per_object=2, annealing=dataclasses.replace(power_settings().annealing, iterations=2)),
+                               EnergyConfig(object_point_spacing_m=0.004), torch.Generator().manual_seed(0), support_planes=BOX_TABLE)
+    assert grasps.arrays["grasp_type"].tolist() == ["power"] * 4
+    assert stats["grasp_types"] == {"power": 4}
+
+
+@pytest.mark.parametrize("name", TYPE_NAMES)
+def test_each_type_starts_deterministic_per_seed(box, hand, name):
+    """The same seed draws the same starts; another seed other starts; all of them above the table."""
+    starts = StartDrawer(hand, box[1], short_run(), BOX_TABLE)
+    obj, scale = torch.zeros(6, dtype=torch.long), torch.full((6,), 0.1)
+    types = torch.full((6,), TYPE_NAMES.index(name))
+    support = (torch.tensor([[0.0, 0.0, 1.0]]).expand(6, 3), torch.full((6,), 0.03))
+
+    def draw(seed):
+        return starts.draw(obj, scale, types, torch.Generator().manual_seed(seed), support)
+
+    first, again, other = draw(0), draw(0), draw(1)
+    assert torch.equal(first, again)
+    assert not torch.allclose(first, other)
+    assert bool((first[:, 2] + 0.03 >= 0).all())  # palm origins above the table
+
+
+def test_keyed_starts_of_a_type_do_not_depend_on_the_other_types(box, one_torch_thread):
+    """With keyed draws (dexlite grasp) a pinch start is the same in a pinch-only run and in a mix with power."""
+    settings = short_run(grasps_per_object=2, annealing=dataclasses.replace(power_settings().annealing, iterations=1),
+                         final_contact_samples=0, contact_search_every=0)
+    energy = EnergyConfig(object_point_spacing_m=0.004)
+    alone, _ = synthesize(box[1], dataclasses.replace(settings, grasp_types=only("pinch")), energy, torch.Generator().manual_seed(0),
+                          support_planes=BOX_TABLE, keyed_seed=3)
+    mixed, _ = synthesize(box[1], dataclasses.replace(settings, grasps_per_object=4, grasp_types=GraspTypeShares(power=1.0, pinch=1.0)),
+                          energy, torch.Generator().manual_seed(0), support_planes=BOX_TABLE, keyed_seed=3)
+    assert mixed.arrays["grasp_type"].tolist() == ["power", "pinch"] * 4
+    pinch_rows = mixed.arrays["grasp_type"] == "pinch"
+    assert np.array_equal(mixed.arrays["init_pose"][pinch_rows], alone.arrays["init_pose"])
+
+
+@pytest.mark.parametrize("keyed_seed", [None, 2])
+def test_pinch_contacts_lie_only_on_the_template_links(box, hand, one_torch_thread, keyed_seed):
+    """Every contact a pinch grasp holds, at the end of a run with random switches and contact searches, is on its slot's links."""
+    settings = short_run(grasps_per_object=4, grasp_types=only("pinch"), stop_hopeless=HopelessStopConfig())
+    grasps, _ = synthesize(box[1], settings, EnergyConfig(object_point_spacing_m=0.004), torch.Generator().manual_seed(4),
+                           support_planes=BOX_TABLE, keyed_seed=keyed_seed)
+    links = links_of(hand, grasps.arrays["contact_index"])
+    assert set(links[:, :2].ravel()) == {"robot0:thdistal"}
+    assert set(links[:, 2].ravel()) == {"robot0:ffdistal"}
+    assert set(links[:, 3].ravel()) <= {"robot0:ffdistal", "robot0:mfdistal"}
+    assert (grasps.arrays["contact_index"] < hand.pad_candidate_count).all()  # pads, not side candidates
+
+
+def test_lateral_contacts_are_the_thumb_pad_and_the_index_side(box, hand, one_torch_thread):
+    settings = short_run(grasps_per_object=4, grasp_types=only("lateral"))
+    grasps, _ = synthesize(box[1], settings, EnergyConfig(object_point_spacing_m=0.004), torch.Generator().manual_seed(5), support_planes=BOX_TABLE)
+    contacts = grasps.arrays["contact_index"]
+    assert set(links_of(hand, contacts[:, :2]).ravel()) == {"robot0:thdistal"}
+    assert set(links_of(hand, contacts[:, 2:]).ravel()) == {"robot0:ffmiddle"}
+    assert (contacts[:, 2:] >= hand.pad_candidate_count).all()  # the side candidates
+    assert set(grasps.arrays["grasp_type"]) == {"lateral"}
+
+
+def test_assign_types_gives_the_shares_interleaved():
+    codes = assign_types({"power": 0.5, "pinch": 0.25, "tripod": 0.25}, 16)
+    names = np.asarray(TYPE_NAMES)[codes]
+    assert {n: int((names == n).sum()) for n in set(names)} == {"power": 8, "pinch": 4, "tripod": 4}
+    shares = {"power": 0.5, "pinch": 0.25, "tripod": 0.25}
+    for prefix in range(1, 17):
+        for name, share in shares.items():
+            assert abs((names[:prefix] == name).sum() - prefix * share) < 1  # every prefix within one start of its share
+    odd = np.asarray(TYPE_NAMES)[assign_types({"pinch": 1.0, "lateral": 2.0}, 10)]
+    assert sorted(odd.tolist()) == ["lateral"] * 7 + ["pinch"] * 3 or sorted(odd.tolist()) == ["lateral"] * 6 + ["pinch"] * 4
+    assert np.array_equal(assign_types(shares, 16), codes)  # a fixed plan
+
+
+def test_a_mix_deals_each_object_and_scale_in_the_shares(box, one_torch_thread):
+    settings = short_run(grasps_per_object=8, grasp_types=GraspTypeShares(power=2.0, pinch=1.0, tripod=1.0, lateral=0.0),
+                         annealing=dataclasses.replace(power_settings().annealing, iterations=1), final_contact_samples=0, contact_search_every=0)
+    grasps, stats = synthesize(box[1], settings, EnergyConfig(object_point_spacing_m=0.004), torch.Generator().manual_seed(0), support_planes=BOX_TABLE)
+    assert stats["grasp_types"] == {"power": 8, "pinch": 4, "tripod": 4}
+    for scale in (0.08, 0.1):
+        mine = grasps.arrays["grasp_type"][np.isclose(grasps.scale, scale)]
+        assert {t: int((mine == t).sum()) for t in set(mine)} == {"power": 4, "pinch": 2, "tripod": 2}
+
+
+@pytest.mark.parametrize("name", PRECISION)
+def test_aperture_pads_face_each_other_with_the_other_fingers_clear(hand, name):
+    """The pre-grasp pose opens the type's opposing pads 3–8 cm apart, facing each other, without self-collision."""
+    from dexlite_pipeline.energy.terms import SelfPenetrationTerm
+
+    grasp_type = GRASP_TYPES[name]
+    pose = torch.zeros(1, 28)
+    pose[0, 6:] = grasp_type.aperture_joints().float()
+    frames = hand.forward(pose)
+    table = frames.transform(hand.all_contact_points_local, hand.all_contact_link)[0].double()
+    sides = [table[[i for group in side for i in candidate_group(hand, group)]].mean(0) for side in grasp_type.opposition]
+    opening = sides[1] - sides[0]
+    assert 0.03 < float(opening.norm()) < 0.08
+
+    def pad_normal(group):  # outward normal of a group's pads: from its capsule's axis to the pads
+        link = hand.link_index["robot0:" + group.split(":")[0]]
+        centre = frames.translation[0, link].double() + frames.rotation[0, link].double() @ hand.shape_pos[hand._capsule_of_link("robot0:" + group.split(":")[0])].double()
+        points = table[list(candidate_group(hand, group))]
+        radial = points - centre
+        axis = frames.rotation[0, link].double()[:, 2]
+        radial = radial - (radial @ axis)[:, None] * axis
+        mean = (radial / radial.norm(dim=1, keepdim=True)).mean(0)
+        return mean / mean.norm()
+
+    thumb = pad_normal(grasp_type.opposition[0][0])
+    unit = opening / opening.norm()
+    assert float(thumb @ unit) > math.cos(math.radians(20))  # the thumb pad faces the other side
+    for group in grasp_type.opposition[1]:
+        assert float(pad_normal(group) @ unit) < -math.cos(math.radians(20))  # and they face the thumb
+    assert float(SelfPenetrationTerm(hand, 0.02).evaluate_with_torch(frames)) < 0.002
+
+
+def test_low_objects_are_approached_from_above_palm_down(tmp_path, hand):
+    """A 3 cm slab on its table: every pinch start comes from above (the approach within the jitter of straight down),
+    its grasp centre and palm above the table, its opening across the rim (horizontal within the jitter)."""
+    import trimesh
+
+    from dexlite_pipeline.objects.assets import load_asset
+    from dexlite_pipeline.objects.build import write_asset
+    from dexlite_pipeline.objects.config import AssetBuildSettings
+
+    slab = trimesh.creation.box(extents=(1.6, 1.2, 0.3))  # normalized; at scale 0.1: 16 x 12 x 3 cm
+    write_asset(slab, "slab", tmp_path, AssetBuildSettings(sdf_resolution=24, surface_points=256), {"source": "test"}, convex_pieces=[slab])
+    assets = [load_asset(tmp_path, "slab")]
+    planes = SupportPlanes({"slab": SupportPlane((0.0, 0.0, 1.0), 0.15)})
+    starts = StartDrawer(hand, assets, short_run(init=InitConfig(joint_sigma_fraction=0.1)), planes)
+    count = 32
+    support = (torch.tensor([[0.0, 0.0, 1.0]]).expand(count, 3), torch.full((count,), 0.015))
+    pose = starts.draw(torch.zeros(count, dtype=torch.long), torch.full((count,), 0.1), torch.full((count,), TYPE_NAMES.index("pinch")),
+                       torch.Generator().manual_seed(0), support).double()
+    from dexlite_pipeline.hand.rotation import euler_xyz_to_matrix
+
+    geometry = TypeGeometry(hand, GRASP_TYPES["pinch"])
+    rotation = euler_xyz_to_matrix(pose[:, 3:6])
+    approach, opening = rotation @ geometry.approach, rotation @ geometry.opening
+    jitter = math.radians(GRASP_TYPES["pinch"].jitter_deg)
+    assert bool((approach[:, 2] <= -math.cos(jitter) + 1e-6).all())
+    assert bool((opening[:, 2].abs() <= math.sin(jitter) + 1e-6).all())
+    centre = pose[:, :3] + rotation @ geometry.centre
+    assert bool((centre[:, 2] > -0.015).all()) and bool((pose[:, 2] > -0.015).all())
+
+
+def test_grasp_type_shares_config():
+    from dexlite_pipeline.settings import build_config
+
+    config = build_config({"optimize_grasps": {"grasp_types": {"power": 0.0, "pinch": 3.0}}})
+    assert config.optimize_grasps.grasp_types.shares() == {"power": 0.0, "pinch": 3.0, "tripod": 0.0, "lateral": 0.0}
+    assert build_config({}).optimize_grasps.grasp_types.shares() == {"power": 1.0, "pinch": 0.0, "tripod": 0.0, "lateral": 0.0}
+    with pytest.raises(ConfigError, match=r"^optimize_grasps.grasp_types: every share is 0"):
+        build_config({"optimize_grasps": {"grasp_types": {"power": 0.0}}})
+    with pytest.raises(ConfigError, match=r"optimize_grasps.grasp_types.pinch"):
+        GraspTypeShares(pinch=-1.0)
+    with pytest.raises(ConfigError, match=r"grasp_types: unknown key\(s\) grip"):
+        build_config({"optimize_grasps": {"grasp_types": {"grip": 1.0}}})
+
+
+def test_config_names_every_grasp_type():
+    assert tuple(GraspTypeShares().shares()) == TYPE_NAMES
