@@ -111,7 +111,7 @@ def synthesized_starts(model_path: str, assets, object_index, scale, sample, gen
     return synthesize(
         model, ObjectClouds(assets), object_index, scale, points, generator, sample.latent_prior, sample.latent_temperature, fixed,
         sample.anchor_rule, sample.neighbour_clouds, sample.anchor_region_m, sample.debias_training, sample.match_candidates,
-        sample.debias_codes,
+        sample.debias_codes, sample.yaw_candidates,
     )
 
 

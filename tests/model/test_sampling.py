@@ -1,5 +1,7 @@
 """Associated points of pure synthesis that spread over the object: Dex1B's debiased draw and farthest-point spread."""
 
+import math
+
 import numpy as np
 import pytest
 import torch
@@ -148,3 +150,58 @@ def test_debiased_codes_draw_only_codes_their_cloud_can_reach():
     assert np.mean([s == 3 for s in seen]) == pytest.approx(0.4, abs=0.06)
     with pytest.raises(ValueError, match="no training code"):
         debiased_codes(torch.zeros(2, 4), torch.tensor([0, 0]), generator)
+
+
+def _with_codes_on(model, clouds: torch.Tensor) -> None:
+    """Give ``model`` one training code per cloud of ``clouds``, encoded there (conditions: global and local feature)."""
+    with torch.no_grad():
+        global_feature, per_point = model.pointnet(clouds)
+    conditions = torch.cat([global_feature, per_point[:, 0]], 1)
+    latent = model.config.latent_dim
+    model.set_latent_codes(torch.zeros(len(clouds), latent), torch.zeros(len(clouds), latent), conditions, torch.arange(len(clouds)))
+
+
+def test_matched_yaw_turns_a_turned_training_cloud_back(small_model_config, random_clouds):
+    """A training cloud turned by 90° is turned by 270° more (back where its codes were encoded); the cloud itself by 0."""
+    from dexlite_pipeline.model.network import GraspCVAE
+    from dexlite_pipeline.model.sampling import matched_yaws, turned_clouds
+
+    torch.manual_seed(0)
+    model = GraspCVAE(small_model_config).eval()
+    training = random_clouds(1, 64)
+    _with_codes_on(model, training)
+    quarter = turned_clouds(training, torch.tensor([math.pi / 2]))
+    with torch.no_grad():
+        yaws = matched_yaws(model, torch.cat([training, quarter]), candidates=4)
+    assert yaws.tolist() == pytest.approx([0.0, 3 * math.pi / 2])
+
+
+def test_grasps_of_a_turned_object_are_its_grasps_turned(small_model_config, tiny_assets):
+    """With yaw matching, sampling an object turned about z by one of the candidate headings gives the object's grasps
+    turned with it (the same draws, the same codes): the model's heading no longer depends on the file's."""
+    import dataclasses
+
+    from dexlite_pipeline.hand import ShadowHand
+    from dexlite_pipeline.model.data import ObjectClouds
+    from dexlite_pipeline.model.network import GraspCVAE
+    from dexlite_pipeline.model.pose import vertical_rotation
+
+    torch.manual_seed(1)
+    model = GraspCVAE(small_model_config).eval()
+    asset = tiny_assets[0]
+    turn = vertical_rotation(torch.tensor([math.pi / 2], dtype=torch.float64))[0].numpy()
+    turned = dataclasses.replace(asset, object_id="turned", surface_points=(asset.surface_points @ turn.T).astype(np.float32),
+                                 surface_normals=(asset.surface_normals @ turn.T).astype(np.float32))
+    clouds = ObjectClouds([asset, turned])
+    drawn = clouds.draw_fixed(torch.tensor([0]), torch.tensor([0.1]), 64)
+    _with_codes_on(model, drawn)
+    scale = np.full(4, 0.1, np.float32)
+    with torch.no_grad():
+        poses = [synthesize(model, clouds, np.full(4, i, np.int64), scale, 64, torch.Generator().manual_seed(3), "aggregate", 1.0, True,
+                            "uniform", yaw_candidates=4) for i in (0, 1)]
+    hand = ShadowHand()
+    links, turned_links = hand.forward(poses[0]).translation, hand.forward(poses[1]).translation
+    assert torch.allclose(turned_links, links @ torch.as_tensor(turn, dtype=torch.float32).T, atol=1e-4)
+    with torch.no_grad():  # without matching the turned object's grasps are not the turned ones
+        plain = synthesize(model, clouds, np.full(4, 1, np.int64), scale, 64, torch.Generator().manual_seed(3), "aggregate", 1.0, True, "uniform")
+    assert not torch.allclose(hand.forward(plain).translation, turned_links, atol=1e-3)

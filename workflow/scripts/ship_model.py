@@ -239,7 +239,9 @@ def card_markdown(card: dict) -> str:
         "## Training",
         "",
         f"- {training['steps']} optimizer steps, seed {training['seed']}, {training['wall_s'] / 60:.1f} min wall "
-        f"({training['cpu_s'] / 60:.1f} CPU-min) on the machine above.",
+        f"({training['cpu_s'] / 60:.1f} CPU-min) on the machine above"
+        + ("; every cloud and its grasps turned about the vertical by a random angle each step (`train.rotation_augmentation`)."
+           if card["config"].get("train", {}).get("rotation_augmentation") else "."),
     ]
     evaluator = card.get("evaluator")
     if evaluator:
@@ -251,7 +253,10 @@ def card_markdown(card: dict) -> str:
         "",
         "## Held-out objects",
         "",
-        "Tabletop, the lift test with the hand starting at most 2 mm inside the object, 16 attempts per object and method; "
+        "Tabletop, the lift test with the hand starting at most 2 mm inside the object, 16 attempts per object and method"
+        + ("; each held-out object turned about the vertical by its own seeded angle (`objects.heldout_yaw`)"
+           if card["config"].get("objects", {}).get("heldout_yaw") else ", each object at the orientation it was generated in")
+        + "; "
         "intervals Wilson 95% over attempts. `cvae_ranked_post`: the evaluator keeps the best-scored distinct quarter of the "
         "model's samples, which are then post-optimized (what `dexlite grasp` does); `cvae_post`: the model's samples, "
         "post-optimized; `optimization`: from scratch; `shipped_post`: the model shipped before this one. CPU-seconds count "

@@ -184,6 +184,10 @@ class SampleConfig:
         False, "anchor_rule debiased: counts start from how many training grasps' local features match each point")
     match_candidates: int = setting(
         1, "anchor_rule matched: draw among this many best-matching points, debiased (1 = the best match)", minimum=1)
+    yaw_candidates: int = setting(
+        12, "headings tried per new object: it is sampled turned about z to the one of this many evenly spaced turns whose "
+        "PointNet feature is nearest a training object's, and the grasps turned back (the codes carry their training "
+        "objects' headings); 1 = as it stands", minimum=1)
     debias_codes: bool = setting(
         True, "latent_prior aggregate / neighbours: a cloud's draws prefer training codes it drew less (1/(count+1))")
 
@@ -194,6 +198,8 @@ class SampleConfig:
             raise ValueError(f"sample.neighbour_clouds must be >= 1, got {self.neighbour_clouds}")
         if self.match_candidates < 1:
             raise ValueError(f"sample.match_candidates must be >= 1, got {self.match_candidates}")
+        if self.yaw_candidates < 1:
+            raise ValueError(f"sample.yaw_candidates must be >= 1, got {self.yaw_candidates}")
         if self.anchor_region_m <= 0:
             raise ValueError(f"sample.anchor_region_m must be > 0, got {self.anchor_region_m}")
         if self.anchor_rule not in ANCHOR_RULES:

@@ -16,6 +16,7 @@ Each object (and scale) is one cloud: PointNet runs once per cloud, decoding is 
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -26,7 +27,7 @@ from dexlite_pipeline.model.config import ANCHOR_RULES, LATENT_PRIORS, SampleCon
 from dexlite_pipeline.model.data import ObjectClouds, cloud_keys
 from dexlite_pipeline.model.methods import PRIOR_ON_TRAINING, RECONSTRUCTION
 from dexlite_pipeline.model.network import GraspCVAE, anchor_at, condition_at
-from dexlite_pipeline.model.pose import features_to_pose, pose_to_features
+from dexlite_pipeline.model.pose import features_to_pose, pose_to_features, rotate_features, vertical_rotation
 
 
 def _clouds_for(
@@ -116,17 +117,55 @@ def neighbour_weights(model: GraspCVAE, global_feature: torch.Tensor | None, nei
     """(B, N) 1 for the codes on the ``neighbour_clouds`` training clouds nearest each new cloud's global feature, else 0."""
     if global_feature is None or len(model.codes_condition) != len(model.codes_mu) or len(model.codes_cloud) != len(model.codes_mu):
         raise ValueError("latent prior 'neighbours' needs a model saved with its codes' conditions and clouds")
-    width = model.config.pointnet_widths[-1]
-    clouds, code_cloud = torch.unique(model.codes_cloud, return_inverse=True)
-    cloud_feature = torch.zeros(len(clouds), width, device=global_feature.device).index_add_(
-        0, code_cloud, model.codes_condition[:, :width]
-    ) / torch.bincount(code_cloud, minlength=len(clouds)).clamp(min=1)[:, None].to(global_feature.dtype)
-    # exact differences: the matrix-product form of cdist cancels catastrophically for features this large, and
-    # a training cloud must find itself at distance 0
-    distance = torch.cdist(global_feature, cloud_feature, compute_mode="donot_use_mm_for_euclid_dist")  # (B, clouds)
-    nearest = distance.topk(min(neighbour_clouds, len(clouds)), dim=1, largest=False).indices  # (B, k)
+    cloud_feature, code_cloud = training_cloud_features(model)
+    distance = feature_distances(global_feature, cloud_feature.to(global_feature.device))  # (B, clouds)
+    nearest = distance.topk(min(neighbour_clouds, len(cloud_feature)), dim=1, largest=False).indices  # (B, k)
     chosen = torch.zeros_like(distance).scatter_(1, nearest, 1.0)
     return chosen[:, code_cloud]
+
+
+def training_cloud_features(model: GraspCVAE) -> tuple[torch.Tensor, torch.Tensor]:
+    """(clouds, W) the global PointNet feature of each training cloud (object and scale) the model's codes were
+    encoded on, and (N,) each code's cloud row."""
+    width = model.config.pointnet_widths[-1]
+    clouds, code_cloud = torch.unique(model.codes_cloud, return_inverse=True)
+    cloud_feature = torch.zeros(len(clouds), width, device=model.codes_condition.device).index_add_(
+        0, code_cloud, model.codes_condition[:, :width]
+    ) / torch.bincount(code_cloud, minlength=len(clouds)).clamp(min=1)[:, None].to(model.codes_condition.dtype)
+    return cloud_feature, code_cloud
+
+
+def feature_distances(feature: torch.Tensor, cloud_feature: torch.Tensor) -> torch.Tensor:
+    """(B, clouds) Euclidean distances; exact differences: the matrix-product form of cdist cancels catastrophically
+    for features this large, and a training cloud must find itself at distance 0."""
+    return torch.cdist(feature, cloud_feature, compute_mode="donot_use_mm_for_euclid_dist")
+
+
+def turned_clouds(drawn: torch.Tensor, angle_rad: torch.Tensor) -> torch.Tensor:
+    """Clouds (C, P, 6: points, normals) turned about z by ``angle_rad`` (C,)."""
+    turn = vertical_rotation(angle_rad.to(drawn.dtype)).transpose(1, 2)
+    return torch.cat([drawn[..., :3] @ turn, drawn[..., 3:] @ turn], dim=2)
+
+
+def matched_yaws(model: GraspCVAE, drawn: torch.Tensor, candidates: int) -> torch.Tensor:
+    """(C,) for each cloud the turn about z (radians), among ``candidates`` evenly spaced ones from 0, whose global
+    feature lies nearest a training cloud's.
+
+    The model's codes were encoded on its training objects as they stood, so a code carries a heading: a box turned
+    90° from its family's training orientation is grasped across the wrong faces. Sampling on the turn of the new
+    object that looks most like some training object, then turning the grasps back, gives every heading of the
+    object the same grasps up to the spacing of the candidates (a round object, which looks alike at every turn,
+    keeps the turn it came with).
+    """
+    cloud_feature, _ = training_cloud_features(model)
+    cloud_feature = cloud_feature.to(drawn.device)
+    angles = torch.arange(candidates, dtype=drawn.dtype, device=drawn.device) * (2 * math.pi / candidates)
+    nearest = torch.stack([
+        feature_distances(model.pointnet(turned_clouds(drawn, angle.expand(len(drawn))))[0], cloud_feature).min(dim=1).values
+        for angle in angles
+    ], dim=1)  # (C, candidates)
+    # ties (a round object) keep the smallest turn, 0 first: argmin returns the first minimum
+    return angles[nearest.argmin(dim=1)]
 
 
 def debiased_points(
@@ -248,8 +287,13 @@ def synthesize(
     debias_training: bool = False,
     match_candidates: int = 1,
     debias_codes: bool = False,
+    yaw_candidates: int = 1,
 ) -> torch.Tensor:
     """(B, 28) decoded poses for grasps on (object_index, scale) pairs, from the latent ``prior`` (``sample_latents``).
+
+    ``yaw_candidates`` > 1 (a model saved with its codes' conditions): each cloud is first turned about z to the one
+    of that many evenly spaced headings that looks most like a training object (``matched_yaws``), sampled there, and
+    the poses turned back into the object's own frame.
 
     ``anchor_rule``: ``uniform`` (associated points uniformly random over the cloud),
     ``matched`` (``matched_points``; needs a prior drawn from the training codes, whose latents
@@ -264,6 +308,10 @@ def synthesize(
     if anchor_rule == "matched" and (prior == "standard" or len(model.codes_condition) == 0):
         raise ValueError("anchor rule 'matched' needs a latent prior drawn from the training codes and a model saved with their conditions")
     drawn, cloud_index = _clouds_for(clouds, object_index, scale, points, generator, fixed_clouds)
+    yaw = None
+    if yaw_candidates > 1 and len(model.codes_condition) and len(model.codes_cloud) == len(model.codes_condition):
+        yaw = matched_yaws(model, drawn, yaw_candidates)
+        drawn = turned_clouds(drawn, yaw)
     features = model.pointnet(drawn)
     latent, code_index = sample_latents(
         model, len(object_index), generator, prior, temperature, features[0][cloud_index], neighbour_clouds, cloud_index if debias_codes else None
@@ -283,7 +331,10 @@ def synthesize(
         point_index = random_points(len(object_index), points, generator).to(clouds.device)
     condition = condition_at(features, cloud_index, point_index)
     anchor = model.sampling_anchors(anchor_at(drawn, cloud_index, point_index), generator)
-    return features_to_pose(model.decode(latent, condition, anchor))
+    decoded = model.decode(latent, condition, anchor)
+    if yaw is not None:  # grasps of the turned cloud, back in the object's frame
+        decoded = rotate_features(decoded, vertical_rotation(yaw[cloud_index]).transpose(1, 2))
+    return features_to_pose(decoded)
 
 
 @torch.no_grad()
@@ -369,7 +420,7 @@ def synthesis_rows(
     pose = synthesize(
         model, clouds, obj, scale, points, generator, config.latent_prior, config.latent_temperature, fixed_clouds, config.anchor_rule,
         config.neighbour_clouds, config.anchor_region_m, config.debias_training, config.match_candidates,
-        config.debias_codes,
+        config.debias_codes, config.yaw_candidates,
     )
     return SampledRows(hand_pose=pose, object_id=[clouds.object_ids[i] for i in obj], scale=scale, method=[label] * len(obj))
 

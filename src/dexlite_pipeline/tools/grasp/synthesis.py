@@ -140,7 +140,7 @@ def synthesize_with_model(
     poses = synthesize(
         model, clouds, object_index, scale, points, generator, prior, sample_config.latent_temperature, fixed, anchor_rule,
         sample_config.neighbour_clouds, sample_config.anchor_region_m, sample_config.debias_training, sample_config.match_candidates,
-        sample_config.debias_codes,
+        sample_config.debias_codes, sample_config.yaw_candidates,
     )
     scores = None
     if evaluator is not None:
