@@ -30,7 +30,8 @@ class EvaluatorSection:
     hand_points_per_shape: int = setting(6, "hand surface points per collision shape the network reads (6 -> 114 points)", minimum=1)
     rotation_augmentation: bool = setting(
         True, "turn each training cloud, its grasps and their tables about the object's z axis (up on the table) by a random "
-        "angle every step, as train.rotation_augmentation does for the model: held-out objects come at any yaw")
+        "angle every step: it scores grasps on new objects as they stand, at any heading (the model's samples are turned "
+        "back from the matched heading, sample.yaw_candidates)")
     validation_fraction: float = setting(
         0.2, "share of the training OBJECTS whose grasps only validate (the epoch with the lowest validation loss is kept)",
         minimum=0, exclusive_maximum=1)

@@ -96,8 +96,9 @@ class TrainConfig:
         32, "loss contacts of grasps without stored contacts (imported): best of this many near-surface pad 4-sets per decoded "
         "pose (0 = nearest four pads); optimized grasps use the contacts they were made with", minimum=0)
     rotation_augmentation: bool = setting(
-        True, "turn each cloud and its grasps about the object's z axis (up on the table) by a random angle every step: a "
-        "grasp turned with its object is the same grasp, and held-out objects come at any yaw (objects.heldout_yaw)")
+        False, "turn each cloud and its grasps about the object's z axis (up on the table) by a random angle every step; off: "
+        "sampling matches each new object's heading instead (sample.yaw_candidates), which held 5 points more on the "
+        "household split at random yaw (docs/learning.md, \"Any yaw\")")
     fixed_clouds: bool = setting(
         True, "each object's cloud is one fixed farthest-point subset (false: a new random subset every step, which moves each "
         "grasp's associated point by ~1 cm)")
