@@ -45,6 +45,7 @@ def test_a_runs_data_stages_become_one_batch_and_its_objects_are_not_added_twice
     record = json.loads(next((dataset / "configs").glob("*.json")).read_text())
     assert set(record["left_out_objects"]) == turned & (set(lifted.object_id) | {o for s in optimized_stores(scratch_copy) for o in s.attrs["objects"]})
     assert all("turned" in reason for reason in record["left_out_objects"].values())
+    assert all(f"left out {o}: " in done.stdout for o in record["left_out_objects"])  # and the command says so
     lifted = lifted.select(np.flatnonzero(~np.isin(lifted.object_id.astype(str), sorted(turned))))
     grasps, objects = load_dataset(dataset)
     assert len(grasps) == len(lifted)  # every lift-tested grasp, held or not

@@ -44,4 +44,6 @@ def run(args: argparse.Namespace) -> int:
     held = int(batch.grasps.arrays["lift_success"].sum()) if len(batch.grasps) else 0
     print(f"batch {batch_id:04d}: {len(batch.objects)} objects, {len(batch.grasps)} lift-tested grasps, {held} held, "
           f"{sum(batch.cpu_seconds.values()):.0f} CPU-s -> {args.dataset} (now {summary.get('objects', '?')} objects)")
+    for object_id, reason in batch.config.get("left_out_objects", {}).items():
+        print(f"left out {object_id}: {reason}")
     return 0

@@ -10,7 +10,6 @@ prepared at a seeded yaw (``objects.heldout_yaw``) is left out, named with the r
 from __future__ import annotations
 
 import json
-import logging
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -19,8 +18,6 @@ import numpy as np
 from dexlite_pipeline.dataset.layout import OPTIONAL_ARRAYS, REQUIRED_ARRAYS
 from dexlite_pipeline.dataset.validation import DatasetError
 from dexlite_pipeline.io.grasp_store import GraspSet, read_grasp_store
-
-log = logging.getLogger(__name__)
 
 # Snakemake rule -> the batches.csv cpu_seconds key (the data stages and what they need).
 ENERGY_ARRAYS = ("E_fc", "E_dis", "E_pen", "E_spen", "E_joints", "E_table")
@@ -111,8 +108,6 @@ def run_batch(results: str | Path, logs: str | Path | None = None) -> RunBatch:
               "curate": lift_attrs.get("config", {}).get("curate", {})}
     config = json.loads(json.dumps(config, default=str))
     if left_out:
-        for object_id, reason in left_out.items():
-            log.warning("%s: object %s left out of the batch: %s", results, object_id, reason)
-        config["left_out_objects"] = left_out  # the batch's config record keeps them, with the reason
+        config["left_out_objects"] = left_out  # the batch's config record keeps them, with the reason (dataset-add prints them)
         grasps = grasps.select(np.flatnonzero(~np.isin(grasps.object_id.astype(str), sorted(left_out))))
     return RunBatch(grasps, pd.DataFrame(rows), stage_cpu_seconds(logs), config, lift_protocol(lift_attrs.get("lift_config", {})))
