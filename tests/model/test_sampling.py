@@ -164,7 +164,8 @@ def _with_codes_on(model, clouds: torch.Tensor) -> None:
 def test_matched_yaw_turns_a_turned_training_cloud_back(small_model_config, random_clouds):
     """A training cloud turned by 90° is turned by 270° more (back where its codes were encoded); the cloud itself by 0."""
     from dexlite_pipeline.model.network import GraspCVAE
-    from dexlite_pipeline.model.sampling import matched_yaws, turned_clouds
+    from dexlite_pipeline.model.pose import turned_clouds
+    from dexlite_pipeline.model.sampling import matched_yaws
 
     torch.manual_seed(0)
     model = GraspCVAE(small_model_config).eval()

@@ -38,7 +38,7 @@ from dexlite_pipeline.hand.model import ShadowHand
 from dexlite_pipeline.io.grasp_store import GraspSet, invalid_grasp_reasons
 from dexlite_pipeline.model.data import ObjectClouds, cloud_keys
 from dexlite_pipeline.model.network import PointNet, _mlp
-from dexlite_pipeline.model.pose import TRANSLATION_UNIT_M, turn_stored_poses, vertical_rotation
+from dexlite_pipeline.model.pose import TRANSLATION_UNIT_M, turn_stored_poses, turned_clouds, vertical_rotation
 from dexlite_pipeline.model.score_metrics import roc_auc
 from dexlite_pipeline.objects.assets import ObjectAssetError, load_asset
 from dexlite_pipeline.progress import ProgressLog
@@ -287,9 +287,8 @@ def turned_inputs(inputs: tuple, angle_rad: torch.Tensor) -> tuple:
     about the origin, along the normal)."""
     clouds, hand_pose, cloud_index, support = inputs
     angle_rad = angle_rad.to(clouds.device, clouds.dtype)
-    turn = vertical_rotation(angle_rad)
-    clouds = torch.cat([clouds[..., :3] @ turn.transpose(1, 2), clouds[..., 3:] @ turn.transpose(1, 2)], dim=2)
-    grasp_turn = turn[cloud_index]
+    grasp_turn = vertical_rotation(angle_rad)[cloud_index]
+    clouds = turned_clouds(clouds, angle_rad)
     support = torch.cat([(grasp_turn @ support[:, :3, None])[..., 0], support[:, 3:]], dim=1)
     return clouds, turn_stored_poses(hand_pose, angle_rad[cloud_index]), cloud_index, support
 

@@ -45,6 +45,12 @@ def vertical_rotation(angle_rad: torch.Tensor) -> torch.Tensor:
     return torch.stack([cos, -sin, zero, sin, cos, zero, zero, zero, one], dim=1).reshape(-1, 3, 3)
 
 
+def turned_clouds(clouds: torch.Tensor, angle_rad: torch.Tensor) -> torch.Tensor:
+    """Clouds (C, P, 6: points, normals) turned about z by ``angle_rad`` (C,)."""
+    turn = vertical_rotation(angle_rad.to(clouds.dtype)).transpose(1, 2)
+    return torch.cat([clouds[..., :3] @ turn, clouds[..., 3:] @ turn], dim=2)
+
+
 def turn_stored_poses(hand_pose: torch.Tensor, angle_rad: torch.Tensor) -> torch.Tensor:
     """The same grasps (N, 28 stored poses) of objects turned about their z axis by ``angle_rad`` (N,).
 

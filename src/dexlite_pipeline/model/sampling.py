@@ -27,7 +27,7 @@ from dexlite_pipeline.model.config import ANCHOR_RULES, LATENT_PRIORS, SampleCon
 from dexlite_pipeline.model.data import ObjectClouds, cloud_keys
 from dexlite_pipeline.model.methods import PRIOR_ON_TRAINING, RECONSTRUCTION
 from dexlite_pipeline.model.network import GraspCVAE, anchor_at, condition_at
-from dexlite_pipeline.model.pose import features_to_pose, pose_to_features, rotate_features, vertical_rotation
+from dexlite_pipeline.model.pose import features_to_pose, pose_to_features, rotate_features, turned_clouds, vertical_rotation
 
 
 def _clouds_for(
@@ -139,12 +139,6 @@ def feature_distances(feature: torch.Tensor, cloud_feature: torch.Tensor) -> tor
     """(B, clouds) Euclidean distances; exact differences: the matrix-product form of cdist cancels catastrophically
     for features this large, and a training cloud must find itself at distance 0."""
     return torch.cdist(feature, cloud_feature, compute_mode="donot_use_mm_for_euclid_dist")
-
-
-def turned_clouds(drawn: torch.Tensor, angle_rad: torch.Tensor) -> torch.Tensor:
-    """Clouds (C, P, 6: points, normals) turned about z by ``angle_rad`` (C,)."""
-    turn = vertical_rotation(angle_rad.to(drawn.dtype)).transpose(1, 2)
-    return torch.cat([drawn[..., :3] @ turn, drawn[..., 3:] @ turn], dim=2)
 
 
 def matched_yaws(model: GraspCVAE, drawn: torch.Tensor, candidates: int) -> torch.Tensor:
