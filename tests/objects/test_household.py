@@ -160,6 +160,19 @@ def test_household_first_takes_the_next_objects_of_the_same_order(tmp_path):
     assert not {s.object_id for s in whole} & set(household_benchmark_list())
 
 
+def test_household_families_draws_round_robin_over_the_named_families_only(tmp_path):
+    """A campaign batch for some families: the same ids (so the same objects) as in the whole order, in the given
+    family order, never the household split; an unknown family is refused naming the key."""
+    drawn = collect_sources(0, [], [], seed=0, household_count=5, household_families=("spatula", "bowl"), household_dir=tmp_path / "a")
+    assert [s.object_id for s in drawn] == ["household-spatula-000", "household-bowl-000", "household-spatula-001",
+                                            "household-bowl-001", "household-spatula-002"]
+    later = collect_sources(0, [], [], seed=0, household_count=2, household_first=4, household_families=("spatula", "bowl"),
+                            household_dir=tmp_path / "b")
+    assert [s.object_id for s in later] == ["household-spatula-002", "household-bowl-002"]
+    with pytest.raises(ObjectSourceError, match="objects.household_families: unknown household families 'plate'"):
+        collect_sources(0, [], [], seed=0, household_count=1, household_families=("plate",), household_dir=tmp_path / "c")
+
+
 def test_household_source_errors_name_the_key(tmp_path):
     with pytest.raises(ObjectSourceError, match="objects.household_benchmark_objects"):
         collect_sources(0, [], [], seed=0, household_benchmark_objects=len(household_benchmark_list()) + 1, household_dir=tmp_path)

@@ -56,6 +56,9 @@ class ObjectsConfig(CoacdSettings):
     household_first: int = setting(
         0, "training household objects to skip first (in their round-robin order): a campaign batch takes objects "
         "household_first to household_first + household_count", minimum=0)
+    household_families: tuple[str, ...] = setting(
+        (), "the household families training objects are drawn from, round-robin in this order (empty: every family): a "
+        "campaign batch for the families with the fewest grasps (ids, and so objects, do not depend on it)")
     household_benchmark_objects: int = setting(
         0, "the first this many objects of the household split (objects/household_split.yaml), held out", minimum=0)
     mesh_dirs: tuple[str, ...] = setting((), "folders of .obj/.stl meshes to add", required=True)

@@ -449,12 +449,20 @@ def household_object(object_id: str) -> HouseholdObject:
     return HouseholdObject(object_id, family, index, params, _finished(FAMILIES[family][1](**params), object_id))
 
 
-def training_household_ids(count: int, excluded: frozenset[str] = frozenset()) -> list[str]:
-    """The first ``count`` ids in round-robin family order (instance 0 of each family, then 1, ...), skipping ``excluded``."""
+def training_household_ids(count: int, excluded: frozenset[str] = frozenset(), families: tuple[str, ...] = ()) -> list[str]:
+    """The first ``count`` ids in round-robin family order (instance 0 of each family, then 1, ...), skipping ``excluded``.
+
+    ``families``: only these families, in the order given (empty: every family of ``FAMILIES``, in its order), so a
+    campaign batch can grow the families that have the fewest grasps without changing any object's id.
+    """
+    chosen = tuple(families) or tuple(FAMILIES)
+    unknown = [f for f in chosen if f not in FAMILIES]
+    if unknown:
+        raise ValueError(f"unknown household families {', '.join(map(repr, unknown))} (families: {', '.join(FAMILIES)})")
     ids: list[str] = []
     index = 0
     while len(ids) < count:
-        ids += [i for i in (household_id(f, index) for f in FAMILIES) if i not in excluded][: count - len(ids)]
+        ids += [i for i in (household_id(f, index) for f in chosen) if i not in excluded][: count - len(ids)]
         index += 1
     return ids
 

@@ -238,9 +238,10 @@ def household_benchmark_list() -> list[str]:
     return [str(o) for o in record.get("object_ids") or []]
 
 
-def household_sources(training_count: int, benchmark_count: int, folder, training_first: int = 0) -> list[MeshSource]:
+def household_sources(training_count: int, benchmark_count: int, folder, training_first: int = 0,
+                      families: tuple[str, ...] = ()) -> list[MeshSource]:
     """Generated household objects: ``training_count`` training ones from the ``training_first``-th on (round-robin
-    over the families, never an object of the household split) and the first ``benchmark_count`` of the
+    over ``families``, every family when empty; never an object of the household split) and the first ``benchmark_count`` of the
     household split (always held out). Their meshes (metres) are written to ``folder`` as
     ``<id>.obj``; other ``household-*.obj`` files there (from an earlier, larger run) are removed.
     """
@@ -255,7 +256,10 @@ def household_sources(training_count: int, benchmark_count: int, folder, trainin
         raise ObjectSourceError("objects.household_count / household_benchmark_objects: no folder given to write the generated meshes to")
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
-    training = training_household_ids(training_first + training_count, frozenset(split))[training_first:] if training_count > 0 else []
+    try:
+        training = training_household_ids(training_first + training_count, frozenset(split), families)[training_first:] if training_count > 0 else []
+    except ValueError as error:
+        raise ObjectSourceError(f"objects.household_families: {error}") from None
     wanted = [(i, "household", False) for i in training]
     wanted += [(i, "household_benchmark", True) for i in split[:benchmark_count]]
     sources = []
@@ -302,6 +306,7 @@ def collect_sources(
     household_benchmark_objects: int = 0,
     household_dir=None,
     household_first: int = 0,
+    household_families: tuple[str, ...] = (),
 ) -> list[MeshSource]:
     """Every object to prepare: embedded default, generated household objects, user folders, always-held-out folders.
 
@@ -309,8 +314,8 @@ def collect_sources(
     ``benchmark_objects``: the first this many objects of the benchmark split are added (held
     out), so that a small run is also measured on objects that no model ever trains on.
     ``household_count`` / ``household_benchmark_objects``: generated household objects for
-    training (from the ``household_first``-th on) / from the household split (held out), their meshes
-    written to ``household_dir``.
+    training (from the ``household_first``-th on, of ``household_families`` or every family) / from the household
+    split (held out), their meshes written to ``household_dir``.
     """
     # A file listed twice (a folder repeated, or in both lists) is one object; held out wins.
     user: dict[str, MeshSource] = {}
@@ -322,5 +327,5 @@ def collect_sources(
         builtin = [dataclasses.replace(s, always_heldout=True) if s.object_id in benchmark else s for s in builtin]
     drawn = {s.object_id for s in builtin}
     builtin += [s for s in benchmark_sources(benchmark_objects) if s.object_id not in drawn]
-    household = household_sources(household_count, household_benchmark_objects, household_dir, household_first)
+    household = household_sources(household_count, household_benchmark_objects, household_dir, household_first, household_families)
     return make_ids_unique(builtin + household + list(user.values()))
