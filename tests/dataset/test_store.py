@@ -268,6 +268,61 @@ def test_export_writes_dexgraspnets_layout_of_the_held_grasps(tmp_path):
     assert counts == {"objects": 2, "grasps": int(held.sum()), "missing_assets": [MUGS[1]]}
     entries = load_npy_restricted(tmp_path / "out" / "dataset" / f"{MUGS[0]}.npy")
     mine = held & (grasps.object_id == MUGS[0])
-    assert len(entries) == int(mine.sum()) and set(entries[0]) == {"qpos", "scale"}
+    assert len(entries) == int(mine.sum()) and set(entries[0]) == {"qpos", "scale", "grasp_type"}
+    assert {entry["grasp_type"] for entry in entries} == {"power"}  # a batch without types: power grasps
     assert entries[0]["qpos"]["WRJTx"] == pytest.approx(float(grasps.hand_pose[mine][0, 0]))
     assert (tmp_path / "out" / "meshdata" / MUGS[0] / "coacd" / "decomposed.obj").is_file()
+
+
+def typed(grasps: GraspSet, types: list[str]) -> GraspSet:
+    """``grasps`` with ``grasp_type`` cycling through ``types``."""
+    grasps.arrays["grasp_type"] = np.resize(np.asarray(types, dtype=object), len(grasps))
+    return grasps
+
+
+def test_grasp_types_are_stored_loaded_and_older_batches_load_as_power(tmp_path):
+    add_batch(tmp_path, make_grasps(MUGS), objects_frame(MUGS), record())  # made before grasp types: no grasp_type
+    add_batch(tmp_path, typed(make_grasps(BOWLS, seed=1), ["pinch", "power", "tripod"]), objects_frame(BOWLS), record(day=2))
+    with np.load(tmp_path / "grasps" / "batch_0001.npz", allow_pickle=False) as archive:
+        assert "grasp_type" not in archive.files
+    loaded, _ = load_dataset(tmp_path)
+    first = loaded.arrays["batch"] == 1
+    assert loaded.arrays["grasp_type"].dtype == object and set(loaded.arrays["grasp_type"][first]) == {"power"}
+    assert loaded.arrays["grasp_type"][~first].tolist() == np.resize(["pinch", "power", "tripod"], int((~first).sum())).tolist()
+    only_old, _ = load_dataset(tmp_path, object_ids=MUGS)
+    assert set(only_old.arrays["grasp_type"]) == {"power"}
+    with pytest.raises(DatasetError, match="array 'grasp_type' has 1 empty values"):
+        bad = typed(make_grasps(["household-cup-000"]), ["pinch"])
+        bad.arrays["grasp_type"][2] = ""
+        add_batch(tmp_path, bad, objects_frame(["household-cup-000"]), record(day=3))
+
+
+def test_card_counts_held_and_distinct_held_grasps_per_type(tmp_path):
+    grasps = typed(make_grasps(MUGS[:1], per_object=8, tabletop=False), ["pinch", "lateral"])
+    same_palm = [palm_pose((0.0, 0.0, 0.0))] * 4 + [palm_pose((0.05 * i, 0.1, 0.0)) for i in range(4)]
+    held = np.array([True, True, True, False, True, True, False, False])
+    grasps.arrays.update(hand_pose=np.stack(same_palm), lift_success=held)
+    add_batch(tmp_path, grasps, objects_frame(MUGS[:1]), record())
+    old = make_grasps(BOWLS[:1], per_object=4, tabletop=False)
+    old.arrays["lift_success"] = np.array([True, False, False, False])
+    add_batch(tmp_path, old, objects_frame(BOWLS[:1]), record(day=2))
+    per_type = dataset_summary(tmp_path)["per_type"]
+    # pinch: rows 0, 2 (same palm: one distinct grasp), 4 held; lateral: rows 1 (same palm as 0), 5 held; 7 not held
+    assert per_type["pinch"] == {"grasps": 4, "held": 3, "distinct_held": 2, "objects_with_held": 1}
+    assert per_type["lateral"] == {"grasps": 4, "held": 2, "distinct_held": 2, "objects_with_held": 1}
+    assert per_type["power"] == {"grasps": 4, "held": 1, "distinct_held": 1, "objects_with_held": 1}
+    text = write_card(tmp_path, "").read_text()
+    assert "## Grasp types" in text and "| pinch | 4 | 3 | 75.0% | 2 | 1 |" in text and "| power | 4 | 1 | 25.0% | 1 | 1 |" in text
+    assert "made before grasp types existed, with the power template only" in text
+
+
+def test_export_writes_each_grasps_type(tmp_path):
+    grasps = typed(make_grasps(MUGS), ["tripod", "pinch"])
+    add_batch(tmp_path / "dataset", grasps, objects_frame(MUGS), record())
+    export_dexgraspnet(tmp_path / "dataset", tmp_path / "out")
+    from dexlite_pipeline.io.safe_pickle import load_npy_restricted
+
+    for object_id in MUGS:
+        mine = grasps.arrays["lift_success"] & (grasps.object_id == object_id)
+        entries = load_npy_restricted(tmp_path / "out" / "dataset" / f"{object_id}.npy")
+        assert [entry["grasp_type"] for entry in entries] == grasps.arrays["grasp_type"][mine].tolist()

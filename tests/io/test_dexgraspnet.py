@@ -185,7 +185,7 @@ def test_export_then_import_round_trip(layout, tmp_path):
     write_grasp_store(tmp_path / "first.zarr", first)
     assert dexlite(["export-dexgraspnet", str(tmp_path / "first.zarr"), "--out", str(tmp_path / "out"), "--objects", str(tmp_path / "objects")]) == 0
     exported = np.load(tmp_path / "out" / "dataset" / "box.npy", allow_pickle=True)  # our own file
-    assert set(exported[0]) == {"qpos", "scale"}
+    assert set(exported[0]) == {"qpos", "scale", "grasp_type"} and exported[0]["grasp_type"] == "power"  # imports are power grasps
     original = np.load(layout["root"] / "dataset" / "box.npy", allow_pickle=True)
     for entry, index in zip(exported, [0, 4, 5]):
         for key, value in original[index]["qpos"].items():
@@ -333,11 +333,13 @@ def write_dexgraspnet_file(root, code, count, seed=0):
 
 
 def assert_dexgraspnet_structure(path):
-    """``path`` is a grasp file as DexGraspNet writes it: keys, key order and value types."""
+    """``path`` is a grasp file as DexGraspNet writes it: keys, key order and value types (our export adds each grasp's
+    ``grasp_type`` after them, a string)."""
     entries = np.load(path, allow_pickle=True)
     assert entries.dtype == object and entries.ndim == 1 and len(entries) > 0
     for entry in entries:
-        assert type(entry) is dict and list(entry) == ["qpos", "scale"]
+        assert type(entry) is dict and list(entry) in (["qpos", "scale"], ["qpos", "scale", "grasp_type"])
+        assert type(entry.get("grasp_type", "")) is str
         assert list(entry["qpos"]) == list(DEXGRASPNET_QPOS_ORDER)
         assert all(type(value) is float for value in entry["qpos"].values())
         assert type(entry["scale"]) is np.float64

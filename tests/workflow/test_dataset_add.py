@@ -54,6 +54,9 @@ def test_a_runs_data_stages_become_one_batch_and_its_objects_are_not_added_twice
     held = np.asarray(grasps.arrays["lift_success"], bool)
     assert ((np.asarray(grasps.arrays["distinct_label"]) >= 0) == held).all()
     assert set(grasps.arrays["source"]) <= {"optimization", "dexgraspnet"}  # curation's origin of each grasp
+    from dexlite_pipeline.io.grasp_store import grasp_types
+
+    assert grasps.arrays["grasp_type"].tolist() == grasp_types(lifted).tolist()  # each grasp's type, stored
     optimized_ids = {o for store in optimized_stores(scratch_copy) for o in store.attrs["objects"]} - turned
     # every optimized object, with or without a held grasp, and every object with a tested grasp (the import's too)
     assert set(objects["object_id"]) == optimized_ids | set(lifted.object_id)

@@ -10,7 +10,7 @@ from pathlib import Path
 
 from dexlite_pipeline.atomic import write_text_atomic
 from dexlite_pipeline.dataset.layout import (
-    BATCHES_TABLE, CARD_NAME, CONFIGS_DIR, DISTINCT_ROTATION_DEG, DISTINCT_TRANSLATION_M, GRASPS_DIR, OBJECT_COLUMNS,
+    BATCHES_TABLE, CARD_NAME, CONFIGS_DIR, DISTINCT_ROTATION_DEG, DISTINCT_TRANSLATION_M, GRASP_TYPE_ABSENT, GRASPS_DIR, OBJECT_COLUMNS,
     OBJECTS_TABLE, STORED_ARRAYS, TARGET_DISTINCT_PER_OBJECT, TARGET_OBJECTS,
 )  # fmt: skip
 from dexlite_pipeline.dataset.summary import dataset_summary
@@ -84,6 +84,23 @@ def _distribution(summary: dict) -> list[str]:
     ]
 
 
+def _grasp_types(summary: dict) -> list[str]:
+    """The per-type table: grasps, held and distinct held grasps of each grasp type, and objects holding one."""
+    rows = [[name, t["grasps"], t["held"], _percent(t["held"], t["grasps"]), t["distinct_held"], t["objects_with_held"]]
+            for name, t in summary["per_type"].items()]  # fmt: skip
+    return [
+        "## Grasp types",
+        "",
+        "The type each grasp was made as (`grasp_type`: power, pinch, tripod or lateral, `optimize_grasps.grasp_types`). "
+        f"Batches without `grasp_type` were made before grasp types existed, with the power template only: their grasps "
+        f"count as `{GRASP_TYPE_ABSENT}`. A distinct held grasp of a type is one of an object's distinct labels among the "
+        "type's held grasps.",
+        "",
+        *_table(["type", "grasps", "held", "held share", "distinct held", "objects with a held grasp"], rows),
+        "",
+    ]
+
+
 def _batches(summary: dict) -> list[str]:
     rows = [[b["batch"], b["kind"], b["n_objects"], b["objects"], b["grasps"], b["held"], b["distinct_held_added"],
              f"{b['cpu_seconds_total'] / 3600.0:.2f}", b["machine"], b["code_version"][:12], b["config_digest"],
@@ -113,7 +130,8 @@ def _layout() -> list[str]:
             [f"`{GRASPS_DIR}/batch_NNNN.npz`", "every grasp batch NNNN tried, held or not (arrays below; strings as fixed-width unicode)"],
         ]),  # fmt: skip
         "",
-        "Grasp arrays (N grasps per batch file; `support_normal` and `support_offset_m` only in tabletop batches):",
+        "Grasp arrays (N grasps per batch file; `support_normal` and `support_offset_m` only in tabletop batches, "
+        "`grasp_type` only in batches made since grasp types existed):",
         "",
         *_table(["array", "dtype", "shape", "meaning"], arrays),
         "",
@@ -170,6 +188,7 @@ def card_text(dataset_dir: str | os.PathLike, protocol_text: str) -> str:
         "",
         *_progress(summary),
         *_distribution(summary),
+        *_grasp_types(summary),
         *_batches(summary),
         "## Protocol",
         "",

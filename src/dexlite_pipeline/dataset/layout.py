@@ -25,9 +25,12 @@ from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
 
+import numpy as np
+
 from dexlite_pipeline.config import json_ready
 from dexlite_pipeline.evaluation.config import DiversityConfig
 from dexlite_pipeline.hand.model import POSE_DIM
+from dexlite_pipeline.io.grasp_store import DEFAULT_GRASP_TYPE, GRASP_TYPE
 from dexlite_pipeline.objects.rest_pose import REST_QUATERNION_COLUMNS, SUPPORT_NORMAL_COLUMNS, SUPPORT_OFFSET_COLUMN
 
 SCHEMA_VERSION = 1
@@ -50,11 +53,13 @@ TARGET_DISTINCT_PER_OBJECT = 30
 
 @dataclass(frozen=True)
 class ArraySpec:
-    """One per-grasp array: its kind ("str", "float32", "bool", "int32"), shape after the first (N) axis, meaning."""
+    """One per-grasp array: its kind ("str", "float32", "bool", "int32"), shape after the first (N) axis, meaning;
+    ``absent``: what an optional array reads as in the rows of a batch without it (``load_dataset``)."""
 
     kind: str
     trailing_shape: tuple[int, ...]
     meaning: str
+    absent: object = None
 
 
 ENERGY_MEANING = "float32 energy term of the grasp (NaN where the term was not computed)"
@@ -75,10 +80,18 @@ REQUIRED_ARRAYS: dict[str, ArraySpec] = {
     "failure_reason": ArraySpec("str", (), "why the lift test failed ('' when held)"),
     "source": ArraySpec("str", (), "what made the grasp: optimization, loop_round_<r>, model, ..."),
 }
-# Arrays a batch may give (tabletop mode records the table of each grasp, tabletop.store_arrays).
+# The grasp type array. Batches made before grasp types existed lack it: optimization from scratch then had the power
+# template only, so their grasps are power grasps, and they load as such (its ``absent`` value; the card says so).
+GRASP_TYPE_ARRAY = GRASP_TYPE  # "grasp_type"
+GRASP_TYPE_ABSENT = DEFAULT_GRASP_TYPE  # "power"
+# Arrays a batch may give (tabletop mode records the table of each grasp, tabletop.store_arrays; optimization from
+# scratch the type of each grasp, optim.grasp_types).
+SUPPORT_PLANE_ARRAYS = ("support_normal", "support_offset_m")  # both or neither
 OPTIONAL_ARRAYS: dict[str, ArraySpec] = {
-    "support_normal": ArraySpec("float32", (3,), "the table's upward unit normal in the object frame"),
-    "support_offset_m": ArraySpec("float32", (), "height of the object origin above the table at the grasp's scale, m"),
+    "support_normal": ArraySpec("float32", (3,), "the table's upward unit normal in the object frame", np.nan),
+    "support_offset_m": ArraySpec("float32", (), "height of the object origin above the table at the grasp's scale, m", np.nan),
+    GRASP_TYPE_ARRAY: ArraySpec("str", (), "the grasp's type: power, pinch, tripod or lateral (optimize_grasps.grasp_types); "
+                                "a batch without it was made before grasp types, with the power template: power", GRASP_TYPE_ABSENT),
 }
 # Arrays the dataset assigns: ignored when given to add_batch, recomputed there.
 ASSIGNED_ARRAYS: dict[str, ArraySpec] = {

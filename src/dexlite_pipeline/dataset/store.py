@@ -21,9 +21,9 @@ from dexlite_pipeline.atomic import atomic_path, write_text_atomic
 from dexlite_pipeline.dataset.files import read_npz, read_table, write_npz_deterministic, write_table
 from dexlite_pipeline.dataset.labels import assign_distinct_labels
 from dexlite_pipeline.dataset.layout import (
-    ASSIGNED_ARRAYS, BATCH_ARRAY, BATCH_COLUMNS, BATCH_INT_COLUMNS, BATCHES_TABLE, OBJECT_COLUMNS, OBJECT_IDENTITY_COLUMNS,
-    OBJECT_OPTIONAL_FLOAT_COLUMNS, OBJECTS_TABLE, OPTIMIZATION_KIND, OPTIONAL_ARRAYS, REQUIRED_ARRAYS,
-    BatchRecord, batch_name, config_path, config_digest, grasps_path,
+    ASSIGNED_ARRAYS, BATCH_ARRAY, BATCH_COLUMNS, BATCH_INT_COLUMNS, BATCHES_TABLE, GRASP_TYPE_ARRAY, OBJECT_COLUMNS,
+    OBJECT_IDENTITY_COLUMNS, OBJECT_OPTIONAL_FLOAT_COLUMNS, OBJECTS_TABLE, OPTIMIZATION_KIND, OPTIONAL_ARRAYS, REQUIRED_ARRAYS,
+    ArraySpec, BatchRecord, batch_name, config_path, config_digest, grasps_path,
 )  # fmt: skip
 from dexlite_pipeline.dataset.validation import DatasetError, check_record, normalize_grasp_arrays, normalize_objects_frame
 from dexlite_pipeline.io.grasp_store import GraspSet
@@ -222,11 +222,18 @@ def _as_loaded(arrays: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
 
 def _empty_arrays() -> dict[str, np.ndarray]:
     out = {}
-    for name, spec in {**REQUIRED_ARRAYS, **ASSIGNED_ARRAYS}.items():
+    for name, spec in {**REQUIRED_ARRAYS, GRASP_TYPE_ARRAY: OPTIONAL_ARRAYS[GRASP_TYPE_ARRAY], **ASSIGNED_ARRAYS}.items():
         dtype = object if spec.kind == "str" else spec.kind
         out[name] = np.zeros((0, *spec.trailing_shape), dtype=dtype)
     out[BATCH_ARRAY] = np.zeros(0, np.int32)
     return out
+
+
+def _absent_rows(spec: ArraySpec, rows: int) -> np.ndarray:
+    """``rows`` rows of an optional array for a batch without it: its ``absent`` value (strings as object arrays)."""
+    if spec.kind == "str":
+        return np.full(rows, spec.absent, dtype=object)
+    return np.full((rows, *spec.trailing_shape), spec.absent, spec.kind)
 
 
 def load_batch(dataset_dir: str | os.PathLike, batch_id: int) -> GraspSet:
@@ -241,7 +248,9 @@ def load_dataset(dataset_dir: str | os.PathLike, object_ids=None, held_only: boo
 
     Grasps come in dataset order (batch, then row), with the stored arrays (strings as object
     arrays of str), ``distinct_label`` and ``batch`` (int32). A support-plane array that some
-    batches lack is NaN in their rows. Object rows: objects.csv, restricted to ``object_ids``.
+    batches lack is NaN in their rows. ``grasp_type`` is always there: a batch made before grasp
+    types existed (no ``grasp_type``) holds power grasps, the only type optimization then made
+    (``layout.GRASP_TYPE_ABSENT``). Object rows: objects.csv, restricted to ``object_ids``.
     """
     dataset_dir = Path(dataset_dir)
     if not (dataset_dir / BATCHES_TABLE).is_file():
@@ -266,9 +275,9 @@ def load_dataset(dataset_dir: str | os.PathLike, object_ids=None, held_only: boo
     if not parts:
         return GraspSet(_empty_arrays(), {}), objects
     for name, spec in OPTIONAL_ARRAYS.items():
-        if any(name in p for p in parts):
+        if name == GRASP_TYPE_ARRAY or any(name in p for p in parts):
             for p in parts:
-                p.setdefault(name, np.full((len(p["object_id"]), *spec.trailing_shape), np.nan, np.float32))
+                p.setdefault(name, _absent_rows(spec, len(p["object_id"])))
     return GraspSet({k: np.concatenate([p[k] for p in parts]) for k in parts[0]}, {}), objects
 
 
@@ -323,7 +332,8 @@ def merge_datasets(sources: list, dest: str | os.PathLike) -> dict[str, dict[int
 
 
 def export_dexgraspnet(dataset_dir: str | os.PathLike, out_dir: str | os.PathLike, objects_dirs=None) -> dict:
-    """Write the dataset's held grasps in DexGraspNet's layout (``io.dexgraspnet.export_dexgraspnet``); returns its counts.
+    """Write the dataset's held grasps in DexGraspNet's layout (``io.dexgraspnet.export_dexgraspnet``, each with its
+    ``grasp_type``); returns its counts.
 
     ``objects_dirs``: prepared objects folders (``<dir>/assets/<object_id>``) whose convex pieces
     become ``meshdata/<object_id>/coacd/decomposed.obj``; without them only ``dataset/`` is written.
@@ -331,6 +341,6 @@ def export_dexgraspnet(dataset_dir: str | os.PathLike, out_dir: str | os.PathLik
     from dexlite_pipeline.io.dexgraspnet import export_dexgraspnet as export_grasp_set
 
     grasps, _ = load_dataset(dataset_dir, held_only=True)
-    held = GraspSet({key: grasps.arrays[key] for key in ("hand_pose", "object_id", "scale")}, {})
+    held = GraspSet({key: grasps.arrays[key] for key in ("hand_pose", "object_id", "scale", GRASP_TYPE_ARRAY)}, {})
     return export_grasp_set(held, out_dir, objects_dirs)
 

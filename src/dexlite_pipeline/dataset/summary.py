@@ -1,6 +1,6 @@
 """What a grasp dataset holds, in numbers: objects, grasps, held and distinct held grasps, per family and batch.
 
-Read from the tables and the grasps' ``object_id``, ``lift_success`` and ``distinct_label`` only
+Read from the tables and the grasps' ``object_id``, ``lift_success``, ``distinct_label`` and ``grasp_type`` only
 (no poses), so it is quick on a large dataset. An object's distinct held grasps are its number of
 distinct labels (``dataset.labels``).
 """
@@ -15,7 +15,7 @@ import numpy as np
 
 from dexlite_pipeline.dataset.files import read_npz
 from dexlite_pipeline.dataset.layout import (
-    TARGET_DISTINCT_PER_OBJECT, TARGET_OBJECTS, grasps_path, is_household_training, object_family,
+    GRASP_TYPE_ABSENT, GRASP_TYPE_ARRAY, TARGET_DISTINCT_PER_OBJECT, TARGET_OBJECTS, grasps_path, is_household_training, object_family,
 )  # fmt: skip
 from dexlite_pipeline.dataset.store import batch_ids, read_batches, read_objects
 
@@ -46,6 +46,29 @@ def per_object_counts(dataset_dir: str | os.PathLike) -> dict[str, dict[str, int
     return counts
 
 
+def per_type_counts(dataset_dir: str | os.PathLike) -> dict[str, dict[str, int]]:
+    """Per grasp type: grasps, held grasps, distinct held grasps and objects with a held grasp of that type.
+
+    A distinct held grasp of a type is an (object, distinct label) pair among its held grasps (labels are per object,
+    over every type: a pinch and a power grasp with palms within the distinct-grasp rule share one). A batch without
+    ``grasp_type`` holds power grasps (``layout.GRASP_TYPE_ABSENT``). Types in order of first appearance.
+    """
+    batches = read_batches(dataset_dir)
+    counts: dict[str, dict] = {}
+    for batch_id in batch_ids(batches):
+        arrays = read_npz(grasps_path(dataset_dir, batch_id), ("object_id", "lift_success", "distinct_label", GRASP_TYPE_ARRAY))
+        types = arrays.get(GRASP_TYPE_ARRAY, np.full(len(arrays["object_id"]), GRASP_TYPE_ABSENT))
+        for name in dict.fromkeys(types.tolist()):
+            mine = types == name
+            held = mine & arrays["lift_success"]
+            entry = counts.setdefault(str(name), {"grasps": 0, "held": 0, "labels": set()})
+            entry["grasps"] += int(mine.sum())
+            entry["held"] += int(held.sum())
+            entry["labels"].update(zip(arrays["object_id"][held].tolist(), arrays["distinct_label"][held].tolist()))
+    return {name: {"grasps": e["grasps"], "held": e["held"], "distinct_held": len(e["labels"]),
+                   "objects_with_held": len({o for o, _ in e["labels"]})} for name, e in counts.items()}  # fmt: skip
+
+
 def dataset_summary(dataset_dir: str | os.PathLike) -> dict:
     """The dataset in numbers (JSON-ready).
 
@@ -54,7 +77,8 @@ def dataset_summary(dataset_dir: str | os.PathLike) -> dict:
     ``per_object`` (family, source, split, grasps, held, distinct_held); ``per_family`` (objects,
     grasps, held, distinct_held, its per-object spread, objects at the target); ``per_batch``
     (batches.csv's rows, cpu_seconds as a dict plus ``cpu_seconds_total``); ``target`` (household
-    training objects with >= TARGET_DISTINCT_PER_OBJECT distinct held grasps, out of TARGET_OBJECTS).
+    training objects with >= TARGET_DISTINCT_PER_OBJECT distinct held grasps, out of TARGET_OBJECTS);
+    ``per_type`` (``per_type_counts``).
     """
     dataset_dir = Path(dataset_dir)
     batches = read_batches(dataset_dir)
@@ -93,6 +117,7 @@ def dataset_summary(dataset_dir: str | os.PathLike) -> dict:
         "per_object": per_object,
         "per_family": dict(sorted(per_family.items())),
         "per_batch": per_batch,
+        "per_type": per_type_counts(dataset_dir),
         "target": {
             "objects_wanted": TARGET_OBJECTS,
             "distinct_held_wanted": TARGET_DISTINCT_PER_OBJECT,

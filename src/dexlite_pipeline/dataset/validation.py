@@ -15,6 +15,7 @@ import pandas as pd
 from dexlite_pipeline.dataset.layout import (
     BATCH_ARRAY,
     BATCH_KIND_PATTERN,
+    GRASP_TYPE_ARRAY,
     OBJECT_COMPUTED_COLUMNS,
     OBJECT_OPTIONAL_FLOAT_COLUMNS,
     OBJECT_OPTIONAL_TEXT_COLUMNS,
@@ -23,6 +24,7 @@ from dexlite_pipeline.dataset.layout import (
     REQUIRED_ARRAYS,
     SPLITS,
     STORED_ARRAYS,
+    SUPPORT_PLANE_ARRAYS,
     ArraySpec,
     BatchRecord,
     canonical_json,
@@ -64,7 +66,7 @@ def _converted(name: str, value, spec: ArraySpec, rows: int) -> np.ndarray:
 def normalize_grasp_arrays(arrays: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
     """The batch's arrays in the stored dtypes (float32, bool, fixed-width strings), checked against the schema.
 
-    Required arrays must all be there, optional ones (the support plane) both or neither; the
+    Required arrays must all be there, the support plane's two both or neither, ``grasp_type`` without empty names; the
     arrays the dataset assigns (``distinct_label``, and ``batch`` of a loaded set) are dropped.
     Held grasps (``lift_success``) must have a finite pose and a positive finite scale.
     """
@@ -74,18 +76,19 @@ def normalize_grasp_arrays(arrays: Mapping[str, np.ndarray]) -> dict[str, np.nda
     unknown = sorted(set(arrays) - set(STORED_ARRAYS) - {BATCH_ARRAY})
     if unknown:
         raise DatasetError(f"grasps: arrays not in the dataset schema: {', '.join(unknown)} (optional ones: {', '.join(OPTIONAL_ARRAYS)})")
-    given_optional = [name for name in OPTIONAL_ARRAYS if name in arrays]
-    if given_optional and len(given_optional) != len(OPTIONAL_ARRAYS):
-        absent = [name for name in OPTIONAL_ARRAYS if name not in arrays]
-        raise DatasetError(f"grasps: {', '.join(given_optional)} given without {', '.join(absent)} (a support plane needs both)")
+    given_plane = [name for name in SUPPORT_PLANE_ARRAYS if name in arrays]
+    if given_plane and len(given_plane) != len(SUPPORT_PLANE_ARRAYS):
+        absent = [name for name in SUPPORT_PLANE_ARRAYS if name not in arrays]
+        raise DatasetError(f"grasps: {', '.join(given_plane)} given without {', '.join(absent)} (a support plane needs both)")
     hand_pose = np.asarray(arrays["hand_pose"])
     rows = int(hand_pose.shape[0]) if hand_pose.ndim else 0
     out = {}
     for name, spec in {**REQUIRED_ARRAYS, **OPTIONAL_ARRAYS}.items():
         if name in arrays:
             out[name] = _converted(name, arrays[name], spec, rows)
-    if rows and (out["object_id"] == "").any():
-        raise DatasetError(f"grasps: array 'object_id' has {int((out['object_id'] == '').sum())} empty ids")
+    for name in ("object_id", GRASP_TYPE_ARRAY):
+        if name in out and rows and (out[name] == "").any():
+            raise DatasetError(f"grasps: array {name!r} has {int((out[name] == '').sum())} empty values")
     held = out["lift_success"]
     bad_pose = held & ~np.isfinite(out["hand_pose"]).all(axis=1)
     if bad_pose.any():

@@ -38,7 +38,7 @@ from dexlite_pipeline.hand.model import JOINT_NAMES
 from dexlite_pipeline.hand.qpos import QPOS_KEYS, ROTATION_KEYS, TRANSLATION_KEYS, QposError, hand_pose_from_qpos, qpos_from_hand_pose
 from dexlite_pipeline.atomic import atomic_path
 from dexlite_pipeline.io.config import DexGraspNetConfig
-from dexlite_pipeline.io.grasp_store import GraspSet, empty_grasp_set
+from dexlite_pipeline.io.grasp_store import GRASP_TYPE, GraspSet, empty_grasp_set, grasp_types
 from dexlite_pipeline.io.safe_pickle import NpyReadError, RefusedPickleError, load_npy_restricted
 
 log = logging.getLogger(__name__)
@@ -391,7 +391,10 @@ def _write_decomposed_obj(pieces_paths: list[Path], path: Path) -> None:
 
 
 def export_dexgraspnet(grasps: GraspSet, out_dir: str | os.PathLike, objects_dirs=None) -> dict:
-    """Write ``OUT_DIR/dataset/<object_id>.npy`` (DexGraspNet's list of {'qpos', 'scale'} dicts).
+    """Write ``OUT_DIR/dataset/<object_id>.npy`` (DexGraspNet's list of {'qpos', 'scale', 'grasp_type'} dicts).
+
+    ``grasp_type`` (power, pinch, tripod or lateral: ``grasp_store.grasp_types``, power for a store without types) is
+    a key DexGraspNet's own files lack; readers that take ``qpos`` and ``scale`` by name are unaffected.
 
     With ``objects_dirs``, also ``OUT_DIR/meshdata/<object_id>/coacd/decomposed.obj`` from each
     object's convex pieces, so the output is a complete DexGraspNet layout. Returns counts
@@ -401,6 +404,7 @@ def export_dexgraspnet(grasps: GraspSet, out_dir: str | os.PathLike, objects_dir
 
     out_dir = Path(out_dir)
     object_ids = np.asarray([str(o) for o in grasps.object_id])
+    types = grasp_types(grasps)
     missing_assets = []
     for object_id in set(object_ids):
         _check_file_name(object_id)  # all before writing anything
@@ -409,7 +413,8 @@ def export_dexgraspnet(grasps: GraspSet, out_dir: str | os.PathLike, objects_dir
         entries = np.empty(len(rows), dtype=object)
         for k, row in enumerate(rows):
             qpos = qpos_from_hand_pose(grasps.hand_pose[row])
-            entries[k] = {"qpos": {key: qpos[key] for key in EXPORT_KEY_ORDER}, "scale": np.float64(grasps.scale[row])}
+            entries[k] = {"qpos": {key: qpos[key] for key in EXPORT_KEY_ORDER}, "scale": np.float64(grasps.scale[row]),
+                          GRASP_TYPE: str(types[row])}
         with atomic_path(out_dir / DATASET_DIR / f"{object_id}.npy") as tmp:
             with open(tmp, "wb") as fp:
                 np.save(fp, entries, allow_pickle=True)
