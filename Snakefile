@@ -16,10 +16,12 @@ include: "workflow/rules/evaluator.smk"
 include: "workflow/rules/sample_grasps.smk"
 include: "workflow/rules/post_optimize.smk"
 include: "workflow/rules/evaluate.smk"
+include: "workflow/rules/model_batch.smk"
 
 
 localrules:
     all,
+    model_batch_all,
 
 
 rule all:

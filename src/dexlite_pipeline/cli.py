@@ -36,6 +36,7 @@ PIPELINE_STAGES: dict[str, tuple[str, str]] = {
     "dataset-grasps": ("stages.dataset_grasps", "a grasp dataset's grasps of the training objects, as training data (dataset.root)"),
     "curate": ("stages.curate", "filter optimized/imported grasps by stability, energy thresholds and duplicates"),
     "lift-validate": ("stages.lift_validate", "lift-test one shard of curated grasps"),
+    "model-batch": ("stages.model_batch", "a dataset batch made by the model, optimization from scratch topping up (one shard)"),
     "train-cvae": ("stages.train_cvae", "train the PointNet + CVAE grasp model"),
     "evaluator-examples": ("stages.evaluator_examples", "learned evaluator: the model's syntheses on training objects, refined and simulated"),
     "train-evaluator": ("stages.train_evaluator", "learned evaluator: train it on the run's simulated grasps of training objects"),

@@ -25,7 +25,7 @@ from dexlite_pipeline.curation.config import CurateConfig
 from dexlite_pipeline.energy.config import EnergyConfig
 from dexlite_pipeline.evaluation.config import DiversityConfig, EvaluateConfig
 from dexlite_pipeline.evaluator.config import EvaluatorSection
-from dexlite_pipeline.io.config import DexGraspNetConfig, GraspDatasetConfig
+from dexlite_pipeline.io.config import DexGraspNetConfig, GraspDatasetConfig, ModelBatchConfig
 from dexlite_pipeline.loop.config import LoopConfig
 from dexlite_pipeline.model.config import SampleConfig, TrainConfig
 from dexlite_pipeline.objects.config import ObjectsConfig, StabilityConfig
@@ -46,6 +46,9 @@ class PipelineConfig:
     dataset: GraspDatasetConfig = setting(
         factory=GraspDatasetConfig, doc='training grasps from a grasp dataset instead of optimizing them (docs/design.md, "The grasp '
         'dataset and its campaign")')
+    model_batch: ModelBatchConfig = setting(
+        factory=ModelBatchConfig, doc='a dataset batch made by the model, the optimization from scratch topping up (workflow/rules/'
+        'model_batch.smk; docs/design.md, "Model-made batches")')
     diversity: DiversityConfig = setting(factory=DiversityConfig, doc="when two grasps of one object count as one (evaluate, dexlite grasp)")
     scene: SceneConfig = setting(
         factory=SceneConfig, doc='where the object is (stages from optimize_grasps on; docs/design.md, "Tabletop mode")')

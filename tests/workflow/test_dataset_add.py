@@ -10,7 +10,7 @@ import sys
 import numpy as np
 import pytest
 
-from workflow_harness import local_run_args, run_snakemake, write_config
+from workflow_harness import local_run_args, run_snakemake, snakemake_command, snakemake_env, write_config
 
 
 def optimized_stores(run):
@@ -99,3 +99,52 @@ def test_a_runs_data_stages_become_one_batch_and_its_objects_are_not_added_twice
     assert len(from_dataset) == len(dataset_grasps)  # held or not
     assert not {str(o) for o in from_dataset.object_id} - expected  # never a held-out object's grasps
     assert (workdir / "results" / "model" / "cvae.pt").is_file()
+
+
+@pytest.mark.slow
+def test_a_model_made_batch_keeps_each_grasps_source_and_tops_up_the_short_objects(complete_run, scratch_copy, tmp_path):
+    """Stage model_batch with the run's own model: every stable object gets the model's grasps, each object short of
+    min_distinct distinct held grasps gets optimization from scratch, and dataset-add makes it a batch of kind model whose
+    grasps keep their own source; a missing model file is refused in one line before anything runs."""
+    import pandas as pd
+
+    from dexlite_pipeline.dataset import load_dataset
+    from dexlite_pipeline.io.grasp_store import GraspSet, read_grasp_store
+
+    config = copy.deepcopy(complete_run.config)
+    config["lift"] = {**config.get("lift", {}), "six_directions": True}
+    config["model_batch"] = {"model": str(scratch_copy / "results" / "model" / "cvae.pt"), "evaluator": "none", "grasps_per_object": 2,
+                             "min_distinct": 2, "top_up_batches": 1}
+    write_config(scratch_copy, config)
+    run_snakemake(scratch_copy, *local_run_args(), "model_batch_all", timeout_s=900)
+    shards = sorted((scratch_copy / "results" / "model_batch").glob("shard_*.zarr"))
+    stores = [read_grasp_store(p) for p in shards]
+    grasps = GraspSet.concatenate([s for s in stores if len(s)])
+    objects = sorted(o for s in stores for o in s.attrs["objects"])
+    topped_up = {o for s in stores for o in s.attrs["topped_up_objects"]}
+    sources = np.asarray(grasps.arrays["source"]).astype(str)
+    ids = grasps.object_id.astype(str)
+    assert objects and sorted(set(ids)) == objects
+    for object_id in objects:  # the model's 2 grasps each; optimization's only for the objects it topped up
+        assert (sources[ids == object_id] == "model").sum() == 2
+        assert ((sources[ids == object_id] == "optimization").sum() > 0) == (object_id in topped_up)
+    assert {"lift_success", "six_dir_success", "initial_penetration_mm", "E_fc"} <= set(grasps.arrays)
+
+    dataset = tmp_path / "dataset"
+    command = [sys.executable, "-m", "dexlite_pipeline.cli", "dataset-add", str(scratch_copy / "results"), "--dataset", str(dataset)]
+    done = subprocess.run(command, capture_output=True, text=True, cwd=scratch_copy)
+    assert done.returncode == 0, done.stderr
+    stored, rows = load_dataset(dataset)
+    kept = ~np.isin(ids, sorted(set(ids) - set(rows["object_id"])))  # held-out objects (turned) are left out
+    assert len(stored) == int(kept.sum())
+    assert (np.asarray(stored.arrays["source"]).astype(str) == sources[kept]).all()
+    batches = pd.read_csv(dataset / "batches.csv")
+    assert batches["kind"].tolist() == ["model"]
+    assert json.loads(batches["cpu_seconds"].iloc[0])["model_batch"] > 0
+    assert json.loads((dataset / "configs" / "batch_0001.json").read_text())["model_batch"]["grasps_per_object"] == 2
+
+    config["model_batch"]["model"] = str(tmp_path / "absent.pt")
+    write_config(scratch_copy, config)
+    refused = subprocess.run(snakemake_command(scratch_copy, "--cores", "1", "-n", "model_batch_all"), env=snakemake_env(None),
+                             capture_output=True, text=True)
+    assert refused.returncode != 0 and "model_batch.model" in refused.stdout + refused.stderr

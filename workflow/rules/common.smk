@@ -163,6 +163,24 @@ def dataset_files(wildcards=None):
     return [str(Path(root) / name) for name in ("batches.csv", "objects.csv")] + sorted(str(p) for p in (Path(root) / "grasps").glob("*.npz"))
 
 
+def model_batch_generator_files(wildcards=None):
+    """The model and evaluator files section model_batch names (the package's when "shipped"): inputs, so a re-shipped
+    or retrained model reruns the batch."""
+    from dexlite_pipeline.settings import build_config
+    from dexlite_pipeline.tools.model_batch import ModelBatchError, generator_files
+
+    try:
+        model, evaluator = generator_files(build_config(config).model_batch)
+    except ModelBatchError as error:
+        raise WorkflowError(str(error)) from None
+    return [str(model)] + ([str(evaluator)] if evaluator else [])
+
+
+def model_batch_outputs():
+    """The shards of a model-made dataset batch (config/profiles/household_model_batch.yaml)."""
+    return expand(f"{RESULTS}/model_batch/shard_{{shard}}.zarr", shard=SHARDS)
+
+
 def training_grasp_stores():
     """The stores the learning stages take known grasps from: the lift-validation shards and, with dataset.root, the
     dataset's shards (dataset_grasps), both of every shard."""

@@ -13,31 +13,35 @@ import argparse
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("results", help="the run's results/ folder (results/lift, results/optimized, results/objects, results/stability)")
+    parser.add_argument("results", help="the run's results/ folder (results/lift and results/optimized, or results/model_batch; "
+                        "results/objects, results/stability)")
     parser.add_argument("--dataset", required=True, help="the dataset folder (made if absent)")
     parser.add_argument("--logs", default=None, help="the run's snakemake benchmark files (default: RESULTS/../logs/benchmarks)")
-    parser.add_argument("--kind", default="optimization", help="what made the grasps: optimization (default), model, loop_round_<r>")
+    parser.add_argument("--kind", default=None, help="what made the grasps: optimization, model, loop_round_<r> (default: model for a "
+                        "model-made batch, whose grasps keep their own source, else optimization)")
 
 
 def run(args: argparse.Namespace) -> int:
     from datetime import datetime, timezone
     from pathlib import Path
 
-    from dexlite_pipeline.dataset import BatchRecord, add_batch, code_version, dataset_summary, write_card
+    from dexlite_pipeline.dataset import BatchRecord, DatasetError, add_batch, code_version, dataset_summary, write_card
     from dexlite_pipeline.dataset.from_run import run_batch
 
     results = Path(args.results)
     batch = run_batch(results, args.logs)
-    if args.kind != "optimization":
-        batch.grasps.arrays["source"][:] = args.kind
+    kind = args.kind or ("model" if batch.model_made else "optimization")
+    if batch.model_made and kind != "model":
+        raise DatasetError(f"{results / 'model_batch'}: a model-made batch is of kind model, not {kind}")
+    if not batch.model_made and kind != "optimization":
+        batch.grasps.arrays["source"][:] = kind
 
     def modified_utc(path: Path) -> str:
         return datetime.fromtimestamp(path.stat().st_mtime, timezone.utc).isoformat(timespec="seconds").replace("+00:00", "Z")
 
-    lift_shards = sorted((results / "lift").glob("shard_*.zarr"))
-    record = BatchRecord(kind=args.kind, code_version=code_version(), config=batch.config, cpu_seconds=batch.cpu_seconds,
+    record = BatchRecord(kind=kind, code_version=code_version(), config=batch.config, cpu_seconds=batch.cpu_seconds,
                          started_utc=modified_utc(results / "objects" / "catalog.parquet"),  # the first stage's output
-                         finished_utc=max(modified_utc(p) for p in lift_shards), protocol=batch.protocol)
+                         finished_utc=max(modified_utc(p) for p in batch.shards), protocol=batch.protocol)
     batch_id = add_batch(args.dataset, batch.grasps, batch.objects, record)
     write_card(args.dataset, batch.protocol)
     summary = dataset_summary(args.dataset)

@@ -3,7 +3,9 @@
 A campaign batch is a workflow run of the data stages (prepare -> stability -> optimize -> curate -> lift-validate)
 on a range of objects; ``run_batch`` reads what it made — ``results/lift/shard_*.zarr`` (every curated grasp with
 its lift and six-direction outcome), ``results/optimized`` (which objects were optimized), the object catalog, the
-stability table (each object's resting pose) — and the rules' CPU times from ``logs/benchmarks``. A held-out object
+stability table (each object's resting pose) — and the rules' CPU times from ``logs/benchmarks``. A model-made
+batch (``workflow/rules/model_batch.smk``) has ``results/model_batch/shard_*.zarr`` instead of the lift and
+optimized shards: every grasp tested, each with its source (model or optimization), the objects in its attributes. A held-out object
 prepared at a seeded yaw (``objects.heldout_yaw``) is left out, named with the reason in the batch's config record.
 """
 
@@ -21,7 +23,8 @@ from dexlite_pipeline.io.grasp_store import GraspSet, read_grasp_store
 
 # Snakemake rule -> the batches.csv cpu_seconds key (the data stages and what they need).
 ENERGY_ARRAYS = ("E_fc", "E_dis", "E_pen", "E_spen", "E_joints", "E_table")
-STAGE_RULES = ("prepare_objects", "stability_filter", "optimize_grasps", "curate", "lift_validate")
+STAGE_RULES = ("prepare_objects", "stability_filter", "optimize_grasps", "curate", "lift_validate", "model_batch")
+MODEL_BATCH_DIR = "model_batch"  # results/model_batch: a model-made batch's shards
 
 
 @dataclass
@@ -33,6 +36,8 @@ class RunBatch:
     cpu_seconds: dict[str, float]
     config: dict
     protocol: str
+    shards: list[Path]  # the stores read: the run's last outputs (the batch's finish time)
+    model_made: bool  # results/model_batch (kind model): each grasp's source is its own
 
 
 def _stores(folder: Path, what: str) -> list[GraspSet]:
@@ -72,16 +77,25 @@ def run_batch(results: str | Path, logs: str | Path | None = None) -> RunBatch:
 
     results = Path(results)
     logs = Path(logs) if logs is not None else results.parent / "logs" / "benchmarks"
-    lifted = GraspSet.concatenate(_stores(results / "lift", "lift-validated grasps"))
-    optimized = _stores(results / "optimized", "optimized grasps")
+    model_made = (results / MODEL_BATCH_DIR).is_dir()
+    if model_made:  # every grasp tested, its source its own; the objects and the sections in the shards' attributes
+        optimized = _stores(results / MODEL_BATCH_DIR, "model-made grasps")
+        lifted = GraspSet.concatenate([s for s in optimized if len(s)]) if any(len(s) for s in optimized) else optimized[0]
+        shards = sorted((results / MODEL_BATCH_DIR).glob("shard_*.zarr"))
+    else:
+        lifted = GraspSet.concatenate(_stores(results / "lift", "lift-validated grasps"))
+        optimized = _stores(results / "optimized", "optimized grasps")
+        shards = sorted((results / "lift").glob("shard_*.zarr"))
     if len(lifted) and "six_dir_success" not in lifted.arrays:
         raise DatasetError(f"{results / 'lift'}: no six_dir_success; a dataset batch needs the six-direction test (lift.six_directions: true)")
     arrays = {name: lifted.arrays[name] for name in (*REQUIRED_ARRAYS, *OPTIONAL_ARRAYS) if name in lifted.arrays}
     for name in ENERGY_ARRAYS:  # a term the run did not compute (E_table when floating) is NaN, as the schema says
         arrays.setdefault(name, np.full(len(lifted), np.nan, np.float32))
-    # What made each grasp: curation's origin (optimization from scratch, or a DexGraspNet import), else optimization.
-    arrays["source"] = np.asarray([str(o) or "optimization" for o in lifted.arrays.get("origin", np.full(len(lifted), "", dtype=object))],
-                                  dtype=object)
+    # What made each grasp: the model batch's own record, else curation's origin (optimization from scratch, or a
+    # DexGraspNet import), else optimization.
+    if not model_made:
+        arrays["source"] = np.asarray([str(o) or "optimization" for o in lifted.arrays.get("origin", np.full(len(lifted), "", dtype=object))],
+                                      dtype=object)
     grasps = GraspSet(arrays)
     # Every object optimized (with or without a held grasp) and every object with a tested grasp (an import's too).
     object_ids = sorted({o for store in optimized for o in store.attrs.get("objects", [])} | {str(o) for o in grasps.object_id})
@@ -103,11 +117,17 @@ def run_batch(results: str | Path, logs: str | Path | None = None) -> RunBatch:
             if column in stability.columns and object_id in stability.index:
                 row[column] = float(stability.at[object_id, column])
         rows.append(row)
-    lift_attrs = lifted.attrs if len(lifted) else read_grasp_store(sorted((results / "lift").glob("shard_*.zarr"))[0]).attrs
-    config = {"optimize_grasps": optimized[0].attrs.get("config", {}), "lift": lift_attrs.get("lift_config", {}),
-              "curate": lift_attrs.get("config", {}).get("curate", {})}
+    lift_attrs = lifted.attrs if len(lifted) else read_grasp_store(shards[0]).attrs
+    if model_made:
+        config = {**optimized[0].attrs.get("config", {}), "lift": lift_attrs.get("lift_config", {}),
+                  **{k: optimized[0].attrs.get(k) for k in ("model_file", "model_sha256", "evaluator_file", "evaluator_sha256")},
+                  "topped_up_objects": sorted(o for store in optimized for o in store.attrs.get("topped_up_objects", []))}
+    else:
+        config = {"optimize_grasps": optimized[0].attrs.get("config", {}), "lift": lift_attrs.get("lift_config", {}),
+                  "curate": lift_attrs.get("config", {}).get("curate", {})}
     config = json.loads(json.dumps(config, default=str))
     if left_out:
         config["left_out_objects"] = left_out  # the batch's config record keeps them, with the reason (dataset-add prints them)
         grasps = grasps.select(np.flatnonzero(~np.isin(grasps.object_id.astype(str), sorted(left_out))))
-    return RunBatch(grasps, pd.DataFrame(rows), stage_cpu_seconds(logs), config, lift_protocol(lift_attrs.get("lift_config", {})))
+    return RunBatch(grasps, pd.DataFrame(rows), stage_cpu_seconds(logs), config, lift_protocol(lift_attrs.get("lift_config", {})), shards,
+                    model_made)

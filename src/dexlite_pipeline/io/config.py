@@ -30,3 +30,24 @@ class GraspDatasetConfig:
         "", "a grasp dataset folder (this repository's dataset/, or one of yours), relative to the checkout or absolute; the run's "
         "training objects that it holds take their grasps from it (stage dataset_grasps: every tested grasp, held or not, "
         "with its outcome) and are not optimized again; empty = not used")
+
+
+@dataclass(frozen=True)
+class ModelBatchConfig:
+    """Config section ``model_batch``: a dataset batch made by the model (``workflow/rules/model_batch.smk``).
+
+    Each stable object gets ``grasps_per_object`` grasps from the generator (ranked by the evaluator, refined by
+    post-optimization, sections ``sample`` and ``post_optimize``); each object with fewer than ``min_distinct``
+    distinct held grasps then gets batches of ``grasps_per_object`` grasps by optimization from scratch (section
+    ``optimize_grasps``, its grasp types too) until it has them or ``top_up_batches`` batches were tried. Every grasp
+    is lift- and six-direction-tested, held or not, and records its source (``model`` or ``optimization``).
+    """
+
+    model: str = setting("shipped", "the generator: shipped (the package's model) or a cvae.pt file", pattern="^.+$")
+    evaluator: str = setting(
+        "shipped", "ranks the generator's samples: shipped (the package's evaluator), an evaluator.pt file, or none (samples not ranked)",
+        pattern="^.+$")
+    grasps_per_object: int = setting(64, "generator grasps per object (and grasps per top-up batch)", minimum=1)
+    min_distinct: int = setting(
+        30, "objects with fewer distinct held grasps from the generator get optimization from scratch (0 = never)", minimum=0)
+    top_up_batches: int = setting(2, "at most this many batches of optimization from scratch per short object", minimum=0)

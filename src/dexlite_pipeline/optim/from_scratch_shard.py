@@ -55,6 +55,27 @@ def real_size_scales(assets, settings: OptimizeGraspsConfig) -> list[tuple[float
     return [(a.real_scale,) * len(settings.scales) if a.real_scale else tuple(settings.scales) for a in assets]
 
 
+def usable_assets(objects_dirs: list[str], object_ids: list[str], planes) -> tuple[list, dict[str, str]]:
+    """The assets of ``object_ids`` that a shard can use together, and object id -> why not for the others: no resting
+    pose in tabletop mode (``planes`` not None), an unreadable asset, or an SDF grid unlike the shard's (each logged)."""
+    from dexlite_pipeline.objects.assets import ObjectAssetError, load_asset, split_by_sdf_grid
+
+    assets, failed = [], {}
+    for object_id in object_ids:
+        if planes is not None and object_id not in planes:
+            failed[object_id] = "no resting pose in the stability table (tabletop mode needs one)"
+            continue
+        try:
+            assets.append(load_asset(objects_dirs, object_id))
+        except ObjectAssetError as exc:
+            failed[object_id] = f"asset unusable: {exc}"
+    assets, set_aside = split_by_sdf_grid(assets)
+    failed.update(set_aside)
+    for object_id, reason in failed.items():
+        log.warning("object %s skipped: %s", object_id, reason)
+    return assets, failed
+
+
 def optimize_shard(
     objects_dirs: list[str], stability_path: str, shard: int, *, shards: int, optimize_grasps: OptimizeGraspsConfig, energy: EnergyConfig,
     scene: SceneConfig, seed: int, device: str, skip_objects: set[str] | frozenset = frozenset(),
@@ -72,7 +93,7 @@ def optimize_shard(
     """
     from dexlite_pipeline.config import json_ready
     from dexlite_pipeline.device import resolve_device
-    from dexlite_pipeline.objects.assets import ObjectAssetError, load_asset, ok_object_ids, split_by_sdf_grid
+    from dexlite_pipeline.objects.assets import ok_object_ids
     from dexlite_pipeline.objects.stability import stable_object_ids
     from dexlite_pipeline.sharding import shard_generator, shard_objects
 
@@ -82,19 +103,7 @@ def optimize_shard(
     from_dataset = [oid for oid in object_ids if oid in skip_objects]
     object_ids = [oid for oid in object_ids if oid not in skip_objects]
     planes = load_support_planes(scene.table, stability_path)
-    assets, failed = [], {}
-    for object_id in object_ids:
-        if planes is not None and object_id not in planes:
-            failed[object_id] = "no resting pose in the stability table (tabletop mode needs one)"
-            continue
-        try:
-            assets.append(load_asset(objects_dirs, object_id))
-        except ObjectAssetError as exc:
-            failed[object_id] = f"asset unusable: {exc}"
-    assets, set_aside = split_by_sdf_grid(assets)
-    failed.update(set_aside)
-    for object_id, reason in failed.items():
-        log.warning("object %s skipped: %s", object_id, reason)
+    assets, failed = usable_assets(objects_dirs, object_ids, planes)
     log.info(
         "shard %03d: %d stable objects (%d usable), %d grasps each (%d scales), %d iterations, device %s",
         shard, len(object_ids), len(assets), settings.grasps_per_object * len(settings.scales), len(settings.scales),
