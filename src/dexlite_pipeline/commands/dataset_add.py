@@ -39,7 +39,11 @@ def run(args: argparse.Namespace) -> int:
     def modified_utc(path: Path) -> str:
         return datetime.fromtimestamp(path.stat().st_mtime, timezone.utc).isoformat(timespec="seconds").replace("+00:00", "Z")
 
-    record = BatchRecord(kind=kind, code_version=code_version(), config=batch.config, cpu_seconds=batch.cpu_seconds,
+    # the code that made the grasps: the run folder's checkout when the run ran in one (a campaign batch runs in a
+    # checkout of the batch's commit), else this package's
+    run_checkout = results.resolve().parent
+    made_by = code_version(run_checkout) if (run_checkout / "src" / "dexlite_pipeline").is_dir() else code_version()
+    record = BatchRecord(kind=kind, code_version=made_by, config=batch.config, cpu_seconds=batch.cpu_seconds,
                          started_utc=modified_utc(results / "objects" / "catalog.parquet"),  # the first stage's output
                          finished_utc=max(modified_utc(p) for p in batch.shards), protocol=batch.protocol)
     batch_id = add_batch(args.dataset, batch.grasps, batch.objects, record)
