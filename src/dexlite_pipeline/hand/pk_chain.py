@@ -23,9 +23,9 @@ joints (rad)], as in ``hand.model``):
 
 from __future__ import annotations
 
-import numpy as np
 import torch
 
+from dexlite_pipeline.hand.chain import root_frame
 from dexlite_pipeline.hand.mjcf import hand_mjcf_string
 from dexlite_pipeline.hand.model import JOINT_NAMES, JOINTS, HandFrames
 from dexlite_pipeline.hand.rotation import euler_xyz_to_matrix
@@ -39,39 +39,15 @@ _PALM_JOINT_AXES = ((1, 0, 0), (0, 1, 0), (0, 0, 1), (0, 0, 1), (0, 1, 0), (1, 0
 def build_pk_chain(model=None, *, floating_palm: bool = False, dtype: torch.dtype = torch.float32, device="cpu"):
     """A ``pk.Chain`` of the palm-rooted hand (the MjModel of ``hand.mjcf`` unless ``model`` is given).
 
-    Only hinge joints anchored at their body's origin occur in the hand; anything else is
-    rejected rather than silently mis-modelled.
+    The tree is ``hand.chain.root_frame``'s: only hinge joints anchored at their body's origin
+    occur in the hand; anything else is rejected rather than silently mis-modelled.
     """
     import mujoco
     import pytorch_kinematics as pk
 
     if model is None:
         model = mujoco.MjModel.from_xml_string(hand_mjcf_string())
-    if np.any(model.jnt_type != mujoco.mjtJoint.mjJNT_HINGE) or np.abs(model.jnt_pos).max() > 0:
-        raise ValueError("only hinge joints at their body's origin are supported")
-    if np.any(model.body_jntnum > 1):
-        raise ValueError("at most one joint per body is supported")
-
-    def as_t(values) -> torch.Tensor:
-        return torch.as_tensor(np.asarray(values, dtype=np.float64), dtype=dtype, device=device)
-
-    def joint_of(body: int):
-        name = model.body(body).name
-        offset = pk.Transform3d(rot=as_t(model.body_quat[body]), pos=as_t(model.body_pos[body]), dtype=dtype, device=device)
-        if model.body_jntnum[body] == 0:
-            return pk.Joint(f"{name}:fixed", offset=offset, joint_type="fixed", dtype=dtype, device=device)
-        j = int(model.body_jntadr[body])
-        return pk.Joint(model.joint(j).name, offset=offset, joint_type="revolute", axis=as_t(model.jnt_axis[j]),
-                        limits=tuple(float(v) for v in model.jnt_range[j]), dtype=dtype, device=device)
-
-    frames = {}
-    for body in range(1, model.nbody):  # MuJoCo lists every parent before its children
-        name = model.body(body).name
-        frames[body] = pk.Frame(name, link=pk.Link(name), joint=joint_of(body))
-        parent = int(model.body_parentid[body])
-        if parent > 0:
-            frames[parent].add_child(frames[body])
-    root = frames[1]
+    root = root_frame(model, dtype=dtype, device=device)
     if floating_palm:
         for name, axis in reversed(list(zip(PALM_JOINTS, _PALM_JOINT_AXES))):
             kind = "prismatic" if name.startswith("palm:t") else "revolute"
