@@ -189,3 +189,32 @@ def test_unsimulated_rows_have_no_resting_pose():
 
     row = StabilityResult("x", math.nan, math.nan, False, "not simulated").row()
     assert all(math.isnan(row[c]) for c in REST_POSE_COLUMNS) and plane_from_row(row) is None
+
+
+def test_settle_uses_the_pose_an_object_comes_to_rest_in(tmp_path):
+    """A box balanced on an edge falls onto a face: unstable in its file orientation; with ``settle`` it is dropped
+    again from where it came to rest, stands there, and its support plane is that face. A box standing on a face is
+    judged by its first drop alone, identically with and without ``settle``."""
+    import dataclasses
+
+    from dexlite_pipeline.objects.rest_pose import SUPPORT_NORMAL_COLUMNS
+
+    on_edge = trimesh.creation.box((1.0, 0.6, 0.3))
+    on_edge.apply_transform(trimesh.transformations.rotation_matrix(math.radians(45), [1, 0, 0]))
+    mesh = normalize_mesh(on_edge)[0]
+    piece = tmp_path / "edge.obj"
+    mesh.export(piece)
+    first = simulate_object(mesh, [piece], "edge", CONFIG, 0)
+    assert not first.stable and not first.settled
+    settled = simulate_object(mesh, [piece], "edge", dataclasses.replace(CONFIG, settle=True), 0)
+    assert settled.stable and settled.settled and settled.reason == "" and settled.object_id == "edge"
+    normal = np.array([settled.rest_pose[c] for c in SUPPORT_NORMAL_COLUMNS])
+    # the table's normal in the object frame is one of the box's face normals (turned 45 deg about x), not +z
+    faces = trimesh.transformations.rotation_matrix(math.radians(45), [1, 0, 0])[:3, :3] @ np.vstack([np.eye(3), -np.eye(3)]).T
+    assert np.max(faces.T @ normal) > 0.99 and normal[2] < 0.9
+    assert settled.row()["settled"] is True
+
+    cube = trimesh.creation.box((1.0, 1.0, 1.0))
+    plain = _simulate(tmp_path, "cube", cube)
+    again = simulate_object(normalize_mesh(cube)[0], [tmp_path / "cube.obj"], "cube", dataclasses.replace(CONFIG, settle=True), 0)
+    assert plain == again and not again.settled

@@ -111,3 +111,6 @@ class StabilityConfig:
     density_kg_m3: float = setting(500.0, "uniform density for mass and inertia (DexGraspNet's Isaac test: 500)", exclusive_minimum=0)
     solver_iterations: int = setting(50, "PyBullet constraint solver iterations per step", minimum=1)
     collision_margin_m: float = setting(0.0005, "contact margin of object and table shapes", minimum=0)
+    settle: bool = setting(
+        False, "an object that does not stand in its file orientation is dropped again from the pose it came to rest in, and "
+        "used in that pose when it stands there (table column settled); off: only objects standing in their file orientation")

@@ -4,7 +4,10 @@ Each object, at a fixed scale in its file orientation, is tilted by a small seed
 about a random horizontal axis (a real table is never perfectly level, and a shape balanced
 exactly on a point never falls in a perfect simulation), placed with its lowest point on a
 table plane and simulated under gravity. It is stable when its centre of mass moved less
-than ``max_lateral_m`` sideways and it turned less than ``max_rotation_deg``.
+than ``max_lateral_m`` sideways and it turned less than ``max_rotation_deg``. With ``settle``
+an object that falls over is dropped once more from the pose it came to rest in and, when it
+stands there, is used in that pose (a file's orientation is arbitrary; the table decides how an
+object lies): the stability table's ``settled`` column names such objects.
 
 The collision shape is the object's convex pieces (one compound body). The mass, the
 *true* centre of mass and the inertia tensor come from the watertight mesh at a uniform
@@ -31,7 +34,7 @@ from dexlite_pipeline.objects.rest_pose import REST_POSE_COLUMNS, support_plane_
 
 # Every row also records the object's resting pose after settling (objects.rest_pose.REST_POSE_COLUMNS; NaN
 # where not simulated): the pose later stages put the object in, with the table plane below it.
-STABILITY_COLUMNS = ["object_id", "lateral_displacement_m", "rotation_deg", "stable", "reason", *REST_POSE_COLUMNS]
+STABILITY_COLUMNS = ["object_id", "lateral_displacement_m", "rotation_deg", "stable", "reason", "settled", *REST_POSE_COLUMNS]
 STABILITY_REQUIRED_COLUMNS = ("object_id", "stable")  # what the stages that read the table use
 GRAVITY_M_S2 = 9.81
 
@@ -75,6 +78,7 @@ class StabilityResult:
     stable: bool
     reason: str
     rest_pose: dict = field(default_factory=dict)  # objects.rest_pose.REST_POSE_COLUMNS -> value (absent: NaN)
+    settled: bool = False  # stable only when dropped again from where it first came to rest (StabilityConfig.settle)
 
     def row(self) -> dict:
         base = {c: getattr(self, c) for c in STABILITY_COLUMNS if c not in REST_POSE_COLUMNS}
@@ -119,13 +123,34 @@ def mass_properties(mesh, scale: float, density_kg_m3: float) -> tuple[float, np
 def simulate_object(
     mesh, piece_files: list[Path], object_id: str, config: StabilityConfig, seed: int
 ) -> StabilityResult:
-    """Drop one object (watertight ``mesh`` for mass properties, convex ``piece_files`` to collide) on a table."""
-    pb = import_pybullet()
+    """Drop one object (watertight ``mesh`` for mass properties, convex ``piece_files`` to collide) on a table.
+
+    With ``config.settle``, an object that does not stand in its file orientation is dropped once more from the pose
+    it came to rest in (tilted again by the seeded angle): stable when it stands there (``settled`` true; its resting
+    pose is that second drop's). An object stable in its file orientation is judged by the first drop alone.
+    """
     if not piece_files:
         return StabilityResult(object_id, math.nan, math.nan, False, "no convex pieces to simulate")
-    s = config.scale
-    mass, com, moments, axes = mass_properties(mesh, s, config.density_kg_m3)
+    mass_props = mass_properties(mesh, config.scale, config.density_kg_m3)
     tilt = tilt_rotation(object_id, config.tilt_deg, seed)
+    first = _drop(mesh, piece_files, tilt, mass_props, config)
+    if first.stable or not config.settle or not first.rest_pose:
+        return dataclasses.replace(first, object_id=object_id)
+    from scipy.spatial.transform import Rotation
+
+    rested = Rotation.from_quat([first.rest_pose[c] for c in REST_POSE_COLUMNS[:4]]).as_matrix()
+    second = _drop(mesh, piece_files, tilt @ rested, mass_props, config)
+    if second.stable:
+        return dataclasses.replace(second, object_id=object_id, settled=True)
+    return dataclasses.replace(first, object_id=object_id, reason=f"{first.reason}; dropped again from where it came to rest: {second.reason}")
+
+
+def _drop(mesh, piece_files: list[Path], orientation: np.ndarray, mass_props: tuple, config: StabilityConfig) -> StabilityResult:
+    """One drop: the mesh frame turned by ``orientation`` (3, 3), its lowest point on the table, simulated and judged."""
+    pb = import_pybullet()
+    s = config.scale
+    mass, com, moments, axes = mass_props
+    tilt = orientation
     lowest = float((np.asarray(mesh.vertices) * s @ tilt.T)[:, 2].min())
     client = pb.connect(pb.DIRECT)
     try:
@@ -144,7 +169,7 @@ def simulate_object(
             physicsClientId=client,
         )
         if shape < 0:
-            return StabilityResult(object_id, math.nan, math.nan, False, "PyBullet could not build the collision shape")
+            return StabilityResult("", math.nan, math.nan, False, "PyBullet could not build the collision shape")
         body = pb.createMultiBody(
             baseMass=mass,
             baseCollisionShapeIndex=shape,
@@ -166,7 +191,7 @@ def simulate_object(
         end_pos, end_orn = pb.getBasePositionAndOrientation(body, physicsClientId=client)
     finally:
         pb.disconnect(client)
-    result = judge(object_id, np.asarray(start_pos), start_orn, np.asarray(end_pos), end_orn, config)
+    result = judge("", np.asarray(start_pos), start_orn, np.asarray(end_pos), end_orn, config)
     if np.isfinite(end_pos).all() and np.isfinite(end_orn).all():
         result = dataclasses.replace(result, rest_pose=rest_pose(mesh, np.asarray(end_pos), end_orn, com, axes))
     return result
