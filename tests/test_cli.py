@@ -36,7 +36,7 @@ def test_help_groups_user_commands_before_pipeline_stages_in_plain_text(capsys):
         assert text.index(f"\n  {name} ") > stages
     assert "``" not in text and ":func:" not in text  # no reST markup
     assert set(cli.COMMANDS) == set(cli.USER_COMMANDS) | set(cli.PIPELINE_STAGES)
-    assert {"grasp", "lift-test", "energy", "render", "import-dexgraspnet", "export-dexgraspnet", "dataset-add"} == set(cli.USER_COMMANDS)
+    assert {"grasp", "lift-test", "energy", "render", "import-dexgraspnet", "export-dexgraspnet", "dataset-add", "hand-check"} == set(cli.USER_COMMANDS)
 
 
 @pytest.mark.parametrize("command", sorted(cli.COMMANDS))

@@ -27,6 +27,7 @@ USER_COMMANDS: dict[str, tuple[str, str]] = {
     "import-dexgraspnet": ("stages.import_dexgraspnet", "import a DexGraspNet download as a grasp store plus object assets"),
     "export-dexgraspnet": ("commands.export_dexgraspnet", "write a grasp store in the DexGraspNet layout"),
     "dataset-add": ("commands.dataset_add", "add a finished run's data stages to a grasp dataset as one batch (campaigns)"),
+    "hand-check": ("commands.hand_check", "what a hand's MJCF gives the pipeline (joints, collision shapes, contacts, palm) and its FK against MuJoCo"),
 }
 # The pipeline's stages, in the order they run (Snakemake calls them, one rule each).
 PIPELINE_STAGES: dict[str, tuple[str, str]] = {

@@ -3,7 +3,8 @@
 For the Shadow Hand, Allegro, LEAP and the tests' three-finger hand: over random joint vectors
 within the limits, every body's world pose from the pytorch-kinematics chain (``hand.chain``)
 matches MuJoCo's ``mj_kinematics`` within 1e-5 m and 1e-4 rad, and every collision shape placed
-by those link frames lands on MuJoCo's geom pose. The shapes are the MJCF's collision geoms:
+by those link frames lands on MuJoCo's geom pose (``hand.check.kinematics_errors``, which
+``dexlite hand-check`` reports). The shapes are the MJCF's collision geoms:
 their count, kinds and sizes, checked against numbers read off the shipped files by hand.
 """
 
@@ -13,14 +14,11 @@ import collections
 
 import numpy as np
 import pytest
-import torch
 from three_finger import write_three_finger
 
+from dexlite_pipeline.hand.check import POSITION_TOL_M, ROTATION_TOL_RAD, kinematics_errors, random_joint_vectors
 from dexlite_pipeline.hand.derive import quat_to_matrix
 from dexlite_pipeline.hand.description import hand_description
-
-POSITION_TOL_M = 1e-5
-ROTATION_TOL_RAD = 1e-4
 
 
 @pytest.fixture(scope="module", params=["shadow", "allegro", "leap", "three_finger"])
@@ -30,56 +28,18 @@ def description(request, tmp_path_factory):
     return hand_description(request.param)
 
 
-def rotation_angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Angle (rad) of the rotation between matrices a and b (..., 3, 3), accurate for small angles."""
-    diff = np.swapaxes(a, -1, -2) @ b
-    skew = np.stack([diff[..., 2, 1] - diff[..., 1, 2], diff[..., 0, 2] - diff[..., 2, 0], diff[..., 1, 0] - diff[..., 0, 1]], axis=-1)
-    return np.arctan2(np.linalg.norm(skew, axis=-1) / 2, (np.trace(diff, axis1=-2, axis2=-1) - 1) / 2)
-
-
-def fk_errors(description, count: int = 32, seed: int = 0, mujoco_offset=None) -> tuple[float, float, float]:
-    """Largest body position (m) and rotation (rad) error, and the largest geom position error (m), chain vs MuJoCo.
-
-    mujoco_offset: added to MuJoCo's joint vector only (rad), to show that the comparison can fail.
-    """
-    import mujoco
-
-    model = description.mj_model()
-    data = mujoco.MjData(model)
-    chain = description.chain(dtype=torch.float64)
-    limits = description.joint_limits
-    q = np.random.default_rng(seed).uniform(limits[:, 0], limits[:, 1], size=(count, len(limits)))
-    names = chain.get_joint_parameter_names()
-    columns = [description.joint_names.index(n) for n in names]
-    frames = chain.forward_kinematics(torch.as_tensor(q[:, columns]))
-    position = rotation = geom = 0.0
-    for k in range(count):
-        data.qpos[model.jnt_qposadr] = q[k] + (0.0 if mujoco_offset is None else mujoco_offset)
-        mujoco.mj_kinematics(model, data)
-        for b, link in enumerate(description.links):
-            matrix = frames[link].get_matrix()[k].numpy()
-            position = max(position, float(np.linalg.norm(matrix[:3, 3] - data.xpos[b + 1])))
-            rotation = max(rotation, float(rotation_angle(matrix[:3, :3], data.xmat[b + 1].reshape(3, 3))))
-        for shape in description.shapes:
-            matrix = frames[shape.link].get_matrix()[k].numpy()
-            centre = matrix[:3, :3] @ np.asarray(shape.pos) + matrix[:3, 3]
-            g = shape.geom
-            geom = max(geom, float(np.linalg.norm(centre - data.geom_xpos[g])))
-            rotation = max(rotation, float(rotation_angle(matrix[:3, :3] @ quat_to_matrix(shape.quat), data.geom_xmat[g].reshape(3, 3))))
-    return position, rotation, geom
-
-
 def test_every_body_pose_matches_mujoco(description):
-    position, rotation, geom = fk_errors(description)
-    assert position < POSITION_TOL_M and rotation < ROTATION_TOL_RAD and geom < POSITION_TOL_M, (position, rotation, geom)
+    errors = kinematics_errors(description, random_joint_vectors(description, 32, seed=0))
+    assert errors.ok and errors.position_m < POSITION_TOL_M and errors.rotation_rad < ROTATION_TOL_RAD and errors.geom_m < POSITION_TOL_M, errors
 
 
 def test_the_comparison_can_fail(description):
     """MuJoCo given the last joint 0.01 rad off: the comparison sees it (it compares frames that move)."""
-    offset = np.zeros(len(description.joints))
-    offset[-1] = 0.01
-    position, rotation, _ = fk_errors(description, count=2, mujoco_offset=offset)
-    assert rotation > 5e-3
+    joints = random_joint_vectors(description, 2, seed=1)
+    shifted = joints.copy()
+    shifted[:, -1] += 0.01
+    errors = kinematics_errors(description, joints, mujoco_joints=shifted)
+    assert errors.rotation_rad > 5e-3 and not errors.ok
 
 
 def test_collision_shapes_are_the_mjcf_collision_geoms(description):

@@ -1,0 +1,34 @@
+"""``dexlite hand-check HAND``: what the pipeline derives from a hand's MJCF, and its FK checked against MuJoCo.
+
+HAND is ``shadow``, ``allegro``, ``leap`` or the path of an MJCF file. It prints the links and
+fingers, the joints with limits and actuators, the collision shapes, the contact candidates per
+link, the palm frame and the pre-grasp (``docs/hands.md`` says where each comes from), then
+the largest FK disagreement with MuJoCo over random joint vectors. Exit status: 0 when the
+hand is usable and its FK agrees, 1 when FK disagrees, 2 (one line saying why) for a file
+that cannot describe a hand.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("hand", help="shadow, allegro, leap, or the path of a hand's MJCF file (.xml)")
+    parser.add_argument("--vectors", type=int, default=64, help="random joint vectors of the FK check (default 64)")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the random joint vectors")
+
+
+def run(args: argparse.Namespace) -> int:
+    from dexlite_pipeline.hand.check import kinematics_errors, random_joint_vectors, report_lines
+    from dexlite_pipeline.hand.description import HandDescriptionError, hand_description
+
+    if args.vectors < 1:
+        raise ValueError("--vectors must be at least 1")
+    try:
+        description = hand_description(args.hand)
+    except HandDescriptionError as exc:
+        raise ValueError(f"{args.hand}: {exc}") from None
+    errors = kinematics_errors(description, random_joint_vectors(description, args.vectors, args.seed))
+    print("\n".join(report_lines(description, errors)))
+    return 0 if errors.ok else 1
