@@ -58,3 +58,17 @@ def test_an_unusable_file_is_refused_in_one_line_with_exit_2(tmp_path, capsys, c
 def test_an_unknown_name_is_refused(capsys):
     assert cli.main(["hand-check", "inspire"]) == 2
     assert "no such file (a hand is shadow, allegro, leap or an MJCF file)" in capsys.readouterr().err
+
+
+def test_the_picture_shows_the_contacts_on_the_palm_side(tmp_path, capsys):
+    """The PNG is written, and in its palm frame the pre-grasp's contact candidates face the approach direction (+z)."""
+    from dexlite_pipeline.hand.description import hand_description
+    from dexlite_pipeline.report.hand_picture import posed_in_palm_frame
+
+    path = write_three_finger(tmp_path)
+    picture = tmp_path / "hand.png"
+    assert cli.main(["hand-check", str(path), "--vectors", "2", "--picture", str(picture)]) == 0
+    assert picture.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and f"wrote {picture}" in capsys.readouterr().out
+    surface, contacts, normals, approach = posed_in_palm_frame(hand_description(path))
+    assert approach.tolist() == [0.0, 0.0, 1.0] and (normals[:, 2] > 0.8).all()
+    assert abs(contacts[:, 2]).max() < 0.02 and surface[:, 0].max() > 0.1  # the open hand lies flat; fingers along +x

@@ -3,7 +3,8 @@
 HAND is ``shadow``, ``allegro``, ``leap`` or the path of an MJCF file. It prints the links and
 fingers, the joints with limits and actuators, the collision shapes, the contact candidates per
 link, the palm frame and the pre-grasp (``docs/hands.md`` says where each comes from), then
-the largest FK disagreement with MuJoCo over random joint vectors. Exit status: 0 when the
+the largest FK disagreement with MuJoCo over random joint vectors; ``--picture FILE.png``
+draws the collision surfaces, contact candidates and approach direction. Exit status: 0 when the
 hand is usable and its FK agrees, 1 when FK disagrees, 2 (one line saying why) for a file
 that cannot describe a hand.
 """
@@ -17,6 +18,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("hand", help="shadow, allegro, leap, or the path of a hand's MJCF file (.xml)")
     parser.add_argument("--vectors", type=int, default=64, help="random joint vectors of the FK check (default 64)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the random joint vectors")
+    parser.add_argument("--picture", default=None, help="also write a PNG of the collision surfaces, contact candidates and approach direction")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -31,4 +33,9 @@ def run(args: argparse.Namespace) -> int:
         raise ValueError(f"{args.hand}: {exc}") from None
     errors = kinematics_errors(description, random_joint_vectors(description, args.vectors, args.seed))
     print("\n".join(report_lines(description, errors)))
+    if args.picture:
+        from dexlite_pipeline.report.hand_picture import hand_picture_png
+
+        hand_picture_png(description, args.picture)
+        print(f"wrote {args.picture}")
     return 0 if errors.ok else 1
