@@ -26,6 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
+from dexlite_pipeline.model.config import ANY_GRASP_TYPE
 from dexlite_pipeline.tools.grasp.request import (
     DEFAULT_GRASPS_PER_OBJECT, DEFAULT_MIN_DISTINCT, DEFAULT_TOP_UP_BATCHES, GraspRequest, GraspToolError,
 )  # fmt: skip
@@ -51,6 +52,7 @@ class MeshGrasps:
     start_depth_mm: np.ndarray  # (K,) how far the hand starts inside the object
     distinct_label: np.ndarray  # (K,) int: grasps with one label are near-duplicates
     source: np.ndarray  # (K,) "model" or "optimization"
+    grasp_type: np.ndarray  # (K,) power, pinch, tripod or lateral
     attempts: int  # grasps tried on this mesh
     held: int  # of those, held in the lift test (distinct or not)
     failures: dict[str, int] = field(default_factory=dict)  # why the others failed: reason -> count
@@ -71,12 +73,14 @@ def grasp_request(
     meshes: list[str], out_dir: str, n: int = DEFAULT_GRASPS_PER_OBJECT, units: str | None = None, *, model: str | None = SHIPPED,
     evaluator: str | None = SHIPPED, from_scratch: bool = False, min_distinct: int | None = None, top_up_batches: int | None = None,
     resize_to_training: bool = False, distinct: bool = True, overwrite: bool = False, device: str | None = None,
-    config: dict | None = None, threads: int = 1, renders: int = 0, upright_axis: str | None = None,
+    config: dict | None = None, threads: int = 1, renders: int = 0, upright_axis: str | None = None, grasp_type: str | None = None,
 ) -> GraspRequest:
     """The ``GraspRequest`` for these options, refusing contradictory ones (``GraspToolError``).
 
     ``model``: a cvae.pt, or ``SHIPPED`` (also None); ``evaluator``: an evaluator.pt, ``SHIPPED`` (the shipped model's own
-    evaluator, none for another model) or None (the model's first samples, unranked).
+    evaluator, none for another model) or None (the model's first samples, unranked). ``grasp_type``: ``any`` or one of
+    power, pinch, tripod, lateral (None: the config's ``sample.grasp_type``); one type sets ``sample.grasp_type`` and makes
+    optimization from scratch (``--from-scratch``, the top-up) that type only (``optimize_grasps.grasp_types``).
     """
     from dexlite_pipeline.model.shipped import SHIPPED_MODEL_PATH, shipped_evaluator_path, shipped_model_path
 
@@ -92,6 +96,7 @@ def grasp_request(
         raise GraspToolError("--units and --resize-to-training exclude each other (resized objects take the training radii whatever their unit)")
     if from_scratch and evaluator not in (None, SHIPPED):
         raise GraspToolError("--evaluator and --from-scratch exclude each other (the evaluator ranks a model's samples)")
+    config = typed_config(config or {}, grasp_type) if grasp_type is not None else dict(config or {})
     model_file, evaluator_file = None, None
     if not from_scratch:
         model_file = model
@@ -110,8 +115,23 @@ def grasp_request(
         distinct=distinct, overwrite=overwrite, device=device, model=model_file, evaluator=evaluator_file,
         min_distinct=DEFAULT_MIN_DISTINCT if min_distinct is None else min_distinct,
         top_up_batches=DEFAULT_TOP_UP_BATCHES if top_up_batches is None else top_up_batches,
-        config=dict(config or {}), threads=threads, renders_per_object=renders, upright_axis=upright_axis,
+        config=config, threads=threads, renders_per_object=renders, upright_axis=upright_axis,
+        grasp_type=grasp_type or (config.get("sample") or {}).get("grasp_type", ANY_GRASP_TYPE),
     )  # fmt: skip
+
+
+def typed_config(config: dict, grasp_type: str) -> dict:
+    """``config`` with ``sample.grasp_type`` set to ``grasp_type`` and, for one type, optimization from scratch making only
+    that type (its share 1, the others 0); ``GraspToolError`` for a name that is not a grasp type."""
+    from dexlite_pipeline.model.config import GRASP_TYPE_NAMES
+
+    if grasp_type not in (ANY_GRASP_TYPE, *GRASP_TYPE_NAMES):
+        raise GraspToolError(f"--grasp-type {grasp_type}: expected {ANY_GRASP_TYPE} or one of {', '.join(GRASP_TYPE_NAMES)}")
+    typed = {**config, "sample": {**(config.get("sample") or {}), "grasp_type": grasp_type}}
+    if grasp_type != ANY_GRASP_TYPE:
+        shares = {name: float(name == grasp_type) for name in GRASP_TYPE_NAMES}
+        typed["optimize_grasps"] = {**(config.get("optimize_grasps") or {}), "grasp_types": shares}
+    return typed
 
 
 def _mesh_files(meshes, folder: Path) -> list[str]:
@@ -176,7 +196,7 @@ def read_result(out_dir: Path, seconds: float, rejected: list[dict], keep: bool)
             name=object_id, file=meta["file"], joint_names=tuple(JOINT_NAMES), hand_pose=pose,
             palm_in_mesh=palm_matrices_in_mesh_frame(pose, scale, meta), lift_success=column("lift_success", bool),
             six_dir_success=column("six_dir_success", bool), start_depth_mm=column("initial_penetration_mm", np.float64),
-            distinct_label=column("distinct_label", np.int64), source=column("source", object),
+            distinct_label=column("distinct_label", np.int64), source=column("source", object), grasp_type=column("grasp_type", object),
             attempts=int(mine.sum()), held=int(held_all[mine].sum()),
             failures=failure_counts(np.asarray(every.arrays["failure_reason"], dtype=object)[mine & ~held_all]),
             preparation={"route": meta["preparation"], "deviation": meta["deviation"]},
@@ -192,7 +212,7 @@ def grasp(meshes, n: int = DEFAULT_GRASPS_PER_OBJECT, units: str | None = None, 
     (default 1): torch's threads during the run, as ``dexlite grasp --threads``. ``out_dir``:
     keep ``dexlite grasp``'s files there (summary.md, grasps.zarr, view.html ...); default: none kept. ``options``:
     those of ``grasp_request`` (model, evaluator, from_scratch, min_distinct, top_up_batches, device, config,
-    threads, renders, upright_axis, distinct, overwrite, resize_to_training).
+    threads, renders, upright_axis, distinct, overwrite, resize_to_training, grasp_type).
     """
     import torch
 

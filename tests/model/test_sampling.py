@@ -122,7 +122,7 @@ def test_matched_candidates_are_the_best_matches_nearest_first(small_model_confi
 def test_debiased_codes_prefer_codes_a_cloud_has_not_drawn():
     """Three equally weighted codes, three draws on one cloud: all different with p = 1 x (2/2.5) x (1/2) = 0.4
     (independent draws: 6/27); a draw on another cloud does not count."""
-    from dexlite_pipeline.model.sampling import debiased_codes
+    from dexlite_pipeline.model.latent_codes import debiased_codes
 
     generator = torch.Generator().manual_seed(6)
     weights = torch.ones(4, 3)
@@ -137,7 +137,7 @@ def test_debiased_codes_prefer_codes_a_cloud_has_not_drawn():
 
 def test_debiased_codes_draw_only_codes_their_cloud_can_reach():
     """Each cloud reaches its own codes (weight > 0) only; within them the first draws are all different."""
-    from dexlite_pipeline.model.sampling import debiased_codes
+    from dexlite_pipeline.model.latent_codes import debiased_codes
 
     generator = torch.Generator().manual_seed(3)
     weights = torch.zeros(6, 1000)

@@ -211,16 +211,25 @@ class GraspEnergy:
         batch = torch.arange(contact_index.shape[0], device=contact_index.device)[:, None].expand_as(contact_index)
         return self.contact_table_map.rows(frames, batch.reshape(-1), contact_index.reshape(-1)).reshape(*contact_index.shape, 3)
 
-    def nearest_contacts(self, frames: HandFrames, object_index: torch.Tensor, scale: torch.Tensor) -> torch.Tensor:
+    def nearest_contacts(
+        self, frames: HandFrames, object_index: torch.Tensor, scale: torch.Tensor, slots: ContactSlots | None = None
+    ) -> torch.Tensor:
         """(B, 4) indices of the four candidates closest to the object surface (smallest |d|).
 
         Used when a grasp comes without contact indices (imported or sampled grasps):
-        the contacts a grasp actually makes are the pad points lying on the surface.
+        the contacts a grasp actually makes are the pad points lying on the surface. With ``slots`` (a grasp type's
+        contact template) contact k is its slot's candidate closest to the surface (slots of the same candidates, such
+        as a pinch's two thumb-tip contacts, may then take the same one).
         """
         with torch.no_grad():
             candidates = self.candidate_map(frames)
+            if slots is not None and slots.candidate_count > candidates.shape[1]:
+                candidates = torch.cat([candidates, self.side_candidate_map(frames)], dim=1)
             distance, _ = self.bank.signed_distance(candidates, object_index[:, None], scale[:, None])
-            return distance.abs().topk(CONTACT_COUNT, dim=1, largest=False).indices
+            if slots is None:
+                return distance.abs().topk(CONTACT_COUNT, dim=1, largest=False).indices
+            allowed = slots.masks(distance.shape[1]).to(distance.device)  # (B, 4, N)
+            return distance.abs()[:, None, :].expand_as(allowed).masked_fill(~allowed, float("inf")).argmin(dim=2)
 
     def best_contacts(
         self,
@@ -299,7 +308,7 @@ class GraspEnergy:
         """
         if hand_pose is not None:
             frames = self.hand.forward(hand_pose)
-            joints = hand_pose[:, JOINTS]
+            joints = hand_pose[:, JOINTS.start :]  # the Shadow Hand's 22, or a hand from its MJCF's J
         else:
             if palm_rot is None or palm_t is None or joints is None:
                 raise ValueError("GraspEnergy needs hand_pose or all of palm_rot, palm_t, joints")

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dexlite_pipeline.io.grasp_store import GraspSet
+from dexlite_pipeline.io.grasp_store import GRASP_TYPE, GraspSet
 
 log = logging.getLogger(__name__)
 
@@ -50,14 +50,15 @@ def example_syntheses(
     points, fixed_clouds = cloud_reading(checkpoint, sample.points_per_cloud)
     object_ids, skipped = round_objects(objects_dirs, stability_path, shard, shard_count, TRAIN)
     arrays = {"hand_pose": np.zeros((0, 28), np.float32), "object_id": np.zeros(0, dtype=object), "scale": np.zeros(0, np.float32),
-              "method": np.zeros(0, dtype=object)}
+              "method": np.zeros(0, dtype=object), GRASP_TYPE: np.zeros(0, dtype=object)}
     if object_ids and per_object > 0:
         clouds = ObjectClouds([load_asset(objects_dirs, oid) for oid in object_ids], model.codes_mu.device)
         generator = shard_generator("evaluator_examples", seed, shard)
         with torch.no_grad():
             rows = synthesis_rows(model, clouds, object_ids, sample, points, generator, fixed_clouds, EXAMPLE_METHOD, per_object)
         arrays = {"hand_pose": rows.hand_pose.cpu().numpy(), "object_id": np.asarray(rows.object_id, dtype=object),
-                  "scale": np.asarray(rows.scale, np.float32), "method": np.asarray(rows.method, dtype=object)}
+                  "scale": np.asarray(rows.scale, np.float32), "method": np.asarray(rows.method, dtype=object),
+                  GRASP_TYPE: np.asarray(rows.types(), dtype=object)}
     seconds = time.process_time() - started
     attrs = {"stage": "evaluator_examples_sample", "shard": f"{shard:03d}", "model": str(model_path), "skipped_objects": skipped,
              "seconds_per_grasp": seconds / len(arrays["hand_pose"]) if len(arrays["hand_pose"]) else None}

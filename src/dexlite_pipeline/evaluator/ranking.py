@@ -17,7 +17,7 @@ import time
 
 import numpy as np
 
-from dexlite_pipeline.io.grasp_store import GraspSet
+from dexlite_pipeline.io.grasp_store import GRASP_TYPE, GraspSet
 
 log = logging.getLogger(__name__)
 
@@ -154,6 +154,8 @@ def rank_shard(
     ranked.update({"hand_pose": pool_pose[chosen].astype(sampled.hand_pose.dtype), "object_id": pool_ids[chosen], "scale": pool.scale[chosen].astype(sampled.scale.dtype),
                    "method": np.full(len(chosen), RANKED_METHOD, dtype=object), SCORE: scores[chosen].astype(np.float32),
                    KEPT_FRACTION: np.full(len(chosen), len(chosen) / len(pool_ids), np.float32), RANK: place})
+    if GRASP_TYPE in arrays:  # each ranked row's type, as sampled
+        ranked[GRASP_TYPE] = np.asarray(pool.types(), dtype=object)[chosen]
     merged = {name: np.concatenate([arrays[name], ranked[name]]) for name in arrays}
     attrs.update(pool=int(len(pool_ids)), kept=int(len(chosen)), cpu_seconds=seconds, ranked_seconds_per_grasp=seconds / len(chosen),
                  pool_mean_score=float(np.mean(scores)), kept_mean_score=float(np.mean(scores[chosen])))

@@ -13,7 +13,7 @@ import logging
 import numpy as np
 
 from dexlite_pipeline.config import json_ready
-from dexlite_pipeline.io.grasp_store import GraspSet
+from dexlite_pipeline.io.grasp_store import GRASP_TYPE, GraspSet
 from dexlite_pipeline.loop.config import LoopConfig
 from dexlite_pipeline.loop.round_basics import TRAIN, round_seed
 from dexlite_pipeline.loop.round_objects import round_objects
@@ -67,6 +67,7 @@ def sample_round(
         "object_id": np.asarray(rows.object_id, dtype=object),
         "scale": rows.scale,
         "method": np.asarray(rows.method, dtype=object),
+        GRASP_TYPE: np.asarray(rows.types(), dtype=object),
     }
     attrs = {
         "stage": "loop_sample", "round": int(round_number), "part": part, "shard": f"{shard:03d}", "model": str(model_path),

@@ -1,7 +1,9 @@
 """The trained model on disk: a state dict plus the config it was trained with.
 
 Everything in the file is tensors, numbers, strings, lists and dicts, so it loads with
-``torch.load(path, weights_only=True)`` (no pickled code is executed).
+``torch.load(path, weights_only=True)`` (no pickled code is executed). ``grasp_types`` lists the model's type
+vocabulary (``model.type_condition``); a file without it (written before grasp types existed) loads as a model
+that knows power grasps only, unchanged.
 """
 
 from __future__ import annotations
@@ -37,6 +39,7 @@ def save_checkpoint(
         "format": CHECKPOINT_FORMAT,
         "state_dict": {k: v.detach().cpu() for k, v in model.state_dict().items()},
         "model_config": model.config.to_dict(),
+        "grasp_types": list(model.type_vocabulary),  # the type vocabulary (model.type_condition); absent: trained before types
         "train_config": json_ready(train_config),
         **json.loads(json.dumps(extra)),
     }
@@ -46,6 +49,8 @@ def save_checkpoint(
             "object_id": [str(o) for o in training_grasps["object_id"]],
             "scale": torch.as_tensor(training_grasps["scale"], dtype=torch.float32).cpu(),
         }
+        if "grasp_type" in training_grasps:
+            payload["training_grasps"]["grasp_type"] = [str(t) for t in training_grasps["grasp_type"]]
     with atomic_path(path) as tmp:
         torch.save(payload, tmp)
     return Path(path)
@@ -73,14 +78,15 @@ def load_checkpoint(path: str | os.PathLike, device: torch.device | str = "cpu")
         raise CheckpointError(f"{p}: cannot load as a weights-only checkpoint ({exc})") from exc
     if not isinstance(payload, dict) or payload.get("format") != CHECKPOINT_FORMAT:
         raise CheckpointError(f"{p}: not a {CHECKPOINT_FORMAT} checkpoint")
-    model = GraspCVAE(ModelConfig.from_dict(payload["model_config"])).to(device)
+    model = GraspCVAE(ModelConfig.from_dict(payload["model_config"]), tuple(payload.get("grasp_types") or ())).to(device)
     state = {k: v.float() if v.dtype == torch.float16 else v for k, v in payload["state_dict"].items()}  # a half-precision copy
     empty = torch.zeros(0, model.config.latent_dim)
     model.set_latent_codes(
-        state.pop("codes_mu", empty), state.pop("codes_log_var", empty), state.pop("codes_condition", None), state.pop("codes_cloud", None)
+        state.pop("codes_mu", empty), state.pop("codes_log_var", empty), state.pop("codes_condition", None), state.pop("codes_cloud", None),
+        state.pop("codes_type", None),  # absent in a model trained before grasp types: every code power
     )
     model.load_state_dict(state, strict=False)
-    missing = set(model.state_dict()) - set(state) - {"codes_mu", "codes_log_var", "codes_condition", "codes_cloud"}
+    missing = set(model.state_dict()) - set(state) - {"codes_mu", "codes_log_var", "codes_condition", "codes_cloud", "codes_type"}
     unexpected = set(state) - set(model.state_dict())
     if missing or unexpected:
         raise CheckpointError(f"{p}: weights do not match the model config (missing {sorted(missing)[:3]}, unexpected {sorted(unexpected)[:3]})")

@@ -137,6 +137,10 @@ class TrainConfig:
 
 LATENT_PRIORS = ("standard", "aggregate", "neighbours")
 ANCHOR_RULES = ("uniform", "matched", "debiased", "spread")
+# The grasp types a model may be asked for: optim.grasp_types.TYPE_NAMES (a config leaf cannot import it; a test checks
+# that the two agree), and ANY_GRASP_TYPE, the training mix.
+GRASP_TYPE_NAMES = ("power", "pinch", "tripod", "lateral")
+ANY_GRASP_TYPE = "any"
 
 
 @dataclass(frozen=True)
@@ -191,6 +195,10 @@ class SampleConfig:
         "objects' headings); 1 = as it stands", minimum=1)
     debias_codes: bool = setting(
         True, "latent_prior aggregate / neighbours: a cloud's draws prefer training codes it drew less (1/(count+1))")
+    grasp_type: str = setting(
+        ANY_GRASP_TYPE, "grasp type of sampled grasps: any (each object's grasps dealt to the model's types in its training "
+        "mix's proportions) or one type, which the model must know (a model trained without types knows power only)",
+        enum=(ANY_GRASP_TYPE, *GRASP_TYPE_NAMES))
 
     def __post_init__(self) -> None:
         if not self.scales or min(self.scales) <= 0:
@@ -207,3 +215,5 @@ class SampleConfig:
             raise ValueError(f"sample.anchor_rule {self.anchor_rule!r} is not one of {', '.join(ANCHOR_RULES)}")
         if self.latent_prior not in LATENT_PRIORS:
             raise ValueError(f"sample.latent_prior {self.latent_prior!r} is not one of {', '.join(LATENT_PRIORS)}")
+        if self.grasp_type not in (ANY_GRASP_TYPE, *GRASP_TYPE_NAMES):
+            raise ValueError(f"sample.grasp_type {self.grasp_type!r} is not one of {', '.join((ANY_GRASP_TYPE, *GRASP_TYPE_NAMES))}")

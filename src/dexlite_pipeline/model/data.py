@@ -16,9 +16,10 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from dexlite_pipeline.io.grasp_store import GraspSet, invalid_grasp_reasons
+from dexlite_pipeline.io.grasp_store import GraspSet, grasp_types, invalid_grasp_reasons
 from dexlite_pipeline.model.association import grasp_rays
 from dexlite_pipeline.model.pose import pose_to_features
+from dexlite_pipeline.model.type_condition import GraspTypeRequestError, type_codes, vocabulary_of
 from dexlite_pipeline.objects.assets import ObjectAsset
 
 log = logging.getLogger(__name__)
@@ -214,10 +215,24 @@ class TrainingData:
     scale: np.ndarray  # (G,)
     cloud_key: np.ndarray  # (G,)
     clouds: ObjectClouds
+    grasp_type: torch.Tensor  # (G,) each grasp's type as a column of ``type_vocabulary``
+    type_vocabulary: tuple[str, ...]  # the types the model is conditioned on (``type_condition``)
 
 
-def build_training_data(grasps: GraspSet, assets: list[ObjectAsset], hand, device: torch.device | str = "cpu") -> TrainingData:
-    """Pose features, grasp rays and cloud bookkeeping of ``grasps`` on ``assets`` (their order is the bank order)."""
+def build_training_data(
+    grasps: GraspSet, assets: list[ObjectAsset], hand, device: torch.device | str = "cpu", type_vocabulary: tuple[str, ...] | None = None
+) -> TrainingData:
+    """Pose features, grasp rays, types and cloud bookkeeping of ``grasps`` on ``assets`` (their order is the bank order).
+
+    ``type_vocabulary``: the types to condition on (a warm start keeps its model's); None: the grasps' own types
+    (``grasp_store.grasp_types``: power for stores without them).
+    """
+    types = grasp_types(grasps)
+    vocabulary = vocabulary_of(types) if type_vocabulary is None else tuple(type_vocabulary)
+    try:
+        codes = type_codes(types, vocabulary)
+    except GraspTypeRequestError as exc:
+        raise TrainingDataError(f"training grasps: {exc}") from None
     clouds = ObjectClouds(assets, device)
     pose = torch.as_tensor(grasps.hand_pose, dtype=torch.float32, device=device)
     with torch.no_grad():
@@ -232,4 +247,6 @@ def build_training_data(grasps: GraspSet, assets: list[ObjectAsset], hand, devic
         scale=scale,
         cloud_key=cloud_keys(grasps.object_id, scale),
         clouds=clouds,
+        grasp_type=torch.as_tensor(codes, device=device),
+        type_vocabulary=vocabulary,
     )

@@ -16,6 +16,9 @@
   decoder learns how a hand sits on a patch of surface, which carries over to unseen
   objects and to an object turned about the vertical axis; in the object frame it has to
   learn each training object's extent and orientation.
+- Grasp types (``model.type_condition``): a model trained on several types also reads a one-hot of the grasp's
+  type beside the condition, in the encoder and the decoder, over its vocabulary (``grasp_types``); a model
+  trained on one type (or before types existed) reads none.
 - Why ``hand``: grasps on one patch of surface come at every roll about the normal
   (thumb up, thumb down, ...). In the ``surface`` frame that roll is a many-modal target
   only the latent could carry, and the latent carries little once the energies shape the
@@ -40,6 +43,7 @@ from torch import nn
 
 from dexlite_pipeline.model.pose import POSE_FEATURE_DIM, TRANSLATION_UNIT_M, features_to_parts, parts_to_features, shift_translation
 from dexlite_pipeline.model.config import ModelConfig
+from dexlite_pipeline.model.type_condition import known_types
 
 # PointNet's hidden activations leak a little below zero: with plain ReLU and no normalization the
 # 1024-wide layer can die during training (every unit negative for every point), after which every
@@ -94,32 +98,44 @@ class GraspCVAE(nn.Module):
     so the PointNet runs once per cloud, not once per grasp.
     """
 
-    def __init__(self, config: ModelConfig) -> None:
+    def __init__(self, config: ModelConfig, type_vocabulary: tuple[str, ...] = ()) -> None:
         super().__init__()
         self.config = config
+        self.type_vocabulary = tuple(type_vocabulary)  # the training grasps' types; () for a model trained before types
+        self.type_inputs = len(self.type_vocabulary) if len(self.type_vocabulary) > 1 else 0  # one-hot width
         self.pointnet = PointNet(config.pointnet_widths, config.normalization, config.point_normals)
-        inputs = config.condition_dim + config.frame_input_dim
+        inputs = config.condition_dim + config.frame_input_dim + self.type_inputs
         self.encoder = _mlp(POSE_FEATURE_DIM + inputs, config.encoder_hidden, 2 * config.latent_dim)
         self.decoder = _mlp(config.latent_dim + inputs, config.decoder_hidden, POSE_FEATURE_DIM)
         # The training grasps' posterior codes (mu, log sigma^2), stored with the weights after
-        # training so that sampling can draw from their aggregate (``sampling.sample_latents``).
+        # training so that sampling can draw from their aggregate (``latent_codes.sample_latents``).
         self.register_buffer("codes_mu", torch.zeros(0, config.latent_dim))
         self.register_buffer("codes_log_var", torch.zeros(0, config.latent_dim))
         self.register_buffer("codes_condition", torch.zeros(0, config.condition_dim))
         self.register_buffer("codes_cloud", torch.zeros(0, dtype=torch.long))
+        self.register_buffer("codes_type", torch.zeros(0, dtype=torch.long))
+
+    @property
+    def grasp_types(self) -> tuple[str, ...]:
+        """The types the model can make (``type_condition.known_types``): its vocabulary, or power."""
+        return known_types(self.type_vocabulary)
 
     def set_latent_codes(
-        self, mu: torch.Tensor, log_var: torch.Tensor, condition: torch.Tensor | None = None, cloud: torch.Tensor | None = None
+        self, mu: torch.Tensor, log_var: torch.Tensor, condition: torch.Tensor | None = None, cloud: torch.Tensor | None = None,
+        grasp_type: torch.Tensor | None = None,
     ) -> None:
         """Store the training grasps' codes (N, latent) each, their conditions (N, 2F: the cloud's global feature and the
-        associated point's local feature) and which training cloud (object and scale) each grasp is on (N,)."""
+        associated point's local feature), which training cloud (object and scale) each grasp is on (N,) and its type's
+        column in the vocabulary (N,; None: every code of type 0, as in a model trained before types)."""
         device = self.codes_mu.device
         self.codes_mu = mu.detach().to(device).clone()
         self.codes_log_var = log_var.detach().to(device).clone()
         condition = torch.zeros(0, self.config.condition_dim) if condition is None else condition
         cloud = torch.zeros(0, dtype=torch.long) if cloud is None else cloud
+        grasp_type = torch.zeros(len(mu), dtype=torch.long) if grasp_type is None else grasp_type
         self.codes_condition = condition.detach().to(device).clone()
         self.codes_cloud = torch.as_tensor(cloud, dtype=torch.long).to(device).clone()
+        self.codes_type = torch.as_tensor(grasp_type, dtype=torch.long).to(device).clone()
 
     @property
     def latent_codes(self) -> tuple[torch.Tensor, torch.Tensor]:
@@ -153,11 +169,17 @@ class GraspCVAE(nn.Module):
             return tangent_frames(anchor[:, 3:6], anchor[:, 6:9])
         return _anchor_frames(anchor)
 
-    def _inputs(self, condition: torch.Tensor, anchor: torch.Tensor) -> torch.Tensor:
-        """Condition plus the frame inputs: for ``hand``, the object's vertical in the pose frame."""
-        if self.config.pose_frame != "hand":
-            return condition
-        return torch.cat([condition, self._frames(anchor)[:, 2, :]], dim=1)
+    def _inputs(self, condition: torch.Tensor, anchor: torch.Tensor, grasp_type: torch.Tensor | None = None) -> torch.Tensor:
+        """Condition plus the frame inputs (for ``hand``, the object's vertical in the pose frame) plus the type's one-hot
+        (``grasp_type`` (B,) vocabulary columns; required when the model reads types)."""
+        parts = [condition]
+        if self.config.pose_frame == "hand":
+            parts.append(self._frames(anchor)[:, 2, :])
+        if self.type_inputs:
+            if grasp_type is None:
+                raise ValueError(f"the model is conditioned on grasp types ({', '.join(self.type_vocabulary)}): give each grasp's type")
+            parts.append(torch.nn.functional.one_hot(grasp_type.to(condition.device), self.type_inputs).to(condition.dtype))
+        return torch.cat(parts, dim=1) if len(parts) > 1 else condition
 
     def _to_frame(self, pose_features: torch.Tensor, anchor: torch.Tensor) -> torch.Tensor:
         """Object-frame pose features -> the features the networks see (``config.pose_frame``)."""
@@ -179,23 +201,29 @@ class GraspCVAE(nn.Module):
         palm_rot, palm_t, joints = features_to_parts(features)
         return parts_to_features(frame @ palm_rot, anchor[:, :3] + (frame @ palm_t[..., None])[..., 0], joints)
 
-    def encode(self, pose_features: torch.Tensor, condition: torch.Tensor, anchor: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """(mu, log sigma^2), each (B, latent), of poses (B, 31) at ``anchor`` (B, 6: point m, normal; ``pose_anchors``)."""
-        inputs = torch.cat([self._to_frame(pose_features, anchor), self._inputs(condition, anchor)], dim=1)
+    def encode(
+        self, pose_features: torch.Tensor, condition: torch.Tensor, anchor: torch.Tensor, grasp_type: torch.Tensor | None = None
+    ) -> tuple[torch.Tensor, torch.Tensor]:
+        """(mu, log sigma^2), each (B, latent), of poses (B, 31) at ``anchor`` (B, 6: point m, normal; ``pose_anchors``) of
+        types ``grasp_type`` (B,; vocabulary columns, for a model that reads types)."""
+        inputs = torch.cat([self._to_frame(pose_features, anchor), self._inputs(condition, anchor, grasp_type)], dim=1)
         mu, log_var = self.encoder(inputs).chunk(2, dim=1)
         return mu, log_var.clamp(-20.0, 10.0)
 
-    def decode(self, latent: torch.Tensor, condition: torch.Tensor, anchor: torch.Tensor) -> torch.Tensor:
-        """Pose features (B, 31) in the object frame for latents (B, latent) under their conditions and anchors."""
-        return self._from_frame(self.decoder(torch.cat([latent, self._inputs(condition, anchor)], dim=1)), anchor)
+    def decode(
+        self, latent: torch.Tensor, condition: torch.Tensor, anchor: torch.Tensor, grasp_type: torch.Tensor | None = None
+    ) -> torch.Tensor:
+        """Pose features (B, 31) in the object frame for latents (B, latent) under their conditions, anchors and types."""
+        return self._from_frame(self.decoder(torch.cat([latent, self._inputs(condition, anchor, grasp_type)], dim=1)), anchor)
 
     def forward(
-        self, pose_features: torch.Tensor, condition: torch.Tensor, anchor: torch.Tensor, noise: torch.Tensor
+        self, pose_features: torch.Tensor, condition: torch.Tensor, anchor: torch.Tensor, noise: torch.Tensor,
+        grasp_type: torch.Tensor | None = None,
     ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """Reparameterized pass: (reconstructed features, mu, log sigma^2); ``noise`` ~ N(0, I) given by the caller."""
-        mu, log_var = self.encode(pose_features, condition, anchor)
+        mu, log_var = self.encode(pose_features, condition, anchor, grasp_type)
         latent = mu + torch.exp(0.5 * log_var) * noise
-        return self.decode(latent, condition, anchor), mu, log_var
+        return self.decode(latent, condition, anchor, grasp_type), mu, log_var
 
 
 def condition_at(cloud_features: tuple[torch.Tensor, torch.Tensor], cloud_index: torch.Tensor, point_index: torch.Tensor) -> torch.Tensor:

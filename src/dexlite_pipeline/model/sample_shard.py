@@ -18,9 +18,10 @@ from typing import TYPE_CHECKING
 import numpy as np
 import torch
 
-from dexlite_pipeline.io.grasp_store import GraspSet, read_grasp_store
+from dexlite_pipeline.io.grasp_store import GRASP_TYPE, GraspSet, grasp_types, read_grasp_store
 from dexlite_pipeline.model.methods import EXPAND_LATENT, EXPAND_POINT, SYNTHESIS
 from dexlite_pipeline.model.sampling import SampledRows
+from dexlite_pipeline.model.type_condition import GraspTypeRequestError, refusal, type_codes
 
 if TYPE_CHECKING:
     from dexlite_pipeline.model.config import SampleConfig
@@ -29,7 +30,7 @@ log = logging.getLogger(__name__)
 
 
 def known_grasps(paths: list[str], object_ids: set[str]) -> GraspSet:
-    """Lift-successful grasps with finite poses of ``object_ids`` from the lift shards (the grasps to expand)."""
+    """Lift-successful grasps with finite poses of ``object_ids`` from the lift shards (the grasps to expand), with their types."""
     sets = []
     for path in paths:
         grasps = read_grasp_store(path)
@@ -37,7 +38,7 @@ def known_grasps(paths: list[str], object_ids: set[str]) -> GraspSet:
             continue
         keep = np.asarray(grasps.arrays["lift_success"], bool) & np.isin(grasps.object_id.astype(str), list(object_ids))
         keep &= np.isfinite(grasps.hand_pose).all(axis=1)
-        sets.append(GraspSet({k: grasps.arrays[k][keep] for k in ("hand_pose", "object_id", "scale")}, {}))
+        sets.append(GraspSet({**{k: grasps.arrays[k][keep] for k in ("hand_pose", "object_id", "scale")}, GRASP_TYPE: grasp_types(grasps)[keep]}, {}))
     return GraspSet.concatenate(sets)
 
 
@@ -77,7 +78,8 @@ def shipped_rows(shipped_path: str, heldout: list[str], clouds, settings, genera
     """Pure syntheses of the shipped (pretrained) model on the held-out objects it never trained on.
 
     Returns the rows (``SampledRows`` or None) and the held-out objects left out, with why:
-    an object in the shipped model's training set would measure recall, not generalization.
+    an object in the shipped model's training set would measure recall, not generalization, and none is sampled
+    when ``sample.grasp_type`` asks for a type the shipped model does not know.
     """
     from dexlite_pipeline.model.checkpoint import cloud_reading, load_checkpoint
     from dexlite_pipeline.model.methods import SHIPPED_SYNTHESIS
@@ -87,6 +89,10 @@ def shipped_rows(shipped_path: str, heldout: list[str], clouds, settings, genera
     trained_on = set(checkpoint.get("train_object_ids") or [])
     unseen = [oid for oid in heldout if oid not in trained_on]
     left_out = {oid: "the shipped model was trained on it" for oid in heldout if oid in trained_on}
+    reason = refusal(model.type_vocabulary, settings.grasp_type)
+    if reason:
+        log.warning("%s: %s; its rows are not sampled", shipped_path, reason)
+        return None, {**left_out, **{oid: f"sample.grasp_type: {reason}" for oid in unseen}}
     if not unseen or settings.synthesis_grasps_per_object <= 0:
         return None, left_out
     points, fixed = cloud_reading(checkpoint, settings.points_per_cloud)
@@ -100,7 +106,7 @@ def sample_shard(
     """Every CVAE grasp of ``shard``: syntheses on held-out objects, expansions and ladder rows on training objects
     and, with ``shipped_model`` (a pretrained model file), its syntheses on held-out objects (``shipped_rows``).
 
-    Returns the grasps (``hand_pose``, ``object_id``, ``scale``, ``method`` and, for ladder
+    Returns the grasps (``hand_pose``, ``object_id``, ``scale``, ``method``, ``grasp_type`` and, for ladder
     reconstructions, the ``reference_hand_pose`` they reproduce; NaN elsewhere) and the
     store attributes. The config it reads comes as arguments: ``shards``, section ``sample``, ``seed`` and ``device``.
     Its ``seconds_per_grasp`` is the CPU time of the whole call (loading the model and the objects included) per row.
@@ -119,6 +125,8 @@ def sample_shard(
     settings = sample
     device = resolve_device(device)
     model, checkpoint = load_checkpoint(model_path, device)
+    if refusal(model.type_vocabulary, settings.grasp_type):
+        raise GraspTypeRequestError(f"{model_path}: {refusal(model.type_vocabulary, settings.grasp_type)} (sample.grasp_type)")
     points, fixed_clouds = cloud_reading(checkpoint, settings.points_per_cloud)
 
     heldout, to_expand, ladder_ids, skipped = shard_targets(
@@ -140,9 +148,11 @@ def sample_shard(
             obj = np.array([clouds.index_of[o] for o in to_expand.object_id[pick]])
             scale = to_expand.scale[pick].astype(np.float32)
             move_point = torch.rand(len(pick), generator=generator) < settings.expansion_point_fraction
-            pose = expand(model, clouds, known, origin, direction, obj, scale, move_point.to(device), settings, points, generator, fixed_clouds)
+            types = to_expand.arrays[GRASP_TYPE][pick]
+            pose = expand(model, clouds, known, origin, direction, obj, scale, move_point.to(device), settings, points, generator, fixed_clouds,
+                          type_codes(types, model.type_vocabulary))
             methods = [EXPAND_POINT if m else EXPAND_LATENT for m in move_point.tolist()]
-            parts.append(SampledRows(pose, [clouds.object_ids[i] for i in obj], scale, methods))
+            parts.append(SampledRows(pose, [clouds.object_ids[i] for i in obj], scale, methods, grasp_type=[str(t) for t in types]))
         if ladder_ids and "training_grasps" in checkpoint:
             parts.append(ladder_rows(model, checkpoint["training_grasps"], clouds, ladder_ids, settings, points, generator, ShadowHand(device), fixed_clouds))
         elif ladder_ids:
@@ -158,6 +168,7 @@ def sample_shard(
         "object_id": np.asarray(rows.object_id, dtype=object),
         "scale": rows.scale,
         "method": np.asarray(rows.method, dtype=object),
+        GRASP_TYPE: np.asarray(rows.types(), dtype=object),
         # the known grasp each ladder reconstruction reproduces (NaN for other rows): the fit rung's pose errors
         "reference_hand_pose": rows.reference_pose,
     }

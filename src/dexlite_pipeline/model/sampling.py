@@ -1,7 +1,7 @@
 """Grasps from the trained CVAE: pure synthesis and dataset expansion.
 
 - Pure synthesis (method ``cvae_raw``, held-out objects): PointNet on the object's cloud,
-  a latent from the configured prior (``sample_latents``: N(0, T²I), or training codes), an
+  a latent from the configured prior (``latent_codes.sample_latents``: N(0, T²I), or training codes), an
   associated point by the configured rule (uniform, matched to the code's training grasp,
   debiased by how often nearby points were drawn, or farthest-point spread), in the ``hand``
   pose frame a uniformly random roll about its normal; decoder only.
@@ -11,7 +11,9 @@
   neighbours in the cloud and z = mu (method ``cvae_expand_point``); the ``hand`` pose
   frame keeps the known grasp's roll.
 
-Each object (and scale) is one cloud: PointNet runs once per cloud, decoding is batched.
+Each object (and scale) is one cloud: PointNet runs once per cloud, decoding is batched. A model conditioned on grasp
+types (``type_condition``) decodes each grasp as the type asked of it (``sample.grasp_type``) from that type's codes;
+an expansion or reconstruction keeps its known grasp's type.
 """
 
 from __future__ import annotations
@@ -22,12 +24,15 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
+from dexlite_pipeline.io.grasp_store import DEFAULT_GRASP_TYPE
 from dexlite_pipeline.model.association import grasp_rays, nearest_to_ray, random_points
-from dexlite_pipeline.model.config import ANCHOR_RULES, LATENT_PRIORS, SampleConfig
+from dexlite_pipeline.model.config import ANCHOR_RULES, SampleConfig
 from dexlite_pipeline.model.data import ObjectClouds, cloud_keys
+from dexlite_pipeline.model.latent_codes import code_type_mask, feature_distances, sample_latents, training_cloud_features
 from dexlite_pipeline.model.methods import PRIOR_ON_TRAINING, RECONSTRUCTION
 from dexlite_pipeline.model.network import GraspCVAE, anchor_at, condition_at
 from dexlite_pipeline.model.pose import features_to_pose, pose_to_features, rotate_features, turned_clouds, vertical_rotation
+from dexlite_pipeline.model.type_condition import requested_codes, type_codes
 
 
 def _clouds_for(
@@ -41,104 +46,6 @@ def _clouds_for(
     cloud_scale = torch.as_tensor(scale[first], dtype=torch.float32, device=clouds.device)
     drawn = clouds.clouds(cloud_object, cloud_scale, points, fixed, generator)
     return drawn, torch.as_tensor(keys, device=clouds.device)
-
-
-def sample_latents(
-    model: GraspCVAE,
-    count: int,
-    generator: torch.Generator,
-    prior: str = "standard",
-    temperature: float = 1.0,
-    global_feature: torch.Tensor | None = None,
-    neighbour_clouds: int = 1,
-    cloud_index: torch.Tensor | None = None,
-) -> tuple[torch.Tensor, torch.Tensor | None]:
-    """(count, latent) latents for new grasps, and which training code each came from (None for ``standard``).
-
-    - ``standard``: z ~ N(0, I), the VAE's nominal prior;
-    - ``aggregate``: z ~ q(z) = mean_i N(mu_i, sigma_i^2) over the training grasps' codes
-      (stored with the model): a CVAE trained with a small KL weight keeps a distinct code per
-      grasp, and those codes do not fill N(0, I), so nominal-prior latents decode to poses
-      unlike any grasp, while the aggregate posterior is where the decoder was trained;
-    - ``neighbours``: the aggregate over the codes of the training clouds (object and scale)
-      whose global feature is nearest the new cloud's (``global_feature`` (count, F), the
-      ``neighbour_clouds`` nearest): a conditional prior p(z | object) read off the training
-      data. On a training object its own cloud is the nearest, so its own grasps' codes are among those drawn.
-    ``temperature`` scales the noise (of the prior, or of each code's posterior).
-    With ``cloud_index`` (count,) the codes are drawn one row at a time, a code's weight divided
-    by (count + 1) where count is how often earlier rows of the same cloud drew it (``debiased_codes``):
-    a cloud's grasps then use different training codes before any code repeats.
-    """
-    device = next(model.parameters()).device
-    if prior == "standard":
-        return torch.randn(count, model.config.latent_dim, generator=generator).to(device) * temperature, None
-    if prior not in LATENT_PRIORS:
-        raise ValueError(f"latent prior {prior!r} is not one of {', '.join(LATENT_PRIORS)}")
-    codes_mu, codes_log_var = model.latent_codes
-    if len(codes_mu) == 0:
-        raise ValueError(f"latent prior {prior!r} needs a model saved with its training codes (train it with this version)")
-    if prior == "neighbours":
-        weights = neighbour_weights(model, global_feature, neighbour_clouds)
-    else:
-        weights = torch.ones(count, len(codes_mu), device=device)
-    if cloud_index is None:
-        pick = torch.multinomial(weights.cpu(), 1, generator=generator)[:, 0].to(device)
-    else:
-        pick = debiased_codes(weights.cpu(), cloud_index.cpu(), generator).to(device)
-    noise = torch.randn(count, model.config.latent_dim, generator=generator).to(device)
-    return codes_mu[pick] + temperature * torch.exp(0.5 * codes_log_var[pick]) * noise, pick
-
-
-def debiased_codes(weights: torch.Tensor, cloud_index: torch.Tensor, generator: torch.Generator) -> torch.Tensor:
-    """(B,) training codes drawn row by row from ``weights`` (B, N), each divided by (count + 1), count = how often
-    earlier rows of the same cloud (``cloud_index`` (B,)) drew that code: Dex1B's inverse-frequency rule over codes.
-
-    Clouds are drawn one after another (rows of a cloud in order); each draw runs over the codes its cloud's rows
-    can reach at all (weight > 0: with the ``neighbours`` prior the few hundred codes of the nearest training
-    clouds, not every code of the model), so a draw costs what its cloud's neighbourhood holds.
-    """
-    pick = torch.zeros(len(weights), dtype=torch.long)
-    for cloud in torch.unique(cloud_index).tolist():
-        rows = torch.nonzero(cloud_index == cloud)[:, 0]
-        block = weights[rows]
-        support = torch.nonzero((block > 0).any(dim=0))[:, 0]
-        if len(support) == 0:
-            raise ValueError(f"cloud {cloud}: no training code has a positive weight")
-        block = block[:, support]
-        used = torch.zeros(len(support))
-        for place, row in enumerate(rows.tolist()):
-            local = int(torch.multinomial(block[place] / (used + 1.0), 1, generator=generator))
-            pick[row] = support[local]
-            used[local] += 1.0
-    return pick
-
-
-def neighbour_weights(model: GraspCVAE, global_feature: torch.Tensor | None, neighbour_clouds: int) -> torch.Tensor:
-    """(B, N) 1 for the codes on the ``neighbour_clouds`` training clouds nearest each new cloud's global feature, else 0."""
-    if global_feature is None or len(model.codes_condition) != len(model.codes_mu) or len(model.codes_cloud) != len(model.codes_mu):
-        raise ValueError("latent prior 'neighbours' needs a model saved with its codes' conditions and clouds")
-    cloud_feature, code_cloud = training_cloud_features(model)
-    distance = feature_distances(global_feature, cloud_feature.to(global_feature.device))  # (B, clouds)
-    nearest = distance.topk(min(neighbour_clouds, len(cloud_feature)), dim=1, largest=False).indices  # (B, k)
-    chosen = torch.zeros_like(distance).scatter_(1, nearest, 1.0)
-    return chosen[:, code_cloud]
-
-
-def training_cloud_features(model: GraspCVAE) -> tuple[torch.Tensor, torch.Tensor]:
-    """(clouds, W) the global PointNet feature of each training cloud (object and scale) the model's codes were
-    encoded on, and (N,) each code's cloud row."""
-    width = model.config.pointnet_widths[-1]
-    clouds, code_cloud = torch.unique(model.codes_cloud, return_inverse=True)
-    cloud_feature = torch.zeros(len(clouds), width, device=model.codes_condition.device).index_add_(
-        0, code_cloud, model.codes_condition[:, :width]
-    ) / torch.bincount(code_cloud, minlength=len(clouds)).clamp(min=1)[:, None].to(model.codes_condition.dtype)
-    return cloud_feature, code_cloud
-
-
-def feature_distances(feature: torch.Tensor, cloud_feature: torch.Tensor) -> torch.Tensor:
-    """(B, clouds) Euclidean distances; exact differences: the matrix-product form of cdist cancels catastrophically
-    for features this large, and a training cloud must find itself at distance 0."""
-    return torch.cdist(feature, cloud_feature, compute_mode="donot_use_mm_for_euclid_dist")
 
 
 def matched_yaws(model: GraspCVAE, drawn: torch.Tensor, candidates: int) -> torch.Tensor:
@@ -248,8 +155,10 @@ def reconstruct(
     points: int,
     fixed_clouds: bool = True,
     generator: torch.Generator | None = None,
+    grasp_type: np.ndarray | None = None,
 ) -> torch.Tensor:
-    """(B, 28) encoder-mean reconstructions of known grasps (B, 28): same cloud, same associated point, z = mu.
+    """(B, 28) encoder-mean reconstructions of known grasps (B, 28) of types ``grasp_type`` (B,; vocabulary columns):
+    same cloud, same associated point, z = mu.
 
     The *fit* rung of the learning ladder: a model that learned its data returns each
     training grasp almost unchanged.
@@ -260,8 +169,14 @@ def reconstruct(
     known = pose_to_features(known_pose)
     condition = model.condition(drawn, cloud_index, point_index)
     anchor = model.pose_anchors(anchor_at(drawn, cloud_index, point_index), known)
-    mu, _ = model.encode(known, condition, anchor)
-    return features_to_pose(model.decode(mu, condition, anchor))
+    types = _type_tensor(grasp_type, known.device)
+    mu, _ = model.encode(known, condition, anchor, types)
+    return features_to_pose(model.decode(mu, condition, anchor, types))
+
+
+def _type_tensor(grasp_type: np.ndarray | None, device) -> torch.Tensor | None:
+    """Vocabulary columns (B,) as a tensor on ``device`` (None stays None: a model that reads no type)."""
+    return None if grasp_type is None else torch.as_tensor(np.asarray(grasp_type), dtype=torch.long, device=device)
 
 
 @torch.no_grad()
@@ -282,6 +197,7 @@ def synthesize(
     match_candidates: int = 1,
     debias_codes: bool = False,
     yaw_candidates: int = 1,
+    grasp_type: np.ndarray | None = None,
 ) -> torch.Tensor:
     """(B, 28) decoded poses for grasps on (object_index, scale) pairs, from the latent ``prior`` (``sample_latents``).
 
@@ -295,7 +211,9 @@ def synthesize(
     matches), ``debiased`` (``debiased_points`` with regions of ``anchor_region_m``; with
     ``debias_training`` the counts start from how many training grasps' local features match
     each point, ``training_point_counts``) or ``spread`` (``spread_points``). With
-    ``debias_codes`` each cloud's training codes are drawn by ``debiased_codes``.
+    ``debias_codes`` each cloud's training codes are drawn by ``debiased_codes``. ``grasp_type`` (B,) the type asked of
+    each grasp (vocabulary columns; a model that reads types needs it): the decoder reads it, and latents come from the
+    training codes of that type only (``code_type_mask``).
     """
     if anchor_rule not in ANCHOR_RULES:
         raise ValueError(f"anchor rule {anchor_rule!r} is not one of {', '.join(ANCHOR_RULES)}")
@@ -308,7 +226,8 @@ def synthesize(
         drawn = turned_clouds(drawn, yaw)
     features = model.pointnet(drawn)
     latent, code_index = sample_latents(
-        model, len(object_index), generator, prior, temperature, features[0][cloud_index], neighbour_clouds, cloud_index if debias_codes else None
+        model, len(object_index), generator, prior, temperature, features[0][cloud_index], neighbour_clouds, cloud_index if debias_codes else None,
+        code_type_mask(model, grasp_type),
     )
     if anchor_rule == "matched":
         matches = matched_points(model, features[1], cloud_index, code_index, match_candidates)
@@ -325,7 +244,7 @@ def synthesize(
         point_index = random_points(len(object_index), points, generator).to(clouds.device)
     condition = condition_at(features, cloud_index, point_index)
     anchor = model.sampling_anchors(anchor_at(drawn, cloud_index, point_index), generator)
-    decoded = model.decode(latent, condition, anchor)
+    decoded = model.decode(latent, condition, anchor, _type_tensor(grasp_type, latent.device))
     if yaw is not None:  # grasps of the turned cloud, back in the object's frame
         decoded = rotate_features(decoded, vertical_rotation(yaw[cloud_index]).transpose(1, 2))
     return features_to_pose(decoded)
@@ -345,8 +264,10 @@ def expand(
     points: int,
     generator: torch.Generator,
     fixed_clouds: bool = True,
+    grasp_type: np.ndarray | None = None,
 ) -> torch.Tensor:
-    """(B, 28) new poses near known grasps (B, 28): latent perturbed, or (``move_point``) associated point moved."""
+    """(B, 28) new poses near known grasps (B, 28) of types ``grasp_type`` (B,; vocabulary columns), each of its known
+    grasp's type: latent perturbed, or (``move_point``) associated point moved."""
     drawn, cloud_index = _clouds_for(clouds, object_index, scale, points, generator, fixed_clouds)
     point_index = nearest_to_ray(drawn[cloud_index], ray_origin, ray_direction)
     grasp_points = drawn[cloud_index, :, :3]
@@ -357,27 +278,34 @@ def expand(
     moved_index = nearest[torch.arange(len(point_index)), pick]
     features = model.pointnet(drawn)
     known = pose_to_features(known_pose)
-    mu, _ = model.encode(known, condition_at(features, cloud_index, point_index), model.pose_anchors(anchor_at(drawn, cloud_index, point_index), known))
+    types = _type_tensor(grasp_type, known.device)
+    mu, _ = model.encode(known, condition_at(features, cloud_index, point_index), model.pose_anchors(anchor_at(drawn, cloud_index, point_index), known),
+                         types)
     noise = torch.randn(mu.shape, generator=generator).to(clouds.device) * config.expansion_latent_std
     latent = torch.where(move_point[:, None], mu, mu + noise)
     decode_index = torch.where(move_point, moved_index, point_index)
     condition = condition_at(features, cloud_index, decode_index)
-    return features_to_pose(model.decode(latent, condition, model.pose_anchors(anchor_at(drawn, cloud_index, decode_index), known)))
+    return features_to_pose(model.decode(latent, condition, model.pose_anchors(anchor_at(drawn, cloud_index, decode_index), known), types))
 
 
 @dataclass
 class SampledRows:
-    """Poses (B, 28) with their object ids, scales and method labels."""
+    """Poses (B, 28) with their object ids, scales, method labels and grasp types."""
 
     hand_pose: torch.Tensor
     object_id: list[str]
     scale: np.ndarray
     method: list[str]
     reference_pose: np.ndarray | None = None  # (B, 28) the known grasp a row reconstructs, NaN for other rows
+    grasp_type: list[str] | None = None  # each row's grasp type; None: every row power (a model that knows only power)
 
     def references(self) -> np.ndarray:
         """``reference_pose``, or all NaN when the rows reconstruct no known grasp."""
         return self.reference_pose if self.reference_pose is not None else np.full((len(self.method), 28), np.nan, np.float32)
+
+    def types(self) -> list[str]:
+        """``grasp_type``, or power for every row."""
+        return self.grasp_type if self.grasp_type is not None else [DEFAULT_GRASP_TYPE] * len(self.method)
 
     @classmethod
     def concatenate(cls, parts: list[SampledRows], device) -> SampledRows:
@@ -388,6 +316,7 @@ class SampledRows:
             scale=np.concatenate([p.scale for p in parts]) if parts else np.zeros(0, np.float32),
             method=[m for p in parts for m in p.method],
             reference_pose=np.concatenate([p.references() for p in parts]) if parts else np.zeros((0, 28), np.float32),
+            grasp_type=[t for p in parts for t in p.types()],
         )
 
 
@@ -403,8 +332,11 @@ def synthesis_rows(
     count: int | None = None,
 ) -> SampledRows:
     """``count`` (default ``synthesis_grasps_per_object``) pure syntheses per object (scales dealt in turn
-    from ``config.scales``; with ``config.real_size`` an object known at real size is sampled at it), labelled ``label``."""
+    from ``config.scales``; with ``config.real_size`` an object known at real size is sampled at it), labelled ``label``,
+    of the grasp types ``config.grasp_type`` asks for (``type_condition.requested_codes``: the same plan for every object;
+    ``GraspTypeRequestError`` for a type the model does not know)."""
     count = config.synthesis_grasps_per_object if count is None else count
+    plan = requested_codes(model.type_vocabulary, model.codes_type.cpu().numpy(), config.grasp_type, count)
     obj = np.repeat([clouds.index_of[o] for o in object_ids], count)
     dealt = np.resize(np.asarray(config.scales, np.float32), count)
     real = getattr(clouds, "real_scales", None) or [None] * len(clouds.object_ids)
@@ -414,9 +346,10 @@ def synthesis_rows(
     pose = synthesize(
         model, clouds, obj, scale, points, generator, config.latent_prior, config.latent_temperature, fixed_clouds, config.anchor_rule,
         config.neighbour_clouds, config.anchor_region_m, config.debias_training, config.match_candidates,
-        config.debias_codes, config.yaw_candidates,
+        config.debias_codes, config.yaw_candidates, np.tile(plan, len(object_ids)),
     )
-    return SampledRows(hand_pose=pose, object_id=[clouds.object_ids[i] for i in obj], scale=scale, method=[label] * len(obj))
+    types = [model.grasp_types[t] for t in plan.tolist()] * len(object_ids)
+    return SampledRows(hand_pose=pose, object_id=[clouds.object_ids[i] for i in obj], scale=scale, method=[label] * len(obj), grasp_type=types)
 
 
 def ladder_rows(
@@ -456,8 +389,11 @@ def ladder_rows(
         scale = np.asarray(training_grasps["scale"], dtype=np.float32)[rows]
         obj = np.array([clouds.index_of[str(o)] for o in known_ids[rows]])
         origin, direction = grasp_rays(hand, known)
-        pose = reconstruct(model, clouds, known, origin, direction, obj, scale, points, fixed_clouds, generator)
-        parts.append(SampledRows(pose, [str(o) for o in known_ids[rows]], scale, [RECONSTRUCTION] * len(rows), known.cpu().numpy()))
+        types = np.asarray(training_grasps.get("grasp_type") or [DEFAULT_GRASP_TYPE] * len(known_ids), dtype=object)[rows]
+        pose = reconstruct(model, clouds, known, origin, direction, obj, scale, points, fixed_clouds, generator,
+                           type_codes(types, model.type_vocabulary))
+        parts.append(SampledRows(pose, [str(o) for o in known_ids[rows]], scale, [RECONSTRUCTION] * len(rows), known.cpu().numpy(),
+                                 [str(t) for t in types]))
     present = [o for o in object_ids if o in clouds.index_of]
     prior_count = cap or config.synthesis_grasps_per_object
     if present and prior_count > 0:

@@ -17,7 +17,7 @@ import pandas as pd
 
 from dexlite_pipeline.atomic import atomic_path
 from dexlite_pipeline.curation.config import IMPORTED_ORIGIN
-from dexlite_pipeline.io.grasp_store import GraspSet, read_grasp_store
+from dexlite_pipeline.io.grasp_store import GRASP_TYPE, GraspSet, grasp_types, read_grasp_store
 from dexlite_pipeline.model.config import LOSS_TERMS, TrainConfig
 from dexlite_pipeline.model.training import TrainingResult
 
@@ -30,7 +30,7 @@ def read_lift_shards(paths: list[str]) -> GraspSet:
     ``contact_index`` (the contacts their optimization from scratch chose) is kept for optimized grasps and set to
     -1 for imported ones, so the loss searches contacts for those: an imported grasp's
     ``contact_index`` is the four pads nearest the surface that curation scored it at, not
-    contacts it was made with.
+    contacts it was made with. ``grasp_type`` is each grasp's type (power for a shard without types).
     """
     keep = ("hand_pose", "object_id", "scale", "lift_success")
     sets = []
@@ -44,6 +44,7 @@ def read_lift_shards(paths: list[str]) -> GraspSet:
             imported = np.asarray(grasps.arrays.get("origin", np.full(len(grasps), "", dtype=object)) == IMPORTED_ORIGIN, bool)
             contacts[imported] = -1
             arrays["contact_index"] = contacts
+            arrays[GRASP_TYPE] = grasp_types(grasps)
             sets.append(GraspSet(arrays, {}))
     return GraspSet.concatenate(sets)
 
@@ -85,7 +86,7 @@ class TrainedModel:
 
     result: TrainingResult
     facts: dict  # seed, steps, grasp counts, object ids, exclusions, fit rung, versions (JSON-ready)
-    training_grasps: dict  # hand_pose (N, 28), object_id (N,), scale (N,) of the training split
+    training_grasps: dict  # hand_pose (N, 28), object_id (N,), scale (N,), grasp_type (N,) of the training split
     train: TrainConfig  # config section ``train`` it was trained with
 
 
@@ -144,7 +145,13 @@ def train_from_lift_shards(
     object_ids = sorted(set(grasps.object_id.tolist()))
     assets = [load_asset(objects_dirs, oid) for oid in object_ids]
     hand = ShadowHand(device)
-    data = build_training_data(grasps, assets, hand, device)
+    initial_model = None
+    if initial_model_path is not None:
+        from dexlite_pipeline.model.checkpoint import load_checkpoint
+
+        initial_model = load_checkpoint(initial_model_path, device)[0]
+    # a warm start keeps its model's grasp types; a fresh model is conditioned on the grasps' own
+    data = build_training_data(grasps, assets, hand, device, initial_model.type_vocabulary if initial_model is not None else None)
     margin_m = self_penetration_margin_m
     planes = load_support_planes(table, stability_path)
     energy = GraspEnergy.from_assets(
@@ -153,11 +160,6 @@ def train_from_lift_shards(
     )
     train_index, val_index = split_validation(len(grasps), settings.validation_fraction, seed)
     energy_terms = grasp_energy_terms(energy, settings.contact_samples, seed)
-    initial_model = None
-    if initial_model_path is not None:
-        from dexlite_pipeline.model.checkpoint import load_checkpoint
-
-        initial_model = load_checkpoint(initial_model_path, device)[0]
     result = train_cvae(
         data, train_index, val_index, settings, energy_terms, seed, on_epoch=_log_epoch, table=planes is not None, initial_model=initial_model
     )
@@ -177,8 +179,10 @@ def train_from_lift_shards(
         "excluded_grasps": excluded,
         "torch_version": torch.__version__,
         "fit": fit,
+        "train_grasp_types": {name: int(count) for name, count in zip(*np.unique(grasps.arrays[GRASP_TYPE][train_index], return_counts=True))},
     }
-    training_grasps = {"hand_pose": grasps.hand_pose[train_index], "object_id": grasps.object_id[train_index], "scale": grasps.scale[train_index]}
+    training_grasps = {"hand_pose": grasps.hand_pose[train_index], "object_id": grasps.object_id[train_index], "scale": grasps.scale[train_index],
+                       "grasp_type": grasps.arrays[GRASP_TYPE][train_index]}
     return TrainedModel(result=result, facts=facts, training_grasps=training_grasps, train=settings)
 
 

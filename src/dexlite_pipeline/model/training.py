@@ -125,7 +125,7 @@ def batch_loss(
     condition = model.condition(clouds, batch.cloud_index, point_index)
     noise = torch.randn(len(index), model.config.latent_dim, generator=generator).to(device)
     anchor = model.pose_anchors(anchor_at(clouds, batch.cloud_index, point_index), target)
-    decoded, mu, log_var = model(target, condition, anchor, noise)
+    decoded, mu, log_var = model(target, condition, anchor, noise, data.grasp_type[index])
     terms = {"recon": reconstruction_error(decoded, target), "kl": kl_divergence(mu, log_var)}
     loss_terms = tuple(weights)  # LOSS_TERMS (+ TABLE_TERM on a table)
     energy_names = tuple(name for name in loss_terms if name not in ("recon", "kl"))
@@ -182,7 +182,9 @@ def train_cvae(
     torch.manual_seed(seed)
     if initial_model is not None and initial_model.config != config.model:
         raise ValueError(f"warm start: the model's network config {initial_model.config} differs from train.model {config.model}")
-    model = GraspCVAE(config.model).to(device) if initial_model is None else initial_model.to(device)
+    if initial_model is not None and initial_model.type_vocabulary != data.type_vocabulary:
+        raise ValueError(f"warm start: the model's grasp types {initial_model.type_vocabulary} differ from the data's {data.type_vocabulary}")
+    model = GraspCVAE(config.model, data.type_vocabulary).to(device) if initial_model is None else initial_model.to(device)
     optimizer = torch.optim.Adam(model.parameters(), lr=config.learning_rate)
     weights = config.weights(table)
     batch_rng = np.random.default_rng(seed)
@@ -271,10 +273,10 @@ def encode_training_grasps(
         point_index = nearest_to_ray(clouds[batch.cloud_index], data.ray_origin[rows], data.ray_direction[rows])
         condition = model.condition(clouds, batch.cloud_index, point_index)
         anchor = model.pose_anchors(anchor_at(clouds, batch.cloud_index, point_index), target)
-        mu, log_var = model.encode(target, condition, anchor)
+        mu, log_var = model.encode(target, condition, anchor, data.grasp_type[rows])
         mus.append(mu)
         log_vars.append(log_var)
-        decoded.append(model.decode(mu, condition, anchor))
+        decoded.append(model.decode(mu, condition, anchor, data.grasp_type[rows]))
         grasp_ids.append(batch.grasp_index)
         local.append(condition)
     # batches group grasps by cloud: put the rows back in the order of ``index``
@@ -287,13 +289,16 @@ def encode_training_grasps(
 
 
 def fit_training_codes(model: GraspCVAE, data: TrainingData, index: np.ndarray, config: TrainConfig) -> dict[str, float]:
-    """Store the training grasps' codes in ``model`` (for aggregate-prior sampling); return the fit rung's pose errors.
+    """Store the training grasps' codes (with their conditions, clouds and types) in ``model`` (for aggregate-prior
+    sampling); return the fit rung's pose errors.
 
     The errors are those of the encoder-mean reconstructions of grasps ``index``: median
     palm rotation error (deg), median palm translation error (mm), mean joint error (rad).
     """
     mu, log_var, decoded, condition = encode_training_grasps(model, data, index, config)
-    model.set_latent_codes(mu, log_var, condition, torch.as_tensor(data.cloud_key[np.asarray(index)], dtype=torch.long))
+    index_tensor = torch.as_tensor(np.asarray(index), dtype=torch.long, device=data.grasp_type.device)
+    model.set_latent_codes(mu, log_var, condition, torch.as_tensor(data.cloud_key[np.asarray(index)], dtype=torch.long),
+                           data.grasp_type[index_tensor])
     rotation, translation, joints = pose_errors(features_to_pose(decoded), features_to_pose(data.pose_features[torch.as_tensor(index)]))
     return {
         "grasps": int(len(index)),

@@ -35,6 +35,7 @@ import torch
 
 from dexlite_pipeline.energy.contact_slots import CONTACT_COUNT, ContactSlots
 from dexlite_pipeline.hand.model import JOINT_NAMES, ShadowHand
+from dexlite_pipeline.model.type_condition import interleaved_plan
 from dexlite_pipeline.optim.init import MEAN_OPEN_POSE
 
 # A finger folded away from a precision grasp: proximal, middle and distal flexion (rad).
@@ -149,6 +150,18 @@ def contact_slots(hand: ShadowHand, type_codes: torch.Tensor) -> ContactSlots:
     return ContactSlots.from_templates([contact_template(hand, GRASP_TYPES[name]) for name in TYPE_NAMES], type_codes)
 
 
+def slots_of_types(hand: ShadowHand, type_names) -> ContactSlots | None:
+    """The ``ContactSlots`` of grasps of the named types (e.g. a store's ``grasp_type``), or None when every one is power
+    (any pad: the same draws as before grasp types). ValueError naming an unknown type."""
+    names = [str(t) for t in type_names]
+    unknown = sorted(set(names) - set(TYPE_NAMES))
+    if unknown:
+        raise ValueError(f"unknown grasp type(s) {', '.join(unknown)} (known: {', '.join(TYPE_NAMES)})")
+    if all(name == "power" for name in names):
+        return None
+    return contact_slots(hand, torch.as_tensor([TYPE_NAMES.index(name) for name in names], dtype=torch.long))
+
+
 def normalized_shares(shares: Mapping[str, float]) -> dict[str, float]:
     """``shares`` (type name -> weight ≥ 0) divided by their sum, in ``TYPE_NAMES`` order, zero shares left out.
 
@@ -174,11 +187,4 @@ def assign_types(shares: Mapping[str, float], count: int) -> np.ndarray:
     """
     weights = normalized_shares(shares)
     codes = np.array([TYPE_NAMES.index(name) for name in weights], dtype=np.int64)
-    share = np.array(list(weights.values()))
-    assigned = np.zeros(len(codes))
-    out = np.empty(count, dtype=np.int64)
-    for j in range(count):
-        pick = int(np.argmax((j + 1) * share - assigned))
-        assigned[pick] += 1
-        out[j] = codes[pick]
-    return out
+    return codes[interleaved_plan(np.array(list(weights.values())), count)]

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
+from dexlite_pipeline.energy.contact_slots import ContactSlots
 from dexlite_pipeline.energy.grasp_energy import TERM_NAMES, GraspEnergy
 from dexlite_pipeline.optim.config import PostOptimizeConfig
 from dexlite_pipeline.optim.annealing import optimize
@@ -64,8 +65,13 @@ def refine(
     config: PostOptimizeConfig,
     generator: torch.Generator,
     start_contacts: str = "surface",
+    slots: ContactSlots | None = None,
 ) -> RefinedGrasps:
     """Post-optimize ``init_pose`` (B, 28) in batches of ``config.batch_size``.
+
+    ``slots`` (B grasps; ``optim.grasp_types.contact_slots``): each grasp's contacts, at the start, in the walk and in the
+    final search, come from its grasp type's contact template only, so a sampled pinch is refined as a pinch; None:
+    any pads (power grasps).
 
     Returns the refined pose (``hand_pose``), the initial one (``raw_hand_pose``), every
     energy term before (``raw_*``) and after, E_post at every iteration (``energy_trace``,
@@ -83,15 +89,16 @@ def refine(
     for start in range(0, init_pose.shape[0], config.batch_size):
         rows = slice(start, start + config.batch_size)
         pose, obj, sc = init_pose[rows], object_index[rows], scale[rows]
+        part = None if slots is None else slots.take(torch.arange(init_pose.shape[0])[rows])
         with torch.no_grad():
-            contacts = energy.nearest_contacts(energy.hand.forward(pose), obj, sc)
+            contacts = energy.nearest_contacts(energy.hand.forward(pose), obj, sc, part)
             if config.start_contact_samples > 0:
-                contacts = energy.best_contacts(pose, obj, sc, contacts, config.start_contact_samples, generator)
+                contacts = energy.best_contacts(pose, obj, sc, contacts, config.start_contact_samples, generator, slots=part)
             before = energy(pose, object_index=obj, scale=sc, contact_index=contacts)
         contacts = contacts if start_contacts == "surface" else None
         result = optimize(
             energy, pose, obj, sc, annealing, generator, contact_index=contacts, progress=_log_progress, progress_every=50,
-            snapshot_iterations=config.budget(),
+            snapshot_iterations=config.budget(), contact_slots=part,
         )
         trace_iterations = result.trace_iterations.cpu().numpy()
         chunk = {

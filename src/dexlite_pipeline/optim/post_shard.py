@@ -14,8 +14,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 import torch
 
-from dexlite_pipeline.io.grasp_store import GraspSet
+from dexlite_pipeline.io.grasp_store import GRASP_TYPE, GraspSet, grasp_types
 from dexlite_pipeline.energy.grasp_energy import GraspEnergy, max_scale_by_object
+from dexlite_pipeline.optim.grasp_types import slots_of_types
 from dexlite_pipeline.optim.post import RefinedGrasps, refine
 
 if TYPE_CHECKING:
@@ -40,7 +41,7 @@ def _store_arrays(grasps: GraspSet, refined: RefinedGrasps, reasons: np.ndarray,
 
 
 def _unrefined_arrays(grasps: GraspSet, reasons: np.ndarray, method: np.ndarray) -> dict[str, np.ndarray]:
-    """Rows not optimized: the raw poses with their reasons, refined pose NaN."""
+    """Rows not optimized: the raw poses with their reasons and grasp types, refined pose NaN."""
     return {
         "hand_pose": np.full_like(grasps.hand_pose, np.nan),
         "raw_hand_pose": grasps.hand_pose.copy(),
@@ -48,6 +49,7 @@ def _unrefined_arrays(grasps: GraspSet, reasons: np.ndarray, method: np.ndarray)
         "scale": grasps.scale,
         "method": method,
         "failure_reason": reasons,
+        GRASP_TYPE: grasp_types(grasps),
     }
 
 
@@ -66,7 +68,8 @@ def post_optimize_shard(
     In tabletop mode (``scene.table``; resting poses from ``stability_path``) E_post includes E_table,
     sampled starts below the table are first raised above it (``raise_above_table``; the shift is
     stored as ``start_table_shift_m``), the random starts come from above it, and every row records
-    its support plane. Rows of an object without a resting pose carry that reason and are not optimized.
+    its support plane. Rows of an object without a resting pose carry that reason and are not optimized. Each sampled
+    row keeps its ``grasp_type`` and is refined with its type's contact template (``grasp_types.slots_of_types``).
     The refined rows' ``seconds_per_grasp`` (attributes) is the CPU time of the whole stage up to the end of their
     refinement (reading the stores, building the energy, raising starts, refining) over their number, as optimization
     from scratch counts its own; the baseline's, its starts and refinement.
@@ -117,7 +120,7 @@ def post_optimize_shard(
         obj = energy.object_index(rows.object_id)
         scale = torch.as_tensor(rows.scale, dtype=torch.float32, device=device)
         pose = torch.as_tensor(rows.hand_pose, dtype=torch.float32, device=device) if init_pose is None else init_pose
-        return refine(energy, pose, obj, scale, settings, generator, start_contacts)
+        return refine(energy, pose, obj, scale, settings, generator, start_contacts, slots_of_types(hand, grasp_types(rows)))
 
     if valid.any():
         starts = sampled.select(valid)
@@ -143,6 +146,7 @@ def post_optimize_shard(
         arrays = _unrefined_arrays(sampled, reasons, method)
 
     targets = sampled.select(valid & (method == SYNTHESIS) & settings.random_baseline)
+    targets.arrays[GRASP_TYPE] = np.full(len(targets), "power", dtype=object)  # convex-hull starts: power grasps
     random_attrs = {**attrs, "stage": "post_optimize_random_baseline", "random_baseline": settings.random_baseline}
     if len(targets):
         obj = energy.object_index(targets.object_id)

@@ -197,6 +197,14 @@ def load_model(path: str, device: torch.device) -> tuple:
     return _load_file("--model", path, lambda file: load_checkpoint(file, device), "model file")
 
 
+def model_type_problem(path: str | None, loaded: tuple | None, grasp_type: str) -> str | None:
+    """Why the loaded model at ``path`` cannot make ``grasp_type`` grasps (``--grasp-type``), naming the file; None when it can."""
+    from dexlite_pipeline.model.type_condition import refusal
+
+    reason = refusal(loaded[0].type_vocabulary, grasp_type) if loaded is not None else ""
+    return f"--model {path}: {reason} (--grasp-type {grasp_type})" if reason else None
+
+
 def load_grasp_evaluator(path: str, device: torch.device) -> tuple:
     """The grasp evaluator and its meta of ``path``, or a one-line ``GraspToolError``."""
     from dexlite_pipeline.model.evaluator import load_evaluator
@@ -230,6 +238,9 @@ def check_request(request: GraspRequest) -> CheckedRequest:
     if request.evaluator and not request.model:
         raise GraspToolError("--evaluator ranks a model's samples: it needs a model (not --from-scratch)")
     loaded = load_model(request.model, device) if request.model else None
+    type_problem = model_type_problem(request.model, loaded, config.sample.grasp_type)
+    if type_problem:
+        raise GraspToolError(type_problem)
     evaluator = load_grasp_evaluator(request.evaluator, device) if request.evaluator else None
     sizes, not_tried, refusals = {}, [], []
     for source in sources:

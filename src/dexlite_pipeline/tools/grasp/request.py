@@ -53,6 +53,7 @@ class GraspRequest:
     threads: int = 1
     renders_per_object: int = DEFAULT_RENDERS_PER_OBJECT
     upright_axis: str | None = None  # tabletop mode: the mesh axis pointing up (None: the mesh's stable pose)
+    grasp_type: str = "any"  # the grasps' type: any (the model's training mix; optimization's configured shares) or one type
 
 
 @dataclass

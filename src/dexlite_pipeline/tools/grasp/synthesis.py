@@ -104,7 +104,9 @@ def synthesize_with_model(
     device: torch.device, seed: int, support_planes: SupportPlanes | None = None, evaluator: tuple | None = None,
 ) -> GraspSet:
     """``n`` CVAE samples per object, refined by post-optimization (sections ``sample``, ``post_optimize``); with an
-    ``evaluator`` (model, meta), ``evaluator.pool_factor`` x ``n`` samples per object ranked, the ``n`` best distinct kept."""
+    ``evaluator`` (model, meta), ``evaluator.pool_factor`` x ``n`` samples per object ranked, the ``n`` best distinct kept.
+    Each sample is of the type ``sample.grasp_type`` asks for (``type_condition.requested_codes``), refined with that type's
+    contact template, and records it in ``grasp_type``."""
     import torch
 
     from dexlite_pipeline.energy.config import EnergyConfig
@@ -113,8 +115,10 @@ def synthesize_with_model(
     from dexlite_pipeline.io.grasp_store import GraspSet
     from dexlite_pipeline.model.checkpoint import cloud_reading
     from dexlite_pipeline.model.data import ObjectClouds
-    from dexlite_pipeline.optim.post import refine
     from dexlite_pipeline.model.sampling import synthesize
+    from dexlite_pipeline.model.type_condition import requested_codes
+    from dexlite_pipeline.optim.grasp_types import slots_of_types
+    from dexlite_pipeline.optim.post import refine
 
     sample_config, post_config = config.sample, config.post_optimize
     model, checkpoint = loaded
@@ -122,6 +126,7 @@ def synthesize_with_model(
     clouds = ObjectClouds(assets, device)
     drawn = n * (config.evaluator.pool_factor if evaluator is not None else 1)  # samples drawn per object
     object_index = np.repeat(np.arange(len(assets)), drawn)
+    types = np.tile(requested_codes(model.type_vocabulary, model.codes_type.cpu().numpy(), sample_config.grasp_type, drawn), len(assets))
     scale = np.concatenate([np.resize(np.asarray(scales[a.object_id], np.float32), drawn) for a in assets])
     training_scales = (checkpoint.get("training_grasps") or {}).get("scale")
     # the training grasps' scales (a model trained at real sizes has many), else the configured ones
@@ -140,13 +145,13 @@ def synthesize_with_model(
     poses = synthesize(
         model, clouds, object_index, scale, points, generator, prior, sample_config.latent_temperature, fixed, anchor_rule,
         sample_config.neighbour_clouds, sample_config.anchor_region_m, sample_config.debias_training, sample_config.match_candidates,
-        sample_config.debias_codes, sample_config.yaw_candidates,
+        sample_config.debias_codes, sample_config.yaw_candidates, types,
     )
     scores = None
     if evaluator is not None:
         ids = np.asarray([assets[i].object_id for i in object_index], dtype=object)
         chosen, scores = rank_samples(poses, ids, scale, clouds, evaluator, n, config, support_planes)
-        poses, object_index, scale = poses[torch.as_tensor(chosen, device=poses.device)], object_index[chosen], scale[chosen]
+        poses, object_index, scale, types = poses[torch.as_tensor(chosen, device=poses.device)], object_index[chosen], scale[chosen], types[chosen]
     if support_planes is not None:  # tabletop: samples whose hand starts below the table are raised above it first
         from dexlite_pipeline.energy.table_clearance import raise_above_table
 
@@ -162,13 +167,16 @@ def synthesize_with_model(
         max_scale=max_scale_by_object([assets[i].object_id for i in object_index], scale),
     )  # fmt: skip
     log.info("post-optimizing %d grasps, %d iterations", len(object_index), post_config.annealing.iterations)
+    type_names = np.asarray([model.grasp_types[t] for t in types.tolist()], dtype=object)
     refined = refine(
-        energy, poses, torch.as_tensor(object_index, device=device), torch.as_tensor(scale, device=device), post_config, generator, "surface"
+        energy, poses, torch.as_tensor(object_index, device=device), torch.as_tensor(scale, device=device), post_config, generator, "surface",
+        slots_of_types(hand, type_names),
     )
     arrays = {k: v for k, v in refined.arrays.items() if not k.startswith("trace_") and k != "energy_trace"}
     arrays["object_id"] = np.asarray([assets[i].object_id for i in object_index], dtype=object)
     arrays["scale"] = scale
     arrays["method"] = np.full(len(object_index), "cvae_post", dtype=object)
+    arrays["grasp_type"] = type_names
     if scores is not None:
         arrays["evaluator_score"] = scores  # the evaluator's predicted chance that the sampled pose holds once refined
     return GraspSet(arrays)
