@@ -12,6 +12,7 @@ import torch
 
 from dexlite_pipeline.config import ConfigError
 from dexlite_pipeline.energy.config import EnergyConfig
+from dexlite_pipeline.energy.grasp_energy import GraspEnergy
 from dexlite_pipeline.objects.rest_pose import SupportPlane
 from dexlite_pipeline.optim.config import GraspTypeShares, HopelessStopConfig, InitConfig
 from dexlite_pipeline.optim.from_scratch import StartDrawer, synthesize
@@ -221,3 +222,38 @@ def test_grasp_type_shares_config():
 
 def test_config_names_every_grasp_type():
     assert tuple(GraspTypeShares().shares()) == TYPE_NAMES
+
+
+# A pinch touches the object with the thumb, index and middle fingertips (its template) and, beside them, at most
+# those fingers' middle phalanges; never the palm, the ring or little finger, or a proximal phalanx.
+PINCH_TOUCH = {f"robot0:{finger}{part}" for finger in ("th", "ff", "mf") for part in ("distal", "middle")}
+TOUCH_M = 0.002  # a hand surface point this close to the object surface, or inside it, touches
+
+
+def touching_links(hand, grasps, asset) -> list[set[str]]:
+    """Per grasp, the links with a surface point within ``TOUCH_M`` of the object's surface or inside it."""
+    energy = GraspEnergy.from_assets(hand, [asset], EnergyConfig(object_point_spacing_m=0.004))
+    pose = torch.as_tensor(grasps.hand_pose)
+    points = hand.surface_points(hand.forward(pose))
+    depth, _ = energy.bank.signed_distance(points, torch.zeros(len(pose), 1, dtype=torch.long), torch.as_tensor(grasps.scale)[:, None])
+    names = np.asarray(hand.link_names, dtype=object)[hand.surface_link.cpu().numpy()]
+    return [set(names[(row > -TOUCH_M).numpy()].tolist()) for row in depth]
+
+
+def test_grasp_type_pinch_makes_only_pinches_touching_with_the_pinch_fingers(box, hand, one_torch_thread):
+    """``dexlite grasp --grasp-type pinch``'s optimization from scratch (the top-up, --from-scratch): every grasp is a pinch and
+    touches the box only with the pinch's fingertips and the phalanges beside them; power grasps asked the same way do not."""
+    from dexlite_pipeline.api import typed_config
+    from dexlite_pipeline.tools.grasp.checks import tool_config
+    from dexlite_pipeline.tools.grasp.synthesis import synthesize_from_scratch
+
+    def grasps_of(grasp_type: str):
+        config, _ = tool_config(typed_config({"optimize_grasps": {"annealing": {"iterations": 300}}}, grasp_type))
+        return synthesize_from_scratch(box[1], {"box": (0.1,)}, 8, config, torch.device("cpu"), 0, support_planes=BOX_TABLE)
+
+    pinches = grasps_of("pinch")
+    assert pinches.arrays["grasp_type"].tolist() == ["pinch"] * 8
+    touched = touching_links(hand, pinches, box[1][0])
+    assert all(links and links <= PINCH_TOUCH for links in touched), [sorted(links - PINCH_TOUCH) for links in touched]
+    powers = grasps_of("power")
+    assert any(links - PINCH_TOUCH for links in touching_links(hand, powers, box[1][0]))  # the check tells a power grasp apart
