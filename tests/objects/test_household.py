@@ -169,8 +169,8 @@ def test_household_families_draws_round_robin_over_the_named_families_only(tmp_p
     later = collect_sources(0, [], [], seed=0, household_count=2, household_first=4, household_families=("spatula", "bowl"),
                             household_dir=tmp_path / "b")
     assert [s.object_id for s in later] == ["household-spatula-002", "household-bowl-002"]
-    with pytest.raises(ObjectSourceError, match="objects.household_families: unknown household families 'plate'"):
-        collect_sources(0, [], [], seed=0, household_count=1, household_families=("plate",), household_dir=tmp_path / "c")
+    with pytest.raises(ObjectSourceError, match="objects.household_families: unknown household families 'teapot'"):
+        collect_sources(0, [], [], seed=0, household_count=1, household_families=("teapot",), household_dir=tmp_path / "c")
 
 
 def test_household_source_errors_name_the_key(tmp_path):

@@ -1,6 +1,7 @@
 # The benchmark split (objects always held out) is data the stage reads: editing it reruns the stage.
 BENCHMARK_SPLIT = checkout_file("src/dexlite_pipeline/objects/benchmark_split.yaml")
 HOUSEHOLD_SPLIT = checkout_file("src/dexlite_pipeline/objects/household_split.yaml")
+SHAPES_SPLIT = checkout_file("src/dexlite_pipeline/objects/shapes_split.yaml")
 
 
 rule prepare_objects:
@@ -8,6 +9,7 @@ rule prepare_objects:
         meshes=mesh_dir_files,
         benchmark=BENCHMARK_SPLIT if config["objects"].get("benchmark_heldout", True) else [],
         household_split=HOUSEHOLD_SPLIT if config["objects"].get("household_benchmark_objects", 0) else [],
+        shapes_split=SHAPES_SPLIT if config["objects"].get("shapes_benchmark_objects", 0) else [],
     output:
         catalog=f"{RESULTS}/objects/catalog.parquet",
         config=f"{RESULTS}/objects/prepare_config.json",

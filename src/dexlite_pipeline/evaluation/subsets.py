@@ -54,12 +54,13 @@ def subset_rows(
 
 
 def split_subsets(catalog: pd.DataFrame) -> dict[str, list[str]]:
-    """The named held-out object sets of a run's catalog: the household split's and the benchmark split's prepared
-    objects (a set with none is left out)."""
-    from dexlite_pipeline.objects.sources import benchmark_object_ids, household_benchmark_list
+    """The named held-out object sets of a run's catalog: the household split's, the shapes split's and the benchmark
+    split's prepared objects (a set with none is left out)."""
+    from dexlite_pipeline.objects.sources import benchmark_object_ids, household_benchmark_list, shapes_benchmark_list
 
     prepared = set(catalog.loc[catalog["status"] == "ok", "object_id"])
-    named = {"household split": household_benchmark_list(), "benchmark split": sorted(benchmark_object_ids())}
+    named = {"household split": household_benchmark_list(), "shapes split": shapes_benchmark_list(),
+             "benchmark split": sorted(benchmark_object_ids())}
     return {name: [o for o in ids if o in prepared] for name, ids in named.items() if prepared & set(ids)}
 
 

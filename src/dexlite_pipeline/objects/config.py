@@ -57,10 +57,18 @@ class ObjectsConfig(CoacdSettings):
         0, "training household objects to skip first (in their round-robin order): a campaign batch takes objects "
         "household_first to household_first + household_count", minimum=0)
     household_families: tuple[str, ...] = setting(
-        (), "the household families training objects are drawn from, round-robin in this order (empty: every family): a "
-        "campaign batch for the families with the fewest grasps (ids, and so objects, do not depend on it)")
+        (), "the household families training objects are drawn from, round-robin in this order (empty: the original twelve; "
+        "the shape families, plate ... toy_figure, only when named): a campaign batch for the families with the fewest grasps "
+        "(ids, and so objects, do not depend on it)")
+    household_variants: tuple[int, ...] = setting(
+        (0,), "of each training household instance, these perturbation variants in this order (0: as generated; k >= 1: "
+        "household-<family>-<NNN>-p<k>, dented, bumped, scaled, bent, noisy; objects/perturb.py): [0, 1] adds a perturbed "
+        "copy after each instance, [1] draws perturbed ones only", min_items=1, unique_items=True, items={"minimum": 0})
     household_benchmark_objects: int = setting(
         0, "the first this many objects of the household split (objects/household_split.yaml), held out", minimum=0)
+    shapes_benchmark_objects: int = setting(
+        0, "the first this many objects of the shapes split (objects/shapes_split.yaml: shape families and perturbed "
+        "instances, never trained on), held out", minimum=0)
     mesh_dirs: tuple[str, ...] = setting((), "folders of .obj/.stl meshes to add", required=True)
     heldout_mesh_dirs: tuple[str, ...] = setting((), "folders whose meshes are always held out for evaluation", required=True)
     heldout_fraction: float = setting(0.2, "of the remaining objects, held out by a seeded split", minimum=0, maximum=1)

@@ -6,8 +6,9 @@ test keeps the file orientation). Object ids are stable, filesystem-safe and uni
 ``pb-<name>`` for named pybullet meshes, ``pb-random-NNN`` for the procedural
 ``random_urdfs``, ``user-<stem>`` for the user's meshes (with a short path hash appended
 only when two user files share a stem), ``household-<family>-<NNN>`` for the household
-objects the project generates (``objects.household``; their meshes are written as .obj files
-in metres into a folder of the run, and their real radius is recorded).
+objects the project generates, ``household-<family>-<NNN>-p<k>`` for their perturbed variants
+(``objects.household``; their meshes are written as .obj files in metres into a folder of the run,
+and their real radius is recorded).
 """
 
 from __future__ import annotations
@@ -58,7 +59,7 @@ class MeshSource:
     """One mesh to prepare, with the placement (scale per axis, then rotation) to apply first."""
 
     object_id: str
-    source: str  # pybullet_named, pybullet_random, user, user_heldout, household, household_benchmark
+    source: str  # pybullet_named, pybullet_random, user, user_heldout, household, household_benchmark, household_shapes_benchmark
     file: str
     scale_xyz: tuple[float, float, float] = (1.0, 1.0, 1.0)
     rotation_rpy: tuple[float, float, float] = (0.0, 0.0, 0.0)
@@ -238,30 +239,55 @@ def household_benchmark_list() -> list[str]:
     return [str(o) for o in record.get("object_ids") or []]
 
 
+# The shapes split: instances of the shape families and perturbed instances of every family, always held out, never
+# trained on (``objects.shapes_benchmark_objects`` adds the first N of it to a run).
+SHAPES_SPLIT_FILE = Path(__file__).with_name("shapes_split.yaml")
+
+
+def shapes_benchmark_list() -> list[str]:
+    """Ids of the shapes split's objects (``SHAPES_SPLIT_FILE``), in the split's order."""
+    import yaml
+
+    record = yaml.safe_load(SHAPES_SPLIT_FILE.read_text()) or {}
+    return [str(o) for o in record.get("object_ids") or []]
+
+
+def held_out_household_ids() -> frozenset[str]:
+    """Every id of the household and shapes splits: training draws skip these and every variant of their instances."""
+    return frozenset(household_benchmark_list()) | frozenset(shapes_benchmark_list())
+
+
 def household_sources(training_count: int, benchmark_count: int, folder, training_first: int = 0,
-                      families: tuple[str, ...] = ()) -> list[MeshSource]:
+                      families: tuple[str, ...] = (), variants: tuple[int, ...] = (0,), shapes_count: int = 0) -> list[MeshSource]:
     """Generated household objects: ``training_count`` training ones from the ``training_first``-th on (round-robin
-    over ``families``, every family when empty; never an object of the household split) and the first ``benchmark_count`` of the
-    household split (always held out). Their meshes (metres) are written to ``folder`` as
-    ``<id>.obj``; other ``household-*.obj`` files there (from an earlier, larger run) are removed.
+    over ``families``, the original twelve when empty, each instance in the perturbation ``variants`` given; never an
+    object of the household or shapes split, nor a variant of one), the first ``benchmark_count`` of the household split
+    and the first ``shapes_count`` of the shapes split (both always held out). Their meshes (metres) are written to
+    ``folder`` as ``<id>.obj``; other ``household-*.obj`` files there (from an earlier, larger run) are removed.
     """
     from dexlite_pipeline.objects.household import household_object, training_household_ids, write_mesh_obj
 
-    if training_count <= 0 and benchmark_count <= 0:
+    if training_count <= 0 and benchmark_count <= 0 and shapes_count <= 0:
         return []
-    split = household_benchmark_list()
+    split, shapes = household_benchmark_list(), shapes_benchmark_list()
     if benchmark_count > len(split):
         raise ObjectSourceError(f"objects.household_benchmark_objects: {benchmark_count} asked, the household split ({HOUSEHOLD_SPLIT_FILE.name}) has {len(split)}")
+    if shapes_count > len(shapes):
+        raise ObjectSourceError(f"objects.shapes_benchmark_objects: {shapes_count} asked, the shapes split ({SHAPES_SPLIT_FILE.name}) has {len(shapes)}")
+    if not variants or any(v < 0 for v in variants) or len(set(variants)) != len(variants):
+        raise ObjectSourceError(f"objects.household_variants: must be distinct numbers >= 0 (0: as generated), not {list(variants)}")
     if folder is None:
-        raise ObjectSourceError("objects.household_count / household_benchmark_objects: no folder given to write the generated meshes to")
+        raise ObjectSourceError("objects.household_count / household_benchmark_objects / shapes_benchmark_objects: no folder given to write the generated meshes to")
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     try:
-        training = training_household_ids(training_first + training_count, frozenset(split), families)[training_first:] if training_count > 0 else []
+        training = (training_household_ids(training_first + training_count, held_out_household_ids(), families, tuple(variants))[training_first:]
+                    if training_count > 0 else [])
     except ValueError as error:
         raise ObjectSourceError(f"objects.household_families: {error}") from None
     wanted = [(i, "household", False) for i in training]
     wanted += [(i, "household_benchmark", True) for i in split[:benchmark_count]]
+    wanted += [(i, "household_shapes_benchmark", True) for i in shapes[:shapes_count]]
     sources = []
     for object_id, kind, heldout in wanted:
         generated = household_object(object_id)
@@ -278,7 +304,7 @@ def household_sources(training_count: int, benchmark_count: int, folder, trainin
 
 def rebuilt_source_of(object_id: str, folder) -> MeshSource:
     """The source of an object a run prepared from pybullet_data (``pb-random-NNN``) or the household generator
-    (``household-<family>-NNN``, its mesh written to ``folder``): what rebuilds it from its id alone."""
+    (``household-<family>-NNN[-p<k>]``, its mesh written to ``folder``): what rebuilds it from its id alone."""
     from dexlite_pipeline.objects.household import household_object, parse_household_id, write_mesh_obj
 
     if object_id.startswith("pb-random-"):
@@ -286,12 +312,13 @@ def rebuilt_source_of(object_id: str, folder) -> MeshSource:
     try:
         parse_household_id(object_id)
     except ValueError:
-        raise ObjectSourceError(f"{object_id}: neither a pybullet_data object (pb-random-NNN) nor a household one (household-<family>-NNN)") from None
+        raise ObjectSourceError(f"{object_id}: neither a pybullet_data object (pb-random-NNN) nor a household one (household-<family>-NNN[-p<k>])") from None
     generated = household_object(object_id)
     path = Path(folder) / f"{object_id}.obj"
     path.parent.mkdir(parents=True, exist_ok=True)
     write_mesh_obj(generated.mesh, path)
-    kind = "household_benchmark" if object_id in household_benchmark_list() else "household"
+    kind = ("household_benchmark" if object_id in household_benchmark_list() else
+            "household_shapes_benchmark" if object_id in shapes_benchmark_list() else "household")
     return MeshSource(object_id, kind, str(path), real_radius_m=generated.real_radius_m, metres_per_unit=1.0)
 
 
@@ -307,6 +334,8 @@ def collect_sources(
     household_dir=None,
     household_first: int = 0,
     household_families: tuple[str, ...] = (),
+    household_variants: tuple[int, ...] = (0,),
+    shapes_benchmark_objects: int = 0,
 ) -> list[MeshSource]:
     """Every object to prepare: embedded default, generated household objects, user folders, always-held-out folders.
 
@@ -315,7 +344,8 @@ def collect_sources(
     out), so that a small run is also measured on objects that no model ever trains on.
     ``household_count`` / ``household_benchmark_objects``: generated household objects for
     training (from the ``household_first``-th on, of ``household_families`` or every family) / from the household
-    split (held out), their meshes written to ``household_dir``.
+    split (held out), their meshes written to ``household_dir``; ``household_variants``: the perturbation variants drawn
+    of each training instance; ``shapes_benchmark_objects``: the first this many of the shapes split (held out).
     """
     # A file listed twice (a folder repeated, or in both lists) is one object; held out wins.
     user: dict[str, MeshSource] = {}
@@ -327,5 +357,6 @@ def collect_sources(
         builtin = [dataclasses.replace(s, always_heldout=True) if s.object_id in benchmark else s for s in builtin]
     drawn = {s.object_id for s in builtin}
     builtin += [s for s in benchmark_sources(benchmark_objects) if s.object_id not in drawn]
-    household = household_sources(household_count, household_benchmark_objects, household_dir, household_first, household_families)
+    household = household_sources(household_count, household_benchmark_objects, household_dir, household_first, household_families,
+                                  household_variants, shapes_benchmark_objects)
     return make_ids_unique(builtin + household + list(user.values()))
