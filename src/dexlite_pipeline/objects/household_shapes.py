@@ -35,13 +35,14 @@ def check_solid(mesh, name: str) -> None:
         raise HouseholdMeshError(f"{name}: generated mesh is not a single closed solid ({', '.join(problems)})")
 
 
-def revolve(profile) -> object:
-    """Solid of revolution about z of an (r, z) profile that starts and ends on the axis (outward normals either way)."""
+def revolve(profile, sections: int = REVOLVE_SECTIONS) -> object:
+    """Solid of revolution about z of an (r, z) profile that starts and ends on the axis (outward normals either way),
+    ``sections`` segments around (6: a hexagonal prism-like handle)."""
     import trimesh
 
     profile = np.asarray(profile, dtype=np.float64)
     keep = np.concatenate([[True], np.linalg.norm(np.diff(profile, axis=0), axis=1) > MIN_SPACING])
-    mesh = trimesh.creation.revolve(profile[keep], sections=REVOLVE_SECTIONS)
+    mesh = trimesh.creation.revolve(profile[keep], sections=sections)
     if mesh.volume < 0:
         mesh.invert()
     return mesh
@@ -178,18 +179,6 @@ def uniform(rng, low, high) -> float:
 
 # --------------------------------------------------------------------------- helpers of the shape families
 # (objects/kitchen_families.py, tool_families.py, organic_families.py; none of the original twelve uses them)
-
-
-def revolve_sections(profile, sections: int) -> object:
-    """``revolve`` with ``sections`` segments around the axis (6: a hexagonal prism-like handle)."""
-    import trimesh
-
-    profile = np.asarray(profile, dtype=np.float64)
-    keep = np.concatenate([[True], np.linalg.norm(np.diff(profile, axis=0), axis=1) > MIN_SPACING])
-    mesh = trimesh.creation.revolve(profile[keep], sections=sections)
-    if mesh.volume < 0:
-        mesh.invert()
-    return mesh
 
 
 def hull(points) -> object:

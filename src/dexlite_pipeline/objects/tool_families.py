@@ -11,7 +11,7 @@ import math
 
 import numpy as np
 
-from dexlite_pipeline.objects.household_shapes import boolean, hull, revolve_sections, rod_between, rounded_box, uniform
+from dexlite_pipeline.objects.household_shapes import boolean, hull, revolve, rod_between, rounded_box, uniform
 
 
 def _circle(centre_xy, radius: float, z_values, count: int = 16) -> np.ndarray:
@@ -34,7 +34,7 @@ def build_screwdriver(handle_length, handle_radius, shaft_length, shaft_radius):
 
     r, length = handle_radius, handle_length
     profile = [[0.0, 0.0], [0.7 * r, 0.0], [r, 0.012], [r, length - 0.02], [0.75 * r, length - 0.008], [0.55 * r, length], [0.0, length]]
-    handle = revolve_sections(profile, 6)
+    handle = revolve(profile, sections=6)
     # Turn the hexagon so a flat faces local +x, which the quarter turn about y below sends to -z: it rests on a flat.
     handle.apply_transform(trimesh.transformations.rotation_matrix(math.pi / 6, [0.0, 0.0, 1.0]))
     handle.apply_transform(trimesh.transformations.rotation_matrix(math.pi / 2, [0.0, 1.0, 0.0]))
