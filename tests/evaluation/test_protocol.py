@@ -130,7 +130,8 @@ def test_unpaired_methods_and_runs_without_sampled_stores_draw_over_their_own_ro
 def test_method_grasps_takes_only_pure_cvae_samples():
     sample = _set(["a", "a", "t"], {"method": np.asarray(["cvae_raw", "expansion", "cvae_raw"], dtype=object)})
     raw = method_grasps("cvae_raw", [sample])
-    assert len(raw) == 2 and set(raw.arrays) == {"hand_pose", "object_id", "scale"}
+    assert len(raw) == 2 and set(raw.arrays) == {"hand_pose", "object_id", "scale", "grasp_type"}
+    assert raw.arrays["grasp_type"].tolist() == ["power", "power"]  # a store without types holds power grasps
     assert len(method_grasps("optimization", [sample])) == 3
 
 

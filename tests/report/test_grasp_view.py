@@ -73,11 +73,12 @@ def test_view_shows_one_grasp_at_a_time_with_its_results(tmp_path, tiny_objects)
 def test_view_of_a_failed_grasp_names_the_reason():
     arrays = {"object_id": np.array(["mug"]), "scale": np.array([0.1]), "lift_success": np.array([False]),
               "lift_ratio": np.array([np.nan]), "failure_reason": np.array(["initial penetration"], dtype=object)}
-    assert grasp_label(arrays, 0) == "mug (scale 0.100 m) · not held: initial penetration"
+    assert grasp_label(arrays, 0) == "power grasp · mug (scale 0.100 m) · not held: initial penetration"  # no grasp_type: power
     # dexlite grasp's stores say which synthesis made each grasp, in place of the pipeline's method name
     sourced = {**arrays, "method": np.array(["optimization"], dtype=object), "source": np.array(["optimization"], dtype=object)}
-    assert grasp_label(sourced, 0) == "from the optimization · mug (scale 0.100 m) · not held: initial penetration"
-    assert grasp_label({**arrays, "method": sourced["method"]}, 0).startswith("optimization · mug")
+    sourced["grasp_type"] = np.array(["pinch"], dtype=object)
+    assert grasp_label(sourced, 0) == "from the optimization · pinch grasp · mug (scale 0.100 m) · not held: initial penetration"
+    assert grasp_label({**arrays, "method": sourced["method"]}, 0).startswith("optimization · power grasp · mug")
 
 
 def test_view_size_stays_small_per_grasp(tmp_path, tiny_objects):

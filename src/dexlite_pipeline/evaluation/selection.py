@@ -15,7 +15,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 from dexlite_pipeline.evaluation.config import EvaluateConfig, draw_label
-from dexlite_pipeline.io.grasp_store import GraspSet, invalid_grasp_reasons
+from dexlite_pipeline.io.grasp_store import GRASP_TYPE, GraspSet, grasp_types, invalid_grasp_reasons
 
 PURE_SYNTHESIS = "cvae_raw"  # the sampled stores' method label of pure syntheses on held-out objects
 # Methods read from the sampled / post-optimized stores: method -> (the stores' row label, stage of the store).
@@ -92,7 +92,7 @@ def select_grasps(
         rows = np.flatnonzero(candidate & (object_ids == object_id))
         chosen.extend(sorted(rows[np.argsort(priority[rows], kind="stable")][: cfg.cap_of(method)].tolist()))
     rows = np.asarray(chosen, dtype=np.int64)
-    arrays = {name: grasps.arrays[name][rows] for name in (*SELECTED_ARRAYS, BUDGET_POSES) if name in grasps.arrays}
+    arrays = {name: grasps.arrays[name][rows] for name in (*SELECTED_ARRAYS, BUDGET_POSES, GRASP_TYPE) if name in grasps.arrays}
     arrays["method"] = np.full(len(rows), method, dtype=object)
     arrays["split"] = splits[rows].astype(object)
     arrays["source_row"] = rows
@@ -117,7 +117,8 @@ def method_grasps(method: str, sources: Sequence[GraspSet]) -> GraspSet:
     cvae_raw``) and dataset expansion on train objects; only the former are the
     ``cvae_raw`` method, and their refined versions the ``cvae_post`` method. Every method
     keeps all its attempts: the optimization method's grasps that its synthesis flagged as failing
-    the thresholds too (the equal filter is applied later, to every method alike).
+    the thresholds too (the equal filter is applied later, to every method alike). Each grasp keeps its
+    ``grasp_type`` (power where a store has none), which the report counts.
     """
     parts = []
     for source in sources:
@@ -125,7 +126,7 @@ def method_grasps(method: str, sources: Sequence[GraspSet]) -> GraspSet:
         if method in SAMPLED_METHODS:
             subset = source.select(_labelled(source, SAMPLED_METHODS[method][0]))
         kept = (*SELECTED_ARRAYS, BUDGET_POSES) if all(BUDGET_POSES in src.arrays for src in sources) else SELECTED_ARRAYS
-        parts.append(GraspSet({k: subset.arrays[k] for k in kept}, subset.attrs))
+        parts.append(GraspSet({**{k: subset.arrays[k] for k in kept}, GRASP_TYPE: grasp_types(subset)}, subset.attrs))
     return GraspSet.concatenate(parts, attrs={})
 
 

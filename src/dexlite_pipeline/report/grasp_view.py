@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dexlite_pipeline.report.render import HAND_RGB, OBJECT_RGB, HandVisual, hand_mesh_world, hand_visual, object_mesh_world
+from dexlite_pipeline.report.render import HAND_RGB, OBJECT_RGB, HandVisual, hand_mesh_world, hand_visual, object_mesh_world, type_of
 
 HAND_FACES = 3000  # faces of the whole decimated hand (the full visual mesh has about 20,000)
 OBJECT_FACES = 4000  # an object mesh with more faces is decimated to this many
@@ -165,8 +165,9 @@ def write_grasp_view(path: str | Path, objects, grasps: Sequence[ViewGrasp], tit
 
 
 def grasp_label(arrays: Mapping[str, np.ndarray], row: int) -> str:
-    """A grasp's results in one or two lines: source or method (if any), object, held or not, six-direction pushes, energies."""
-    parts = [f"{arrays['object_id'][row]} (scale {float(arrays['scale'][row]):.3f} m)"]
+    """A grasp's results in one or two lines: source or method (if any), grasp type, object, held or not, six-direction pushes,
+    energies."""
+    parts = [f"{type_of(arrays, row)} grasp", f"{arrays['object_id'][row]} (scale {float(arrays['scale'][row]):.3f} m)"]
     if "source" in arrays:  # dexlite grasp: which synthesis made the grasp (model or optimization)
         parts.insert(0, f"from the {arrays['source'][row]}")
     elif "method" in arrays:

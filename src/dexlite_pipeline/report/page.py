@@ -28,6 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from dexlite_pipeline.report.first_screen import first_screen_html, first_screen_rows
+from dexlite_pipeline.report.grasp_types import grasp_types_html
 from dexlite_pipeline.report.inputs import ReportInputs
 from dexlite_pipeline.report.pictures import grasp_gallery, interactive_view_html
 from dexlite_pipeline.report.plots import budget_plot, convergence_plot, figure_png_base64, histogram_plot, img_tag, success_plot, training_plot
@@ -339,6 +340,9 @@ def build_report_html(inputs: ReportInputs) -> str:
         sections.append("<h2>The run</h2>" + run_facts_html(inputs.run_facts))
     sections.append(measures_section_html(headline, inputs.lift_config))
     sections.append(ladder_html(inputs.metrics))
+    types = grasp_types_html(inputs.simulated, inputs.config)  # only when the grasps hold several types
+    if types:
+        sections.append(types)
     sections += plot_sections_html(inputs, several_splits)
     if inputs.data_loop is not None and len(inputs.data_loop):
         sections.append(data_loop_html(inputs.data_loop))

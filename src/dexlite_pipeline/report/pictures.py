@@ -152,6 +152,7 @@ def grasp_gallery(inputs: ReportInputs) -> str:
     if simulated is None or len(simulated) == 0 or inputs.rendered_per_method == 0:
         return "<p>No simulated grasps to picture.</p>"
     from dexlite_pipeline.hand import ShadowHand
+    from dexlite_pipeline.report.render import type_of
 
     hand = ShadowHand()
     parts = []
@@ -160,7 +161,7 @@ def grasp_gallery(inputs: ReportInputs) -> str:
         for row, _ in pick_examples(simulated, method, inputs.rendered_per_method, inputs.seed):
             headline, detail, css = outcome_of(simulated.arrays, row)
             object_id, scale = str(simulated.object_id[row]), float(simulated.scale[row])
-            facts = [object_id, f"scale {scale:.3f}"]
+            facts = [f"{type_of(simulated.arrays, row)} grasp", object_id, f"scale {scale:.3f}"]
             for key, name in (("penetration_mm", "penetration"), ("contact_distance_mm", "contact distance")):
                 if key in simulated.arrays and np.isfinite(simulated.arrays[key][row]):
                     facts.append(f"{name} {float(simulated.arrays[key][row]):.1f} mm")

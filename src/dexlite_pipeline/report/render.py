@@ -19,6 +19,7 @@ import numpy as np
 import torch
 
 from dexlite_pipeline.hand.model import POSE_DIM, ShadowHand, mujoco_geom
+from dexlite_pipeline.io.grasp_store import DEFAULT_GRASP_TYPE, GRASP_TYPE
 from dexlite_pipeline.objects.assets import find_asset_dir
 
 HAND_RGB = (0.85, 0.55, 0.35)
@@ -217,6 +218,12 @@ def render_grasp_png(
     return data
 
 
+def type_of(arrays, row: int) -> str:
+    """The grasp type of row ``row`` of a store's arrays (``grasp_type``; power in a store without it, as
+    ``grasp_store.grasp_types`` reads it): the pictures' and the 3-D view's labels name it."""
+    return str(arrays[GRASP_TYPE][row]) if GRASP_TYPE in arrays else DEFAULT_GRASP_TYPE
+
+
 def render_store_row(grasps_path: str, index: int, objects_dirs: list[str], out: str, size_px: int = 400) -> None:
     """Render row ``index`` of the grasp store at ``grasps_path`` (hand and object) to the PNG ``out``.
 
@@ -235,7 +242,7 @@ def render_store_row(grasps_path: str, index: int, objects_dirs: list[str], out:
         raise RenderError(f"{grasps_path}: row {index} ({object_id}): hand_pose is not finite at position(s) {', '.join(map(str, bad))}")
     if not np.isfinite(scale) or scale <= 0:
         raise RenderError(f"{grasps_path}: row {index} ({object_id}): scale {scale} is not a positive number")
-    title = f"{object_id}  scale {scale:.3f}  grasp {index}"
+    title = f"{object_id}  scale {scale:.3f}  grasp {index}  {type_of(grasps.arrays, index)}"
     if "lift_success" in grasps.arrays:
         title += "  lift " + ("success" if bool(grasps.arrays["lift_success"][index]) else "failure")
     render_grasp_png(ShadowHand(), grasps.hand_pose[index], object_id, scale, objects_dirs, out=out, title=title, size_px=size_px,

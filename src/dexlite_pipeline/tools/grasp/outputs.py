@@ -44,7 +44,7 @@ def write_grasp_stores(out_dir: Path, tested: GraspSet, kept: GraspSet, attrs: d
 def render_examples(grasps: GraspSet, labels: np.ndarray, objects_dir: Path, out_dir: Path, per_object: int) -> list[Path]:
     """Up to ``per_object`` different held grasps per object as PNGs, the best first (one failure when none held)."""
     from dexlite_pipeline.hand import ShadowHand
-    from dexlite_pipeline.report.render import grasp_table, render_grasp_png
+    from dexlite_pipeline.report.render import grasp_table, render_grasp_png, type_of
 
     hand, written = ShadowHand(), []
     held = np.asarray(grasps.arrays["lift_success"], bool)
@@ -62,7 +62,7 @@ def render_examples(grasps: GraspSet, labels: np.ndarray, objects_dir: Path, out
                 outcome = f"NOT HELD: {str(grasps.arrays['failure_reason'][row] or 'dropped').replace('_', ' ')}"
             path = out_dir / f"{object_id}_{row:04d}.png"
             source = f" (from the {grasps.arrays['source'][row]})" if "source" in grasps.arrays else ""
-            title = f"{object_id}  grasp {row}{source}  object radius {100 * float(grasps.scale[row]):.3g} cm\n{outcome}"
+            title = f"{object_id}  {type_of(grasps.arrays, row)} grasp {row}{source}  object radius {100 * float(grasps.scale[row]):.3g} cm\n{outcome}"
             render_grasp_png(hand, grasps.hand_pose[row], object_id, float(grasps.scale[row]), [str(objects_dir)], out=path, title=title,
                              table=grasp_table(grasps, row))
             written.append(path)
