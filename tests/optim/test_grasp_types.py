@@ -240,20 +240,63 @@ def touching_links(hand, grasps, asset) -> list[set[str]]:
     return [set(names[(row > -TOUCH_M).numpy()].tolist()) for row in depth]
 
 
-def test_grasp_type_pinch_makes_only_pinches_touching_with_the_pinch_fingers(box, hand, one_torch_thread):
-    """``dexlite grasp --grasp-type pinch``'s optimization from scratch (the top-up, --from-scratch): every grasp is a pinch and
-    touches the box only with the pinch's fingertips and the phalanges beside them; power grasps asked the same way do not."""
+def scratch_grasps(assets, grasp_type: str, n: int):
+    """``n`` grasps of the box at scale 0.1 on its table by ``dexlite grasp --grasp-type``'s optimization from scratch
+    (the top-up, --from-scratch), 300 iterations."""
     from dexlite_pipeline.api import typed_config
     from dexlite_pipeline.tools.grasp.checks import tool_config
     from dexlite_pipeline.tools.grasp.synthesis import synthesize_from_scratch
 
-    def grasps_of(grasp_type: str):
-        config, _ = tool_config(typed_config({"optimize_grasps": {"annealing": {"iterations": 300}}}, grasp_type))
-        return synthesize_from_scratch(box[1], {"box": (0.1,)}, 8, config, torch.device("cpu"), 0, support_planes=BOX_TABLE)
+    config, _ = tool_config(typed_config({"optimize_grasps": {"annealing": {"iterations": 300}}}, grasp_type))
+    return synthesize_from_scratch(assets, {"box": (0.1,)}, n, config, torch.device("cpu"), 0, support_planes=BOX_TABLE)
 
-    pinches = grasps_of("pinch")
-    assert pinches.arrays["grasp_type"].tolist() == ["pinch"] * 8
-    touched = touching_links(hand, pinches, box[1][0])
+
+def assert_only_pinches(hand, grasps, asset) -> None:
+    """Every grasp is a pinch and touches the object, only with the pinch's fingers (``PINCH_TOUCH``)."""
+    assert set(grasps.arrays["grasp_type"]) == {"pinch"}
+    touched = touching_links(hand, grasps, asset)
     assert all(links and links <= PINCH_TOUCH for links in touched), [sorted(links - PINCH_TOUCH) for links in touched]
-    powers = grasps_of("power")
+
+
+def test_grasp_type_pinch_makes_only_pinches_touching_with_the_pinch_fingers(box, hand, one_torch_thread):
+    """``dexlite grasp --grasp-type pinch``'s optimization from scratch: every grasp is a pinch and touches the box only with
+    the pinch's fingertips and the phalanges beside them; power grasps asked the same way do not."""
+    assert_only_pinches(hand, scratch_grasps(box[1], "pinch", 8), box[1][0])
+    powers = scratch_grasps(box[1], "power", 8)
     assert any(links - PINCH_TOUCH for links in touching_links(hand, powers, box[1][0]))  # the check tells a power grasp apart
+
+
+def test_a_model_trained_on_pinches_and_power_grasps_asked_for_pinches_gives_only_pinches(box, hand, one_torch_thread, tmp_path):
+    """``dexlite grasp --model M --grasp-type pinch``: a tiny model trained on the box's pinch and power grasps (made by
+    optimization from scratch) samples pinches, refined with the pinch's template, that touch the box only with the pinch's
+    fingers; asked for power grasps it gives grasps that touch with others."""
+    from dexlite_pipeline.io.grasp_store import GraspSet
+    from dexlite_pipeline.model.checkpoint import load_checkpoint, save_checkpoint
+    from dexlite_pipeline.model.config import ModelConfig, TrainConfig
+    from dexlite_pipeline.model.data import build_training_data
+    from dexlite_pipeline.model.training import fit_training_codes, grasp_energy_terms, train_cvae
+    from dexlite_pipeline.tools.grasp.checks import tool_config
+    from dexlite_pipeline.tools.grasp.synthesis import synthesize_with_model
+
+    keep = ("hand_pose", "object_id", "scale", "grasp_type", "contact_index")
+    made = GraspSet.concatenate([GraspSet({k: scratch_grasps(box[1], name, 12).arrays[k] for k in keep}) for name in ("pinch", "power")])
+    data = build_training_data(made, box[1], hand)
+    network = ModelConfig(pointnet_widths=(16, 32, 64, 32), encoder_hidden=(64, 64), decoder_hidden=(64, 64), latent_dim=8, normalization="none")
+    train = TrainConfig(model=network, epochs=100, max_steps=0, batch_size=8, clouds_per_batch=1, points_per_cloud=64, validation_fraction=0.0,
+                        lr_warmup_steps=0)
+    everything = np.arange(len(made))
+    energy = GraspEnergy.from_assets(hand, box[1], EnergyConfig(object_point_spacing_m=0.005))
+    result = train_cvae(data, everything, np.zeros(0, np.int64), train, grasp_energy_terms(energy), seed=0)
+    fit_training_codes(result.model, data, everything, train)
+    save_checkpoint(tmp_path / "cvae.pt", result.model, train, {"seed": 0}, training_grasps={**made.arrays})
+    loaded = load_checkpoint(tmp_path / "cvae.pt")
+    assert loaded[0].type_vocabulary == ("pinch", "power")
+
+    def sampled(grasp_type: str):
+        post = {"annealing": {"iterations": 200}, "budget_iterations": [0], "stop_hopeless": {"iterations": [], "max_e_fc": [], "max_e_dis_m": []}}
+        config, _ = tool_config({"sample": {"grasp_type": grasp_type, "yaw_candidates": 1}, "post_optimize": post})
+        return synthesize_with_model(box[1], {"box": (0.1,)}, 8, config, loaded, str(tmp_path / "cvae.pt"), torch.device("cpu"), seed=0,
+                                     support_planes=BOX_TABLE)
+
+    assert_only_pinches(hand, sampled("pinch"), box[1][0])
+    assert any(links - PINCH_TOUCH for links in touching_links(hand, sampled("power"), box[1][0]))
