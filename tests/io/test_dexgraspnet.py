@@ -182,10 +182,13 @@ def test_export_then_import_round_trip(layout, tmp_path):
     first = import_dexgraspnet(layout["root"], tmp_path / "objects", SMALL_ASSETS, DexGraspNetConfig(), seed=0).grasps
     from dexlite_pipeline.io.grasp_store import write_grasp_store
 
+    assert "grasp_type" not in first.arrays  # a DexGraspNet download: power grasps, a store without the array
+    first.arrays["grasp_type"] = np.resize(np.asarray(["pinch", "power", "tripod"], dtype=object), len(first))
     write_grasp_store(tmp_path / "first.zarr", first)
     assert dexlite(["export-dexgraspnet", str(tmp_path / "first.zarr"), "--out", str(tmp_path / "out"), "--objects", str(tmp_path / "objects")]) == 0
     exported = np.load(tmp_path / "out" / "dataset" / "box.npy", allow_pickle=True)  # our own file
-    assert set(exported[0]) == {"qpos", "scale", "grasp_type"} and exported[0]["grasp_type"] == "power"  # imports are power grasps
+    assert set(exported[0]) == {"qpos", "scale", "grasp_type"}
+    assert [e["grasp_type"] for e in exported] == first.arrays["grasp_type"][first.object_id == "box"].tolist()
     original = np.load(layout["root"] / "dataset" / "box.npy", allow_pickle=True)
     for entry, index in zip(exported, [0, 4, 5]):
         for key, value in original[index]["qpos"].items():
@@ -196,6 +199,7 @@ def test_export_then_import_round_trip(layout, tmp_path):
     np.testing.assert_array_equal(second.grasps.hand_pose, first.hand_pose)
     np.testing.assert_array_equal(second.grasps.scale, first.scale)
     assert list(second.grasps.object_id) == list(first.object_id)
+    assert second.grasps.arrays["grasp_type"].tolist() == first.arrays["grasp_type"].tolist()  # the types come back
     np.testing.assert_allclose(load_asset(tmp_path / "objects2", "box").sdf, load_asset(tmp_path / "objects", "box").sdf, atol=1e-5)
 
 

@@ -38,7 +38,7 @@ from dexlite_pipeline.hand.model import JOINT_NAMES
 from dexlite_pipeline.hand.qpos import QPOS_KEYS, ROTATION_KEYS, TRANSLATION_KEYS, QposError, hand_pose_from_qpos, qpos_from_hand_pose
 from dexlite_pipeline.atomic import atomic_path
 from dexlite_pipeline.io.config import DexGraspNetConfig
-from dexlite_pipeline.io.grasp_store import GRASP_TYPE, GraspSet, empty_grasp_set, grasp_types
+from dexlite_pipeline.io.grasp_store import DEFAULT_GRASP_TYPE, GRASP_TYPE, GraspSet, empty_grasp_set, grasp_types
 from dexlite_pipeline.io.safe_pickle import NpyReadError, RefusedPickleError, load_npy_restricted
 
 log = logging.getLogger(__name__)
@@ -75,6 +75,7 @@ class GraspFileResult:
     scale: np.ndarray  # (n,) float64
     source_index: np.ndarray  # (n,) int64, position in the file
     problems: list[ImportProblem] = field(default_factory=list)
+    grasp_type: list[str] = field(default_factory=list)  # (n,) each grasp's ``grasp_type`` (our export's key), '' where absent
 
 
 @dataclass
@@ -137,6 +138,17 @@ def convert_grasp_entry(entry) -> tuple[np.ndarray, float]:
     return pose, float(scale)
 
 
+def entry_grasp_type(entry: Mapping) -> str:
+    """The ``grasp_type`` our export writes beside ``qpos`` and ``scale`` ('' when the entry has none, as in DexGraspNet's
+    own files); GraspEntryError when it is not a non-empty string."""
+    if GRASP_TYPE not in entry:
+        return ""
+    value = entry[GRASP_TYPE]
+    if not isinstance(value, str) or not value:
+        raise GraspEntryError("wrong_type", f"grasp_type is {value!r}, expected a grasp type name")
+    return value
+
+
 def read_grasp_file(path: Path, root: Path) -> GraspFileResult:
     """Read one ``dataset/<code>.npy`` and convert every grasp it holds that can be used."""
     object_id = path.stem
@@ -161,12 +173,14 @@ def read_grasp_file(path: Path, root: Path) -> GraspFileResult:
     for index, entry in enumerate(entries):
         try:
             pose, scale = convert_grasp_entry(entry)
+            grasp_type = entry_grasp_type(entry)
         except GraspEntryError as exc:
             result.problems.append(ImportProblem(label, object_id, index, 1, exc.kind, str(exc)))
             continue
         poses.append(pose)
         scales.append(scale)
         indices.append(index)
+        result.grasp_type.append(grasp_type)
     if poses:
         result.hand_pose = np.stack(poses)
         result.scale = np.asarray(scales)
@@ -350,8 +364,18 @@ def _grasp_set(results: list[GraspFileResult]) -> GraspSet:
             "scale": np.concatenate([r.scale for r in results]).astype(np.float32),
             "source_file": np.repeat(np.asarray([r.file for r in results], dtype=object), counts),
             "source_index": np.concatenate([r.source_index for r in results]),
+            **_imported_types(results),
         }
     )
+
+
+def _imported_types(results: list[GraspFileResult]) -> dict[str, np.ndarray]:
+    """``grasp_type`` when some imported grasp carries one (a file our export wrote; the others power), else nothing: a
+    DexGraspNet download holds power grasps, which a store without the array means."""
+    types = [t for r in results for t in r.grasp_type]
+    if not any(types):
+        return {}
+    return {GRASP_TYPE: np.asarray([t or DEFAULT_GRASP_TYPE for t in types], dtype=object)}
 
 
 def write_table_atomic(rows: list[dict], columns: tuple[str, ...], path: str | os.PathLike) -> None:
