@@ -3,7 +3,9 @@
 A flat box palm in the x-y plane facing -z, two fingers along +x and a thumb along -y, each of
 capsules on hinges that curl toward -z (flexion toward the upper limit). The root body sits at
 a translated, rotated pose in the world, so a chain that dropped the root's offset would fail
-the FK comparison with MuJoCo. Lengths in metres, angles in radians.
+the FK comparison with MuJoCo. The joints' damping (0.1 N·m·s/rad) and armature (0.001 kg·m²) are the Shadow
+Hand's: without them MuJoCo's position servos on such light links are unstable at the lift test's 2 ms step.
+Lengths in metres, angles in radians.
 """
 
 from __future__ import annotations
@@ -28,6 +30,9 @@ def _finger(name: str, pos: str, axis: str, along: str, lengths: tuple[float, ..
 
 THREE_FINGER_XML = f"""<mujoco model="three_finger">
   <compiler angle="radian" autolimits="true"/>
+  <default>
+    <joint damping="0.1" armature="0.001"/>
+  </default>
   <worldbody>
     <body name="palm" pos="0.1 -0.05 0.2" quat="0.9 0.1 0.3 0.2">
       <geom name="palm_box" type="box" size="0.04 0.035 0.01"/>
