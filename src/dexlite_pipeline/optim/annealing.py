@@ -51,7 +51,9 @@ from dexlite_pipeline.optim.grasp_random import GraspRandom
 
 log = logging.getLogger(__name__)
 
-_T, _R6, _Q = slice(0, 3), slice(3, 9), slice(9, 31)
+# The state's columns: palm translation, palm rotation (6D), and the joints to the end (22 for the Shadow Hand, J for a
+# hand from its MJCF), as a stored pose's joints are its columns from ``JOINTS.start`` on.
+_T, _R6, _Q = slice(0, 3), slice(3, 9), slice(9, None)
 
 
 @dataclass
@@ -76,13 +78,13 @@ class OptimizationResult:
 
 
 def pose_to_state(hand_pose: torch.Tensor) -> torch.Tensor:
-    """(B, 28) stored pose -> (B, 31) optimizer state [t, rot6d, joints]."""
+    """(B, 28) stored pose -> (B, 31) optimizer state [t, rot6d, joints] ((B, 6 + J) -> (B, 9 + J) for any hand)."""
     rot6d = matrix_to_rot6d(euler_xyz_to_matrix(hand_pose[:, ROTATION]))
-    return torch.cat([hand_pose[:, TRANSLATION], rot6d, hand_pose[:, JOINTS]], dim=1)
+    return torch.cat([hand_pose[:, TRANSLATION], rot6d, hand_pose[:, JOINTS.start :]], dim=1)
 
 
 def state_to_pose(state: torch.Tensor) -> torch.Tensor:
-    """(B, 31) optimizer state -> (B, 28) stored pose."""
+    """(B, 31) optimizer state -> (B, 28) stored pose ((B, 9 + J) -> (B, 6 + J) for any hand)."""
     euler = matrix_to_euler_xyz(rot6d_to_matrix(state[:, _R6]))
     return torch.cat([state[:, _T], euler, state[:, _Q]], dim=1)
 

@@ -44,7 +44,9 @@ RESOLUTION_STEPS = 60  # at most this many steps (at base length ≤ 0.3 rad and
 STEP_GROWTH_DEPTH_M = 0.001  # a step is the base step times the grasp's excess depth over this (m) ...
 MAX_STEP_GROWTH = 4.0  # ... at most this many times (0.02 rad, 0.8 mm)
 FINGERS_FIRST_STEPS = 20  # steps in which the palm backs off only where the palm itself is inside
-PALM_LINK = "robot0:palm"  # the link whose shapes move only with the palm (no joint between them)
+PALM_LINK = "robot0:palm"  # the Shadow Hand's root link: its shapes move only with the palm (no joint between them)
+ROOT_LINK = 0  # the root link's index, any hand's (``robot0:palm`` on the Shadow Hand, a description's ``links[0]``)
+JOINT_COLUMNS = slice(JOINTS.start, None)  # a stored pose's joints: 22 on the Shadow Hand, J on a hand from its MJCF
 TABLE_CLEARANCE_M = 1e-4  # the excess pushes each shape's lowest point this far above the table (m), so a grasp ends clear of it
 
 
@@ -119,7 +121,7 @@ def resolve_contacts(
     depth = depth_before.clone()
     taken = torch.zeros(len(pose), dtype=torch.long, device=pose.device)
     limits = energy.hand.joint_limits.to(pose.dtype)
-    palm = energy.hand.shape_link == energy.hand.link_names.index(PALM_LINK)  # (S,) the palm's own shapes
+    palm = energy.hand.shape_link == ROOT_LINK  # (S,) the palm's own shapes
     rows = ((depth > allowed_m) | (table_depth > 0)).nonzero().squeeze(1)
     for step in range(steps):
         if len(rows) == 0:
@@ -144,7 +146,7 @@ def resolve_contacts(
             rows = rows[:0]
             break
         (gradient,) = torch.autograd.grad(whole.sum(), moving, retain_graph=palm_only is not None)
-        joint_gradient, palm_gradient = gradient[:, JOINTS], gradient[:, :3]
+        joint_gradient, palm_gradient = gradient[:, JOINT_COLUMNS], gradient[:, :3]
         if palm_only is not None:  # the palm moves for its own shapes only, while the fingers may still get out alone
             palm_gradient = torch.autograd.grad(palm_only.sum(), moving)[0][:, :3] if bool(palm_only.gt(0).any()) else torch.zeros_like(palm_gradient)
         largest = joint_gradient.abs().amax(dim=1, keepdim=True)
@@ -155,7 +157,7 @@ def resolve_contacts(
         joint_step, palm_step = joint_step * growth, palm_step * growth
         keep = unresolved.nonzero().squeeze(1)  # resolved rows stay where they are
         updated = pose[rows].clone()
-        updated[:, JOINTS] = (updated[:, JOINTS] - joint_step).clamp(limits[:, 0], limits[:, 1])
+        updated[:, JOINT_COLUMNS] = (updated[:, JOINT_COLUMNS] - joint_step).clamp(limits[:, 0], limits[:, 1])
         updated[:, :3] = updated[:, :3] - palm_step
         rows = rows[keep]
         pose[rows] = updated[keep]

@@ -27,6 +27,7 @@ import torch
 
 from dexlite_pipeline.energy.config import EnergyConfig
 from dexlite_pipeline.energy.grasp_energy import TERM_NAMES, GraspEnergy
+from dexlite_pipeline.hand.described import is_described
 from dexlite_pipeline.hand.model import POSE_DIM, ShadowHand
 from dexlite_pipeline.io.grasp_store import GraspSet
 from dexlite_pipeline.objects.assets import ObjectAsset
@@ -39,6 +40,11 @@ from dexlite_pipeline.optim.type_starts import FLOATING_UP, RimSampler, TypeGeom
 from dexlite_pipeline.tabletop import store_arrays
 
 log = logging.getLogger(__name__)
+
+
+def pose_width(hand) -> int:
+    """Numbers in one stored pose of ``hand``: the Shadow Hand's ``POSE_DIM`` (28), 6 + J for a hand from its MJCF."""
+    return hand.pose_dim if is_described(hand) else POSE_DIM
 
 
 def start_rows(object_scales: list[tuple[float, ...]], grasps_per_scale: int, dtype: torch.dtype) -> tuple[torch.Tensor, torch.Tensor]:
@@ -96,7 +102,7 @@ class StartDrawer:
         """(B, 28) starts of the given types, type by type in ``TYPE_NAMES`` order from ``generator``."""
         if bool((types == POWER_CODE).all()):
             return initial_poses(self.hand, self.hulls, object_index, scale, self.config.init, generator, support=support)
-        init = torch.zeros(len(object_index), POSE_DIM, dtype=self.hand.dtype, device=self.hand.device)
+        init = torch.zeros(len(object_index), pose_width(self.hand), dtype=self.hand.dtype, device=self.hand.device)
         for code, name in enumerate(TYPE_NAMES):
             rows = (types == code).nonzero(as_tuple=True)[0]
             if not len(rows):
@@ -117,7 +123,7 @@ def keyed_starts(starts: StartDrawer, assets: list[ObjectAsset], object_index: t
     a type other than power its type's number): an object's starts do not depend on the other objects. ``energy``
     (tabletop mode): its support planes keep the palms above the table."""
     hand = starts.hand
-    init = torch.zeros(len(object_index), POSE_DIM, dtype=hand.dtype)
+    init = torch.zeros(len(object_index), pose_width(hand), dtype=hand.dtype)
     for obj in torch.unique(object_index.cpu()).tolist():
         for code in torch.unique(types).tolist():
             rows = ((object_index.cpu() == obj) & (types == code)).nonzero(as_tuple=True)[0]
@@ -140,6 +146,7 @@ def synthesize(
     support_planes=None,
     object_scales: list[tuple[float, ...]] | None = None,
     keyed_seed: int | None = None,
+    hand: ShadowHand | None = None,
 ) -> tuple[GraspSet, dict]:
     """Optimize ``grasps_per_object`` grasps per object and scale; returns the grasps and run statistics.
 
@@ -152,9 +159,12 @@ def synthesize(
     whichever other objects are optimized beside it (``keyed_starts``, ``GraspRandom``).
     ``config.grasp_types``: the share of each grasp type among each object's starts (``start_types``); the grasps
     record their type in ``grasp_type``.
+    ``hand``: the hand to grasp with, on ``device`` (None: the Shadow Hand). A hand from its MJCF
+    (``hand.described.DescribedHand``) makes power grasps only, and its poses are 6 + J numbers (its joints), so the
+    set is for memory and the lift test (``sim.lift.run_lift_tests(..., hand=)``), not yet for a grasp store.
     """
     started = time.process_time()  # CPU seconds (all threads of this process), not wall time
-    hand = ShadowHand(device)
+    hand = ShadowHand(device) if hand is None else hand
     if object_scales is None:
         object_scales = [tuple(config.scales)] * len(assets)
     if len(object_scales) != len(assets) or not all(object_scales):
@@ -162,6 +172,8 @@ def synthesize(
     object_index, scale = start_rows(object_scales, config.grasps_per_object, hand.dtype)
     types = start_types(sum(len(s) for s in object_scales), config.grasps_per_object, config.grasp_types.shares())
     power_only = bool((types == POWER_CODE).all())
+    if is_described(hand) and not power_only:
+        raise ValueError(f"hand {hand.description.name}: grasp types other than power are not yet defined for hands from an MJCF")
     energy = GraspEnergy.from_assets(hand, assets, energy_config, support_planes=support_planes,
                                      max_scale={a.object_id: max(s) for a, s in zip(assets, object_scales)})
     term_names = tuple(term.name for term in energy.terms)

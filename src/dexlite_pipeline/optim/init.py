@@ -10,6 +10,10 @@ with a uniformly random roll about a; the joints drawn around a mean open pose w
 On a table (tabletop mode) a start whose palm origin would lie below the support plane is
 drawn again (hull point, tilt and distance), so every palm starts above the table; floating
 starts draw exactly what they drew before tabletop mode existed.
+
+A hand from its MJCF (``hand.described.DescribedHand``) starts the same way from its own description: its palm
+frame's origin (the centre of its palm's contact candidates) at the start point, its palm normal tilted toward its
+fingers along the approach, its joints around its open pre-grasp curled a little (``described_start_poses``).
 """
 
 from __future__ import annotations
@@ -18,6 +22,7 @@ import math
 import numpy as np
 import torch
 
+from dexlite_pipeline.hand.described import DescribedHand, is_described
 from dexlite_pipeline.hand.model import JOINT_NAMES, ShadowHand
 from dexlite_pipeline.hand.rotation import matrix_to_euler_xyz
 from dexlite_pipeline.objects.assets import ObjectAsset
@@ -30,6 +35,11 @@ MEAN_OPEN_POSE = {
 }
 # Approach direction in the palm frame: the palmar normal (−y) tilted 30° toward the fingers (+z).
 PALM_APPROACH = (0.0, -math.cos(math.radians(30.0)), math.sin(math.radians(30.0)))
+PALM_TILT_DEG = 30.0  # the same tilt for a hand from its MJCF (``described_start_poses``)
+# A hand from its MJCF starts with each joint this fraction of the way from its open pre-grasp to the limit it flexes
+# toward (the larger-magnitude one; joints with symmetric ranges stay): like the Shadow Hand's mean open pose, a hand
+# slightly curled. On Allegro and a can-sized cylinder (32 starts) the open, flat hand held 1, this 4 (docs/hands.md).
+START_CURL = 0.3
 
 
 def mean_open_joints(hand: ShadowHand) -> torch.Tensor:
@@ -101,22 +111,10 @@ def _palm_origins(hulls: HullSampler, object_index, scale, config: InitConfig, g
     return point - distance * approach, approach
 
 
-def initial_poses(
-    hand: ShadowHand,
-    hulls: HullSampler,
-    object_index: torch.Tensor,
-    scale: torch.Tensor,
-    config: InitConfig,
-    generator: torch.Generator,
-    support: tuple[torch.Tensor, torch.Tensor] | None = None,
-) -> torch.Tensor:
-    """(B, 28) stored hand poses facing each grasp's object from outside its convex hull.
-
-    ``support`` (tabletop mode): per grasp the table's normal (B, 3) and offset in metres (B,);
-    starts with the palm origin below the table are redrawn (``NoStartAboveTable`` if some
-    stay below after ``MAX_TABLE_REDRAWS`` rounds).
-    """
-    batch = object_index.shape[0]
+def start_points(hulls: HullSampler, object_index, scale, config: InitConfig, generator, support=None) -> tuple[torch.Tensor, torch.Tensor]:
+    """Palm origins (B, 3, m) and approach directions (B, 3): ``_palm_origins``, and on a table (``support``: normals (B, 3),
+    offsets (B,) in m) every start whose palm origin lies below it drawn again (``NoStartAboveTable`` after
+    ``MAX_TABLE_REDRAWS`` rounds)."""
     palm_origin, approach = _palm_origins(hulls, object_index, scale, config, generator)
     if support is not None:
         normal, offset = (t.detach().cpu().double() for t in support)
@@ -127,6 +125,62 @@ def initial_poses(
             palm_origin[below], approach[below] = _palm_origins(hulls, object_index.cpu()[below], scale.cpu()[below], config, generator)
         else:
             raise NoStartAboveTable(f"no start above the table after {MAX_TABLE_REDRAWS} redraws for {len(below)} grasps")
+    return palm_origin, approach
+
+
+def curled_pregrasp(hand: DescribedHand) -> torch.Tensor:
+    """(J,) float64 the joints a hand from its MJCF starts around: ``START_CURL`` of the way from its open pre-grasp to
+    each asymmetric joint's larger-magnitude limit (rad)."""
+    limits = hand.joint_limits.cpu().double()
+    open_pose = torch.as_tensor(hand.description.pregrasp, dtype=torch.float64)
+    symmetric = (limits[:, 1].abs() - limits[:, 0].abs()).abs() < 1e-9
+    flexed = torch.where(limits[:, 1].abs() > limits[:, 0].abs(), limits[:, 1], limits[:, 0])
+    return torch.where(symmetric, open_pose, open_pose + START_CURL * (flexed - open_pose))
+
+
+def described_start_poses(hand: DescribedHand, palm_origin: torch.Tensor, approach: torch.Tensor, config: InitConfig,
+                          generator: torch.Generator) -> torch.Tensor:
+    """(B, 6 + J) start poses of a hand from its MJCF (``hand.described``): its palm frame's origin at ``palm_origin``
+    (B, 3, m), its approach (the palm normal tilted ``PALM_TILT_DEG`` toward the fingers, as the Shadow Hand's) along
+    ``approach`` (B, 3) with a uniformly random roll, the joints drawn around its slightly curled pre-grasp
+    (``curled_pregrasp``) with σ = ``joint_sigma_fraction`` of each range, clipped to the limits. Draws in the Shadow
+    Hand's order."""
+    batch = palm_origin.shape[0]
+    hand_a = torch.tensor(hand.approach_local(PALM_TILT_DEG), dtype=torch.float64)
+    hand_b = _unit(torch.linalg.cross(hand_a, torch.tensor(hand.palm_frame_local[:3, 1], dtype=torch.float64)))  # ⟂ a, in the palm's plane
+    hand_frame = torch.stack([hand_a, hand_b, torch.linalg.cross(hand_a, hand_b)], dim=1)
+    world_b = _random_perpendicular(approach, generator)
+    world_frame = torch.stack([approach, world_b, torch.linalg.cross(approach, world_b)], dim=2)
+    rotation = world_frame @ hand_frame.T
+    origin_local = torch.tensor(hand.palm_frame_local[:3, 3], dtype=torch.float64)
+    root_t = palm_origin - (rotation @ origin_local[:, None])[..., 0]
+    limits = hand.joint_limits.cpu().double()
+    sigma = config.joint_sigma_fraction * (limits[:, 1] - limits[:, 0])
+    joints = curled_pregrasp(hand) + sigma * torch.randn(batch, len(hand.joint_names), generator=generator, dtype=torch.float64)
+    joints = torch.maximum(torch.minimum(joints, limits[:, 1]), limits[:, 0])
+    return torch.cat([root_t, matrix_to_euler_xyz(rotation), joints], dim=1).to(hand.device, hand.dtype)
+
+
+def initial_poses(
+    hand: ShadowHand,
+    hulls: HullSampler,
+    object_index: torch.Tensor,
+    scale: torch.Tensor,
+    config: InitConfig,
+    generator: torch.Generator,
+    support: tuple[torch.Tensor, torch.Tensor] | None = None,
+) -> torch.Tensor:
+    """(B, 28) stored hand poses facing each grasp's object from outside its convex hull ((B, 6 + J) for a hand
+    from its MJCF: ``described_start_poses``).
+
+    ``support`` (tabletop mode): per grasp the table's normal (B, 3) and offset in metres (B,);
+    starts with the palm origin below the table are redrawn (``NoStartAboveTable`` if some
+    stay below after ``MAX_TABLE_REDRAWS`` rounds).
+    """
+    batch = object_index.shape[0]
+    palm_origin, approach = start_points(hulls, object_index, scale, config, generator, support)
+    if is_described(hand):
+        return described_start_poses(hand, palm_origin, approach, config, generator)
 
     # Rotation taking the palm-frame approach to ``approach``, with a random roll about it.
     hand_a = torch.tensor(PALM_APPROACH, dtype=torch.float64)

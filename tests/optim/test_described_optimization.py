@@ -1,0 +1,95 @@
+"""Optimization from scratch with a hand from its MJCF: the tests' three-finger hand (15-number poses) on a cylinder,
+and Allegro's starts on a table."""
+
+from __future__ import annotations
+
+import dataclasses
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from described_hands import CYLINDER_ID, three_finger_hand, write_objects  # noqa: E402
+
+from dexlite_pipeline.energy.config import EnergyConfig  # noqa: E402
+from dexlite_pipeline.energy.grasp_energy import GraspEnergy  # noqa: E402
+from dexlite_pipeline.objects.assets import load_asset  # noqa: E402
+from dexlite_pipeline.optim.config import AnnealingSchedule, GraspTypeShares, OptimizeGraspsConfig  # noqa: E402
+
+ENERGY = EnergyConfig(object_point_spacing_m=0.004)
+
+
+@pytest.fixture(scope="module")
+def setting(tmp_path_factory):
+    root = write_objects(tmp_path_factory.mktemp("described_objects"))
+    return three_finger_hand(tmp_path_factory.mktemp("hand")), [load_asset(root, CYLINDER_ID)]
+
+
+def short_config(**changes) -> OptimizeGraspsConfig:
+    base = OptimizeGraspsConfig()
+    return dataclasses.replace(base, grasps_per_object=6, scales=(0.06,), batch_size=6,
+                               annealing=AnnealingSchedule(iterations=150, step_size_period=17, temperature_period=10), trace_every=10,
+                               **changes)
+
+
+def test_optimization_from_scratch_lowers_the_energy_of_the_three_finger_hand(setting, one_torch_thread):
+    """The starts (15 numbers: palm, nine joints) walk down the energy: the kept state's total falls for every grasp."""
+    from dexlite_pipeline.optim.annealing import optimize
+    from dexlite_pipeline.optim.from_scratch import StartDrawer
+
+    hand, assets = setting
+    config = short_config()
+    energy = GraspEnergy.from_assets(hand, assets, ENERGY, max_scale=0.06)
+    object_index, scale = torch.zeros(6, dtype=torch.long), torch.full((6,), 0.06)
+    init = StartDrawer(hand, assets, config).draw(object_index, scale, torch.zeros(6, dtype=torch.long), torch.Generator().manual_seed(3), None)
+    assert init.shape == (6, 15)
+    limits = hand.joint_limits
+    assert bool(((init[:, 6:] >= limits[:, 0]) & (init[:, 6:] <= limits[:, 1])).all())
+    result = optimize(energy, init, object_index, scale, config.optimizer_config(), torch.Generator().manual_seed(4))
+    assert result.hand_pose.shape == (6, 15) and torch.isfinite(result.hand_pose).all()
+    assert bool((result.trace[-1] <= result.trace[0]).all()) and float(result.trace[-1].median()) < 0.5 * float(result.trace[0].median())
+
+
+def test_synthesize_takes_the_hand_and_keeps_its_pose_length(setting, one_torch_thread):
+    from dexlite_pipeline.optim.from_scratch import synthesize
+
+    hand, assets = setting
+    grasps, stats = synthesize(assets, short_config(), ENERGY, torch.Generator().manual_seed(0), hand=hand)
+    assert grasps.hand_pose.shape == (6, 15) and grasps.arrays["init_pose"].shape == (6, 15) and stats["grasps"] == 6
+    assert np.isfinite(grasps.arrays["E_total"]).all() and grasps.arrays["grasp_type"].tolist() == ["power"] * 6
+
+
+def test_grasp_types_other_than_power_are_refused_for_a_described_hand(setting):
+    from dexlite_pipeline.optim.from_scratch import synthesize
+
+    hand, assets = setting
+    config = short_config(grasp_types=GraspTypeShares(power=0.5, pinch=0.5))
+    with pytest.raises(ValueError, match="other than power"):
+        synthesize(assets, config, ENERGY, torch.Generator().manual_seed(0), hand=hand)
+
+
+def test_allegro_starts_face_the_object_from_above_the_table(setting):
+    """Allegro's starts: the palm frame's origin above the table, its palm normal toward the object (within the tilt
+    toward the fingers and the jitter)."""
+    from dexlite_pipeline.hand.described import DescribedHand
+    from dexlite_pipeline.hand.rotation import euler_xyz_to_matrix
+    from dexlite_pipeline.optim.from_scratch import StartDrawer
+
+    _, assets = setting
+    hand = DescribedHand("allegro")
+    count = 32
+    support = (torch.tensor([[0.0, 0.0, 1.0]]).expand(count, 3), torch.full((count,), 0.6 * 0.06))
+    init = StartDrawer(hand, assets, short_config()).draw(torch.zeros(count, dtype=torch.long), torch.full((count,), 0.06),
+                                                          torch.zeros(count, dtype=torch.long), torch.Generator().manual_seed(1), support)
+    assert init.shape == (count, 22)
+    rotation = euler_xyz_to_matrix(init[:, 3:6].double())
+    frame = torch.as_tensor(hand.palm_frame_local)
+    palm_origin = (rotation @ frame[:3, 3, None])[..., 0] + init[:, :3].double()
+    assert bool((palm_origin[:, 2] + 0.6 * 0.06 > 0).all())
+    normal = (rotation @ frame[:3, 2, None])[..., 0]
+    toward = -torch.nn.functional.normalize(palm_origin, dim=1)  # to the object's centre
+    assert float(((normal * toward).sum(1) > 0.5).float().mean()) > 0.9
