@@ -65,12 +65,14 @@ import numpy as np
 import torch
 
 from dexlite_pipeline.energy.table_clearance import hand_table_depth
+from dexlite_pipeline.hand.described import is_described
 from dexlite_pipeline.hand.model import ShadowHand
 from dexlite_pipeline.io.grasp_store import GraspSet, invalid_grasp_reasons
 from dexlite_pipeline.objects.assets import ObjectAsset, SdfBank, available_object_ids, load_asset
 from dexlite_pipeline.objects.rest_pose import SupportPlane
 from dexlite_pipeline.progress import ProgressLog
 from dexlite_pipeline.sim.config import LiftConfig
+from dexlite_pipeline.sim.described_scene import DescribedLiftScene
 from dexlite_pipeline.sim.scene import LiftScene
 from dexlite_pipeline.sim.simulator import GraspSimulator, _palm_quaternions
 from dexlite_pipeline.sim.squeeze import squeeze_targets
@@ -118,7 +120,7 @@ class LiftTask:
     object_id: str
     objects_dirs: list[str]
     indices: np.ndarray  # positions in the caller's grasp set
-    hand_pose: np.ndarray  # (B, 28) float64
+    hand_pose: np.ndarray  # (B, 28) float64 ((B, 6 + J) for a hand from its MJCF)
     scale: np.ndarray  # (B,) float64
     config: LiftConfig
     table: SupportPlane | None = None  # the object's table (tabletop mode); None: floating
@@ -162,7 +164,11 @@ class _WorkerState:
     def get_simulator(self, asset: ObjectAsset, scale: float, config: LiftConfig, table: SupportPlane | None = None) -> GraspSimulator:
         key = (str(asset.directory), float(scale)) if table is None else (str(asset.directory), float(scale), table)
         if key not in self.simulators:
-            self.simulators[key] = GraspSimulator(LiftScene.build(asset.convex_paths, float(scale), config, table), config)
+            if is_described(self.hand):  # a hand from its MJCF: its own file and actuators (``sim.described_scene``)
+                scene = DescribedLiftScene.build_for(self.hand, asset.convex_paths, float(scale), config, table)
+            else:
+                scene = LiftScene.build(asset.convex_paths, float(scale), config, table)
+            self.simulators[key] = GraspSimulator(scene, config)
             while len(self.simulators) > SCENE_CACHE:
                 self.simulators.popitem(last=False)
         self.simulators.move_to_end(key)
@@ -170,7 +176,7 @@ class _WorkerState:
 
 
 def _squeeze_plans(hand: ShadowHand, asset: ObjectAsset, hand_pose: np.ndarray, scale: np.ndarray, config: LiftConfig) -> np.ndarray:
-    """Squeeze targets (B, 22) of one object's grasps, in torch batches."""
+    """Squeeze targets (B, 22) of one object's grasps ((B, J) for a hand from its MJCF), in torch batches."""
     bank = SdfBank([asset], device=hand.device)
     targets = []
     for start in range(0, len(hand_pose), PREP_BATCH):
@@ -263,7 +269,7 @@ def make_tasks(grasps: GraspSet, indices: np.ndarray, objects_dirs: list[str], c
 
 
 def run_lift_tests(grasps: GraspSet, objects_dirs, config: LiftConfig, threads: int = 1, support_planes: SupportPlanes | None = None,
-                   known_failures: np.ndarray | None = None) -> dict[str, np.ndarray]:
+                   known_failures: np.ndarray | None = None, hand: ShadowHand | None = None) -> dict[str, np.ndarray]:
     """Lift-test every grasp; per-grasp arrays aligned with ``grasps``.
 
     ``support_planes`` (tabletop mode): each object rests on its table (module docstring); the
@@ -278,6 +284,8 @@ def run_lift_tests(grasps: GraspSet, objects_dirs, config: LiftConfig, threads: 
     Returns ``lift_ratio``, ``lift_success``, ``failure_reason``, ``initial_penetration_mm``
     and, with ``config.six_directions``, ``six_dir_success``, ``six_dir_passed`` (N, 6),
     ``six_dir_translation_m`` (N, 6) and ``six_dir_rotation_deg`` (N, 6) in ``sim.simulator.DIRECTIONS`` order.
+    ``hand``: the hand of the grasps (None: the Shadow Hand); a hand from its MJCF (``hand.described.DescribedHand``,
+    poses of 6 + J numbers) is simulated from its own file with its own actuators (``sim.described_scene``).
     """
     dirs = [str(objects_dirs)] if isinstance(objects_dirs, (str, os.PathLike)) else [str(d) for d in objects_dirs]
     n = len(grasps)
@@ -295,14 +303,15 @@ def run_lift_tests(grasps: GraspSet, objects_dirs, config: LiftConfig, threads: 
     tasks = make_tasks(grasps, np.flatnonzero(~invalid), dirs, config, support_planes)
     label = "lift + six-direction test" if config.six_directions else "lift test"
     progress = ProgressLog(log, label, int((~invalid).sum()), unit="grasps")
-    _collect(out, _run_threads(tasks, max(1, min(int(threads or 1), len(tasks))), progress))
+    _collect(out, _run_threads(tasks, max(1, min(int(threads or 1), len(tasks))), progress, hand))
     arrays = _as_arrays(out, config)
     if support_planes is not None:
         arrays["table_depth_mm"] = out.table_depth_mm
     return arrays
 
 
-def _run_threads(tasks: list[LiftTask], workers: int, progress: ProgressLog | None = None) -> list[tuple[np.ndarray, LiftOutcome]]:
+def _run_threads(tasks: list[LiftTask], workers: int, progress: ProgressLog | None = None,
+                 hand: ShadowHand | None = None) -> list[tuple[np.ndarray, LiftOutcome]]:
     """Results of ``run_task`` over ``tasks`` on ``workers`` threads of this process.
 
     MuJoCo releases the GIL while it steps (over 90% of a grasp's CPU time) and torch while it
@@ -312,10 +321,10 @@ def _run_threads(tasks: list[LiftTask], workers: int, progress: ProgressLog | No
     finish one; the first thread takes from the back and the others from the front, and
     tasks are ordered by object and scale, so most (object, scale) scenes are compiled in
     one thread only. Torch runs one intra-op thread per worker while this runs.
-    ``progress`` counts the grasps of every finished task.
+    ``progress`` counts the grasps of every finished task. ``hand``: the grasps' hand (None: the Shadow Hand).
     """
     queue = deque(tasks)  # deque.pop / popleft are atomic: the threads share it without a lock
-    hand = ShadowHand()
+    hand = ShadowHand() if hand is None else hand
 
     def drain(take) -> list:
         state, done = _WorkerState(hand), []

@@ -201,14 +201,22 @@ class LiftScene:
             model = mujoco.MjModel.from_xml_string(xml)
         except ValueError as exc:
             raise SceneBuildError(f"MuJoCo could not compile the scene: {str(exc).splitlines()[0]}") from exc
+        return cls.from_model(model, config, table, PALM_BODY, JOINT_NAMES)
+
+    @classmethod
+    def from_model(cls, model, config: LiftConfig, table, palm_body_name: str, joint_names, **fields) -> "LiftScene":
+        """The scene of a compiled model whose hand is rooted at ``palm_body_name`` (with a free joint), its finger
+        joints ``joint_names`` consecutive in qpos and driven by the actuators in that order; ``fields``: a subclass's own."""
+        import mujoco
+
         data = mujoco.MjData(model)
         object_body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, OBJECT_BODY)
-        palm_body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, PALM_BODY)
+        palm_body = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, palm_body_name)
         palm_jnt = int(model.body_jntadr[palm_body])
         palm_adr = int(model.jnt_qposadr[palm_jnt])
         obj_jnt = int(model.body_jntadr[object_body])
         obj_adr = int(model.jnt_qposadr[obj_jnt])
-        first_finger = int(model.jnt_qposadr[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, JOINT_NAMES[0])])
+        first_finger = int(model.jnt_qposadr[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, joint_names[0])])
         geom_body = np.asarray(model.geom_bodyid)
         collides = (np.asarray(model.geom_contype) > 0) | (np.asarray(model.geom_conaffinity) > 0)
         hand_geoms = np.flatnonzero(collides & (geom_body != object_body) & (geom_body > 0))
@@ -221,7 +229,7 @@ class LiftScene:
             palm_body=palm_body,
             object_qpos=slice(obj_adr, obj_adr + 7),
             palm_qpos=slice(palm_adr, palm_adr + 7),
-            joint_qpos=slice(first_finger, first_finger + len(JOINT_NAMES)),
+            joint_qpos=slice(first_finger, first_finger + len(joint_names)),
             object_qvel=slice(int(model.jnt_dofadr[obj_jnt]), int(model.jnt_dofadr[obj_jnt]) + 6),
             palm_qvel=slice(int(model.jnt_dofadr[palm_jnt]), int(model.jnt_dofadr[palm_jnt]) + 6),
             hand_geoms=hand_geoms,
@@ -232,6 +240,7 @@ class LiftScene:
             object_radius_m=float((np.linalg.norm(model.geom_pos[object_geoms] - model.body_ipos[object_body], axis=1) + model.geom_rbound[object_geoms]).max()),
             up=None if table is None else np.asarray(table.normal, dtype=np.float64),
             table_geom=table_geom,
+            **fields,
         )
         scene.configure(config)
         return scene

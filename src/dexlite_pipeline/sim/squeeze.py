@@ -12,15 +12,25 @@ from dataclasses import dataclass
 
 import torch
 
+from dexlite_pipeline.hand.described import is_described
 from dexlite_pipeline.hand.model import JOINT_NAMES, JOINTS, ShadowHand
 from dexlite_pipeline.objects.assets import SdfBank
 from dexlite_pipeline.sim.config import LiftConfig
 
-FINGERS = ("ff", "mf", "rf", "lf", "th")
+FINGERS = ("ff", "mf", "rf", "lf", "th")  # the Shadow Hand's; a hand from its MJCF has its description's fingers
+JOINT_COLUMNS = slice(JOINTS.start, None)  # a stored pose's joints: the Shadow Hand's 22, a hand from its MJCF's J
 
 
 def _finger_masks(hand: ShadowHand) -> tuple[torch.Tensor, torch.Tensor]:
-    """(5, 22) joint membership and (5, L) link membership of the five fingers."""
+    """(5, 22) joint membership and (5, L) link membership of the five fingers; (F, J) and (F, L) of a hand from its
+    MJCF's F fingers (``DescribedHand.finger_joints``, ``finger_links``)."""
+    if is_described(hand):
+        joints = torch.zeros(len(hand.finger_joints), len(hand.joint_names), dtype=torch.bool)
+        links = torch.zeros(len(hand.finger_links), len(hand.link_names), dtype=torch.bool)
+        for f, (finger_joints, finger_links) in enumerate(zip(hand.finger_joints, hand.finger_links)):
+            joints[f, list(finger_joints)] = True
+            links[f, list(finger_links)] = True
+        return joints.to(hand.device), links.to(hand.device)
     joints = torch.tensor([[name.split(":")[1].lower().startswith(f) for name in JOINT_NAMES] for f in FINGERS])
     links = torch.tensor([[name.split(":")[1].startswith(f) for name in hand.link_names] for f in FINGERS])
     return joints.to(hand.device), links.to(hand.device)
@@ -41,7 +51,7 @@ def object_signed_distance(bank: SdfBank, points_m: torch.Tensor, scale: torch.T
 class SqueezePlan:
     """Squeeze targets of a batch of grasps and the link depths they were derived from."""
 
-    targets: torch.Tensor  # (B, 22) joint targets, clamped to the joint limits
+    targets: torch.Tensor  # (B, 22) joint targets, clamped to the joint limits ((B, J) for a hand from its MJCF)
     link_depth_m: torch.Tensor  # (B, L) deepest surface point of each link inside the object (positive inside; -inf: no points)
 
     @property
@@ -51,7 +61,19 @@ class SqueezePlan:
 
 
 def _flexion_mask(hand: ShadowHand) -> torch.Tensor:
-    """(22,) 1 for the flexion joints J2, J1, J0 of the four fingers, else 0."""
+    """(22,) 1 for the flexion joints J2, J1, J0 of the four fingers, else 0. A hand from its MJCF: (J,) for the joints
+    of its fingers that are not opposing (``HandDescription.opposing``), the sign of each joint's larger-magnitude limit
+    (the way it flexes) for a joint with an asymmetric range, 0 for the others (side-to-side joints)."""
+    if is_described(hand):
+        limits = hand.joint_limits.double()
+        flex = torch.where(limits[:, 1].abs() > limits[:, 0].abs(), 1.0, -1.0)
+        flex = torch.where((limits[:, 1].abs() - limits[:, 0].abs()).abs() < 1e-9, 0.0, flex)
+        opposing = {hand.link_index[leaf] for leaf in hand.description.opposing}
+        fingers = [joints for joints, links in zip(hand.finger_joints, hand.finger_links) if not opposing & set(links)]
+        mask = torch.zeros(len(hand.joint_names), dtype=torch.float64)
+        for joints in fingers:
+            mask[list(joints)] = flex[list(joints)]
+        return mask.to(device=hand.device, dtype=torch.float32)
     names = [name.split(":")[-1] for name in JOINT_NAMES]
     flexion = [name[:2] in ("FF", "MF", "RF", "LF") and name[-2:] in ("J2", "J1", "J0") for name in names]
     return torch.as_tensor(flexion, dtype=torch.float32, device=hand.device)
@@ -66,7 +88,7 @@ def squeeze_targets(hand: ShadowHand, bank: SdfBank, hand_pose: torch.Tensor, sc
     so the largest change is ``squeeze_rad``; fingers that touch nothing keep their pose.
     """
     finger_joints, finger_links = _finger_masks(hand)
-    joints = hand_pose[:, JOINTS].detach().clone().requires_grad_(True)
+    joints = hand_pose[:, JOINT_COLUMNS].detach().clone().requires_grad_(True)
     pose = torch.cat([hand_pose[:, :6].detach(), joints], dim=1)
     depth = object_signed_distance(bank, hand.surface_points(hand.forward(pose)), scale)
     link_ids = hand.surface_link.expand_as(depth)
@@ -76,7 +98,7 @@ def squeeze_targets(hand: ShadowHand, bank: SdfBank, hand_pose: torch.Tensor, sc
     objective = torch.where(touching, link_depth, torch.zeros_like(link_depth)).sum()
     (grad,) = torch.autograd.grad(objective, joints)
     delta = torch.zeros_like(grad)
-    for f in range(len(FINGERS)):
+    for f in range(finger_joints.shape[0]):
         active = (touching & finger_links[f]).any(dim=1)  # (B,)
         g = grad * finger_joints[f]
         largest = g.abs().amax(dim=1, keepdim=True)
@@ -85,5 +107,5 @@ def squeeze_targets(hand: ShadowHand, bank: SdfBank, hand_pose: torch.Tensor, sc
     if config.preclose_rad > 0:  # a lenient protocol's extra closure of every finger's flexion joints
         delta = delta + config.preclose_rad * _flexion_mask(hand).to(delta.dtype)
     limits = hand.joint_limits.to(delta.dtype)
-    targets = (hand_pose[:, JOINTS].detach() + delta).clamp(limits[:, 0], limits[:, 1])
+    targets = (hand_pose[:, JOINT_COLUMNS].detach() + delta).clamp(limits[:, 0], limits[:, 1])
     return SqueezePlan(targets=targets, link_depth_m=link_depth.detach())
