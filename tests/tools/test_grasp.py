@@ -317,7 +317,7 @@ def test_distinct_grasps_of_other_objects_never_merge():
     assert labels[0] != labels[1]
 
 
-def _summary(rows, rejected=(), model="cvae.pt", kept=None, min_distinct=0):
+def _summary(rows, rejected=(), model="cvae.pt", kept=None, min_distinct=0, grasp_type="any"):
     from dexlite_pipeline.settings import build_config
     from dexlite_pipeline.tools.grasp import GraspRequest, MeshSize, summary_markdown
 
@@ -327,7 +327,7 @@ def _summary(rows, rejected=(), model="cvae.pt", kept=None, min_distinct=0):
         r.setdefault("radii_m", [0.09])
         r.setdefault("six_dir", 0)
         r.setdefault("both", 0)
-    request = GraspRequest(meshes=[], out_dir="out", grasps_per_object=32, model=model, min_distinct=min_distinct)
+    request = GraspRequest(meshes=[], out_dir="out", grasps_per_object=32, model=model, min_distinct=min_distinct, grasp_type=grasp_type)
     held = sum(r["lift"] for r in rows)
     return summary_markdown(request, rows, list(rejected), "method", {"prepare": 1.0}, [], config.lift, config.diversity,
                             held if kept is None else kept)  # fmt: skip
@@ -367,6 +367,24 @@ def test_summary_says_per_source_what_the_model_and_the_top_up_gave():
     assert "--min-distinct" not in hints and "mug.obj" not in hints
     assert "min distinct: 4 (`--min-distinct`)" in text
     assert "## Model and optimization from scratch" not in _summary([dict(enough)], model=None)  # --from-scratch: one source
+
+
+def test_summary_counts_grasp_types_when_there_are_several_or_one_was_asked_for():
+    from dexlite_pipeline.tools.grasp.summary import per_type_counts
+    from dexlite_pipeline.settings import build_config
+
+    grasps = _grasp_set([_pose(0.0), _pose(0.005), _pose(0.1), _pose(0.2)], held=[1, 1, 1, 0], six=[0] * 4, passed=[0] * 4, energy=[0] * 4,
+                        object_ids=["a"] * 4)
+    grasps.arrays["grasp_type"] = np.asarray(["pinch", "pinch", "tripod", "pinch"], dtype=object)
+    by_type = per_type_counts(grasps, build_config({}))["a"]
+    assert by_type == {"pinch": {"grasps": 3, "held": 2, "distinct": 1}, "tripod": {"grasps": 1, "held": 1, "distinct": 1}}
+    row = {"object_id": "user-mug", "file": "mug.obj", "grasps": 4, "lift": 3, "distinct": 2, "failures": {"dropped": 1}, "by_type": by_type}
+    text = _summary([row])
+    assert "## Grasp types" in text and "Asked for any type (the model's training mix) (`--grasp-type any`)." in text
+    assert "| user-mug | pinch | 3 | 2/3 (67%) | 1 |" in text and "| user-mug | tripod | 1 | 1/1 (100%) | 1 |" in text
+    power = dict(row, by_type={"power": {"grasps": 4, "held": 3, "distinct": 2}})
+    assert "## Grasp types" not in _summary([power])  # power grasps only, as the default asks: nothing to split
+    assert "Asked for pinch grasps only (`--grasp-type pinch`)." in _summary([dict(row)], grasp_type="pinch")
 
 
 def test_the_top_up_goes_to_the_objects_with_too_few_distinct_held_model_grasps():

@@ -18,7 +18,9 @@ from dexlite_pipeline.tools.grasp.checks import CheckedRequest, check_request
 from dexlite_pipeline.tools.grasp.outputs import render_examples, store_attrs, write_grasp_stores, write_view
 from dexlite_pipeline.tools.grasp.request import SOURCE_MODEL, SOURCE_OPTIMIZATION, GraspOutcome, GraspRequest, GraspToolError
 from dexlite_pipeline.tools.grasp.selection import distinct_labels, kept_rows
-from dexlite_pipeline.tools.grasp.summary import next_steps, per_object_rows, per_source_counts, preparation_text, share_text, summary_markdown
+from dexlite_pipeline.tools.grasp.summary import (
+    next_steps, per_object_rows, per_source_counts, per_type_counts, preparation_text, share_text, summary_markdown,
+)  # fmt: skip
 from dexlite_pipeline.tools.grasp.synthesis import (
     object_scales, objects_to_top_up, synthesize_from_scratch, synthesize_with_model, top_up_seed, top_up_until_distinct,
 )
@@ -268,10 +270,11 @@ def render_and_summarize(
     record.coverage_seconds = time.perf_counter() - t
     coverage = {object_id: row["coverage"] for object_id, row in diversity_rows.items()}
     rows = per_object_rows(tested, labels, checked.sources, checked.sizes, prepared.object_ids, coverage)
-    by_source = per_source_counts(tested, config)
+    by_source, by_type = per_source_counts(tested, config), per_type_counts(tested, config)
     preparation = {asset.object_id: asset.meta for asset in prepared.assets}
     for r in rows:
         r["by_source"], r["topped_up"] = by_source.get(r["object_id"], {}), r["object_id"] in topped_up
+        r["by_type"] = by_type.get(r["object_id"], {})
         r["prepared_as"] = preparation_text(preparation[r["object_id"]])
     summary_path = run.out_dir / "summary.md"
     write_text_atomic(summary_path, summary_markdown(request, rows, prepared.rejected, method, record.step_seconds(), renders, run.lift_config,

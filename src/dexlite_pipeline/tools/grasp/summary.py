@@ -1,6 +1,6 @@
 """The summary of a ``dexlite grasp`` run: one row of counts per object (size, held, distinct, surface touched,
-failure reasons), the counts of each source (model, optimization from scratch), what to try next, and the
-one-page ``summary.md`` that shows them."""
+failure reasons), the counts of each source (model, optimization from scratch) and of each grasp type, what to try
+next, and the one-page ``summary.md`` that shows them."""
 
 from __future__ import annotations
 
@@ -11,6 +11,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from dexlite_pipeline.io.grasp_store import DEFAULT_GRASP_TYPE, grasp_types
+from dexlite_pipeline.model.config import ANY_GRASP_TYPE
 from dexlite_pipeline.tools.grasp.request import SOURCE_MODEL, SOURCE_OPTIMIZATION, UNIT_NAMES, WANTED_DISTINCT, GraspRequest
 from dexlite_pipeline.tools.grasp.selection import distinct_labels, distinct_per_object
 
@@ -61,18 +63,29 @@ def preparation_text(meta: dict) -> str:
     return f"{meta['preparation']['summary']}{notes}; prepared solid vs the mesh: {meta['deviation']['summary']}"
 
 
-def per_source_counts(grasps: GraspSet, config: PipelineConfig) -> dict[str, dict[str, dict[str, int]]]:
-    """Object id -> source -> attempts, held and distinct held grasps among that source's grasps alone."""
-    sources = np.asarray(grasps.arrays["source"], dtype=object)
+def per_group_counts(grasps: GraspSet, config: PipelineConfig, groups: np.ndarray) -> dict[str, dict[str, dict[str, int]]]:
+    """Object id -> group -> attempts, held and distinct held grasps among that group's grasps alone (``groups`` (N,):
+    each grasp's source, or its grasp type)."""
+    groups = np.asarray([str(g) for g in groups], dtype=object)
     held = np.asarray(grasps.arrays["lift_success"], bool)
     counts: dict[str, dict[str, dict[str, int]]] = {}
-    for source in dict.fromkeys(sources.tolist()):
-        part = grasps.select(np.flatnonzero(sources == source))
+    for group in dict.fromkeys(groups.tolist()):
+        part = grasps.select(np.flatnonzero(groups == group))
         distinct = distinct_per_object(part, distinct_labels(part, config))
         for object_id in dict.fromkeys(part.object_id.tolist()):
-            mask = (grasps.object_id == object_id) & (sources == source)
-            counts.setdefault(object_id, {})[source] = {"grasps": int(mask.sum()), "held": int(held[mask].sum()), "distinct": distinct[object_id]}
+            mask = (grasps.object_id == object_id) & (groups == group)
+            counts.setdefault(object_id, {})[group] = {"grasps": int(mask.sum()), "held": int(held[mask].sum()), "distinct": distinct[object_id]}
     return counts
+
+
+def per_source_counts(grasps: GraspSet, config: PipelineConfig) -> dict[str, dict[str, dict[str, int]]]:
+    """Object id -> source -> attempts, held and distinct held grasps among that source's grasps alone."""
+    return per_group_counts(grasps, config, grasps.arrays["source"])
+
+
+def per_type_counts(grasps: GraspSet, config: PipelineConfig) -> dict[str, dict[str, dict[str, int]]]:
+    """Object id -> grasp type -> attempts, held and distinct held grasps of that type alone (power for grasps without one)."""
+    return per_group_counts(grasps, config, grasp_types(grasps))
 
 
 def _size_text(size: MeshSize) -> str:
@@ -164,6 +177,21 @@ def source_lines(request: GraspRequest, rows: list[dict]) -> list[str]:
     return lines
 
 
+def type_lines(request: GraspRequest, rows: list[dict]) -> list[str]:
+    """The summary's section on grasp types: per object and type the grasps tried, held and distinct held, when the grasps
+    hold several types or one was asked for (``--grasp-type``); nothing for power grasps only, as asked."""
+    types = list(dict.fromkeys(t for r in rows for t in r.get("by_type", {})))
+    if not types or (types == [DEFAULT_GRASP_TYPE] and request.grasp_type == ANY_GRASP_TYPE):
+        return []
+    asked = "any type (the model's training mix)" if request.grasp_type == ANY_GRASP_TYPE else f"{request.grasp_type} grasps only"
+    lines = ["", "## Grasp types", "", f"Asked for {asked} (`--grasp-type {request.grasp_type}`).", "",
+             "| object | grasp type | grasps | held | distinct held |", "| --- | --- | ---: | ---: | ---: |"]  # fmt: skip
+    for r in rows:
+        for name, c in r.get("by_type", {}).items():
+            lines.append(f"| {r['object_id']} | {name} | {c['grasps']} | {share_text(c['held'], c['grasps'])} | {c['distinct']} |")
+    return lines
+
+
 def summary_markdown(
     request: GraspRequest, rows: list[dict], rejected: list[dict], method: str, step_seconds: dict[str, float], renders: list[Path],
     lift_config: LiftConfig, diversity: DiversityConfig, kept: int, view: Path | None = None,
@@ -212,6 +240,7 @@ def summary_markdown(
                      f"{share_text(r['six_dir'], r['grasps'])} | {share_text(r['both'], r['grasps'])} | {reasons} |")
     lines.append(f"| **all** | | | {total} | {share_text(lift, total)} | {distinct} | | | {share_text(six, total)} | {share_text(both, total)} | |")
     lines += source_lines(request, rows)
+    lines += type_lines(request, rows)
     lines += ["", "## How each mesh was prepared", "",
               "Each mesh becomes one closed solid, checked against the mesh's own surface (two-sided surface distance p99, "
               "bounding box, volume where the mesh is closed, as percentages of its largest extent); a solid farther from the mesh "
