@@ -9,10 +9,10 @@ angles radians; points and directions are in their link's (body's) frame, the pa
 the root body's frame.
 
 The Shadow Hand is the palm-rooted model ``hand.mjcf`` builds from gymnasium-robotics, Allegro
-and LEAP the Menagerie files shipped in ``data/hands/``; a path names any MJCF file. Nothing
-else reads this yet: the energies, optimizer, lift test and model still use ``hand.model``'s
-``ShadowHand``, unchanged. A file that cannot be used raises ``HandDescriptionError`` with a
-one-line reason.
+and LEAP the Menagerie files shipped in ``data/hands/``; a path names any MJCF file.
+``hand.described.DescribedHand`` makes a description the hand model the energies, optimization from
+scratch and the lift test take from Python; the stages still use ``hand.model``'s ``ShadowHand``,
+unchanged. A file that cannot be used raises ``HandDescriptionError`` with a one-line reason.
 """
 
 from __future__ import annotations

@@ -38,7 +38,7 @@ PALM_APPROACH = (0.0, -math.cos(math.radians(30.0)), math.sin(math.radians(30.0)
 PALM_TILT_DEG = 30.0  # the same tilt for a hand from its MJCF (``described_start_poses``)
 # A hand from its MJCF starts with each joint this fraction of the way from its open pre-grasp to the limit it flexes
 # toward (the larger-magnitude one; joints with symmetric ranges stay): like the Shadow Hand's mean open pose, a hand
-# slightly curled. On Allegro and a can-sized cylinder (32 starts) the open, flat hand held 1, this 4 (docs/hands.md).
+# slightly curled. On Allegro and a can-sized cylinder (32 starts) the open, flat hand held 1, this 3 (docs/hands.md).
 START_CURL = 0.3
 
 
