@@ -10,7 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from dexlite_pipeline.objects.household import CHECK_OBJECTS, _revolve, build_can, build_family
+from dexlite_pipeline.objects.household import CHECK_OBJECTS, build_can, build_family
+from dexlite_pipeline.objects.household_shapes import revolve
 
 
 def concatenated(meshes):
@@ -83,14 +84,14 @@ BOTTLE_PROFILE = [[0.0, 0.0], [0.035, 0.0], [0.035, 0.14], [0.013, 0.18], [0.013
 
 def one_shell_bottle():
     """A 22 cm bottle: body, shoulder, neck and cap as one closed shell."""
-    return _revolve(BOTTLE_PROFILE)
+    return revolve(BOTTLE_PROFILE)
 
 
 def three_shell_bottle():
     """The bottle as three closed bodies stacked and touching: body (0-14 cm), shoulder and neck (14-20 cm), cap (20-22 cm)."""
-    body = _revolve([[0.0, 0.0], [0.035, 0.0], [0.035, 0.14], [0.0, 0.14]])
-    shoulder = _revolve([[0.0, 0.14], [0.035, 0.14], [0.013, 0.18], [0.013, 0.2], [0.0, 0.2]])
-    cap = _revolve([[0.0, 0.2], [0.015, 0.2], [0.015, 0.22], [0.0, 0.22]])
+    body = revolve([[0.0, 0.0], [0.035, 0.0], [0.035, 0.14], [0.0, 0.14]])
+    shoulder = revolve([[0.0, 0.14], [0.035, 0.14], [0.013, 0.18], [0.013, 0.2], [0.0, 0.2]])
+    cap = revolve([[0.0, 0.2], [0.015, 0.2], [0.015, 0.22], [0.0, 0.22]])
     return concatenated([body, shoulder, cap]), one_shell_bottle()
 
 
