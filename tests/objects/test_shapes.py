@@ -7,12 +7,14 @@ import hashlib
 
 import numpy as np
 import pytest
+import yaml
 from scipy.spatial import Delaunay
 
 from dexlite_pipeline.config import ConfigError, validate_config
 from dexlite_pipeline.objects import household as hh
 from dexlite_pipeline.objects import perturb
 from dexlite_pipeline.objects.sources import (
+    SHAPES_SPLIT_FILE,
     ObjectSourceError,
     benchmark_object_ids,
     collect_sources,
@@ -176,9 +178,11 @@ def _rule_ids() -> list[str]:
     return ids
 
 
-def test_shapes_split_follows_its_rule_and_is_never_trained_on():
+def test_shapes_split_follows_its_rule_was_checked_and_is_never_trained_on():
     ids = shapes_benchmark_list()
+    record = yaml.safe_load(SHAPES_SPLIT_FILE.read_text())
     assert ids == _rule_ids() and len(set(ids)) == len(ids)
+    assert record["checked"].startswith(f"all {len(ids)} prepared (status ok) and table-stable"), record["checked"]
     assert {hh.parse_household_id(i).family for i in ids} == set(hh.ALL_FAMILIES)
     assert not set(ids) & (set(household_benchmark_list()) | benchmark_object_ids())
     held = held_out_household_ids()

@@ -11,13 +11,14 @@ connectivity, and the solid stays closed, unbroken and one body. Dents, bumps an
 (their size times smooth_step(z / h0), h0 = min(half the height, 2 cm)), and scaling and bending keep z = 0 where it
 is, so an object rests on the same base as before, at real size. Magnitudes (largest displacement of any point):
 
-- ``scale``: each axis by 0.88-1.12 about the base's centre (±12%: ±18 mm at the ends of a 30 cm bottle; always);
+- ``scale``: each axis by 0.88-1.12 about the centre of the base (always): ±36 mm at the top of a 30 cm bottle,
+  ±12 mm at the rim of a 10 cm mug, ±5 mm across an 8 cm one;
 - ``bend``: standing objects (taller than wide) lean, x += s (z / H)^2 along a random horizontal direction, s 3-10 mm
   (at most 20% of the height); lying and flat ones bow in the table's plane, w += s t^2 across their longest horizontal
   axis (t = -1..1 along it), s 3-12 mm (at most 12% of the length); with probability 0.6;
 - ``dent`` / ``bump``: a Gaussian push of depth A along the inward / outward surface normal at a random point of the
   upper 80% of the object, width sigma 8-20 mm; A 2-6 mm for dents, 1.5-4 mm for bumps, lowered where needed so that
-  L <= 0.6 (about 1-2 mm on objects under 1 cm thick); 0-2 of each, at least one in all;
+  L <= 0.6 (about 1 mm on objects under 1 cm thick); 0-2 of each, at least one in all;
 - ``noise``: six plane waves along random directions, wavelengths 8-20 mm, amplitudes summing to 0.3-0.6 mm
   (the largest displacement; a scanner's ripple and roughness); with probability 0.7.
 """
