@@ -3,7 +3,8 @@
 Everything in the file is tensors, numbers, strings, lists and dicts, so it loads with
 ``torch.load(path, weights_only=True)`` (no pickled code is executed). ``grasp_types`` lists the model's type
 vocabulary (``model.type_condition``); a file without it (written before grasp types existed) loads as a model
-that knows power grasps only, unchanged.
+that knows power grasps only, unchanged. ``generator`` names the family (``cvae``, or ``flow`` with its ODE's ``flow``
+steps and solver: ``model.flow``); a file without it is a CVAE.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ import torch
 
 from dexlite_pipeline.atomic import atomic_path
 from dexlite_pipeline.model.config import ModelConfig
+from dexlite_pipeline.model.flow import family_record, model_from_record
 from dexlite_pipeline.model.network import GraspCVAE
 from dexlite_pipeline.config import json_ready
 
@@ -40,6 +42,7 @@ def save_checkpoint(
         "state_dict": {k: v.detach().cpu() for k, v in model.state_dict().items()},
         "model_config": model.config.to_dict(),
         "grasp_types": list(model.type_vocabulary),  # the type vocabulary (model.type_condition); absent: trained before types
+        **family_record(model),  # generator (cvae or flow) and a flow's ODE steps; absent: a CVAE
         "train_config": json_ready(train_config),
         **json.loads(json.dumps(extra)),
     }
@@ -78,7 +81,10 @@ def load_checkpoint(path: str | os.PathLike, device: torch.device | str = "cpu")
         raise CheckpointError(f"{p}: cannot load as a weights-only checkpoint ({exc})") from exc
     if not isinstance(payload, dict) or payload.get("format") != CHECKPOINT_FORMAT:
         raise CheckpointError(f"{p}: not a {CHECKPOINT_FORMAT} checkpoint")
-    model = GraspCVAE(ModelConfig.from_dict(payload["model_config"]), tuple(payload.get("grasp_types") or ())).to(device)
+    try:
+        model = model_from_record(payload, ModelConfig.from_dict(payload["model_config"]), tuple(payload.get("grasp_types") or ())).to(device)
+    except ValueError as exc:
+        raise CheckpointError(f"{p}: {exc}") from exc
     state = {k: v.float() if v.dtype == torch.float16 else v for k, v in payload["state_dict"].items()}  # a half-precision copy
     empty = torch.zeros(0, model.config.latent_dim)
     model.set_latent_codes(

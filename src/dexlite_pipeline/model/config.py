@@ -63,6 +63,8 @@ ENERGY_TERMS = ("fc", "dis", "pen", "spen", "joints")
 LOSS_TERMS = ("recon", "kl", *ENERGY_TERMS)
 TABLE_TERM = "table"  # E_table, a loss term in tabletop mode only (after LOSS_TERMS)
 LR_SCHEDULES = ("constant", "cosine")
+GENERATORS = ("cvae", "flow")  # the generative families behind PointNet (``network.GraspCVAE``, ``flow.GraspFlow``)
+FLOW_SOLVERS = ("euler", "heun")
 
 
 @dataclass(frozen=True)
@@ -70,6 +72,14 @@ class TrainConfig:
     """Config section ``train`` (two documented profiles: the default and ``config/profiles/writeup_gpu.yaml``)."""
 
     profile: str = setting("default", "label recorded in cvae.pt")
+    generator: str = setting(
+        "cvae", "generative family: cvae (conditional VAE, latents drawn from the training codes) or flow (conditional flow "
+        "matching: a velocity network integrated from Gaussian noise to a pose, same conditioning, anchors and pose frame); "
+        "recorded in the model file", enum=GENERATORS)
+    flow_steps: int = setting(
+        8, "generator flow: ODE steps from noise to pose at sampling (and back, to encode a known grasp)", minimum=1)
+    flow_solver: str = setting(
+        "heun", "generator flow: the ODE's step rule, euler (one velocity per step) or heun (two, second order)", enum=FLOW_SOLVERS)
     seed: int = setting(
         -1, "seed of the training alone (initial weights, batches, validation split, the max_training_objects and "
         "max_grasps_per_object subsets; the CVAE's and the learned evaluator's): training seeds on the same data; -1 = the run's "
@@ -120,6 +130,10 @@ class TrainConfig:
     def __post_init__(self) -> None:
         if self.batch_size < 1 or self.clouds_per_batch < 1 or self.points_per_cloud < 1 or self.epochs < 1:
             raise ValueError("train: batch_size, clouds_per_batch, points_per_cloud and epochs must be positive")
+        if self.generator not in GENERATORS:
+            raise ValueError(f"train.generator {self.generator!r} is not one of {', '.join(GENERATORS)}")
+        if self.flow_solver not in FLOW_SOLVERS or self.flow_steps < 1:
+            raise ValueError(f"train.flow_solver must be one of {', '.join(FLOW_SOLVERS)} and flow_steps >= 1")
         if self.lr_schedule not in LR_SCHEDULES:
             raise ValueError(f"train.lr_schedule {self.lr_schedule!r} is not one of {', '.join(LR_SCHEDULES)}")
         if self.model.normalization == "batch" and self.clouds_per_batch < 2:

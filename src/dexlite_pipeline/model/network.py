@@ -104,9 +104,7 @@ class GraspCVAE(nn.Module):
         self.type_vocabulary = tuple(type_vocabulary)  # the training grasps' types; () for a model trained before types
         self.type_inputs = len(self.type_vocabulary) if len(self.type_vocabulary) > 1 else 0  # one-hot width
         self.pointnet = PointNet(config.pointnet_widths, config.normalization, config.point_normals)
-        inputs = config.condition_dim + config.frame_input_dim + self.type_inputs
-        self.encoder = _mlp(POSE_FEATURE_DIM + inputs, config.encoder_hidden, 2 * config.latent_dim)
-        self.decoder = _mlp(config.latent_dim + inputs, config.decoder_hidden, POSE_FEATURE_DIM)
+        self._build_networks(config.condition_dim + config.frame_input_dim + self.type_inputs)
         # The training grasps' posterior codes (mu, log sigma^2), stored with the weights after
         # training so that sampling can draw from their aggregate (``latent_codes.sample_latents``).
         self.register_buffer("codes_mu", torch.zeros(0, config.latent_dim))
@@ -114,6 +112,11 @@ class GraspCVAE(nn.Module):
         self.register_buffer("codes_condition", torch.zeros(0, config.condition_dim))
         self.register_buffer("codes_cloud", torch.zeros(0, dtype=torch.long))
         self.register_buffer("codes_type", torch.zeros(0, dtype=torch.long))
+
+    def _build_networks(self, inputs: int) -> None:
+        """The networks after PointNet, each reading ``inputs`` condition values (``_inputs``): encoder and decoder."""
+        self.encoder = _mlp(POSE_FEATURE_DIM + inputs, self.config.encoder_hidden, 2 * self.config.latent_dim)
+        self.decoder = _mlp(self.config.latent_dim + inputs, self.config.decoder_hidden, POSE_FEATURE_DIM)
 
     @property
     def grasp_types(self) -> tuple[str, ...]:

@@ -208,7 +208,7 @@ def plot_history(history: pd.DataFrame, path: Path) -> None:
         ax.axis("off")
     for ax in axes[-1]:
         ax.set_xlabel("epoch")
-    fig.suptitle("CVAE training (per-epoch means)")
+    fig.suptitle("generator training (per-epoch means; flow: recon is the velocity error)")
     fig.tight_layout()
     with atomic_path(path) as tmp:
         fig.savefig(tmp, dpi=90, format="png")

@@ -1,4 +1,5 @@
-"""CVAE training: reconstruction + KL, optionally grasp energies of the decoded pose.
+"""Generator training (CVAE, or flow matching with ``train.generator: flow``): reconstruction + KL, optionally grasp
+energies of the decoded pose.
 
 Loss per batch = w_recon recon + w_KL KL + w_fc E_fc + w_dis E_dis + w_pen E_pen +
 w_spen E_spen + w_joints E_joints, each term the mean over the batch's grasps (recon is
@@ -6,7 +7,8 @@ the squared error summed over the pose's components, ``pose.reconstruction_error
 energies, when weighted, are evaluated through differentiable forward kinematics of the
 *decoded* pose (``energy_terms``); at weight 0 (the default) they are not computed, since
 at the optimizer's weights they dominate the loss and the model stops fitting its data
-(docs/learning.md). Weighted energies ramp from 0 to their values over the first
+(docs/learning.md). A flow model (``flow.GraspFlow``) replaces recon by its velocity's squared error, has no KL,
+and its energies score the predicted clean pose. Weighted energies ramp from 0 to their values over the first
 ``energy_warmup_fraction`` of the steps; logged totals use the full weights.
 
 Each cloud is a fixed farthest-point subset (``fixed_clouds``), batches hold
@@ -35,8 +37,9 @@ from dexlite_pipeline.hand.rotation import matrix_to_euler_xyz
 from dexlite_pipeline.model.data import Batch, TrainingData, cloud_batches, make_batch
 from dexlite_pipeline.model.association import nearest_to_ray
 from dexlite_pipeline.model.config import ENERGY_TERMS, LOSS_TERMS, TABLE_TERM, TrainConfig
+from dexlite_pipeline.model.flow import GraspFlow, generator_family, make_generator, network_config
 from dexlite_pipeline.model.network import GraspCVAE, anchor_at, kl_divergence
-from dexlite_pipeline.model.pose import features_to_parts, features_to_pose, pose_errors, reconstruction_error, rotate_features, vertical_rotation
+from dexlite_pipeline.model.pose import POSE_FEATURE_DIM, features_to_parts, features_to_pose, pose_errors, reconstruction_error, rotate_features, vertical_rotation
 
 log = logging.getLogger(__name__)
 
@@ -123,10 +126,16 @@ def batch_loss(
         ray_direction = (grasp_turn @ ray_direction[..., None])[..., 0]
     point_index = nearest_to_ray(clouds[batch.cloud_index], ray_origin, ray_direction)
     condition = model.condition(clouds, batch.cloud_index, point_index)
-    noise = torch.randn(len(index), model.config.latent_dim, generator=generator).to(device)
     anchor = model.pose_anchors(anchor_at(clouds, batch.cloud_index, point_index), target)
-    decoded, mu, log_var = model(target, condition, anchor, noise, data.grasp_type[index])
-    terms = {"recon": reconstruction_error(decoded, target), "kl": kl_divergence(mu, log_var)}
+    if isinstance(model, GraspFlow):  # recon: the velocity's squared error; decoded: the predicted clean pose
+        noise = torch.randn(len(index), POSE_FEATURE_DIM, generator=generator).to(device)
+        times = torch.rand(len(index), generator=generator).to(device)
+        decoded, velocity_error = model.flow_loss(target, condition, anchor, noise, times, data.grasp_type[index])
+        terms = {"recon": velocity_error, "kl": torch.zeros_like(velocity_error)}
+    else:
+        noise = torch.randn(len(index), model.config.latent_dim, generator=generator).to(device)
+        decoded, mu, log_var = model(target, condition, anchor, noise, data.grasp_type[index])
+        terms = {"recon": reconstruction_error(decoded, target), "kl": kl_divergence(mu, log_var)}
     loss_terms = tuple(weights)  # LOSS_TERMS (+ TABLE_TERM on a table)
     energy_names = tuple(name for name in loss_terms if name not in ("recon", "kl"))
     if any(weights[name] > 0 for name in energy_names):
@@ -180,11 +189,14 @@ def train_cvae(
     """
     device = data.pose_features.device
     torch.manual_seed(seed)
-    if initial_model is not None and initial_model.config != config.model:
+    fresh = make_generator(config, data.type_vocabulary) if initial_model is None else None
+    if initial_model is not None and generator_family(initial_model) != config.generator:
+        raise ValueError(f"warm start: the model is a {generator_family(initial_model)}, train.generator is {config.generator}")
+    if initial_model is not None and initial_model.config != network_config(config):
         raise ValueError(f"warm start: the model's network config {initial_model.config} differs from train.model {config.model}")
     if initial_model is not None and initial_model.type_vocabulary != data.type_vocabulary:
         raise ValueError(f"warm start: the model's grasp types {initial_model.type_vocabulary} differ from the data's {data.type_vocabulary}")
-    model = GraspCVAE(config.model, data.type_vocabulary).to(device) if initial_model is None else initial_model.to(device)
+    model = fresh.to(device) if initial_model is None else initial_model.to(device)
     optimizer = torch.optim.Adam(model.parameters(), lr=config.learning_rate)
     weights = config.weights(table)
     batch_rng = np.random.default_rng(seed)
