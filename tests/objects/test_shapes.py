@@ -220,3 +220,30 @@ def test_shapes_and_variant_errors_name_the_key(tmp_path):
     for key, value in [("household_variants", [0, 0]), ("household_variants", [-1]), ("shapes_benchmark_objects", -1)]:
         with pytest.raises(ConfigError, match=key):
             validate_config({**config, "objects": {**section, key: value}})
+
+
+def test_a_perturbed_object_and_one_of_the_shapes_split_pass_preparation_and_the_stability_test(tmp_path):
+    """A perturbed training spoon (dense, refined mesh) and the split's first object through the prepare-objects stage
+    with small grids and little CoACD effort (acceptance, not quality), then the table test at the default settings."""
+    import json
+
+    from dexlite_pipeline.cli import main
+    from dexlite_pipeline.objects.assets import read_catalog
+    from dexlite_pipeline.objects.config import StabilityConfig
+    from dexlite_pipeline.objects.stability import stability_filter
+
+    out = tmp_path / "objects"
+    objects = {"builtin_count": 0, "benchmark_objects": 0, "household_count": 1, "household_families": ["spoon"],
+               "household_variants": [1], "shapes_benchmark_objects": 1, "sdf_resolution": 32, "surface_points": 256,
+               "coacd_max_convex_hull": 4, "coacd_mcts_iterations": 10, "coacd_mcts_nodes": 5, "coacd_mcts_max_depth": 1,
+               "coacd_resolution": 300}
+    cfg = json.dumps({"seed": 0, "objects": objects})
+    assert main(["prepare-objects", "--config-json", cfg, "--catalog", str(out / "catalog.parquet"),
+                 "--record", str(out / "prepare_config.json"), "--threads", "1"]) == 0
+    catalog = read_catalog(out).set_index("object_id")
+    first = shapes_benchmark_list()[0]
+    assert sorted(catalog.index) == sorted(["household-spoon-000-p1", first])
+    assert (catalog["status"] == "ok").all(), catalog["reason"].to_dict()
+    assert catalog.loc[first, "split"] == "heldout" and catalog.loc[first, "source"] == "household_shapes_benchmark"
+    table = stability_filter([str(out)], 0, StabilityConfig(), 1)
+    assert table["stable"].all(), table.to_dict("records")
