@@ -26,5 +26,5 @@ localrules:
 
 rule all:
     input:
-        final_outputs(),
+        default_outputs,  # final_outputs(); refused in one line when config key hand is not shadow
     default_target: True

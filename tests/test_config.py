@@ -90,7 +90,7 @@ def test_the_config_tree_imports_without_numpy():
 
 
 def test_config_has_exactly_the_sections_the_code_reads(config):
-    assert set(config) - {"seed", "device", "shards"} == set(SECTIONS)
+    assert set(config) - {"seed", "device", "shards", "hand"} == set(SECTIONS)
 
 
 @pytest.mark.parametrize("name", sorted(SECTIONS))

@@ -74,13 +74,16 @@ def grasp_request(
     evaluator: str | None = SHIPPED, from_scratch: bool = False, min_distinct: int | None = None, top_up_batches: int | None = None,
     resize_to_training: bool = False, distinct: bool = True, overwrite: bool = False, device: str | None = None,
     config: dict | None = None, threads: int = 1, renders: int = 0, upright_axis: str | None = None, grasp_type: str | None = None,
+    hand: str | None = None,
 ) -> GraspRequest:
     """The ``GraspRequest`` for these options, refusing contradictory ones (``GraspToolError``).
 
     ``model``: a cvae.pt, or ``SHIPPED`` (also None); ``evaluator``: an evaluator.pt, ``SHIPPED`` (the shipped model's own
     evaluator, none for another model) or None (the model's first samples, unranked). ``grasp_type``: ``any`` or one of
     power, pinch, tripod, lateral (None: the config's ``sample.grasp_type``); one type sets ``sample.grasp_type`` and makes
-    optimization from scratch (``--from-scratch``, the top-up) that type only (``optimize_grasps.grasp_types``).
+    optimization from scratch (``--from-scratch``, the top-up) that type only (``optimize_grasps.grasp_types``). ``hand``:
+    shadow, allegro, leap or an MJCF file (config key ``hand``; None: the config's, shadow by default); a hand other
+    than the Shadow Hand needs ``from_scratch`` (the models are the Shadow Hand's), refused in one line otherwise.
     """
     from dexlite_pipeline.model.shipped import SHIPPED_MODEL_PATH, shipped_evaluator_path, shipped_model_path
 
@@ -97,6 +100,8 @@ def grasp_request(
     if from_scratch and evaluator not in (None, SHIPPED):
         raise GraspToolError("--evaluator and --from-scratch exclude each other (the evaluator ranks a model's samples)")
     config = typed_config(config or {}, grasp_type) if grasp_type is not None else dict(config or {})
+    if hand is not None:
+        config["hand"] = str(hand)
     model_file, evaluator_file = None, None
     if not from_scratch:
         model_file = model
@@ -212,7 +217,7 @@ def grasp(meshes, n: int = DEFAULT_GRASPS_PER_OBJECT, units: str | None = None, 
     (default 1): torch's threads during the run, as ``dexlite grasp --threads``. ``out_dir``:
     keep ``dexlite grasp``'s files there (summary.md, grasps.zarr, view.html ...); default: none kept. ``options``:
     those of ``grasp_request`` (model, evaluator, from_scratch, min_distinct, top_up_batches, device, config,
-    threads, renders, upright_axis, distinct, overwrite, resize_to_training, grasp_type).
+    threads, renders, upright_axis, distinct, overwrite, resize_to_training, grasp_type, hand).
     """
     import torch
 

@@ -19,6 +19,7 @@ pipeline code but ``dexlite_pipeline.config`` and each other: a stage imports th
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 from dexlite_pipeline.config import ConfigError, from_section, parse_config_json, retired_keys_message, setting
 from dexlite_pipeline.curation.config import CurateConfig
@@ -33,6 +34,38 @@ from dexlite_pipeline.optim.config import OptimizeGraspsConfig, PostOptimizeConf
 from dexlite_pipeline.sim.config import LiftConfig, SceneConfig
 
 
+SHADOW = "shadow"  # config key ``hand``'s default: the built-in Shadow Hand (``hand.model.ShadowHand``)
+# The shipped hands are the folders of data/hands/ (``hand.description.SHIPPED_HANDS``); read from the folder here so that
+# the config (and the workflow while it parses) checks a hand's name without importing the hand code (torch, MuJoCo).
+SHIPPED_HANDS_DIR = Path(__file__).resolve().parent / "data" / "hands"
+MODEL_STAGES_NOTE = "the model stages know the Shadow Hand only"  # why a stage after lift_validate refuses another hand
+
+
+def hand_names() -> tuple[str, ...]:
+    """The hand names config key ``hand`` knows: shadow and the shipped hands (``data/hands/<name>/right_hand.xml``)."""
+    shipped = sorted(p.parent.name for p in SHIPPED_HANDS_DIR.glob("*/right_hand.xml"))
+    return (SHADOW, *shipped)
+
+
+def hand_setting_problem(value: str) -> str:
+    """One line saying why config key ``hand`` cannot be ``value`` ("" when it can): not a known hand name, and no
+    file at that path (relative to the working directory). An existing file's MJCF is read, and refused with its
+    reason, when the hand is made (``hand.choice.resolve_hand``), not here: that needs MuJoCo."""
+    text = str(value)
+    if text in hand_names():
+        return ""
+    path = Path(text).expanduser()
+    if path.is_file():
+        return ""
+    kind = "no such file" if path.suffix.lower() == ".xml" or "/" in text else "not a hand name and no such file"
+    return f"hand: {text}: {kind} (a hand is {', '.join(hand_names())} or the path of an MJCF file)"
+
+
+def model_stage_hand_problem(value: str) -> str:
+    """One line refusing config key ``hand`` ``value`` for a stage that knows the Shadow Hand only ("" for shadow)."""
+    return "" if str(value) == SHADOW else f"hand: {value}: {MODEL_STAGES_NOTE}"
+
+
 @dataclass(frozen=True)
 class PipelineConfig:
     """The whole of ``config.yaml``."""
@@ -41,6 +74,9 @@ class PipelineConfig:
     device: str = setting(
         "auto", "auto (CUDA when present, else CPU), cpu, cuda, cuda:N", pattern="^(auto|cpu|cuda(:[0-9]+)?)$", required=True)
     shards: int = setting(2, "grasp-heavy stages split objects into this many groups", minimum=1, required=True)
+    hand: str = setting(
+        SHADOW, "the hand: shadow, allegro, leap (shipped) or the path of a hand's MJCF file (docs/hands.md); optimize_grasps, "
+        "curate and lift_validate take it, the model stages know the Shadow Hand only", pattern="^.+$")
     objects: ObjectsConfig = setting(factory=ObjectsConfig, required=True)
     dexgraspnet: DexGraspNetConfig = setting(factory=DexGraspNetConfig, required=True)
     dataset: GraspDatasetConfig = setting(
@@ -75,10 +111,14 @@ class PipelineConfig:
 
 def build_config(mapping: dict | None, where: str = "config") -> PipelineConfig:
     """The typed tree of a config mapping; absent sections and keys take their defaults, and a renamed or
-    removed key fails naming its replacement (``config.retired_keys_message``)."""
+    removed key fails naming its replacement (``config.retired_keys_message``), an unusable ``hand`` naming it
+    (``hand_setting_problem``)."""
     if retired := retired_keys_message(mapping or {}):
         raise ConfigError(f"{where}: {retired}")
-    return from_section(PipelineConfig, mapping, where)
+    built = from_section(PipelineConfig, mapping, where)
+    if problem := hand_setting_problem(built.hand):
+        raise ConfigError(f"{where}: {problem}")
+    return built
 
 
 def stage_config(text: str, option: str = "--config-json") -> PipelineConfig:

@@ -72,7 +72,7 @@ def test_lift_test_one_line_errors(tmp_path, objects_dir, capsys):
     out = tmp_path / "never.zarr"
     assert main(["lift-test", str(bad), "--objects", str(objects_dir), "--out", str(out)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert err == [f"dexlite lift-test: error: {bad}: hand_pose has shape (3, 27), expected (N, 28)"]
+    assert err == [f"dexlite lift-test: error: {bad}: hand_pose has shape (3, 27), expected (N, 28) for hand shadow"]
     assert not out.exists()
 
     assert main(["lift-test", str(tmp_path / "missing.zarr"), "--objects", str(objects_dir), "--out", str(out)]) == 2

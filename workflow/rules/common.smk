@@ -27,12 +27,19 @@ sys.path.append(str(Path(workflow.basedir) / "src"))
 
 from dexlite_pipeline.codehash import code_hash as _package_code_hash
 from dexlite_pipeline.config import SCHEMA_PATH, result_neutral_keys, retired_keys_message, section_json
-from dexlite_pipeline.settings import PipelineConfig
+from dexlite_pipeline.settings import SHADOW, PipelineConfig, hand_setting_problem, model_stage_hand_problem
 
 # A renamed or removed key (config.RETIRED_KEYS) fails with its replacement, before the schema's bare unknown-key error.
 if retired := retired_keys_message(config):
     raise WorkflowError(retired)
 validate(config, str(SCHEMA_PATH))
+# Config key hand: a known name or an existing file, checked while parsing (the file's MJCF is read by the first stage
+# that makes the hand, which refuses it in one line). optimize_grasps, curate and lift_validate take the hand; every
+# other stage is given it too when it is not the Shadow Hand, and refuses it (dexlite's PIPELINE_STAGES without
+# HAND_STAGES): the model stages know the Shadow Hand only. The default target asks for them, so it refuses at once.
+HAND = str(config.get("hand", SHADOW))
+if problem := hand_setting_problem(HAND):
+    raise WorkflowError(problem)
 
 RESULTS = "results"
 LOGS = "logs"
@@ -82,12 +89,14 @@ class StageConfigJSON(str):
         return repr(self.tracked)
 
 
-def stage_params(*sections, source=None):
+def stage_params(*sections, source=None, told_hand=True):
     """Canonical JSON of the config sections a stage uses: changes rerun exactly that stage.
 
     ``source`` is the config to take them from (default: the whole config; the evaluation
     steps pass a cut-down one). Given as a params function: Snakemake rebuilds a plain-string
     param as a plain str (wildcards applied), which would lose StageConfigJSON's tracked form.
+    ``told_hand``: with a hand other than the Shadow Hand, a stage that does not list "hand" is given it (and refuses
+    it: the model stages); False for the stages whose outputs do not depend on the hand (objects, stability, import).
     """
     source = config if source is None else source
     tracked_config = {
@@ -95,6 +104,8 @@ def stage_params(*sections, source=None):
         if isinstance(section, dict) else section
         for name, section in source.items()
     }
+    if told_hand and HAND != SHADOW and "hand" not in sections:  # a stage that does not take the hand is told it, and refuses another
+        source, sections = {**source, "hand": HAND}, (*sections, "hand")
     stage_json = StageConfigJSON(section_json(source, *sections))
     stage_json.tracked = section_json(tracked_config, *sections)
     return lambda wildcards: stage_json
@@ -231,6 +242,14 @@ def final_outputs():
         f"{RESULTS}/eval/report.html",
         *([f"{RESULTS}/loop.csv"] if LOOP_ROUNDS else []),
     ]
+
+
+def default_outputs(wildcards=None):
+    """The default target's inputs: ``final_outputs()``, which need the model stages, so with a hand other than the
+    Shadow Hand a one-line refusal (build the data stages' outputs by name: results/lift/shard_000.zarr ...)."""
+    if problem := model_stage_hand_problem(HAND):
+        raise WorkflowError(f"{problem}: ask for the data stages' outputs by name (e.g. {RESULTS}/lift/shard_000.zarr)")
+    return final_outputs()
 
 
 def stale_temporaries(root):

@@ -24,8 +24,8 @@ def curate_options(input):
 
 
 # Device, shards and energy matter only for imported grasps (dealt to shards here, their energies computed here);
-# scene: on a table, grasps with a hand point below it are dropped (below_table).
-CURATE_SECTIONS = ("curate", "scene") + (("device", "shards", "energy") if config["dexgraspnet"]["root"] else ())
+# scene: on a table, grasps with a hand point below it are dropped (below_table); hand: the stores' hand.
+CURATE_SECTIONS = ("curate", "scene", "hand") + (("device", "shards", "energy") if config["dexgraspnet"]["root"] else ())
 
 
 rule curate:

@@ -11,7 +11,7 @@ rule lift_validate:
     output:
         directory(f"{RESULTS}/lift/shard_{{shard}}.zarr"),
     params:
-        cfg=stage_params("seed", "lift", "scene"),
+        cfg=stage_params("seed", "hand", "lift", "scene"),
         code=code_hash("lift_validate"),
         objects=learning_cli_options("objects", learning_objects_dirs()),
     threads: SHARD_THREADS

@@ -9,7 +9,7 @@ rule optimize_grasps:
     output:
         grasps=directory(f"{RESULTS}/optimized/shard_{{shard}}.zarr"),
     params:
-        cfg=stage_params("seed", "device", "shards", "energy", "scene", "optimize_grasps"),
+        cfg=stage_params("seed", "device", "shards", "hand", "energy", "scene", "optimize_grasps"),
         code=code_hash("optimize_grasps"),
         objects=lambda wildcards, input: Path(input.catalog).parent,
         dataset=f"--dataset {shlex.quote(dataset_root())}" if dataset_root() else "",

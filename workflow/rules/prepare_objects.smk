@@ -14,7 +14,7 @@ rule prepare_objects:
         catalog=f"{RESULTS}/objects/catalog.parquet",
         config=f"{RESULTS}/objects/prepare_config.json",
     params:
-        cfg=stage_params("seed", "objects"),
+        cfg=stage_params("seed", "objects", told_hand=False),
         code=code_hash("prepare_objects"),
     threads: all_cores()
     conda:

@@ -16,7 +16,7 @@ rule stability_filter:
         table=f"{RESULTS}/stability/stability.parquet",
         config=f"{RESULTS}/stability/stability_config.json",
     params:
-        cfg=stage_params("seed", "stability"),
+        cfg=stage_params("seed", "stability", told_hand=False),
         code=code_hash("stability_filter"),
         objects=lambda wildcards, input: " ".join(f"--objects {Path(c).parent}" for c in input.catalogs),
     threads: all_cores()

@@ -55,6 +55,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="the grasps' type: any (default: the model's training mix) or one of power, pinch, tripod, lateral; the "
                         "model must know it (the shipped model knows power only), and optimization from scratch (--from-scratch, the "
                         "top-up) then makes that type only")
+    parser.add_argument("--hand", default=None, metavar="HAND",
+                        help="the hand: shadow (default: the config's hand), allegro, leap or the path of a hand's MJCF file "
+                        "(docs/hands.md); a hand other than shadow needs --from-scratch (the models are the Shadow Hand's), and its "
+                        "run writes no pictures or 3-D view yet")
     parser.add_argument("--config-json", default="{}", help="config sections over the default config.yaml, as inline JSON or a .json/.yaml file")
     parser.add_argument("--renders", type=int, default=DEFAULT_RENDERS_PER_OBJECT, help="pictures per object (default %(default)s)")
     parser.add_argument("--upright-axis", choices=UPRIGHT_AXES, default=None, help="on a table (scene.table, the default): the mesh axis that "
@@ -75,7 +79,7 @@ def run(args: argparse.Namespace) -> int:
         from_scratch=args.from_scratch, min_distinct=args.min_distinct, top_up_batches=args.top_up_batches,
         resize_to_training=args.resize_to_training, distinct=args.distinct, overwrite=args.overwrite, device=args.device,
         config=parse_config_json(args.config_json), threads=args.threads or os.cpu_count() or 1, renders=args.renders,
-        upright_axis=args.upright_axis, grasp_type=args.grasp_type,
+        upright_axis=args.upright_axis, grasp_type=args.grasp_type, hand=args.hand,
     )  # fmt: skip
     outcome = run_grasp_tool(request)
     print(f"{outcome.held}/{outcome.total} grasps held the object in the lift test, {outcome.distinct} distinct "

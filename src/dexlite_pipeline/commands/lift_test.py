@@ -50,6 +50,16 @@ def lift_test_tables(grasps_path: str, stability: str | None, floating: bool):
     return stored, "on the tables recorded in the grasp store"
 
 
+def store_hand_model(grasps_path: str):
+    """(hand model, its record) of the hand a store names (``io.grasp_store.store_hand``; shadow without one): the store's
+    grasps are tested with their own hand; a hand file that is gone or changed since is refused in one line."""
+    from dexlite_pipeline.hand.choice import hand_record, resolve_hand
+    from dexlite_pipeline.io.grasp_store import read_grasp_store, store_hand
+
+    hand = store_hand(read_grasp_store(grasps_path).attrs)
+    return resolve_hand(hand, "cpu"), hand_record(hand)
+
+
 def run(args: argparse.Namespace) -> int:
     from dexlite_pipeline.config import parse_config_json
     from dexlite_pipeline.io.grasp_store import write_grasp_store
@@ -65,7 +75,9 @@ def run(args: argparse.Namespace) -> int:
     objects = objects_dirs(args)
     check_objects_dirs(objects)  # before reading the store: the errors come in the order users fix them
     planes, where = lift_test_tables(args.grasps, args.stability, args.floating)
-    result, summary = lift_test_store(args.grasps, objects, config, args.threads or os.cpu_count() or 1, support_planes=planes)
+    hand, record = store_hand_model(args.grasps)
+    result, summary = lift_test_store(args.grasps, objects, config, args.threads or os.cpu_count() or 1, support_planes=planes, hand=hand,
+                                      hand_record=record)
     write_grasp_store(args.out, result, {"stage": "lift_test", "source": str(args.grasps), "scene": {"table": planes is not None}})
     print(f"objects: {where}", file=sys.stdout)
     print(format_summary(summary, config), file=sys.stdout)

@@ -154,7 +154,7 @@ def near_duplicates(hand_pose: np.ndarray, order: np.ndarray, config: CurateConf
     pose = torch.as_tensor(np.asarray(hand_pose, np.float64)[order])
     translation = pose[:, TRANSLATION]
     rotation = euler_xyz_to_matrix(pose[:, ROTATION]).reshape(-1, 9)
-    joints = pose[:, JOINTS]
+    joints = pose[:, JOINTS.start:]  # the hand's joints: columns 6 to 28 for the Shadow Hand, 6 + J for a hand from its MJCF
     # trace(Ri^T Rj) = vec(Ri)·vec(Rj); angle < a  <=>  trace > 1 + 2 cos a
     min_trace = 1.0 + 2.0 * math.cos(math.radians(config.duplicate_rotation_deg))
     n = pose.shape[0]

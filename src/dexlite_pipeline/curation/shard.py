@@ -80,8 +80,9 @@ def _common_arrays(sets: list[GraspSet]) -> GraspSet:
     return grasps
 
 
-def force_closure_evaluator(objects_dirs: list[str], settings: CurateConfig, threads: int):
-    """grasps -> Ferrari–Canny ε of their actual contacts (``ForceClosureResult``), with the contact model of ``settings``."""
+def force_closure_evaluator(objects_dirs: list[str], settings: CurateConfig, threads: int, hand=None):
+    """grasps -> Ferrari–Canny ε of their actual contacts (``ForceClosureResult``), with the contact model of ``settings``,
+    the links of ``hand`` (None: the Shadow Hand)."""
     from dexlite_pipeline.curation.force_closure import ContactModel, evaluate_force_closure
 
     model = ContactModel(
@@ -91,7 +92,7 @@ def force_closure_evaluator(objects_dirs: list[str], settings: CurateConfig, thr
     )
 
     def evaluate(grasps):
-        result = evaluate_force_closure(grasps, objects_dirs, model, threads=threads)
+        result = evaluate_force_closure(grasps, objects_dirs, model, hand=hand, threads=threads)
         epsilon = result.epsilon[np.isfinite(result.epsilon)]
         log.info(
             "force closure of %d grasps: %d evaluated, epsilon median %.4f, %.1f%% above %g",
@@ -106,14 +107,21 @@ def force_closure_evaluator(objects_dirs: list[str], settings: CurateConfig, thr
 def curate_shard(
     optimized_paths: list[str], imported_path: str | None, stability_paths: list[str], objects_dirs: list[str],
     shard: int, *, shards: int, curate: CurateConfig, energy: EnergyConfig, scene: SceneConfig, device: str, threads: int = 1,
+    hand: str = "shadow",
 ) -> tuple[GraspSet, dict, pd.DataFrame]:
     """The curated grasps of one shard, their store attributes and the per-object summary.
 
     The config it reads comes as arguments: ``shards``, ``device``, sections ``curate``, ``scene`` and (for imported grasps) ``energy``.
     In tabletop mode (``scene.table``) every grasp, optimized or imported, with a hand point below its
     object's table (the first stability table's resting pose) is dropped as ``below_table``.
+
+    ``hand`` (config key ``hand``): every input store must be of this hand (a store without ``hand`` is the Shadow
+    Hand's, as DexGraspNet imports are), else ``GraspStoreError`` in one line naming both; the table depth, the
+    near-duplicate test and the force-closure check use its links and joints, and the curated store records it.
     """
     from dexlite_pipeline.config import json_ready
+    from dexlite_pipeline.hand.choice import hand_record, resolve_hand
+    from dexlite_pipeline.io.grasp_store import check_one_hand
     from dexlite_pipeline.objects.assets import CATALOG_NAME, read_catalog
     from dexlite_pipeline.objects.stability import read_stability_table
 
@@ -125,15 +133,18 @@ def curate_shard(
         sets.append(imported_with_energies(imported_path, objects_dirs, shard, shards, facts, energy, settings.energy_batch_size, device))
     if not sets:
         raise ValueError("curate needs optimized grasps and/or imported grasps")
+    inputs = [*optimized_paths, *([imported_path] if imported_path else [])]
+    record = check_one_hand([(f"config key hand ({hand})", hand_record(hand)), *((str(p), s.attrs) for p, s in zip(inputs, sets))])
+    hand_model = resolve_hand(hand, "cpu")
     grasps = _common_arrays(sets)
     table_depth = None
     if scene.table:
         from dexlite_pipeline.energy.table_clearance import grasp_table_depths
         from dexlite_pipeline.tabletop import load_support_planes
 
-        table_depth = grasp_table_depths(grasps, load_support_planes(True, stability_paths[0]))
+        table_depth = grasp_table_depths(grasps, load_support_planes(True, stability_paths[0]), hand=hand_model)
     drop_reasons = TABLETOP_DROP_REASONS if scene.table else DROP_REASONS
-    reasons = curate_grasps(grasps, facts, settings, force_closure_evaluator(objects_dirs, settings, threads), table_depth_m=table_depth)
+    reasons = curate_grasps(grasps, facts, settings, force_closure_evaluator(objects_dirs, settings, threads, hand_model), table_depth_m=table_depth)
     # Reported in the attributes and the log, not stored: it is '' for every kept grasp.
     failure_reason = grasps.arrays.pop("force_closure_failure_reason", np.full(len(grasps), "", dtype=object))
     force_closure_failures = Counter(failure_reason[failure_reason != ""].tolist())
@@ -141,6 +152,7 @@ def curate_shard(
     attrs = {
         "stage": "curate",
         "shard": shard,
+        **record,
         "config": {"curate": json_ready(settings), "energy": json_ready(energy) if imported_path else None},
         "inputs": {"optimized": list(optimized_paths), "imported": imported_path, "stability": list(stability_paths)},
         "n_input": len(grasps),

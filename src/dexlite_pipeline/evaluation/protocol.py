@@ -186,7 +186,7 @@ def fit_error_arrays(selected: GraspSet, method: str, sampled_reference: np.ndar
     return out
 
 
-def coverage_arrays(simulated: GraspSet, objects_dirs, diversity: DiversityConfig) -> dict[str, np.ndarray]:
+def coverage_arrays(simulated: GraspSet, objects_dirs, diversity: DiversityConfig, hand=None) -> dict[str, np.ndarray]:
     """The surface patches each grasp touches, for the coverage columns (``metrics.TOUCHED_PATCHES`` and ``COVERAGE_PATCHES``).
 
     Per object: its stored surface samples split into ``diversity.coverage_patches`` patches
@@ -194,7 +194,8 @@ def coverage_arrays(simulated: GraspSet, objects_dirs, diversity: DiversityConfi
     scale); per valid grasp, the hand's 140 contact candidates placed by forward kinematics,
     their signed distance from the object's SDF grid, and the patches touched
     (``diversity.touched_patches``). Invalid grasps and objects whose asset cannot be read
-    touch nothing and get 0 patches (coverage NaN for such an object, with a warning).
+    touch nothing and get 0 patches (coverage NaN for such an object, with a warning). ``hand``: the grasps' hand
+    model (None: the Shadow Hand; a ``DescribedHand``'s own contact candidates otherwise).
     """
     import torch
 
@@ -207,7 +208,7 @@ def coverage_arrays(simulated: GraspSet, objects_dirs, diversity: DiversityConfi
     patches = np.zeros(n, dtype=np.int64)
     if n == 0:
         return {metrics.TOUCHED_PATCHES: touched, metrics.COVERAGE_PATCHES: patches}
-    hand = ShadowHand()
+    hand = ShadowHand() if hand is None else hand
     object_ids = np.asarray([str(o) for o in simulated.object_id])
     valid = ~metrics.invalid_flags(simulated.arrays)
     for object_id in sorted(set(object_ids)):

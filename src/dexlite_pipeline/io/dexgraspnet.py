@@ -38,7 +38,8 @@ from dexlite_pipeline.hand.model import JOINT_NAMES
 from dexlite_pipeline.hand.qpos import QPOS_KEYS, ROTATION_KEYS, TRANSLATION_KEYS, QposError, hand_pose_from_qpos, qpos_from_hand_pose
 from dexlite_pipeline.atomic import atomic_path
 from dexlite_pipeline.io.config import DexGraspNetConfig
-from dexlite_pipeline.io.grasp_store import DEFAULT_GRASP_TYPE, GRASP_TYPE, GraspSet, empty_grasp_set, grasp_types
+from dexlite_pipeline.io.grasp_store import (DEFAULT_GRASP_TYPE, DEFAULT_HAND, GRASP_TYPE, GraspSet, empty_grasp_set, grasp_types,
+                                             hand_joint_names, store_hand)
 from dexlite_pipeline.io.safe_pickle import NpyReadError, RefusedPickleError, load_npy_restricted
 
 log = logging.getLogger(__name__)
@@ -422,13 +423,16 @@ def export_dexgraspnet(grasps: GraspSet, out_dir: str | os.PathLike, objects_dir
 
     With ``objects_dirs``, also ``OUT_DIR/meshdata/<object_id>/coacd/decomposed.obj`` from each
     object's convex pieces, so the output is a complete DexGraspNet layout. Returns counts
-    and the ids whose asset was not found.
+    and the ids whose asset was not found. A store of another hand (its ``hand`` attribute): ``qpos`` names the hand's
+    joints and ``OUT_DIR/hand.json`` records it (``io.hand_export``); DexGraspNet and our import read the Shadow Hand's only.
     """
+    from dexlite_pipeline.io.hand_export import hand_qpos, write_hand_record
     from dexlite_pipeline.objects.assets import ObjectAssetError, find_asset_dir
 
     out_dir = Path(out_dir)
     object_ids = np.asarray([str(o) for o in grasps.object_id])
     types = grasp_types(grasps)
+    hand, joint_names = store_hand(grasps.attrs), hand_joint_names(grasps.attrs)
     missing_assets = []
     for object_id in set(object_ids):
         _check_file_name(object_id)  # all before writing anything
@@ -436,8 +440,8 @@ def export_dexgraspnet(grasps: GraspSet, out_dir: str | os.PathLike, objects_dir
         rows = np.nonzero(object_ids == object_id)[0]
         entries = np.empty(len(rows), dtype=object)
         for k, row in enumerate(rows):
-            qpos = qpos_from_hand_pose(grasps.hand_pose[row])
-            entries[k] = {"qpos": {key: qpos[key] for key in EXPORT_KEY_ORDER}, "scale": np.float64(grasps.scale[row]),
+            qpos = qpos_from_hand_pose(grasps.hand_pose[row]) if hand == DEFAULT_HAND else hand_qpos(grasps.hand_pose[row], joint_names)
+            entries[k] = {"qpos": {key: qpos[key] for key in EXPORT_KEY_ORDER} if hand == DEFAULT_HAND else qpos, "scale": np.float64(grasps.scale[row]),
                           GRASP_TYPE: str(types[row])}
         with atomic_path(out_dir / DATASET_DIR / f"{object_id}.npy") as tmp:
             with open(tmp, "wb") as fp:
@@ -450,6 +454,8 @@ def export_dexgraspnet(grasps: GraspSet, out_dir: str | os.PathLike, objects_dir
                 continue
             pieces = sorted((directory / "convex").glob("*.obj")) or [directory / "mesh.obj"]
             _write_decomposed_obj(pieces, out_dir / MESHDATA_DIR / object_id / MESH_RELATIVE_PATH)
+    if hand != DEFAULT_HAND:
+        write_hand_record(out_dir, grasps.attrs, hand, joint_names)
     return {"objects": len(set(object_ids)), "grasps": len(object_ids), "missing_assets": missing_assets}
 
 

@@ -1,9 +1,16 @@
 """Grasp stores: one Zarr v3 group per shard (the layout is described in README.md, "Grasp store layout").
 
-Arrays: ``hand_pose`` float32 (N, 28), ``object_id`` (N,) strings, ``scale`` float32 (N,),
+Arrays: ``hand_pose`` float32 (N, D), ``object_id`` (N,) strings, ``scale`` float32 (N,),
 and any further per-grasp arrays with first dimension N. Root attributes:
 ``joint_names`` and ``schema_version``, plus whatever the writing stage records
 (its config, provenance).
+
+The hand (config key ``hand``; ``hand.choice.hand_record``): attribute ``hand`` names it (``shadow``, ``allegro``,
+``leap``, or an MJCF file's path with ``hand_sha256``, its bytes' SHA-256) and ``joint_names`` its joints in pose
+order; a pose is then 6 + J numbers (palm translation, xyz Euler angles, the J joints). A store without ``hand`` is
+the Shadow Hand's (every store written before hands were recorded, DexGraspNet imports): D = 28 and the Shadow
+Hand's 22 joint names, as a store recording ``hand: shadow``. Stages that combine stores refuse stores of different
+hands (``check_one_hand``).
 
 ``grasp_type`` (N,) strings: the grasp type optimization from scratch made the grasp as (``power``, ``pinch``,
 ``tripod``, ``lateral``: ``optim.grasp_types``); every optimized store has it, and curation and the lift test carry it.
@@ -31,6 +38,11 @@ DEFAULT_GRASP_TYPE = "power"  # the type of a grasp in a store without ``grasp_t
 # Per-grasp arrays whose absence means a known value: concatenating a store that has one with one that lacks it
 # fills the value in rather than leaving the array out.
 ARRAY_DEFAULTS: dict[str, str] = {GRASP_TYPE: DEFAULT_GRASP_TYPE}
+
+
+HAND = "hand"  # the attribute naming a store's hand
+DEFAULT_HAND = "shadow"  # the hand of a store without ``hand``
+POSE_PREFIX = 6  # palm translation (3) and Euler angles (3) before a hand's joints in a pose
 
 
 class GraspStoreError(ValueError):
@@ -103,10 +115,55 @@ def grasp_types(grasps: GraspSet) -> np.ndarray:
     return np.full(len(grasps), DEFAULT_GRASP_TYPE, dtype=object)
 
 
+def store_hand(attrs: dict) -> str:
+    """The hand a store's attributes name: ``hand``, or ``shadow`` for a store without it."""
+    return str(attrs.get(HAND) or DEFAULT_HAND)
+
+
+def hand_identity(attrs: dict) -> str:
+    """What makes two stores' hands the same: a file's SHA-256 (whatever its path), else the hand's name."""
+    return str(attrs.get("hand_sha256") or store_hand(attrs))
+
+
+def hand_joint_names(attrs: dict) -> list[str]:
+    """The joints of a store's hand in pose order: its ``joint_names`` for a recorded non-Shadow hand, else the Shadow Hand's."""
+    if store_hand(attrs) == DEFAULT_HAND:
+        return list(JOINT_NAMES)
+    names = attrs.get("joint_names")
+    if not names:
+        raise GraspStoreError(f"hand {store_hand(attrs)}: a store of a hand other than shadow must record its joint_names")
+    return [str(n) for n in names]
+
+
+def pose_width(attrs: dict) -> int:
+    """Numbers in one pose of a store with attributes ``attrs``: 28 for the Shadow Hand, 6 + J for another hand."""
+    return POSE_DIM if store_hand(attrs) == DEFAULT_HAND else POSE_PREFIX + len(hand_joint_names(attrs))
+
+
+def check_one_hand(named_attrs: list[tuple[str, dict]]) -> dict:
+    """The hand record (``hand``, ``hand_sha256`` when a file, ``joint_names``) that every (name, attributes) pair shares;
+    ``GraspStoreError`` naming the first two that differ (a stage must not mix grasps of two hands)."""
+    if not named_attrs:
+        return {HAND: DEFAULT_HAND, "joint_names": list(JOINT_NAMES)}
+    first_name, first = named_attrs[0]
+    for name, attrs in named_attrs[1:]:
+        if hand_identity(attrs) != hand_identity(first) and store_hand(attrs) == store_hand(first):
+            raise GraspStoreError(f"{first_name} and {name} name hand {store_hand(first)} with different file contents (SHA-256 "
+                                  f"{str(first.get('hand_sha256'))[:12]} vs {str(attrs.get('hand_sha256'))[:12]}): the file changed")
+        if hand_identity(attrs) != hand_identity(first):
+            raise GraspStoreError(f"{first_name} holds grasps of hand {store_hand(first)}, {name} of hand {store_hand(attrs)}: "
+                                  "grasps of different hands are not combined")
+    record = {HAND: store_hand(first), "joint_names": hand_joint_names(first)}
+    if first.get("hand_sha256"):
+        record["hand_sha256"] = str(first["hand_sha256"])
+    return record
+
+
 def empty_grasp_set(attrs: dict | None = None) -> GraspSet:
+    """A set without grasps; its pose width follows the hand ``attrs`` name (``pose_width``)."""
     return GraspSet(
         {
-            "hand_pose": np.zeros((0, POSE_DIM), np.float32),
+            "hand_pose": np.zeros((0, pose_width(attrs or {})), np.float32),
             "object_id": np.zeros((0,), dtype=object),
             "scale": np.zeros((0,), np.float32),
         },
@@ -114,13 +171,13 @@ def empty_grasp_set(attrs: dict | None = None) -> GraspSet:
     )
 
 
-def _normalize(arrays: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+def _normalize(arrays: dict[str, np.ndarray], width: int = POSE_DIM, hand: str = DEFAULT_HAND) -> dict[str, np.ndarray]:
     missing = [k for k in REQUIRED_ARRAYS if k not in arrays]
     if missing:
         raise GraspStoreError(f"missing required arrays: {', '.join(missing)}")
     hand_pose = np.asarray(arrays["hand_pose"], dtype=np.float32)
-    if hand_pose.ndim != 2 or hand_pose.shape[1] != POSE_DIM:
-        raise GraspStoreError(f"hand_pose has shape {hand_pose.shape}, expected (N, {POSE_DIM})")
+    if hand_pose.ndim != 2 or hand_pose.shape[1] != width:
+        raise GraspStoreError(f"hand_pose has shape {hand_pose.shape}, expected (N, {width}) for hand {hand}")
     n = hand_pose.shape[0]
     out = {"hand_pose": hand_pose}
     for key, value in arrays.items():
@@ -140,13 +197,14 @@ def _normalize(arrays: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
 def write_grasp_store(path: str | os.PathLike, grasps: GraspSet, attrs: dict | None = None) -> Path:
     """Write ``grasps`` to a Zarr v3 store at ``path`` atomically; returns the path.
 
-    ``attrs`` are merged over ``grasps.attrs``; they must be JSON-serializable.
+    ``attrs`` are merged over ``grasps.attrs``; they must be JSON-serializable. Their ``hand`` (and for a hand other
+    than shadow its ``joint_names``) sets the pose width the grasps must have; without ``hand``, the Shadow Hand's.
     """
     import zarr
 
-    arrays = _normalize(grasps.arrays)
     root_attrs = {**grasps.attrs, **(attrs or {})}
-    root_attrs["joint_names"] = list(JOINT_NAMES)
+    arrays = _normalize(grasps.arrays, pose_width(root_attrs), store_hand(root_attrs))
+    root_attrs["joint_names"] = hand_joint_names(root_attrs)
     root_attrs["schema_version"] = SCHEMA_VERSION
     try:
         json.dumps(root_attrs)
@@ -195,16 +253,20 @@ def read_grasp_store(path: str | os.PathLike) -> GraspSet:
     missing = [k for k in REQUIRED_ARRAYS if k not in arrays]
     if missing:
         raise GraspStoreError(f"{p}: missing required arrays: {', '.join(missing)}")
+    attrs = dict(group.attrs)
+    if store_hand(attrs) == DEFAULT_HAND and attrs.get("joint_names") not in (None, list(JOINT_NAMES)):
+        raise GraspStoreError(f"{p}: joint_names differ from the Shadow Hand's 22 joints (a store of another hand records it as hand)")
+    try:
+        width = pose_width(attrs)
+    except GraspStoreError as exc:
+        raise GraspStoreError(f"{p}: {exc}") from None
     hand_pose = arrays["hand_pose"]
-    if hand_pose.ndim != 2 or hand_pose.shape[1] != POSE_DIM:
-        raise GraspStoreError(f"{p}: hand_pose has shape {hand_pose.shape}, expected (N, {POSE_DIM})")
+    if hand_pose.ndim != 2 or hand_pose.shape[1] != width:
+        raise GraspStoreError(f"{p}: hand_pose has shape {hand_pose.shape}, expected (N, {width}) for hand {store_hand(attrs)}")
     n = hand_pose.shape[0]
     for key, value in arrays.items():
         if value.shape[:1] != (n,):
             raise GraspStoreError(f"{p}: array {key!r} has shape {value.shape}, expected first dimension {n}")
-    attrs = dict(group.attrs)
-    if attrs.get("joint_names") not in (None, list(JOINT_NAMES)):
-        raise GraspStoreError(f"{p}: joint_names differ from the Shadow Hand's 22 joints")
     return GraspSet(arrays, attrs)
 
 

@@ -160,8 +160,8 @@ def synthesize(
     ``config.grasp_types``: the share of each grasp type among each object's starts (``start_types``); the grasps
     record their type in ``grasp_type``.
     ``hand``: the hand to grasp with, on ``device`` (None: the Shadow Hand). A hand from its MJCF
-    (``hand.described.DescribedHand``) makes power grasps only, and its poses are 6 + J numbers (its joints), so the
-    set is for memory and the lift test (``sim.lift.run_lift_tests(..., hand=)``), not yet for a grasp store.
+    (``hand.described.DescribedHand``) makes power grasps only, and its poses are 6 + J numbers (its joints); a store of
+    them records the hand (``hand.choice.hand_record``, ``io.grasp_store``).
     """
     started = time.process_time()  # CPU seconds (all threads of this process), not wall time
     hand = ShadowHand(device) if hand is None else hand

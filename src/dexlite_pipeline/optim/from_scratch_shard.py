@@ -25,8 +25,9 @@ if TYPE_CHECKING:
 log = logging.getLogger(__name__)
 
 
-def empty_optimized_grasps(table: bool = False) -> GraspSet:
-    """A zero-row shard with every array ``synthesize`` writes (dtypes and trailing shapes alike; ``table``: tabletop mode's too).
+def empty_optimized_grasps(table: bool = False, width: int | None = None) -> GraspSet:
+    """A zero-row shard with every array ``synthesize`` writes (dtypes and trailing shapes alike; ``table``: tabletop mode's too;
+    ``width``: numbers per pose, None for the Shadow Hand's 28).
 
     A shard without usable objects must still carry the energy arrays: curation keeps only
     the arrays all its inputs have, and E_fc, E_dis and E_pen are what it filters on.
@@ -35,8 +36,10 @@ def empty_optimized_grasps(table: bool = False) -> GraspSet:
     from dexlite_pipeline.hand.model import POSE_DIM
     from dexlite_pipeline.io.grasp_store import empty_grasp_set
 
+    width = POSE_DIM if width is None else width
     grasps = empty_grasp_set()
-    grasps.arrays["init_pose"] = np.zeros((0, POSE_DIM), np.float32)
+    grasps.arrays["hand_pose"] = np.zeros((0, width), np.float32)
+    grasps.arrays["init_pose"] = np.zeros((0, width), np.float32)
     grasps.arrays["contact_index"] = np.zeros((0, CONTACT_COUNT), np.int16)
     for name in ("acceptance_rate", "penetration_mm", "contact_distance_mm", "E_total", *TERM_NAMES):
         grasps.arrays[name] = np.zeros(0, np.float32)
@@ -78,13 +81,14 @@ def usable_assets(objects_dirs: list[str], object_ids: list[str], planes) -> tup
 
 def optimize_shard(
     objects_dirs: list[str], stability_path: str, shard: int, *, shards: int, optimize_grasps: OptimizeGraspsConfig, energy: EnergyConfig,
-    scene: SceneConfig, seed: int, device: str, skip_objects: set[str] | frozenset = frozenset(),
+    scene: SceneConfig, seed: int, device: str, skip_objects: set[str] | frozenset = frozenset(), hand: str = "shadow",
 ) -> tuple[GraspSet, dict]:
     """Optimized grasps of one shard: the stable, prepared objects dealt to ``shard`` of ``shards`` (train and held-out),
     but ``skip_objects`` (training objects whose grasps come from a grasp dataset; listed in ``objects_from_dataset``).
 
     The config sections it reads come as arguments: ``optimize_grasps``, ``energy``, ``scene``, and the
-    top-level ``seed`` and ``device``.
+    top-level ``seed``, ``device`` and ``hand`` (``hand.choice``: the Shadow Hand's code path as before for ``shadow``,
+    else the hand from its MJCF, power grasps only; the attributes record it, ``hand.choice.hand_record``).
 
     Returns the grasps and the store attributes: the settings used (with the scene mode), the objects
     synthesized, the objects that could not be used with their reason, and the run statistics. In
@@ -93,12 +97,16 @@ def optimize_shard(
     """
     from dexlite_pipeline.config import json_ready
     from dexlite_pipeline.device import resolve_device
+    from dexlite_pipeline.hand.choice import hand_record, resolve_hand
     from dexlite_pipeline.objects.assets import ok_object_ids
+    from dexlite_pipeline.optim.from_scratch import pose_width
     from dexlite_pipeline.objects.stability import stable_object_ids
     from dexlite_pipeline.sharding import shard_generator, shard_objects
 
     settings = optimize_grasps
     device = resolve_device(device)
+    record = hand_record(hand)  # refuses an unusable hand (one line) before any work
+    hand_model = resolve_hand(hand, device)
     object_ids = shard_objects(sorted(ok_object_ids(objects_dirs) & stable_object_ids(stability_path)), shard, shards)
     from_dataset = [oid for oid in object_ids if oid in skip_objects]
     object_ids = [oid for oid in object_ids if oid not in skip_objects]
@@ -112,15 +120,16 @@ def optimize_shard(
     object_scales = real_size_scales(assets, settings) if settings.real_size else None
     if assets:
         grasps, stats = synthesize(assets, settings, energy, shard_generator("optimize_grasps", seed, shard), device, support_planes=planes,
-                                   object_scales=object_scales)
+                                   object_scales=object_scales, hand=hand_model)
     else:
-        grasps, stats = empty_optimized_grasps(planes is not None), {"grasps": 0, "passing": 0, "pass_fraction": 0.0, "stopped_early": 0,
+        grasps, stats = empty_optimized_grasps(planes is not None, pose_width(hand_model)), {"grasps": 0, "passing": 0, "pass_fraction": 0.0, "stopped_early": 0,
                                                                      "grasp_types": {}, "seconds": 0.0, "seconds_per_grasp": 0.0}
     attrs = {
         "stage": "optimize_grasps",
         "shard": f"{shard:03d}",
         "seed": seed,
-        "config": {"optimize_grasps": json_ready(settings), "energy": json_ready(energy), "scene": json_ready(scene)},
+        **record,
+        "config": {"optimize_grasps": json_ready(settings), "energy": json_ready(energy), "scene": json_ready(scene), "hand": hand},
         **store_attrs(scene.table),
         "objects": [a.object_id for a in assets],
         "objects_at_real_size": [a.object_id for a in assets if settings.real_size and a.real_scale],

@@ -72,15 +72,16 @@ def format_summary(summary: dict, config: LiftConfig) -> str:
 
 
 def lift_grasp_set(grasps: GraspSet, objects_dirs, config: LiftConfig, threads: int, support_planes=None,
-                   known_failures: np.ndarray | None = None) -> tuple[GraspSet, dict]:
+                   known_failures: np.ndarray | None = None, hand=None) -> tuple[GraspSet, dict]:
     """The input grasps with the lift-test arrays added, attributes recording constants and summary.
 
     ``support_planes`` (tabletop mode): each object on its table; the grasps also record their
     support plane (NaN for an object without one, whose grasps are flagged invalid).
-    ``known_failures``: reasons of grasps not to simulate (``run_lift_tests``).
+    ``known_failures``: reasons of grasps not to simulate (``run_lift_tests``). ``hand``: the grasps' hand model (None:
+    the Shadow Hand; a ``DescribedHand`` is simulated from its own MJCF).
     """
     start = time.perf_counter()
-    results = run_lift_tests(grasps, objects_dirs, config, threads, support_planes, known_failures)
+    results = run_lift_tests(grasps, objects_dirs, config, threads, support_planes, known_failures, hand=hand)
     seconds = time.perf_counter() - start
     arrays = dict(grasps.arrays)
     previous = arrays.pop("failure_reason", None)
@@ -133,15 +134,20 @@ def report_invalid(grasps_path: str, failure_reason) -> None:
         log.warning("%s: %d grasp(s) not simulated: %s", grasps_path, count, reason)
 
 
-def lift_test_store(grasps_path: str, objects_dirs: list[str], config: LiftConfig, threads: int, support_planes=None) -> tuple[GraspSet, dict]:
+def lift_test_store(grasps_path: str, objects_dirs: list[str], config: LiftConfig, threads: int, support_planes=None, hand=None,
+                    hand_record: dict | None = None) -> tuple[GraspSet, dict]:
     """Lift-test every grasp of the store at ``grasps_path``: its grasps with the results, and the summary.
 
     Raises FileNotFoundError when no objects folder holds prepared objects; invalid grasps
-    are kept, flagged and counted in the log.
+    are kept, flagged and counted in the log. ``hand``, ``hand_record``: the hand model to simulate and its record
+    (``hand.choice``; None: the Shadow Hand); a store of another hand is refused in one line (``GraspStoreError``).
     """
-    from dexlite_pipeline.io.grasp_store import read_grasp_store
+    from dexlite_pipeline.io.grasp_store import DEFAULT_HAND, check_one_hand, read_grasp_store
 
     check_objects_dirs(objects_dirs)
-    result, summary = lift_grasp_set(read_grasp_store(grasps_path), objects_dirs, config, threads, support_planes)
+    grasps = read_grasp_store(grasps_path)
+    record = hand_record or {"hand": DEFAULT_HAND}
+    check_one_hand([(f"config key hand ({record['hand']})", record), (str(grasps_path), grasps.attrs)])
+    result, summary = lift_grasp_set(grasps, objects_dirs, config, threads, support_planes, hand=hand)
     report_invalid(grasps_path, result.arrays["failure_reason"])
     return result, summary

@@ -14,7 +14,7 @@ import argparse
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--step", choices=("curate", "aggregate"), required=True)
-    parser.add_argument("--config-json", default="{}", help="config section curate, and for imported grasps device, shards and energy, as JSON")
+    parser.add_argument("--config-json", default="{}", help="config sections curate, scene, hand, and for imported grasps device, shards and energy, as JSON")
     parser.add_argument("--shard", type=int, default=None, help="curate: shard index (selects the imported objects of this shard)")
     parser.add_argument("--optimized-grasps", action="append", default=[], help="curate: optimized grasp store(s) of this shard (repeatable)")
     parser.add_argument("--imported", default=None, help="curate: imported DexGraspNet grasp store (all objects; this shard's are used)")
@@ -46,7 +46,7 @@ def run(args: argparse.Namespace) -> int:
     config = stage_config(args.config_json)
     kept, attrs, summary = curate_shard(
         args.optimized_grasps, args.imported, args.stability, args.objects, args.shard, shards=config.shards, curate=config.curate,
-        energy=config.energy, scene=config.scene, device=config.device, threads=args.threads or 1,
+        energy=config.energy, scene=config.scene, device=config.device, threads=args.threads or 1, hand=config.hand,
     )
     write_grasp_store(args.out, kept, attrs)
     with atomic_path(args.summary_out) as tmp:

@@ -3,7 +3,7 @@
 Objects: every object of the catalog(s) with status ok that the stability table marks
 stable (train and held-out alike), dealt to shards by ``sharding.shard_objects``. Writes
 ``--out`` (grasp store) with every energy term, ``passes_energy_thresholds``, the initial
-pose and the optimizer's acceptance rate per grasp; attributes hold the config,
+pose and the optimizer's acceptance rate per grasp; attributes hold the hand (config key ``hand``), the config,
 ``seconds_per_grasp``, the pass fraction and any object that could not be used, with its
 reason (``optim.from_scratch_shard``).
 """
@@ -17,7 +17,7 @@ log = logging.getLogger("dexlite.optimize_grasps")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--config-json", required=True, help="config sections seed, device, shards, energy, scene, optimize_grasps (canonical JSON)")
+    parser.add_argument("--config-json", required=True, help="config sections seed, device, shards, hand, energy, scene, optimize_grasps (canonical JSON)")
     parser.add_argument("--shard", required=True, type=int, help="shard number, e.g. 000")
     parser.add_argument("--stability", required=True, help="stability table (.parquet)")
     parser.add_argument("--objects", action="append", required=True, help="prepared objects dir with catalog.parquet (repeatable)")
@@ -38,7 +38,7 @@ def run(args: argparse.Namespace) -> int:
         from_dataset = dataset_training_objects(args.dataset, args.objects)
     grasps, attrs = optimize_shard(
         args.objects, args.stability, args.shard, shards=config.shards, optimize_grasps=config.optimize_grasps, energy=config.energy,
-        scene=config.scene, seed=config.seed, device=config.device, skip_objects=from_dataset,
+        scene=config.scene, seed=config.seed, device=config.device, skip_objects=from_dataset, hand=config.hand,
     )
     write_grasp_store(args.out, grasps, attrs)
     log.info(

@@ -1,6 +1,6 @@
 """Every check of a ``dexlite grasp`` request before any work: options, config, device, model file, every mesh
-file (readable, a size plausible for a hand-held object in the given units, one the Shadow Hand can hold) and the
-output folder. A problem that stops the run is one ``GraspToolError``; a mesh the hand cannot hold is only listed."""
+file (readable, a size plausible for a hand-held object in the given units, one the Shadow Hand can hold: the same
+limits for every hand), the hand (config key ``hand``, ``--hand``) and the output folder. A problem that stops the run is one ``GraspToolError``; a mesh the hand cannot hold is only listed."""
 
 from __future__ import annotations
 
@@ -53,6 +53,8 @@ class CheckedRequest:
     sources: list[MeshSource]
     sizes: dict[str, MeshSize]  # object id -> its mesh's size
     not_tried: list[dict]  # meshes the hand cannot hold: file, reason, kind
+    hand: object = None  # the hand model (config key ``hand``, ``hand.choice.resolve_hand``) on ``device``
+    hand_record: dict = dataclasses.field(default_factory=dict)  # what the stores record of it (``hand.choice.hand_record``)
 
 
 def tool_config(overlay: dict) -> tuple[PipelineConfig, dict]:
@@ -235,6 +237,7 @@ def check_request(request: GraspRequest) -> CheckedRequest:
     if problem:
         raise GraspToolError(problem)
     device = check_device(request.device, "--device") if request.device else check_device(config.device, "config device")
+    hand, record = check_hand_choice(config, request, device)
     if request.evaluator and not request.model:
         raise GraspToolError("--evaluator ranks a model's samples: it needs a model (not --from-scratch)")
     loaded = load_model(request.model, device) if request.model else None
@@ -260,4 +263,23 @@ def check_request(request: GraspRequest) -> CheckedRequest:
     if len(not_tried) == len(sources):
         raise GraspToolError("; ".join(f"{r['file']}: {r['reason']}" for r in not_tried)
                              + f" (if a file is not in {UNIT_NAMES[request.units]}, give its unit with --units)")
-    return CheckedRequest(config, mapping, device, loaded, evaluator, sources, sizes, not_tried)
+    return CheckedRequest(config, mapping, device, loaded, evaluator, sources, sizes, not_tried, hand, record)
+
+
+def check_hand_choice(config: PipelineConfig, request: GraspRequest, device: torch.device) -> tuple[object, dict]:
+    """The hand of config key ``hand`` (``--hand``) on ``device`` and its store record; ``GraspToolError`` in one
+    line for a hand that cannot be made, and for a hand other than the Shadow Hand with a model (the shipped model and
+    every model trained here are the Shadow Hand's) or with grasp types other than power (no contact templates yet)."""
+    from dexlite_pipeline.hand.choice import SHADOW, HandChoiceError, hand_record, resolve_hand
+
+    if config.hand != SHADOW:
+        if request.model:
+            raise GraspToolError(f"hand: {config.hand}: the model knows the Shadow Hand only (the shipped model is the Shadow Hand's); "
+                                 "add --from-scratch (optimization from scratch takes any hand)")
+        others = [name for name, share in config.optimize_grasps.grasp_types.shares().items() if share > 0 and name != "power"]
+        if others:
+            raise GraspToolError(f"hand: {config.hand}: grasp type {others[0]} is defined for the Shadow Hand only (power grasps take any hand)")
+    try:
+        return resolve_hand(config.hand, device), hand_record(config.hand)
+    except HandChoiceError as exc:
+        raise GraspToolError(str(exc)) from None

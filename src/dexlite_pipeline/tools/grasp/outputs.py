@@ -30,15 +30,16 @@ def store_attrs(request: GraspRequest, mapping: dict, mesh_files: list[str], met
 
 def write_grasp_stores(out_dir: Path, tested: GraspSet, kept: GraspSet, attrs: dict, distinct_only: bool, objects_dir: Path) -> None:
     """``all_grasps.zarr`` (``tested``), ``grasps.zarr`` (``kept``, its attrs saying how they were chosen) and, when any
-    grasp is kept, the DexGraspNet export of the kept grasps with their meshes from ``objects_dir``."""
+    grasp is kept, the DexGraspNet export of the kept grasps with their meshes from ``objects_dir``. ``attrs`` name the
+    hand (``hand.choice.hand_record``), which sets the stores' pose width and the export's joint names."""
     from dexlite_pipeline.io.dexgraspnet import export_dexgraspnet
-    from dexlite_pipeline.io.grasp_store import write_grasp_store
+    from dexlite_pipeline.io.grasp_store import GraspSet, write_grasp_store
 
     write_grasp_store(out_dir / "all_grasps.zarr", tested, attrs)
     selection = "lift_success, one per distinct_label (the best)" if distinct_only else "lift_success"
     write_grasp_store(out_dir / "grasps.zarr", kept, {**attrs, "selection": selection})
     if len(kept):
-        export_dexgraspnet(kept, out_dir / "dexgraspnet", [str(objects_dir)])
+        export_dexgraspnet(GraspSet(kept.arrays, {**kept.attrs, **attrs}), out_dir / "dexgraspnet", [str(objects_dir)])
 
 
 def render_examples(grasps: GraspSet, labels: np.ndarray, objects_dir: Path, out_dir: Path, per_object: int) -> list[Path]:

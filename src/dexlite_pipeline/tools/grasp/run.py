@@ -95,7 +95,7 @@ class GraspRun:
         """``n`` grasps per chosen object by optimization from scratch: ``--from-scratch`` and the top-up alike."""
         config = self.checked.config
         return synthesize_from_scratch(chosen, object_scales(chosen, self.request, config.optimize_grasps.scales), self.request.grasps_per_object,
-                                       config, self.checked.device, seed, self.prepared.support_planes)  # fmt: skip
+                                       config, self.checked.device, seed, self.prepared.support_planes, self.checked.hand)  # fmt: skip
 
     def with_model(self) -> GraspSet:
         """``n`` CVAE samples per object refined by post-optimization."""
@@ -109,7 +109,8 @@ class GraspRun:
         from dexlite_pipeline.sim.results import lift_grasp_set
 
         tested, _ = lift_grasp_set(grasps, [str(self.prepared.objects_dir)], self.lift_config, self.request.threads,
-                                   support_planes=self.prepared.support_planes, known_failures=hopeless_optimizations(grasps))  # fmt: skip
+                                   support_planes=self.prepared.support_planes, known_failures=hopeless_optimizations(grasps),
+                                   hand=self.checked.hand)  # fmt: skip
         tested.arrays["source"] = np.full(len(tested), source, dtype=object)
         return tested
 
@@ -137,6 +138,15 @@ def hopeless_optimizations(grasps: GraspSet) -> np.ndarray | None:
     method = np.asarray(grasps.arrays.get("method", np.full(len(grasps), "optimization", dtype=object))).astype(str)
     return np.asarray([("post-optimization of the sample" if m == "cvae_post" else "optimization") + " stopped early (hopeless)" if s > 0 else ""
                        for s, m in zip(np.asarray(stopped), method)], dtype=object)  # fmt: skip
+
+
+def hand_note(record: dict) -> str:
+    """The summary's line on the hand: none for the Shadow Hand; another hand's name and joints, and why there are no
+    pictures or 3-D view (they draw the Shadow Hand only, for now)."""
+    if not record or record.get("hand", "shadow") == "shadow":
+        return ""
+    return (f"Hand: {record['hand']} ({len(record['joint_names'])} joints; poses are 6 + {len(record['joint_names'])} numbers, the "
+            "joints named in the stores' `joint_names`). No pictures and no 3-D view: they draw the Shadow Hand only, for now.")
 
 
 def _step(number: int, steps: int, text: str, *args) -> None:
@@ -239,7 +249,8 @@ def select_and_write(run: GraspRun, tested: GraspSet, method: str, topped_up: li
     labels = distinct_labels(tested, checked.config)
     tested.arrays["distinct_label"] = labels
     kept = tested.select(kept_rows(tested, labels, request.distinct))
-    attrs = store_attrs(request, checked.mapping, [s.file for s in checked.sources], method, prepared.support, topped_up)
+    attrs = {**store_attrs(request, checked.mapping, [s.file for s in checked.sources], method, prepared.support, topped_up),
+             **checked.hand_record}
     write_grasp_stores(run.out_dir, tested, kept, attrs, request.distinct, prepared.objects_dir)
     run.record.select_and_write_seconds = time.perf_counter() - t
     return labels, kept
@@ -253,19 +264,21 @@ def render_and_summarize(
     from dexlite_pipeline.atomic import write_text_atomic
     from dexlite_pipeline.evaluation.metrics import per_object_diversity
     from dexlite_pipeline.evaluation.protocol import coverage_arrays
+    from dexlite_pipeline.hand.described import is_described
 
     _step(run.steps, run.steps, "rendering examples and writing the summary")
     request, checked, prepared, record = run.request, run.checked, run.prepared, run.record
     config, objects_dir = checked.config, prepared.objects_dir
+    shadow = not is_described(checked.hand)  # pictures and the 3-D view draw the Shadow Hand only, for now
     t = time.perf_counter()
-    per_object = request.renders_per_object
+    per_object = request.renders_per_object if shadow else 0
     renders = render_examples(tested, labels, objects_dir, run.out_dir / "renders", per_object) if per_object > 0 else []
     record.render_seconds = time.perf_counter() - t
     t = time.perf_counter()
-    view = write_view(run.out_dir, kept, objects_dir, method)
+    view = write_view(run.out_dir, kept, objects_dir, method) if shadow else None
     record.view_seconds = time.perf_counter() - t
     t = time.perf_counter()
-    touched = coverage_arrays(tested, [str(objects_dir)], config.diversity)
+    touched = coverage_arrays(tested, [str(objects_dir)], config.diversity, hand=checked.hand)
     diversity_rows = per_object_diversity({**tested.arrays, **touched}, labels >= 0, config.diversity)
     record.coverage_seconds = time.perf_counter() - t
     coverage = {object_id: row["coverage"] for object_id, row in diversity_rows.items()}
@@ -278,7 +291,7 @@ def render_and_summarize(
         r["prepared_as"] = preparation_text(preparation[r["object_id"]])
     summary_path = run.out_dir / "summary.md"
     write_text_atomic(summary_path, summary_markdown(request, rows, prepared.rejected, method, record.step_seconds(), renders, run.lift_config,
-                                                     config.diversity, len(kept), view))  # fmt: skip
+                                                     config.diversity, len(kept), view, hand_note(checked.hand_record)))  # fmt: skip
     return rows, summary_path
 
 

@@ -194,9 +194,10 @@ def type_lines(request: GraspRequest, rows: list[dict]) -> list[str]:
 
 def summary_markdown(
     request: GraspRequest, rows: list[dict], rejected: list[dict], method: str, step_seconds: dict[str, float], renders: list[Path],
-    lift_config: LiftConfig, diversity: DiversityConfig, kept: int, view: Path | None = None,
+    lift_config: LiftConfig, diversity: DiversityConfig, kept: int, view: Path | None = None, hand_note: str = "",
 ) -> str:
-    """The one-page ``summary.md``: per object its size, held and distinct counts, failure reasons; what to try next."""
+    """The one-page ``summary.md``: per object its size, held and distinct counts, failure reasons; what to try next.
+    ``hand_note``: a line on a hand other than the Shadow Hand (``run.hand_note``), after the first paragraph."""
     total = sum(r["grasps"] for r in rows)
     lift, six, both, distinct = (sum(r[k] for r in rows) for k in ("lift", "six_dir", "both", "distinct"))
     seconds = sum(step_seconds.values())
@@ -220,6 +221,8 @@ def summary_markdown(
         f"{1000 * diversity.coverage_contact_m:g} mm of the object) reach.",
         "",
     ]
+    if hand_note:
+        lines += [hand_note, ""]
     if kept:
         what = "one of each distinct held grasp (the best)" if request.distinct else "every held grasp"
         lines.append(f"`grasps.zarr` and `dexgraspnet/` hold {what}: {kept} grasp(s). `all_grasps.zarr` holds all {total} with their failure reasons.")

@@ -57,9 +57,10 @@ def _balanced_rows(per_scale: int, scale_count: int, wanted: int) -> np.ndarray:
 
 def synthesize_from_scratch(
     assets: list[ObjectAsset], scales: dict[str, tuple[float, ...]], n: int, config: PipelineConfig, device: torch.device, seed: int,
-    support_planes: SupportPlanes | None = None,
+    support_planes: SupportPlanes | None = None, hand=None,
 ) -> GraspSet:
-    """``n`` grasps per object by energy optimization from convex-hull starts (section ``optimize_grasps``)."""
+    """``n`` grasps per object by energy optimization from convex-hull starts (section ``optimize_grasps``), with ``hand``
+    (None: the Shadow Hand; ``hand.choice.resolve_hand``)."""
     from dexlite_pipeline.io.grasp_store import GraspSet
     from dexlite_pipeline.optim.from_scratch import synthesize
 
@@ -70,7 +71,7 @@ def synthesize_from_scratch(
     log.info("optimizing %d grasps on %d object(s) together, %d iterations", per_scale * sum(len(s) for s in object_scales), len(assets),
              optimize_config.annealing.iterations)
     optimized, _ = synthesize(assets, optimize_config, config.energy, generator, device, support_planes=support_planes,
-                              object_scales=object_scales, keyed_seed=seed)  # an object's grasps whatever other meshes are given
+                              object_scales=object_scales, keyed_seed=seed, hand=hand)  # an object's grasps whatever other meshes are given
     parts, start = [], 0
     for object_scale in object_scales:
         block = per_scale * len(object_scale)

@@ -1,0 +1,76 @@
+"""Config key ``hand``: shadow (default), allegro, leap or an MJCF file; an unusable value is refused in one line
+naming the key; ``hand.choice`` makes the hand object and the record a store keeps of it."""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+import pytest
+
+from dexlite_pipeline.config import ConfigError, validate_config
+from dexlite_pipeline.settings import build_config, hand_names, model_stage_hand_problem
+
+
+def test_the_default_hand_is_shadow_and_the_shipped_hands_are_known():
+    from dexlite_pipeline.hand.description import HAND_NAMES
+
+    assert build_config({}).hand == "shadow"
+    assert hand_names() == HAND_NAMES  # read from data/hands/ without importing the hand code
+    assert build_config({"hand": "leap"}).hand == "leap"
+    validate_config({"hand": "allegro"}, partial=True)
+
+
+@pytest.mark.parametrize("value, expected", [("alegro", "not a hand name and no such file"), ("missing/hand.xml", "no such file")])
+def test_an_unknown_name_or_a_missing_file_is_one_line_naming_the_key(value, expected):
+    with pytest.raises(ConfigError) as error:
+        build_config({"hand": value})
+    message = str(error.value)
+    assert "\n" not in message and f"hand: {value}: {expected}" in message and "shadow, allegro, leap" in message
+
+
+def test_an_mjcf_the_description_refuses_is_one_line_naming_the_key(tmp_path):
+    from dexlite_pipeline.hand.choice import HandChoiceError, hand_record, resolve_hand
+
+    broken = tmp_path / "broken.xml"
+    broken.write_text('<mujoco><worldbody><body name="palm"><geom type="box" size="0.1 0.1 0.1"/></body></worldbody></mujoco>')
+    assert build_config({"hand": str(broken)}).hand == str(broken)  # the file exists: the MJCF is read when the hand is made
+    for make in (resolve_hand, hand_record):
+        with pytest.raises(HandChoiceError) as error:
+            make(str(broken))
+        assert str(error.value) == f"hand: {broken}: the model has no joints"
+
+
+def test_shadow_is_the_shadow_hand_and_a_file_is_recorded_with_its_sha256(tmp_path):
+    import hashlib
+    import sys
+    from pathlib import Path
+
+    from dexlite_pipeline.hand.choice import hand_record, resolve_hand
+    from dexlite_pipeline.hand.described import DescribedHand
+    from dexlite_pipeline.hand.model import JOINT_NAMES, ShadowHand
+
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from three_finger import write_three_finger
+
+    shadow = resolve_hand("shadow")
+    assert type(shadow) is ShadowHand and hand_record("shadow") == {"hand": "shadow", "joint_names": list(JOINT_NAMES)}
+    xml = write_three_finger(tmp_path)
+    hand = resolve_hand(str(xml))
+    assert isinstance(hand, DescribedHand) and hand.pose_dim == 15
+    record = hand_record(str(xml))
+    assert record == {"hand": str(xml), "hand_sha256": hashlib.sha256(xml.read_bytes()).hexdigest(), "joint_names": list(hand.joint_names)}
+
+
+def test_the_model_stages_refuse_another_hand_in_one_line():
+    from dexlite_pipeline.cli import CliError, refuse_other_hand
+
+    assert model_stage_hand_problem("shadow") == ""
+    assert model_stage_hand_problem("allegro") == "hand: allegro: the model stages know the Shadow Hand only"
+    config = argparse.Namespace(config_json=json.dumps({"hand": "allegro"}))
+    for stage in ("train-cvae", "sample-grasps", "post-optimize", "evaluate", "loop-train", "train-evaluator", "model-batch"):
+        with pytest.raises(CliError, match="^hand: allegro: the model stages know the Shadow Hand only$"):
+            refuse_other_hand(stage, config)
+    for stage in ("optimize-grasps", "curate", "lift-validate"):
+        refuse_other_hand(stage, config)  # the data stages take the hand
+    refuse_other_hand("train-cvae", argparse.Namespace(config_json=json.dumps({"hand": "shadow"})))

@@ -1,0 +1,107 @@
+"""The data stages with config key ``hand`` naming the tests' three-finger hand (an MJCF file): optimize_grasps,
+curate (its table depth, near-duplicate and force-closure checks with the hand's links and joints) and lift_validate
+(the hand's own scene) run, and every store records the hand (its file and SHA-256, its joint names, 15-number poses);
+stores of another hand are refused in one line. Tiny budgets: a test of the wiring, not of the grasps."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from described_hands import FLAT_BOX_ID, FLAT_BOX_SCALE, write_objects  # noqa: E402
+from three_finger import write_three_finger  # noqa: E402
+
+from dexlite_pipeline.cli import main  # noqa: E402
+from dexlite_pipeline.io.grasp_store import GraspSet, read_grasp_store, write_grasp_store  # noqa: E402
+
+TINY = {
+    "seed": 1, "device": "cpu", "shards": 1,
+    "energy": {"object_point_spacing_m": 0.004},
+    "optimize_grasps": {"grasps_per_object": 6, "scales": [FLAT_BOX_SCALE], "batch_size": 8, "annealing": {"iterations": 20},
+                        "final_contact_samples": 8, "contact_search_every": 0},
+    # every grasp passes the energy thresholds, so that the later steps see grasps (the wiring is tested, not the grasps)
+    "curate": {"thresholds": {"max_e_fc": 1e6, "max_e_dis_m": 10.0, "max_e_pen_m": 10.0}, "force_closure": False},
+}  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory):
+    """The three stages run once through the command line: the optimized, curated and lift-tested stores."""
+    root = tmp_path_factory.mktemp("hand_stages")
+    objects = write_objects(root / "objects")
+    pd.DataFrame({"object_id": [FLAT_BOX_ID], "source": "test", "file": "", "watertight": True, "volume": 0.624, "n_convex_pieces": 1,
+                  "status": "ok", "reason": "", "split": "train"}).to_parquet(objects / "catalog.parquet")
+    # the flat box (1.3 x 1.2 x 0.4 normalized) lies flat, its table 0.2 below its origin per unit scale
+    pd.DataFrame({"object_id": [FLAT_BOX_ID], "lateral_displacement_m": 0.0, "rotation_deg": 0.0, "stable": True, "reason": "",
+                  "support_nx": 0.0, "support_ny": 0.0, "support_nz": 1.0, "support_offset": 0.2}).to_parquet(root / "stability.parquet")
+    xml = write_three_finger(root)
+    config = json.dumps({**TINY, "hand": str(xml)})
+    common = ["--stability", str(root / "stability.parquet"), "--objects", str(objects), "--threads", "1"]
+    assert main(["optimize-grasps", "--config-json", config, "--shard", "000", "--out", str(root / "optimized.zarr"), *common]) == 0
+    assert main(["curate", "--step", "curate", "--shard", "0", "--config-json", config, "--optimized-grasps", str(root / "optimized.zarr"),
+                 "--out", str(root / "curated.zarr"), "--summary-out", str(root / "summary.csv"), *common]) == 0
+    assert main(["lift-validate", "--config-json", config, "--grasps", str(root / "curated.zarr"), "--shard", "000",
+                 "--out", str(root / "lift.zarr"), *common]) == 0
+    return root, xml, objects, common
+
+
+def test_the_stages_run_with_the_hand_and_every_store_records_it(run):
+    root, xml, _, _ = run
+    sha = hashlib.sha256(xml.read_bytes()).hexdigest()
+    joints = [f"{f}_j{k}" for f in ("f1", "f2", "th") for k in range(3)]
+    stores = {name: read_grasp_store(root / f"{name}.zarr") for name in ("optimized", "curated", "lift")}
+    assert len(stores["optimized"]) == 6 and 0 < len(stores["curated"]) <= 6 and len(stores["lift"]) == len(stores["curated"])
+    for name, store in stores.items():
+        assert store.hand_pose.shape[1] == 15, name
+        assert (store.attrs["hand"], store.attrs["hand_sha256"], store.attrs["joint_names"]) == (str(xml), sha, joints), name
+    assert set(stores["optimized"].arrays["grasp_type"]) == {"power"}
+    lifted = stores["lift"]
+    assert np.isfinite(lifted.arrays["lift_ratio"]).any() and "table_depth_mm" in lifted.arrays
+    assert not any(str(r).startswith("invalid_grasp") for r in lifted.arrays["failure_reason"])
+
+
+def test_curation_checks_force_closure_with_the_hands_links(run, tmp_path):
+    root, xml, _, common = run
+    config = json.dumps({**TINY, "hand": str(xml), "curate": {**TINY["curate"], "force_closure": True}})
+    assert main(["curate", "--step", "curate", "--shard", "0", "--config-json", config, "--optimized-grasps", str(root / "optimized.zarr"),
+                 "--out", str(tmp_path / "fc.zarr"), "--summary-out", str(tmp_path / "fc.csv"), *common]) == 0
+    kept = read_grasp_store(tmp_path / "fc.zarr")
+    summary = pd.read_csv(tmp_path / "fc.csv")
+    assert int(summary["n_input"].sum()) == 6 and "dropped_force_closure" in summary
+    assert int(summary["dropped_force_closure_unknown"].sum()) == 0  # every grasp's ε computed with the three-finger hand
+    assert (kept.arrays["force_closure_epsilon"] > 0).all() and kept.attrs["hand"] == str(xml)
+
+
+def test_stores_of_another_hand_are_refused_in_one_line(run, tmp_path, capsys):
+    root, xml, _, common = run
+    shadow = GraspSet({"hand_pose": np.zeros((1, 28), np.float32), "object_id": np.array([FLAT_BOX_ID], dtype=object),
+                       "scale": np.full(1, FLAT_BOX_SCALE, np.float32)})
+    write_grasp_store(tmp_path / "shadow.zarr", shadow)
+    config = json.dumps({**TINY, "hand": str(xml)})
+    capsys.readouterr()
+    code = main(["curate", "--step", "curate", "--shard", "0", "--config-json", config, "--optimized-grasps", str(root / "optimized.zarr"),
+                 "--optimized-grasps", str(tmp_path / "shadow.zarr"), "--out", str(tmp_path / "mixed.zarr"),
+                 "--summary-out", str(tmp_path / "mixed.csv"), *common])
+    error = capsys.readouterr().err.strip()
+    assert code == 2 and len(error.splitlines()) == 1 and "shadow.zarr" in error and "hand shadow" in error and str(xml) in error
+    code = main(["lift-validate", "--config-json", json.dumps({**TINY, "hand": "shadow"}), "--grasps", str(root / "curated.zarr"),
+                 "--shard", "000", "--out", str(tmp_path / "lift.zarr"), *common])
+    error = capsys.readouterr().err.strip()
+    assert code == 2 and len(error.splitlines()) == 1 and "curated.zarr" in error and "hand shadow" in error
+    assert not (tmp_path / "mixed.zarr").exists() and not (tmp_path / "lift.zarr").exists()
+
+
+def test_dexlite_lift_test_tests_a_store_with_its_own_hand(run, tmp_path):
+    root, xml, objects, _ = run
+    assert main(["lift-test", str(root / "curated.zarr"), "--objects", str(objects), "--out", str(tmp_path / "again.zarr"), "--threads", "1"]) == 0
+    again, staged = read_grasp_store(tmp_path / "again.zarr"), read_grasp_store(root / "lift.zarr")
+    assert again.attrs["hand"] == str(xml) and again.hand_pose.shape[1] == 15
+    assert np.array_equal(again.arrays["lift_success"], staged.arrays["lift_success"])  # the stage's test, with the same hand

@@ -1,0 +1,73 @@
+"""``dexlite grasp --hand``: a hand from its MJCF (the tests' three-finger hand) end to end with ``--from-scratch``;
+without ``--from-scratch`` (the model is the Shadow Hand's) and with a broken MJCF, one line and exit status 2."""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import pytest
+import trimesh
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "hand"))
+
+from three_finger import write_three_finger  # noqa: E402
+
+from dexlite_pipeline.cli import main  # noqa: E402
+from dexlite_pipeline.io.grasp_store import read_grasp_store  # noqa: E402
+
+TINY = {
+    "objects": {"sdf_resolution": 32, "surface_points": 512, "coacd_mcts_iterations": 10, "coacd_mcts_nodes": 5,
+                "coacd_mcts_max_depth": 1, "coacd_resolution": 300},
+    "energy": {"object_point_spacing_m": 0.004},
+    "optimize_grasps": {"annealing": {"iterations": 30}, "final_contact_samples": 16, "contact_search_every": 0},
+}  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def box_and_hand(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("hand_grasp")
+    trimesh.creation.box((0.06, 0.05, 0.04)).export(folder / "box.obj")
+    return folder / "box.obj", write_three_finger(folder)
+
+
+def test_grasp_from_scratch_with_a_hand_from_its_mjcf(box_and_hand, tmp_path):
+    box, xml = box_and_hand
+    out = tmp_path / "out"
+    code = main(["grasp", str(box), "--out", str(out), "--n", "4", "--threads", "1", "--hand", str(xml), "--from-scratch",
+                 "--config-json", json.dumps(TINY)])  # fmt: skip
+    every = read_grasp_store(out / "all_grasps.zarr")
+    kept = read_grasp_store(out / "grasps.zarr")
+    assert code in (0, 1) and len(every) == 4 and every.hand_pose.shape == (4, 15) and kept.hand_pose.shape[1] == 15
+    for store in (every, kept):
+        assert store.attrs["hand"] == str(xml) and len(store.attrs["hand_sha256"]) == 64
+        assert store.attrs["joint_names"] == [f"{f}_j{k}" for f in ("f1", "f2", "th") for k in range(3)]
+    assert {"lift_success", "six_dir_success", "failure_reason", "distinct_label"} <= set(every.arrays)
+    assert not (out / "renders").exists() and not (out / "view.html").exists()
+    summary = (out / "summary.md").read_text()
+    assert f"Hand: {xml} (9 joints" in summary and "No pictures and no 3-D view" in summary
+    if len(kept):
+        assert json.loads((out / "dexgraspnet" / "hand.json").read_text())["joint_names"] == every.attrs["joint_names"]
+
+
+def _one_line_error(capsys, arguments) -> str:
+    capsys.readouterr()
+    assert main(arguments) == 2
+    error = capsys.readouterr().err.strip()
+    assert len(error.splitlines()) == 1, error
+    return error
+
+
+def test_another_hand_needs_from_scratch_and_a_broken_mjcf_is_refused(box_and_hand, tmp_path, capsys):
+    box, xml = box_and_hand
+    base = ["grasp", str(box), "--out", str(tmp_path / "out"), "--n", "2"]
+    error = _one_line_error(capsys, [*base, "--hand", "allegro"])
+    assert "hand: allegro: the model knows the Shadow Hand only" in error and "--from-scratch" in error
+    broken = tmp_path / "broken.xml"
+    broken.write_text("<mujoco><worldbody><body name='palm'><geom type='box' size='0.1 0.1 0.1'/></body></worldbody></mujoco>")
+    assert f"hand: {broken}: the model has no joints" in _one_line_error(capsys, [*base, "--hand", str(broken), "--from-scratch"])
+    assert "hand: nothere.xml: no such file" in _one_line_error(capsys, [*base, "--hand", "nothere.xml", "--from-scratch"])
+    error = _one_line_error(capsys, [*base, "--hand", str(xml), "--from-scratch", "--grasp-type", "pinch"])
+    assert "grasp type pinch is defined for the Shadow Hand only" in error
+    assert not (tmp_path / "out").exists()
