@@ -105,3 +105,13 @@ def test_dexlite_lift_test_tests_a_store_with_its_own_hand(run, tmp_path):
     again, staged = read_grasp_store(tmp_path / "again.zarr"), read_grasp_store(root / "lift.zarr")
     assert again.attrs["hand"] == str(xml) and again.hand_pose.shape[1] == 15
     assert np.array_equal(again.arrays["lift_success"], staged.arrays["lift_success"])  # the stage's test, with the same hand
+
+
+def test_energy_and_render_refuse_another_hands_store_in_one_line(run, tmp_path, capsys):
+    root, xml, objects, _ = run
+    for command in (["energy", str(root / "curated.zarr"), "--out", str(tmp_path / "e.zarr")],
+                    ["render", str(root / "curated.zarr"), "--index", "0", "--out", str(tmp_path / "r.png")]):
+        capsys.readouterr()
+        assert main([*command, "--objects", str(objects)]) == 2
+        error = capsys.readouterr().err.strip()
+        assert len(error.splitlines()) == 1 and f"hand {xml}: dexlite {command[0]} knows the Shadow Hand only" in error

@@ -25,3 +25,13 @@ def objects_dirs(args: argparse.Namespace) -> list[str]:
     if (beside / "assets").is_dir():
         return [str(beside)]
     raise ValueError(f"{args.grasps}: no --objects given and no prepared objects at {beside} (give --objects DIR)")
+
+
+def refuse_other_hand_store(grasps_path: str, command: str) -> None:
+    """A one-line ValueError when the store at ``grasps_path`` holds another hand's grasps than the Shadow Hand's, for a
+    command that draws or scores the Shadow Hand only for now (``io.grasp_store.store_hand``; docs/hands.md)."""
+    from dexlite_pipeline.io.grasp_store import DEFAULT_HAND, read_grasp_store, store_hand
+
+    hand = store_hand(read_grasp_store(grasps_path).attrs)
+    if hand != DEFAULT_HAND:
+        raise ValueError(f"{grasps_path}: hand {hand}: dexlite {command} knows the Shadow Hand only, for now")

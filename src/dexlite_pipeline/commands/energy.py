@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import argparse
 
-from dexlite_pipeline.commands import add_objects_argument, objects_dirs
+from dexlite_pipeline.commands import add_objects_argument, objects_dirs, refuse_other_hand_store
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -35,8 +35,10 @@ def run(args: argparse.Namespace) -> int:
     from dexlite_pipeline.settings import stage_config
 
     config = stage_config(args.config_json)
+    objects = objects_dirs(args)
+    refuse_other_hand_store(args.grasps, "energy")
     grasps, attrs = store_energies(
-        args.grasps, objects_dirs(args), config.energy, config.optimize_grasps.thresholds, args.device, args.batch_size, args.contact_samples
+        args.grasps, objects, config.energy, config.optimize_grasps.thresholds, args.device, args.batch_size, args.contact_samples
     )
     write_grasp_store(args.out, grasps, attrs)
     for line in energy_summary_lines(grasps.arrays):

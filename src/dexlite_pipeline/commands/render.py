@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import argparse
 
-from dexlite_pipeline.commands import add_objects_argument, objects_dirs
+from dexlite_pipeline.commands import add_objects_argument, objects_dirs, refuse_other_hand_store
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -21,6 +21,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from dexlite_pipeline.report.render import render_store_row
 
-    render_store_row(args.grasps, args.index, objects_dirs(args), args.out, args.size_px)
+    objects = objects_dirs(args)
+    refuse_other_hand_store(args.grasps, "render")
+    render_store_row(args.grasps, args.index, objects, args.out, args.size_px)
     print(f"wrote {args.out}")
     return 0
