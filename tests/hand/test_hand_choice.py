@@ -74,3 +74,22 @@ def test_the_model_stages_refuse_another_hand_in_one_line():
     for stage in ("optimize-grasps", "curate", "lift-validate"):
         refuse_other_hand(stage, config)  # the data stages take the hand
     refuse_other_hand("train-cvae", argparse.Namespace(config_json=json.dumps({"hand": "shadow"})))
+
+
+def test_a_stage_given_a_broken_mjcf_stops_in_one_line_before_any_work(tmp_path, capsys):
+    from dexlite_pipeline.cli import main
+
+    broken = tmp_path / "broken.xml"
+    broken.write_text("<robot name='r'/>")
+    code = main(["optimize-grasps", "--config-json", json.dumps({"hand": str(broken), "device": "cpu"}), "--shard", "0",
+                 "--stability", str(tmp_path / "none.parquet"), "--objects", str(tmp_path), "--out", str(tmp_path / "out.zarr")])
+    error = capsys.readouterr().err.strip()
+    assert code == 2 and error == f"dexlite optimize-grasps: error: hand: {broken}: not an MJCF file: its root element is <robot>, not <mujoco>"
+    assert not (tmp_path / "out.zarr").exists()
+
+
+def test_api_grasp_request_takes_the_hand():
+    from dexlite_pipeline.api import grasp_request
+
+    request = grasp_request(["box.obj"], "out", 4, from_scratch=True, hand="leap")
+    assert request.config["hand"] == "leap" and request.model is None
