@@ -44,8 +44,8 @@ class MeshGrasps:
 
     name: str  # the object id (user-<file stem>)
     file: str
-    joint_names: tuple[str, ...]  # the 22 joints of hand_pose[:, 6:], in order
-    hand_pose: np.ndarray  # (K, 28) float32
+    joint_names: tuple[str, ...]  # the joints of hand_pose[:, 6:], in order: the Shadow Hand's 22, or the hand's (``hand=``)
+    hand_pose: np.ndarray  # (K, 28) float32; (K, 6 + J) for another hand
     palm_in_mesh: np.ndarray  # (K, 4, 4) float64
     lift_success: np.ndarray  # (K,) bool
     six_dir_success: np.ndarray  # (K,) bool: held against pushes from all six directions
@@ -179,8 +179,7 @@ def read_result(out_dir: Path, seconds: float, rejected: list[dict], keep: bool)
     """The result of a finished run from its output folder (``grasps.zarr``, ``all_grasps.zarr``, the objects' meta.json)."""
     import json
 
-    from dexlite_pipeline.hand import JOINT_NAMES
-    from dexlite_pipeline.io.grasp_store import read_grasp_store
+    from dexlite_pipeline.io.grasp_store import hand_joint_names, pose_width, read_grasp_store
     from dexlite_pipeline.tools.grasp.summary import failure_counts
 
     every = read_grasp_store(out_dir / "all_grasps.zarr")
@@ -191,14 +190,14 @@ def read_result(out_dir: Path, seconds: float, rejected: list[dict], keep: bool)
         meta = json.loads((out_dir / "objects" / "assets" / object_id / "meta.json").read_text())
         mine = every.object_id == object_id
         rows = kept.object_id == object_id if kept is not None else np.zeros(0, bool)
-        pose = np.asarray(kept.hand_pose[rows]) if kept is not None else np.zeros((0, 28), np.float32)
+        pose = np.asarray(kept.hand_pose[rows]) if kept is not None else np.zeros((0, pose_width(every.attrs)), np.float32)
         scale = np.asarray(kept.scale[rows]) if kept is not None else np.zeros(0, np.float32)
 
         def column(name, dtype):
             return np.asarray(kept.arrays[name], dtype)[rows] if kept is not None else np.zeros(0, dtype)
 
         meshes[object_id] = MeshGrasps(
-            name=object_id, file=meta["file"], joint_names=tuple(JOINT_NAMES), hand_pose=pose,
+            name=object_id, file=meta["file"], joint_names=tuple(hand_joint_names(every.attrs)), hand_pose=pose,
             palm_in_mesh=palm_matrices_in_mesh_frame(pose, scale, meta), lift_success=column("lift_success", bool),
             six_dir_success=column("six_dir_success", bool), start_depth_mm=column("initial_penetration_mm", np.float64),
             distinct_label=column("distinct_label", np.int64), source=column("source", object), grasp_type=column("grasp_type", object),

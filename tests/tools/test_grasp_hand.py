@@ -71,3 +71,25 @@ def test_another_hand_needs_from_scratch_and_a_broken_mjcf_is_refused(box_and_ha
     error = _one_line_error(capsys, [*base, "--hand", str(xml), "--from-scratch", "--grasp-type", "pinch"])
     assert "grasp type pinch is defined for the Shadow Hand only" in error
     assert not (tmp_path / "out").exists()
+
+
+def test_api_grasp_with_a_hand_names_its_joints(box_and_hand):
+    from dexlite_pipeline.api import grasp
+
+    box, xml = box_and_hand
+    result = grasp([str(box)], n=2, from_scratch=True, hand=str(xml), config=TINY)
+    mesh = result.meshes["user-box"]
+    assert mesh.joint_names == tuple(f"{f}_j{k}" for f in ("f1", "f2", "th") for k in range(3)) and mesh.hand_pose.shape[1] == 15
+    assert mesh.attempts == 2
+
+
+def test_distinct_grasps_of_any_hand_are_told_apart_by_the_palm_alone():
+    import numpy as np
+
+    from dexlite_pipeline.evaluation.diversity import distinct_grasp_labels
+
+    poses = np.zeros((3, 15))
+    poses[1, 6:] = 1.0  # same palm, other joints: the same grasp
+    poses[2, 0] = 0.05  # palm 5 cm away: another
+    assert distinct_grasp_labels(poses).tolist() == [0, 0, 1]
+    assert distinct_grasp_labels(np.zeros(28)).tolist() == [0]  # one Shadow Hand pose, flat

@@ -40,6 +40,9 @@ validate(config, str(SCHEMA_PATH))
 HAND = str(config.get("hand", SHADOW))
 if problem := hand_setting_problem(HAND):
     raise WorkflowError(problem)
+for _section in ("dexgraspnet", "dataset"):  # grasps of the Shadow Hand, which curation would refuse to mix with another's
+    if HAND != SHADOW and config.get(_section, {}).get("root"):
+        raise WorkflowError(f"hand: {HAND}: {_section}.root holds the Shadow Hand's grasps; leave it empty with another hand")
 
 RESULTS = "results"
 LOGS = "logs"
@@ -96,16 +99,16 @@ def stage_params(*sections, source=None, told_hand=True):
     steps pass a cut-down one). Given as a params function: Snakemake rebuilds a plain-string
     param as a plain str (wildcards applied), which would lose StageConfigJSON's tracked form.
     ``told_hand``: with a hand other than the Shadow Hand, a stage that does not list "hand" is given it (and refuses
-    it: the model stages); False for the stages whose outputs do not depend on the hand (objects, stability, import).
+    it: the model stages); False for the stages whose outputs do not depend on the hand (prepare_objects, stability_filter).
     """
     source = config if source is None else source
+    if told_hand and HAND != SHADOW and "hand" not in sections:  # a stage that does not take the hand is told it, and refuses another
+        source, sections = {**source, "hand": HAND}, (*sections, "hand")
     tracked_config = {
         name: {k: v for k, v in section.items() if k not in RESULT_NEUTRAL_KEYS.get(name, ())}
         if isinstance(section, dict) else section
         for name, section in source.items()
     }
-    if told_hand and HAND != SHADOW and "hand" not in sections:  # a stage that does not take the hand is told it, and refuses another
-        source, sections = {**source, "hand": HAND}, (*sections, "hand")
     stage_json = StageConfigJSON(section_json(source, *sections))
     stage_json.tracked = section_json(tracked_config, *sections)
     return lambda wildcards: stage_json

@@ -42,9 +42,11 @@ def distinct_grasp_labels(
     """Cluster index (N,) of each grasp, numbered from 0 in order of first appearance.
 
     ``groups`` (N,) keys grasps that may share a cluster (an object id, or an (object, scale)
-    string); grasps of different groups never do. ``None``: all grasps belong to one group.
+    string); grasps of different groups never do. ``None``: all grasps belong to one group. Only the palm's pose
+    (columns 0-5) counts, so poses of any hand (6 + J numbers) are clustered alike.
     """
-    poses = np.asarray(hand_pose, dtype=np.float64).reshape(-1, 28)
+    poses = np.asarray(hand_pose, dtype=np.float64)
+    poses = poses.reshape(-1, poses.shape[-1] if poses.ndim >= 2 else 28)  # (N, 28), or (N, 6 + J) for a hand from its MJCF
     n = len(poses)
     labels = np.full(n, -1, dtype=np.int64)
     if n == 0:
