@@ -17,7 +17,7 @@ from dexlite_pipeline.objects.rest_pose import SupportPlane
 from dexlite_pipeline.optim.config import GraspTypeShares, HopelessStopConfig, InitConfig
 from dexlite_pipeline.optim.from_scratch import StartDrawer, synthesize
 from dexlite_pipeline.optim.grasp_types import GRASP_TYPES, TYPE_NAMES, assign_types, candidate_group
-from dexlite_pipeline.optim.type_starts import TypeGeometry
+from dexlite_pipeline.optim.type_starts import PAD_HEIGHT_M, TypeGeometry
 from dexlite_pipeline.tabletop import SupportPlanes
 
 from power_baseline import ARRAYS, power_run, power_settings, tiny_box_objects
@@ -150,13 +150,23 @@ def test_aperture_pads_face_each_other_with_the_other_fingers_clear(hand, name):
     from dexlite_pipeline.energy.terms import SelfPenetrationTerm
 
     grasp_type = GRASP_TYPES[name]
+    opening, facing, self_penetration = pregrasp_pads(hand, grasp_type, grasp_type.aperture_joints())
+    assert 0.03 < float(opening.norm()) < 0.08
+    assert max(facing) < 20  # the thumb pad faces the other side, and they face the thumb (degrees)
+    assert self_penetration < 0.002
+
+
+def pregrasp_pads(hand, grasp_type, joints):
+    """A pre-grasp pose's opening (thumb side to finger side, m), each side's pad normal's angle off it (the finger
+    side's reversed; degrees) and its self-penetration energy."""
+    from dexlite_pipeline.energy.terms import SelfPenetrationTerm
+
     pose = torch.zeros(1, 28)
-    pose[0, 6:] = grasp_type.aperture_joints().float()
+    pose[0, 6:] = joints.float()
     frames = hand.forward(pose)
     table = frames.transform(hand.all_contact_points_local, hand.all_contact_link)[0].double()
     sides = [table[[i for group in side for i in candidate_group(hand, group)]].mean(0) for side in grasp_type.opposition]
     opening = sides[1] - sides[0]
-    assert 0.03 < float(opening.norm()) < 0.08
 
     def pad_normal(group):  # outward normal of a group's pads: from its capsule's axis to the pads
         link = hand.link_index["robot0:" + group.split(":")[0]]
@@ -168,12 +178,100 @@ def test_aperture_pads_face_each_other_with_the_other_fingers_clear(hand, name):
         mean = (radial / radial.norm(dim=1, keepdim=True)).mean(0)
         return mean / mean.norm()
 
-    thumb = pad_normal(grasp_type.opposition[0][0])
     unit = opening / opening.norm()
-    assert float(thumb @ unit) > math.cos(math.radians(20))  # the thumb pad faces the other side
-    for group in grasp_type.opposition[1]:
-        assert float(pad_normal(group) @ unit) < -math.cos(math.radians(20))  # and they face the thumb
-    assert float(SelfPenetrationTerm(hand, 0.02).evaluate_with_torch(frames)) < 0.002
+    facing = [math.degrees(math.acos(float(pad_normal(grasp_type.opposition[0][0]) @ unit)))]
+    facing += [math.degrees(math.acos(float(-pad_normal(group) @ unit))) for group in grasp_type.opposition[1]]
+    return opening, facing, float(SelfPenetrationTerm(hand, 0.02).evaluate_with_torch(frames))
+
+
+@pytest.mark.parametrize("name", PRECISION)
+def test_pregrasp_opens_from_closed_to_wide_with_the_pads_facing(hand, name):
+    """Along the pre-grasp blends (closed, aperture, wide) the pads open steadily from at most 2.5 cm to at least twice
+    that and beyond the aperture, facing each other within 25° all the way, the hand clear of itself."""
+    grasp_type = GRASP_TYPES[name]
+    geometry = TypeGeometry(hand, grasp_type)
+    assert bool((geometry.widths.diff() > 0).all())
+    assert float(geometry.widths[0]) < 0.025 and float(geometry.widths[-1]) > max(2 * float(geometry.widths[0]), geometry.width + 0.01)
+    assert torch.equal(geometry.joints[geometry.aperture_index], grasp_type.aperture_joints())
+    for blend in (0.0, 0.5, 1.0, 1.5, 2.0):
+        opening, facing, self_penetration = pregrasp_pads(hand, grasp_type, grasp_type.pregrasp_joints(blend))
+        assert max(facing) < 25 and self_penetration < 0.002, (blend, facing, self_penetration)
+
+
+def _write_asset(tmp_path, mesh, object_id):
+    """``mesh`` (metres, standing on z = 0) written as a normalized asset; returns it and its real scale."""
+    from dexlite_pipeline.objects.assets import load_asset
+    from dexlite_pipeline.objects.build import write_asset
+    from dexlite_pipeline.objects.config import AssetBuildSettings
+
+    radius = float(np.linalg.norm(mesh.vertices - mesh.bounds.mean(0), axis=1).max())
+    normalized = mesh.copy()
+    normalized.apply_translation(-mesh.bounds.mean(0))
+    normalized.apply_scale(1.0 / radius)
+    write_asset(normalized, object_id, tmp_path, AssetBuildSettings(sdf_resolution=24, surface_points=256), {"source": "test"},
+                convex_pieces=[normalized.convex_hull])
+    return load_asset(tmp_path, object_id), radius
+
+
+def _pad_starts(hand, asset, scale, name, count=24, seed=0):
+    """``count`` starts of type ``name`` on ``asset`` standing on its table (+z up) at ``scale``, without joint noise:
+    the thumb-side and finger-side pad centres (count, 3, metres, object frame) and the table's height (m)."""
+    from dexlite_pipeline.tabletop import upright_plane
+
+    vertices = np.asarray(asset.load_mesh().vertices)
+    planes = SupportPlanes({asset.object_id: upright_plane(vertices, "+z")})
+    starts = StartDrawer(hand, [asset], short_run(init=InitConfig(joint_sigma_fraction=0.0)), planes)
+    floor = float(vertices[:, 2].min()) * scale
+    support = (torch.tensor([[0.0, 0.0, 1.0]]).expand(count, 3), torch.full((count,), -floor))
+    pose = starts.draw(torch.zeros(count, dtype=torch.long), torch.full((count,), scale), torch.full((count,), TYPE_NAMES.index(name)),
+                       torch.Generator().manual_seed(seed), support)
+    table = hand.forward(pose).transform(hand.all_contact_points_local, hand.all_contact_link).double()
+    grasp_type = GRASP_TYPES[name]
+    sides = [table[:, [i for group in side for i in candidate_group(hand, group)]].mean(1).numpy() for side in grasp_type.opposition]
+    return sides[0], sides[1], floor
+
+
+@pytest.mark.parametrize("name", PRECISION)
+def test_a_start_on_a_thin_walled_bowl_straddles_its_wall(tmp_path, hand, name):
+    """A 14 cm bowl with a 4 mm wall, 4.5 cm deep, on its table: every start of a precision type puts one pad inside the
+    bowl and the other outside, each within 2 cm of the wall, both below the rim and above the table (the rim starts
+    put the grasp centre 0.5–3 cm above the rim with the hand's widest opening: pads 3 cm or more from the wall)."""
+    import trimesh
+
+    outer = trimesh.creation.revolve([[0, 0], [0.05, 0], [0.07, 0.045], [0, 0.045]], sections=48)
+    inner = trimesh.creation.revolve([[0, 0.006], [0.046, 0.006], [0.066, 0.046], [0, 0.046]], sections=48)
+    bowl = outer.difference(inner)  # wall 4 mm across (3.6 mm normal to the slanted side), 6 mm base
+    asset, scale = _write_asset(tmp_path, bowl, "bowl")
+    thumb, finger, floor = _pad_starts(hand, asset, scale, name)
+    surface = asset.load_mesh().copy()
+    surface.apply_scale(scale)
+    rim = float(surface.vertices[:, 2].max())
+    wall_at = lambda p: 0.05 + (p[:, 2] - floor) * (0.02 / 0.045) - 0.002  # noqa: E731  mid-wall radius at a pad's height
+    radial = [np.linalg.norm(p[:, :2], axis=1) - wall_at(p) for p in (thumb, finger)]
+    assert bool((radial[0] * radial[1] < 0).all())  # one inside, one outside
+    for r in radial:
+        assert bool((np.abs(r) < 0.02 + 0.002).all()) and bool((np.abs(r) > 0.002).all())
+    for p in (thumb, finger):
+        assert bool((p[:, 2] < rim).all()) and bool((p[:, 2] > floor + PAD_HEIGHT_M - 0.003).all())
+
+
+def test_a_start_on_a_handle_lying_on_the_table_closes_across_it(tmp_path, hand):
+    """A 2.4 cm handle lying on its table: pinch starts come from above with the pads on either side of it, at its
+    half height, each within 2 cm of it (not on its top, not under it)."""
+    import trimesh
+
+    handle = trimesh.creation.cylinder(radius=0.012, height=0.2, sections=32)
+    handle.apply_transform(trimesh.transformations.rotation_matrix(math.pi / 2, (0, 1, 0)))
+    handle.apply_translation((0, 0, 0.012))
+    asset, scale = _write_asset(tmp_path, handle, "handle")
+    thumb, finger, floor = _pad_starts(hand, asset, scale, "pinch")
+    # the handle's axis along x at height 0.012 above the table, centred at the asset's origin
+    across = [p[:, 1] for p in (thumb, finger)]
+    assert bool((across[0] * across[1] < 0).all())
+    for side in across:
+        assert bool((np.abs(side) > 0.012).all()) and bool((np.abs(side) < 0.012 + 0.02).all())
+    for p in (thumb, finger):
+        assert bool((np.abs(p[:, 2] - floor - 0.012) < 0.012).all())  # beside it: between the table and its top
 
 
 def test_low_objects_are_approached_from_above_palm_down(tmp_path, hand):

@@ -12,16 +12,24 @@ contact template per hand and type. Here a type is data (``GraspType``):
   the object and the table by E_pen and E_table as for power grasps.
 - ``aperture``: the mean pre-grasp joint angles the fingers start from (noise as for power starts): for precision
   types the participating pads face each other a few centimetres apart and the other fingers are curled away.
+- ``closed`` and ``wide``: the pre-grasp pose with the opposing pads nearly closed and opened wide; a start blends
+  between them and the aperture to fit the object's thickness where it closes (``pregrasp_joints``).
 - the start: for power the convex-hull start of ``optim.init`` (section ``optimize_grasps.init``); for the others
-  ``optim.type_starts``: the grasp centre between the opposing pads is placed ``centre_distance_m`` outside a target
-  point, approached either from the side (a convex-hull point, along its inward normal) or from above (palm facing
-  down, at a point of the object's rim: where its upward-facing top ends), the opening across the rim. An object lower
-  on its table than ``low_object_height_m`` is approached from above only; a taller one with share ``above_share``.
+  ``optim.type_starts``: preferably on a pair of opposing surface points across the object that fits the opening
+  (a bowl's wall, a handle, a box's narrow side), the grasp centre at the pair's midpoint and the hand opened to its
+  thickness plus a gap, so the pads start on either side of it; without such a pair, the grasp centre between the
+  opposing pads is placed ``centre_distance_m`` outside a target point, approached either from the side (a
+  convex-hull point, along its inward normal) or from above (palm facing down, at a point of the object's rim: where
+  its upward-facing top ends), the opening across the rim. An object lower on its table than ``low_object_height_m``
+  is approached from above only; a taller one with share ``above_share``.
 
 The aperture joint values were fitted (then rounded) so that the opposing pads of each precision type face each other
 at the opening named in each type's comment (each side's mean pad normal within 15° of the line between the two
-sides), the other fingers curled, the hand clear of itself; ``tests/optim/test_grasp_types.py`` checks those
-properties.
+sides), the other fingers curled, the hand clear of itself; the closed and wide poses were fitted the same way
+(gradient descent on the named joints from the aperture: the opening to about 2 and 10 cm, 1.7 and 6.7 cm for
+lateral, each pad normal within about 20° of the line, no self-penetration; the wide pinch's middle finger then set
+to the index finger's flexion, so that it stays beside it), so every blend between them opens steadily with the pads
+facing; ``tests/optim/test_grasp_types.py`` checks those properties.
 """
 
 from __future__ import annotations
@@ -60,6 +68,9 @@ class GraspType:
     range of the grasp centre's start distance outside the target point (m). ``above_share``: share of the starts
     from above on objects at least ``low_object_height_m`` tall on their table (m); lower ones are approached from
     above only. ``jitter_deg``: the approach's tilt off the nominal direction, at most this (degrees).
+    ``closed`` and ``wide``: the joints (same form; the others as in ``aperture``) of the pre-grasp pose with the
+    opposing pads nearly closed and opened as wide as they still face each other; a start on a pair of opposing
+    surface points opens the hand between them to fit the object there (``pregrasp_joints``). Empty: the aperture only.
     """
 
     name: str
@@ -70,18 +81,33 @@ class GraspType:
     above_share: float = 0.0
     low_object_height_m: float = 0.0
     jitter_deg: float = 0.0
+    closed: tuple[tuple[str, float], ...] = ()
+    wide: tuple[tuple[str, float], ...] = ()
 
     def __post_init__(self) -> None:
         if self.contact_slots is not None and len(self.contact_slots) != CONTACT_COUNT:
             raise ValueError(f"grasp type {self.name}: {len(self.contact_slots)} contact slots, expected {CONTACT_COUNT}")
-        unknown = sorted({joint for joint, _ in self.aperture} - {name.removeprefix("robot0:") for name in JOINT_NAMES})
+        unknown = sorted({joint for joint, _ in (*self.aperture, *self.closed, *self.wide)} - {name.removeprefix("robot0:") for name in JOINT_NAMES})
         if unknown:
             raise ValueError(f"grasp type {self.name}: unknown aperture joints {', '.join(unknown)}")
+        if bool(self.closed) != bool(self.wide):
+            raise ValueError(f"grasp type {self.name}: give both the closed and the wide pre-grasp pose, or neither")
 
     def aperture_joints(self) -> torch.Tensor:
         """(22,) float64 the aperture in joint order."""
         values = dict(self.aperture)
         return torch.tensor([values.get(name.removeprefix("robot0:"), 0.0) for name in JOINT_NAMES], dtype=torch.float64)
+
+    def pregrasp_joints(self, blend: float) -> torch.Tensor:
+        """(22,) float64 pre-grasp joints along the opening: ``blend`` 0 the closed pose, 1 the aperture, 2 the wide pose,
+        linear in joint space between them (the aperture for every blend when the type has no closed and wide pose)."""
+        aperture = self.aperture_joints()
+        if not self.closed or blend == 1.0:
+            return aperture
+        other = dict(self.aperture) | dict(self.closed if blend < 1.0 else self.wide)
+        end = torch.tensor([other.get(name.removeprefix("robot0:"), 0.0) for name in JOINT_NAMES], dtype=torch.float64)
+        weight = min(abs(blend - 1.0), 1.0)
+        return (1.0 - weight) * aperture + weight * end
 
 
 POWER = GraspType("power", contact_slots=None, aperture=tuple(MEAN_OPEN_POSE.items()))
@@ -95,6 +121,11 @@ PINCH = GraspType(
               ("THJ4", 0.85), ("THJ3", 0.95), ("THJ2", -0.15), ("THJ1", 0.5), *_curled("RF", "LF")),
     opposition=(("thdistal",), ("ffdistal",)),
     centre_distance_m=(0.005, 0.03), above_share=0.5, low_object_height_m=0.06, jitter_deg=20.0,
+    # pads ~2 cm and ~10 cm apart
+    closed=(("FFJ3", -0.35), ("FFJ2", 1.0), ("FFJ1", 0.82), ("FFJ0", 0.03), ("MFJ2", 0.2), ("MFJ1", 0.5), ("MFJ0", 0.45),
+            ("THJ4", 0.59), ("THJ3", 1.04), ("THJ2", -0.02), ("THJ1", 0.33)),
+    wide=(("FFJ3", -0.21), ("FFJ2", 0.0), ("FFJ1", 0.36), ("FFJ0", 0.54), ("MFJ3", -0.18), ("MFJ2", 0.0), ("MFJ1", 0.36), ("MFJ0", 0.54),
+          ("THJ4", 0.47), ("THJ3", 0.92), ("THJ2", -0.07), ("THJ1", 0.28)),
 )
 
 # Tripod (taxonomy: tripod / prismatic 3-finger): thumb tip against the index and middle fingertips; ring and
@@ -106,6 +137,11 @@ TRIPOD = GraspType(
               ("MFJ0", 0.3), ("THJ4", 0.8), ("THJ3", 1.1), ("THJ2", -0.05), ("THJ1", 0.5), *_curled("RF", "LF")),
     opposition=(("thdistal",), ("ffdistal", "mfdistal")),
     centre_distance_m=(0.005, 0.03), above_share=0.5, low_object_height_m=0.06, jitter_deg=20.0,
+    # pads ~2.5 cm and ~10 cm apart
+    closed=(("FFJ3", -0.35), ("FFJ2", 1.26), ("FFJ1", 0.59), ("FFJ0", 0.0), ("MFJ3", -0.26), ("MFJ2", 0.95), ("MFJ1", 0.75), ("MFJ0", 0.08),
+            ("THJ4", 0.66), ("THJ3", 1.14), ("THJ2", -0.02), ("THJ1", 0.37)),
+    wide=(("FFJ3", -0.3), ("FFJ2", 0.35), ("FFJ1", 0.41), ("FFJ0", 0.33), ("MFJ3", -0.35), ("MFJ2", 0.3), ("MFJ1", 0.41), ("MFJ0", 0.33),
+          ("THJ4", 0.35), ("THJ3", 1.09), ("THJ2", -0.03), ("THJ1", 0.25), ("THJ0", -0.03)),
 )
 
 # Lateral (taxonomy: lateral / key pinch): the thumb pad presses the object against the radial side of the index
@@ -117,6 +153,11 @@ LATERAL = GraspType(
               *_curled("MF", "RF", "LF")),
     opposition=(("thdistal",), ("ffmiddle" + SIDE,)),
     centre_distance_m=(0.005, 0.025), above_share=0.5, low_object_height_m=0.06, jitter_deg=20.0,
+    # pads ~1.7 cm and ~6.7 cm apart
+    closed=(("FFJ3", 0.35), ("FFJ2", 1.22), ("FFJ1", 0.85), ("FFJ0", 0.3), ("THJ4", 0.22), ("THJ3", 0.69), ("THJ2", 0.01), ("THJ1", -0.14),
+            ("THJ0", -0.21)),
+    wide=(("FFJ3", 0.16), ("FFJ2", 1.01), ("FFJ1", 0.85), ("FFJ0", 0.3), ("THJ4", -0.48), ("THJ3", 0.41), ("THJ2", -0.01), ("THJ1", 0.25),
+          ("THJ0", -0.34)),
 )
 
 # Every grasp type by name, in the order starts are assigned and drawn (``assign_types``); index = ``type code``.
