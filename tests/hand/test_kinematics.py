@@ -92,3 +92,25 @@ def test_side_candidates_face_the_thumb_from_the_index_middle_phalanx(hand):
     assert hand.candidates_on(("robot0:ffmiddle",)) == tuple(range(10, 20)) + tuple(range(140, 150))
     thumb_base = hand.forward(torch.zeros(1, 28)).translation[0, hand.link_index["robot0:thbase"]]
     assert float(thumb_base[0]) > 0  # the thumb is on the +x side of the palm
+
+
+def test_thumb_tip_candidates_cover_the_distal_capsule_out_to_its_tip(hand):
+    """The thumb-tip candidates (pinch and tripod): appended after the pads and side candidates (indices 150–159, so no
+    earlier index moves), on the surface of the thumb's distal capsule, on its palmar side (−x, as its pads), beyond the
+    pads' last row and within 3 mm of the tip of the capsule."""
+    link = hand.link_index["robot0:thdistal"]
+    assert len(hand.all_contact_link) == 160 and set(hand.tip_contact_link.tolist()) == {link}
+    assert hand.candidates_on(("robot0:thdistal",), "tip") == tuple(range(150, 160))
+    assert hand.candidates_on(("robot0:thdistal",), "pad") == tuple(range(130, 140))
+    assert torch.equal(hand.all_contact_link[:150], torch.cat([hand.contact_link, hand.side_contact_link]))
+    assert hand.contact_kinds[149:151] == ("side", "tip")
+    capsule = hand._capsule_of_link("robot0:thdistal")
+    radius, half = hand.shape_size[capsule, :2].double()
+    local = hand.tip_contact_points_local.double() - hand.shape_pos[capsule].double()  # capsule frame (axis +z)
+    axis_point = torch.stack([torch.zeros(10), torch.zeros(10), local[:, 2].clamp(-half, half)], dim=1).double()
+    assert torch.allclose((local - axis_point).norm(dim=1), radius.expand(10), atol=1e-6)  # on the surface
+    assert bool((local[:, 0] < 0).all()) and bool((local[:, 0] / local[:, :2].norm(dim=1) < -0.9).all())  # palmar: within 25° of −x
+    pad_reach = float(hand.contact_points_local[130:140, 2].max() - hand.shape_pos[capsule, 2])
+    assert float(local[:, 2].min()) > pad_reach + 0.003  # beyond the pads (their last row is 8.3 mm out)
+    tip = torch.tensor([0.0, 0.0, float(half + radius)], dtype=torch.float64)
+    assert float((local - tip).norm(dim=1).min()) < 0.003 and float(local[:, 2].max()) > float(half + radius) - 0.001

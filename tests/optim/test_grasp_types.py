@@ -108,7 +108,29 @@ def test_pinch_contacts_lie_only_on_the_template_links(box, hand, one_torch_thre
     assert set(links[:, :2].ravel()) == {"robot0:thdistal"}
     assert set(links[:, 2].ravel()) == {"robot0:ffdistal"}
     assert set(links[:, 3].ravel()) <= {"robot0:ffdistal", "robot0:mfdistal"}
-    assert (grasps.arrays["contact_index"] < hand.pad_candidate_count).all()  # pads, not side candidates
+    thumb_pad_or_tip = set(candidate_group(hand, "thdistal")) | set(candidate_group(hand, "thdistal:tip"))
+    assert set(grasps.arrays["contact_index"][:, :2].ravel().tolist()) <= thumb_pad_or_tip
+    assert (grasps.arrays["contact_index"][:, 2:] < hand.pad_candidate_count).all()  # the fingers' pads, not side candidates
+
+
+def test_pinch_and_tripod_thumb_contacts_may_use_the_thumb_tip_and_power_never(hand):
+    """The thumb's two contacts of a pinch or tripod are drawn from its pads and its tip candidates (150–159), the fingers'
+    from their pads; a power grasp's draws and its template stay the 140 pads (the power fixture checks the runs bit for bit)."""
+    from dexlite_pipeline.optim.grasp_types import contact_slots, contact_template
+
+    tip = set(candidate_group(hand, "thdistal:tip"))
+    assert tip == set(range(150, 160))
+    uniform = torch.rand(4000, 4, generator=torch.Generator().manual_seed(0))
+    for name in ("pinch", "tripod"):
+        template = contact_template(hand, GRASP_TYPES[name])
+        assert set(template[0]) == set(template[1]) == tip | set(candidate_group(hand, "thdistal"))
+        assert not tip & (set(template[2]) | set(template[3]))
+        drawn = contact_slots(hand, torch.full((4000,), TYPE_NAMES.index(name))).draw(uniform)
+        assert tip <= set(drawn[:, :2].ravel().tolist())  # every tip candidate gets drawn for the thumb
+        assert not tip & set(drawn[:, 2:].ravel().tolist())
+    assert contact_template(hand, GRASP_TYPES["power"]) == (tuple(range(140)),) * 4
+    power = contact_slots(hand, torch.full((4000,), TYPE_NAMES.index("power"))).draw(uniform)
+    assert int(power.max()) < hand.pad_candidate_count
 
 
 def test_lateral_contacts_are_the_thumb_pad_and_the_index_side(box, hand, one_torch_thread):

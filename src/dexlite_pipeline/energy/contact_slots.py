@@ -1,7 +1,7 @@
 """Which contact candidates each of a grasp's four contacts may be drawn from (a grasp type's contact template).
 
 A grasp's four contacts are indices into the hand's contact table (``ShadowHand.all_contact_points_local``: the 140
-palmar pads, then the side candidates). Without slots every contact may be any pad (DexGraspNet's power grasps). A
+palmar pads, then the side candidates, then the thumb-tip candidates). Without slots every contact may be any pad (DexGraspNet's power grasps). A
 contact template restricts contact k to its own set of candidates, e.g. two contacts on the thumb tip and two on the
 index fingertip for a pinch, so that the random draws of the optimizer and the contact search
 (``GraspEnergy.best_contacts``) only ever choose contacts the grasp type allows. Slots are kept per grasp type (a

@@ -110,7 +110,8 @@ class GraspEnergy:
         self.joint_limits = JointLimitTerm(hand.joint_limits)
         self.self_penetration = SelfPenetrationTerm(hand, self_penetration_margin_m)
         self.candidate_map = LinkFrameMap.for_points(hand.contact_points_local, hand.contact_link, len(hand.link_names))  # the pads
-        self.side_candidate_map = LinkFrameMap.for_points(hand.side_contact_points_local, hand.side_contact_link, len(hand.link_names))
+        pads = hand.pad_candidate_count  # the rest of the contact table: side and thumb-tip candidates (grasp types only)
+        self.extra_candidate_map = LinkFrameMap.for_points(hand.all_contact_points_local[pads:], hand.all_contact_link[pads:], len(hand.link_names))
         self.contact_table_map = LinkFrameMap.for_points(hand.all_contact_points_local, hand.all_contact_link, len(hand.link_names))
         self._contact_kernel = None
         self.penetration = PenetrationTerm(
@@ -224,7 +225,7 @@ class GraspEnergy:
         with torch.no_grad():
             candidates = self.candidate_map(frames)
             if slots is not None and slots.candidate_count > candidates.shape[1]:
-                candidates = torch.cat([candidates, self.side_candidate_map(frames)], dim=1)
+                candidates = torch.cat([candidates, self.extra_candidate_map(frames)], dim=1)
             distance, _ = self.bank.signed_distance(candidates, object_index[:, None], scale[:, None])
             if slots is None:
                 return distance.abs().topk(CONTACT_COUNT, dim=1, largest=False).indices
@@ -258,7 +259,7 @@ class GraspEnergy:
             frames = self.hand.forward(hand_pose)
             candidates = self.candidate_map(frames)
             if slots is not None and slots.candidate_count > candidates.shape[1]:
-                candidates = torch.cat([candidates, self.side_candidate_map(frames)], dim=1)
+                candidates = torch.cat([candidates, self.extra_candidate_map(frames)], dim=1)
             distance, normal = self.bank.signed_distance(candidates, object_index[:, None], scale[:, None])
             batch, count = distance.shape
             if slots is None:

@@ -152,6 +152,8 @@ class DescribedHand(ShadowHand):
         self.contact_link = torch.as_tensor(np.asarray(d.contact_link), dtype=torch.long, device=self.device)
         self.side_contact_points_local = as_t(np.zeros((0, 3)))  # no side candidates (lateral grasps: the Shadow Hand only)
         self.side_contact_link = torch.zeros(0, dtype=torch.long, device=self.device)
+        self.tip_contact_points_local = as_t(np.zeros((0, 3)))  # no thumb-tip candidates (precision types: the Shadow Hand only)
+        self.tip_contact_link = torch.zeros(0, dtype=torch.long, device=self.device)
 
         pts, ids = [], []
         rots, poss = self.shape_rot.cpu().double().numpy(), self.shape_pos.cpu().double().numpy()

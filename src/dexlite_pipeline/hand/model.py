@@ -44,6 +44,17 @@ DISTAL_LINKS = ("robot0:ffdistal", "robot0:mfdistal", "robot0:rfdistal", "robot0
 SIDE_CONTACT_LINKS = ("robot0:ffmiddle",)
 # Directions of the side candidates' columns in the link's x-y plane, radians from +x toward the palmar side (−y).
 SIDE_CONTACT_ANGLES = (0.0, -math.radians(30.0))
+# The thumb's tip: candidates on the hemispherical end of the thumb's distal capsule, on its palmar side (−x), where a
+# pinch or tripod on a thin wall or handle touches (15–19 mm out from the capsule's centre, beyond the pads' last row at
+# 8 mm: docs/results_journal.md, 2026-12-05). They follow the side candidates in the contact table (``all_contact_*``).
+TIP_CONTACT_LINKS = ("robot0:thdistal",)
+# Rows of the tip candidates: angles from the capsule's axis (+z, toward the tip), degrees; 90 is where the cap meets
+# the cylinder, 18 about 0.45 mm short of the tip along the axis (2.9 mm from the tip's point on the surface).
+TIP_CONTACT_POLAR_DEG = (90.0, 72.0, 54.0, 36.0, 18.0)
+# Columns of the tip candidates about the axis, degrees off the palmar direction (the pads' columns: ±25°).
+TIP_CONTACT_AZIMUTH_DEG = (-25.0, 25.0)
+# Kinds of the entries of the contact table, in its order: palmar pads, side candidates, thumb-tip candidates.
+PAD, SIDE, TIP = "pad", "side", "tip"
 
 CAPSULE, BOX = 0, 1
 
@@ -218,6 +229,7 @@ class ShadowHand:
                     ids.append(self.link_index[link])
         self.side_contact_points_local = as_t(np.array(pts))
         self.side_contact_link = torch.tensor(ids, device=self.device)
+        self.tip_contact_points_local, self.tip_contact_link = self._tip_candidates(as_t)
 
         # Penetration keypoints on capsule axes, 1 cm in from the ends, ~1.2 cm apart.
         pts, ids = [], []
@@ -249,6 +261,21 @@ class ShadowHand:
             ids.extend([int(self.shape_link[s])] * len(world))
         self.surface_points_local = as_t(np.concatenate(pts))
         self.surface_link = torch.tensor(ids, device=self.device)
+
+    def _tip_candidates(self, as_t) -> tuple[torch.Tensor, torch.Tensor]:
+        """Candidates on the tip cap of each ``TIP_CONTACT_LINKS`` capsule (link frame, m, and link ids): a point on the
+        sphere of the capsule's radius about the end of its axis segment (+z end), at ``TIP_CONTACT_POLAR_DEG`` from the
+        axis and ``TIP_CONTACT_AZIMUTH_DEG`` about it from the palmar direction (−x, as the thumb's pads), row by row."""
+        pts, ids = [], []
+        for link in TIP_CONTACT_LINKS:
+            s = self._capsule_of_link(link)
+            r, half, zc = float(self.shape_size[s, 0]), float(self.shape_size[s, 1]), float(self.shape_pos[s, 2])
+            for polar in TIP_CONTACT_POLAR_DEG:
+                for azimuth in TIP_CONTACT_AZIMUTH_DEG:
+                    theta, phi = math.radians(polar), math.pi + math.radians(azimuth)
+                    pts.append([r * math.sin(theta) * math.cos(phi), r * math.sin(theta) * math.sin(phi), zc + half + r * math.cos(theta)])
+                    ids.append(self.link_index[link])
+        return as_t(np.array(pts).reshape(-1, 3)), torch.tensor(ids, dtype=torch.long, device=self.device)
 
     def _keypoint_pair_mask(self) -> torch.Tensor:
         """Pairs counted by E_spen: keypoints on different links that are not parent and child."""
@@ -325,23 +352,31 @@ class ShadowHand:
     # ---------------------------------------------------------------- point sets
     @property
     def pad_candidate_count(self) -> int:
-        """How many palmar pad candidates there are (140): contact indices below it are pads, from it on side candidates."""
+        """How many palmar pad candidates there are (140): contact indices below it are pads, from it on other kinds."""
         return len(self.contact_link)
 
     @property
     def all_contact_points_local(self) -> torch.Tensor:
-        """(140 + S, 3) the contact table a contact index points into: the palmar pads, then the side candidates."""
-        return torch.cat([self.contact_points_local, self.side_contact_points_local])
+        """(140 + S + T, 3) the contact table a contact index points into: the palmar pads (0–139), the side candidates
+        (140–149), the thumb-tip candidates (150–159); appended, so a pad's index never changes."""
+        return torch.cat([self.contact_points_local, self.side_contact_points_local, self.tip_contact_points_local])
 
     @property
     def all_contact_link(self) -> torch.Tensor:
-        """(140 + S,) the link of each entry of ``all_contact_points_local``."""
-        return torch.cat([self.contact_link, self.side_contact_link])
+        """(140 + S + T,) the link of each entry of ``all_contact_points_local``."""
+        return torch.cat([self.contact_link, self.side_contact_link, self.tip_contact_link])
 
-    def candidates_on(self, links: tuple[str, ...]) -> tuple[int, ...]:
-        """Indices into the contact table (``all_contact_points_local``) of every candidate on the named links."""
+    @property
+    def contact_kinds(self) -> tuple[str, ...]:
+        """The kind (``PAD``, ``SIDE``, ``TIP``) of each entry of the contact table."""
+        return (PAD,) * len(self.contact_link) + (SIDE,) * len(self.side_contact_link) + (TIP,) * len(self.tip_contact_link)
+
+    def candidates_on(self, links: tuple[str, ...], kind: str | None = None) -> tuple[int, ...]:
+        """Indices into the contact table (``all_contact_points_local``) of every candidate on the named links (of the
+        given kind only, if any)."""
         wanted = {self.link_index[name] for name in links}
-        return tuple(i for i, link in enumerate(self.all_contact_link.tolist()) if link in wanted)
+        kinds = self.contact_kinds
+        return tuple(i for i, link in enumerate(self.all_contact_link.tolist()) if link in wanted and kind in (None, kinds[i]))
 
     def contact_candidates(self, frames: HandFrames) -> torch.Tensor:
         """(B, 140, 3) contact candidate points on the palmar side of the finger links."""

@@ -7,9 +7,9 @@ names the other ways a hand holds things, and Dexonomy (RSS 2025) synthesizes ea
 contact template per hand and type. Here a type is data (``GraspType``):
 
 - ``contact_slots``: for each of the four force-closure contacts, the candidate groups it may be drawn from
-  (``candidate_group``: a link's palmar pads, or its side candidates), enforced in every draw and contact search of the
-  optimizer (``energy.contact_slots``); the energies themselves are unchanged, so the other links are kept out of
-  the object and the table by E_pen and E_table as for power grasps.
+  (``candidate_group``: a link's palmar pads, its side candidates, or the thumb's tip candidates), enforced in
+  every draw and contact search of the optimizer (``energy.contact_slots``); the energies themselves are unchanged,
+  so the other links are kept out of the object and the table by E_pen and E_table as for power grasps.
 - ``aperture``: the mean pre-grasp joint angles the fingers start from (noise as for power starts): for precision
   types the participating pads face each other a few centimetres apart and the other fingers are curled away.
 - ``closed`` and ``wide``: the pre-grasp pose with the opposing pads nearly closed and opened wide; a start blends
@@ -42,7 +42,7 @@ import numpy as np
 import torch
 
 from dexlite_pipeline.energy.contact_slots import CONTACT_COUNT, ContactSlots
-from dexlite_pipeline.hand.model import JOINT_NAMES, ShadowHand
+from dexlite_pipeline.hand.model import JOINT_NAMES, PAD as PAD_KIND, SIDE as SIDE_KIND, TIP as TIP_KIND, ShadowHand
 from dexlite_pipeline.model.type_condition import interleaved_plan
 from dexlite_pipeline.optim.init import MEAN_OPEN_POSE
 
@@ -50,6 +50,11 @@ from dexlite_pipeline.optim.init import MEAN_OPEN_POSE
 CURLED = (("J2", 1.2), ("J1", 1.2), ("J0", 0.8))
 # Suffix of a candidate group naming a link's side candidates (``ShadowHand.side_contact_points_local``).
 SIDE = ":side"
+# Suffix of a candidate group naming a link's tip candidates (``ShadowHand.tip_contact_points_local``: the thumb's).
+TIP = ":tip"
+# The thumb's contact in a pinch or tripod: its palmar pads or its tip (on a thin wall or a handle lying on the table the
+# thumb touches with the tip, beyond its pads: docs/results_journal.md, 2026-12-05).
+THUMB_PAD_OR_TIP = ("thdistal", "thdistal" + TIP)
 
 
 def _curled(*fingers: str) -> tuple[tuple[str, float], ...]:
@@ -116,7 +121,7 @@ POWER = GraspType("power", contact_slots=None, aperture=tuple(MEAN_OPEN_POSE.ite
 # optionally a fourth contact beside the index; ring and little fingers curled. Pads ~7 cm apart.
 PINCH = GraspType(
     "pinch",
-    contact_slots=(("thdistal",), ("thdistal",), ("ffdistal",), ("ffdistal", "mfdistal")),
+    contact_slots=(THUMB_PAD_OR_TIP, THUMB_PAD_OR_TIP, ("ffdistal",), ("ffdistal", "mfdistal")),
     aperture=(("FFJ2", 0.2), ("FFJ1", 0.5), ("FFJ0", 0.45), ("MFJ2", 0.2), ("MFJ1", 0.5), ("MFJ0", 0.45),
               ("THJ4", 0.85), ("THJ3", 0.95), ("THJ2", -0.15), ("THJ1", 0.5), *_curled("RF", "LF")),
     opposition=(("thdistal",), ("ffdistal",)),
@@ -132,7 +137,7 @@ PINCH = GraspType(
 # little fingers curled. Thumb pad ~6 cm from the middle of the two finger pads.
 TRIPOD = GraspType(
     "tripod",
-    contact_slots=(("thdistal",), ("thdistal",), ("ffdistal",), ("mfdistal",)),
+    contact_slots=(THUMB_PAD_OR_TIP, THUMB_PAD_OR_TIP, ("ffdistal",), ("mfdistal",)),
     aperture=(("FFJ3", -0.25), ("FFJ2", 0.55), ("FFJ1", 0.5), ("FFJ0", 0.3), ("MFJ3", -0.25), ("MFJ2", 0.55), ("MFJ1", 0.5),
               ("MFJ0", 0.3), ("THJ4", 0.8), ("THJ3", 1.1), ("THJ2", -0.05), ("THJ1", 0.5), *_curled("RF", "LF")),
     opposition=(("thdistal",), ("ffdistal", "mfdistal")),
@@ -145,7 +150,9 @@ TRIPOD = GraspType(
 )
 
 # Lateral (taxonomy: lateral / key pinch): the thumb pad presses the object against the radial side of the index
-# finger's middle phalanx; the index is flexed, the other fingers curled. Pads ~4 cm apart.
+# finger's middle phalanx; the index is flexed, the other fingers curled. Pads ~4 cm apart. The thumb keeps its pads
+# only: with its tip candidates too, more lateral grasps met the energy thresholds but fewer held (bowl and spatula 037,
+# 32 starts: held 12 -> 7, within thresholds and held 5 -> 5; docs/results_journal.md, 2026-12-05).
 LATERAL = GraspType(
     "lateral",
     contact_slots=(("thdistal",), ("thdistal",), ("ffmiddle" + SIDE,), ("ffmiddle" + SIDE,)),
@@ -167,15 +174,18 @@ POWER_CODE = TYPE_NAMES.index("power")
 
 
 def candidate_group(hand: ShadowHand, group: str) -> tuple[int, ...]:
-    """Contact-table indices of a candidate group: ``"<link>"`` its palmar pads, ``"<link>:side"`` its side candidates
-    (link names without ``robot0:``)."""
-    link, side = (group.removesuffix(SIDE), True) if group.endswith(SIDE) else (group, False)
+    """Contact-table indices of a candidate group: ``"<link>"`` its palmar pads, ``"<link>:side"`` its side candidates,
+    ``"<link>:tip"`` its tip candidates (link names without ``robot0:``)."""
+    link, kind = group, PAD_KIND
+    for suffix, suffix_kind in ((SIDE, SIDE_KIND), (TIP, TIP_KIND)):
+        if group.endswith(suffix):
+            link, kind = group.removesuffix(suffix), suffix_kind
     name = f"robot0:{link}"
     if name not in hand.link_index:
         raise ValueError(f"candidate group {group!r}: no hand link {name}")
-    found = tuple(i for i in hand.candidates_on((name,)) if (i >= hand.pad_candidate_count) == side)
+    found = hand.candidates_on((name,), kind)
     if not found:
-        raise ValueError(f"candidate group {group!r}: the hand has no {'side' if side else 'pad'} candidates on {name}")
+        raise ValueError(f"candidate group {group!r}: the hand has no {kind} candidates on {name}")
     return found
 
 

@@ -80,17 +80,19 @@ def contact_points(hand, hand_pose: np.ndarray, contact_index: np.ndarray | None
     """(4, 3) contact points of a grasp in the object frame (metres).
 
     The evaluation's own contacts when the store carries them (``contact_index``, the four
-    candidates nearest the surface, as the energies used), else those four computed here
-    against the object's mesh.
+    candidates nearest the surface, as the energies used: entries of the hand's whole contact
+    table, so a lateral grasp's side or a pinch's thumb-tip candidates too), else the four pads
+    nearest the object's mesh, computed here.
     """
     import torch
 
     with torch.no_grad():
         frames = hand.forward(torch.as_tensor(np.asarray(hand_pose, dtype=np.float64)[None], dtype=hand.dtype, device=hand.device))
         candidates = hand.contact_candidates(frames)[0].double().cpu().numpy()
+        table = frames.transform(hand.all_contact_points_local, hand.all_contact_link)[0].double().cpu().numpy()  # pads, side, thumb tip
     index = None if contact_index is None else np.asarray(contact_index, dtype=np.int64).reshape(-1)
-    if index is not None and len(index) and (index >= 0).all() and (index < len(candidates)).all():
-        return candidates[index]
+    if index is not None and len(index) and (index >= 0).all() and (index < len(table)).all():
+        return table[index]
     import trimesh
 
     mesh = trimesh.Trimesh(vertices=object_mesh[0], faces=object_mesh[1], process=False)
