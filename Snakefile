@@ -28,3 +28,9 @@ rule all:
     input:
         default_outputs,  # final_outputs(); refused in one line when config key hand is not shadow
     default_target: True
+
+
+rule model_batch_all:
+    """Every shard of a model-made dataset batch (workflow/rules/model_batch.smk)."""
+    input:
+        model_batch_outputs(),

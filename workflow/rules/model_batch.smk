@@ -1,7 +1,7 @@
 # A dataset batch made by the model (config/profiles/household_model_batch.yaml): per shard, the generator's grasps
 # on the stable objects, ranked, refined and tested, optimization from scratch topping up the objects short of
 # distinct held grasps; `dexlite dataset-add` adds results/model_batch as a batch of kind model. Not in `all`:
-# target model_batch_all.
+# target model_batch_all (Snakefile).
 
 
 rule model_batch:
@@ -27,8 +27,3 @@ rule model_batch:
         "dexlite model-batch --config-json {params.cfg:q} --shard {wildcards.shard} --stability {input.stability} "
         "--objects {params.objects} --out {output} --threads {threads} > {log} 2>&1"
 
-
-rule model_batch_all:
-    """Every shard of the model-made batch: `snakemake --cores 2 model_batch_all --configfile ...`."""
-    input:
-        model_batch_outputs(),
