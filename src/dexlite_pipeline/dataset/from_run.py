@@ -79,15 +79,15 @@ def run_batch(results: str | Path, logs: str | Path | None = None) -> RunBatch:
     logs = Path(logs) if logs is not None else results.parent / "logs" / "benchmarks"
     model_made = (results / MODEL_BATCH_DIR).is_dir()
     if model_made:  # every grasp tested, its source its own; the objects and the sections in the shards' attributes
-        optimized = _stores(results / MODEL_BATCH_DIR, "model-made grasps")
-        lifted = GraspSet.concatenate([s for s in optimized if len(s)]) if any(len(s) for s in optimized) else optimized[0]
+        made = _stores(results / MODEL_BATCH_DIR, "model-made grasps")
+        lifted = GraspSet.concatenate([s for s in made if len(s)]) if any(len(s) for s in made) else made[0]
         shards = sorted((results / MODEL_BATCH_DIR).glob("shard_*.zarr"))
     else:
         lifted = GraspSet.concatenate(_stores(results / "lift", "lift-validated grasps"))
-        optimized = _stores(results / "optimized", "optimized grasps")
+        made = _stores(results / "optimized", "optimized grasps")  # which objects were optimized (with or without a held grasp)
         shards = sorted((results / "lift").glob("shard_*.zarr"))
     if len(lifted) and "six_dir_success" not in lifted.arrays:
-        raise DatasetError(f"{results / 'lift'}: no six_dir_success; a dataset batch needs the six-direction test (lift.six_directions: true)")
+        raise DatasetError(f"{shards[0].parent}: no six_dir_success; a dataset batch needs the six-direction test (lift.six_directions: true)")
     arrays = {name: lifted.arrays[name] for name in (*REQUIRED_ARRAYS, *OPTIONAL_ARRAYS) if name in lifted.arrays}
     for name in ENERGY_ARRAYS:  # a term the run did not compute (E_table when floating) is NaN, as the schema says
         arrays.setdefault(name, np.full(len(lifted), np.nan, np.float32))
@@ -98,7 +98,7 @@ def run_batch(results: str | Path, logs: str | Path | None = None) -> RunBatch:
                                       dtype=object)
     grasps = GraspSet(arrays)
     # Every object optimized (with or without a held grasp) and every object with a tested grasp (an import's too).
-    object_ids = sorted({o for store in optimized for o in store.attrs.get("objects", [])} | {str(o) for o in grasps.object_id})
+    object_ids = sorted({o for store in made for o in store.attrs.get("objects", [])} | {str(o) for o in grasps.object_id})
     objects_dirs = [d for d in (results / "objects", results / "dexgraspnet" / "objects") if (d / "catalog.parquet").is_file()]
     catalog = pd.concat([pd.read_parquet(d / "catalog.parquet") for d in objects_dirs]).drop_duplicates("object_id").set_index("object_id")
     stability = pd.read_parquet(results / "stability" / "stability.parquet").set_index("object_id")
@@ -119,11 +119,11 @@ def run_batch(results: str | Path, logs: str | Path | None = None) -> RunBatch:
         rows.append(row)
     lift_attrs = lifted.attrs if len(lifted) else read_grasp_store(shards[0]).attrs
     if model_made:
-        config = {**optimized[0].attrs.get("config", {}), "lift": lift_attrs.get("lift_config", {}),
-                  **{k: optimized[0].attrs.get(k) for k in ("model_file", "model_sha256", "evaluator_file", "evaluator_sha256")},
-                  "topped_up_objects": sorted(o for store in optimized for o in store.attrs.get("topped_up_objects", []))}
+        config = {**made[0].attrs.get("config", {}), "lift": lift_attrs.get("lift_config", {}),
+                  **{k: made[0].attrs.get(k) for k in ("model_file", "model_sha256", "evaluator_file", "evaluator_sha256")},
+                  "topped_up_objects": sorted(o for store in made for o in store.attrs.get("topped_up_objects", []))}
     else:
-        config = {"optimize_grasps": optimized[0].attrs.get("config", {}), "lift": lift_attrs.get("lift_config", {}),
+        config = {"optimize_grasps": made[0].attrs.get("config", {}), "lift": lift_attrs.get("lift_config", {}),
                   "curate": lift_attrs.get("config", {}).get("curate", {})}
     config = json.loads(json.dumps(config, default=str))
     if left_out:
