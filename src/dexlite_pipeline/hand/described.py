@@ -135,16 +135,7 @@ class DescribedHand(ShadowHand):
             pos.append(shape_pos)
             rot.append(shape_rot)
             size.append(shape_size)
-        self.shape_kind = torch.tensor(kinds, device=self.device)
-        self.shape_link = torch.tensor(links, device=self.device)
-        self.shape_pos = as_t(np.array(pos))
-        self.shape_rot = as_t(np.array(rot))
-        self.shape_size = as_t(np.array(size))
-        self.capsule_ids = torch.nonzero(self.shape_kind == CAPSULE).flatten()
-        self.box_ids = torch.nonzero(self.shape_kind == BOX).flatten()
-        cap_r = self.shape_size[:, 0] + self.shape_size[:, 1]
-        box_r = self.shape_size.norm(dim=-1)
-        self.shape_bounding_radius = torch.where(self.shape_kind == CAPSULE, cap_r, box_r)
+        self._set_shapes(kinds, links, as_t(np.array(pos)), as_t(np.array(rot)), as_t(np.array(size)))
 
     def _build_described_points(self, as_t) -> None:
         d = self.description

@@ -180,14 +180,16 @@ class ShadowHand:
             links.append(int(model.geom_bodyid[g]) - 1)
             pos.append(model.geom_pos[g].copy())
             rot.append(model.geom_quat[g].copy())
+        self._set_shapes(kinds, links, as_t(np.array(pos)), quat_wxyz_to_matrix(as_t(np.array(rot))), as_t(np.array(size)))
+
+    def _set_shapes(self, kinds: list[int], links: list[int], pos: torch.Tensor, rot: torch.Tensor, size: torch.Tensor) -> None:
+        """The collision shapes' tensors: kind (CAPSULE/BOX), link, position (m) and rotation (3x3) in the link frame,
+        size (m), the ids of each kind and each shape's bounding radius about its centre (m, for exact culling)."""
         self.shape_kind = torch.tensor(kinds, device=self.device)
         self.shape_link = torch.tensor(links, device=self.device)
-        self.shape_pos = as_t(np.array(pos))
-        self.shape_rot = quat_wxyz_to_matrix(as_t(np.array(rot)))
-        self.shape_size = as_t(np.array(size))
+        self.shape_pos, self.shape_rot, self.shape_size = pos, rot, size
         self.capsule_ids = torch.nonzero(self.shape_kind == CAPSULE).flatten()
         self.box_ids = torch.nonzero(self.shape_kind == BOX).flatten()
-        # Bounding radius of each shape about its centre, for exact culling by callers.
         cap_r = self.shape_size[:, 0] + self.shape_size[:, 1]
         box_r = self.shape_size.norm(dim=-1)
         self.shape_bounding_radius = torch.where(self.shape_kind == CAPSULE, cap_r, box_r)
