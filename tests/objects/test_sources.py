@@ -71,3 +71,44 @@ def test_a_file_listed_twice_is_one_object_and_held_out_wins(tmp_path):
     (tmp_path / "cup.obj").write_text("v 0 0 0\n")
     sources = collect_sources(0, [str(tmp_path), str(tmp_path)], [str(tmp_path)], seed=0)
     assert [(s.object_id, s.always_heldout) for s in sources] == [("user-cup", True)]
+
+
+def test_dataset_objects_are_rebuilt_from_their_ids_and_split_objects_never_trained_on(tmp_path, caplog):
+    from dexlite_pipeline.objects.sources import household_benchmark_list, shapes_benchmark_list
+
+    split_id, shapes_id = household_benchmark_list()[0], shapes_benchmark_list()[0]
+    wanted = ("household-mug-000", "household-plate-001-p1", "household-mug-003", split_id, shapes_id,
+              split_id + "-p1", "user-my_cup", "household-mug-000")
+    with caplog.at_level("WARNING"):
+        sources = collect_sources(0, [], [], seed=0, household_count=2, household_first=3, household_families=("mug",),
+                                  household_dir=tmp_path / "meshes", rebuilt_training_ids=wanted)
+    ids = [s.object_id for s in sources]
+    # the drawn household objects (mug 003, 004), then the dataset's not drawn yet, each once, in the dataset's order
+    assert ids == ["household-mug-003", "household-mug-004", "household-mug-000", "household-plate-001-p1"]
+    assert all(not s.always_heldout and s.source == "household" for s in sources)
+    assert all((tmp_path / "meshes" / f"{i}.obj").is_file() for i in ids)
+    # what was left out is named with its reason, not silently dropped
+    for left_out in (split_id, shapes_id, split_id + "-p1", "user-my_cup"):
+        assert any(left_out in r.getMessage() for r in caplog.records)
+    assert "held-out split" in caplog.text and "neither a pybullet_data object" in caplog.text
+
+
+def test_dataset_objects_need_a_dataset(tmp_path):
+    from dexlite_pipeline.stages.prepare_objects import dataset_training_ids
+
+    with pytest.raises(ValueError, match="dataset.root is empty"):
+        dataset_training_ids("")
+    with pytest.raises(ValueError, match="not a grasp dataset"):
+        dataset_training_ids(str(tmp_path))
+
+
+def test_the_repository_dataset_lists_its_training_objects_in_order():
+    import pandas as pd
+
+    from dexlite_pipeline.objects.sources import held_out_household_ids
+    from dexlite_pipeline.stages.prepare_objects import dataset_training_ids
+
+    table = pd.read_csv("dataset/objects.csv", dtype=str)
+    ids = dataset_training_ids("dataset")
+    assert list(ids) == list(table.loc[table["split"] == "train", "object_id"])
+    assert len(ids) >= 600 and not set(ids) & held_out_household_ids()

@@ -177,6 +177,15 @@ def dataset_files(wildcards=None):
     return [str(Path(root) / name) for name in ("batches.csv", "objects.csv")] + sorted(str(p) for p in (Path(root) / "grasps").glob("*.npz"))
 
 
+def dataset_object_tables(wildcards=None):
+    """With objects.dataset_objects: the dataset's tables that list its objects (an added batch reprepares), else none."""
+    if not config["objects"].get("dataset_objects"):
+        return []
+    if not dataset_root():
+        raise WorkflowError("objects.dataset_objects: dataset.root is empty (no grasp dataset to take the objects of)")
+    return dataset_files()[:2]
+
+
 def model_batch_generator_files(wildcards=None):
     """The model and evaluator files section model_batch names (the package's when "shipped"): inputs, so a re-shipped
     or retrained model reruns the batch."""

@@ -10,12 +10,14 @@ rule prepare_objects:
         benchmark=BENCHMARK_SPLIT if config["objects"].get("benchmark_heldout", True) else [],
         household_split=HOUSEHOLD_SPLIT if config["objects"].get("household_benchmark_objects", 0) else [],
         shapes_split=SHAPES_SPLIT if config["objects"].get("shapes_benchmark_objects", 0) else [],
+        dataset=dataset_object_tables,
     output:
         catalog=f"{RESULTS}/objects/catalog.parquet",
         config=f"{RESULTS}/objects/prepare_config.json",
     params:
         cfg=stage_params("seed", "objects", told_hand=False),
         code=code_hash("prepare_objects"),
+        dataset=lambda wc: f"--dataset {shlex.quote(dataset_root())}" if config["objects"].get("dataset_objects") else "",
     threads: all_cores()
     conda:
         CONDA_ENV
@@ -24,4 +26,4 @@ rule prepare_objects:
     benchmark:
         f"{LOGS}/benchmarks/prepare_objects.tsv"
     shell:
-        "dexlite prepare-objects --config-json {params.cfg:q} --catalog {output.catalog} --record {output.config} --threads {threads} > {log} 2>&1"
+        "dexlite prepare-objects --config-json {params.cfg:q} --catalog {output.catalog} --record {output.config} --threads {threads} {params.dataset} > {log} 2>&1"

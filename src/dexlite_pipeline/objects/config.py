@@ -64,6 +64,10 @@ class ObjectsConfig(CoacdSettings):
         (0,), "of each training household instance, these perturbation variants in this order (0: as generated; k >= 1: "
         "household-<family>-<NNN>-p<k>, dented, bumped, scaled, bent, noisy; objects/perturb.py): [0, 1] adds a perturbed "
         "copy after each instance, [1] draws perturbed ones only", min_items=1, unique_items=True, items={"minimum": 0})
+    dataset_objects: bool = setting(
+        False, "every training object of the grasp dataset at dataset.root (its objects.csv), rebuilt from its id (household "
+        "generator, pybullet_data), besides the objects drawn above: a model trained on the whole dataset whatever batches "
+        "made it; an object of a held-out split, or one without a rebuild recipe (a user's mesh), is left out with a warning")
     household_benchmark_objects: int = setting(
         0, "the first this many objects of the household split (objects/household_split.yaml), held out", minimum=0)
     shapes_benchmark_objects: int = setting(

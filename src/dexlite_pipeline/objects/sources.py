@@ -14,6 +14,7 @@ and their real radius is recorded).
 from __future__ import annotations
 
 import hashlib
+import logging
 import os
 import re
 import xml.etree.ElementTree as ET
@@ -22,6 +23,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+
+log = logging.getLogger(__name__)
 
 MESH_SUFFIXES = (".obj", ".stl")
 
@@ -336,6 +339,7 @@ def collect_sources(
     household_families: tuple[str, ...] = (),
     household_variants: tuple[int, ...] = (0,),
     shapes_benchmark_objects: int = 0,
+    rebuilt_training_ids: tuple[str, ...] = (),
 ) -> list[MeshSource]:
     """Every object to prepare: embedded default, generated household objects, user folders, always-held-out folders.
 
@@ -359,4 +363,42 @@ def collect_sources(
     builtin += [s for s in benchmark_sources(benchmark_objects) if s.object_id not in drawn]
     household = household_sources(household_count, household_benchmark_objects, household_dir, household_first, household_families,
                                   household_variants, shapes_benchmark_objects)
-    return make_ids_unique(builtin + household + list(user.values()))
+    rebuilt = rebuilt_training_sources(rebuilt_training_ids, {s.object_id for s in builtin + household}, household_dir)
+    return make_ids_unique(builtin + household + rebuilt + list(user.values()))
+
+
+def rebuilt_training_sources(object_ids, drawn: set[str], folder) -> list[MeshSource]:
+    """Training sources rebuilt from their ids alone (a grasp dataset's objects: ``objects.dataset_objects``), in the
+    order given, skipping the ids already ``drawn`` by the other sources. An id of a held-out split (the benchmark,
+    household or shapes split), or one that nothing rebuilds, is left out with a warning naming it: a dataset holds
+    training objects only, so either means a dataset made against other splits or by hand."""
+    from dexlite_pipeline.objects.household import base_household_id
+
+    held_out = held_out_household_ids() | benchmark_object_ids()
+    sources = []
+    for object_id in object_ids:
+        if object_id in drawn:
+            continue
+        if object_id in held_out:
+            log.warning("dataset object %s left out: it is in a held-out split, never trained on", object_id)
+            continue
+        try:
+            base = base_household_id(object_id) if object_id.startswith("household-") else object_id
+        except ValueError:
+            base = object_id
+        if base in held_out:
+            log.warning("dataset object %s left out: a variant of %s, which is in a held-out split", object_id, base)
+            continue
+        if household_dir_needed(object_id) and folder is None:
+            raise ObjectSourceError("objects.dataset_objects: no folder given to write the rebuilt household meshes to")
+        try:
+            sources.append(rebuilt_source_of(object_id, folder))
+        except ObjectSourceError as error:
+            log.warning("dataset object left out: %s", error)
+        drawn.add(object_id)
+    return sources
+
+
+def household_dir_needed(object_id: str) -> bool:
+    """Whether rebuilding ``object_id`` writes a generated mesh (household objects) rather than reading pybullet_data."""
+    return object_id.startswith("household-")

@@ -22,6 +22,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--config-json", default="{}", help="config sections seed and objects as JSON (defaults otherwise)")
     parser.add_argument("--catalog", required=True, help="output catalog (DIR/catalog.parquet; the assets go to DIR/assets/)")
     parser.add_argument("--record", required=True, help="output record of the settings used (.json)")
+    parser.add_argument("--dataset", default="", help="the grasp dataset folder whose objects objects.dataset_objects adds")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -33,10 +34,15 @@ def run(args: argparse.Namespace) -> int:
 
     config = stage_config(args.config_json)
     section = config.objects
+    try:
+        rebuilt = dataset_training_ids(args.dataset) if section.dataset_objects else ()
+    except ValueError as error:
+        log.error("%s", error)
+        return 2
     sources = collect_sources(
         section.builtin_count, section.mesh_dirs, section.heldout_mesh_dirs, config.seed, section.benchmark_heldout, section.benchmark_objects,
         section.household_count, section.household_benchmark_objects, Path(args.catalog).parent / HOUSEHOLD_MESH_DIR, section.household_first,
-        section.household_families, section.household_variants, section.shapes_benchmark_objects,
+        section.household_families, section.household_variants, section.shapes_benchmark_objects, rebuilt,
     )
     workers = args.threads or os.cpu_count() or 1
     log.info("preparing %d objects with %d worker(s)", len(sources), workers)
@@ -54,3 +60,19 @@ def run(args: argparse.Namespace) -> int:
         log.error("none of the %d objects could be prepared (reasons above)", len(catalog))
         return 1
     return 0
+
+
+def dataset_training_ids(dataset_dir: str) -> tuple[str, ...]:
+    """The training objects of the grasp dataset at ``dataset_dir``, in its objects.csv order (objects.dataset_objects)."""
+    from pathlib import Path
+
+    from dexlite_pipeline.dataset.store import read_objects
+
+    if not dataset_dir:
+        raise ValueError("objects.dataset_objects: no grasp dataset given (dataset.root is empty)")
+    if not (Path(dataset_dir) / "batches.csv").is_file():
+        raise ValueError(f"objects.dataset_objects: {dataset_dir} is not a grasp dataset (no batches.csv)")
+    objects = read_objects(dataset_dir)
+    training = objects[objects["split"] == "train"]
+    log.info("the dataset %s: %d training objects of %d", dataset_dir, len(training), len(objects))
+    return tuple(str(o) for o in training["object_id"])
