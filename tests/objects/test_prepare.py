@@ -154,6 +154,32 @@ def test_unchanged_assets_are_reused_and_stale_ones_removed(tmp_path):
     assert arrays.stat().st_mtime_ns != built
 
 
+def test_a_shared_asset_cache_gives_another_run_the_same_assets_without_building_them(tmp_path, monkeypatch):
+    import dexlite_pipeline.objects.prepare as prepare
+
+    _write_user_meshes(tmp_path / "mine")
+    cache = tmp_path / "cache"
+    config = ObjectsConfig(**{**TINY.__dict__, "mesh_dirs": (str(tmp_path / "mine"),), "asset_cache": str(cache)})
+    sources = collect_sources(0, config.mesh_dirs, (), 0)
+    first = prepare_objects(sources, tmp_path / "run_a", config, seed=0, workers=0)
+    assert sorted(p.name for p in cache.iterdir()) == ["user-ball", "user-box"]  # built ok: cached; rejected: not
+
+    def no_building(*args, **kwargs):
+        raise AssertionError("an asset in the cache was built again")
+
+    monkeypatch.setattr(prepare, "write_asset", no_building)
+    second = prepare_objects(sources, tmp_path / "run_b", config, seed=0, workers=0)
+    pd.testing.assert_frame_equal(first, second)
+    a, b = load_asset([str(tmp_path / "run_a")], "user-box"), load_asset([str(tmp_path / "run_b")], "user-box")
+    np.testing.assert_array_equal(a.surface_points, b.surface_points)
+    assert a.meta["build_key"] == b.meta["build_key"]
+
+    # other settings make another key: built again (here refused by the patch), never the cached asset
+    other = ObjectsConfig(**{**config.__dict__, "surface_points": 64})
+    refused = prepare_objects(sources, tmp_path / "run_c", other, seed=0, workers=0)
+    assert set(refused.loc[refused["object_id"].isin(["user-box", "user-ball"]), "status"]) == {"rejected"}
+
+
 def test_split_is_seeded_exact_and_respects_always_heldout():
     sources = [MeshSource(f"obj-{i:02d}", "user", "x.obj", always_heldout=i == 0) for i in range(21)]
     first = heldout_ids(sources, 0.25, seed=3)

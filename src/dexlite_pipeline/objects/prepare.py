@@ -170,8 +170,9 @@ def _build_key(source: MeshSource, settings: AssetBuildSettings, builder: str) -
     return digest.hexdigest()
 
 
-def _reusable_asset(objects_dir: Path, object_id: str, key: str) -> dict | None:
-    meta_path = asset_dir(objects_dir, object_id) / "meta.json"
+def _reusable_asset(objects_dir: Path, object_id: str, key: str, folder: Path | None = None) -> dict | None:
+    """The meta of ``object_id``'s asset in ``objects_dir`` (or in ``folder``) when it was built with ``key``, else None."""
+    meta_path = (folder if folder is not None else asset_dir(objects_dir, object_id)) / "meta.json"
     if not meta_path.exists() or not (meta_path.parent / "arrays.zarr").exists():
         return None
     try:
@@ -212,15 +213,52 @@ def _number(value) -> float:
     return float("nan") if value is None else float(value)
 
 
-def prepare_object(source: MeshSource, objects_dir: str, settings: AssetBuildSettings, builder: str = "") -> dict:
+def cache_entry(cache_dir: str | Path, object_id: str, key: str) -> Path:
+    """Where the shared asset cache (``objects.asset_cache``) keeps ``object_id``'s asset built with ``key``."""
+    return Path(cache_dir).expanduser() / object_id / key
+
+
+def _fetch_cached_asset(cache_dir: str | Path, objects_dir: Path, object_id: str, key: str) -> dict | None:
+    """Copy the cache's asset of ``object_id`` built with ``key`` into ``objects_dir`` (atomically); its meta, or None."""
+    from dexlite_pipeline.atomic import atomic_path
+
+    entry = cache_entry(cache_dir, object_id, key)
+    if _reusable_asset(entry.parent.parent, object_id, key, folder=entry) is None:
+        return None
+    with atomic_path(asset_dir(objects_dir, object_id)) as tmp:
+        shutil.copytree(entry, tmp)
+    return _reusable_asset(objects_dir, object_id, key)
+
+
+def _store_in_cache(cache_dir: str | Path, objects_dir: Path, object_id: str, key: str) -> None:
+    """Add the asset just built to the cache (atomically; an entry already there, from a concurrent run, is kept)."""
+    import uuid
+
+    entry = cache_entry(cache_dir, object_id, key)
+    if entry.is_dir():
+        return
+    entry.parent.mkdir(parents=True, exist_ok=True)
+    tmp = entry.with_name(f".{entry.name}.tmp-{uuid.uuid4().hex[:8]}")
+    shutil.copytree(asset_dir(objects_dir, object_id), tmp)
+    try:
+        tmp.rename(entry)
+    except OSError:  # another run stored the same entry first
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+def prepare_object(source: MeshSource, objects_dir: str, settings: AssetBuildSettings, builder: str = "", cache_dir: str = "") -> dict:
     """Prepare one object; returns its catalog row (status ok, or rejected with the reason).
 
-    ``builder`` (``builder_version()``) enters the reuse key: a code change rebuilds assets.
+    ``builder`` (``builder_version()``) enters the reuse key: a code change rebuilds assets. ``cache_dir``
+    (``objects.asset_cache``): a folder of assets shared by runs, keyed like the reuse, where an asset not in
+    ``objects_dir`` is looked up before it is built, and where one built here is added.
     """
     objects_dir = Path(objects_dir)
     try:
         key = _build_key(source, settings, builder)
         previous = _reusable_asset(objects_dir, source.object_id, key)
+        if previous is None and cache_dir:
+            previous = _fetch_cached_asset(cache_dir, objects_dir, source.object_id, key)
         if previous is not None:
             return _row(source, previous["deviation"], watertight=bool(previous["watertight"]), volume=float(previous["volume"]),
                         n_convex_pieces=int(previous["n_convex_pieces"]), status="ok", preparation=previous["preparation"]["summary"])
@@ -247,6 +285,8 @@ def prepare_object(source: MeshSource, objects_dir: str, settings: AssetBuildSet
             "deviation": deviation.as_record() | {"summary": deviation.summary()},
         }
         summary = write_asset(mesh, source.object_id, objects_dir, settings, meta)
+        if cache_dir:
+            _store_in_cache(cache_dir, objects_dir, source.object_id, key)
     except MeshRejected as exc:
         return _row(source, exc.deviation, watertight=False if str(exc).startswith("not watertight") else None, reason=str(exc))
     return _row(source, deviation, watertight=summary["watertight"], volume=summary["volume"],
@@ -351,7 +391,8 @@ def prepare_objects(
     if config.heldout_yaw:
         sources = turned_heldout(sources, heldout, seed)
     objects_dir.mkdir(parents=True, exist_ok=True)
-    task = functools.partial(prepare_object, objects_dir=str(objects_dir), settings=settings, builder=builder_version())
+    task = functools.partial(prepare_object, objects_dir=str(objects_dir), settings=settings, builder=builder_version(),
+                             cache_dir=config.asset_cache)
 
     progress = ProgressLog(log, "preparation", len(sources), unit="objects")  # done, whether prepared or rejected
     rows = resilient_map(task, sources, workers, _crashed_row, lambda done, total: progress.advance())
