@@ -8,9 +8,17 @@ MuJoCo's reading of that file:
 - the hand's visual geoms (neither ``contype`` nor ``conaffinity``) and the colliding geoms its description left out
   are removed, every body keeping the mass and inertia the full file gives it (written as explicit inertials);
   keyframes, sensors, tendons and the file's own actuators are removed;
-- one position actuator per joint, in joint order (the lift test drives ``ctrl`` with a stored pose's joints): the
-  hand's own position servo where the file has one (its gain kp, damping kv and force limit), the lift config's
-  ``finger_kp`` for a joint the file does not actuate. The gains are the hand's, not the Shadow Hand's pinned 5 N·m/rad;
+- every geom's contact parameters (solref, solimp, solmix, margin, gap, priority: the hand's, the object's and the
+  table's) are MuJoCo's defaults, as in the Shadow Hand's scene, and the object's free joint has no damping or friction
+  loss: contact softness is part of the protocol, like friction, and the object and the table must not inherit the
+  hand file's ``<default>`` class. LEAP's file makes every geom of its main class almost rigid (solref 0.1 ms, solimp
+  0.999) and damps every joint, which at the 2 ms step throws objects out of grasps (on four household objects: 4 of
+  the same 64 grasps held with its values, 17 with the defaults, none thrown);
+- one position actuator per joint, in joint order (the lift test drives ``ctrl`` with a stored pose's joints), every
+  one with the lift config's gain ``finger_kp`` (5 N·m/rad), as the Shadow Hand's: the gain is the protocol's closing
+  stiffness, not a property of the hand (Menagerie's Allegro file says 1 N·m/rad, LEAP's 3, the gym Shadow Hand's 1; at
+  1 N·m/rad Allegro's grasps that hold at 5 slip: 11 against 30 of the same 64 grasps held on four household objects).
+  The file's own servo keeps its damping kv and force limit, which are the hand's;
 - the object, the table, gravity, friction, contact dimension, elliptic cones and the time step exactly as
   ``sim.scene.scene_mjcf`` sets them; the object and the table collide with every collision bit the hand's geoms use.
 
@@ -33,16 +41,16 @@ from dexlite_pipeline.sim.scene import GRAVITY_MPS2, OBJECT_BODY, PALM_TARGET_BO
 
 @dataclass(frozen=True)
 class HandDrive:
-    """Per joint (J,) of a described hand, the position servo the lift test gives it: the hand's own gain (NaN: none,
-    the config's ``finger_kp``), damping (N·m·s/rad) and force limit (N·m, inf: unlimited)."""
+    """Per joint (J,) of a described hand, its own position servo in the file: gain (NaN: none; recorded, not used: the
+    lift test closes with ``finger_kp``), damping (N·m·s/rad) and force limit (N·m, inf: unlimited)."""
 
     kp: np.ndarray
     kv: np.ndarray
     force_limit: np.ndarray
 
     def gains(self, config: LiftConfig) -> np.ndarray:
-        """(J,) the gain of each joint's servo under ``config``."""
-        return np.where(np.isnan(self.kp), config.finger_kp, self.kp)
+        """(J,) the gain of each joint's servo in the lift test: the protocol's ``finger_kp`` for every joint (N·m/rad)."""
+        return np.full(len(self.kp), config.finger_kp)
 
 
 def hand_drive(hand: DescribedHand) -> HandDrive:
@@ -63,6 +71,15 @@ def hand_drive(hand: DescribedHand) -> HandDrive:
 
 
 _BASE_LOCK = threading.Lock()
+
+
+def _default_contact(geom) -> None:
+    """Give an ``MjSpec`` geom MuJoCo's default contact parameters (solref, solimp, solmix, margin, gap, priority)."""
+    import mujoco
+
+    default = mujoco.MjSpec().worldbody.add_geom()
+    geom.solref, geom.solimp, geom.solmix = default.solref.copy(), default.solimp.copy(), default.solmix
+    geom.margin, geom.gap, geom.priority = default.margin, default.gap, default.priority
 
 
 @functools.lru_cache(maxsize=4)
@@ -97,6 +114,8 @@ def _hand_base(hand: DescribedHand):
             gone.append(geom)
     for geom in gone:
         spec.delete(geom)
+    for geom in spec.geoms:
+        _default_contact(geom)
     used_meshes = {geom.meshname for geom in spec.geoms if geom.type == mujoco.mjtGeom.mjGEOM_MESH}
     for mesh in list(spec.meshes):
         if mesh.name not in used_meshes:
@@ -131,16 +150,19 @@ def described_scene_spec(hand: DescribedHand, convex_paths: list[Path], scale: f
         normal = np.asarray(table.normal, dtype=np.float64)
         quat = np.zeros(4)
         mujoco.mju_quatZ2Vec(quat, normal)
-        world.add_geom(name=TABLE_GEOM, type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0.0, 0.0, 1.0], pos=-table.offset_m(scale) * normal,
+        plane = world.add_geom(name=TABLE_GEOM, type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0.0, 0.0, 1.0], pos=-table.offset_m(scale) * normal,
                        quat=quat, contype=collide, conaffinity=collide, condim=config.contact_condim,
                        friction=[config.friction, 0.005, 0.0001])
+        _default_contact(plane)
     obj = world.add_body(name=OBJECT_BODY)
-    obj.add_freejoint(name="object_free")
+    free = obj.add_freejoint(name="object_free")
+    free.damping, free.frictionloss, free.armature = np.zeros(3), 0.0, 0.0  # not the hand file's joint defaults
     for i, path in enumerate(convex_paths):
         name = f"object_piece_{i:03d}"
         spec.add_mesh(name=name, file=str(Path(path).resolve()), scale=[float(scale)] * 3)
-        obj.add_geom(name=name, type=mujoco.mjtGeom.mjGEOM_MESH, meshname=name, contype=collide, conaffinity=collide,
+        piece = obj.add_geom(name=name, type=mujoco.mjtGeom.mjGEOM_MESH, meshname=name, contype=collide, conaffinity=collide,
                      condim=config.contact_condim, friction=[config.friction, 0.005, 0.0001], group=3)
+        _default_contact(piece)
     spec.add_equality(type=mujoco.mjtEq.mjEQ_WELD, objtype=mujoco.mjtObj.mjOBJ_BODY, name="palm_weld", name1=PALM_TARGET_BODY,
                       name2=hand.root_link, data=[0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0])
     drive = hand_drive(hand)
@@ -157,7 +179,7 @@ def described_scene_spec(hand: DescribedHand, convex_paths: list[Path], scale: f
 
 @dataclass
 class DescribedLiftScene(LiftScene):
-    """``LiftScene`` of a described hand: ``configure`` writes the hand's own gains (``HandDrive``), not one for all."""
+    """``LiftScene`` of a described hand: ``configure`` writes the lift test's gains (``HandDrive.gains``)."""
 
     drive: HandDrive | None = None
 
@@ -172,7 +194,7 @@ class DescribedLiftScene(LiftScene):
         return cls.from_model(model, config, table, hand.root_link, hand.joint_names, drive=hand_drive(hand))
 
     def configure(self, config: LiftConfig) -> None:
-        """``LiftScene.configure``, then each actuator's gain from the hand (``finger_kp`` where it has none)."""
+        """``LiftScene.configure``, then each actuator's gain (``HandDrive.gains``)."""
         super().configure(config)
         if self.drive is not None:
             kp = self.drive.gains(config)
