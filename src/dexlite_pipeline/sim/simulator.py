@@ -34,6 +34,12 @@ def _palm_quaternions(hand_pose: np.ndarray) -> np.ndarray:
     return quats
 
 
+def _length(vector: np.ndarray) -> float:
+    """Euclidean length of a 1-D float64 array, the same float as ``np.linalg.norm`` (the square root of ``dot``),
+    without its argument checks (it runs after every control chunk)."""
+    return math.sqrt(vector.dot(vector))
+
+
 class GraspSimulator:
     """Runs the lift and six-direction tests of single grasps in one compiled scene."""
 
@@ -47,6 +53,17 @@ class GraspSimulator:
         # Chunks in the settle window (0: settling off); the test starts once twice the window has passed.
         self.settle_chunks = max(1, round(config.steps(config.six_dir_settle_s) / config.control_substeps)) if config.six_dir_settle_factor > 0 else 0
         self.total_steps = sum(steps for steps, _, _ in self.schedule)
+        # Per lift chunk, the palm's rise (m) along the smooth profile, or None where the palm holds still.
+        self._rises = [None if f is None else config.lift_height_m * 0.5 * (1.0 - math.cos(math.pi * f)) for _, _, f in self.schedule]
+        # Views into the scene's MjData (its buffers stay in place for its whole life) of what is read between chunks:
+        # the object's centre of mass, the palm origin, the object's free-joint position and velocity, the palm's velocity.
+        d = scene.data
+        self._object_com = d.xipos[scene.object_body]
+        self._palm_origin = d.xpos[scene.palm_body]
+        self._object_qpos = d.qpos[scene.object_qpos]
+        self._object_qvel = d.qvel[scene.object_qvel]
+        self._object_linvel = self._object_qvel[:3]
+        self._palm_linvel = d.qvel[scene.palm_qvel][:3]
 
     def _lift_schedule(self) -> list[tuple[int, float | None, float | None]]:
         """The lift timeline as control chunks: (steps, close fraction or None, lift fraction or None).
@@ -80,21 +97,23 @@ class GraspSimulator:
         """Deepest hand-object penetration MuJoCo finds at the grasp pose (capsules and boxes vs convex pieces)."""
         self._reset(pose, quat)
         s, m, d = self.scene, self.scene.model, self.scene.data
-        deepest = 0.0
-        for contact in d.contact[: d.ncon]:
-            bodies = {int(m.geom_bodyid[contact.geom1]), int(m.geom_bodyid[contact.geom2])}
-            if s.object_body in bodies and len(bodies) == 2 and 0 not in bodies:  # not the object on the table (world body)
-                deepest = max(deepest, -float(contact.dist))
-        return deepest
+        if d.ncon == 0:
+            return 0.0
+        contacts = d.contact
+        body1, body2 = m.geom_bodyid[contacts.geom1], m.geom_bodyid[contacts.geom2]
+        # the object against a hand body: not the object on the table (the world body), not the hand on it
+        hand_object = ((body1 == s.object_body) | (body2 == s.object_body)) & (body1 != body2) & (body1 != 0) & (body2 != 0)
+        return max(0.0, float(-contacts.dist[hand_object].min())) if hand_object.any() else 0.0
 
     def _close(self, start: np.ndarray, target: np.ndarray) -> None:
         """Ramp the finger targets from ``start`` to ``target`` over the close phase."""
         import mujoco
 
         m, d = self.scene.model, self.scene.data
+        step, change = mujoco.mj_step, target - start
         for steps, close_fraction, _ in self.schedule[: len(self.close_chunks)]:
-            d.ctrl[:] = start + (target - start) * close_fraction
-            mujoco.mj_step(m, d, nstep=steps)
+            d.ctrl[:] = start + change * close_fraction
+            step(m, d, nstep=steps)
 
     def _unstable(self) -> bool:
         import mujoco
@@ -111,21 +130,21 @@ class GraspSimulator:
         downward faster than that profile allows (far below g), so the gap only grows.
         Valid in every phase, so it is checked before each control chunk.
         """
-        s, d = self.scene, self.scene.data
-        if s.up is not None:  # on a table: heights and velocities along its normal
-            object_top = float(d.xipos[s.object_body] @ s.up) + s.object_radius_m
-            hand_bottom = float(d.xpos[s.palm_body] @ s.up) - s.hand_reach_m
-            return bool(object_top < hand_bottom and d.qvel[s.object_qvel][:3] @ s.up < d.qvel[s.palm_qvel][:3] @ s.up)
-        object_top = d.xipos[s.object_body, 2] + s.object_radius_m
-        hand_bottom = d.xpos[s.palm_body, 2] - s.hand_reach_m
-        return bool(object_top < hand_bottom and d.qvel[s.object_qvel][2] < d.qvel[s.palm_qvel][2])
+        s, up = self.scene, self.scene.up
+        if up is not None:  # on a table: heights and velocities along its normal
+            object_top = float(self._object_com @ up) + s.object_radius_m
+            hand_bottom = float(self._palm_origin @ up) - s.hand_reach_m
+            return bool(object_top < hand_bottom and self._object_linvel @ up < self._palm_linvel @ up)
+        object_top = self._object_com[2] + s.object_radius_m
+        hand_bottom = self._palm_origin[2] - s.hand_reach_m
+        return bool(object_top < hand_bottom and self._object_linvel[2] < self._palm_linvel[2])
 
     def _settled(self, recent, worst_t: float, worst_r: float, seconds_left: float) -> bool:
         """Record the object's speed and turn rate now; True once the window is full (after twice its length) and even
         ``six_dir_settle_factor`` times the window's fastest rates for ``seconds_left`` keep it within the limits."""
-        cfg, s, d = self.config, self.scene, self.scene.data
-        velocity = d.qvel[s.object_qvel]
-        recent.append((float(np.linalg.norm(velocity[:3])), math.degrees(float(np.linalg.norm(velocity[3:])))))
+        cfg = self.config
+        linear, angular = self._object_linvel, self._object_qvel[3:]
+        recent.append((_length(linear), math.degrees(_length(angular))))
         recent_full = len(recent) == recent.maxlen
         if not recent_full or seconds_left > cfg.six_dir_duration_s - 2 * cfg.six_dir_settle_s:
             return False
@@ -158,16 +177,17 @@ class GraspSimulator:
         object_z0 = float(d.xipos[s.object_body, 2])
         palm_z0 = float(d.mocap_pos[0, 2])
         start = d.ctrl.copy()
+        step, change, lost, mocap = mujoco.mj_step, target - start, self._object_lost, d.mocap_pos[0]
         steps_done = 0
-        for steps, close_fraction, lift_fraction in self.schedule:
-            if self._object_lost():
+        for (steps, close_fraction, _), rise in zip(self.schedule, self._rises):
+            if lost():
                 object_z = self._ballistic_z(self.total_steps - steps_done)
                 break
             if close_fraction is not None:
-                d.ctrl[:] = start + (target - start) * close_fraction
-            if lift_fraction is not None:
-                d.mocap_pos[0, 2] = palm_z0 + cfg.lift_height_m * 0.5 * (1.0 - math.cos(math.pi * lift_fraction))
-            mujoco.mj_step(m, d, nstep=steps)
+                d.ctrl[:] = start + change * close_fraction
+            if rise is not None:
+                mocap[2] = palm_z0 + rise
+            step(m, d, nstep=steps)
             steps_done += steps
         else:
             object_z = float(d.xipos[s.object_body, 2])
@@ -188,15 +208,16 @@ class GraspSimulator:
         object_z0 = float(d.xipos[s.object_body] @ s.up)
         palm0 = d.mocap_pos[0].copy()
         start = d.ctrl.copy()
-        for steps, close_fraction, lift_fraction in self.schedule:
-            if self._object_lost():
+        step, change, lost, mocap = mujoco.mj_step, target - start, self._object_lost, d.mocap_pos[0]
+        for (steps, close_fraction, _), rise in zip(self.schedule, self._rises):
+            if lost():
                 object_z = object_z0
                 break
             if close_fraction is not None:
-                d.ctrl[:] = start + (target - start) * close_fraction
-            if lift_fraction is not None:
-                d.mocap_pos[0] = palm0 + s.up * (cfg.lift_height_m * 0.5 * (1.0 - math.cos(math.pi * lift_fraction)))
-            mujoco.mj_step(m, d, nstep=steps)
+                d.ctrl[:] = start + change * close_fraction
+            if rise is not None:
+                mocap[:] = palm0 + s.up * rise
+            step(m, d, nstep=steps)
         else:
             object_z = float(d.xipos[s.object_body] @ s.up)
         if self._unstable():
@@ -231,6 +252,8 @@ class GraspSimulator:
             closed = np.empty(mujoco.mj_stateSize(m, spec))
             mujoco.mj_getState(m, d, closed, spec)
             force = cfg.six_dir_force_per_kg_n * cfg.object_mass_kg
+            step, com, object_qpos = mujoco.mj_step, self._object_com, self._object_qpos
+            max_t, max_r = cfg.six_dir_max_translation_m, cfg.six_dir_max_rotation_deg
             for k, direction in enumerate(DIRECTION_VECTORS):
                 mujoco.mj_setState(m, d, closed, spec)
                 d.xfrc_applied[:] = 0.0
@@ -239,12 +262,12 @@ class GraspSimulator:
                 recent = collections.deque(maxlen=self.settle_chunks)  # (speed m/s, turn rate deg/s) at the last chunks' ends
                 remaining = sum(self.six_dir_chunks)
                 for steps in self.six_dir_chunks:
-                    mujoco.mj_step(m, d, nstep=steps)
+                    step(m, d, nstep=steps)
                     remaining -= steps
-                    worst_t = max(worst_t, float(np.linalg.norm(d.xipos[s.object_body] - com0)))
-                    qw = min(1.0, abs(float(d.qpos[s.object_qpos][3])))
+                    worst_t = max(worst_t, _length(com - com0))
+                    qw = min(1.0, abs(float(object_qpos[3])))
                     worst_r = max(worst_r, math.degrees(2.0 * math.acos(qw)))
-                    if worst_t >= cfg.six_dir_max_translation_m or worst_r >= cfg.six_dir_max_rotation_deg:
+                    if worst_t >= max_t or worst_r >= max_r:
                         break
                     if self.settle_chunks and self._settled(recent, worst_t, worst_r, remaining * cfg.timestep_s):
                         break  # settled: passes this direction
