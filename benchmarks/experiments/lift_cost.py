@@ -17,6 +17,7 @@ commit's ``src`` (a ``git worktree``).
 from __future__ import annotations
 
 import argparse
+import contextlib
 import hashlib
 import json
 import sys
@@ -80,6 +81,68 @@ class StepClock:
         mujoco.mj_step = self._step
 
 
+PHASES = (  # (module, attribute path, label): the parts of run_lift_tests that --phases clocks
+    ("mujoco", "mj_step", "mj_step (the physics)"),
+    ("dexlite_pipeline.sim.simulator", "GraspSimulator.lift", "lift test: Python between steps, resets"),
+    ("dexlite_pipeline.sim.simulator", "GraspSimulator.six_directions", "six directions: Python between steps, resets"),
+    ("dexlite_pipeline.sim.simulator", "GraspSimulator.initial_contact_depth_m", "start overlap with the convex pieces"),
+    ("dexlite_pipeline.sim.lift", "_squeeze_plans", "squeeze targets (torch)"),
+    ("dexlite_pipeline.sim.lift", "start_depth_m", "start depth against the mesh (torch)"),
+    ("dexlite_pipeline.sim.lift", "hand_table_depth", "hand below the table (torch)"),
+    ("dexlite_pipeline.energy.grasp_energy", "GraspEnergy.from_assets", "depth measure, built once per object"),
+    ("dexlite_pipeline.sim.scene", "LiftScene.build", "scene compiled once per object"),
+)
+
+
+class PhaseClock:
+    """Within its ``with`` block, the CPU seconds spent in each of ``PHASES`` less those of the phases it calls (each
+    function is replaced by a clocked wrapper and put back on exit), and the number of calls."""
+
+    def __init__(self) -> None:
+        self.seconds: dict[str, float] = {label: 0.0 for _, _, label in PHASES}
+        self.calls: dict[str, int] = {label: 0 for _, _, label in PHASES}
+        self._saved: list[tuple[object, str, object]] = []
+
+    def __enter__(self) -> "PhaseClock":
+        import importlib
+
+        inner: list[float] = []  # per active phase, the seconds of the phases it called
+
+        def clocked(function, label):
+            def wrapper(*args, **kwargs):
+                start = time.process_time()
+                inner.append(0.0)
+                try:
+                    return function(*args, **kwargs)
+                finally:
+                    spent = time.process_time() - start
+                    self.seconds[label] += spent - inner.pop()
+                    self.calls[label] += 1
+                    if inner:
+                        inner[-1] += spent
+            return wrapper
+
+        for module, path, label in PHASES:
+            *owners, name = path.split(".")
+            owner = importlib.import_module(module)
+            for part in owners:
+                owner = getattr(owner, part)
+            self._saved.append((owner, name, vars(owner)[name] if isinstance(owner, type) else getattr(owner, name)))
+            setattr(owner, name, clocked(getattr(owner, name), label))
+        return self
+
+    def __exit__(self, *exc) -> None:
+        for owner, name, original in reversed(self._saved):
+            setattr(owner, name, original)
+
+    def table(self, total: float, tested: int) -> str:
+        rows = [f"| {label} | {seconds:.2f} | {100 * seconds / total:.1f}% | {self.calls[label]} | {1000 * seconds / max(tested, 1):.2f} |"
+                for label, seconds in sorted(self.seconds.items(), key=lambda item: -item[1])]
+        rest = total - sum(self.seconds.values())
+        rows.append(f"| the rest (first calls' imports, bookkeeping) | {rest:.2f} | {100 * rest / total:.1f}% | | {1000 * rest / max(tested, 1):.2f} |")
+        return "\n".join(["| part | CPU s | share | calls | ms per tested grasp |", "| --- | ---: | ---: | ---: | ---: |", *rows])
+
+
 def chosen_objects(objects_table, batch: int, count: int) -> list[str]:
     """The first instance of each family among the batch's objects, in family order, up to ``count``."""
     from dexlite_pipeline.dataset.layout import object_family
@@ -140,15 +203,15 @@ def measure(args) -> dict:
     })
     config = lift_config_from(json.loads((dataset / "configs" / f"batch_{args.batch:04d}.json").read_text()))
     hand = ShadowHand()
-    stepping = StepClock()
+    stepping, phases = StepClock(), PhaseClock() if args.phases else contextlib.nullcontext()
     start = time.process_time()
-    with stepping:
+    with stepping, phases:
         results = run_lift_tests(chosen, [str(objects_dir)], config, 1, support_planes=planes, hand=hand)
     seconds = time.process_time() - start
     tested = int(np.isfinite(np.asarray(results["lift_ratio"], np.float64)).sum())
     return {"object_ids": object_ids, "grasps": len(chosen), "tested": tested, "seconds": seconds, "results": results,
             "stored_held": np.asarray(chosen.arrays["lift_success"], bool), "step_seconds": stepping.seconds, "steps": stepping.steps,
-            "step_calls": stepping.calls, "trajectory": stepping.trajectory}
+            "step_calls": stepping.calls, "trajectory": stepping.trajectory, "phases": phases if args.phases else None}
 
 
 def compare(a_path: str, b_path: str) -> int:
@@ -177,6 +240,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--per-object", type=int, default=40, help="grasps per object (the first in dataset order)")
     parser.add_argument("--objects-dir", default="/tmp/liftcost/objects", help="prepared objects (made when missing)")
     parser.add_argument("--out", help="write the outcome arrays here (.npz)")
+    parser.add_argument("--phases", action="store_true", help="also split the CPU time by part (clocked wrappers: a little slower)")
     parser.add_argument("--profile", help="write a cProfile of the lift tests here (.prof); its CPU time is then not comparable")
     parser.add_argument("--compare", nargs=2, metavar=("A", "B"), help="compare two --out files instead of measuring")
     args = parser.parse_args(argv)
@@ -202,6 +266,8 @@ def main(argv: list[str] | None = None) -> int:
     print(f"inside mj_step: {report['step_seconds']:.2f} CPU s ({report['steps']} steps in {report['step_calls']} calls, "
           f"{1e6 * report['step_seconds'] / max(report['steps'], 1):.1f} us per step); outside: {outside:.2f} CPU s, "
           f"{outside / max(report['tested'], 1):.4f} per tested grasp")
+    if report["phases"] is not None:
+        print(report["phases"].table(report["seconds"], report["tested"]))
     print(f"digest of the state after every mj_step call (qpos, qvel): {report['trajectory']}")
     print(f"digest of flags and reasons: {digest(results, FLAG_ARRAYS)}")
     print(f"digest of flags, reasons and values: {digest(results, FLAG_ARRAYS + VALUE_ARRAYS)}")

@@ -40,3 +40,17 @@ def test_digests_change_with_a_flag_or_a_value(benchmark_script):
     assert script.digest(results, flags) == base[0] and script.digest(results, flags + ("lift_ratio",)) != base[1]
     results["failure_reason"][1] = "simulation_unstable"
     assert script.digest(results, flags) != base[0]
+
+
+def test_phase_clock_counts_inside_its_block_and_puts_every_function_back(benchmark_script):
+    import mujoco
+
+    from dexlite_pipeline.energy.grasp_energy import GraspEnergy
+    from dexlite_pipeline.sim.simulator import GraspSimulator
+
+    script = benchmark_script("lift_cost")
+    originals = mujoco.mj_step, vars(GraspEnergy)["from_assets"], vars(GraspSimulator)["lift"]
+    clock = _fall(script.PhaseClock)
+    assert clock.calls["mj_step (the physics)"] == 3 and clock.seconds["mj_step (the physics)"] >= 0.0
+    assert (mujoco.mj_step, vars(GraspEnergy)["from_assets"], vars(GraspSimulator)["lift"]) == originals
+    assert "| mj_step (the physics) |" in clock.table(1.0, 1)
