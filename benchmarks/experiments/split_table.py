@@ -1,4 +1,4 @@
-"""Held-out results per object split (household split, benchmark split) over runs that differ in their seed.
+"""Held-out results per object split (household, shapes and benchmark splits) over runs that differ in their seed.
 
     python benchmarks/experiments/split_table.py RUN [RUN ...] [--methods cvae_post cvae_ranked_post optimization ...] [--wall-to-cpu]
 
@@ -76,11 +76,12 @@ def main(argv: list[str] | None = None) -> int:
     table["method"] = pd.Categorical(table["method"], args.methods, ordered=True)
     table = table.sort_values(["subset", "method"], kind="stable")
     print(markdown(table))
-    print("| run | " + " | ".join(f"evaluator AUC, held ({name})" for name in ("household split", "benchmark split")) + " |")
-    print("| --- | ---: | ---: |")
+    splits = ("household split", "shapes split", "benchmark split")
+    print("| run | " + " | ".join(f"evaluator AUC, held ({name})" for name in splits) + " |")
+    print("| --- |" + " ---: |" * len(splits))
     for run in args.runs:
         auc = evaluator_auc(run, split_subsets(pd.read_parquet(run / "results" / "objects" / "catalog.parquet")))
-        print(f"| {run.name} | " + " | ".join(f"{auc.get(name, float('nan')):.3f}" for name in ("household split", "benchmark split")) + " |")
+        print(f"| {run.name} | " + " | ".join(f"{auc.get(name, float('nan')):.3f}" for name in splits) + " |")
     return 0
 
 
