@@ -82,12 +82,13 @@ def grasp_table_depths(grasps, planes: SupportPlanes, hand=None, batch: int = 10
 
 
 
-def raise_above_table(grasps, planes: SupportPlanes):
+def raise_above_table(grasps, planes: SupportPlanes, hand=None):
     """The grasps with each hand below its table moved up along the table's normal until it touches
-    it from above (a start the optimizer can repair from), and the shift of each (m, 0: unmoved)."""
+    it from above (a start the optimizer can repair from), and the shift of each (m, 0: unmoved).
+    ``hand``: the hand model of the poses (None: the Shadow Hand)."""
     from dexlite_pipeline.io.grasp_store import GraspSet
 
-    shift = np.nan_to_num(grasp_table_depths(grasps, planes), nan=0.0)
+    shift = np.nan_to_num(grasp_table_depths(grasps, planes, hand), nan=0.0)
     moved = GraspSet(dict(grasps.arrays), dict(grasps.attrs))
     pose = grasps.hand_pose.copy()
     for i in np.flatnonzero(shift > 0):
