@@ -29,7 +29,7 @@ def test_the_three_finger_hand_has_its_own_pose_length_and_shapes(tmp_path):
     hand = three_finger_hand(tmp_path)
     assert hand.pose_dim == 15 and len(hand.joint_names) == 9 and hand.joint_limits.shape == (9, 2)
     assert (hand.shape_kind == CAPSULE).sum() == 9 and (hand.shape_kind == BOX).sum() == 1
-    assert hand.contact_points_local.shape == (80, 3) and hand.all_contact_points_local.shape == (80, 3)
+    assert hand.contact_points_local.shape == (110, 3) and hand.all_contact_points_local.shape == (110, 3)
     frames = hand.forward(torch.zeros(2, 15))
     assert frames.translation.shape == (2, 10, 3)
     assert torch.allclose(frames.translation[:, 0], torch.zeros(3)) and torch.allclose(frames.rotation[:, 0], torch.eye(3))  # the pose is the root frame

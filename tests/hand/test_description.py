@@ -33,6 +33,19 @@ def test_the_derived_pad_sides_of_the_shadow_hand_are_the_palmar_sides_shadowhan
     assert description.opposing == ("robot0:thdistal",)
 
 
+def test_the_shadow_hands_fingers_get_candidates_on_the_links_shadowhand_was_written_with():
+    """The proximal, middle and distal phalanx of each of the four fingers, the thumb's middle and distal (its hub has no
+    collision geom), beside the palm's."""
+    from dexlite_pipeline.hand.model import ShadowHand
+
+    shadow = ShadowHand()
+    written = {shadow.link_names[i] for i in shadow.contact_link.tolist()}
+    derived = set(hand_description("shadow").candidates_per_link())
+    fingers = {link for link in written if not link.startswith("robot0:th")}
+    assert fingers == {f"robot0:{f}{p}" for f in ("ff", "mf", "rf", "lf") for p in ("proximal", "middle", "distal")}
+    assert derived - {"robot0:palm"} == written
+
+
 @pytest.mark.parametrize("name, approach, along, thumb, kp", [
     ("allegro", (1.0, 0.0, 0.0), (0.0, 0.0, 1.0), "th_tip", 1.0),
     ("leap", (0.0, 0.0, -1.0), (1.0, 0.0, 0.0), "th_ds", 3.0),
@@ -41,13 +54,13 @@ def test_allegro_and_leap_descriptions(name, approach, along, thumb, kp):
     description = hand_description(name)
     assert len(description.joints) == 16 and all(j.actuator and j.kp == kp for j in description.joints)
     assert description.opposing == (thumb,)
-    assert description.approach @ np.array(approach) > np.cos(np.radians(5))
-    assert description.palm_frame[:3, 0] @ np.array(along) > np.cos(np.radians(5))
+    assert description.approach @ np.array(approach) > np.cos(np.radians(6))  # LEAP's: 5.0 deg toward its fingers
+    assert description.palm_frame[:3, 0] @ np.array(along) > np.cos(np.radians(6))
     np.testing.assert_allclose(description.palm_frame[:3, :3].T @ description.palm_frame[:3, :3], np.eye(3), atol=1e-12)
     counts = description.candidates_per_link()
     assert all(0 < c <= CONTACTS_PER_LINK for link, c in counts.items() if link != "palm") and counts["palm"] > 0
-    for finger in description.fingers:  # every finger has candidates on its last two jointed links
-        assert sum(link in counts for link in finger) >= 2
+    for finger in description.fingers:  # every finger has candidates on its last three jointed links
+        assert sum(link in counts for link in finger) >= 3
     low, high = description.joint_limits.T
     assert np.all((low <= description.pregrasp) & (description.pregrasp <= high))
 
@@ -68,7 +81,7 @@ def test_the_three_finger_test_hand_loads_through_the_same_path(tmp_path):
     assert description.joint_names == tuple(f"{f}_j{k}" for f in ("f1", "f2", "th") for k in range(3))
     assert [j.kp for j in description.joints if j.actuator] == [2.0]
     assert {s.kind for s in description.shapes} == {"box", "capsule"} and len(description.shapes) == 10
-    assert set(description.candidates_per_link()) == {"palm", "f11", "f12", "f21", "f22", "th1", "th2"}
+    assert set(description.candidates_per_link()) == {"palm", "f10", "f11", "f12", "f20", "f21", "f22", "th0", "th1", "th2"}
     np.testing.assert_allclose(description.approach, [0.0, 0.0, -1.0], atol=1e-4)
     np.testing.assert_allclose(description.palm_frame[:3, 3][2], -0.01, atol=1e-9)  # on the palm's -z face
     assert np.all(description.contact_normals[description.contact_link == 0] @ [0.0, 0.0, -1.0] > 0.99)

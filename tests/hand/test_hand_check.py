@@ -17,7 +17,7 @@ def test_the_three_finger_hand_is_reported_and_passes(tmp_path, capsys):
     assert "links: 10, rooted at palm; fingers: 3" in out
     assert "joints: 9 hinges" in out and "f1_j1  [-0.200, +1.570]  on f11; actuator f1_a1, kp 2" in out
     assert "collision shapes: 10 (1 box, 9 capsule)" in out
-    assert "contact candidates: 80 on 7 links: palm 20, f11 10, f12 10, f21 10, f22 10, th1 10, th2 10" in out
+    assert "contact candidates: 110 on 10 links: palm 20, f10 10, f11 10, f12 10, f20 10, f21 10, f22 10, th0 10, th1 10, th2 10" in out
     assert ", -1.000), fingers along (x)" in out  # approach -z (the first two components print as ±0.000)
     assert "FK vs MuJoCo over 8 random joint vectors" in out and out.rstrip().endswith(": ok")
 
