@@ -1,5 +1,5 @@
-"""The tests' three-finger hand (``tests/hand/three_finger.py``) as a ``DescribedHand``, objects for it, and a grasp
-constructed to hold (shared by the optimizer and lift tests of hands from an MJCF).
+"""The tests' three-finger hand (``tests/hand/three_finger.py``) as a ``DescribedHand``, objects for it, a grasp
+constructed to hold (shared by the optimizer and lift tests of hands from an MJCF), and a CLI refusal's one line.
 
 The flat box lies under the palm: 6.5 x 6 x 2 cm at ``FLAT_BOX_SCALE``, centred at the object origin. The cage grasp
 puts the palm (facing -z, fingers along +x) 0.5 mm above the box's top, both fingers bent 90 degrees at their first
@@ -59,3 +59,14 @@ def far_grasp() -> np.ndarray:
     pose = cage_grasp()
     pose[2] += 0.3
     return pose
+
+
+def one_line_cli_error(capsys, arguments: list[str]) -> str:
+    """``dexlite ARGUMENTS`` exits with status 2 and one line on stderr (a refusal); that line."""
+    from dexlite_pipeline.cli import main
+
+    capsys.readouterr()
+    assert main(arguments) == 2
+    error = capsys.readouterr().err.strip()
+    assert len(error.splitlines()) == 1, error
+    return error

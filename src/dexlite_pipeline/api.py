@@ -83,7 +83,8 @@ def grasp_request(
     power, pinch, tripod, lateral (None: the config's ``sample.grasp_type``); one type sets ``sample.grasp_type`` and makes
     optimization from scratch (``--from-scratch``, the top-up) that type only (``optimize_grasps.grasp_types``). ``hand``:
     shadow, allegro, leap or an MJCF file (config key ``hand``; None: the config's, shadow by default); a hand other
-    than the Shadow Hand needs ``from_scratch`` (the models are the Shadow Hand's), refused in one line otherwise.
+    than the Shadow Hand needs a ``model`` trained for it or ``from_scratch`` (the shipped model is the Shadow Hand's):
+    a model of another hand is refused in one line.
     """
     from dexlite_pipeline.model.shipped import SHIPPED_MODEL_PATH, shipped_evaluator_path, shipped_model_path
 

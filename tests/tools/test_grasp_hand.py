@@ -1,5 +1,6 @@
-"""``dexlite grasp --hand``: a hand from its MJCF (the tests' three-finger hand) end to end with ``--from-scratch``;
-without ``--from-scratch`` (the model is the Shadow Hand's) and with a broken MJCF, one line and exit status 2."""
+"""``dexlite grasp --hand``: a hand from its MJCF (the tests' three-finger hand) end to end with ``--from-scratch`` and
+with a model (and an evaluator) made for it; with the shipped model (the Shadow Hand's), a model or evaluator of another
+hand and a broken MJCF, one line and exit status 2."""
 
 from __future__ import annotations
 
@@ -7,11 +8,14 @@ import json
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 import trimesh
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "hand"))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from described_hands import one_line_cli_error  # noqa: E402
 from three_finger import write_three_finger  # noqa: E402
 
 from dexlite_pipeline.cli import main  # noqa: E402
@@ -51,26 +55,69 @@ def test_grasp_from_scratch_with_a_hand_from_its_mjcf(box_and_hand, tmp_path):
         assert json.loads((out / "dexgraspnet" / "hand.json").read_text())["joint_names"] == every.attrs["joint_names"]
 
 
-def _one_line_error(capsys, arguments) -> str:
-    capsys.readouterr()
-    assert main(arguments) == 2
-    error = capsys.readouterr().err.strip()
-    assert len(error.splitlines()) == 1, error
-    return error
+def test_another_hand_refuses_the_shipped_model_and_a_broken_mjcf_is_refused(box_and_hand, tmp_path, capsys):
+    from dexlite_pipeline.model.shipped import SHIPPED_MODEL_PATH
 
-
-def test_another_hand_needs_from_scratch_and_a_broken_mjcf_is_refused(box_and_hand, tmp_path, capsys):
     box, xml = box_and_hand
     base = ["grasp", str(box), "--out", str(tmp_path / "out"), "--n", "2"]
-    error = _one_line_error(capsys, [*base, "--hand", "allegro"])
-    assert "hand: allegro: the model knows the Shadow Hand only" in error and "--from-scratch" in error
+    error = one_line_cli_error(capsys, [*base, "--hand", "allegro"])  # no --model: the shipped model, the Shadow Hand's
+    assert f"--model {SHIPPED_MODEL_PATH}: a model of hand shadow, this run's hand is allegro" in error and "--from-scratch" in error
     broken = tmp_path / "broken.xml"
     broken.write_text("<mujoco><worldbody><body name='palm'><geom type='box' size='0.1 0.1 0.1'/></body></worldbody></mujoco>")
-    assert f"hand: {broken}: the model has no joints" in _one_line_error(capsys, [*base, "--hand", str(broken), "--from-scratch"])
-    assert "hand: nothere.xml: no such file" in _one_line_error(capsys, [*base, "--hand", "nothere.xml", "--from-scratch"])
-    error = _one_line_error(capsys, [*base, "--hand", str(xml), "--from-scratch", "--grasp-type", "pinch"])
+    assert f"hand: {broken}: the model has no joints" in one_line_cli_error(capsys, [*base, "--hand", str(broken), "--from-scratch"])
+    assert "hand: nothere.xml: no such file" in one_line_cli_error(capsys, [*base, "--hand", "nothere.xml", "--from-scratch"])
+    error = one_line_cli_error(capsys, [*base, "--hand", str(xml), "--from-scratch", "--grasp-type", "pinch"])
     assert "grasp type pinch is defined for the Shadow Hand only" in error
     assert not (tmp_path / "out").exists()
+
+
+def _untrained_model_and_evaluator(folder: Path, hand: str) -> tuple[Path, Path]:
+    """A small CVAE and grasp evaluator with untrained weights for ``hand`` (config key ``hand``), saved in ``folder``: model
+    files for testing the plumbing, not the grasps."""
+    import dataclasses
+
+    from dexlite_pipeline.hand.choice import hand_record
+    from dexlite_pipeline.model.checkpoint import save_checkpoint
+    from dexlite_pipeline.model.config import ModelConfig
+    from dexlite_pipeline.model.evaluator import EvaluatorConfig, GraspEvaluator, save_evaluator
+    from dexlite_pipeline.model.network import GraspCVAE
+
+    @dataclasses.dataclass
+    class Trained:
+        points_per_cloud: int = 64
+
+    small = ModelConfig(pointnet_widths=(16, 32), encoder_hidden=(32,), decoder_hidden=(32,), latent_dim=8, normalization="none")
+    save_checkpoint(folder / "cvae.pt", GraspCVAE(small, hand_record=hand_record(hand)), Trained(), {"seed": 0})
+    config = EvaluatorConfig(points_per_cloud=64, pointnet_points=32, pointnet_widths=(8, 16), hand_points_per_shape=1, hidden_sizes=(16,))
+    save_evaluator(folder / "evaluator.pt", GraspEvaluator(config, "cpu", hand), config, {"train_object_ids": []})
+    return folder / "cvae.pt", folder / "evaluator.pt"
+
+
+def test_grasp_with_a_model_for_a_hand_from_its_mjcf(box_and_hand, tmp_path, capsys):
+    """--hand with --model and --evaluator made for that hand: samples of 6 + 9 numbers, ranked and refined with its own
+    energies, lift-tested in its own scene; the Shadow Hand's run refuses the same files in one line each."""
+    box, xml = box_and_hand
+    model, evaluator = _untrained_model_and_evaluator(tmp_path, str(xml))
+    out = tmp_path / "with_model"
+    config = {**TINY, "post_optimize": {"annealing": {"iterations": 10}}, "evaluator": {"pool_factor": 2}}
+    code = main(["grasp", str(box), "--out", str(out), "--n", "2", "--threads", "1", "--hand", str(xml), "--model", str(model),
+                 "--evaluator", str(evaluator), "--min-distinct", "0", "--config-json", json.dumps(config)])  # fmt: skip
+    every = read_grasp_store(out / "all_grasps.zarr")
+    assert code in (0, 1) and every.hand_pose.shape == (2, 15) and set(every.arrays["method"]) == {"cvae_post"}
+    assert every.arrays["raw_hand_pose"].shape == (2, 15) and np.isfinite(every.hand_pose).all()
+    assert ((every.arrays["evaluator_score"] > 0) & (every.arrays["evaluator_score"] < 1)).all()
+    assert every.attrs["hand"] == str(xml) and {"lift_success", "six_dir_success"} <= set(every.arrays)
+
+    base = ["grasp", str(box), "--out", str(tmp_path / "refused"), "--n", "2"]
+    error = one_line_cli_error(capsys, [*base, "--model", str(model), "--no-evaluator"])
+    assert f"--model {model}: a model of hand {xml}, this run's hand is shadow" in error
+    (tmp_path / "shadow").mkdir()
+    shadow_model = _untrained_model_and_evaluator(tmp_path / "shadow", "shadow")[0]
+    error = one_line_cli_error(capsys, [*base, "--hand", str(xml), "--model", str(shadow_model), "--evaluator", str(evaluator)])
+    assert f"--model {shadow_model}: a model of hand shadow, this run's hand is {xml}" in error
+    error = one_line_cli_error(capsys, [*base, "--model", str(shadow_model), "--evaluator", str(evaluator)])
+    assert f"--evaluator {evaluator}: a grasp evaluator of hand {xml}, this run's hand is shadow" in error
+    assert not (tmp_path / "refused").exists()
 
 
 def test_api_grasp_with_a_hand_names_its_joints(box_and_hand):

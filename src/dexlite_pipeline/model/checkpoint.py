@@ -4,7 +4,10 @@ Everything in the file is tensors, numbers, strings, lists and dicts, so it load
 ``torch.load(path, weights_only=True)`` (no pickled code is executed). ``grasp_types`` lists the model's type
 vocabulary (``model.type_condition``); a file without it (written before grasp types existed) loads as a model
 that knows power grasps only, unchanged. ``generator`` names the family (``cvae``, or ``flow`` with its ODE's ``flow``
-steps and solver: ``model.flow``); a file without it is a CVAE.
+steps and solver: ``model.flow``); a file without it is a CVAE. ``hand``, ``joint_names`` (and ``hand_sha256`` for a
+hand's MJCF file) record the hand the model makes poses of, as a grasp store records it (``hand.choice.hand_record``);
+a file without ``hand`` is a Shadow Hand model (every file written before). ``load_checkpoint(..., hand=record)``
+refuses a model of another hand in one line naming the file and both hands.
 """
 
 from __future__ import annotations
@@ -16,10 +19,11 @@ from pathlib import Path
 import torch
 
 from dexlite_pipeline.atomic import atomic_path
+from dexlite_pipeline.config import json_ready
 from dexlite_pipeline.model.config import ModelConfig
 from dexlite_pipeline.model.flow import family_record, model_from_record
+from dexlite_pipeline.model.hand_match import hand_mismatch, recorded_hand
 from dexlite_pipeline.model.network import GraspCVAE
-from dexlite_pipeline.config import json_ready
 
 CHECKPOINT_FORMAT = "dexlite-cvae-1"
 
@@ -33,7 +37,7 @@ def save_checkpoint(
 ) -> Path:
     """Write the model's weights, its ModelConfig, the training config and ``extra`` (JSON-like) atomically.
 
-    ``training_grasps`` ({"hand_pose": (N, 28), "object_id": N strings, "scale": (N,)}) are the
+    ``training_grasps`` ({"hand_pose": (N, 6 + J), "object_id": N strings, "scale": (N,)}) are the
     grasps the model was fitted to, kept so that the learning ladder's *fit* rung can be
     measured from the model file alone.
     """
@@ -43,6 +47,7 @@ def save_checkpoint(
         "model_config": model.config.to_dict(),
         "grasp_types": list(model.type_vocabulary),  # the type vocabulary (model.type_condition); absent: trained before types
         **family_record(model),  # generator (cvae or flow) and a flow's ODE steps; absent: a CVAE
+        **json.loads(json.dumps(model.hand_record)),  # hand, joint_names (hand_sha256): the hand the poses are of
         "train_config": json_ready(train_config),
         **json.loads(json.dumps(extra)),
     }
@@ -70,8 +75,12 @@ def save_half_precision_copy(source: str | os.PathLike, destination: str | os.Pa
     return Path(destination)
 
 
-def load_checkpoint(path: str | os.PathLike, device: torch.device | str = "cpu") -> tuple[GraspCVAE, dict]:
-    """The model in eval mode on ``device`` and the checkpoint's other entries."""
+def load_checkpoint(path: str | os.PathLike, device: torch.device | str = "cpu", hand: dict | None = None) -> tuple[GraspCVAE, dict]:
+    """The model in eval mode on ``device`` and the checkpoint's other entries.
+
+    ``hand``: the hand record the caller works with (``hand.choice.hand_record``); a model of another hand raises
+    ``CheckpointError`` in one line naming the file and both hands (``hand_mismatch``). None: any hand.
+    """
     p = Path(path)
     if not p.is_file():
         raise CheckpointError(f"{p}: model checkpoint not found")
@@ -81,8 +90,13 @@ def load_checkpoint(path: str | os.PathLike, device: torch.device | str = "cpu")
         raise CheckpointError(f"{p}: cannot load as a weights-only checkpoint ({exc})") from exc
     if not isinstance(payload, dict) or payload.get("format") != CHECKPOINT_FORMAT:
         raise CheckpointError(f"{p}: not a {CHECKPOINT_FORMAT} checkpoint")
+    model_hand = recorded_hand(payload)
+    if hand is not None and (refusal := hand_mismatch(p, model_hand, hand)):
+        raise CheckpointError(refusal)
     try:
-        model = model_from_record(payload, ModelConfig.from_dict(payload["model_config"]), tuple(payload.get("grasp_types") or ())).to(device)
+        model = model_from_record(
+            payload, ModelConfig.from_dict(payload["model_config"]), tuple(payload.get("grasp_types") or ()), model_hand
+        ).to(device)
     except ValueError as exc:
         raise CheckpointError(f"{p}: {exc}") from exc
     state = {k: v.float() if v.dtype == torch.float16 else v for k, v in payload["state_dict"].items()}  # a half-precision copy

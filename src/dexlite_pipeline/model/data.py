@@ -18,7 +18,8 @@ import torch
 
 from dexlite_pipeline.io.grasp_store import GraspSet, grasp_types, invalid_grasp_reasons
 from dexlite_pipeline.model.association import grasp_rays
-from dexlite_pipeline.model.pose import pose_to_features
+from dexlite_pipeline.model.hand_match import shadow_hand_record
+from dexlite_pipeline.model.pose import STORED_JOINTS_START, pose_to_features
 from dexlite_pipeline.model.type_condition import GraspTypeRequestError, type_codes, vocabulary_of
 from dexlite_pipeline.objects.assets import ObjectAsset
 
@@ -207,7 +208,7 @@ def dataset_contacts(grasps: GraspSet) -> torch.Tensor:
 class TrainingData:
     """Everything the loop needs about the training grasps (already filtered)."""
 
-    pose_features: torch.Tensor  # (G, 31)
+    pose_features: torch.Tensor  # (G, 9 + J): the hand's J joints (31 for the Shadow Hand)
     ray_origin: torch.Tensor  # (G, 3)
     ray_direction: torch.Tensor  # (G, 3)
     contact_index: torch.Tensor  # (G, 4) the contacts each grasp was made with; -1 where the dataset has none
@@ -217,16 +218,24 @@ class TrainingData:
     clouds: ObjectClouds
     grasp_type: torch.Tensor  # (G,) each grasp's type as a column of ``type_vocabulary``
     type_vocabulary: tuple[str, ...]  # the types the model is conditioned on (``type_condition``)
+    hand_record: dict  # the hand the poses are of ({"hand", "joint_names"[, "hand_sha256"]}: ``hand.choice.hand_record``)
 
 
 def build_training_data(
-    grasps: GraspSet, assets: list[ObjectAsset], hand, device: torch.device | str = "cpu", type_vocabulary: tuple[str, ...] | None = None
+    grasps: GraspSet, assets: list[ObjectAsset], hand, device: torch.device | str = "cpu", type_vocabulary: tuple[str, ...] | None = None,
+    hand_record: dict | None = None,
 ) -> TrainingData:
     """Pose features, grasp rays, types and cloud bookkeeping of ``grasps`` on ``assets`` (their order is the bank order).
 
+    ``hand`` is the hand model (``ShadowHand`` or ``DescribedHand``: the grasp rays) and ``hand_record`` what a model
+    file records of it (None: the Shadow Hand's); the poses must be 6 + J wide for its J joints (``TrainingDataError``).
     ``type_vocabulary``: the types to condition on (a warm start keeps its model's); None: the grasps' own types
     (``grasp_store.grasp_types``: power for stores without them).
     """
+    record = dict(hand_record) if hand_record is not None else shadow_hand_record()
+    width = STORED_JOINTS_START + len(record["joint_names"])
+    if grasps.hand_pose.ndim != 2 or grasps.hand_pose.shape[1] != width:
+        raise TrainingDataError(f"training grasps: poses of {grasps.hand_pose.shape[-1]} numbers, hand {record['hand']} has {width}")
     types = grasp_types(grasps)
     vocabulary = vocabulary_of(types) if type_vocabulary is None else tuple(type_vocabulary)
     try:
@@ -249,4 +258,5 @@ def build_training_data(
         clouds=clouds,
         grasp_type=torch.as_tensor(codes, device=device),
         type_vocabulary=vocabulary,
+        hand_record=record,
     )

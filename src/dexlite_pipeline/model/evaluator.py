@@ -2,8 +2,11 @@
 
 The network sees the hand-object geometry, not raw pose numbers. The hand is a fixed set of
 points spread over its collision shapes (``ShadowHand.surface_points`` with
-``hand_points_per_shape`` per shape), moved into the object frame by the hand's forward
-kinematics. Each hand point contributes its position, its height above the object surface
+``hand_points_per_shape`` per shape; for a hand from its MJCF, that many farthest-point samples of
+each collision geom's surface samples, ``described_hand_points``), moved into the object frame by the
+hand's forward kinematics. An evaluator is for one hand (config key ``hand``; its file records the
+hand's record, a file without one is the Shadow Hand's), and ``load_evaluator(..., hand=record)``
+refuses one of another hand in one line. Each hand point contributes its position, its height above the object surface
 (along the outward normal of the nearest cloud point: negative inside), its distance to that
 point, that normal and its height above the object's table (tabletop mode; a grasp without a table reads
 as far above one). The object contributes a PointNet global feature of its cloud. An MLP
@@ -35,10 +38,11 @@ from torch import nn
 
 from dexlite_pipeline.atomic import atomic_path
 from dexlite_pipeline.hand.model import ShadowHand
-from dexlite_pipeline.io.grasp_store import GraspSet, invalid_grasp_reasons
-from dexlite_pipeline.model.data import ObjectClouds, cloud_keys
+from dexlite_pipeline.io.grasp_store import HAND, GraspSet, invalid_grasp_reasons, store_hand
+from dexlite_pipeline.model.data import ObjectClouds, cloud_keys, farthest_point_indices
+from dexlite_pipeline.model.hand_match import recorded_hand, same_hand, shadow_hand_record
 from dexlite_pipeline.model.network import PointNet, _mlp
-from dexlite_pipeline.model.pose import TRANSLATION_UNIT_M, turn_stored_poses, turned_clouds, vertical_rotation
+from dexlite_pipeline.model.pose import STORED_JOINTS_START, TRANSLATION_UNIT_M, turn_stored_poses, turned_clouds, vertical_rotation
 from dexlite_pipeline.model.score_metrics import roc_auc
 from dexlite_pipeline.objects.assets import ObjectAssetError, load_asset
 from dexlite_pipeline.progress import ProgressLog
@@ -86,24 +90,47 @@ class EvaluatorConfig:
             raise ValueError(f"validation_fraction must be in [0, 1), got {self.validation_fraction}")
 
 
+def described_hand_points(hand, per_shape: int) -> tuple[torch.Tensor, torch.Tensor]:
+    """A hand from its MJCF (``DescribedHand``): ``per_shape`` farthest-point samples of each collision geom's surface
+    samples (all of them when it has fewer), in their link's frame (P, 3), and their links (P,)."""
+    points, links = [], []
+    for shape in hand.description.shapes:
+        samples = torch.as_tensor(shape.points, dtype=hand.dtype)
+        chosen = farthest_point_indices(samples, min(per_shape, len(samples)))
+        points.append(samples[chosen])
+        links += [hand.link_index[shape.link]] * len(chosen)
+    return torch.cat(points).to(hand.device), torch.tensor(links, device=hand.device)
+
+
 class GraspEvaluator(nn.Module):
     """PointNet of the object cloud + per-hand-point geometry -> logits (B, 2): [held, six-direction success].
 
-    The hand (forward kinematics, not learned) is built on ``device``; the module must stay there.
+    The hand (forward kinematics, not learned) is built on ``device``; the module must stay there. ``hand``: config key
+    ``hand`` (shadow, allegro, leap or an MJCF path), ``hand_record`` what the evaluator's file records of it.
     """
 
-    def __init__(self, config: EvaluatorConfig, device: torch.device | str = "cpu") -> None:
+    def __init__(self, config: EvaluatorConfig, device: torch.device | str = "cpu", hand: str = "shadow") -> None:
         super().__init__()
         self.config = config
-        self.hand = ShadowHand(device, surface_points_per_shape=config.hand_points_per_shape)
-        self.hand_point_count = int(self.hand.surface_points_local.shape[0])
+        if str(hand) == shadow_hand_record()[HAND]:
+            self.hand = ShadowHand(device, surface_points_per_shape=config.hand_points_per_shape)
+            self.hand_record = shadow_hand_record()
+            self._points_local, self._point_link = self.hand.surface_points_local, self.hand.surface_link
+        else:
+            from dexlite_pipeline.hand.choice import hand_record, resolve_hand
+
+            self.hand = resolve_hand(hand, device)
+            self.hand_record = hand_record(hand)
+            self._points_local, self._point_link = described_hand_points(self.hand, config.hand_points_per_shape)
+        self.pose_width = STORED_JOINTS_START + len(self.hand_record["joint_names"])
+        self.hand_point_count = int(self._points_local.shape[0])
         self.pointnet = PointNet(config.pointnet_widths, normalization="none", normals=True)
         self.head = _mlp(config.pointnet_widths[-1] + HAND_POINT_FEATURES * self.hand_point_count, config.hidden_sizes, len(HEADS))
         self.to(device)
 
     def hand_points(self, hand_pose: torch.Tensor) -> torch.Tensor:
-        """(B, K, 3) hand surface points in the object frame (metres) for poses (B, 28)."""
-        return self.hand.surface_points(self.hand.forward(hand_pose))
+        """(B, K, 3) hand surface points in the object frame (metres) for poses (B, 6 + J)."""
+        return self.hand.forward(hand_pose).transform(self._points_local, self._point_link)
 
     def hand_point_features(self, clouds: torch.Tensor, hand_points: torch.Tensor, support: torch.Tensor | None = None) -> torch.Tensor:
         """(B, K, 9) per hand point: position / 0.1 m, tanh(height above surface / s), tanh(distance / s), nearest normal,
@@ -130,7 +157,7 @@ class GraspEvaluator(nn.Module):
     def forward(
         self, clouds: torch.Tensor, hand_pose: torch.Tensor, cloud_index: torch.Tensor | None = None, support: torch.Tensor | None = None
     ) -> torch.Tensor:
-        """Logits (B, 2) for clouds (C, P, 6: metres at the grasp's scale in the object frame, outward normal) and poses (B, 28).
+        """Logits (B, 2) for clouds (C, P, 6: metres at the grasp's scale in the object frame, outward normal) and poses (B, 6 + J).
 
         ``cloud_index`` (B,) names each grasp's cloud, so PointNet runs once per cloud; None: C == B, one cloud per grasp.
         ``support`` (B, 4): each grasp's table (``hand_point_features``); None: no table.
@@ -148,7 +175,7 @@ class GraspEvaluator(nn.Module):
 class EvaluatorExamples:
     """Simulated grasps with their labels and the clouds of their objects."""
 
-    hand_pose: np.ndarray  # (N, 28) float32
+    hand_pose: np.ndarray  # (N, 6 + J) float32
     object_id: np.ndarray  # (N,) str
     scale: np.ndarray  # (N,) float32, object scale (~radius, m)
     held: np.ndarray  # (N,) bool, lift_success
@@ -272,7 +299,7 @@ def split_objects(object_ids: np.ndarray, fraction: float, seed: int) -> tuple[l
 
 
 def _batch_inputs(clouds: ObjectClouds, object_index, scale, hand_pose, support, keys, index: np.ndarray, points: int, device):
-    """(clouds (C, P, 6), poses (B, 28), cloud_index (B,), support (B, 4)) for the grasps ``index``: one cloud per distinct
+    """(clouds (C, P, 6), poses (B, 6 + J), cloud_index (B,), support (B, 4)) for the grasps ``index``: one cloud per distinct
     (object, scale) key."""
     _, first, inverse = np.unique(keys[index], return_index=True, return_inverse=True)
     rows = index[first]
@@ -317,9 +344,10 @@ def _loss(logits: torch.Tensor, labels: torch.Tensor, weight: torch.Tensor, pos_
 
 
 def train_evaluator(
-    examples: EvaluatorExamples, config: EvaluatorConfig = EvaluatorConfig(), device: torch.device | str = "cpu"
+    examples: EvaluatorExamples, config: EvaluatorConfig = EvaluatorConfig(), device: torch.device | str = "cpu", hand: str = "shadow"
 ) -> tuple[GraspEvaluator, TrainingHistory]:
-    """Train an evaluator on ``examples``; deterministic for ``config.seed`` and the torch thread count.
+    """Train an evaluator on ``examples`` (grasps of hand ``hand``, config key ``hand``); deterministic for ``config.seed``
+    and the torch thread count.
 
     Validation is a seeded share of the objects (scored as given, unturned). Each head's BCE weighs positives by the
     training split's negatives / positives, so a rare outcome is not ignored; the six-direction
@@ -341,7 +369,7 @@ def train_evaluator(
     pos_weight = torch.tensor([history.pos_weight[h] for h in HEADS], device=device)
     with torch.random.fork_rng(devices=[]):
         torch.manual_seed(config.seed)
-        model = GraspEvaluator(config, device)
+        model = GraspEvaluator(config, device, hand)
     optimizer = torch.optim.AdamW(model.parameters(), lr=config.learning_rate, weight_decay=config.weight_decay)
     rng = np.random.default_rng([config.seed, 0xBA7C4])
     steps_per_epoch = math.ceil(len(train_index) / config.batch_size)
@@ -391,7 +419,7 @@ def score_grasps(
     model: GraspEvaluator, hand_pose: np.ndarray, clouds: ObjectClouds, object_id: np.ndarray, scale: np.ndarray,
     head: str = "held", batch_size: int = 512, support: np.ndarray | None = None,
 ) -> np.ndarray:
-    """Probabilities (N,) from ``head`` ('held' or 'six_dir') for poses (N, 28) of objects ``object_id`` (N,) in ``clouds`` at ``scale`` (N,);
+    """Probabilities (N,) from ``head`` ('held' or 'six_dir') for poses (N, 6 + J) of objects ``object_id`` (N,) in ``clouds`` at ``scale`` (N,);
     ``support`` (N, 4): each grasp's table (``SUPPORT_COLUMNS``), None: no table."""
     object_id = np.asarray([str(o) for o in object_id], dtype=object)
     unknown = sorted(set(object_id.tolist()) - set(clouds.object_ids))
@@ -401,7 +429,7 @@ def score_grasps(
     was_training = model.training
     model.eval()
     support = np.full((len(object_id), SUPPORT_COLUMNS), np.nan, np.float32) if support is None else np.asarray(support, np.float32)
-    logits = _predict(model, clouds, object_index, np.asarray(scale, np.float32), np.asarray(hand_pose, np.float32).reshape(-1, 28), support,
+    logits = _predict(model, clouds, object_index, np.asarray(scale, np.float32), np.asarray(hand_pose, np.float32).reshape(-1, model.pose_width), support,
                       batch_size)
     model.train(was_training)
     return torch.sigmoid(logits[:, HEADS.index(head)]).numpy()
@@ -415,21 +443,28 @@ def save_evaluator(path: str | os.PathLike, model: GraspEvaluator, config: Evalu
     except TypeError as exc:
         raise ValueError(f"{path}: evaluator meta is not JSON-serializable: {exc}") from exc
     state = {k: v.detach().cpu() for k, v in model.state_dict().items()}
-    payload = {"format": FILE_FORMAT, "version": FILE_VERSION, "config": asdict(config), "state_dict": state, "meta": meta}
+    payload = {"format": FILE_FORMAT, "version": FILE_VERSION, "config": asdict(config), "state_dict": state, "meta": meta,
+               **json.loads(json.dumps(model.hand_record))}
     with atomic_path(path) as tmp:
         torch.save(payload, tmp)
 
 
-def load_evaluator(path: str | os.PathLike, device: torch.device | str = "cpu") -> tuple[GraspEvaluator, dict]:
-    """(model in eval mode on ``device``, meta) from a file written by ``save_evaluator``."""
+def load_evaluator(path: str | os.PathLike, device: torch.device | str = "cpu", hand: dict | None = None) -> tuple[GraspEvaluator, dict]:
+    """(model in eval mode on ``device``, meta) from a file written by ``save_evaluator``, with the hand it records (a
+    file without one: the Shadow Hand). ``hand``: the run's hand record (``hand.choice.hand_record``); an evaluator of
+    another hand raises ValueError in one line naming the file and both hands. None: any hand."""
     payload = torch.load(path, map_location="cpu", weights_only=True)
     if not isinstance(payload, dict) or payload.get("format") != FILE_FORMAT:
         raise ValueError(f"{path}: not a grasp evaluator file")
     if payload.get("version") != FILE_VERSION:
         raise ValueError(f"{path}: evaluator file version {payload.get('version')}, this code reads {FILE_VERSION}")
+    recorded = recorded_hand(payload)
+    if hand is not None and not same_hand(recorded, hand):
+        raise ValueError(f"{path}: a grasp evaluator of hand {store_hand(recorded)}, this run's hand is {store_hand(hand)}: "
+                         "train an evaluator for it")
     settings = dict(payload["config"])
     config = EvaluatorConfig(**{k: tuple(v) if isinstance(v, list) else v for k, v in settings.items()})
-    model = GraspEvaluator(config, device)
+    model = GraspEvaluator(config, device, recorded[HAND])
     model.load_state_dict(payload["state_dict"])
     model.eval()
     return model, payload["meta"]

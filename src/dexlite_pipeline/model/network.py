@@ -6,7 +6,9 @@
   feature, and the last layer's per-point features give the *local* feature of the
   grasp's associated point. Condition c = [global, local] (512 in the reference sizes).
 - Encoder: [pose features, c] -> hidden layers -> (mu, log sigma^2) of the latent.
-  Decoder: [z, c] -> hidden layers -> pose features (``model.pose``: 31-d, 6D rotation).
+  Decoder: [z, c] -> hidden layers -> pose features (``model.pose``: 9 + J, 6D rotation, J the hand's joints).
+- The hand: a model is for one hand (``hand_record``: its name and joint names in pose order, as grasp stores record
+  it, ``io.grasp_store``); its pose features are 9 + J wide (31 for the Shadow Hand, the default).
 - ``pose_frame`` is the frame in which the networks see the palm pose: ``object`` (the
   object's own frame), ``point`` (translation measured from the associated point, the
   *anchor*), ``surface`` (translation and rotation in a frame at the anchor: x along
@@ -41,7 +43,8 @@ from __future__ import annotations
 import torch
 from torch import nn
 
-from dexlite_pipeline.model.pose import POSE_FEATURE_DIM, TRANSLATION_UNIT_M, features_to_parts, parts_to_features, shift_translation
+from dexlite_pipeline.model.hand_match import shadow_hand_record
+from dexlite_pipeline.model.pose import TRANSLATION_UNIT_M, features_to_parts, parts_to_features, pose_feature_dim, shift_translation
 from dexlite_pipeline.model.config import ModelConfig
 from dexlite_pipeline.model.type_condition import known_types
 
@@ -91,16 +94,20 @@ def _mlp(in_dim: int, hidden: tuple[int, ...], out_dim: int) -> nn.Sequential:
 
 
 class GraspCVAE(nn.Module):
-    """PointNet-conditioned VAE over hand poses.
+    """PointNet-conditioned VAE over hand poses of one hand.
 
     Point clouds come once per object (and scale) in a batch; each grasp names its
     cloud (``cloud_index``) and its associated point in that cloud (``point_index``),
-    so the PointNet runs once per cloud, not once per grasp.
+    so the PointNet runs once per cloud, not once per grasp. ``hand_record`` ({"hand", "joint_names"[, "hand_sha256"]},
+    ``hand.choice.hand_record``; None: the Shadow Hand) sets the pose width: 6 + J stored, 9 + J features.
     """
 
-    def __init__(self, config: ModelConfig, type_vocabulary: tuple[str, ...] = ()) -> None:
+    def __init__(self, config: ModelConfig, type_vocabulary: tuple[str, ...] = (), hand_record: dict | None = None) -> None:
         super().__init__()
         self.config = config
+        self.hand_record = dict(hand_record) if hand_record is not None else shadow_hand_record()
+        self.joint_count = len(self.hand_record["joint_names"])
+        self.pose_feature_dim = pose_feature_dim(self.joint_count)
         self.type_vocabulary = tuple(type_vocabulary)  # the training grasps' types; () for a model trained before types
         self.type_inputs = len(self.type_vocabulary) if len(self.type_vocabulary) > 1 else 0  # one-hot width
         self.pointnet = PointNet(config.pointnet_widths, config.normalization, config.point_normals)
@@ -115,8 +122,8 @@ class GraspCVAE(nn.Module):
 
     def _build_networks(self, inputs: int) -> None:
         """The networks after PointNet, each reading ``inputs`` condition values (``_inputs``): encoder and decoder."""
-        self.encoder = _mlp(POSE_FEATURE_DIM + inputs, self.config.encoder_hidden, 2 * self.config.latent_dim)
-        self.decoder = _mlp(self.config.latent_dim + inputs, self.config.decoder_hidden, POSE_FEATURE_DIM)
+        self.encoder = _mlp(self.pose_feature_dim + inputs, self.config.encoder_hidden, 2 * self.config.latent_dim)
+        self.decoder = _mlp(self.config.latent_dim + inputs, self.config.decoder_hidden, self.pose_feature_dim)
 
     @property
     def grasp_types(self) -> tuple[str, ...]:
@@ -149,7 +156,7 @@ class GraspCVAE(nn.Module):
         return condition_at(self.pointnet(clouds), cloud_index, point_index)
 
     def pose_anchors(self, anchor: torch.Tensor, pose_features: torch.Tensor) -> torch.Tensor:
-        """Anchors (B, 6: point, normal) completed for known poses (B, 31): the ``hand`` frame adds the palm's lateral axis."""
+        """Anchors (B, 6: point, normal) completed for known poses (B, 9 + J): the ``hand`` frame adds the palm's lateral axis."""
         if self.config.pose_frame != "hand":
             return anchor
         palm_rot, _, _ = features_to_parts(pose_features)
@@ -207,7 +214,7 @@ class GraspCVAE(nn.Module):
     def encode(
         self, pose_features: torch.Tensor, condition: torch.Tensor, anchor: torch.Tensor, grasp_type: torch.Tensor | None = None
     ) -> tuple[torch.Tensor, torch.Tensor]:
-        """(mu, log sigma^2), each (B, latent), of poses (B, 31) at ``anchor`` (B, 6: point m, normal; ``pose_anchors``) of
+        """(mu, log sigma^2), each (B, latent), of poses (B, 9 + J) at ``anchor`` (B, 6: point m, normal; ``pose_anchors``) of
         types ``grasp_type`` (B,; vocabulary columns, for a model that reads types)."""
         inputs = torch.cat([self._to_frame(pose_features, anchor), self._inputs(condition, anchor, grasp_type)], dim=1)
         mu, log_var = self.encoder(inputs).chunk(2, dim=1)
@@ -216,7 +223,7 @@ class GraspCVAE(nn.Module):
     def decode(
         self, latent: torch.Tensor, condition: torch.Tensor, anchor: torch.Tensor, grasp_type: torch.Tensor | None = None
     ) -> torch.Tensor:
-        """Pose features (B, 31) in the object frame for latents (B, latent) under their conditions, anchors and types."""
+        """Pose features (B, 9 + J) in the object frame for latents (B, latent) under their conditions, anchors and types."""
         return self._from_frame(self.decoder(torch.cat([latent, self._inputs(condition, anchor, grasp_type)], dim=1)), anchor)
 
     def forward(

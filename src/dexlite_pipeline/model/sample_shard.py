@@ -20,6 +20,7 @@ import torch
 
 from dexlite_pipeline.io.grasp_store import GRASP_TYPE, GraspSet, grasp_types, read_grasp_store
 from dexlite_pipeline.model.methods import EXPAND_LATENT, EXPAND_POINT, SYNTHESIS
+from dexlite_pipeline.model.pose import STORED_JOINTS_START
 from dexlite_pipeline.model.sampling import SampledRows
 from dexlite_pipeline.model.type_condition import GraspTypeRequestError, refusal, type_codes
 
@@ -29,16 +30,21 @@ if TYPE_CHECKING:
 log = logging.getLogger(__name__)
 
 
-def known_grasps(paths: list[str], object_ids: set[str]) -> GraspSet:
-    """Lift-successful grasps with finite poses of ``object_ids`` from the lift shards (the grasps to expand), with their types."""
-    sets = []
+def known_grasps(paths: list[str], object_ids: set[str], hand: str = "shadow") -> GraspSet:
+    """Lift-successful grasps with finite poses of ``object_ids`` from the lift shards (the grasps to expand), with their
+    types; the shards must be of hand ``hand`` (config key ``hand``, ``model.trainer.read_lift_shards``)."""
+    from dexlite_pipeline.model.hand_match import shards_hand
+
+    sets, named_attrs = [], []
     for path in paths:
         grasps = read_grasp_store(path)
+        named_attrs.append((path, grasps.attrs))
         if not len(grasps):
             continue
         keep = np.asarray(grasps.arrays["lift_success"], bool) & np.isin(grasps.object_id.astype(str), list(object_ids))
         keep &= np.isfinite(grasps.hand_pose).all(axis=1)
         sets.append(GraspSet({**{k: grasps.arrays[k][keep] for k in ("hand_pose", "object_id", "scale")}, GRASP_TYPE: grasp_types(grasps)[keep]}, {}))
+    shards_hand(named_attrs, hand)
     return GraspSet.concatenate(sets)
 
 
@@ -52,7 +58,8 @@ def expansion_picks(to_expand: GraspSet, per_object: int) -> np.ndarray:
 
 
 def shard_targets(
-    objects_dirs: list[str], stability_path: str, lift_paths: list[str], shard: int, shard_count: int, model_train_ids: set[str], ladder: bool
+    objects_dirs: list[str], stability_path: str, lift_paths: list[str], shard: int, shard_count: int, model_train_ids: set[str], ladder: bool,
+    hand: str = "shadow",
 ) -> tuple[list[str], GraspSet, list[str], dict[str, str]]:
     """What the shard samples on: its held-out objects, the known grasps of its training objects
     (the grasps to expand), its training objects the model was fitted to (the ladder's, when
@@ -67,25 +74,33 @@ def shard_targets(
     skipped = {oid: "no prepared asset" for oid in ids if oid not in available}
     ids = [oid for oid in ids if oid in available]
     heldout = [oid for oid in ids if splits[oid] == "heldout"]
-    to_expand = known_grasps(lift_paths, {oid for oid in ids if splits[oid] == "train"})
+    to_expand = known_grasps(lift_paths, {oid for oid in ids if splits[oid] == "train"}, hand)
     expandable = set(to_expand.object_id.tolist())
     skipped.update({oid: "training object without lift-validated grasps to expand" for oid in ids if splits[oid] == "train" and oid not in expandable})
     ladder_ids = sorted(oid for oid in ids if splits[oid] == "train" and oid in model_train_ids) if ladder else []
     return heldout, to_expand, ladder_ids, skipped
 
 
-def shipped_rows(shipped_path: str, heldout: list[str], clouds, settings, generator: torch.Generator, device) -> tuple:
+def shipped_rows(
+    shipped_path: str, heldout: list[str], clouds, settings, generator: torch.Generator, device, hand_record: dict | None = None
+) -> tuple:
     """Pure syntheses of the shipped (pretrained) model on the held-out objects it never trained on.
 
     Returns the rows (``SampledRows`` or None) and the held-out objects left out, with why:
     an object in the shipped model's training set would measure recall, not generalization, and none is sampled
-    when ``sample.grasp_type`` asks for a type the shipped model does not know.
+    when ``sample.grasp_type`` asks for a type the shipped model does not know, or when the run's hand (``hand_record``;
+    None: any) is not the shipped model's (the shipped model is the Shadow Hand's).
     """
     from dexlite_pipeline.model.checkpoint import cloud_reading, load_checkpoint
+    from dexlite_pipeline.model.hand_match import hand_mismatch, recorded_hand
     from dexlite_pipeline.model.methods import SHIPPED_SYNTHESIS
     from dexlite_pipeline.model.sampling import synthesis_rows
 
     model, checkpoint = load_checkpoint(shipped_path, device)
+    other_hand = hand_mismatch(shipped_path, recorded_hand(checkpoint), hand_record) if hand_record is not None else ""
+    if other_hand:
+        log.warning("%s; its rows are not sampled", other_hand)
+        return None, {oid: f"sample.shipped_model: {other_hand}" for oid in heldout}
     trained_on = set(checkpoint.get("train_object_ids") or [])
     unseen = [oid for oid in heldout if oid not in trained_on]
     left_out = {oid: "the shipped model was trained on it" for oid in heldout if oid in trained_on}
@@ -101,20 +116,22 @@ def shipped_rows(shipped_path: str, heldout: list[str], clouds, settings, genera
 
 def sample_shard(
     model_path: str, objects_dirs: list[str], stability_path: str, lift_paths: list[str], shard: int, *, shards: int,
-    sample: SampleConfig, seed: int, device: str, shipped_model: str | None = None,
+    sample: SampleConfig, seed: int, device: str, shipped_model: str | None = None, hand: str = "shadow",
 ) -> tuple[GraspSet, dict]:
     """Every CVAE grasp of ``shard``: syntheses on held-out objects, expansions and ladder rows on training objects
     and, with ``shipped_model`` (a pretrained model file), its syntheses on held-out objects (``shipped_rows``).
 
     Returns the grasps (``hand_pose``, ``object_id``, ``scale``, ``method``, ``grasp_type`` and, for ladder
     reconstructions, the ``reference_hand_pose`` they reproduce; NaN elsewhere) and the
-    store attributes. The config it reads comes as arguments: ``shards``, section ``sample``, ``seed`` and ``device``.
+    store attributes (with the hand's record: ``hand``, ``joint_names``). The config it reads comes as arguments: ``shards``,
+    section ``sample``, ``seed``, ``device`` and ``hand`` (the model must be of that hand: ``CheckpointError`` in one line
+    otherwise; the grasps to expand must be too).
     Its ``seconds_per_grasp`` is the CPU time of the whole call (loading the model and the objects included) per row.
     """
     started = time.process_time()  # CPU seconds (all threads of this process), not wall time
     from dexlite_pipeline.config import json_ready
     from dexlite_pipeline.device import resolve_device
-    from dexlite_pipeline.hand import ShadowHand
+    from dexlite_pipeline.hand.choice import hand_record, resolve_hand
     from dexlite_pipeline.model.association import grasp_rays
     from dexlite_pipeline.model.checkpoint import cloud_reading, load_checkpoint
     from dexlite_pipeline.model.data import ObjectClouds
@@ -124,14 +141,16 @@ def sample_shard(
 
     settings = sample
     device = resolve_device(device)
-    model, checkpoint = load_checkpoint(model_path, device)
+    record = hand_record(hand)
+    model, checkpoint = load_checkpoint(model_path, device, hand=record)
     if refusal(model.type_vocabulary, settings.grasp_type):
         raise GraspTypeRequestError(f"{model_path}: {refusal(model.type_vocabulary, settings.grasp_type)} (sample.grasp_type)")
     points, fixed_clouds = cloud_reading(checkpoint, settings.points_per_cloud)
 
     heldout, to_expand, ladder_ids, skipped = shard_targets(
-        objects_dirs, stability_path, lift_paths, shard, shards, set(checkpoint.get("train_object_ids") or []), settings.ladder
+        objects_dirs, stability_path, lift_paths, shard, shards, set(checkpoint.get("train_object_ids") or []), settings.ladder, hand
     )
+    hand_model = resolve_hand(hand, device)
     expandable = set(to_expand.object_id.tolist())
     targets = sorted(set(heldout) | expandable | set(ladder_ids))
     generator = shard_generator("sample_grasps", seed, shard)
@@ -144,7 +163,7 @@ def sample_shard(
         if len(to_expand) and settings.expansion_grasps_per_object > 0:
             pick = expansion_picks(to_expand, settings.expansion_grasps_per_object)
             known = torch.as_tensor(to_expand.hand_pose[pick], dtype=torch.float32, device=device)
-            origin, direction = grasp_rays(ShadowHand(device), known)
+            origin, direction = grasp_rays(hand_model, known)
             obj = np.array([clouds.index_of[o] for o in to_expand.object_id[pick]])
             scale = to_expand.scale[pick].astype(np.float32)
             move_point = torch.rand(len(pick), generator=generator) < settings.expansion_point_fraction
@@ -154,13 +173,13 @@ def sample_shard(
             methods = [EXPAND_POINT if m else EXPAND_LATENT for m in move_point.tolist()]
             parts.append(SampledRows(pose, [clouds.object_ids[i] for i in obj], scale, methods, grasp_type=[str(t) for t in types]))
         if ladder_ids and "training_grasps" in checkpoint:
-            parts.append(ladder_rows(model, checkpoint["training_grasps"], clouds, ladder_ids, settings, points, generator, ShadowHand(device), fixed_clouds))
+            parts.append(ladder_rows(model, checkpoint["training_grasps"], clouds, ladder_ids, settings, points, generator, hand_model, fixed_clouds))
         elif ladder_ids:
             log.warning("%s: the model file holds no training grasps, so the learning ladder's rows are not sampled", model_path)
         if shipped_model and heldout:
-            shipped, shipped_left_out = shipped_rows(shipped_model, heldout, clouds, settings, generator, device)
+            shipped, shipped_left_out = shipped_rows(shipped_model, heldout, clouds, settings, generator, device, record)
             parts += [shipped] if shipped is not None else []
-    rows = SampledRows.concatenate(parts, device)
+    rows = SampledRows.concatenate(parts, device, STORED_JOINTS_START + model.joint_count)
     seconds = time.process_time() - started
     count = len(rows.method)
     arrays = {
@@ -173,6 +192,7 @@ def sample_shard(
         "reference_hand_pose": rows.reference_pose,
     }
     attrs = {
+        **record,
         "stage": "sample_grasps",
         "shard": f"{shard:03d}",
         "config": {"seed": seed, "sample": json_ready(settings), "points_per_cloud": points},

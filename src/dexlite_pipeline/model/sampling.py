@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
+from dexlite_pipeline.hand.model import POSE_DIM
 from dexlite_pipeline.io.grasp_store import DEFAULT_GRASP_TYPE
 from dexlite_pipeline.model.association import grasp_rays, nearest_to_ray, random_points
 from dexlite_pipeline.model.config import ANCHOR_RULES, SampleConfig
@@ -31,7 +32,7 @@ from dexlite_pipeline.model.data import ObjectClouds, cloud_keys
 from dexlite_pipeline.model.latent_codes import code_type_mask, feature_distances, sample_latents, training_cloud_features
 from dexlite_pipeline.model.methods import PRIOR_ON_TRAINING, RECONSTRUCTION
 from dexlite_pipeline.model.network import GraspCVAE, anchor_at, condition_at
-from dexlite_pipeline.model.pose import features_to_pose, pose_to_features, rotate_features, turned_clouds, vertical_rotation
+from dexlite_pipeline.model.pose import STORED_JOINTS_START, features_to_pose, pose_to_features, rotate_features, turned_clouds, vertical_rotation
 from dexlite_pipeline.model.type_condition import requested_codes, type_codes
 
 
@@ -157,7 +158,7 @@ def reconstruct(
     generator: torch.Generator | None = None,
     grasp_type: np.ndarray | None = None,
 ) -> torch.Tensor:
-    """(B, 28) encoder-mean reconstructions of known grasps (B, 28) of types ``grasp_type`` (B,; vocabulary columns):
+    """(B, 6 + J) encoder-mean reconstructions of known grasps (B, 6 + J) of types ``grasp_type`` (B,; vocabulary columns):
     same cloud, same associated point, z = mu.
 
     The *fit* rung of the learning ladder: a model that learned its data returns each
@@ -199,7 +200,7 @@ def synthesize(
     yaw_candidates: int = 1,
     grasp_type: np.ndarray | None = None,
 ) -> torch.Tensor:
-    """(B, 28) decoded poses for grasps on (object_index, scale) pairs, from the latent ``prior`` (``sample_latents``).
+    """(B, 6 + J) decoded poses (the model's hand's J joints) for grasps on (object_index, scale) pairs, from the latent ``prior`` (``sample_latents``).
 
     ``yaw_candidates`` > 1 (a model saved with its codes' conditions): each cloud is first turned about z to the one
     of that many evenly spaced headings that looks most like a training object (``matched_yaws``), sampled there, and
@@ -266,7 +267,7 @@ def expand(
     fixed_clouds: bool = True,
     grasp_type: np.ndarray | None = None,
 ) -> torch.Tensor:
-    """(B, 28) new poses near known grasps (B, 28) of types ``grasp_type`` (B,; vocabulary columns), each of its known
+    """(B, 6 + J) new poses near known grasps (B, 6 + J) of types ``grasp_type`` (B,; vocabulary columns), each of its known
     grasp's type: latent perturbed, or (``move_point``) associated point moved."""
     drawn, cloud_index = _clouds_for(clouds, object_index, scale, points, generator, fixed_clouds)
     point_index = nearest_to_ray(drawn[cloud_index], ray_origin, ray_direction)
@@ -290,32 +291,33 @@ def expand(
 
 @dataclass
 class SampledRows:
-    """Poses (B, 28) with their object ids, scales, method labels and grasp types."""
+    """Poses (B, 6 + J: the hand's J joints, 28 for the Shadow Hand) with their object ids, scales, method labels and grasp types."""
 
     hand_pose: torch.Tensor
     object_id: list[str]
     scale: np.ndarray
     method: list[str]
-    reference_pose: np.ndarray | None = None  # (B, 28) the known grasp a row reconstructs, NaN for other rows
+    reference_pose: np.ndarray | None = None  # (B, 6 + J) the known grasp a row reconstructs, NaN for other rows
     grasp_type: list[str] | None = None  # each row's grasp type; None: every row power (a model that knows only power)
 
     def references(self) -> np.ndarray:
         """``reference_pose``, or all NaN when the rows reconstruct no known grasp."""
-        return self.reference_pose if self.reference_pose is not None else np.full((len(self.method), 28), np.nan, np.float32)
+        width = self.hand_pose.shape[1]
+        return self.reference_pose if self.reference_pose is not None else np.full((len(self.method), width), np.nan, np.float32)
 
     def types(self) -> list[str]:
         """``grasp_type``, or power for every row."""
         return self.grasp_type if self.grasp_type is not None else [DEFAULT_GRASP_TYPE] * len(self.method)
 
     @classmethod
-    def concatenate(cls, parts: list[SampledRows], device) -> SampledRows:
-        """The parts' rows in order (no parts: zero rows on ``device``)."""
+    def concatenate(cls, parts: list[SampledRows], device, pose_width: int = POSE_DIM) -> SampledRows:
+        """The parts' rows in order (no parts: zero rows of ``pose_width`` numbers, 6 + J, on ``device``)."""
         return cls(
-            hand_pose=torch.cat([p.hand_pose for p in parts]) if parts else torch.zeros(0, 28, device=device),
+            hand_pose=torch.cat([p.hand_pose for p in parts]) if parts else torch.zeros(0, pose_width, device=device),
             object_id=[o for p in parts for o in p.object_id],
             scale=np.concatenate([p.scale for p in parts]) if parts else np.zeros(0, np.float32),
             method=[m for p in parts for m in p.method],
-            reference_pose=np.concatenate([p.references() for p in parts]) if parts else np.zeros((0, 28), np.float32),
+            reference_pose=np.concatenate([p.references() for p in parts]) if parts else np.zeros((0, pose_width), np.float32),
             grasp_type=[t for p in parts for t in p.types()],
         )
 
@@ -398,5 +400,5 @@ def ladder_rows(
     prior_count = cap or config.synthesis_grasps_per_object
     if present and prior_count > 0:
         parts.append(synthesis_rows(model, clouds, present, config, points, generator, fixed_clouds, PRIOR_ON_TRAINING, prior_count))
-    return SampledRows.concatenate(parts, clouds.device)
+    return SampledRows.concatenate(parts, clouds.device, STORED_JOINTS_START + model.joint_count)
 

@@ -19,13 +19,18 @@ from dexlite_pipeline.atomic import atomic_path
 from dexlite_pipeline.curation.config import IMPORTED_ORIGIN
 from dexlite_pipeline.io.grasp_store import GRASP_TYPE, GraspSet, grasp_types, read_grasp_store
 from dexlite_pipeline.model.config import LOSS_TERMS, TrainConfig
+from dexlite_pipeline.model.hand_match import shards_hand
 from dexlite_pipeline.model.training import TrainingResult
 
 log = logging.getLogger(__name__)
 
 
-def read_lift_shards(paths: list[str]) -> GraspSet:
+def read_lift_shards(paths: list[str], hand: str | None = None) -> GraspSet:
     """All lift shards as one set (only the arrays training needs, so shards may differ in extras).
+
+    The shards must be of one hand (``grasp_store.check_one_hand``) and, when ``hand`` (config key ``hand``) is given, of
+    that hand: ``GraspStoreError`` in one line naming a shard and both hands otherwise. The set's attributes are the
+    hand's record (``hand``, ``joint_names``; none when no shard holds grasps).
 
     ``contact_index`` (the contacts their optimization from scratch chose) is kept for optimized grasps and set to
     -1 for imported ones, so the loss searches contacts for those: an imported grasp's
@@ -33,9 +38,10 @@ def read_lift_shards(paths: list[str]) -> GraspSet:
     contacts it was made with. ``grasp_type`` is each grasp's type (power for a shard without types).
     """
     keep = ("hand_pose", "object_id", "scale", "lift_success")
-    sets = []
+    sets, named_attrs = [], []
     for path in paths:
         grasps = read_grasp_store(path)
+        named_attrs.append((path, grasps.attrs))
         if len(grasps) and "lift_success" not in grasps.arrays:
             raise ValueError(f"{path}: grasp store has no lift_success array (not a lift_validate output)")
         if len(grasps):
@@ -46,7 +52,8 @@ def read_lift_shards(paths: list[str]) -> GraspSet:
             arrays["contact_index"] = contacts
             arrays[GRASP_TYPE] = grasp_types(grasps)
             sets.append(GraspSet(arrays, {}))
-    return GraspSet.concatenate(sets)
+    record = shards_hand(named_attrs, hand)
+    return GraspSet.concatenate(sets, record if sets else None)
 
 
 def training_object_subset(object_ids: set[str], count: int, seed: int) -> set[str]:
@@ -86,7 +93,7 @@ class TrainedModel:
 
     result: TrainingResult
     facts: dict  # seed, steps, grasp counts, object ids, exclusions, fit rung, versions (JSON-ready)
-    training_grasps: dict  # hand_pose (N, 28), object_id (N,), scale (N,), grasp_type (N,) of the training split
+    training_grasps: dict  # hand_pose (N, 6 + J), object_id (N,), scale (N,), grasp_type (N,) of the training split
     train: TrainConfig  # config section ``train`` it was trained with
 
 
@@ -101,7 +108,7 @@ def _log_epoch(row: dict) -> None:
 
 def train_from_lift_shards(
     lift_paths: list[str], objects_dirs: list[str], *, train: TrainConfig, self_penetration_margin_m: float, table: bool, seed: int, device: str,
-    stability_path: str | None = None, initial_model_path: str | None = None,
+    stability_path: str | None = None, initial_model_path: str | None = None, hand: str = "shadow",
 ) -> TrainedModel:
     """Train on the lift-successful grasps of the training objects in ``lift_paths``.
 
@@ -110,6 +117,8 @@ def train_from_lift_shards(
     ``scene.table`` (``table``), and the top-level ``seed`` and ``device``. In tabletop mode the loss's energy knows each object's table (resting poses
     from ``stability_path``) and E_table is a loss term with weight ``train.energy_weights.table``.
     ``initial_model_path``: a model file to go on training (warm start) instead of a fresh model.
+    ``hand`` (config key ``hand``): the hand the shards' grasps are of (refused otherwise) and the model is for; the
+    loss's energies and the grasp rays use its model (``hand.choice.resolve_hand``), the file records it.
     """
     from dexlite_pipeline.tabletop import load_support_planes
 
@@ -118,14 +127,15 @@ def train_from_lift_shards(
     from dexlite_pipeline.device import resolve_device
     from dexlite_pipeline.energy.config import EnergyConfig
     from dexlite_pipeline.energy.grasp_energy import GraspEnergy, max_scale_by_object
-    from dexlite_pipeline.hand import ShadowHand
+    from dexlite_pipeline.hand.choice import hand_record, resolve_hand
     from dexlite_pipeline.model.data import TrainingDataError, build_training_data, select_training_grasps, split_validation
     from dexlite_pipeline.model.training import fit_training_codes, grasp_energy_terms, train_cvae
     from dexlite_pipeline.objects.assets import available_object_ids, load_asset, object_splits
 
     settings = train
     device = resolve_device(device)
-    lifted = read_lift_shards(lift_paths)
+    record = hand_record(hand)  # an unusable hand: one line before any work
+    lifted = read_lift_shards(lift_paths, hand)
     train_ids = {oid for oid, split in object_splits(objects_dirs).items() if split == "train"}
     if settings.max_training_objects > 0:  # the learning curve: a seeded subset of the objects with lift-successful grasps
         held = set(lifted.object_id[np.asarray(lifted.arrays["lift_success"], bool)].tolist()) if len(lifted) else set()
@@ -144,18 +154,18 @@ def train_from_lift_shards(
         )
     object_ids = sorted(set(grasps.object_id.tolist()))
     assets = [load_asset(objects_dirs, oid) for oid in object_ids]
-    hand = ShadowHand(device)
+    hand_model = resolve_hand(hand, device)
     initial_model = None
     if initial_model_path is not None:
         from dexlite_pipeline.model.checkpoint import load_checkpoint
 
-        initial_model = load_checkpoint(initial_model_path, device)[0]
+        initial_model = load_checkpoint(initial_model_path, device, hand=record)[0]
     # a warm start keeps its model's grasp types; a fresh model is conditioned on the grasps' own
-    data = build_training_data(grasps, assets, hand, device, initial_model.type_vocabulary if initial_model is not None else None)
+    data = build_training_data(grasps, assets, hand_model, device, initial_model.type_vocabulary if initial_model is not None else None, record)
     margin_m = self_penetration_margin_m
     planes = load_support_planes(table, stability_path)
     energy = GraspEnergy.from_assets(
-        hand, assets, EnergyConfig(object_point_spacing_m=settings.energy_point_spacing_m, self_penetration_margin_m=margin_m), support_planes=planes,
+        hand_model, assets, EnergyConfig(object_point_spacing_m=settings.energy_point_spacing_m, self_penetration_margin_m=margin_m), support_planes=planes,
         max_scale=max_scale_by_object(grasps.object_id, grasps.scale),
     )
     train_index, val_index = split_validation(len(grasps), settings.validation_fraction, seed)

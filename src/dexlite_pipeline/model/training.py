@@ -39,11 +39,11 @@ from dexlite_pipeline.model.association import nearest_to_ray
 from dexlite_pipeline.model.config import ENERGY_TERMS, LOSS_TERMS, TABLE_TERM, TrainConfig
 from dexlite_pipeline.model.flow import GraspFlow, generator_family, make_generator, network_config
 from dexlite_pipeline.model.network import GraspCVAE, anchor_at, kl_divergence
-from dexlite_pipeline.model.pose import POSE_FEATURE_DIM, features_to_parts, features_to_pose, pose_errors, reconstruction_error, rotate_features, vertical_rotation
+from dexlite_pipeline.model.pose import features_to_parts, features_to_pose, pose_errors, reconstruction_error, rotate_features, vertical_rotation
 
 log = logging.getLogger(__name__)
 
-# (palm_rot (B,3,3), palm_t (B,3), joints (B,22), object_index (B,), scale (B,), dataset contacts (B,4), -1 = none)
+# (palm_rot (B,3,3), palm_t (B,3), joints (B,J), object_index (B,), scale (B,), dataset contacts (B,4), -1 = none)
 #   -> {term: (B,)}
 EnergyTerms = Callable[[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor], dict[str, torch.Tensor]]
 
@@ -128,7 +128,7 @@ def batch_loss(
     condition = model.condition(clouds, batch.cloud_index, point_index)
     anchor = model.pose_anchors(anchor_at(clouds, batch.cloud_index, point_index), target)
     if isinstance(model, GraspFlow):  # recon: the velocity's squared error; decoded: the predicted clean pose
-        noise = torch.randn(len(index), POSE_FEATURE_DIM, generator=generator).to(device)
+        noise = torch.randn(len(index), model.pose_feature_dim, generator=generator).to(device)
         times = torch.rand(len(index), generator=generator).to(device)
         decoded, velocity_error = model.flow_loss(target, condition, anchor, noise, times, data.grasp_type[index])
         terms = {"recon": velocity_error, "kl": torch.zeros_like(velocity_error)}
@@ -189,10 +189,12 @@ def train_cvae(
     """
     device = data.pose_features.device
     torch.manual_seed(seed)
-    fresh = make_generator(config, data.type_vocabulary) if initial_model is None else None
+    fresh = make_generator(config, data.type_vocabulary, data.hand_record) if initial_model is None else None
     if initial_model is not None and generator_family(initial_model) != config.generator:
         raise ValueError(f"warm start: the model is a {generator_family(initial_model)}, train.generator is {config.generator}")
-    if initial_model is not None and initial_model.config != network_config(config):
+    if initial_model is not None and initial_model.hand_record["joint_names"] != list(data.hand_record["joint_names"]):
+        raise ValueError(f"warm start: the model is of hand {initial_model.hand_record['hand']}, the grasps of hand {data.hand_record['hand']}")
+    if initial_model is not None and initial_model.config != network_config(config, initial_model.joint_count):
         raise ValueError(f"warm start: the model's network config {initial_model.config} differs from train.model {config.model}")
     if initial_model is not None and initial_model.type_vocabulary != data.type_vocabulary:
         raise ValueError(f"warm start: the model's grasp types {initial_model.type_vocabulary} differ from the data's {data.type_vocabulary}")

@@ -55,7 +55,7 @@ def _unrefined_arrays(grasps: GraspSet, reasons: np.ndarray, method: np.ndarray)
 
 def post_optimize_shard(
     sample_path: str, objects_dirs: list[str], shard: int, *, post_optimize: PostOptimizeConfig, self_penetration_margin_m: float,
-    scene: SceneConfig, seed: int, device: str, stability_path: str | None = None,
+    scene: SceneConfig, seed: int, device: str, stability_path: str | None = None, hand: str = "shadow",
 ) -> tuple[tuple[GraspSet, dict], tuple[GraspSet, dict]]:
     """Refine one shard's sampled grasps, and run the random-init baseline on its pure syntheses.
 
@@ -64,7 +64,8 @@ def post_optimize_shard(
     ``failure_reason``. The baseline starts from convex-hull poses (``post_optimize.random_init``)
     for the same held-out objects and scales as the shard's ``cvae_raw`` rows, with the same budget.
     The config it reads comes as arguments: sections ``post_optimize`` and ``scene``,
-    ``energy.self_penetration_margin_m`` (m), and the top-level ``seed`` and ``device``.
+    ``energy.self_penetration_margin_m`` (m), and the top-level ``seed``, ``device`` and ``hand`` (the hand whose model
+    E_post, the starts and the table clearance use; the sampled store must be of it, and both stores record it).
     In tabletop mode (``scene.table``; resting poses from ``stability_path``) E_post includes E_table,
     sampled starts below the table are first raised above it (``raise_above_table``; the shift is
     stored as ``start_table_shift_m``), the random starts come from above it, and every row records
@@ -79,8 +80,9 @@ def post_optimize_shard(
     from dexlite_pipeline.config import json_ready
     from dexlite_pipeline.device import resolve_device
     from dexlite_pipeline.energy.config import EnergyConfig
-    from dexlite_pipeline.hand import ShadowHand
+    from dexlite_pipeline.hand.choice import hand_record, resolve_hand
     from dexlite_pipeline.io.grasp_store import GraspSet, invalid_grasp_reasons, read_grasp_store
+    from dexlite_pipeline.model.hand_match import shards_hand
     from dexlite_pipeline.model.methods import SYNTHESIS
     from dexlite_pipeline.objects.assets import available_object_ids, load_asset
     from dexlite_pipeline.optim.init import HullSampler, initial_poses
@@ -89,7 +91,9 @@ def post_optimize_shard(
     settings = post_optimize
     margin_m = self_penetration_margin_m
     device = resolve_device(device)
+    record = hand_record(hand)
     sampled = read_grasp_store(sample_path)
+    shards_hand([(sample_path, sampled.attrs)], hand)
     method = np.asarray(sampled.arrays.get("method", np.full(len(sampled), SYNTHESIS, dtype=object)), dtype=object)
     reasons = invalid_grasp_reasons(sampled, available_object_ids(objects_dirs))
     planes = load_support_planes(scene.table, stability_path)
@@ -98,8 +102,9 @@ def post_optimize_shard(
         reasons[(reasons == "") & no_plane] = "no resting pose (tabletop mode)"
     valid = reasons == ""
     object_ids = sorted(set(sampled.object_id[valid].tolist()))
-    hand = ShadowHand(device)
+    hand_model = resolve_hand(hand, device)
     attrs = {
+        **record,
         "stage": "post_optimize",
         "shard": f"{shard:03d}",
         "config": {"seed": seed, "post_optimize": json_ready(settings), "energy": {"self_penetration_margin_m": margin_m}},
@@ -113,21 +118,21 @@ def post_optimize_shard(
     if object_ids:
         assets = [load_asset(objects_dirs, oid) for oid in object_ids]
         energy_config = EnergyConfig(weights=settings.energy_weights, object_point_spacing_m=settings.energy_point_spacing_m, self_penetration_margin_m=margin_m)
-        energy = GraspEnergy.from_assets(hand, assets, energy_config, support_planes=planes, max_scale=max_scale_by_object(sampled.object_id[valid], sampled.scale[valid]))
+        energy = GraspEnergy.from_assets(hand_model, assets, energy_config, support_planes=planes, max_scale=max_scale_by_object(sampled.object_id[valid], sampled.scale[valid]))
     generator = shard_generator("post_optimize", seed, shard)
 
     def optimize_rows(rows: GraspSet, init_pose: torch.Tensor | None, start_contacts: str) -> RefinedGrasps:
         obj = energy.object_index(rows.object_id)
         scale = torch.as_tensor(rows.scale, dtype=torch.float32, device=device)
         pose = torch.as_tensor(rows.hand_pose, dtype=torch.float32, device=device) if init_pose is None else init_pose
-        return refine(energy, pose, obj, scale, settings, generator, start_contacts, slots_of_types(hand, grasp_types(rows)))
+        return refine(energy, pose, obj, scale, settings, generator, start_contacts, slots_of_types(hand_model, grasp_types(rows)))
 
     if valid.any():
         starts = sampled.select(valid)
         if planes is not None:
             from dexlite_pipeline.energy.table_clearance import raise_above_table
 
-            starts, shift = raise_above_table(starts, planes)
+            starts, shift = raise_above_table(starts, planes, hand_model)
             log.info("shard %03d: %d of %d sampled starts raised above the table (median %.1f mm)", shard, int((shift > 0).sum()), len(shift),
                      1000 * float(np.median(shift[shift > 0])) if (shift > 0).any() else 0.0)
         refined = optimize_rows(starts, None, "surface")
@@ -153,7 +158,7 @@ def post_optimize_shard(
         scale = torch.as_tensor(targets.scale, dtype=torch.float32, device=device)
         baseline_started = time.process_time()
         support = energy.support(obj, scale) if planes is not None else None
-        init = initial_poses(hand, HullSampler(assets), obj, scale, settings.random_init, generator, support=support)
+        init = initial_poses(hand_model, HullSampler(assets), obj, scale, settings.random_init, generator, support=support)
         baseline = optimize_rows(targets, init, "random")
         random_attrs["seconds_per_grasp"] = (time.process_time() - baseline_started) / len(targets)
         log.info("shard %03d: random-init baseline on %d grasps in %.1fs; median E_post %.3g -> %.3g", shard, len(targets),

@@ -8,7 +8,8 @@ from random convex-hull starts for the same held-out objects and scales as the s
 pure syntheses (``cvae_raw``), the baseline for "CVAE starts converge faster"
 (``optim.post_shard``). In tabletop mode (``scene.table``) E_post includes E_table,
 starts below the table are raised above it first, random starts come from above it, and
-every row records its support plane (resting poses from ``--stability``).
+every row records its support plane (resting poses from ``--stability``). E_post uses the model of config key ``hand``;
+the sampled store must be of it.
 """
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ import argparse
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--config-json", required=True, help="config sections seed, device, post_optimize, scene and energy.self_penetration_margin_m (JSON)")
+    parser.add_argument("--config-json", required=True, help="config sections seed, device, hand, post_optimize, scene and energy.self_penetration_margin_m (JSON)")
     parser.add_argument("--stability", help="stability table with the objects' resting poses (needed in tabletop mode, scene.table)")
     parser.add_argument("--sample", required=True, help="sampled grasp shard (sample_grasps output)")
     parser.add_argument("--objects", action="append", required=True, help="prepared objects dir (repeatable)")
@@ -35,7 +36,7 @@ def run(args: argparse.Namespace) -> int:
     (refined, attrs), (baseline, baseline_attrs) = post_optimize_shard(
         args.sample, args.objects, args.shard, post_optimize=config.post_optimize,
         self_penetration_margin_m=config.energy.self_penetration_margin_m, scene=config.scene, seed=config.seed, device=config.device,
-        stability_path=args.stability,
+        stability_path=args.stability, hand=config.hand,
     )
     write_grasp_store(args.out, refined, attrs)
     write_grasp_store(args.random_out, baseline, baseline_attrs)

@@ -2,7 +2,8 @@
 
 Held-out objects get pure synthesis (``cvae_raw``), training objects dataset expansion and
 the learning ladder's rows (``model.sample_shard``); with a trained evaluator (``--evaluator``) also the
-best-scored distinct syntheses of a larger pool on held-out objects (``cvae_ranked``, ``evaluator.ranking``).
+best-scored distinct syntheses of a larger pool on held-out objects (``cvae_ranked``, ``evaluator.ranking``). The model
+must be of config key ``hand`` (refused in one line otherwise); ranking by a learned evaluator is the Shadow Hand's only.
 """
 
 from __future__ import annotations
@@ -11,7 +12,7 @@ import argparse
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--config-json", required=True, help="config sections seed, device, shards, sample (and with --evaluator: evaluator, diversity, scene) (canonical JSON)")
+    parser.add_argument("--config-json", required=True, help="config sections seed, device, shards, hand, sample (and with --evaluator: evaluator, diversity, scene) (canonical JSON)")
     parser.add_argument("--model", default=None, help="trained model (cvae.pt; default: the shipped model, src/dexlite_pipeline/data/shadow-hand-household/cvae.pt)")
     parser.add_argument("--shipped-model", default=None, help="pretrained model also sampled on held-out objects it never trained on "
                         "(rows shipped_raw; default: sample.shipped_model, \"\" = none)")
@@ -28,13 +29,15 @@ def run(args: argparse.Namespace) -> int:
     from dexlite_pipeline.io.grasp_store import write_grasp_store
     from dexlite_pipeline.model.sample_shard import sample_shard
     from dexlite_pipeline.model.shipped import model_or_shipped
-    from dexlite_pipeline.settings import stage_config
+    from dexlite_pipeline.settings import SHADOW, stage_config
 
     config = stage_config(args.config_json)
+    if args.evaluator and config.hand != SHADOW:
+        raise ValueError(f"hand: {config.hand}: ranking by a learned evaluator (--evaluator) is the Shadow Hand's only")
     shipped = args.shipped_model if args.shipped_model is not None else config.sample.shipped_model
     grasps, attrs = sample_shard(
         str(model_or_shipped(args.model)), args.objects, args.stability, args.lift, args.shard, shards=config.shards, sample=config.sample,
-        seed=config.seed, device=config.device, shipped_model=shipped or None,
+        seed=config.seed, device=config.device, shipped_model=shipped or None, hand=config.hand,
     )
     if args.evaluator:
         from dexlite_pipeline.evaluator.ranking import rank_shard

@@ -2,7 +2,8 @@
 
 Writes ``--model`` (state dict + configs, loads with ``torch.load(weights_only=True)``),
 ``--history`` (every loss term per epoch, train and validation) and ``--curves`` (their
-plot); progress per epoch goes to the log (``model.trainer``).
+plot); progress per epoch goes to the log (``model.trainer``). The model is for config key ``hand`` (the lift shards
+must be of it; its file records it).
 """
 
 from __future__ import annotations
@@ -14,7 +15,7 @@ log = logging.getLogger("dexlite.train_cvae")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--config-json", required=True, help="config sections seed, device, train, scene and energy.self_penetration_margin_m (JSON)")
+    parser.add_argument("--config-json", required=True, help="config sections seed, device, hand, train, scene and energy.self_penetration_margin_m (JSON)")
     parser.add_argument("--stability", help="stability table with the objects' resting poses (needed in tabletop mode, scene.table)")
     parser.add_argument("--lift", action="append", required=True, help="a lift-validated grasp shard (repeatable)")
     parser.add_argument("--objects", action="append", required=True, help="prepared objects dir with catalog.parquet (repeatable)")
@@ -31,6 +32,7 @@ def run(args: argparse.Namespace) -> int:
     trained = train_from_lift_shards(
         args.lift, args.objects, train=config.train, self_penetration_margin_m=config.energy.self_penetration_margin_m,
         table=config.scene.table, seed=config.train.training_seed(config.seed), device=config.device, stability_path=args.stability,
+        hand=config.hand,
     )
     write_trained_model(trained, args.model, args.history, args.curves)
     log.info("wrote %s (%d steps, %d training grasps of %d objects)", args.model, trained.facts["steps"],

@@ -192,11 +192,16 @@ def _load_file(option: str, path: str, loader, what: str) -> tuple:
         raise GraspToolError(f"{option} {path}: not a readable {what} ({detail})") from None
 
 
-def load_model(path: str, device: torch.device) -> tuple:
-    """The model and checkpoint entries of ``path``, or a one-line ``GraspToolError``."""
+def load_model(path: str, device: torch.device, hand_record: dict | None = None) -> tuple:
+    """The model and checkpoint entries of ``path``, or a one-line ``GraspToolError``: also for a model of another hand
+    than ``hand_record`` (the run's, ``--hand``; None: any)."""
     from dexlite_pipeline.model.checkpoint import load_checkpoint
+    from dexlite_pipeline.model.hand_match import hand_mismatch
 
-    return _load_file("--model", path, lambda file: load_checkpoint(file, device), "model file")
+    loaded = _load_file("--model", path, lambda file: load_checkpoint(file, device), "model file")
+    if hand_record is not None and (problem := hand_mismatch(path, loaded[0].hand_record, hand_record)):
+        raise GraspToolError(f"--model {problem}, or add --from-scratch (optimization from scratch takes any hand)")
+    return loaded
 
 
 def model_type_problem(path: str | None, loaded: tuple | None, grasp_type: str) -> str | None:
@@ -207,11 +212,17 @@ def model_type_problem(path: str | None, loaded: tuple | None, grasp_type: str) 
     return f"--model {path}: {reason} (--grasp-type {grasp_type})" if reason else None
 
 
-def load_grasp_evaluator(path: str, device: torch.device) -> tuple:
-    """The grasp evaluator and its meta of ``path``, or a one-line ``GraspToolError``."""
+def load_grasp_evaluator(path: str, device: torch.device, hand_record: dict | None = None) -> tuple:
+    """The grasp evaluator and its meta of ``path``, or a one-line ``GraspToolError``: also for an evaluator of another
+    hand than ``hand_record`` (the run's; None: any)."""
     from dexlite_pipeline.model.evaluator import load_evaluator
+    from dexlite_pipeline.model.hand_match import same_hand
 
-    return _load_file("--evaluator", path, lambda file: load_evaluator(file, device), "grasp evaluator file")
+    loaded = _load_file("--evaluator", path, lambda file: load_evaluator(file, device), "grasp evaluator file")
+    if hand_record is not None and not same_hand(loaded[0].hand_record, hand_record):
+        raise GraspToolError(f"--evaluator {path}: a grasp evaluator of hand {loaded[0].hand_record['hand']}, this run's hand is "
+                             f"{hand_record['hand']}: give one trained for it, or --no-evaluator")
+    return loaded
 
 
 def check_request(request: GraspRequest) -> CheckedRequest:
@@ -240,11 +251,11 @@ def check_request(request: GraspRequest) -> CheckedRequest:
     hand, record = check_hand_choice(config, request, device)
     if request.evaluator and not request.model:
         raise GraspToolError("--evaluator ranks a model's samples: it needs a model (not --from-scratch)")
-    loaded = load_model(request.model, device) if request.model else None
+    loaded = load_model(request.model, device, record) if request.model else None
     type_problem = model_type_problem(request.model, loaded, config.sample.grasp_type)
     if type_problem:
         raise GraspToolError(type_problem)
-    evaluator = load_grasp_evaluator(request.evaluator, device) if request.evaluator else None
+    evaluator = load_grasp_evaluator(request.evaluator, device, record) if request.evaluator else None
     sizes, not_tried, refusals = {}, [], []
     for source in sources:
         size = measure_mesh(source, UNIT_METRES[request.units])
@@ -268,14 +279,11 @@ def check_request(request: GraspRequest) -> CheckedRequest:
 
 def check_hand_choice(config: PipelineConfig, request: GraspRequest, device: torch.device) -> tuple[object, dict]:
     """The hand of config key ``hand`` (``--hand``) on ``device`` and its store record; ``GraspToolError`` in one
-    line for a hand that cannot be made, and for a hand other than the Shadow Hand with a model (the shipped model and
-    every model trained here are the Shadow Hand's) or with grasp types other than power (no contact templates yet)."""
+    line for a hand that cannot be made, and for a hand other than the Shadow Hand with grasp types other than power (no
+    contact templates yet). A model (``--model``; the shipped one is the Shadow Hand's) must be of the hand: ``load_model``."""
     from dexlite_pipeline.hand.choice import SHADOW, HandChoiceError, hand_record, resolve_hand
 
     if config.hand != SHADOW:
-        if request.model:
-            raise GraspToolError(f"hand: {config.hand}: the model knows the Shadow Hand only (the shipped model is the Shadow Hand's); "
-                                 "add --from-scratch (optimization from scratch takes any hand)")
         others = [name for name, share in config.optimize_grasps.grasp_types.shares().items() if share > 0 and name != "power"]
         if others:
             raise GraspToolError(f"hand: {config.hand}: grasp type {others[0]} is defined for the Shadow Hand only (power grasps take any hand)")

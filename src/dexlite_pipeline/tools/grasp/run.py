@@ -102,7 +102,7 @@ class GraspRun:
         config, assets = self.checked.config, self.prepared.assets
         return synthesize_with_model(assets, object_scales(assets, self.request, config.sample.scales), self.request.grasps_per_object, config,
                                      self.checked.loaded_model, self.request.model, self.checked.device, config.seed,
-                                     self.prepared.support_planes, self.checked.loaded_evaluator)  # fmt: skip
+                                     self.prepared.support_planes, self.checked.loaded_evaluator, self.checked.hand)  # fmt: skip
 
     def lift_tested(self, grasps: GraspSet, source: str) -> GraspSet:
         """The grasps with their lift and six-direction test results and their ``source``."""

@@ -102,12 +102,13 @@ def rank_samples(
 
 def synthesize_with_model(
     assets: list[ObjectAsset], scales: dict[str, tuple[float, ...]], n: int, config: PipelineConfig, loaded: tuple, model_path: str,
-    device: torch.device, seed: int, support_planes: SupportPlanes | None = None, evaluator: tuple | None = None,
+    device: torch.device, seed: int, support_planes: SupportPlanes | None = None, evaluator: tuple | None = None, hand=None,
 ) -> GraspSet:
     """``n`` CVAE samples per object, refined by post-optimization (sections ``sample``, ``post_optimize``); with an
     ``evaluator`` (model, meta), ``evaluator.pool_factor`` x ``n`` samples per object ranked, the ``n`` best distinct kept.
     Each sample is of the type ``sample.grasp_type`` asks for (``type_condition.requested_codes``), refined with that type's
-    contact template, and records it in ``grasp_type``."""
+    contact template, and records it in ``grasp_type``. ``hand``: the hand model the model is of (None: the Shadow Hand;
+    ``hand.choice.resolve_hand``), whose energies refine the samples."""
     import torch
 
     from dexlite_pipeline.energy.config import EnergyConfig
@@ -158,8 +159,8 @@ def synthesize_with_model(
 
         starts = GraspSet({"hand_pose": poses.detach().cpu().numpy(), "object_id": np.asarray([assets[i].object_id for i in object_index], dtype=object),
                            "scale": scale})  # fmt: skip
-        poses = torch.as_tensor(raise_above_table(starts, support_planes)[0].hand_pose, dtype=poses.dtype, device=poses.device)
-    hand = ShadowHand(device)
+        poses = torch.as_tensor(raise_above_table(starts, support_planes, hand)[0].hand_pose, dtype=poses.dtype, device=poses.device)
+    hand = ShadowHand(device) if hand is None else hand
     energy = GraspEnergy.from_assets(
         hand, assets,
         EnergyConfig(weights=post_config.energy_weights, object_point_spacing_m=post_config.energy_point_spacing_m,
