@@ -1,9 +1,10 @@
 """The Shadow Hand's model path gives the same numbers, bit for bit, as before the model stages learned other hands.
 
 The shipped model (a Shadow Hand model written before checkpoints recorded their hand) samples, reconstructs and is
-scored by the shipped evaluator on two synthetic objects with fixed seeds; the SHA-256 of every resulting float32
-array must equal the digest computed with the code before that change (``EXPECTED_DIGESTS``), and a few of the
-values are kept in clear so that a failure shows how far they moved. One torch thread, CPU.
+scored by the shipped evaluator on two synthetic objects with fixed seeds, and a small CVAE is trained on closed-form
+Shadow Hand grasps of them; the SHA-256 of every resulting float32 array must equal the digest computed with the code
+before that change (``EXPECTED_DIGESTS``, ``EXPECTED_TRAINING_DIGESTS``), and a few of the values are kept in clear so
+that a failure shows how far they moved. One torch thread, CPU.
 """
 
 from __future__ import annotations
@@ -33,6 +34,17 @@ EXPECTED_FIRST_VALUES = {  # the first three numbers of each array, as printed a
     "ray_origin": [-0.09027395397424698, -0.025232506915926933, -0.03881203383207321],
     "reconstructed": [-0.13208790123462677, -0.04398928955197334, -0.043171051889657974],
     "held_probability": [0.004426354076713324, 0.011328233405947685, 0.39314159750938416],
+}
+
+EXPECTED_TRAINING_DIGESTS = {  # the same for the small CVAE trained by ``shadow_training_outputs``, at 5f4e6a8
+    "weights": "41581d308ea13b70e685b0599f97a409eee4e63a387d31a14bd212a032ee5d47",
+    "history": "a1f2d8dfcfdc1d0f0f5c63a5076420717b49743d12f7aabaded56031461894e1",
+    "fit": "b9cc536ecf4c6b2e086852e1da26b11a3f767ef092821e3ce9c4907d7f393ce9",
+}
+EXPECTED_TRAINING_FIRST_VALUES = {
+    "weights": [-0.02185169607400894, -0.2172134965658188, -0.04840953275561333],
+    "history": [1.0, 3.0, -1.0],
+    "fit": [9.0, 0.3973325490951538, 50.73854064941406],
 }
 
 
@@ -86,6 +98,32 @@ def shadow_model_outputs() -> dict[str, np.ndarray]:
     }
 
 
+def shadow_training_outputs() -> dict[str, np.ndarray]:
+    """A small CVAE trained for two epochs on 12 closed-form Shadow Hand grasps of the synthetic objects (energy weights
+    0: reconstruction and KL), its weights, per-epoch losses, fit-rung errors and a reconstruction of its training grasps."""
+    from demo_grasps import facing_grasps
+
+    from dexlite_pipeline.hand import ShadowHand
+    from dexlite_pipeline.model.config import ModelConfig, TrainConfig
+    from dexlite_pipeline.model.data import build_training_data, split_validation
+    from dexlite_pipeline.model.training import fit_training_codes, train_cvae
+
+    hand = ShadowHand()
+    grasps = facing_grasps(hand, ("ellipsoid", "cube"), 12, seed=3)
+    data = build_training_data(grasps, synthetic_objects(), hand)
+    train_index, val_index = split_validation(len(grasps), 0.25, 0)
+    config = TrainConfig(epochs=2, max_steps=0, batch_size=4, clouds_per_batch=2, points_per_cloud=64, lr_warmup_steps=2, model=ModelConfig(
+        pointnet_widths=(16, 32), encoder_hidden=(32,), decoder_hidden=(32,), latent_dim=8, normalization="none"))
+    result = train_cvae(data, train_index, val_index, config, energy_terms=None, seed=5)
+    fit = fit_training_codes(result.model, data, train_index, config)
+    history = [[row[key] for key in sorted(row) if key not in ("seconds",)] for row in result.history]
+    return {
+        "weights": torch.cat([value.flatten().float() for value in result.model.state_dict().values()]).numpy(),
+        "history": np.nan_to_num(np.asarray(history, np.float32), nan=-1.0),  # energy terms at weight 0 log NaN
+        "fit": np.asarray([fit[key] for key in sorted(fit)], np.float32),
+    }
+
+
 def digest(array: np.ndarray) -> str:
     return hashlib.sha256(np.ascontiguousarray(array, dtype=np.float32).tobytes()).hexdigest()
 
@@ -99,8 +137,15 @@ def test_the_shadow_hand_model_path_is_bit_for_bit_as_before():
     assert {name: digest(array) for name, array in outputs.items()} == EXPECTED_DIGESTS
 
 
+def test_the_shadow_hand_model_trains_bit_for_bit_as_before():
+    outputs = shadow_training_outputs()
+    first = {name: [float(v) for v in array.ravel()[:3]] for name, array in outputs.items()}
+    assert first == EXPECTED_TRAINING_FIRST_VALUES
+    assert {name: digest(array) for name, array in outputs.items()} == EXPECTED_TRAINING_DIGESTS
+
+
 if __name__ == "__main__":  # print the digests and first values (to fill in the expected ones)
     torch.set_num_threads(1)
-    computed = shadow_model_outputs()
-    print({name: digest(array) for name, array in computed.items()})
-    print({name: [float(v) for v in array.ravel()[:3]] for name, array in computed.items()})
+    for computed in (shadow_model_outputs(), shadow_training_outputs()):
+        print({name: digest(array) for name, array in computed.items()})
+        print({name: [float(v) for v in array.ravel()[:3]] for name, array in computed.items()})
