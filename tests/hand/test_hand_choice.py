@@ -68,11 +68,12 @@ def test_the_evaluation_stages_refuse_another_hand_in_one_line():
     assert model_stage_hand_problem("shadow") == ""
     assert model_stage_hand_problem("allegro") == "hand: allegro: the evaluation stages know the Shadow Hand only"
     config = argparse.Namespace(config_json=json.dumps({"hand": "allegro"}))
-    for stage in ("evaluate", "loop-train", "loop-sample", "train-evaluator", "evaluator-examples", "model-batch", "report"):
+    for stage in ("evaluate", "loop-train", "loop-sample", "model-batch", "report"):
         with pytest.raises(CliError, match="^hand: allegro: the evaluation stages know the Shadow Hand only$"):
             refuse_other_hand(stage, config)
-    for stage in ("optimize-grasps", "curate", "lift-validate", "train-cvae", "sample-grasps", "post-optimize"):
-        refuse_other_hand(stage, config)  # the data and model stages take the hand
+    for stage in ("optimize-grasps", "curate", "lift-validate", "train-cvae", "sample-grasps", "post-optimize", "evaluator-examples",
+                  "train-evaluator"):
+        refuse_other_hand(stage, config)  # the data and model stages and the learned evaluator's take the hand
     refuse_other_hand("evaluate", argparse.Namespace(config_json=json.dumps({"hand": "shadow"})))
 
 

@@ -172,3 +172,33 @@ def test_grasp_rays_of_a_described_hand_run_from_the_palm_toward_the_fingertips(
     assert torch.allclose(origin[0], torch.as_tensor(hand.palm_frame_local[:3, 3], dtype=torch.float32), atol=1e-6)
     assert abs(float(direction.norm()) - 1.0) < 1e-6
     assert float(direction[0, 0]) > 0.8 and -0.6 < float(direction[0, 1]) < -0.2 and abs(float(direction[0, 2])) < 0.1
+
+
+def test_the_evaluator_stages_and_ranking_follow_the_hand(three_finger_run, three_finger_model):
+    """evaluator-examples (the model's syntheses refined and simulated in the hand's own scene), train-evaluator on them
+    and the lift shard, and sample-grasps ranking a pool with that evaluator: every pose 6 + 9 numbers, the files recording
+    the hand."""
+    from dexlite_pipeline.model.evaluator import load_evaluator
+
+    root, xml, objects, config = three_finger_run
+    config = {**config, "evaluator": {"examples_per_object": 3, "epochs": 2, "hand_points_per_shape": 2, "pool_factor": 2}}
+    cfg = json.dumps(config)
+    examples = root / "examples.zarr"
+    assert main(["evaluator-examples", "--config-json", cfg, "--model", str(three_finger_model), "--stability", str(root / "stability.parquet"),
+                 *objects, "--shard", "000", "--out", str(examples)]) == 0  # fmt: skip
+    simulated = read_grasp_store(examples)
+    assert len(simulated) == 3 and simulated.hand_pose.shape[1] == POSE_WIDTH and set(simulated.object_id) == {"box"}
+    assert simulated.arrays["raw_hand_pose"].shape == (3, POSE_WIDTH) and {"lift_success", "six_dir_success"} <= set(simulated.arrays)
+    assert simulated.attrs["hand"] == str(xml)
+
+    evaluator = root / "evaluator.pt"
+    assert main(["train-evaluator", "--config-json", cfg, "--lift", str(root / "lift.zarr"), "--examples", str(examples), *objects,
+                 "--out", str(evaluator), "--facts", str(root / "evaluator.json")]) == 0  # fmt: skip
+    model, _ = load_evaluator(evaluator)
+    assert model.hand_record["hand"] == str(xml) and model.hand_point_count == 2 * 10
+
+    assert main(["sample-grasps", "--config-json", cfg, "--model", str(three_finger_model), "--stability", str(root / "stability.parquet"),
+                 *objects, "--evaluator", str(evaluator), "--shard", "000", "--out", str(root / "ranked.zarr")]) == 0  # fmt: skip
+    ranked = read_grasp_store(root / "ranked.zarr")
+    rows = ranked.arrays["method"] == "cvae_ranked"
+    assert rows.sum() == 2 and ranked.hand_pose.shape[1] == POSE_WIDTH and np.isfinite(ranked.arrays["evaluator_score"][rows]).all()

@@ -47,14 +47,15 @@ def test_another_hand_reaches_the_data_stages_and_the_default_target_refuses(tmp
 
 
 def test_another_hand_reaches_the_model_stages(tmp_path):
-    """Training, sampling and post-optimization are given the hand; the Shadow Hand's runs are given no ``hand`` (their
-    params, and so their outputs, unchanged)."""
+    """Training, the learned evaluator's stages, sampling and post-optimization are given the hand; the Shadow Hand's runs
+    are given no ``hand`` (their params, and so their outputs, unchanged)."""
     for hand in ("allegro", "shadow"):
         done = _dry_run(tmp_path / hand, hand, "results/post/shard_000.zarr")
         output = done.stdout + done.stderr
         assert done.returncode == 0, output[-3000:]
         commands = planned_commands(output)
-        assert {"train_cvae", "sample_grasps", "post_optimize"} <= set(commands)
-        for rule in ("train_cvae", "sample_grasps", "post_optimize"):
+        rules = ("train_cvae", "evaluator_examples", "train_evaluator", "sample_grasps", "post_optimize")  # evaluator.enabled: ranking
+        assert set(rules) <= set(commands)
+        for rule in rules:
             given = json.loads(option_value(commands[rule][0], "--config-json"))
             assert given.get("hand") == ("allegro" if hand == "allegro" else None), (hand, rule)

@@ -34,10 +34,10 @@ if retired := retired_keys_message(config):
     raise WorkflowError(retired)
 validate(config, str(SCHEMA_PATH))
 # Config key hand: a known name or an existing file, checked while parsing (the file's MJCF is read by the first stage
-# that makes the hand, which refuses it in one line). optimize_grasps, curate, lift_validate, train_cvae, sample_grasps
-# and post_optimize take the hand; every other stage is given it too when it is not the Shadow Hand, and refuses it
-# (dexlite's PIPELINE_STAGES without HAND_STAGES): the evaluation stages know the Shadow Hand only. The default target
-# asks for them, so it refuses at once.
+# that makes the hand, which refuses it in one line). optimize_grasps, curate, lift_validate, train_cvae, sample_grasps,
+# post_optimize, evaluator_examples and train_evaluator take the hand; every other stage is given it too when it is not
+# the Shadow Hand, and refuses it (dexlite's PIPELINE_STAGES without HAND_STAGES): the evaluation stages know the
+# Shadow Hand only. The default target asks for them, so it refuses at once.
 HAND = str(config.get("hand", SHADOW))
 if problem := hand_setting_problem(HAND):
     raise WorkflowError(problem)

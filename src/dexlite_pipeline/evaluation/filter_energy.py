@@ -32,10 +32,11 @@ FILTER_CONTACTS = "filter_contact_index"  # (N, 4) the chosen candidates (-1: no
 FILTER_ENERGIES = ("filter_E_fc", "filter_E_dis")  # E_fc and E_dis (m) with those contacts; NaN: not computed
 
 
-def filter_energy_arrays(grasps, objects_dirs, energy_weights, device="cpu", batch_size: int = 64) -> dict[str, np.ndarray]:
+def filter_energy_arrays(grasps, objects_dirs, energy_weights, device="cpu", batch_size: int = 64, hand=None) -> dict[str, np.ndarray]:
     """``filter_contact_index``, ``filter_E_fc`` and ``filter_E_dis`` of every grasp (NaN / -1 for invalid grasps or unusable objects).
 
-    ``energy_weights``: the ``EnergyWeights`` whose fc and dis weigh the two terms in the search.
+    ``energy_weights``: the ``EnergyWeights`` whose fc and dis weigh the two terms in the search. ``hand``: the hand
+    model of the poses (its contact candidates; None: the Shadow Hand's 140).
     """
     import torch
 
@@ -49,7 +50,7 @@ def filter_energy_arrays(grasps, objects_dirs, energy_weights, device="cpu", bat
     if n == 0:
         return out
     device = torch.device(device)
-    hand = ShadowHand(device)
+    hand = ShadowHand(device) if hand is None else hand
     force_closure = ForceClosureTerm()
     sets = torch.as_tensor(list(itertools.combinations_with_replacement(range(SEARCH_CANDIDATES), 4)), device=device)  # (S, 4)
     object_ids = np.asarray([str(o) for o in grasps.object_id])

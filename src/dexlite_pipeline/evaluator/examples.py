@@ -26,9 +26,10 @@ EXAMPLE_METHOD = "cvae_examples"  # method label of the on-generator examples
 
 def example_syntheses(
     model_path: str, objects_dirs: list[str], stability_path: str, shard: int, shard_count: int, per_object: int, sample, seed: int,
-    device: str,
+    device: str, hand: str = "shadow",
 ) -> tuple[GraspSet, dict]:
-    """``per_object`` pure syntheses of the model at ``model_path`` on each stable training object of ``shard``.
+    """``per_object`` pure syntheses of the model at ``model_path`` on each stable training object of ``shard``; the
+    model must be of ``hand`` (config key ``hand``), and the attributes record the hand.
 
     ``sample`` is the ``SampleConfig`` (scales, latent prior, associated points: as the evaluation's ``cvae_raw``).
     Returns the grasps (hand_pose, object_id, scale, method) and attributes (objects left out, with why; seconds per grasp).
@@ -36,6 +37,7 @@ def example_syntheses(
     import torch
 
     from dexlite_pipeline.device import resolve_device
+    from dexlite_pipeline.hand.choice import hand_record
     from dexlite_pipeline.loop.round_basics import TRAIN
     from dexlite_pipeline.loop.round_objects import round_objects
     from dexlite_pipeline.model.checkpoint import cloud_reading, load_checkpoint
@@ -46,10 +48,11 @@ def example_syntheses(
 
     started = time.process_time()
     device = resolve_device(device)
-    model, checkpoint = load_checkpoint(model_path, device)
+    record = hand_record(hand)
+    model, checkpoint = load_checkpoint(model_path, device, hand=record)
     points, fixed_clouds = cloud_reading(checkpoint, sample.points_per_cloud)
     object_ids, skipped = round_objects(objects_dirs, stability_path, shard, shard_count, TRAIN)
-    arrays = {"hand_pose": np.zeros((0, 28), np.float32), "object_id": np.zeros(0, dtype=object), "scale": np.zeros(0, np.float32),
+    arrays = {"hand_pose": np.zeros((0, model.pose_width), np.float32), "object_id": np.zeros(0, dtype=object), "scale": np.zeros(0, np.float32),
               "method": np.zeros(0, dtype=object), GRASP_TYPE: np.zeros(0, dtype=object)}
     if object_ids and per_object > 0:
         clouds = ObjectClouds([load_asset(objects_dirs, oid) for oid in object_ids], model.codes_mu.device)
@@ -60,7 +63,7 @@ def example_syntheses(
                   "scale": np.asarray(rows.scale, np.float32), "method": np.asarray(rows.method, dtype=object),
                   GRASP_TYPE: np.asarray(rows.types(), dtype=object)}
     seconds = time.process_time() - started
-    attrs = {"stage": "evaluator_examples_sample", "shard": f"{shard:03d}", "model": str(model_path), "skipped_objects": skipped,
+    attrs = {**record, "stage": "evaluator_examples_sample", "shard": f"{shard:03d}", "model": str(model_path), "skipped_objects": skipped,
              "seconds_per_grasp": seconds / len(arrays["hand_pose"]) if len(arrays["hand_pose"]) else None}
     log.info("evaluator examples, shard %03d: %d syntheses on %d training objects", shard, len(arrays["hand_pose"]), len(object_ids))
     return GraspSet(arrays, {}), attrs
@@ -73,11 +76,12 @@ def collect_examples(
     ``post_optimize`` section without the random baseline) and simulated, every refined grasp (``loop.validate_round``
     with ``simulate_all``: ``lift_success``, ``six_dir_success``, ``raw_hand_pose`` the sampled pose).
 
-    ``config`` is the ``PipelineConfig`` (sections seed, device, shards, sample, post_optimize, scene, curate.thresholds,
-    energy, lift, evaluator). The store's attributes record the config it read and the CPU seconds of each step.
+    ``config`` is the ``PipelineConfig`` (sections seed, device, shards, hand, sample, post_optimize, scene,
+    curate.thresholds, energy, lift, evaluator): every step uses the hand's model (the lift test its own scene). The store's attributes record the config it read and the CPU seconds of each step.
     """
     from dexlite_pipeline.config import json_ready
     from dexlite_pipeline.device import resolve_device
+    from dexlite_pipeline.hand.choice import SHADOW, resolve_hand
     from dexlite_pipeline.io.grasp_store import write_grasp_store
     from dexlite_pipeline.loop.validate_round import validate_round
     from dexlite_pipeline.optim.post_shard import post_optimize_shard
@@ -86,7 +90,7 @@ def collect_examples(
     clock = time.process_time()
     sampled, sample_attrs = example_syntheses(
         model_path, objects_dirs, stability_path, shard, config.shards, config.evaluator.examples_per_object, config.sample, config.seed,
-        config.device,
+        config.device, config.hand,
     )
     cpu = {"sample": time.process_time() - clock}
     post_optimize = dataclasses.replace(config.post_optimize, random_baseline=False)
@@ -96,7 +100,7 @@ def collect_examples(
         clock = time.process_time()
         (refined, post_attrs), _ = post_optimize_shard(
             sample_path, objects_dirs, shard, post_optimize=post_optimize, self_penetration_margin_m=config.energy.self_penetration_margin_m,
-            scene=config.scene, seed=_post_seed(config.seed), device=config.device, stability_path=stability_path,
+            scene=config.scene, seed=_post_seed(config.seed), device=config.device, stability_path=stability_path, hand=config.hand,
         )
         write_grasp_store(post_path, refined, post_attrs)
         cpu["post_optimize"] = time.process_time() - clock
@@ -105,6 +109,7 @@ def collect_examples(
         simulated = validate_round(
             post_path, objects_dirs, config.curate.thresholds, config.energy.weights, config.lift, True, threads, planes,
             str(resolve_device(config.device)), simulate_all=True,
+            hand=None if config.hand == SHADOW else resolve_hand(config.hand, resolve_device(config.device)),
         )
         cpu["simulate"] = time.process_time() - clock
     held = np.asarray(simulated.arrays.get("lift_success", np.zeros(0)), bool)

@@ -85,9 +85,10 @@ def rank_candidates(
 
 def rank_shard(
     sampled: GraspSet, model_path: str, evaluator_path: str, objects_dirs: list[str], stability_path: str, shard: int, *, shards: int,
-    sample, section, diversity, table: bool, seed: int, device: str,
+    sample, section, diversity, table: bool, seed: int, device: str, hand: str = "shadow",
 ) -> tuple[GraspSet, dict]:
     """``sampled`` (the shard's sample store) with the ranked rows appended and ``evaluator_score`` on its pure syntheses.
+    The model and the evaluator must be of ``hand`` (config key ``hand``): each is refused in one line otherwise.
 
     ``sample``: ``SampleConfig``; ``section``: ``EvaluatorSection`` (pool_factor); ``diversity``: ``DiversityConfig``
     (what "distinct" means); ``table``: tabletop mode (the evaluator reads each grasp's table). Returns the store and
@@ -107,9 +108,12 @@ def rank_shard(
     from dexlite_pipeline.sharding import shard_generator
     from dexlite_pipeline.tabletop import load_support_planes
 
+    from dexlite_pipeline.hand.choice import hand_record
+
     started = time.process_time()  # CPU seconds (all threads of this process), not wall time
     device = resolve_device(device)
-    evaluator, evaluator_meta = load_evaluator(evaluator_path, device)
+    record = hand_record(hand)
+    evaluator, evaluator_meta = load_evaluator(evaluator_path, device, hand=record)
     planes = load_support_planes(table, stability_path)
     object_ids, skipped = round_objects(objects_dirs, stability_path, shard, shards, HELDOUT)
     if planes is not None:
@@ -130,7 +134,7 @@ def rank_shard(
     leaked = sorted(set(object_ids) & set(evaluator_meta.get("train_object_ids", [])))
     if leaked:
         raise ValueError(f"{evaluator_path}: the evaluator was trained on held-out object(s) {', '.join(leaked[:5])}: it would rank what it has seen")
-    model, checkpoint = load_checkpoint(model_path, device)
+    model, checkpoint = load_checkpoint(model_path, device, hand=record)
     points, fixed_clouds = cloud_reading(checkpoint, sample.points_per_cloud)
     clouds = ObjectClouds([load_asset(objects_dirs, oid) for oid in object_ids], model.codes_mu.device)
     with torch.no_grad():

@@ -39,20 +39,23 @@ def as_examples(grasps: GraspSet) -> GraspSet:
 
 
 def train_from_run(
-    lift_paths: list[str], example_paths: list[str], objects_dirs: list[str], section, seed: int, device: str
+    lift_paths: list[str], example_paths: list[str], objects_dirs: list[str], section, seed: int, device: str, hand: str = "shadow"
 ) -> tuple[object, dict]:
-    """(evaluator, facts) trained on the run's simulated grasps of its training objects; ``section`` is ``EvaluatorSection``.
+    """(evaluator, facts) trained on the run's simulated grasps of its training objects; ``section`` is ``EvaluatorSection``,
+    ``hand`` config key ``hand`` (every store must be of it: ``GraspStoreError`` in one line naming one that is not).
 
     The facts (JSON-ready) name the training objects, the examples per source and what was left out, the training
     history and the validation AUC; they go into the evaluator file and its JSON beside it.
     """
     from dexlite_pipeline.device import resolve_device
     from dexlite_pipeline.model.evaluator import EvaluatorConfig, evaluator_examples, train_evaluator
+    from dexlite_pipeline.model.hand_match import shards_hand
     from dexlite_pipeline.objects.assets import object_splits
 
     started = time.process_time()
     training_ids = {oid for oid, split in object_splits(objects_dirs).items() if split == "train"}
     sources = {"optimization": [read_grasp_store(p) for p in lift_paths], "on_generator": [as_examples(read_grasp_store(p)) for p in example_paths]}
+    shards_hand([(path, store.attrs) for path, store in zip([*lift_paths, *example_paths], [*sources["optimization"], *sources["on_generator"]])], hand)
     counts = {}
     for name, stores in sources.items():
         grasps = [g for g in stores if len(g)]
@@ -68,7 +71,7 @@ def train_from_run(
     if available < config.points_per_cloud:
         log.info("evaluator clouds: %d points (the objects hold %d surface samples)", available, available)
         config = replace(config, points_per_cloud=available, pointnet_points=min(config.pointnet_points, available))
-    model, history = train_evaluator(examples, config, resolve_device(device))
+    model, history = train_evaluator(examples, config, resolve_device(device), hand)
     best = next((row for row in history.epochs if row["epoch"] == history.best_epoch), {})
     facts = {
         "train_object_ids": sorted(set(examples.object_id.tolist())),

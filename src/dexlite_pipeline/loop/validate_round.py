@@ -13,7 +13,7 @@ from dexlite_pipeline.loop.round_basics import ENERGY_FILTER, LIFT_TEST, NOT_OPT
 
 def validate_round(
     post_path: str, objects_dirs: list[str], thresholds, energy_weights, lift, six_directions: bool, threads: int = 1,
-    support_planes=None, device: str = "cpu", simulate_all: bool = False,
+    support_planes=None, device: str = "cpu", simulate_all: bool = False, hand=None,
 ) -> GraspSet:
     """The refined grasps of ``post_path`` with the checks a new grasp must pass, and ``drop_reason`` per grasp.
 
@@ -22,6 +22,7 @@ def validate_round(
     ``six_directions``, the six-direction test (``SIX_DIRECTIONS``); ``lift`` is the ``LiftConfig``, ``support_planes``
     the tables (tabletop mode). Only grasps that passed the checks before are simulated (the others keep NaN results),
     or with ``simulate_all`` every refined grasp (the held-out check: success per attempt, as the evaluation counts it).
+    ``hand``: the hand model of the poses (the filter's contact candidates, the lift test's scene; None: the Shadow Hand).
     """
     from dexlite_pipeline.evaluation.filter_energy import FILTER_CONTACTS, FILTER_ENERGIES, filter_energy_arrays
     from dexlite_pipeline.evaluation.metrics import filter_flags
@@ -35,7 +36,7 @@ def validate_round(
     optimized = (failure == "") & np.isfinite(post.hand_pose).all(axis=1)
     reason[~optimized] = NOT_OPTIMIZED
     rows = np.flatnonzero(optimized)
-    found = filter_energy_arrays(post.select(rows), objects_dirs, energy_weights, device)
+    found = filter_energy_arrays(post.select(rows), objects_dirs, energy_weights, device, hand=hand)
     arrays[FILTER_CONTACTS] = np.full((n, 4), -1, np.int64)
     for name in FILTER_ENERGIES:
         arrays[name] = np.full(n, np.nan, np.float32)
@@ -47,7 +48,7 @@ def validate_round(
     reason[(reason == "") & ~passing] = ENERGY_FILTER
     rows = np.flatnonzero(optimized if simulate_all else reason == "")
     lift = dataclasses.replace(lift, six_directions=six_directions)
-    lifted = run_lift_tests(post.select(rows), objects_dirs, lift, threads, support_planes)
+    lifted = run_lift_tests(post.select(rows), objects_dirs, lift, threads, support_planes, hand=hand)
     for name, values in lifted.items():
         arrays["lift_failure_reason" if name == "failure_reason" else name] = _scattered(values, rows, n)
     reason[(reason == "") & ~arrays["lift_success"].astype(bool)] = LIFT_TEST

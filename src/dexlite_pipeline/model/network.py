@@ -44,7 +44,7 @@ import torch
 from torch import nn
 
 from dexlite_pipeline.model.hand_match import shadow_hand_record
-from dexlite_pipeline.model.pose import TRANSLATION_UNIT_M, features_to_parts, parts_to_features, pose_feature_dim, shift_translation
+from dexlite_pipeline.model.pose import STORED_JOINTS_START, TRANSLATION_UNIT_M, features_to_parts, parts_to_features, pose_feature_dim, shift_translation
 from dexlite_pipeline.model.config import ModelConfig
 from dexlite_pipeline.model.type_condition import known_types
 
@@ -107,6 +107,7 @@ class GraspCVAE(nn.Module):
         self.config = config
         self.hand_record = dict(hand_record) if hand_record is not None else shadow_hand_record()
         self.joint_count = len(self.hand_record["joint_names"])
+        self.pose_width = STORED_JOINTS_START + self.joint_count  # numbers in a stored pose: 28 for the Shadow Hand
         self.pose_feature_dim = pose_feature_dim(self.joint_count)
         self.type_vocabulary = tuple(type_vocabulary)  # the training grasps' types; () for a model trained before types
         self.type_inputs = len(self.type_vocabulary) if len(self.type_vocabulary) > 1 else 0  # one-hot width

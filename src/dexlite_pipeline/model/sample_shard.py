@@ -20,7 +20,6 @@ import torch
 
 from dexlite_pipeline.io.grasp_store import GRASP_TYPE, GraspSet, grasp_types, read_grasp_store
 from dexlite_pipeline.model.methods import EXPAND_LATENT, EXPAND_POINT, SYNTHESIS
-from dexlite_pipeline.model.pose import STORED_JOINTS_START
 from dexlite_pipeline.model.sampling import SampledRows
 from dexlite_pipeline.model.type_condition import GraspTypeRequestError, refusal, type_codes
 
@@ -179,7 +178,7 @@ def sample_shard(
         if shipped_model and heldout:
             shipped, shipped_left_out = shipped_rows(shipped_model, heldout, clouds, settings, generator, device, record)
             parts += [shipped] if shipped is not None else []
-    rows = SampledRows.concatenate(parts, device, STORED_JOINTS_START + model.joint_count)
+    rows = SampledRows.concatenate(parts, device, model.pose_width)
     seconds = time.process_time() - started
     count = len(rows.method)
     arrays = {

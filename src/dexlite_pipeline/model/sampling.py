@@ -32,7 +32,7 @@ from dexlite_pipeline.model.data import ObjectClouds, cloud_keys
 from dexlite_pipeline.model.latent_codes import code_type_mask, feature_distances, sample_latents, training_cloud_features
 from dexlite_pipeline.model.methods import PRIOR_ON_TRAINING, RECONSTRUCTION
 from dexlite_pipeline.model.network import GraspCVAE, anchor_at, condition_at
-from dexlite_pipeline.model.pose import STORED_JOINTS_START, features_to_pose, pose_to_features, rotate_features, turned_clouds, vertical_rotation
+from dexlite_pipeline.model.pose import features_to_pose, pose_to_features, rotate_features, turned_clouds, vertical_rotation
 from dexlite_pipeline.model.type_condition import requested_codes, type_codes
 
 
@@ -400,5 +400,5 @@ def ladder_rows(
     prior_count = cap or config.synthesis_grasps_per_object
     if present and prior_count > 0:
         parts.append(synthesis_rows(model, clouds, present, config, points, generator, fixed_clouds, PRIOR_ON_TRAINING, prior_count))
-    return SampledRows.concatenate(parts, clouds.device, STORED_JOINTS_START + model.joint_count)
+    return SampledRows.concatenate(parts, clouds.device, model.pose_width)
 

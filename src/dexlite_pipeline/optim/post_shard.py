@@ -80,7 +80,7 @@ def post_optimize_shard(
     from dexlite_pipeline.config import json_ready
     from dexlite_pipeline.device import resolve_device
     from dexlite_pipeline.energy.config import EnergyConfig
-    from dexlite_pipeline.hand.choice import hand_record, resolve_hand
+    from dexlite_pipeline.hand.choice import SHADOW, hand_record, resolve_hand
     from dexlite_pipeline.io.grasp_store import GraspSet, invalid_grasp_reasons, read_grasp_store
     from dexlite_pipeline.model.hand_match import shards_hand
     from dexlite_pipeline.model.methods import SYNTHESIS
@@ -132,7 +132,7 @@ def post_optimize_shard(
         if planes is not None:
             from dexlite_pipeline.energy.table_clearance import raise_above_table
 
-            starts, shift = raise_above_table(starts, planes, hand_model)
+            starts, shift = raise_above_table(starts, planes, None if hand == SHADOW else hand_model)  # None: the Shadow Hand on CPU, as before
             log.info("shard %03d: %d of %d sampled starts raised above the table (median %.1f mm)", shard, int((shift > 0).sum()), len(shift),
                      1000 * float(np.median(shift[shift > 0])) if (shift > 0).any() else 0.0)
         refined = optimize_rows(starts, None, "surface")

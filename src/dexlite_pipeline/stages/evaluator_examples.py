@@ -7,8 +7,8 @@ import argparse
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--config-json", required=True, help="config sections seed, device, shards, sample, post_optimize, scene, curate, energy, "
-                        "lift and evaluator (JSON)")
+    parser.add_argument("--config-json", required=True, help="config sections seed, device, shards, hand, sample, post_optimize, scene, curate, "
+                        "energy, lift and evaluator (JSON)")
     parser.add_argument("--model", required=True, help="the trained model (train_cvae's cvae.pt)")
     parser.add_argument("--stability", required=True, help="stability.parquet of the stability_filter stage (stable objects; resting poses)")
     parser.add_argument("--objects", action="append", required=True, help="prepared objects dir with catalog.parquet (repeatable)")

@@ -3,7 +3,7 @@
 Held-out objects get pure synthesis (``cvae_raw``), training objects dataset expansion and
 the learning ladder's rows (``model.sample_shard``); with a trained evaluator (``--evaluator``) also the
 best-scored distinct syntheses of a larger pool on held-out objects (``cvae_ranked``, ``evaluator.ranking``). The model
-must be of config key ``hand`` (refused in one line otherwise); ranking by a learned evaluator is the Shadow Hand's only.
+and the evaluator must be of config key ``hand`` (each refused in one line otherwise).
 """
 
 from __future__ import annotations
@@ -29,11 +29,9 @@ def run(args: argparse.Namespace) -> int:
     from dexlite_pipeline.io.grasp_store import write_grasp_store
     from dexlite_pipeline.model.sample_shard import sample_shard
     from dexlite_pipeline.model.shipped import model_or_shipped
-    from dexlite_pipeline.settings import SHADOW, stage_config
+    from dexlite_pipeline.settings import stage_config
 
     config = stage_config(args.config_json)
-    if args.evaluator and config.hand != SHADOW:
-        raise ValueError(f"hand: {config.hand}: ranking by a learned evaluator (--evaluator) is the Shadow Hand's only")
     shipped = args.shipped_model if args.shipped_model is not None else config.sample.shipped_model
     grasps, attrs = sample_shard(
         str(model_or_shipped(args.model)), args.objects, args.stability, args.lift, args.shard, shards=config.shards, sample=config.sample,
@@ -45,7 +43,7 @@ def run(args: argparse.Namespace) -> int:
         grasps, attrs["ranking"] = rank_shard(
             grasps, str(model_or_shipped(args.model)), args.evaluator, args.objects, args.stability, args.shard, shards=config.shards,
             sample=config.sample, section=config.evaluator, diversity=config.diversity, table=config.scene.table, seed=config.seed,
-            device=config.device,
+            device=config.device, hand=config.hand,
         )
     write_grasp_store(args.out, grasps, attrs)
     return 0

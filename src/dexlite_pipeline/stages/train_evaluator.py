@@ -15,7 +15,7 @@ log = logging.getLogger("dexlite.train_evaluator")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--config-json", required=True, help="config sections seed, device and evaluator (JSON)")
+    parser.add_argument("--config-json", required=True, help="config sections seed, device, hand and evaluator (JSON)")
     parser.add_argument("--lift", action="append", default=[], help="a lift-validated grasp shard (repeatable)")
     parser.add_argument("--examples", action="append", default=[], help="an evaluator_examples shard (repeatable)")
     parser.add_argument("--objects", action="append", required=True, help="prepared objects dir with catalog.parquet (repeatable)")
@@ -36,7 +36,7 @@ def run(args: argparse.Namespace) -> int:
 
     config = stage_config(args.config_json)
     seed = config.train.training_seed(config.seed)
-    model, facts = train_from_run(args.lift, args.examples, args.objects, config.evaluator, seed, config.device)
+    model, facts = train_from_run(args.lift, args.examples, args.objects, config.evaluator, seed, config.device, config.hand)
     section = json_ready(config.evaluator)
     used = {key: section[key] for key in TRAINING_KEYS}  # what this stage reads (the section's other keys are other stages')
     facts = {**facts, "config": {"seed": seed, "evaluator": used}}

@@ -159,7 +159,10 @@ def synthesize_with_model(
 
         starts = GraspSet({"hand_pose": poses.detach().cpu().numpy(), "object_id": np.asarray([assets[i].object_id for i in object_index], dtype=object),
                            "scale": scale})  # fmt: skip
-        poses = torch.as_tensor(raise_above_table(starts, support_planes, hand)[0].hand_pose, dtype=poses.dtype, device=poses.device)
+        from dexlite_pipeline.hand.described import is_described
+
+        table_hand = hand if hand is not None and is_described(hand) else None  # None: the Shadow Hand on CPU, as before
+        poses = torch.as_tensor(raise_above_table(starts, support_planes, table_hand)[0].hand_pose, dtype=poses.dtype, device=poses.device)
     hand = ShadowHand(device) if hand is None else hand
     energy = GraspEnergy.from_assets(
         hand, assets,
