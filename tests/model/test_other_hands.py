@@ -86,22 +86,29 @@ def test_training_for_another_hand_records_it_and_its_pose_length(three_finger_r
     assert model.decoder[-1].out_features == 18 and len(model.codes_mu) == checkpoint["train_grasps"]
 
 
-def test_sampling_and_refinement_follow_the_hand(three_finger_run, three_finger_model):
-    root, xml, objects, config = three_finger_run
+@pytest.fixture(scope="module")
+def three_finger_refined(three_finger_run, three_finger_model):
+    """``dexlite sample-grasps`` and ``post-optimize`` with the three-finger model: sample.zarr, post.zarr, random.zarr."""
+    root, _, objects, config = three_finger_run
     cfg = json.dumps(config)
     common = [*objects, "--shard", "000"]
     assert main(["sample-grasps", "--config-json", cfg, "--model", str(three_finger_model), "--stability", str(root / "stability.parquet"),
                  "--lift", str(root / "lift.zarr"), *common, "--out", str(root / "sample.zarr")]) == 0  # fmt: skip
-    sample = read_grasp_store(root / "sample.zarr")
+    assert main(["post-optimize", "--config-json", cfg, "--sample", str(root / "sample.zarr"), *common,
+                 "--out", str(root / "post.zarr"), "--random-out", str(root / "random.zarr")]) == 0  # fmt: skip
+    return root / "sample.zarr", root / "post.zarr", root / "random.zarr"
+
+
+def test_sampling_and_refinement_follow_the_hand(three_finger_run, three_finger_refined):
+    root, xml, _, _ = three_finger_run
+    sample = read_grasp_store(three_finger_refined[0])
     assert sample.hand_pose.shape[1] == POSE_WIDTH and np.isfinite(sample.hand_pose).all()
     assert sample.attrs["hand"] == str(xml) and sample.attrs["joint_names"] == THREE_FINGER_JOINTS
     methods = set(sample.arrays["method"])
     assert {"cvae_raw", "cvae_recon", "cvae_prior_train"} <= methods and methods & {"cvae_expand_latent", "cvae_expand_point"}
     assert sample.arrays["reference_hand_pose"].shape == (len(sample), POSE_WIDTH)
 
-    assert main(["post-optimize", "--config-json", cfg, "--sample", str(root / "sample.zarr"), *common,
-                 "--out", str(root / "post.zarr"), "--random-out", str(root / "random.zarr")]) == 0  # fmt: skip
-    post = read_grasp_store(root / "post.zarr")
+    post = read_grasp_store(three_finger_refined[1])
     assert post.hand_pose.shape == (len(sample), POSE_WIDTH) and np.array_equal(post.arrays["raw_hand_pose"], sample.hand_pose)
     assert np.isfinite(post.arrays["E_post"]).all() and post.attrs["hand"] == str(xml)
     baseline = read_grasp_store(root / "random.zarr")
@@ -202,3 +209,24 @@ def test_the_evaluator_stages_and_ranking_follow_the_hand(three_finger_run, thre
     ranked = read_grasp_store(root / "ranked.zarr")
     rows = ranked.arrays["method"] == "cvae_ranked"
     assert rows.sum() == 2 and ranked.hand_pose.shape[1] == POSE_WIDTH and np.isfinite(ranked.arrays["evaluator_score"][rows]).all()
+
+
+def test_the_evaluation_follows_the_hand(three_finger_run, three_finger_refined):
+    """``dexlite evaluate``: the three-finger hand's sampled, refined and random-start grasps simulated in its scene, their
+    energies and the filter's contacts with its model, then tabulated (coverage from its candidates, joint entropy over
+    its 9 joints' limits)."""
+    root, xml, objects, config = three_finger_run
+    sample, post, random_post = three_finger_refined
+    cfg = json.dumps({**config, "evaluate": {"methods": ["cvae_raw", "cvae_post", "random_post"], "splits": ["train", "heldout"],
+                                             "six_directions": False}})
+    simulated = root / "evaluated.zarr"
+    assert main(["evaluate", "--step", "simulate", "--config-json", cfg, *objects, "--sample", str(sample), "--post", str(post),
+                 "--random-post", str(random_post), "--shard", "0", "--out", str(simulated)]) == 0  # fmt: skip
+    grasps = read_grasp_store(simulated)
+    assert len(grasps) > 0 and grasps.hand_pose.shape[1] == POSE_WIDTH and grasps.attrs["hand"] == str(xml)
+    assert {"lift_success", "E_pen", "filter_E_fc"} <= set(grasps.arrays) and set(grasps.arrays["method"]) == {"cvae_raw", "cvae_post", "random_post"}
+    outputs = {name: root / f"eval_{name}" for name in ("metrics", "per-object", "convergence", "budget", "record")}
+    assert main(["evaluate", "--step", "aggregate", "--config-json", cfg, *objects, "--sim", str(simulated), "--post", str(post),
+                 "--random-post", str(random_post), *[f"--{name}={path}" for name, path in outputs.items()]]) == 0  # fmt: skip
+    metrics = pd.read_csv(outputs["metrics"])
+    assert set(metrics["method"]) == {"cvae_raw", "cvae_post", "random_post"} and np.isfinite(metrics["joint_entropy_bits"]).any()

@@ -35,9 +35,9 @@ if retired := retired_keys_message(config):
 validate(config, str(SCHEMA_PATH))
 # Config key hand: a known name or an existing file, checked while parsing (the file's MJCF is read by the first stage
 # that makes the hand, which refuses it in one line). optimize_grasps, curate, lift_validate, train_cvae, sample_grasps,
-# post_optimize, evaluator_examples and train_evaluator take the hand; every other stage is given it too when it is not
-# the Shadow Hand, and refuses it (dexlite's PIPELINE_STAGES without HAND_STAGES): the evaluation stages know the
-# Shadow Hand only. The default target asks for them, so it refuses at once.
+# post_optimize, evaluator_examples, train_evaluator and evaluate take the hand; every other stage is given it too when
+# it is not the Shadow Hand, and refuses it (dexlite's PIPELINE_STAGES without HAND_STAGES): the data loop, the report
+# and the dataset stages know the Shadow Hand only. The default target asks for the report, so it refuses at once.
 HAND = str(config.get("hand", SHADOW))
 if problem := hand_setting_problem(HAND):
     raise WorkflowError(problem)
@@ -259,10 +259,10 @@ def final_outputs():
 
 def default_outputs(wildcards=None):
     """The default target's inputs: ``final_outputs()``, which need the model stages, so with a hand other than the
-    Shadow Hand a one-line refusal (build the other stages' outputs by name: results/post/shard_000.zarr ...)."""
+    Shadow Hand a one-line refusal (build the other stages' outputs by name: results/eval/metrics.csv ...)."""
     if problem := model_stage_hand_problem(HAND):
-        raise WorkflowError(f"{problem}: ask for the other stages' outputs by name (e.g. {RESULTS}/lift/shard_000.zarr, "
-                            f"{RESULTS}/model/cvae.pt, {RESULTS}/post/shard_000.zarr)")
+        raise WorkflowError(f"{problem}: ask for the other stages' outputs by name (e.g. {RESULTS}/model/cvae.pt, "
+                            f"{RESULTS}/eval/metrics.csv)")
     return final_outputs()
 
 

@@ -95,13 +95,15 @@ def simulate(
     energy_batch_size: int,
     writeup_protocol: WriteupProtocolConfig | None = None,
     support_planes=None,
+    hand=None,
 ) -> GraspSet:
     """Energies, the equal filter's energies (``evaluation.filter_energy``) and lift (+ six-direction) results for every
     selected grasp, as one grasp set.
 
     Invalid grasps (``invalid_reason``) pass through both with NaN results and a failed
     lift; the seconds per grasp are per simulated (valid) grasp. ``support_planes`` (tabletop
-    mode): every lift test (and the write-up's protocol's) runs with each object on its table.
+    mode): every lift test (and the write-up's protocol's) runs with each object on its table. ``hand``: the hand
+    model of the poses (energies, the filter's contact candidates, the lift test's scene; None: the Shadow Hand).
     """
     from dexlite_pipeline.energy.per_grasp import evaluate_grasp_energies
     from dexlite_pipeline.evaluation.filter_energy import filter_energy_arrays
@@ -113,15 +115,15 @@ def simulate(
     simulated_count = max(1, len(selected) - int(metrics.invalid_flags(arrays).sum()))
     start = time.perf_counter()
     log.info("energies of %d grasps (batches of %d) ...", len(selected), energy_batch_size)
-    energies = evaluate_grasp_energies(selected, objects_dirs, device=device, batch_size=energy_batch_size, config=energy_cfg)
+    energies = evaluate_grasp_energies(selected, objects_dirs, device=device, batch_size=energy_batch_size, config=energy_cfg, hand=hand)
     energy_s = time.perf_counter() - start
     log.info("energies of %d grasps in %.1f s (%.1f grasps/s)", len(selected), energy_s, len(selected) / max(energy_s, 1e-9))
     arrays.update(energies)
     start = time.perf_counter()
-    arrays.update(filter_energy_arrays(selected, objects_dirs, energy_cfg.weights, device))
+    arrays.update(filter_energy_arrays(selected, objects_dirs, energy_cfg.weights, device, hand=hand))
     log.info("the equal filter's contact search of %d grasps in %.1f s", len(selected), time.perf_counter() - start)
     start = time.perf_counter()
-    lifted = run_lift_tests(selected, objects_dirs, lift_cfg, threads, support_planes=support_planes)
+    lifted = run_lift_tests(selected, objects_dirs, lift_cfg, threads, support_planes=support_planes, hand=hand)
     lifted.pop("table_depth_mm", None)  # measured for every mode by the caller (energy.table_clearance.grasp_table_depths)
     too_deep = np.asarray(lifted["lift_success"], bool) & (np.asarray(lifted["initial_penetration_mm"]) > 1000.0 * lift_cfg.max_initial_penetration_m + 1e-4)
     if too_deep.any():  # the lift test refuses such starts; a held one would mean the start check was bypassed
@@ -132,15 +134,17 @@ def simulate(
         lenient = dataclasses.replace(lift_cfg, **writeup_protocol.lift_overrides())
         log.info("lift test of %d grasps under the write-up's protocol (friction %g, +%g rad, ratio %g)", len(selected),
                  lenient.friction, lenient.preclose_rad, lenient.success_lift_ratio)
-        arrays[WRITEUP_PROTOCOL_SUCCESS] = run_lift_tests(selected, objects_dirs, lenient, threads, support_planes=support_planes)["lift_success"]
+        arrays[WRITEUP_PROTOCOL_SUCCESS] = run_lift_tests(selected, objects_dirs, lenient, threads, support_planes=support_planes,
+                                                          hand=hand)["lift_success"]
     attrs = dict(selected.attrs)
     attrs["energy_seconds_per_grasp"] = energy_s / simulated_count
     attrs["simulation_seconds_per_grasp"] = lift_s / simulated_count
     return GraspSet(arrays, attrs)
 
 
-def simulate_budget(selected: GraspSet, objects_dirs, lift_cfg, threads: int, support_planes=None) -> np.ndarray:
-    """(N, S) lift success (1.0 / 0.0, lift test only) of each selected grasp's pose after every budget iteration.
+def simulate_budget(selected: GraspSet, objects_dirs, lift_cfg, threads: int, support_planes=None, hand=None) -> np.ndarray:
+    """(N, S) lift success (1.0 / 0.0, lift test only) of each selected grasp's pose after every budget iteration
+    (``hand``: the poses' hand model, None: the Shadow Hand).
 
     The six-direction test is left out here: the budget curve asks how soon post-optimization
     reaches a grasp that holds, and the lift test alone is ten times cheaper.
@@ -159,7 +163,8 @@ def simulate_budget(selected: GraspSet, objects_dirs, lift_cfg, threads: int, su
         },
         {},
     )
-    result = run_lift_tests(flat, objects_dirs, dataclasses.replace(lift_cfg, six_directions=False), threads, support_planes=support_planes)
+    result = run_lift_tests(flat, objects_dirs, dataclasses.replace(lift_cfg, six_directions=False), threads, support_planes=support_planes,
+                            hand=hand)
     return np.asarray(result["lift_success"], dtype=np.float64).reshape(count, steps)
 
 

@@ -35,7 +35,7 @@ RANKED = ("cvae_ranked", "cvae_ranked_post")  # their sampling cost is the ranki
 PAIRED_METHODS = (*SAMPLED_METHODS, "random_post")  # rows correspond to rows of the sampled store
 PAIRED_DRAW = "sampled_rows"  # name of the draw these methods share
 SELECTED_ARRAYS = ("hand_pose", "object_id", "scale")
-BUDGET_POSES = "budget_hand_pose"  # (N, S, 28) post-optimized poses after each budget iteration (post stores)
+BUDGET_POSES = "budget_hand_pose"  # (N, S, 6 + J) post-optimized poses after each budget iteration (post stores)
 
 
 def method_seed(seed: int, method: str) -> int:

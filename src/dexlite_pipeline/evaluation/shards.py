@@ -43,7 +43,7 @@ def _sampled_reference(stores) -> np.ndarray | None:
     """The sampled stores' ``reference_hand_pose`` concatenated in order (rows as ``sample_row``); None when absent."""
     if not stores or not all("reference_hand_pose" in s.arrays for s in stores):
         return None
-    return np.concatenate([np.asarray(s.arrays["reference_hand_pose"], np.float32).reshape(len(s), 28) for s in stores])
+    return np.concatenate([np.asarray(s.arrays["reference_hand_pose"], np.float32).reshape(len(s), s.hand_pose.shape[1]) for s in stores])
 
 
 # Per-row arrays of the sampled stores that the ranking adds (evaluator.ranking), carried to each paired method's
@@ -100,9 +100,11 @@ def _budget_iterations(stores) -> list[int]:
 
 def simulate_shard(
     source_paths: dict[str, list[str]], objects_dirs: list[str], shard: int, config: dict, *, energy: EnergyConfig, scene: SceneConfig,
-    seed: int, shards: int, device: str, threads: int = 1, stability_path: str | None = None,
+    seed: int, shards: int, device: str, threads: int = 1, stability_path: str | None = None, hand: str = "shadow",
 ) -> tuple[GraspSet, dict]:
-    """Choose, simulate and measure the shard's grasps of every configured method.
+    """Choose, simulate and measure the shard's grasps of every configured method, grasps of ``hand`` (config key
+    ``hand``: every store must be of it, refused in one line otherwise; its model for the energies, the filter and the
+    lift test's scene).
 
     ``source_paths``: store paths per source (keys of ``step_keys.SOURCE_OPTIONS``). ``config``:
     the config mapping (sections lift and the simulate keys of evaluate; recorded in the attributes);
@@ -132,6 +134,8 @@ def simulate_shard(
     table_planes = planes if scene.table else None  # the tables the lift tests use (floating: none)
     known_object_ids = available_object_ids(objects_dirs)
     sources = {key: [read_grasp_store(p) for p in source_paths.get(key, [])] for key in SOURCE_OPTIONS}
+    record, hand_model = _run_hand(hand, [(p, s.attrs) for key in SOURCE_OPTIONS for p, s in zip(source_paths.get(key, []), sources[key])],
+                                   device)
     if sources["dexgraspnet"]:  # one store for all shards: take this shard's objects
         mine = set()
         for store in sources["dexgraspnet"]:
@@ -157,7 +161,7 @@ def simulate_shard(
         budget_poses = arrays.pop(BUDGET_POSES, None)
         if budget_poses is not None and method in BUDGET_METHODS and len(selected):
             budget_iterations = budget_iterations or _budget_iterations(method_sources)
-            arrays[BUDGET_SUCCESS] = simulate_budget(selected, objects_dirs, lift_cfg, threads, support_planes=table_planes)
+            arrays[BUDGET_SUCCESS] = simulate_budget(selected, objects_dirs, lift_cfg, threads, support_planes=table_planes, hand=hand_model)
             log.info("evaluate shard %s: %s: budget curve over iterations %s simulated", shard, method, budget_iterations)
         parts.append(GraspSet(arrays, {}))
         invalid[method] = selected.attrs["invalid_reasons"]
@@ -170,19 +174,21 @@ def simulate_shard(
     if width:  # methods without a budget curve get NaN rows, so the shards concatenate
         for part in parts:
             part.arrays.setdefault(BUDGET_SUCCESS, np.full((len(part), width), np.nan))
-    selected_all = GraspSet.concatenate(parts, attrs={})
+    selected_all = GraspSet.concatenate(parts, attrs=record if not parts else {})
     if "method" not in selected_all.arrays:
         for name, dtype in (("method", object), ("split", object), ("source_row", np.int64), ("sample_row", np.int64), ("invalid_reason", object)):
             selected_all.arrays[name] = np.zeros(0, dtype=dtype)
     device = resolve_device(device)
-    result = simulate(selected_all, objects_dirs, lift_cfg, energy_cfg, device, threads, cfg.energy_batch_size, cfg.writeup_protocol, support_planes=table_planes)
+    result = simulate(selected_all, objects_dirs, lift_cfg, energy_cfg, device, threads, cfg.energy_batch_size, cfg.writeup_protocol,
+                      support_planes=table_planes, hand=hand_model)
     if planes is not None:
-        result.arrays["table_depth_mm"] = grasp_table_depths(selected_all, planes) * 1000.0
+        result.arrays["table_depth_mm"] = grasp_table_depths(selected_all, planes, hand_model) * 1000.0
     if scene.table:  # the table each grasp was tested on, so that a grasp is reproducible from the store (and pictured on it)
         from dexlite_pipeline.tabletop import support_arrays
 
         result.arrays.update(support_arrays(planes, selected_all.object_id, selected_all.scale))
     attrs = {
+        **record,
         "stage": "evaluate",
         "shard": shard,
         "config": config,
@@ -194,6 +200,17 @@ def simulate_shard(
         **{k: v for k, v in result.attrs.items() if k not in ("invalid_reasons",)},
     }
     return result, json_ready(attrs, nan_as_none=True)
+
+
+def _run_hand(hand: str, named_attrs: list[tuple[str, dict]], device) -> tuple[dict, object]:
+    """The hand record of config key ``hand`` and its model (None for the Shadow Hand: the callees' own, as before);
+    ``GraspStoreError`` in one line when a store of ``named_attrs`` (path, attributes) is of another hand."""
+    from dexlite_pipeline.device import resolve_device
+    from dexlite_pipeline.hand.choice import SHADOW, hand_record, resolve_hand
+    from dexlite_pipeline.model.hand_match import shards_hand
+
+    shards_hand(named_attrs, hand)
+    return hand_record(hand), None if str(hand) == SHADOW else resolve_hand(hand, resolve_device(device))
 
 
 @dataclass
@@ -224,9 +241,10 @@ def _weighted_method_seconds(shards) -> dict[str, dict[str, float]]:
 
 def aggregate_evaluation(
     sim_paths: list[str], post_paths: list[str], random_post_paths: list[str], objects_dirs: list[str], config: dict, *,
-    diversity: DiversityConfig, seed: int,
+    diversity: DiversityConfig, seed: int, hand: str = "shadow",
 ) -> EvaluationTables:
-    """Metrics, per-object table, convergence curves and budget curve over all simulated shards.
+    """Metrics, per-object table, convergence curves and budget curve over all simulated shards, of ``hand`` (config key
+    ``hand``: its contact candidates for the coverage, its joint limits for the joint entropy).
 
     ``config``: the config mapping (the aggregate keys of evaluate; recorded); ``diversity`` and
     ``seed`` (the bootstrap's) are its typed values.
@@ -240,13 +258,14 @@ def aggregate_evaluation(
 
     cfg = evaluate_config_from(config, AGGREGATE_KEYS)
     shards = [read_grasp_store(p) for p in sim_paths]
+    _, hand_model = _run_hand(hand, [(p, s.attrs) for p, s in zip(sim_paths, shards)], "cpu")
     # A method with no input in any shard (e.g. dexgraspnet when not configured) gets no row.
     absent = set.intersection(*(set(s.attrs.get("methods_without_input") or []) for s in shards))
     cfg = dataclasses.replace(cfg, methods=tuple(m for m in cfg.methods if m not in absent))
     simulated = concatenate_shards(shards)
     if simulated is None:
         simulated = empty_grasp_set()
-    simulated.arrays.update(coverage_arrays(simulated, objects_dirs, diversity))
+    simulated.arrays.update(coverage_arrays(simulated, objects_dirs, diversity, hand=hand_model))
     seconds = _weighted_method_seconds(shards)
     sim_counts = [(s.attrs.get("simulation_seconds_per_grasp"), len(s)) for s in shards if len(s)]
     sim_total = sum(n for t, n in sim_counts if t is not None)
@@ -267,7 +286,7 @@ def aggregate_evaluation(
     random_needs = convergence.get("random_post", {}).get("iterations_to_random_final_E_post", math.nan)
     for method, summary in convergence.items():
         summary["convergence_ratio"] = convergence_ratio(random_needs, summary["iterations_to_random_final_E_post"])
-    joint_limits = ShadowHand().joint_limits.cpu().numpy()
+    joint_limits = (ShadowHand() if hand_model is None else hand_model).joint_limits.cpu().numpy()
     bootstrap_seed = seed
     metrics_df, per_object_df = metrics_tables(simulated, joint_limits, cfg, seconds, convergence, sim_seconds, bootstrap_seed, diversity)
     budget_iterations = next((s.attrs.get("budget_iterations") for s in shards if s.attrs.get("budget_iterations")), [])

@@ -23,7 +23,7 @@ AGGREGATE_OUTPUTS = ("metrics", "per-object", "convergence", "budget", "record")
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--step", choices=("simulate", "aggregate"), required=True)
-    parser.add_argument("--config-json", default="{}", help="config sections (seed, device, shards, evaluate, lift, energy, scene) as JSON")
+    parser.add_argument("--config-json", default="{}", help="config sections (seed, device, shards, hand, evaluate, lift, energy, scene) as JSON")
     parser.add_argument("--objects", action="append", default=[], help="prepared objects dir (repeatable); their catalogs give the splits")
     for key, option in SOURCE_OPTIONS.items():
         parser.add_argument(f"--{option}", dest=key, action="append", default=[], help=f"{key} grasp store(s) (repeatable)")
@@ -50,7 +50,7 @@ def run(args: argparse.Namespace) -> int:
             raise ValueError("evaluate --step simulate needs --out and --shard")
         result, attrs = simulate_shard(
             {key: getattr(args, key) for key in SOURCE_OPTIONS}, args.objects, args.shard, config, energy=tree.energy, scene=tree.scene,
-            seed=tree.seed, shards=tree.shards, device=tree.device, threads=args.threads or 1, stability_path=args.stability,
+            seed=tree.seed, shards=tree.shards, device=tree.device, threads=args.threads or 1, stability_path=args.stability, hand=tree.hand,
         )
         write_grasp_store(args.out, result, attrs)
         print(f"evaluate shard {args.shard}: simulated {len(result)} grasps -> {args.out}")
@@ -58,7 +58,8 @@ def run(args: argparse.Namespace) -> int:
     outputs = [getattr(args, name.replace("-", "_")) for name in AGGREGATE_OUTPUTS]
     if not args.sim or not all(outputs):
         raise ValueError("evaluate --step aggregate needs --sim and " + ", ".join(f"--{n}" for n in AGGREGATE_OUTPUTS))
-    tables = aggregate_evaluation(args.sim, args.post, args.random_post, args.objects, config, diversity=tree.diversity, seed=tree.seed)
+    tables = aggregate_evaluation(args.sim, args.post, args.random_post, args.objects, config, diversity=tree.diversity, seed=tree.seed,
+                                  hand=tree.hand)
     write_evaluation(tables, *outputs)
     columns = ["method", "split", "n_grasps", "n_invalid", "lift_success_rate", "six_dir_success_rate", "distinct_held_per_object_mean",
                "surface_coverage_mean", "energy_threshold_pass_rate", "filtered_lift_success_rate", "cpu_seconds_per_distinct_held_grasp"]  # fmt: skip
