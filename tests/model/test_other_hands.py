@@ -230,3 +230,21 @@ def test_the_evaluation_follows_the_hand(three_finger_run, three_finger_refined)
                  "--random-post", str(random_post), *[f"--{name}={path}" for name, path in outputs.items()]]) == 0  # fmt: skip
     metrics = pd.read_csv(outputs["metrics"])
     assert set(metrics["method"]) == {"cvae_raw", "cvae_post", "random_post"} and np.isfinite(metrics["joint_entropy_bits"]).any()
+
+
+@pytest.mark.parametrize("name", ["allegro", "leap"])
+def test_grasp_rays_of_the_shipped_hands_leave_the_palm_between_thumb_and_fingers(name):
+    """Allegro and LEAP half curled: the ray leaves the palm on its approach side (palm frame z) toward the midpoint of the
+    thumb's tip (the opposing finger) and the other three fingers' tips."""
+    from dexlite_pipeline.hand.described import DescribedHand
+    from dexlite_pipeline.model.association import described_tip_points, grasp_rays
+
+    hand = DescribedHand(name)
+    open_hand = torch.as_tensor(hand.description.pregrasp, dtype=torch.float32)
+    pose = torch.zeros(1, hand.pose_dim)
+    pose[0, 6:] = open_hand + 0.5 * (hand.joint_limits[:, 1] - open_hand)
+    _, direction = grasp_rays(hand, pose)
+    in_palm = hand.palm_frame_local[:3, :3].T @ direction[0].double().numpy()
+    assert in_palm[2] > 0.5, in_palm
+    _, _, opposing = described_tip_points(hand)
+    assert opposing.tolist() == [False, False, False, True]
