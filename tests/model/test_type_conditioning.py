@@ -111,6 +111,18 @@ def test_any_deals_the_training_mix_and_one_type_asks_for_it():
     assert interleaved_plan(np.array([0.5, 0.5]), 4).tolist() == [0, 1, 0, 1]
 
 
+def test_an_even_mix_proposes_every_type_equally_however_rare_in_training():
+    codes = np.array([2] * 97 + [0, 1, 3])  # 97% power (column 2), one lateral, one pinch, one tripod
+    vocabulary = ("lateral", "pinch", "power", "tripod")
+    training = requested_codes(vocabulary, codes, "any", 8)
+    even = requested_codes(vocabulary, codes, "any", 8, mix="even")
+    assert np.bincount(training, minlength=4).tolist() == [0, 0, 8, 0]
+    assert np.bincount(even, minlength=4).tolist() == [2, 2, 2, 2] and even[:4].tolist() == [0, 1, 2, 3]
+    assert requested_codes(vocabulary, codes, "pinch", 3, mix="even").tolist() == [1, 1, 1]  # a named type is that type
+    # a model without types knows power only, whatever the mix
+    assert requested_codes((), np.zeros(0, np.int64), "any", 3, mix="even").tolist() == [0, 0, 0]
+
+
 def test_sampled_grasps_decode_from_their_types_codes(typed_model, tiny_assets):
     from dexlite_pipeline.model.data import ObjectClouds
     from dexlite_pipeline.model.latent_codes import code_type_mask

@@ -155,6 +155,9 @@ ANCHOR_RULES = ("uniform", "matched", "debiased", "spread")
 # that the two agree), and ANY_GRASP_TYPE, the training mix.
 GRASP_TYPE_NAMES = ("power", "pinch", "tripod", "lateral")
 ANY_GRASP_TYPE = "any"
+# sample.type_mix: how "any" deals an object's samples to the model's types
+TRAINING_TYPE_MIX, EVEN_TYPE_MIX = "training", "even"
+TYPE_MIXES = (TRAINING_TYPE_MIX, EVEN_TYPE_MIX)
 
 
 @dataclass(frozen=True)
@@ -213,6 +216,11 @@ class SampleConfig:
         ANY_GRASP_TYPE, "grasp type of sampled grasps: any (each object's grasps dealt to the model's types in its training "
         "mix's proportions) or one type, which the model must know (a model trained without types knows power only)",
         enum=(ANY_GRASP_TYPE, *GRASP_TYPE_NAMES))
+    type_mix: str = setting(
+        TRAINING_TYPE_MIX, "with grasp_type any, how each object's samples are dealt to the model's types: training (in the "
+        "proportions of its training grasps) or even (each type equally often, so a type that is rare in the training data is "
+        "proposed on every object and the learned evaluator, ranking a pool, keeps the types that fit it)",
+        enum=TYPE_MIXES)
 
     def __post_init__(self) -> None:
         if not self.scales or min(self.scales) <= 0:
@@ -229,5 +237,7 @@ class SampleConfig:
             raise ValueError(f"sample.anchor_rule {self.anchor_rule!r} is not one of {', '.join(ANCHOR_RULES)}")
         if self.latent_prior not in LATENT_PRIORS:
             raise ValueError(f"sample.latent_prior {self.latent_prior!r} is not one of {', '.join(LATENT_PRIORS)}")
+        if self.type_mix not in TYPE_MIXES:
+            raise ValueError(f"sample.type_mix {self.type_mix!r} is not one of {', '.join(TYPE_MIXES)}")
         if self.grasp_type not in (ANY_GRASP_TYPE, *GRASP_TYPE_NAMES):
             raise ValueError(f"sample.grasp_type {self.grasp_type!r} is not one of {', '.join((ANY_GRASP_TYPE, *GRASP_TYPE_NAMES))}")

@@ -338,7 +338,7 @@ def synthesis_rows(
     of the grasp types ``config.grasp_type`` asks for (``type_condition.requested_codes``: the same plan for every object;
     ``GraspTypeRequestError`` for a type the model does not know)."""
     count = config.synthesis_grasps_per_object if count is None else count
-    plan = requested_codes(model.type_vocabulary, model.codes_type.cpu().numpy(), config.grasp_type, count)
+    plan = requested_codes(model.type_vocabulary, model.codes_type.cpu().numpy(), config.grasp_type, count, config.type_mix)
     obj = np.repeat([clouds.index_of[o] for o in object_ids], count)
     dealt = np.resize(np.asarray(config.scales, np.float32), count)
     real = getattr(clouds, "real_scales", None) or [None] * len(clouds.object_ids)

@@ -8,8 +8,8 @@ type; a checkpoint written before grasp types existed has no vocabulary and know
 optimization then made.
 
 Sampling asks for ``sample.grasp_type``: ``any`` deals each object's grasps to the vocabulary in the proportions of
-the model's training codes (a fixed interleaved plan, as optimization from scratch deals its starts), a type name
-asks for that type only; a type the model does not know is refused.
+the model's training codes, or equally with ``sample.type_mix`` even (a fixed interleaved plan, as optimization from
+scratch deals its starts), a type name asks for that type only; a type the model does not know is refused.
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from dexlite_pipeline.io.grasp_store import DEFAULT_GRASP_TYPE
-from dexlite_pipeline.model.config import ANY_GRASP_TYPE
+from dexlite_pipeline.model.config import ANY_GRASP_TYPE, TRAINING_TYPE_MIX
 
 
 class GraspTypeRequestError(ValueError):
@@ -77,12 +77,16 @@ def refusal(vocabulary: tuple[str, ...], request: str) -> str:
     return f"the model knows only {', '.join(known)} grasps ({how}); it cannot make {request} grasps"
 
 
-def requested_codes(vocabulary: tuple[str, ...], code_types: np.ndarray, request: str, count: int) -> np.ndarray:
-    """(count,) the type columns of an object's ``count`` sampled grasps: the training mix's plan for ``any``, else the
-    requested type's column; ``GraspTypeRequestError`` (``refusal``) for a type the model does not know."""
+def requested_codes(vocabulary: tuple[str, ...], code_types: np.ndarray, request: str, count: int,
+                    mix: str = TRAINING_TYPE_MIX) -> np.ndarray:
+    """(count,) the type columns of an object's ``count`` sampled grasps: for ``any`` a plan in the training mix's
+    proportions (``mix`` training) or every known type equally (``mix`` even), else the requested type's column;
+    ``GraspTypeRequestError`` (``refusal``) for a type the model does not know."""
     reason = refusal(vocabulary, request)
     if reason:
         raise GraspTypeRequestError(reason)
     if request == ANY_GRASP_TYPE:
-        return interleaved_plan(training_mix(code_types, vocabulary), count)
+        size = len(known_types(vocabulary))
+        share = training_mix(code_types, vocabulary) if mix == TRAINING_TYPE_MIX else np.full(size, 1.0 / size)
+        return interleaved_plan(share, count)
     return np.full(count, known_types(vocabulary).index(request), dtype=np.int64)

@@ -128,7 +128,8 @@ def synthesize_with_model(
     clouds = ObjectClouds(assets, device)
     drawn = n * (config.evaluator.pool_factor if evaluator is not None else 1)  # samples drawn per object
     object_index = np.repeat(np.arange(len(assets)), drawn)
-    types = np.tile(requested_codes(model.type_vocabulary, model.codes_type.cpu().numpy(), sample_config.grasp_type, drawn), len(assets))
+    types = np.tile(requested_codes(model.type_vocabulary, model.codes_type.cpu().numpy(), sample_config.grasp_type, drawn,
+                                     sample_config.type_mix), len(assets))
     scale = np.concatenate([np.resize(np.asarray(scales[a.object_id], np.float32), drawn) for a in assets])
     training_scales = (checkpoint.get("training_grasps") or {}).get("scale")
     # the training grasps' scales (a model trained at real sizes has many), else the configured ones
