@@ -13,6 +13,7 @@ from dexlite_pipeline.dataset.layout import (
     BATCHES_TABLE, CARD_NAME, CONFIGS_DIR, DISTINCT_ROTATION_DEG, DISTINCT_TRANSLATION_M, GRASP_TYPE_ABSENT, GRASPS_DIR, OBJECT_COLUMNS,
     OBJECTS_TABLE, STORED_ARRAYS, TARGET_DISTINCT_PER_OBJECT, TARGET_OBJECTS,
 )  # fmt: skip
+from dexlite_pipeline.dataset.hand import HAND_MEMBERS
 from dexlite_pipeline.dataset.summary import dataset_summary
 
 # Bins of the per-object distribution of distinct held grasps: (label, lowest, highest or None).
@@ -135,6 +136,12 @@ def _layout() -> list[str]:
         "",
         *_table(["array", "dtype", "shape", "meaning"], arrays),
         "",
+        "One hand per dataset: a batch of a hand other than the Shadow Hand also holds "
+        + ", ".join(f"`{m}`" for m in HAND_MEMBERS)
+        + " (the hand's name or MJCF file, its joints in pose order, the file's SHA-256), and its `hand_pose` is 6 + J numbers "
+        "(palm position, xyz Euler angles, the J joints); a batch without them is the Shadow Hand's (28 numbers). A batch "
+        "of another hand than the dataset's is refused (`dexlite_pipeline.dataset.hand`).",
+        "",
         "`rebuild` in objects.csv says what rebuilds an object's mesh: `household:<object_id>` "
         "(`dexlite_pipeline.objects.household.household_object`), `pybullet_data:<file>` (a file of the pybullet_data "
         "package), or empty when the mesh is not shipped. The support plane (`support_nx/ny/nz`, `support_offset` per unit "
@@ -143,9 +150,21 @@ def _layout() -> list[str]:
     ]
 
 
+def _hand_lines(record: dict) -> tuple[str, str]:
+    """Who the grasps are of and the shape of ``grasps.hand_pose``, for the dataset's hand record ({}: the Shadow Hand)."""
+    if not record:
+        return "the Shadow Hand", "(N, 28) float32: palm position (m), xyz Euler angles (rad), 22 joints (rad)"
+    joints = record["joint_names"]
+    return (f"the hand `{record['hand']}` (joints {', '.join(joints)})",
+            f"(N, {6 + len(joints)}) float32: palm position (m), xyz Euler angles (rad), {len(joints)} joints (rad)")
+
+
 def card_text(dataset_dir: str | os.PathLike, protocol_text: str) -> str:
-    """The Markdown of CARD.md for the dataset at ``dataset_dir``."""
+    """The Markdown of CARD.md for the dataset at ``dataset_dir`` (its hand: ``dataset.hand``)."""
+    from dexlite_pipeline.dataset.store import stored_hand
+
     summary = dataset_summary(dataset_dir)
+    hand_text, pose_text = _hand_lines(stored_hand(dataset_dir))
     objects, grasps, held = summary["objects"], summary["grasps"], summary["held"]
     cpu_hours = sum(b["cpu_seconds_total"] for b in summary["per_batch"]) / 3600.0
     lines = [
@@ -156,7 +175,7 @@ def card_text(dataset_dir: str | os.PathLike, protocol_text: str) -> str:
         "",
         "## What it is",
         "",
-        "Grasps of the Shadow Hand on objects standing on a table, made by the DexLite pipeline (energy optimization, "
+        f"Grasps of {hand_text} on objects standing on a table, made by the DexLite pipeline (energy optimization, "
         "a CVAE generator and data-loop rounds) and tested in MuJoCo. A grasp is *held* (`lift_success`) when the object "
         "stays in the hand as it is lifted off its table. Every grasp a batch tried is kept, held or not, with its "
         "energies and outcome. Held grasps carry a `distinct_label`, consistent over the whole dataset: two grasps of one "
@@ -169,7 +188,7 @@ def card_text(dataset_dir: str | os.PathLike, protocol_text: str) -> str:
         "from dexlite_pipeline.dataset import load_dataset",
         "",
         'grasps, objects = load_dataset("path/to/dataset", held_only=True)  # GraspSet, pandas.DataFrame',
-        'grasps.hand_pose            # (N, 28) float32: palm position (m), xyz Euler angles (rad), 22 joints (rad)',
+        f"grasps.hand_pose            # {pose_text}",
         'grasps.arrays["distinct_label"]  # (N,) int32, per object',
         "```",
         "",

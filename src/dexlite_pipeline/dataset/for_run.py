@@ -55,14 +55,28 @@ def _mismatch(object_id: str, grasps: GraspSet, asset, planes) -> str:
     return ""
 
 
-def shard_dataset_grasps(dataset_dir: str | Path, objects_dirs: list[str], stability_path: str, shard: int, shards: int, table: bool) -> GraspSet:
+def shard_dataset_grasps(
+    dataset_dir: str | Path, objects_dirs: list[str], stability_path: str, shard: int, shards: int, table: bool, hand: str = "shadow",
+) -> GraspSet:
     """The dataset's grasps of the shard's stable training objects, as a lift-validation shard reads.
 
-    Objects are dealt to shards as in the grasp stages. Attributes: the dataset, the objects taken, and the
-    objects left out with their reason (not stable, no prepared asset, a scale or table that differs).
+    Objects are dealt to shards as in the grasp stages. Attributes: the dataset, the objects taken, the
+    objects left out with their reason (not stable, no prepared asset, a scale or table that differs), and the hand
+    record (``hand``, ``joint_names``; none for the Shadow Hand). The dataset must be of ``hand`` (config key ``hand``; a
+    dataset holds one hand's grasps, ``dataset.hand``): ``DatasetError`` in one line naming both hands otherwise.
     """
-    from dexlite_pipeline.dataset.store import load_dataset
+    from dexlite_pipeline.dataset.hand import hand_attrs
+    from dexlite_pipeline.dataset.store import load_dataset, one_hand_or_none, stored_hand
+    from dexlite_pipeline.dataset.validation import DatasetError
+    from dexlite_pipeline.hand.choice import hand_record
+    from dexlite_pipeline.io.grasp_store import pose_width
     from dexlite_pipeline.objects.assets import ObjectAssetError, load_asset
+
+    record = stored_hand(dataset_dir)
+    wanted_hand = hand_attrs(hand_record(hand))
+    if one_hand_or_none([(str(dataset_dir), record), ("config key hand", wanted_hand)]) is None:
+        raise DatasetError(f"{dataset_dir}: a dataset of hand {record.get('hand', 'shadow')}, config key hand is {hand}: give "
+                           "dataset.root a dataset of that hand's grasps (one hand per dataset)")
     from dexlite_pipeline.objects.stability import stable_object_ids
     from dexlite_pipeline.sharding import shard_objects
     from dexlite_pipeline.tabletop import load_support_planes
@@ -95,11 +109,11 @@ def shard_dataset_grasps(dataset_dir: str | Path, objects_dirs: list[str], stabi
     for object_id, reason in left_out.items():
         log.warning("dataset object %s left out: %s", object_id, reason)
     arrays = {name: values[keep] for name, values in grasps.arrays.items()} if grasps is not None else {
-        "hand_pose": np.zeros((0, 28), np.float32), "object_id": np.zeros(0, dtype=object), "scale": np.zeros(0, np.float32),
+        "hand_pose": np.zeros((0, pose_width(record)), np.float32), "object_id": np.zeros(0, dtype=object), "scale": np.zeros(0, np.float32),
         "lift_success": np.zeros(0, bool)}
     held = int(np.asarray(arrays["lift_success"], bool).sum())
     log.info("shard %03d: %d dataset grasps (%d held) of %d objects; %d objects left out", shard, len(arrays["object_id"]), held, len(taken),
              len(left_out))
-    attrs = {"stage": "dataset_grasps", "shard": f"{shard:03d}", "dataset": str(dataset_dir), "objects": taken, "left_out_objects": left_out,
+    attrs = {**record, "stage": "dataset_grasps", "shard": f"{shard:03d}", "dataset": str(dataset_dir), "objects": taken, "left_out_objects": left_out,
              "scene": {"table": bool(table)}}
     return GraspSet(arrays, attrs)

@@ -7,6 +7,7 @@ stability table (each object's resting pose) — and the rules' CPU times from `
 batch (``workflow/rules/model_batch.smk``) has ``results/model_batch/shard_*.zarr`` instead of the lift and
 optimized shards: every grasp tested, each with its source (model or optimization), the objects in its attributes. A held-out object
 prepared at a seeded yaw (``objects.heldout_yaw``) is left out, named with the reason in the batch's config record.
+The batch's hand is the one its shards record (``dataset.hand``): its grasps' attributes carry it to ``add_batch``.
 """
 
 from __future__ import annotations
@@ -96,7 +97,15 @@ def run_batch(results: str | Path, logs: str | Path | None = None) -> RunBatch:
     if not model_made:
         arrays["source"] = np.asarray([str(o) or "optimization" for o in lifted.arrays.get("origin", np.full(len(lifted), "", dtype=object))],
                                       dtype=object)
-    grasps = GraspSet(arrays)
+    # The hand the shards record (one hand, else refused in one line): the batch's (dataset.hand; {} for the Shadow Hand).
+    from dexlite_pipeline.dataset.hand import hand_attrs
+    from dexlite_pipeline.io.grasp_store import GraspStoreError, check_one_hand
+
+    try:
+        hand = hand_attrs(check_one_hand([(str(p), read_grasp_store(p).attrs) for p in shards]))
+    except GraspStoreError as exc:
+        raise DatasetError(str(exc)) from None
+    grasps = GraspSet(arrays, hand)
     # Every object optimized (with or without a held grasp) and every object with a tested grasp (an import's too).
     object_ids = sorted({o for store in made for o in store.attrs.get("objects", [])} | {str(o) for o in grasps.object_id})
     objects_dirs = [d for d in (results / "objects", results / "dexgraspnet" / "objects") if (d / "catalog.parquet").is_file()]
@@ -128,6 +137,6 @@ def run_batch(results: str | Path, logs: str | Path | None = None) -> RunBatch:
     config = json.loads(json.dumps(config, default=str))
     if left_out:
         config["left_out_objects"] = left_out  # the batch's config record keeps them, with the reason (dataset-add prints them)
-        grasps = grasps.select(np.flatnonzero(~np.isin(grasps.object_id.astype(str), sorted(left_out))))
+        grasps = GraspSet(grasps.select(np.flatnonzero(~np.isin(grasps.object_id.astype(str), sorted(left_out)))).arrays, grasps.attrs)
     return RunBatch(grasps, pd.DataFrame(rows), stage_cpu_seconds(logs), config, lift_protocol(lift_attrs.get("lift_config", {})), shards,
                     model_made)

@@ -64,7 +64,8 @@ def assign_distinct_labels(
     for object_id, label in zip(known_object_id[reps], known_label[reps]):
         next_label[object_id] = max(next_label.get(object_id, 0), int(label) + 1)
 
-    poses = np.concatenate([np.asarray(known_pose, np.float64).reshape(-1, 28)[reps], np.asarray(new_pose, np.float64)[held_rows]])
+    width = np.asarray(new_pose).shape[1]  # 6 + J numbers of the batch's hand (the dataset's: one hand per dataset)
+    poses = np.concatenate([np.asarray(known_pose, np.float64).reshape(-1, width)[reps], np.asarray(new_pose, np.float64)[held_rows]])
     groups = np.concatenate([object_scale_keys(known_object_id[reps], np.asarray(known_scale)[reps]),
                              object_scale_keys(new_object_id[held_rows], np.asarray(new_scale)[held_rows])])  # fmt: skip
     clusters = distinct_grasp_labels(poses, groups, DISTINCT_TRANSLATION_M, DISTINCT_ROTATION_DEG)

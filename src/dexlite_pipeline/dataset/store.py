@@ -19,6 +19,7 @@ import pandas as pd
 
 from dexlite_pipeline.atomic import atomic_path, write_text_atomic
 from dexlite_pipeline.dataset.files import read_npz, read_table, write_npz_deterministic, write_table
+from dexlite_pipeline.dataset.hand import HAND_MEMBERS, hand_attrs, hand_members, one_hand, split_hand_members
 from dexlite_pipeline.dataset.labels import assign_distinct_labels
 from dexlite_pipeline.dataset.layout import (
     ASSIGNED_ARRAYS, BATCH_ARRAY, BATCH_COLUMNS, BATCH_INT_COLUMNS, BATCHES_TABLE, GRASP_TYPE_ARRAY, OBJECT_COLUMNS,
@@ -26,7 +27,7 @@ from dexlite_pipeline.dataset.layout import (
     ArraySpec, BatchRecord, batch_name, config_path, config_digest, grasps_path,
 )  # fmt: skip
 from dexlite_pipeline.dataset.validation import DatasetError, check_record, normalize_grasp_arrays, normalize_objects_frame
-from dexlite_pipeline.io.grasp_store import GraspSet
+from dexlite_pipeline.io.grasp_store import GraspSet, pose_width
 
 OBJECT_FLOAT_COLUMNS = OBJECT_OPTIONAL_FLOAT_COLUMNS  # real_radius_m, support plane, resting pose
 OBJECT_LIST_LIMIT = 300  # characters of batches.csv's compact object list before "... (+k more)"
@@ -136,8 +137,11 @@ def add_batch(dataset_dir: str | os.PathLike, grasps: GraspSet, objects: pd.Data
     return _add_batch(Path(dataset_dir), grasps, objects, record, allow_present=False)
 
 
-def _labelled_grasps_and_scales(dataset_dir: Path, batches: pd.DataFrame, object_ids: set[str]) -> tuple[dict, dict[str, list]]:
-    """The dataset's held (labelled) grasps of ``object_ids`` in dataset order, and every object's stored scales.
+def _labelled_grasps_and_scales(
+    dataset_dir: Path, batches: pd.DataFrame, object_ids: set[str], width: int = 28
+) -> tuple[dict, dict[str, list]]:
+    """The dataset's held (labelled) grasps of ``object_ids`` in dataset order, and every object's stored scales
+    (``width``: numbers in a pose of the dataset's hand).
 
     Poses are read only from batches that hold such grasps (an optimization batch, of new objects, reads none).
     """
@@ -152,7 +156,7 @@ def _labelled_grasps_and_scales(dataset_dir: Path, batches: pd.DataFrame, object
             old.update(read_npz(grasps_path(dataset_dir, previous), ("hand_pose",)))
             for key in known:
                 known[key].append(old[key][mine])
-    empty = {"object_id": np.zeros(0, str), "scale": np.zeros(0, np.float32), "hand_pose": np.zeros((0, 28), np.float32),
+    empty = {"object_id": np.zeros(0, str), "scale": np.zeros(0, np.float32), "hand_pose": np.zeros((0, width), np.float32),
              "distinct_label": np.zeros(0, np.int32)}  # fmt: skip
     return {key: np.concatenate(parts) if parts else empty[key] for key, parts in known.items()}, scales_of
 
@@ -173,14 +177,19 @@ def _add_batch(dataset_dir: Path, grasps: GraspSet, objects: pd.DataFrame | None
     check_record(record)
     if not isinstance(grasps, GraspSet):
         raise DatasetError(f"grasps: expected a GraspSet, got {type(grasps).__name__}")
-    arrays = normalize_grasp_arrays(grasps.arrays)
+    hand = hand_attrs(grasps.attrs)  # {} for the Shadow Hand
+    arrays = normalize_grasp_arrays(grasps.arrays, pose_width(hand))
     frame = normalize_objects_frame(objects)
     batches = read_batches(dataset_dir)
     stored = read_objects(dataset_dir, batches)
+    dataset_hand = stored_hand(dataset_dir, batches)
+    if batch_ids(batches) and one_hand_or_none([("dataset", dataset_hand), ("batch", hand)]) is None:
+        raise DatasetError(f"{dataset_dir}: holds grasps of {hand_label(dataset_hand)}, this batch is of {hand_label(hand)}: a dataset holds "
+                           "one hand's grasps (add it to a dataset folder of its own)")
     grasp_objects = sorted(set(arrays["object_id"].tolist()))
     _check_objects(record.kind, frame, grasp_objects, stored, allow_present)
 
-    known, scales_of = _labelled_grasps_and_scales(dataset_dir, batches, set(grasp_objects))
+    known, scales_of = _labelled_grasps_and_scales(dataset_dir, batches, set(grasp_objects), pose_width(hand))
     arrays["distinct_label"], added = assign_distinct_labels(
         known["object_id"], known["scale"], known["hand_pose"], known["distinct_label"],
         arrays["object_id"], arrays["scale"], arrays["hand_pose"], arrays["lift_success"],
@@ -197,7 +206,7 @@ def _add_batch(dataset_dir: Path, grasps: GraspSet, objects: pd.DataFrame | None
     row = pd.DataFrame([_batch_row(name, record, arrays, sorted(set(frame["object_id"]) | set(grasp_objects)), added)])
     batches = pd.concat([batches, row], ignore_index=True) if len(batches) else row
 
-    write_npz_deterministic(grasps_path(dataset_dir, batch_id), arrays)
+    write_npz_deterministic(grasps_path(dataset_dir, batch_id), {**arrays, **hand_members(hand)})  # a Shadow Hand batch: no hand members
     config_text = json.dumps(record.config, sort_keys=True, indent=2, default=_json_default, allow_nan=True) + "\n"
     write_text_atomic(config_path(dataset_dir, batch_id), config_text)
     write_table(table, OBJECT_COLUMNS, dataset_dir / OBJECTS_TABLE)
@@ -237,10 +246,41 @@ def _absent_rows(spec: ArraySpec, rows: int) -> np.ndarray:
 
 
 def load_batch(dataset_dir: str | os.PathLike, batch_id: int) -> GraspSet:
-    """Every grasp of one batch as stored (strings as object arrays), with ``batch``."""
-    arrays = _as_loaded(read_npz(grasps_path(dataset_dir, batch_id)))
+    """Every grasp of one batch as stored (strings as object arrays), with ``batch``; its attributes name the batch and,
+    for a hand other than the Shadow Hand, its hand record (``dataset.hand``)."""
+    arrays, hand = split_hand_members(read_npz(grasps_path(dataset_dir, batch_id)))
+    arrays = _as_loaded(arrays)
     arrays[BATCH_ARRAY] = np.full(len(arrays["object_id"]), int(batch_id), np.int32)
-    return GraspSet(arrays, {"batch": batch_name(batch_id)})
+    return GraspSet(arrays, {"batch": batch_name(batch_id), **hand})
+
+
+def batch_hand(dataset_dir: str | os.PathLike, batch_id: int) -> dict:
+    """The hand record of one batch (``dataset.hand``: {} for the Shadow Hand), read without its grasps."""
+    return split_hand_members(read_npz(grasps_path(dataset_dir, batch_id), HAND_MEMBERS))[1]
+
+
+def stored_hand(dataset_dir: str | os.PathLike, batches: pd.DataFrame | None = None) -> dict:
+    """The hand record the dataset's batches share ({} for the Shadow Hand, and for a dataset without batches);
+    ``DatasetError`` in one line naming two batches of different hands."""
+    batches = read_batches(dataset_dir) if batches is None else batches
+    named = [(f"batch {batch_name(b)}", batch_hand(dataset_dir, b)) for b in batch_ids(batches)]
+    try:
+        return one_hand(named)
+    except ValueError as exc:
+        raise DatasetError(f"{dataset_dir}: {exc}") from None
+
+
+def one_hand_or_none(named: list[tuple[str, dict]]) -> dict | None:
+    """``one_hand`` of the records, or None when they differ."""
+    try:
+        return one_hand(named)
+    except ValueError:
+        return None
+
+
+def hand_label(record: dict) -> str:
+    """A hand record in a message: "hand shadow" or "hand NAME"."""
+    return f"hand {record.get('hand', 'shadow')}"
 
 
 def load_dataset(dataset_dir: str | os.PathLike, object_ids=None, held_only: bool = False) -> tuple[GraspSet, pd.DataFrame]:
@@ -250,13 +290,15 @@ def load_dataset(dataset_dir: str | os.PathLike, object_ids=None, held_only: boo
     arrays of str), ``distinct_label`` and ``batch`` (int32). A support-plane array that some
     batches lack is NaN in their rows. ``grasp_type`` is always there: a batch made before grasp
     types existed (no ``grasp_type``) holds power grasps, the only type optimization then made
-    (``layout.GRASP_TYPE_ABSENT``). Object rows: objects.csv, restricted to ``object_ids``.
+    (``layout.GRASP_TYPE_ABSENT``). Object rows: objects.csv, restricted to ``object_ids``. The set's attributes are
+    the dataset's hand record (``dataset.hand``: {} for the Shadow Hand; poses of 6 + J numbers for another hand).
     """
     dataset_dir = Path(dataset_dir)
     if not (dataset_dir / BATCHES_TABLE).is_file():
         raise DatasetError(f"{dataset_dir}: no {BATCHES_TABLE}: not a grasp dataset (add_batch makes one)")
     batches = read_batches(dataset_dir)
     objects = read_objects(dataset_dir, batches)
+    hand = stored_hand(dataset_dir, batches)
     if object_ids is not None:
         wanted = {str(o) for o in ([object_ids] if isinstance(object_ids, str) else object_ids)}
         unknown = sorted(wanted - set(objects["object_id"]))
@@ -273,12 +315,12 @@ def load_dataset(dataset_dir: str | os.PathLike, object_ids=None, held_only: boo
             keep &= arrays["lift_success"]
         parts.append({k: v[keep] for k, v in arrays.items()})
     if not parts:
-        return GraspSet(_empty_arrays(), {}), objects
+        return GraspSet(_empty_arrays(), hand), objects
     for name, spec in OPTIONAL_ARRAYS.items():
         if name == GRASP_TYPE_ARRAY or any(name in p for p in parts):
             for p in parts:
                 p.setdefault(name, _absent_rows(spec, len(p["object_id"])))
-    return GraspSet({k: np.concatenate([p[k] for p in parts]) for k in parts[0]}, {}), objects
+    return GraspSet({k: np.concatenate([p[k] for p in parts]) for k in parts[0]}, hand), objects
 
 
 def _record_of(dataset_dir: Path, row: pd.Series) -> BatchRecord:
@@ -336,11 +378,12 @@ def export_dexgraspnet(dataset_dir: str | os.PathLike, out_dir: str | os.PathLik
     ``grasp_type``); returns its counts.
 
     ``objects_dirs``: prepared objects folders (``<dir>/assets/<object_id>``) whose convex pieces
-    become ``meshdata/<object_id>/coacd/decomposed.obj``; without them only ``dataset/`` is written.
+    become ``meshdata/<object_id>/coacd/decomposed.obj``; without them only ``dataset/`` is written. A dataset of another
+    hand than the Shadow Hand: ``qpos`` names its joints and ``hand.json`` records the hand and its joint names.
     """
     from dexlite_pipeline.io.dexgraspnet import export_dexgraspnet as export_grasp_set
 
     grasps, _ = load_dataset(dataset_dir, held_only=True)
-    held = GraspSet({key: grasps.arrays[key] for key in ("hand_pose", "object_id", "scale", GRASP_TYPE_ARRAY)}, {})
+    held = GraspSet({key: grasps.arrays[key] for key in ("hand_pose", "object_id", "scale", GRASP_TYPE_ARRAY)}, grasps.attrs)  # the hand
     return export_grasp_set(held, out_dir, objects_dirs)
 

@@ -5,6 +5,8 @@ Everything is checked before anything is written, so a refused batch leaves the 
 
 from __future__ import annotations
 
+import dataclasses
+
 import math
 from collections.abc import Mapping
 from datetime import datetime
@@ -63,9 +65,10 @@ def _converted(name: str, value, spec: ArraySpec, rows: int) -> np.ndarray:
     return array.astype(spec.kind)
 
 
-def normalize_grasp_arrays(arrays: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
+def normalize_grasp_arrays(arrays: Mapping[str, np.ndarray], pose_width: int | None = None) -> dict[str, np.ndarray]:
     """The batch's arrays in the stored dtypes (float32, bool, fixed-width strings), checked against the schema.
 
+    ``pose_width``: numbers in one ``hand_pose`` (6 + J for the batch's hand; None: the Shadow Hand's 28).
     Required arrays must all be there, the support plane's two both or neither, ``grasp_type`` without empty names; the
     arrays the dataset assigns (``distinct_label``, and ``batch`` of a loaded set) are dropped.
     Held grasps (``lift_success``) must have a finite pose and a positive finite scale.
@@ -84,6 +87,8 @@ def normalize_grasp_arrays(arrays: Mapping[str, np.ndarray]) -> dict[str, np.nda
     rows = int(hand_pose.shape[0]) if hand_pose.ndim else 0
     out = {}
     for name, spec in {**REQUIRED_ARRAYS, **OPTIONAL_ARRAYS}.items():
+        if name == "hand_pose" and pose_width is not None:
+            spec = dataclasses.replace(spec, trailing_shape=(int(pose_width),))
         if name in arrays:
             out[name] = _converted(name, arrays[name], spec, rows)
     for name in ("object_id", GRASP_TYPE_ARRAY):
