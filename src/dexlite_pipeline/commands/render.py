@@ -1,13 +1,14 @@
 """``dexlite render GRASPS.zarr --index K --out FILE.png [--objects DIR]``: picture of one grasp.
 
-``--objects`` defaults to the ``objects/`` folder beside the store (a ``dexlite grasp`` output folder).
+``--objects`` defaults to the ``objects/`` folder beside the store (a ``dexlite grasp`` output folder). The hand drawn is
+the store's (attribute ``hand``; a hand from its MJCF as its collision shapes, ``report.render``).
 """
 
 from __future__ import annotations
 
 import argparse
 
-from dexlite_pipeline.commands import add_objects_argument, objects_dirs, refuse_other_hand_store
+from dexlite_pipeline.commands import add_objects_argument, objects_dirs
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -22,7 +23,6 @@ def run(args: argparse.Namespace) -> int:
     from dexlite_pipeline.report.render import render_store_row
 
     objects = objects_dirs(args)
-    refuse_other_hand_store(args.grasps, "render")
     render_store_row(args.grasps, args.index, objects, args.out, args.size_px)
     print(f"wrote {args.out}")
     return 0

@@ -1,7 +1,7 @@
 """An interactive 3-D view of grasps: one self-contained HTML file that works offline.
 
-The object mesh and the Shadow Hand at each grasp pose (the gym model's visual meshes, placed
-by ``ShadowHand.forward``, as in ``report.render``), drawn with plotly's ``Mesh3d``; plotly.js
+The object mesh and the grasps' hand at each grasp pose (the Shadow Hand's visual meshes, or a
+hand from its MJCF as its collision shapes, placed by the hand's ``forward``, as in ``report.render``), drawn with plotly's ``Mesh3d``; plotly.js
 is embedded in the file, so nothing is fetched from the network. A slider shows one grasp at
 a time, titled with its results (held or not, six-direction pushes, energies). The view turns
 and zooms with the mouse. Meshes are decimated (``HAND_FACES``, ``OBJECT_FACES``) and arrays
@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dexlite_pipeline.report.render import HAND_RGB, OBJECT_RGB, HandVisual, hand_mesh_world, hand_visual, object_mesh_world, type_of
+from dexlite_pipeline.report.render import HAND_RGB, OBJECT_RGB, HandVisual, hand_mesh_world, hand_of_store, hand_visual, object_mesh_world, type_of, visual_of
 
 HAND_FACES = 3000  # faces of the whole decimated hand (the full visual mesh has about 20,000)
 OBJECT_FACES = 4000  # an object mesh with more faces is decimated to this many
@@ -67,8 +67,21 @@ def decimate(vertices: np.ndarray, faces: np.ndarray, max_faces: int) -> tuple[n
 
 @functools.cache
 def decimated_hand_visual(max_faces: int = HAND_FACES) -> HandVisual:
-    """The hand's visual mesh with about ``max_faces`` faces, each link's geoms decimated in the link's frame."""
-    full = hand_visual()
+    """The Shadow Hand's visual mesh with about ``max_faces`` faces, each link's geoms decimated in the link's frame."""
+    return decimated_visual(hand_visual(), max_faces)
+
+
+def view_visual(hand) -> HandVisual:
+    """What the 3-D view draws of ``hand``: the Shadow Hand's decimated visual mesh, or a described hand's collision
+    shapes (``report.render.visual_of``) decimated to about ``HAND_FACES`` faces when they have more."""
+    if getattr(hand, "description", None) is None:
+        return decimated_hand_visual()
+    full = visual_of(hand)
+    return full if len(full.faces) <= HAND_FACES else decimated_visual(full, HAND_FACES)
+
+
+def decimated_visual(full: HandVisual, max_faces: int) -> HandVisual:
+    """``full`` with about ``max_faces`` faces, each link's geoms decimated in the link's frame."""
     keep = max_faces / len(full.faces)
     face_link = full.vertex_link[full.faces[:, 0]]
     vertices, faces, links = [], [], []
@@ -97,11 +110,12 @@ def _mesh_trace(vertices: np.ndarray, faces: np.ndarray, color: str, name: str, 
     )
 
 
-def grasp_view_figure(objects: Mapping[str, tuple[np.ndarray, np.ndarray]], grasps: Sequence[ViewGrasp], title: str = ""):
+def grasp_view_figure(objects: Mapping[str, tuple[np.ndarray, np.ndarray]], grasps: Sequence[ViewGrasp], title: str = "", hand=None):
     """A plotly figure: each object mesh once, the hand at each grasp, a slider showing one grasp at a time.
 
     ``objects`` maps an object key to its mesh (vertices in metres in the grasps' object frame,
-    faces); every grasp's ``object_key`` must be one of its keys.
+    faces); every grasp's ``object_key`` must be one of its keys. ``hand``: the hand model the poses are of (None: the
+    Shadow Hand).
     """
     import plotly.graph_objects as go
 
@@ -113,7 +127,8 @@ def grasp_view_figure(objects: Mapping[str, tuple[np.ndarray, np.ndarray]], gras
     if missing:
         raise GraspViewError(f"no mesh for object(s) {', '.join(missing)}")
     keys = list(dict.fromkeys(g.object_key for g in grasps))
-    hand, visual = ShadowHand(), decimated_hand_visual()
+    hand = ShadowHand() if hand is None else hand
+    visual = view_visual(hand)
     fig = go.Figure()
     for key in keys:
         v, f = decimate(*objects[key], OBJECT_FACES)
@@ -144,22 +159,24 @@ def _title(title: str, label: str) -> str:
     return f"{title}<br>{label}" if title else label
 
 
-def grasp_view_html(objects, grasps: Sequence[ViewGrasp], title: str = "", full_html: bool = True, height_px: int = 640) -> str:
-    """The view as HTML with plotly.js inlined: a whole page, or (``full_html=False``) a ``<div>`` to embed."""
+def grasp_view_html(objects, grasps: Sequence[ViewGrasp], title: str = "", full_html: bool = True, height_px: int = 640, hand=None) -> str:
+    """The view as HTML with plotly.js inlined: a whole page, or (``full_html=False``) a ``<div>`` to embed; ``hand`` the
+    hand model of the poses (None: the Shadow Hand)."""
     import hashlib
 
-    fig = grasp_view_figure(objects, grasps, title)
+    fig = grasp_view_figure(objects, grasps, title, hand)
     # plotly names the div with a random id unless given one: an id from the content keeps the page deterministic
     div_id = "grasp-view-" + hashlib.sha256(fig.to_json().encode()).hexdigest()[:16]
     return fig.to_html(full_html=full_html, include_plotlyjs=True, default_height=f"{height_px}px", default_width="100%",
                        config={"displaylogo": False, "responsive": True}, div_id=div_id)
 
 
-def write_grasp_view(path: str | Path, objects, grasps: Sequence[ViewGrasp], title: str = "") -> Path:
-    """Write the view to ``path`` (one self-contained HTML file, written atomically) and return the path."""
+def write_grasp_view(path: str | Path, objects, grasps: Sequence[ViewGrasp], title: str = "", hand=None) -> Path:
+    """Write the view to ``path`` (one self-contained HTML file, written atomically) and return the path; ``hand`` the
+    hand model of the poses (None: the Shadow Hand)."""
     from dexlite_pipeline.atomic import write_text_atomic
 
-    html = grasp_view_html(objects, grasps, title)
+    html = grasp_view_html(objects, grasps, title, hand=hand)
     write_text_atomic(path, html)
     return Path(path)
 
@@ -233,17 +250,19 @@ def _shown(view: list[ViewGrasp], total: int) -> str:
 
 
 def write_grasp_set_view(path: str | Path, grasps, objects_dirs, max_grasps: int = DEFAULT_MAX_GRASPS, title: str = "") -> Path | None:
-    """Write ``view.html`` for a ``GraspSet`` (e.g. the held grasps of ``dexlite grasp``); None when it has no drawable grasp."""
+    """Write ``view.html`` for a ``GraspSet`` (e.g. the held grasps of ``dexlite grasp``), drawing the hand its attributes
+    record (``report.render.hand_of_store``); None when it has no drawable grasp."""
     objects, view = grasp_set_view(grasps, objects_dirs, max_grasps)
     if not view:
         return None
     shown = _shown(view, len(grasps))
-    return write_grasp_view(path, objects, view, f"{title}: {shown}" if title else shown)
+    return write_grasp_view(path, objects, view, f"{title}: {shown}" if title else shown, hand_of_store(grasps.attrs))
 
 
 def grasp_view_div(grasps, rows, objects_dirs, max_grasps: int = 2 * DEFAULT_MAX_GRASPS, height_px: int = 560) -> str | None:
-    """The view of the chosen ``rows`` as an HTML ``<div>`` with plotly.js inlined, to embed in a page; None when none is drawable."""
+    """The view of the chosen ``rows`` as an HTML ``<div>`` with plotly.js inlined, to embed in a page; None when none is
+    drawable. The hand drawn is the one the grasps' attributes record (``report.render.hand_of_store``)."""
     objects, view = grasp_set_view(grasps, objects_dirs, max_grasps, rows=rows)
     if not view:
         return None
-    return grasp_view_html(objects, view, _shown(view, len(rows)), full_html=False, height_px=height_px)
+    return grasp_view_html(objects, view, _shown(view, len(rows)), full_html=False, height_px=height_px, hand=hand_of_store(grasps.attrs))

@@ -64,9 +64,7 @@ def load_report_inputs(files: EvaluationFiles, sim_paths: list[str], history_pat
     import pandas as pd
 
     from dexlite_pipeline.evaluation.protocol import evaluate_config_from
-    from dexlite_pipeline.evaluation.tables import concatenate_shards
     from dexlite_pipeline.evaluation.step_keys import REPORT_KEYS
-    from dexlite_pipeline.io.grasp_store import read_grasp_store
     from dexlite_pipeline.report.run_facts import run_facts
     from dexlite_pipeline.settings import build_config
 
@@ -82,7 +80,7 @@ def load_report_inputs(files: EvaluationFiles, sim_paths: list[str], history_pat
         per_object=pd.read_csv(files.per_object),
         convergence=pd.read_csv(files.convergence),
         history=history,
-        simulated=concatenate_shards([read_grasp_store(p) for p in sim_paths]),
+        simulated=simulated_with_hand(sim_paths),
         lift_config=record.get("lift_config") or {},
         objects_dirs=objects_dirs,
         rendered_per_method=evaluate_config_from(config, REPORT_KEYS).rendered_per_method,
@@ -94,3 +92,17 @@ def load_report_inputs(files: EvaluationFiles, sim_paths: list[str], history_pat
         run_facts=run_facts(config, benchmarks_dir),
         data_loop=pd.read_csv(loop_path) if loop_path else None,
     )
+
+
+def simulated_with_hand(sim_paths: list[str]):
+    """The evaluation's simulated shards as one set (``concatenate_shards``; None when none holds grasps) whose attributes
+    are the hand record the shards share (``hand``, ``joint_names``: what the pictures and the 3-D view draw);
+    ``GraspStoreError`` in one line when two shards are of different hands."""
+    from dexlite_pipeline.evaluation.tables import concatenate_shards
+    from dexlite_pipeline.io.grasp_store import check_one_hand, read_grasp_store
+
+    shards = [read_grasp_store(p) for p in sim_paths]
+    simulated = concatenate_shards(shards)
+    if simulated is not None:
+        simulated.attrs.update(check_one_hand([(str(p), s.attrs) for p, s in zip(sim_paths, shards)]))
+    return simulated

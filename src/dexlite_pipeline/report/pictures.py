@@ -153,10 +153,13 @@ def grasp_gallery(inputs: ReportInputs) -> str:
     simulated = inputs.simulated
     if simulated is None or len(simulated) == 0 or inputs.rendered_per_method == 0:
         return "<p>No simulated grasps to picture.</p>"
-    from dexlite_pipeline.hand import ShadowHand
-    from dexlite_pipeline.report.render import type_of
+    from dexlite_pipeline.report.render import hand_of_store, type_of
 
-    hand = ShadowHand()
+    try:
+        hand = hand_of_store(simulated.attrs)  # the hand the evaluation's stores record
+    except ValueError as exc:
+        log.warning("report: no pictures: %s", exc)
+        return f"<p>Not available: {html.escape(str(exc))}</p>"
     parts = []
     for method in gallery_methods(inputs):
         cells = []

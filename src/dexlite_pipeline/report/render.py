@@ -1,8 +1,11 @@
 """Headless pictures of grasps: hand and object together, drawn with plain matplotlib.
 
 Runs on any CPU machine without a display or GL library (matplotlib's Agg backend).
-The hand is the gym model's own visual meshes (read from the compiled MjModel, so no
-STL parsing here), each placed by ``ShadowHand.forward``; the object is its normalized
+The Shadow Hand is the gym model's own visual meshes (read from the compiled MjModel, so no
+STL parsing here), each placed by ``ShadowHand.forward``; a hand from its MJCF (``DescribedHand``)
+is its collision shapes (those its energies and ``dexlite hand-check`` use: primitives as
+triangle meshes, mesh geoms as the file's meshes), placed by its own ``forward``. The hand
+of a grasp store is the one its attributes record (``hand_of_store``). The object is its normalized
 mesh times the grasp's scale. Both go into ONE Poly3DCollection, so matplotlib's
 painter's sort orders hand and object faces together; faces are shaded by a fixed
 headlight (Lambert) so shape reads without a GL renderer.
@@ -77,15 +80,100 @@ def hand_visual() -> HandVisual:
     return HandVisual(np.concatenate(vertices), np.concatenate(faces), np.concatenate(links))
 
 
-def hand_mesh_world(hand: ShadowHand, hand_pose: np.ndarray, visual: HandVisual | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """The hand's visual mesh (vertices in metres in the object frame, faces) for one 28-vector pose.
+def _primitive_mesh(kind: str, size) -> tuple[np.ndarray, np.ndarray]:
+    """Vertices (m) and faces of a MuJoCo primitive geom of ``kind`` and ``size`` (``geom_size``) in the geom's frame."""
+    import trimesh
 
-    ``visual`` replaces the full visual mesh (e.g. a decimated copy for the interactive view).
+    r, h = float(size[0]), float(size[1])
+    if kind == "sphere":
+        mesh = trimesh.creation.icosphere(subdivisions=2, radius=r)
+    elif kind == "capsule":  # radius, half length of the segment along z
+        mesh = trimesh.creation.capsule(height=2 * h, radius=r, count=[12, 12])
+    elif kind == "cylinder":
+        mesh = trimesh.creation.cylinder(radius=r, height=2 * h, sections=16)
+    elif kind == "ellipsoid":
+        mesh = trimesh.creation.icosphere(subdivisions=2, radius=1.0)
+        mesh.vertices = mesh.vertices * np.asarray(size, dtype=np.float64)[:3]
+    elif kind == "box":
+        mesh = trimesh.creation.box(extents=2 * np.asarray(size, dtype=np.float64)[:3])
+    else:
+        raise RenderError(f"cannot draw a collision shape of kind {kind}")
+    return np.asarray(mesh.vertices, np.float64), np.asarray(mesh.faces, np.int64)
+
+
+def described_hand_visual(description) -> HandVisual:
+    """The collision shapes of a hand from its MJCF (``HandDescription.shapes``) as triangle meshes in their links'
+    frames (m): a primitive drawn as itself, a mesh geom as the file's mesh; each vertex's link indexes
+    ``description.links``, the order of the hand's ``forward`` frames."""
+    model = None
+    index = {name: i for i, name in enumerate(description.links)}
+    vertices, faces, links = [], [], []
+    offset = 0
+    for shape in description.shapes:
+        if shape.kind == "mesh":
+            model = description.mj_model() if model is None else model
+            mesh_id = int(model.geom_dataid[shape.geom])
+            v0, nv = int(model.mesh_vertadr[mesh_id]), int(model.mesh_vertnum[mesh_id])
+            f0, nf = int(model.mesh_faceadr[mesh_id]), int(model.mesh_facenum[mesh_id])
+            local_v = np.asarray(model.mesh_vert[v0 : v0 + nv], dtype=np.float64)
+            local_f = np.asarray(model.mesh_face[f0 : f0 + nf], dtype=np.int64)
+        else:
+            local_v, local_f = _primitive_mesh(shape.kind, shape.size)
+        from dexlite_pipeline.hand.rotation import quat_wxyz_to_matrix
+
+        rot = quat_wxyz_to_matrix(torch.as_tensor(shape.quat, dtype=torch.float64)).numpy()
+        vertices.append(local_v @ rot.T + np.asarray(shape.pos, dtype=np.float64))
+        faces.append(local_f + offset)
+        links.append(np.full(len(local_v), index[shape.link]))
+        offset += len(local_v)
+    if not vertices:
+        raise RenderError(f"hand {description.name}: no collision shape to draw")
+    return HandVisual(np.concatenate(vertices), np.concatenate(faces), np.concatenate(links))
+
+
+def visual_of(hand) -> HandVisual:
+    """What is drawn of ``hand``: the Shadow Hand's visual meshes (``hand_visual``), or a described hand's collision shapes
+    (``described_hand_visual``, built once per hand object)."""
+    description = getattr(hand, "description", None)
+    if description is None:
+        return hand_visual()
+    cached = getattr(hand, "_report_visual", None)
+    if cached is None:
+        cached = described_hand_visual(description)
+        hand._report_visual = cached
+    return cached
+
+
+def hand_of_store(attrs: dict, device="cpu"):
+    """The hand model a grasp store's poses are of (attribute ``hand``; none: the Shadow Hand), for drawing them.
+
+    A hand named by a file must still be that file (its SHA-256 recorded) and joints: ``RenderError`` in one line otherwise."""
+    from dexlite_pipeline.hand.choice import hand_record, resolve_hand
+    from dexlite_pipeline.io.grasp_store import DEFAULT_HAND, hand_identity, hand_joint_names, store_hand
+
+    name = store_hand(attrs)
+    if name == DEFAULT_HAND:
+        return ShadowHand(device=device)
+    try:
+        record = hand_record(name)
+    except ValueError as exc:
+        raise RenderError(f"the grasps' hand {name} cannot be made: {exc}") from exc
+    if hand_identity(record) != hand_identity(attrs) or list(record["joint_names"]) != list(hand_joint_names(attrs)):
+        raise RenderError(f"the grasps' hand {name} is not the hand that file describes now (its contents or joints changed)")
+    return resolve_hand(name, device)
+
+
+def hand_mesh_world(hand: ShadowHand, hand_pose: np.ndarray, visual: HandVisual | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The hand's mesh (vertices in metres in the object frame, faces) for one pose (28 numbers for the Shadow Hand,
+    6 + J for a described hand: ``hand.pose_dim``).
+
+    ``visual`` replaces the hand's full mesh (``visual_of``; e.g. a decimated copy for the interactive view).
     """
     pose = np.asarray(hand_pose, dtype=np.float64).reshape(-1)
-    if pose.shape != (POSE_DIM,) or not np.isfinite(pose).all():
-        raise RenderError(f"hand_pose must be {POSE_DIM} finite numbers, got shape {pose.shape}")
-    visual = hand_visual() if visual is None else visual
+    width = int(getattr(hand, "pose_dim", POSE_DIM))
+    if pose.shape != (width,) or not np.isfinite(pose).all():
+        raise RenderError(f"hand_pose must be {width} finite numbers, got shape {pose.shape}")
+    visual = visual_of(hand) if visual is None else visual
     with torch.no_grad():
         frames = hand.forward(torch.as_tensor(pose[None], dtype=hand.dtype, device=hand.device))
         rot = frames.rotation[0].double().cpu().numpy()[visual.vertex_link]  # (V, 3, 3)
@@ -230,7 +318,6 @@ def render_store_row(grasps_path: str, index: int, objects_dirs: list[str], out:
     Raises ``RenderError`` naming the store and row for an index out of range, a pose that is
     not finite or a scale that is not positive.
     """
-    from dexlite_pipeline.hand import ShadowHand
     from dexlite_pipeline.io.grasp_store import read_grasp_store
 
     grasps = read_grasp_store(grasps_path)
@@ -245,5 +332,5 @@ def render_store_row(grasps_path: str, index: int, objects_dirs: list[str], out:
     title = f"{object_id}  scale {scale:.3f}  grasp {index}  {type_of(grasps.arrays, index)}"
     if "lift_success" in grasps.arrays:
         title += "  lift " + ("success" if bool(grasps.arrays["lift_success"][index]) else "failure")
-    render_grasp_png(ShadowHand(), grasps.hand_pose[index], object_id, scale, objects_dirs, out=out, title=title, size_px=size_px,
+    render_grasp_png(hand_of_store(grasps.attrs), grasps.hand_pose[index], object_id, scale, objects_dirs, out=out, title=title, size_px=size_px,
                      table=grasp_table(grasps, index))
