@@ -26,7 +26,7 @@ localrules:
 
 rule all:
     input:
-        default_outputs,  # final_outputs(); refused in one line when config key hand is not shadow
+        default_outputs,  # final_outputs(), with any hand (config key hand)
     default_target: True
 
 

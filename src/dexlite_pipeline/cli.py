@@ -58,7 +58,8 @@ COMMANDS: dict[str, tuple[str, str]] = {**USER_COMMANDS, **PIPELINE_STAGES}
 # The stages that take config key ``hand`` (any hand: docs/hands.md); the other stages know the Shadow Hand only and
 # refuse another in one line (``settings.model_stage_hand_problem``) before any work.
 HAND_STAGES = ("prepare-objects", "stability-filter", "optimize-grasps", "curate", "lift-validate", "train-cvae", "sample-grasps", "post-optimize",
-               "evaluator-examples", "train-evaluator", "evaluate")
+               "evaluator-examples", "train-evaluator", "evaluate", "loop-initial-set", "loop-sample", "loop-post-optimize", "loop-validate",
+               "loop-merge", "loop-train", "loop-summary", "loop-table", "report", "dataset-grasps")
 DESCRIPTION = "DexLite: grasps that hold for the Shadow Hand, on your own meshes, and the pipeline that learns to make them."
 HELP_WIDTH = 22  # column of the commands' descriptions in ``dexlite --help``
 

@@ -38,9 +38,8 @@ SHADOW = "shadow"  # config key ``hand``'s default: the built-in Shadow Hand (``
 # The shipped hands are the folders of data/hands/ (``hand.description.SHIPPED_HANDS``); read from the folder here so that
 # the config (and the workflow while it parses) checks a hand's name without importing the hand code (torch, MuJoCo).
 SHIPPED_HANDS_DIR = Path(__file__).resolve().parent / "data" / "hands"
-# Why a stage refuses another hand: the data loop, the report and the dataset stages (every stage outside
-# ``cli.HAND_STAGES``) know the Shadow Hand only.
-MODEL_STAGES_NOTE = "the data loop, the report and the dataset stages know the Shadow Hand only"
+# Why a stage refuses another hand: model_batch (every stage outside ``cli.HAND_STAGES``) knows the Shadow Hand only.
+MODEL_STAGES_NOTE = "model_batch (a dataset batch made by the model) knows the Shadow Hand only"
 
 
 def hand_names() -> tuple[str, ...]:
@@ -78,8 +77,9 @@ class PipelineConfig:
     shards: int = setting(2, "grasp-heavy stages split objects into this many groups", minimum=1, required=True)
     hand: str = setting(
         SHADOW, "the hand: shadow, allegro, leap (shipped) or the path of a hand's MJCF file (docs/hands.md); optimize_grasps, "
-        "curate, lift_validate, train_cvae, sample_grasps, post_optimize, the learned evaluator's stages and evaluate take it; the "
-        "data loop, the report and the dataset stages know the Shadow Hand only", pattern="^.+$")
+        "curate, lift_validate, train_cvae, sample_grasps, post_optimize, the learned evaluator's stages, evaluate, the data loop, the "
+        "report and dataset_grasps take it (a grasp dataset holds one hand's grasps); model_batch knows the Shadow Hand only",
+        pattern="^.+$")
     objects: ObjectsConfig = setting(factory=ObjectsConfig, required=True)
     dexgraspnet: DexGraspNetConfig = setting(factory=DexGraspNetConfig, required=True)
     dataset: GraspDatasetConfig = setting(

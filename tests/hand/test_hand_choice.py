@@ -62,19 +62,20 @@ def test_shadow_is_the_shadow_hand_and_a_file_is_recorded_with_its_sha256(tmp_pa
     assert record == {"hand": str(xml), "hand_sha256": hashlib.sha256(xml.read_bytes()).hexdigest(), "joint_names": list(hand.joint_names)}
 
 
-def test_the_data_loop_report_and_dataset_stages_refuse_another_hand_in_one_line():
-    from dexlite_pipeline.cli import CliError, refuse_other_hand
+def test_model_batch_refuses_another_hand_in_one_line_and_every_other_stage_takes_it():
+    from dexlite_pipeline.cli import HAND_STAGES, PIPELINE_STAGES, CliError, refuse_other_hand
 
     assert model_stage_hand_problem("shadow") == ""
-    assert model_stage_hand_problem("allegro") == "hand: allegro: the data loop, the report and the dataset stages know the Shadow Hand only"
+    assert model_stage_hand_problem("allegro") == "hand: allegro: model_batch (a dataset batch made by the model) knows the Shadow Hand only"
     config = argparse.Namespace(config_json=json.dumps({"hand": "allegro"}))
-    for stage in ("loop-train", "loop-sample", "model-batch", "report", "dataset-grasps"):
-        with pytest.raises(CliError, match="^hand: allegro: the data loop, the report and the dataset stages know the Shadow Hand only$"):
-            refuse_other_hand(stage, config)
+    assert set(PIPELINE_STAGES) - set(HAND_STAGES) == {"model-batch"}
+    with pytest.raises(CliError, match=r"^hand: allegro: model_batch \(a dataset batch made by the model\) knows the Shadow Hand only$"):
+        refuse_other_hand("model-batch", config)
     for stage in ("optimize-grasps", "curate", "lift-validate", "train-cvae", "sample-grasps", "post-optimize", "evaluator-examples",
-                  "train-evaluator", "evaluate"):
-        refuse_other_hand(stage, config)  # the data and model stages, the learned evaluator's and the evaluation take the hand
-    refuse_other_hand("report", argparse.Namespace(config_json=json.dumps({"hand": "shadow"})))
+                  "train-evaluator", "evaluate", "loop-initial-set", "loop-sample", "loop-post-optimize", "loop-validate", "loop-merge",
+                  "loop-train", "loop-summary", "loop-table", "report", "dataset-grasps"):
+        refuse_other_hand(stage, config)  # every stage of the default target takes the hand
+    refuse_other_hand("model-batch", argparse.Namespace(config_json=json.dumps({"hand": "shadow"})))
 
 
 def test_a_stage_given_a_broken_mjcf_stops_in_one_line_before_any_work(tmp_path, capsys):

@@ -1,7 +1,7 @@
 """Config key ``hand`` in the workflow (dry runs): an unknown hand stops it while parsing, in one line naming the key;
 with another hand than the Shadow Hand the data and model stages take it (optimize_grasps, curate, lift_validate,
-train_cvae, sample_grasps, post_optimize, the learned evaluator's stages and evaluate are given it, prepare_objects and
-stability_filter are not) and the default target, which needs the report, refuses at once."""
+train_cvae, sample_grasps, post_optimize, the learned evaluator's stages, evaluate, the data loop, the report and
+dataset_grasps are given it, prepare_objects and stability_filter are not), the default target included."""
 
 from __future__ import annotations
 
@@ -26,10 +26,24 @@ def test_an_unknown_hand_stops_the_workflow_in_one_line(tmp_path):
     assert done.returncode != 0 and "hand: alegro: not a hand name and no such file" in output and "Job stats" not in output
 
 
-def test_another_hand_reaches_the_data_stages_and_the_default_target_refuses(tmp_path):
-    done = _dry_run(tmp_path, "allegro")
+def test_another_hand_reaches_every_stage_of_the_default_target(tmp_path):
+    """The default target with a data loop round: every rule but prepare_objects and stability_filter is given the hand."""
+    config = {**tiny_config(tmp_path / "meshes"), "hand": "allegro"}
+    config["dexgraspnet"] = {**config["dexgraspnet"], "root": ""}
+    config["loop"] = {**config.get("loop", {}), "rounds": 1}
+    write_config(tmp_path / "run", config)
+    done = subprocess.run(snakemake_command(tmp_path / "run", "--dry-run", "--printshellcmds", "--cores", "1"), env=snakemake_env(),
+                          capture_output=True, text=True, timeout=300)
     output = done.stdout + done.stderr
-    assert done.returncode != 0 and "hand: allegro: the data loop, the report and the dataset stages know the Shadow Hand only" in output and "Job stats" not in output
+    assert done.returncode == 0, output[-3000:]
+    commands = planned_commands(output)
+    assert {"loop_sample", "loop_post_optimize", "loop_validate", "loop_merge", "loop_train", "loop_summary", "report"} <= set(commands)
+    for rule, lines in commands.items():
+        if "--config-json" in lines[0] and rule not in ("prepare_objects", "stability_filter"):
+            assert json.loads(option_value(lines[0], "--config-json")).get("hand") == "allegro", rule
+
+
+def test_another_hand_reaches_the_data_stages(tmp_path):
 
     done = _dry_run(tmp_path, "allegro", "results/lift/shard_000.zarr", dexgraspnet=True)
     output = done.stdout + done.stderr

@@ -27,23 +27,23 @@ sys.path.append(str(Path(workflow.basedir) / "src"))
 
 from dexlite_pipeline.codehash import code_hash as _package_code_hash
 from dexlite_pipeline.config import SCHEMA_PATH, result_neutral_keys, retired_keys_message, section_json
-from dexlite_pipeline.settings import SHADOW, PipelineConfig, hand_setting_problem, model_stage_hand_problem
+from dexlite_pipeline.settings import SHADOW, PipelineConfig, hand_setting_problem
 
 # A renamed or removed key (config.RETIRED_KEYS) fails with its replacement, before the schema's bare unknown-key error.
 if retired := retired_keys_message(config):
     raise WorkflowError(retired)
 validate(config, str(SCHEMA_PATH))
 # Config key hand: a known name or an existing file, checked while parsing (the file's MJCF is read by the first stage
-# that makes the hand, which refuses it in one line). optimize_grasps, curate, lift_validate, train_cvae, sample_grasps,
-# post_optimize, evaluator_examples, train_evaluator and evaluate take the hand; every other stage is given it too when
-# it is not the Shadow Hand, and refuses it (dexlite's PIPELINE_STAGES without HAND_STAGES): the data loop, the report
-# and the dataset stages know the Shadow Hand only. The default target asks for the report, so it refuses at once.
+# that makes the hand, which refuses it in one line). Every stage of the default target takes the hand (optimize_grasps
+# to evaluate, the data loop, the report, dataset_grasps); prepare_objects and stability_filter do not depend on it.
+# model_batch is given it too when it is not the Shadow Hand, and refuses it (dexlite's PIPELINE_STAGES without HAND_STAGES).
 HAND = str(config.get("hand", SHADOW))
 if problem := hand_setting_problem(HAND):
     raise WorkflowError(problem)
-for _section in ("dexgraspnet", "dataset"):  # grasps of the Shadow Hand, which curation would refuse to mix with another's
-    if HAND != SHADOW and config.get(_section, {}).get("root"):
-        raise WorkflowError(f"hand: {HAND}: {_section}.root holds the Shadow Hand's grasps; leave it empty with another hand")
+# DexGraspNet's grasps are the Shadow Hand's, which curation would refuse to mix with another's (a grasp dataset, dataset.root,
+# holds one hand's grasps: dataset_grasps refuses one of another hand in one line).
+if HAND != SHADOW and config.get("dexgraspnet", {}).get("root"):
+    raise WorkflowError(f"hand: {HAND}: dexgraspnet.root holds the Shadow Hand's grasps; leave it empty with another hand")
 
 RESULTS = "results"
 LOGS = "logs"
@@ -258,11 +258,7 @@ def final_outputs():
 
 
 def default_outputs(wildcards=None):
-    """The default target's inputs: ``final_outputs()``, which need the model stages, so with a hand other than the
-    Shadow Hand a one-line refusal (build the other stages' outputs by name: results/eval/metrics.csv ...)."""
-    if problem := model_stage_hand_problem(HAND):
-        raise WorkflowError(f"{problem}: ask for the other stages' outputs by name (e.g. {RESULTS}/model/cvae.pt, "
-                            f"{RESULTS}/eval/metrics.csv)")
+    """The default target's inputs: ``final_outputs()`` (every stage they need takes config key hand)."""
     return final_outputs()
 
 

@@ -53,9 +53,11 @@ def best_distinct(scores: np.ndarray, poses: np.ndarray, object_ids: np.ndarray,
 
 def rank_candidates(
     candidates: GraspSet, evaluator_path: str, objects_dirs: list[str], stability_path: str, keep: int, diversity, table: bool, device: str,
+    hand: str = "shadow",
 ) -> tuple[GraspSet, dict]:
     """The ``keep`` best-scored distinct ``candidates`` per object (a data-loop round's, on training objects), with their
-    ``evaluator_score`` and ``evaluator_rank``; and the ranking's attributes (pool and kept counts, CPU seconds)."""
+    ``evaluator_score`` and ``evaluator_rank``; and the ranking's attributes (pool and kept counts, CPU seconds). The
+    evaluator must be of ``hand`` (config key ``hand``): refused in one line otherwise."""
     from dexlite_pipeline.device import resolve_device
     from dexlite_pipeline.model.data import ObjectClouds
     from dexlite_pipeline.model.evaluator import load_evaluator, score_grasps
@@ -66,8 +68,10 @@ def rank_candidates(
     attrs = {"evaluator": str(evaluator_path), "pool": len(candidates), "kept_per_object": keep}
     if not len(candidates):
         return candidates, {**attrs, "kept": 0, "cpu_seconds": 0.0}
+    from dexlite_pipeline.hand.choice import hand_record
+
     device = resolve_device(device)
-    evaluator, _ = load_evaluator(evaluator_path, device)
+    evaluator, _ = load_evaluator(evaluator_path, device, hand=hand_record(hand))
     planes = load_support_planes(table, stability_path)
     ids = candidates.object_id.astype(str).astype(object)
     clouds = ObjectClouds([load_asset(objects_dirs, oid) for oid in sorted(set(ids.tolist()))])

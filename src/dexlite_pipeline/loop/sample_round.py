@@ -38,12 +38,13 @@ def round_sample_settings(sample, loop: LoopConfig, part: str):
 
 def sample_round(
     model_path: str, objects_dirs: list[str], stability_path: str, shard: int, shard_count: int, part: str, round_number: int,
-    loop: LoopConfig, sample, device, seed: int,
+    loop: LoopConfig, sample, device, seed: int, hand: str = "shadow",
 ) -> tuple[GraspSet, dict]:
     """Grasps of one shard's objects of split ``part`` from the model at ``model_path`` (``sample``: the ``SampleConfig``).
 
-    What each part samples: ``round_sample_settings``. Returns the grasps (hand_pose, object_id, scale, method) and
-    the store attributes.
+    What each part samples: ``round_sample_settings``. The model must be of ``hand`` (config key ``hand``; refused in one
+    line otherwise). Returns the grasps (hand_pose, object_id, scale, method; poses of 6 + J numbers) and the store
+    attributes, which record the hand.
     """
     import torch
 
@@ -52,7 +53,10 @@ def sample_round(
     from dexlite_pipeline.model.sampling import SampledRows, synthesis_rows
     from dexlite_pipeline.objects.assets import load_asset
 
-    model, checkpoint = load_checkpoint(model_path, device)
+    from dexlite_pipeline.hand.choice import hand_record
+
+    record = hand_record(hand)
+    model, checkpoint = load_checkpoint(model_path, device, hand=record)
     points, fixed_clouds = cloud_reading(checkpoint, sample.points_per_cloud)
     object_ids, skipped = round_objects(objects_dirs, stability_path, shard, shard_count, part)
     settings, count, label = round_sample_settings(sample, loop, part)
@@ -62,15 +66,16 @@ def sample_round(
         rows = synthesis_rows(model, clouds, object_ids, settings, points, generator, fixed_clouds, label, count)
     else:
         rows = SampledRows.concatenate([], model.codes_mu.device)
+    pose = rows.hand_pose.cpu().numpy() if len(rows.method) else np.zeros((0, 6 + len(record["joint_names"])), np.float32)  # 6 + J
     arrays = {
-        "hand_pose": rows.hand_pose.cpu().numpy(),
+        "hand_pose": pose,
         "object_id": np.asarray(rows.object_id, dtype=object),
         "scale": rows.scale,
         "method": np.asarray(rows.method, dtype=object),
         GRASP_TYPE: np.asarray(rows.types(), dtype=object),
     }
     attrs = {
-        "stage": "loop_sample", "round": int(round_number), "part": part, "shard": f"{shard:03d}", "model": str(model_path),
+        **record, "stage": "loop_sample", "round": int(round_number), "part": part, "shard": f"{shard:03d}", "model": str(model_path),
         "model_steps": checkpoint.get("steps"), "config": {"seed": seed, "loop": json_ready(loop), "sample": json_ready(settings)},
         "skipped_objects": skipped,
     }  # fmt: skip

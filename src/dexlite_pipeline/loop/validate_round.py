@@ -13,7 +13,7 @@ from dexlite_pipeline.loop.round_basics import ENERGY_FILTER, LIFT_TEST, NOT_OPT
 
 def validate_round(
     post_path: str, objects_dirs: list[str], thresholds, energy_weights, lift, six_directions: bool, threads: int = 1,
-    support_planes=None, device: str = "cpu", simulate_all: bool = False, hand=None,
+    support_planes=None, device: str = "cpu", simulate_all: bool = False, hand=None, hand_name: str | None = None,
 ) -> GraspSet:
     """The refined grasps of ``post_path`` with the checks a new grasp must pass, and ``drop_reason`` per grasp.
 
@@ -22,13 +22,17 @@ def validate_round(
     ``six_directions``, the six-direction test (``SIX_DIRECTIONS``); ``lift`` is the ``LiftConfig``, ``support_planes``
     the tables (tabletop mode). Only grasps that passed the checks before are simulated (the others keep NaN results),
     or with ``simulate_all`` every refined grasp (the held-out check: success per attempt, as the evaluation counts it).
-    ``hand``: the hand model of the poses (the filter's contact candidates, the lift test's scene; None: the Shadow Hand).
+    ``hand``: the hand model of the poses (the filter's contact candidates, the lift test's scene; None: the Shadow Hand);
+    ``hand_name``: config key ``hand``, which the store's recorded hand must be (``GraspStoreError`` in one line otherwise).
     """
     from dexlite_pipeline.evaluation.filter_energy import FILTER_CONTACTS, FILTER_ENERGIES, filter_energy_arrays
     from dexlite_pipeline.evaluation.metrics import filter_flags
     from dexlite_pipeline.sim.lift import run_lift_tests
 
+    from dexlite_pipeline.model.hand_match import shards_hand
+
     post = read_grasp_store(post_path)
+    shards_hand([(post_path, post.attrs)], hand_name)
     n = len(post)
     arrays = dict(post.arrays)
     reason = np.full(n, "", dtype=object)

@@ -2,7 +2,8 @@
 
 The pipeline's post-optimization (``optim.post_shard``) as the ``post_optimize`` stage runs it, on each
 object's table in tabletop mode, without the random-start baseline, from a random stream of the round's own; the
-training part for ``loop.post_iterations`` steps when set (``loop.post_optimize_round.round_post_optimize_config``).
+training part for ``loop.post_iterations`` steps when set (``loop.post_optimize_round.round_post_optimize_config``), with
+the model of config key ``hand`` (the samples must be of it).
 """
 
 from __future__ import annotations
@@ -14,7 +15,7 @@ from dexlite_pipeline.loop.stage_options import add_round_shard_arguments
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--sample", required=True, help="the round's sampled grasp shard (loop_sample output)")
-    add_round_shard_arguments(parser, "seed, device, post_optimize, scene, energy.self_penetration_margin_m and loop.post_iterations", "refined grasp store (.zarr)")
+    add_round_shard_arguments(parser, "seed, device, hand, post_optimize, scene, energy.self_penetration_margin_m and loop.post_iterations", "refined grasp store (.zarr)")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -33,7 +34,7 @@ def run(args: argparse.Namespace) -> int:
     (refined, attrs), _ = post_optimize_shard(
         args.sample, args.objects, args.shard, post_optimize=config.post_optimize,
         self_penetration_margin_m=config.energy.self_penetration_margin_m, scene=config.scene, seed=config.seed, device=config.device,
-        stability_path=args.stability,
+        stability_path=args.stability, hand=config.hand,
     )
     write_grasp_store(args.out, refined, {**attrs, "round": args.round, "part": args.part, "cpu_seconds": process_cpu_seconds()})
     return 0

@@ -1,6 +1,6 @@
 """Stage ``loop_train`` (one round): round r's model, round r-1's trained on for ``loop.train_steps`` more steps
 on round r's grasp set (``model.trainer``, warm start, ``loop.train_round.round_training_config``); the same files as
-``train_cvae``."""
+``train_cvae``. The set and the model must be of config key ``hand`` (refused in one line otherwise)."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ log = logging.getLogger("dexlite.loop_train")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--config-json", required=True, help="config sections seed, device, train, scene, energy.self_penetration_margin_m and loop (JSON)")
+    parser.add_argument("--config-json", required=True, help="config sections seed, device, hand, train, scene, energy.self_penetration_margin_m and loop (JSON)")
     parser.add_argument("--grasps", required=True, help="the round's grasp set (loop_merge output)")
     parser.add_argument("--initial-model", required=True, help="round r-1's model (cvae.pt), trained on from where it is")
     parser.add_argument("--stability", help="stability table with the objects' resting poses (needed in tabletop mode, scene.table)")
@@ -35,6 +35,7 @@ def run(args: argparse.Namespace) -> int:
     trained = train_from_lift_shards(
         [args.grasps], args.objects, train=config.train, self_penetration_margin_m=config.energy.self_penetration_margin_m,
         table=config.scene.table, seed=config.seed, device=config.device, stability_path=args.stability, initial_model_path=args.initial_model,
+        hand=config.hand,
     )
     trained.facts.update(loop_round=args.round, initial_model=args.initial_model, cpu_seconds=process_cpu_seconds())
     write_trained_model(trained, args.model, args.history, args.curves)
