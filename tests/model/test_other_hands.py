@@ -248,3 +248,15 @@ def test_grasp_rays_of_the_shipped_hands_leave_the_palm_between_thumb_and_finger
     assert in_palm[2] > 0.5, in_palm
     _, _, opposing = described_tip_points(hand)
     assert opposing.tolist() == [False, False, False, True]
+
+
+def test_the_shipped_model_check_follows_the_models_hand(three_finger_run, three_finger_model):
+    """``shipped_model_check`` of the three-finger model: its reconstructions placed by that hand's kinematics (every
+    training grasp of the box, fit errors finite) and one synthesis on the held-out sphere lift-tested in its scene."""
+    from dexlite_pipeline.model.shipped_check import shipped_model_check
+    from dexlite_pipeline.settings import build_config
+
+    _, _, objects, config = three_finger_run
+    got = shipped_model_check(three_finger_model, objects[1::2], ["box"], ["sphere"], build_config(config), 1)
+    assert got["fit"]["grasps"] > 0 and np.isfinite(got["fit"]["joint_error_rad_mean"]) and np.isfinite(got["fit"]["rotation_error_deg_median"])
+    assert got["heldout_raw"]["grasps"] == 1 and set(got["heldout_raw"]["lift_successes_per_object"]) == {"sphere"}
