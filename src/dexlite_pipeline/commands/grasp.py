@@ -58,7 +58,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--hand", default=None, metavar="HAND",
                         help="the hand: shadow (default: the config's hand), allegro, leap or the path of a hand's MJCF file "
                         "(docs/hands.md); a hand other than shadow needs a --model trained for it or --from-scratch (the shipped model is "
-                        "the Shadow Hand's), and its run writes no pictures or 3-D view yet")
+                        "the Shadow Hand's); its pictures and 3-D view draw the hand's collision shapes")
     parser.add_argument("--config-json", default="{}", help="config sections over the default config.yaml, as inline JSON or a .json/.yaml file")
     parser.add_argument("--renders", type=int, default=DEFAULT_RENDERS_PER_OBJECT, help="pictures per object (default %(default)s)")
     parser.add_argument("--upright-axis", choices=UPRIGHT_AXES, default=None, help="on a table (scene.table, the default): the mesh axis that "

@@ -249,14 +249,16 @@ def _shown(view: list[ViewGrasp], total: int) -> str:
     return f"{len(view)} of {total} grasps" if len(view) < total else f"{len(view)} grasp{'s' if len(view) > 1 else ''}"
 
 
-def write_grasp_set_view(path: str | Path, grasps, objects_dirs, max_grasps: int = DEFAULT_MAX_GRASPS, title: str = "") -> Path | None:
-    """Write ``view.html`` for a ``GraspSet`` (e.g. the held grasps of ``dexlite grasp``), drawing the hand its attributes
-    record (``report.render.hand_of_store``); None when it has no drawable grasp."""
+def write_grasp_set_view(
+    path: str | Path, grasps, objects_dirs, max_grasps: int = DEFAULT_MAX_GRASPS, title: str = "", hand=None
+) -> Path | None:
+    """Write ``view.html`` for a ``GraspSet`` (e.g. the held grasps of ``dexlite grasp``), drawing ``hand`` (None: the hand
+    its attributes record, ``report.render.hand_of_store``); None when it has no drawable grasp."""
     objects, view = grasp_set_view(grasps, objects_dirs, max_grasps)
     if not view:
         return None
     shown = _shown(view, len(grasps))
-    return write_grasp_view(path, objects, view, f"{title}: {shown}" if title else shown, hand_of_store(grasps.attrs))
+    return write_grasp_view(path, objects, view, f"{title}: {shown}" if title else shown, hand_of_store(grasps.attrs) if hand is None else hand)
 
 
 def grasp_view_div(grasps, rows, objects_dirs, max_grasps: int = 2 * DEFAULT_MAX_GRASPS, height_px: int = 560) -> str | None:

@@ -42,12 +42,13 @@ def write_grasp_stores(out_dir: Path, tested: GraspSet, kept: GraspSet, attrs: d
         export_dexgraspnet(GraspSet(kept.arrays, {**kept.attrs, **attrs}), out_dir / "dexgraspnet", [str(objects_dir)])
 
 
-def render_examples(grasps: GraspSet, labels: np.ndarray, objects_dir: Path, out_dir: Path, per_object: int) -> list[Path]:
-    """Up to ``per_object`` different held grasps per object as PNGs, the best first (one failure when none held)."""
+def render_examples(grasps: GraspSet, labels: np.ndarray, objects_dir: Path, out_dir: Path, per_object: int, hand=None) -> list[Path]:
+    """Up to ``per_object`` different held grasps per object as PNGs, the best first (one failure when none held);
+    ``hand`` the grasps' hand model (None: the Shadow Hand; a described hand is drawn as its collision shapes)."""
     from dexlite_pipeline.hand import ShadowHand
     from dexlite_pipeline.report.render import grasp_table, render_grasp_png, type_of
 
-    hand, written = ShadowHand(), []
+    hand, written = ShadowHand() if hand is None else hand, []
     held = np.asarray(grasps.arrays["lift_success"], bool)
     six = np.asarray(grasps.arrays.get("six_dir_success", np.zeros(len(grasps), bool)), bool)
     best = representatives(grasps, labels)
@@ -70,8 +71,9 @@ def render_examples(grasps: GraspSet, labels: np.ndarray, objects_dir: Path, out
     return written
 
 
-def write_view(out_dir: Path, kept: GraspSet, objects_dir: Path, title: str) -> Path | None:
-    """``view.html``: the kept grasps in one offline, turnable 3-D view; None (no file) when none is kept."""
+def write_view(out_dir: Path, kept: GraspSet, objects_dir: Path, title: str, hand=None) -> Path | None:
+    """``view.html``: the kept grasps in one offline, turnable 3-D view; None (no file) when none is kept. ``hand``: the
+    grasps' hand model (None: the one their attributes record)."""
     from dexlite_pipeline.report.grasp_view import write_grasp_set_view
 
-    return write_grasp_set_view(out_dir / "view.html", kept, [str(objects_dir)], title=title) if len(kept) else None
+    return write_grasp_set_view(out_dir / "view.html", kept, [str(objects_dir)], title=title, hand=hand) if len(kept) else None

@@ -141,12 +141,11 @@ def hopeless_optimizations(grasps: GraspSet) -> np.ndarray | None:
 
 
 def hand_note(record: dict) -> str:
-    """The summary's line on the hand: none for the Shadow Hand; another hand's name and joints, and why there are no
-    pictures or 3-D view (they draw the Shadow Hand only, for now)."""
+    """The summary's line on the hand: none for the Shadow Hand; another hand's name and joints, and how it is drawn."""
     if not record or record.get("hand", "shadow") == "shadow":
         return ""
     return (f"Hand: {record['hand']} ({len(record['joint_names'])} joints; poses are 6 + {len(record['joint_names'])} numbers, the "
-            "joints named in the stores' `joint_names`). No pictures and no 3-D view: they draw the Shadow Hand only, for now.")
+            "joints named in the stores' `joint_names`). The pictures and the 3-D view draw its collision shapes.")
 
 
 def _step(number: int, steps: int, text: str, *args) -> None:
@@ -269,13 +268,13 @@ def render_and_summarize(
     _step(run.steps, run.steps, "rendering examples and writing the summary")
     request, checked, prepared, record = run.request, run.checked, run.prepared, run.record
     config, objects_dir = checked.config, prepared.objects_dir
-    shadow = not is_described(checked.hand)  # pictures and the 3-D view draw the Shadow Hand only, for now
+    drawn = checked.hand if is_described(checked.hand) else None  # None: the Shadow Hand's own visual meshes
     t = time.perf_counter()
-    per_object = request.renders_per_object if shadow else 0
-    renders = render_examples(tested, labels, objects_dir, run.out_dir / "renders", per_object) if per_object > 0 else []
+    per_object = request.renders_per_object
+    renders = render_examples(tested, labels, objects_dir, run.out_dir / "renders", per_object, drawn) if per_object > 0 else []
     record.render_seconds = time.perf_counter() - t
     t = time.perf_counter()
-    view = write_view(run.out_dir, kept, objects_dir, method) if shadow else None
+    view = write_view(run.out_dir, kept, objects_dir, method, drawn)
     record.view_seconds = time.perf_counter() - t
     t = time.perf_counter()
     touched = coverage_arrays(tested, [str(objects_dir)], config.diversity, hand=checked.hand)
