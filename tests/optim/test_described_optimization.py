@@ -93,3 +93,38 @@ def test_allegro_starts_face_the_object_from_above_the_table(setting):
     normal = (rotation @ frame[:3, 2, None])[..., 0]
     toward = -torch.nn.functional.normalize(palm_origin, dim=1)  # to the object's centre
     assert float(((normal * toward).sum(1) > 0.5).float().mean()) > 0.9
+
+
+@pytest.mark.parametrize("name", ["allegro", "leap"])
+def test_the_start_turns_only_the_thumb_to_face_the_fingers(name, one_torch_thread):
+    """The opposed start moves the opposing finger's joints only, inside their limits, and its candidates face the other
+    fingers' candidates more directly than the curled start's (mean cosine; Allegro 0.93 -> 0.96, LEAP 0.90 -> 0.98)."""
+    from dexlite_pipeline.hand.described import DescribedHand
+    from dexlite_pipeline.optim.init import curled_pregrasp, opposed_pregrasp
+
+    hand = DescribedHand(name)
+    curled, opposed = curled_pregrasp(hand), opposed_pregrasp(hand)
+    thumb = [f for f, links in enumerate(hand.finger_links) if hand.link_index[hand.description.opposing[0]] in links][0]
+    moved = torch.nonzero(opposed != curled).flatten().tolist()
+    assert moved and set(moved) <= set(hand.finger_joints[thumb])
+    limits = hand.joint_limits.double()
+    assert bool(((opposed >= limits[:, 0]) & (opposed <= limits[:, 1])).all())
+
+    def facing(joints):
+        frames = hand.forward_parts_torch(torch.eye(3)[None], torch.zeros(1, 3), joints[None].float())
+        points = frames.transform(hand.contact_points_local, hand.contact_link)[0].double()
+        normals = (frames.rotation[0, hand.contact_link].double() @ torch.as_tensor(hand.description.contact_normals)[..., None])[..., 0]
+        on_thumb = torch.isin(hand.contact_link, torch.tensor(hand.finger_links[thumb]))
+        others = ~on_thumb & (hand.contact_link != 0)
+        toward = points[others].mean(0) - points[on_thumb]
+        return float((normals[on_thumb] * toward / toward.norm(dim=-1, keepdim=True)).sum(-1).mean())
+
+    assert facing(opposed) > facing(curled) + 0.03 and facing(opposed) > 0.95
+
+
+def test_a_hand_without_an_opposing_finger_starts_curled(tmp_path):
+    from dexlite_pipeline.optim.init import curled_pregrasp, opposed_pregrasp
+
+    hand = three_finger_hand(tmp_path)
+    assert hand.description.opposing == ()
+    assert torch.equal(opposed_pregrasp(hand), curled_pregrasp(hand))

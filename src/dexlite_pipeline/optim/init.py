@@ -13,12 +13,15 @@ starts draw exactly what they drew before tabletop mode existed.
 
 A hand from its MJCF (``hand.described.DescribedHand``) starts the same way from its own description: its palm
 frame's origin (the centre of its palm's contact candidates) at the start point, its palm normal tilted toward its
-fingers along the approach, its joints around its open pre-grasp curled a little (``described_start_poses``).
+fingers along the approach, its joints around its open pre-grasp curled a little and its thumb turned to face the
+fingers (``described_start_poses``, ``opposed_pregrasp``).
 """
 
 from __future__ import annotations
 
+import functools
 import math
+
 import numpy as np
 import torch
 
@@ -138,12 +141,54 @@ def curled_pregrasp(hand: DescribedHand) -> torch.Tensor:
     return torch.where(symmetric, open_pose, open_pose + START_CURL * (flexed - open_pose))
 
 
+OPPOSING_DRAWS = 2000  # thumb joint vectors tried for the opposed start (``opposed_pregrasp``), drawn with a fixed seed
+
+
+@functools.lru_cache(maxsize=8)
+def opposed_pregrasp(hand: DescribedHand) -> torch.Tensor:
+    """(J,) float64 the joints a hand from its MJCF starts around (rad): ``curled_pregrasp``, with each opposing finger's
+    (the thumb's, ``HandDescription.opposing``) joints turned to face the other fingers: of ``OPPOSING_DRAWS`` vectors
+    of its joints drawn uniformly in their ranges (fixed seed, so every run starts alike) and the curled vector itself,
+    the one whose contact candidates' normals point most directly (mean cosine) at the centroid of the other fingers'
+    candidates. Curling every joint toward its flexion limit does not oppose a thumb whose joints turn it out of the
+    palm's plane: Allegro's curled thumb scores 0.93, LEAP's 0.90, opposed 0.96 and 0.98; on twelve household objects
+    LEAP then held 49 of 192 grasps against 35 (six directions 31 against 20), Allegro 71 against 70."""
+    joints = curled_pregrasp(hand)
+    d = hand.description
+    opposing = {hand.link_index[leaf] for leaf in d.opposing}
+    fingers = [f for f, links in enumerate(hand.finger_links) if opposing & set(links)]
+    if not fingers:
+        return joints
+    limits = hand.joint_limits.cpu().double()
+    generator = torch.Generator().manual_seed(0)
+    link = hand.contact_link.cpu()
+    others = torch.ones_like(link, dtype=torch.bool) & (link != hand.link_index[hand.root_link])
+    for f in fingers:
+        others &= ~torch.isin(link, torch.tensor(hand.finger_links[f]))
+    normals_local = torch.as_tensor(d.contact_normals, dtype=torch.float64)
+    for f in fingers:
+        moved = list(hand.finger_joints[f])
+        on_finger = torch.isin(link, torch.tensor(hand.finger_links[f]))
+        tries = joints.repeat(OPPOSING_DRAWS + 1, 1)
+        low, high = limits[moved, 0], limits[moved, 1]
+        tries[1:, moved] = low + (high - low) * torch.rand(OPPOSING_DRAWS, len(moved), generator=generator, dtype=torch.float64)
+        with torch.no_grad():
+            frames = hand.forward_parts_torch(torch.eye(3, dtype=hand.dtype).expand(len(tries), 3, 3), torch.zeros(len(tries), 3, dtype=hand.dtype),
+                                              tries.to(hand.dtype))
+            points = frames.transform(hand.contact_points_local, hand.contact_link).double()
+            normals = torch.einsum("bcij,cj->bci", frames.rotation[:, hand.contact_link].double(), normals_local)
+        toward = points[:, others].mean(dim=1, keepdim=True) - points[:, on_finger]
+        facing = (normals[:, on_finger] * toward / toward.norm(dim=-1, keepdim=True).clamp(min=1e-12)).sum(-1).mean(dim=1)
+        joints = tries[int(facing.argmax())]
+    return joints
+
+
 def described_start_poses(hand: DescribedHand, palm_origin: torch.Tensor, approach: torch.Tensor, config: InitConfig,
                           generator: torch.Generator) -> torch.Tensor:
     """(B, 6 + J) start poses of a hand from its MJCF (``hand.described``): its palm frame's origin at ``palm_origin``
     (B, 3, m), its approach (the palm normal tilted ``PALM_TILT_DEG`` toward the fingers, as the Shadow Hand's) along
-    ``approach`` (B, 3) with a uniformly random roll, the joints drawn around its slightly curled pre-grasp
-    (``curled_pregrasp``) with σ = ``joint_sigma_fraction`` of each range, clipped to the limits. Draws in the Shadow
+    ``approach`` (B, 3) with a uniformly random roll, the joints drawn around its slightly curled pre-grasp with the
+    thumb facing the fingers (``opposed_pregrasp``) with σ = ``joint_sigma_fraction`` of each range, clipped to the limits. Draws in the Shadow
     Hand's order."""
     batch = palm_origin.shape[0]
     hand_a = torch.tensor(hand.approach_local(PALM_TILT_DEG), dtype=torch.float64)
@@ -156,7 +201,7 @@ def described_start_poses(hand: DescribedHand, palm_origin: torch.Tensor, approa
     root_t = palm_origin - (rotation @ origin_local[:, None])[..., 0]
     limits = hand.joint_limits.cpu().double()
     sigma = config.joint_sigma_fraction * (limits[:, 1] - limits[:, 0])
-    joints = curled_pregrasp(hand) + sigma * torch.randn(batch, len(hand.joint_names), generator=generator, dtype=torch.float64)
+    joints = opposed_pregrasp(hand) + sigma * torch.randn(batch, len(hand.joint_names), generator=generator, dtype=torch.float64)
     joints = torch.maximum(torch.minimum(joints, limits[:, 1]), limits[:, 0])
     return torch.cat([root_t, matrix_to_euler_xyz(rotation), joints], dim=1).to(hand.device, hand.dtype)
 
