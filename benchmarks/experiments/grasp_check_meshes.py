@@ -1,13 +1,15 @@
 """`dexlite grasp` on the household check meshes over several seeds: held and distinct held grasps per mesh.
 
-    python benchmarks/experiments/grasp_check_meshes.py OUT_DIR [--seeds 0 1 2] [--threads 1] [-- EXTRA dexlite grasp ARGS]
+    python benchmarks/experiments/grasp_check_meshes.py OUT_DIR [--set household|kitchen] [--seeds 0 1 2] [--threads 1] [-- EXTRA dexlite grasp ARGS]
 
 Writes the check meshes (``make_household_meshes.py``: a mug with a handle and a 4 mm wall, a bowl, a 30 cm wine
 bottle and a cereal box in metres, and the same mug in millimetres), then per seed runs the default command on the
 four metre meshes in one call and on the millimetre mug with ``--units mm``, each into ``OUT_DIR/seed_<s>/``.
 Prints, and writes to ``OUT_DIR/check_meshes.md``, per mesh and seed: attempts, held, distinct held grasps (all
 sources together) and per source (model, optimization from scratch), and each command's CPU-seconds (its own and its
-children's user + system time) and wall seconds. Arguments after ``--`` go to every ``dexlite grasp`` call
+children's user + system time) and wall seconds. ``--set kitchen``: the kitchen check meshes instead (a bowl with a 4 mm
+wall, a plate, a spatula and a hammer lying on the table, metres; ``make_household_meshes.py --set kitchen``), in one
+call per seed. Arguments after ``--`` go to every ``dexlite grasp`` call
 (e.g. ``-- --from-scratch``).
 """
 
@@ -70,20 +72,27 @@ def parse_seed_runs(argv: list[str] | None, description: str) -> tuple[argparse.
     parser.add_argument("out_dir", type=Path)
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
     parser.add_argument("--threads", type=int, default=1)
+    parser.add_argument("--set", dest="mesh_set", choices=("household", "kitchen"), default="household",
+                        help="household: mug, bowl, wine bottle, cereal box and the mug in mm; kitchen: bowl, plate, spatula, hammer")
     return parser.parse_args(own), extra
 
 
 def main(argv: list[str] | None = None) -> int:
     args, extra = parse_seed_runs(argv, __doc__.splitlines()[0])
     sys.path.insert(0, str(Path(__file__).resolve().parent))
-    from make_household_meshes import write_check_meshes
+    from make_household_meshes import write_check_meshes, write_kitchen_meshes
 
     meshes = args.out_dir / "meshes"
-    write_check_meshes(meshes, "m")
+    if args.mesh_set == "kitchen":
+        write_kitchen_meshes(meshes)
+        calls = ((meshes, None, "metres"),)
+    else:
+        write_check_meshes(meshes, "m")
+        calls = ((meshes, None, "metres"), (meshes / "mm", "mm", "mm"))
     lines = ["| seed | mesh | attempts | held | distinct held | model held | optimization held | command CPU-s | command wall s |",
              "| ---: | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |"]  # fmt: skip
     for seed in args.seeds:
-        for folder, units, label in ((meshes, None, "metres"), (meshes / "mm", "mm", "mm")):
+        for folder, units, label in calls:
             out = args.out_dir / f"seed_{seed}" / label
             cpu, wall = run_grasp(str(folder), out, seed, args.threads, extra, units)
             for object_id, row in per_mesh_counts(out).items():
