@@ -56,7 +56,7 @@ def compare(old, new) -> tuple[bool, float]:
 def main() -> int:
     import pandas as pd
 
-    from dexlite_pipeline.objects.prepare import MeshRejected, check_shape, load_source_mesh, prepared_solid
+    from dexlite_pipeline.objects.asset_building import MeshRejected, check_shape, load_source_mesh, prepared_solid
 
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--base", required=True, help="commit whose repair_mesh + check_mesh is the reference")

@@ -43,7 +43,7 @@ def build_objects(directory: Path, count: int, seed: int, resolution: int) -> li
     """Prepare ``count`` embedded pybullet_data meshes (skipping ones that fail the mesh checks)."""
     from dexlite_pipeline.objects.build import write_asset
     from dexlite_pipeline.objects.config import AssetBuildSettings
-    from dexlite_pipeline.objects.prepare import load_source_mesh, normalize_mesh, prepared_solid
+    from dexlite_pipeline.objects.asset_building import load_source_mesh, normalize_mesh, prepared_solid
     from dexlite_pipeline.objects.sources import builtin_sources
 
     settings = AssetBuildSettings(sdf_resolution=resolution)

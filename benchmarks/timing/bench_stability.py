@@ -74,7 +74,7 @@ def bench_breakdown(count: int, seed: int, objects) -> list[dict]:
     import numpy as np
 
     from dexlite_pipeline.objects.build import convex_decomposition, signed_distance_grid, surface_samples
-    from dexlite_pipeline.objects.prepare import MeshRejected, check_shape, load_source_mesh, normalize_mesh, prepared_solid
+    from dexlite_pipeline.objects.asset_building import MeshRejected, check_shape, load_source_mesh, normalize_mesh, prepared_solid
     from dexlite_pipeline.objects.sources import builtin_sources
 
     settings = objects.build_settings(seed)

@@ -11,10 +11,8 @@ import trimesh
 
 from dexlite_pipeline.objects.assets import CATALOG_COLUMNS, load_asset
 from dexlite_pipeline.objects.config import ObjectsConfig
-from dexlite_pipeline.objects.prepare import (
-    MeshRejected, assign_split, check_mesh, heldout_ids, heldout_turn_deg, normalize_mesh, prepare_object, prepare_objects, prepared_solid,
-    turned_heldout,
-)
+from dexlite_pipeline.objects.asset_building import MeshRejected, check_mesh, normalize_mesh, prepared_solid
+from dexlite_pipeline.objects.prepare import assign_split, heldout_ids, heldout_turn_deg, prepare_object, prepare_objects, turned_heldout
 from dexlite_pipeline.objects.sources import MeshSource, collect_sources
 
 # Small grids, few samples and a light CoACD search keep these tests at a second or two.
@@ -155,7 +153,7 @@ def test_unchanged_assets_are_reused_and_stale_ones_removed(tmp_path):
 
 
 def test_a_shared_asset_cache_gives_another_run_the_same_assets_without_building_them(tmp_path, monkeypatch):
-    import dexlite_pipeline.objects.prepare as prepare
+    import dexlite_pipeline.objects.asset_building as asset_building
 
     _write_user_meshes(tmp_path / "mine")
     cache = tmp_path / "cache"
@@ -167,7 +165,7 @@ def test_a_shared_asset_cache_gives_another_run_the_same_assets_without_building
     def no_building(*args, **kwargs):
         raise AssertionError("an asset in the cache was built again")
 
-    monkeypatch.setattr(prepare, "write_asset", no_building)
+    monkeypatch.setattr(asset_building, "write_asset", no_building)
     second = prepare_objects(sources, tmp_path / "run_b", config, seed=0, workers=0)
     pd.testing.assert_frame_equal(first, second)
     a, b = load_asset([str(tmp_path / "run_a")], "user-box"), load_asset([str(tmp_path / "run_b")], "user-box")
@@ -236,3 +234,13 @@ def test_cli_fails_when_no_object_could_be_prepared(tmp_path, capsys, caplog):
     assert main(["prepare-objects", "--config-json", cfg, "--catalog", str(tmp_path / "out" / "catalog.parquet"), "--record", str(tmp_path / "out" / "prepare_config.json"), "--threads", "1"]) == 1
     assert "prepared 0/3 objects" in capsys.readouterr().out
     assert "none of the 3 objects could be prepared" in caplog.text
+
+
+def test_the_builder_version_covers_the_code_that_builds_an_asset_and_not_the_choice_of_objects():
+    """The asset cache's key hashes the building code: the mesh steps, CoACD and the grids, never the object sources, the
+    household generators (a generated mesh's bytes are in the key already) or the other keys of config section objects."""
+    from dexlite_pipeline.codehash import module_closure
+
+    covered = {name.removeprefix("dexlite_pipeline.") for name in module_closure("dexlite_pipeline.objects.asset_building")}
+    assert {"objects.asset_building", "objects.build", "objects.fidelity", "objects.solidify", "objects.asset_settings"} <= covered
+    assert not covered & {"objects.config", "objects.sources", "objects.household", "objects.prepare", "stages.prepare_objects"}

@@ -7,7 +7,8 @@ import pytest
 import trimesh
 
 from dexlite_pipeline.objects.config import ObjectsConfig
-from dexlite_pipeline.objects.prepare import check_mesh, prepare_object, prepared_solid
+from dexlite_pipeline.objects.asset_building import check_mesh, prepared_solid
+from dexlite_pipeline.objects.prepare import prepare_object
 from dexlite_pipeline.objects.sources import MeshSource
 
 TINY = ObjectsConfig(

@@ -11,7 +11,7 @@ from dexlite_pipeline.objects.assets import SdfBank, load_asset
 from dexlite_pipeline.objects.build import signed_distance_grid, write_asset
 from dexlite_pipeline.objects.config import AssetBuildSettings
 from dexlite_pipeline.objects.config import ObjectsConfig
-from dexlite_pipeline.objects.prepare import normalize_mesh
+from dexlite_pipeline.objects.asset_building import normalize_mesh
 
 SCALE = 0.1
 BAND_M = 0.02

@@ -14,7 +14,7 @@ import trimesh
 
 from dexlite_pipeline.objects.build import write_asset
 from dexlite_pipeline.objects.config import AssetBuildSettings
-from dexlite_pipeline.objects.prepare import normalize_mesh
+from dexlite_pipeline.objects.asset_building import normalize_mesh
 from dexlite_pipeline.objects.config import StabilityConfig
 from dexlite_pipeline.objects.stability import STABILITY_COLUMNS, simulate_object, stability_table, tilt_rotation
 

@@ -10,7 +10,7 @@ import trimesh
 
 from dexlite_pipeline.objects.assets import load_asset
 from dexlite_pipeline.objects.build import AssetBuildSettings, write_asset
-from dexlite_pipeline.objects.prepare import normalize_mesh
+from dexlite_pipeline.objects.asset_building import normalize_mesh
 from dexlite_pipeline.objects.config import StabilityConfig
 from dexlite_pipeline.tabletop import UPRIGHT_AXES, tool_support_planes
 

@@ -14,7 +14,7 @@ import numpy as np
 
 from dexlite_pipeline.atomic import atomic_path
 from dexlite_pipeline.objects.assets import asset_dir
-from dexlite_pipeline.objects.config import AssetBuildSettings
+from dexlite_pipeline.objects.asset_settings import AssetBuildSettings
 
 
 def _not_short_sample_warning(record: logging.LogRecord) -> bool:

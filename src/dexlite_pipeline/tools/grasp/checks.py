@@ -107,7 +107,7 @@ def likely_unit(largest_in_file_units: float) -> str | None:
 
 def measure_mesh(source: MeshSource, unit_m: float) -> MeshSize:
     """Read a mesh file (as preparation will) and measure it; an unreadable file is a ``GraspToolError``."""
-    from dexlite_pipeline.objects.prepare import MeshRejected, load_source_mesh
+    from dexlite_pipeline.objects.asset_building import MeshRejected, load_source_mesh
 
     try:
         mesh = load_source_mesh(source)
