@@ -112,3 +112,21 @@ def test_the_repository_dataset_lists_its_training_objects_in_order():
     ids = dataset_training_ids("dataset")
     assert list(ids) == list(table.loc[table["split"] == "train", "object_id"])
     assert len(ids) >= 600 and not set(ids) & held_out_household_ids()
+
+
+def test_procedural_batches_take_consecutive_objects_and_never_the_benchmark_split():
+    from dexlite_pipeline.objects.sources import benchmark_object_ids, procedural_sources, random_pybullet_paths
+
+    first = procedural_sources(30)
+    second = procedural_sources(30, first=30)
+    ids = [s.object_id for s in first + second]
+    assert len(set(ids)) == 60 and ids == sorted(ids)  # number order, the two batches disjoint
+    assert not set(ids) & benchmark_object_ids()
+    assert {s.source for s in first} == {"pybullet_random"}
+    available = len(random_pybullet_paths()) - len(benchmark_object_ids())
+    assert len(procedural_sources(5, first=available - 2)) == 2  # the last two: a batch past the end is cut short
+    with pytest.raises(ObjectSourceError, match="objects.procedural_first"):
+        procedural_sources(1, first=available)
+    chosen = collect_sources(0, (), (), 0, True, 2, procedural_count=4, procedural_first=30)
+    assert [s.object_id for s in chosen][:4] == ids[30:34]
+    assert sum(s.always_heldout for s in chosen) == 2  # the benchmark objects asked for, held out

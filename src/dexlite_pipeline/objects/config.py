@@ -27,6 +27,12 @@ class ObjectsConfig(CoacdSettings):
     benchmark_objects: int = setting(
         4, "the first this many benchmark-split objects are added, held out: objects that no model (this run's nor the shipped "
         "one) ever trained on, where the shipped model is measured", minimum=0)
+    procedural_count: int = setting(
+        0, "procedural pybullet_data objects (random_urdfs, ids pb-random-NNN) to train on, in number order, the benchmark "
+        "split's skipped: a campaign batch of procedural shapes (beside builtin_count's seeded draw)", minimum=0)
+    procedural_first: int = setting(
+        0, "procedural objects to skip first (in number order, the benchmark split's left out): a campaign batch takes "
+        "procedural_first to procedural_first + procedural_count", minimum=0)
     household_count: int = setting(
         0, "generated household objects (mugs, bowls, bottles, boxes, tools; real size, metres) to train on", minimum=0)
     household_first: int = setting(

@@ -154,6 +154,19 @@ def builtin_sources(count: int, seed: int) -> list[MeshSource]:
     return chosen
 
 
+def procedural_sources(count: int, first: int = 0) -> list[MeshSource]:
+    """Procedural pybullet_data objects (``random_urdfs/NNN``, ids ``pb-random-NNN``) to train on, in number order from the
+    ``first``-th, the benchmark split's skipped (never trained on): a campaign batch of procedural shapes takes objects
+    ``first`` to ``first + count``, so batches never repeat an object."""
+    if count <= 0:
+        return []
+    held_out = benchmark_object_ids()
+    paths = [p for p in random_pybullet_paths() if f"pb-random-{p.stem}" not in held_out]
+    if first >= len(paths):
+        raise ObjectSourceError(f"objects.procedural_first: {first}, but pybullet_data has {len(paths)} procedural objects outside the benchmark split")
+    return [pybullet_random_source(p) for p in paths[first : first + count]]
+
+
 def _safe_name(text: str) -> str:
     return re.sub(r"[^A-Za-z0-9_.-]+", "_", text).strip("._") or "mesh"
 
@@ -340,6 +353,8 @@ def collect_sources(
     household_variants: tuple[int, ...] = (0,),
     shapes_benchmark_objects: int = 0,
     rebuilt_training_ids: tuple[str, ...] = (),
+    procedural_count: int = 0,
+    procedural_first: int = 0,
 ) -> list[MeshSource]:
     """Every object to prepare: embedded default, generated household objects, user folders, always-held-out folders.
 
@@ -350,6 +365,8 @@ def collect_sources(
     training (from the ``household_first``-th on, of ``household_families`` or every family) / from the household
     split (held out), their meshes written to ``household_dir``; ``household_variants``: the perturbation variants drawn
     of each training instance; ``shapes_benchmark_objects``: the first this many of the shapes split (held out).
+    ``procedural_count`` / ``procedural_first``: procedural pybullet_data objects for training in number order
+    (``procedural_sources``), beside those ``builtin_count`` draws.
     """
     # A file listed twice (a folder repeated, or in both lists) is one object; held out wins.
     user: dict[str, MeshSource] = {}
@@ -359,6 +376,8 @@ def collect_sources(
     if benchmark_heldout:
         benchmark = benchmark_object_ids()
         builtin = [dataclasses.replace(s, always_heldout=True) if s.object_id in benchmark else s for s in builtin]
+    drawn = {s.object_id for s in builtin}
+    builtin += [s for s in procedural_sources(procedural_count, procedural_first) if s.object_id not in drawn]
     drawn = {s.object_id for s in builtin}
     builtin += [s for s in benchmark_sources(benchmark_objects) if s.object_id not in drawn]
     household = household_sources(household_count, household_benchmark_objects, household_dir, household_first, household_families,

@@ -43,6 +43,7 @@ def run(args: argparse.Namespace) -> int:
         section.builtin_count, section.mesh_dirs, section.heldout_mesh_dirs, config.seed, section.benchmark_heldout, section.benchmark_objects,
         section.household_count, section.household_benchmark_objects, Path(args.catalog).parent / HOUSEHOLD_MESH_DIR, section.household_first,
         section.household_families, section.household_variants, section.shapes_benchmark_objects, rebuilt,
+        section.procedural_count, section.procedural_first,
     )
     workers = args.threads or os.cpu_count() or 1
     log.info("preparing %d objects with %d worker(s)", len(sources), workers)
