@@ -1,7 +1,8 @@
 """The data stages with config key ``hand`` naming the tests' three-finger hand (an MJCF file): optimize_grasps,
 curate (its table depth, near-duplicate and force-closure checks with the hand's links and joints) and lift_validate
 (the hand's own scene) run, and every store records the hand (its file and SHA-256, its joint names, 15-number poses);
-stores of another hand are refused in one line. Tiny budgets: a test of the wiring, not of the grasps."""
+stores of another hand are refused in one line. ``dexlite lift-test``, ``energy`` and ``render`` take a store's own
+hand. Tiny budgets: a test of the wiring, not of the grasps."""
 
 from __future__ import annotations
 
@@ -16,7 +17,7 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from described_hands import FLAT_BOX_ID, FLAT_BOX_SCALE, write_objects  # noqa: E402
+from described_hands import FLAT_BOX_ID, FLAT_BOX_SCALE, one_line_cli_error, write_objects  # noqa: E402
 from three_finger import write_three_finger  # noqa: E402
 
 from dexlite_pipeline.cli import main  # noqa: E402
@@ -107,11 +108,24 @@ def test_dexlite_lift_test_tests_a_store_with_its_own_hand(run, tmp_path):
     assert np.array_equal(again.arrays["lift_success"], staged.arrays["lift_success"])  # the stage's test, with the same hand
 
 
-def test_energy_refuses_another_hands_store_in_one_line_and_render_draws_it(run, tmp_path, capsys):
+def test_energy_scores_a_store_with_its_own_hand_and_render_draws_it(run, tmp_path, capsys):
     root, xml, objects, _ = run
-    capsys.readouterr()
-    assert main(["energy", str(root / "curated.zarr"), "--out", str(tmp_path / "e.zarr"), "--objects", str(objects)]) == 2
-    error = capsys.readouterr().err.strip()
-    assert len(error.splitlines()) == 1 and f"hand {xml}: dexlite energy knows the Shadow Hand only" in error
+    assert main(["energy", str(root / "curated.zarr"), "--out", str(tmp_path / "e.zarr"), "--objects", str(objects), "--device", "cpu"]) == 0
+    scored, curated = read_grasp_store(tmp_path / "e.zarr"), read_grasp_store(root / "curated.zarr")
+    assert scored.attrs["hand"] == str(xml) and scored.hand_pose.shape == curated.hand_pose.shape == (len(curated), 15)
+    assert (scored.arrays["energy_failure_reason"] == "").all()
+    for name in ("E_fc", "E_dis", "E_pen", "E_spen", "E_joints", "E_total", "penetration_mm"):
+        assert np.isfinite(scored.arrays[name]).all(), name
+    assert ((scored.arrays["contact_index"] >= 0) & (scored.arrays["contact_index"] < 110)).all()  # among the hand's 110 candidates
     assert main(["render", str(root / "curated.zarr"), "--index", "0", "--out", str(tmp_path / "r.png"), "--objects", str(objects)]) == 0
     assert (tmp_path / "r.png").stat().st_size > 0  # the store's own hand, drawn (tests/report/test_other_hand_render.py)
+
+    (tmp_path / "edited").mkdir()
+    edited = write_three_finger(tmp_path / "edited")  # a store whose hand file changed since: refused in one line
+    from dexlite_pipeline.hand.choice import hand_record
+
+    write_grasp_store(tmp_path / "edited.zarr", GraspSet(curated.arrays, {**curated.attrs, **hand_record(str(edited))}))
+    edited.write_text(edited.read_text() + "<!-- edited -->\n")
+    error = one_line_cli_error(capsys, ["energy", str(tmp_path / "edited.zarr"), "--out", str(tmp_path / "e2.zarr"), "--objects", str(objects)])
+    assert f"the hand file {edited} and {tmp_path / 'edited.zarr'} name hand {edited} with different file contents" in error
+    assert not (tmp_path / "e2.zarr").exists()

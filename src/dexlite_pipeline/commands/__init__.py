@@ -27,11 +27,15 @@ def objects_dirs(args: argparse.Namespace) -> list[str]:
     raise ValueError(f"{args.grasps}: no --objects given and no prepared objects at {beside} (give --objects DIR)")
 
 
-def refuse_other_hand_store(grasps_path: str, command: str) -> None:
-    """A one-line ValueError when the store at ``grasps_path`` holds another hand's grasps than the Shadow Hand's, for a
-    command that draws or scores the Shadow Hand only for now (``io.grasp_store.store_hand``; docs/hands.md)."""
-    from dexlite_pipeline.io.grasp_store import DEFAULT_HAND, read_grasp_store, store_hand
+def store_hand_model(grasps_path: str, device="cpu") -> tuple[object, dict]:
+    """(hand model on ``device``, its record) of the hand a grasp store records (``io.grasp_store.store_hand``; the
+    Shadow Hand for a store without one): the commands test, score and draw a store's grasps with their own hand. A
+    hand file that is gone, unusable or changed since the store was written is refused in one line (``ValueError``)."""
+    from dexlite_pipeline.hand.choice import hand_record, resolve_hand
+    from dexlite_pipeline.io.grasp_store import check_one_hand, read_grasp_store, store_hand
 
-    hand = store_hand(read_grasp_store(grasps_path).attrs)
-    if hand != DEFAULT_HAND:
-        raise ValueError(f"{grasps_path}: hand {hand}: dexlite {command} knows the Shadow Hand only, for now")
+    attrs = read_grasp_store(grasps_path).attrs
+    hand = store_hand(attrs)
+    record = hand_record(hand)
+    check_one_hand([(f"the hand file {hand}", record), (str(grasps_path), attrs)])
+    return resolve_hand(hand, device), record

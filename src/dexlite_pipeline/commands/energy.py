@@ -7,14 +7,16 @@ a summary. Contacts: a ``contact_index`` array in the input is used; otherwise t
 pad points nearest the object surface, or with ``--contact-samples N`` the best of N
 searched sets (``energy.per_grasp.store_energies``). ``--objects`` defaults to the ``objects/``
 folder beside the store (a ``dexlite grasp`` output folder); ``--config-json`` takes the
-``energy`` and ``optimize_grasps.thresholds`` sections, like the other commands' option.
+``energy`` and ``optimize_grasps.thresholds`` sections, like the other commands' option. The terms are those
+of the hand the store records (its poses, collision shapes and contact candidates; the Shadow Hand for a store
+without one); a hand file changed since the store was written is refused in one line.
 """
 
 from __future__ import annotations
 
 import argparse
 
-from dexlite_pipeline.commands import add_objects_argument, objects_dirs, refuse_other_hand_store
+from dexlite_pipeline.commands import add_objects_argument, objects_dirs, store_hand_model
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -30,15 +32,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from dexlite_pipeline.device import resolve_device
     from dexlite_pipeline.energy.per_grasp import energy_summary_lines, store_energies
     from dexlite_pipeline.io.grasp_store import write_grasp_store
     from dexlite_pipeline.settings import stage_config
 
     config = stage_config(args.config_json)
     objects = objects_dirs(args)
-    refuse_other_hand_store(args.grasps, "energy")
+    device = resolve_device(args.device)
+    hand, _ = store_hand_model(args.grasps, device)  # the store's own hand (a changed hand file: one line)
     grasps, attrs = store_energies(
-        args.grasps, objects, config.energy, config.optimize_grasps.thresholds, args.device, args.batch_size, args.contact_samples
+        args.grasps, objects, config.energy, config.optimize_grasps.thresholds, device, args.batch_size, args.contact_samples, hand
     )
     write_grasp_store(args.out, grasps, attrs)
     for line in energy_summary_lines(grasps.arrays):

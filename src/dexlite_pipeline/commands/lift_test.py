@@ -20,7 +20,7 @@ import argparse
 import os
 import sys
 
-from dexlite_pipeline.commands import add_objects_argument, objects_dirs
+from dexlite_pipeline.commands import add_objects_argument, objects_dirs, store_hand_model
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("grasps", help="grasp store (.zarr)")
@@ -48,16 +48,6 @@ def lift_test_tables(grasps_path: str, stability: str | None, floating: bool):
     if stored is None:
         return None, "floating (the store records no table), gravity along each object frame's -z"
     return stored, "on the tables recorded in the grasp store"
-
-
-def store_hand_model(grasps_path: str):
-    """(hand model, its record) of the hand a store names (``io.grasp_store.store_hand``; shadow without one): the store's
-    grasps are tested with their own hand; a hand file that is gone or changed since is refused in one line."""
-    from dexlite_pipeline.hand.choice import hand_record, resolve_hand
-    from dexlite_pipeline.io.grasp_store import read_grasp_store, store_hand
-
-    hand = store_hand(read_grasp_store(grasps_path).attrs)
-    return resolve_hand(hand, "cpu"), hand_record(hand)
 
 
 def run(args: argparse.Namespace) -> int:

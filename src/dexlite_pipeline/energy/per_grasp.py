@@ -105,9 +105,11 @@ def energy_summary_lines(arrays: dict) -> list[str]:
     return lines
 
 
-def store_energies(grasps_path: str, objects_dirs: list[str], energy_config, thresholds, device="cpu", batch_size: int = 256, contact_samples: int = 0):
+def store_energies(grasps_path: str, objects_dirs: list[str], energy_config, thresholds, device="cpu", batch_size: int = 256, contact_samples: int = 0,
+                   hand=None):
     """The grasps of a store with their energy terms, ``passes_energy_thresholds`` (``thresholds``:
-    an ``EnergyThresholds``) and ``energy_failure_reason`` added, and the attributes recording how."""
+    an ``EnergyThresholds``) and ``energy_failure_reason`` added, and the attributes recording how. ``hand``: the model
+    of the hand the store's poses are of, on ``device`` (None: the Shadow Hand)."""
     from dexlite_pipeline.config import json_ready
     from dexlite_pipeline.device import resolve_device
     from dexlite_pipeline.io.grasp_store import read_grasp_store
@@ -116,7 +118,7 @@ def store_energies(grasps_path: str, objects_dirs: list[str], energy_config, thr
         raise ValueError(f"--batch-size must be positive, got {batch_size}")
     grasps = read_grasp_store(grasps_path)
     arrays = evaluate_grasp_energies(
-        grasps, objects_dirs, device=resolve_device(device), batch_size=batch_size, config=energy_config, contact_samples=contact_samples
+        grasps, objects_dirs, device=resolve_device(device), batch_size=batch_size, config=energy_config, hand=hand, contact_samples=contact_samples
     )
     arrays["passes_energy_thresholds"] = thresholds.passes(arrays) & (arrays["energy_failure_reason"] == "")
     grasps.arrays.update(arrays)
