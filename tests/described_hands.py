@@ -1,5 +1,6 @@
 """The tests' three-finger hand (``tests/hand/three_finger.py``) as a ``DescribedHand``, objects for it, a grasp
-constructed to hold (shared by the optimizer and lift tests of hands from an MJCF), and a CLI refusal's one line.
+constructed to hold (shared by the optimizer and lift tests of hands from an MJCF), a CLI refusal's one line, and a
+small untrained model and evaluator for a hand (the stages' and tools' plumbing with a model of the hand).
 
 The flat box lies under the palm: 6.5 x 6 x 2 cm at ``FLAT_BOX_SCALE``, centred at the object origin. The cage grasp
 puts the palm (facing -z, fingers along +x) 0.5 mm above the box's top, both fingers bent 90 degrees at their first
@@ -70,3 +71,25 @@ def one_line_cli_error(capsys, arguments: list[str]) -> str:
     error = capsys.readouterr().err.strip()
     assert len(error.splitlines()) == 1, error
     return error
+
+
+def untrained_model_and_evaluator(folder: Path, hand: str) -> tuple[Path, Path]:
+    """A small CVAE and grasp evaluator with untrained weights for ``hand`` (config key ``hand``), saved in ``folder``: model
+    files for testing the plumbing, not the grasps."""
+    import dataclasses
+
+    from dexlite_pipeline.hand.choice import hand_record
+    from dexlite_pipeline.model.checkpoint import save_checkpoint
+    from dexlite_pipeline.model.config import ModelConfig
+    from dexlite_pipeline.model.evaluator import EvaluatorConfig, GraspEvaluator, save_evaluator
+    from dexlite_pipeline.model.network import GraspCVAE
+
+    @dataclasses.dataclass
+    class Trained:
+        points_per_cloud: int = 64
+
+    small = ModelConfig(pointnet_widths=(16, 32), encoder_hidden=(32,), decoder_hidden=(32,), latent_dim=8, normalization="none")
+    save_checkpoint(folder / "cvae.pt", GraspCVAE(small, hand_record=hand_record(hand)), Trained(), {"seed": 0})
+    config = EvaluatorConfig(points_per_cloud=64, pointnet_points=32, pointnet_widths=(8, 16), hand_points_per_shape=1, hidden_sizes=(16,))
+    save_evaluator(folder / "evaluator.pt", GraspEvaluator(config, "cpu", hand), config, {"train_object_ids": []})
+    return folder / "cvae.pt", folder / "evaluator.pt"

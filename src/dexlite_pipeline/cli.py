@@ -55,11 +55,6 @@ PIPELINE_STAGES: dict[str, tuple[str, str]] = {
     "report": ("stages.report", "build results/eval/report.html from the evaluation outputs"),
 }
 COMMANDS: dict[str, tuple[str, str]] = {**USER_COMMANDS, **PIPELINE_STAGES}
-# The stages that take config key ``hand`` (any hand: docs/hands.md); the other stages know the Shadow Hand only and
-# refuse another in one line (``settings.model_stage_hand_problem``) before any work.
-HAND_STAGES = ("prepare-objects", "stability-filter", "optimize-grasps", "curate", "lift-validate", "train-cvae", "sample-grasps", "post-optimize",
-               "evaluator-examples", "train-evaluator", "evaluate", "loop-initial-set", "loop-sample", "loop-post-optimize", "loop-validate",
-               "loop-merge", "loop-train", "loop-summary", "loop-table", "report", "dataset-grasps")
 DESCRIPTION = "DexLite: grasps that hold for the Shadow Hand, on your own meshes, and the pipeline that learns to make them."
 HELP_WIDTH = 22  # column of the commands' descriptions in ``dexlite --help``
 
@@ -118,23 +113,10 @@ def main(argv: list[str] | None = None) -> int:
 
     set_threads(args.threads)
     try:
-        refuse_other_hand(top.command, args)
         return int(module.run(args) or 0)
     except (CliError, ValueError, OSError) as exc:  # bad input or an unreadable/unwritable file: one line, no traceback
         print(f"dexlite {top.command}: error: {error_text(exc)}", file=sys.stderr)
         return 2
-
-
-def refuse_other_hand(command: str, args: argparse.Namespace) -> None:
-    """CliError (one line) when a pipeline stage that knows the Shadow Hand only (not in ``HAND_STAGES``) is given
-    config key ``hand`` naming another hand in its ``--config-json``."""
-    if command not in PIPELINE_STAGES or command in HAND_STAGES or not getattr(args, "config_json", None):
-        return
-    from dexlite_pipeline.config import parse_config_json
-    from dexlite_pipeline.settings import SHADOW, model_stage_hand_problem
-
-    if problem := model_stage_hand_problem(parse_config_json(args.config_json).get("hand", SHADOW)):
-        raise CliError(problem)
 
 
 # Outputs are written to a hidden sibling ``.NAME.tmp-XXXXXXXX`` and renamed into place

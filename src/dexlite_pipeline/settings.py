@@ -38,8 +38,6 @@ SHADOW = "shadow"  # config key ``hand``'s default: the built-in Shadow Hand (``
 # The shipped hands are the folders of data/hands/ (``hand.description.SHIPPED_HANDS``); read from the folder here so that
 # the config (and the workflow while it parses) checks a hand's name without importing the hand code (torch, MuJoCo).
 SHIPPED_HANDS_DIR = Path(__file__).resolve().parent / "data" / "hands"
-# Why a stage refuses another hand: model_batch (every stage outside ``cli.HAND_STAGES``) knows the Shadow Hand only.
-MODEL_STAGES_NOTE = "model_batch (a dataset batch made by the model) knows the Shadow Hand only"
 
 
 def hand_names() -> tuple[str, ...]:
@@ -62,11 +60,6 @@ def hand_setting_problem(value: str) -> str:
     return f"hand: {text}: {kind} (a hand is {', '.join(hand_names())} or the path of an MJCF file)"
 
 
-def model_stage_hand_problem(value: str) -> str:
-    """One line refusing config key ``hand`` ``value`` for a stage that knows the Shadow Hand only ("" for shadow)."""
-    return "" if str(value) == SHADOW else f"hand: {value}: {MODEL_STAGES_NOTE}"
-
-
 @dataclass(frozen=True)
 class PipelineConfig:
     """The whole of ``config.yaml``."""
@@ -76,9 +69,8 @@ class PipelineConfig:
         "auto", "auto (CUDA when present, else CPU), cpu, cuda, cuda:N", pattern="^(auto|cpu|cuda(:[0-9]+)?)$", required=True)
     shards: int = setting(2, "grasp-heavy stages split objects into this many groups", minimum=1, required=True)
     hand: str = setting(
-        SHADOW, "the hand: shadow, allegro, leap (shipped) or the path of a hand's MJCF file (docs/hands.md); optimize_grasps, "
-        "curate, lift_validate, train_cvae, sample_grasps, post_optimize, the learned evaluator's stages, evaluate, the data loop, the "
-        "report and dataset_grasps take it (a grasp dataset holds one hand's grasps); model_batch knows the Shadow Hand only",
+        SHADOW, "the hand: shadow, allegro, leap (shipped) or the path of a hand's MJCF file (docs/hands.md); every stage takes it "
+        "(a grasp dataset holds one hand's grasps; a model and an evaluator are of one hand)",
         pattern="^.+$")
     objects: ObjectsConfig = setting(factory=ObjectsConfig, required=True)
     dexgraspnet: DexGraspNetConfig = setting(factory=DexGraspNetConfig, required=True)

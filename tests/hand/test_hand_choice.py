@@ -3,13 +3,12 @@ naming the key; ``hand.choice`` makes the hand object and the record a store kee
 
 from __future__ import annotations
 
-import argparse
 import json
 
 import pytest
 
 from dexlite_pipeline.config import ConfigError, validate_config
-from dexlite_pipeline.settings import build_config, hand_names, model_stage_hand_problem
+from dexlite_pipeline.settings import build_config, hand_names
 
 
 def test_the_default_hand_is_shadow_and_the_shipped_hands_are_known():
@@ -62,31 +61,16 @@ def test_shadow_is_the_shadow_hand_and_a_file_is_recorded_with_its_sha256(tmp_pa
     assert record == {"hand": str(xml), "hand_sha256": hashlib.sha256(xml.read_bytes()).hexdigest(), "joint_names": list(hand.joint_names)}
 
 
-def test_model_batch_refuses_another_hand_in_one_line_and_every_other_stage_takes_it():
-    from dexlite_pipeline.cli import HAND_STAGES, PIPELINE_STAGES, CliError, refuse_other_hand
-
-    assert model_stage_hand_problem("shadow") == ""
-    assert model_stage_hand_problem("allegro") == "hand: allegro: model_batch (a dataset batch made by the model) knows the Shadow Hand only"
-    config = argparse.Namespace(config_json=json.dumps({"hand": "allegro"}))
-    assert set(PIPELINE_STAGES) - set(HAND_STAGES) == {"model-batch"}
-    with pytest.raises(CliError, match=r"^hand: allegro: model_batch \(a dataset batch made by the model\) knows the Shadow Hand only$"):
-        refuse_other_hand("model-batch", config)
-    for stage in ("optimize-grasps", "curate", "lift-validate", "train-cvae", "sample-grasps", "post-optimize", "evaluator-examples",
-                  "train-evaluator", "evaluate", "loop-initial-set", "loop-sample", "loop-post-optimize", "loop-validate", "loop-merge",
-                  "loop-train", "loop-summary", "loop-table", "report", "dataset-grasps"):
-        refuse_other_hand(stage, config)  # every stage of the default target takes the hand
-    refuse_other_hand("model-batch", argparse.Namespace(config_json=json.dumps({"hand": "shadow"})))
-
-
-def test_a_stage_given_a_broken_mjcf_stops_in_one_line_before_any_work(tmp_path, capsys):
+@pytest.mark.parametrize("stage", ["optimize-grasps", "model-batch"])
+def test_a_stage_given_a_broken_mjcf_stops_in_one_line_before_any_work(tmp_path, capsys, stage):
     from dexlite_pipeline.cli import main
 
     broken = tmp_path / "broken.xml"
     broken.write_text("<robot name='r'/>")
-    code = main(["optimize-grasps", "--config-json", json.dumps({"hand": str(broken), "device": "cpu"}), "--shard", "0",
+    code = main([stage, "--config-json", json.dumps({"hand": str(broken), "device": "cpu"}), "--shard", "0",
                  "--stability", str(tmp_path / "none.parquet"), "--objects", str(tmp_path), "--out", str(tmp_path / "out.zarr")])
     error = capsys.readouterr().err.strip()
-    assert code == 2 and error == f"dexlite optimize-grasps: error: hand: {broken}: not an MJCF file: its root element is <robot>, not <mujoco>"
+    assert code == 2 and error == f"dexlite {stage}: error: hand: {broken}: not an MJCF file: its root element is <robot>, not <mujoco>"
     assert not (tmp_path / "out.zarr").exists()
 
 

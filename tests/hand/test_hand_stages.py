@@ -1,13 +1,15 @@
 """The data stages with config key ``hand`` naming the tests' three-finger hand (an MJCF file): optimize_grasps,
-curate (its table depth, near-duplicate and force-closure checks with the hand's links and joints) and lift_validate
-(the hand's own scene) run, and every store records the hand (its file and SHA-256, its joint names, 15-number poses);
-stores of another hand are refused in one line. ``dexlite lift-test``, ``energy`` and ``render`` take a store's own
-hand. Tiny budgets: a test of the wiring, not of the grasps."""
+curate (its table depth, near-duplicate and force-closure checks with the hand's links and joints), lift_validate
+(the hand's own scene) and model_batch (a model and an evaluator of the hand, the top-up with it; ``dexlite
+dataset-add`` of the batch) run, and every store records the hand (its file and SHA-256, its joint names, 15-number
+poses); stores and models of another hand are refused in one line. ``dexlite lift-test``, ``energy`` and ``render`` take
+a store's own hand. Tiny budgets: a test of the wiring, not of the grasps."""
 
 from __future__ import annotations
 
 import hashlib
 import json
+import shutil
 import sys
 from pathlib import Path
 
@@ -17,7 +19,7 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from described_hands import FLAT_BOX_ID, FLAT_BOX_SCALE, one_line_cli_error, write_objects  # noqa: E402
+from described_hands import FLAT_BOX_ID, FLAT_BOX_SCALE, one_line_cli_error, untrained_model_and_evaluator, write_objects  # noqa: E402
 from three_finger import write_three_finger  # noqa: E402
 
 from dexlite_pipeline.cli import main  # noqa: E402
@@ -129,3 +131,48 @@ def test_energy_scores_a_store_with_its_own_hand_and_render_draws_it(run, tmp_pa
     error = one_line_cli_error(capsys, ["energy", str(tmp_path / "edited.zarr"), "--out", str(tmp_path / "e2.zarr"), "--objects", str(objects)])
     assert f"the hand file {edited} and {tmp_path / 'edited.zarr'} name hand {edited} with different file contents" in error
     assert not (tmp_path / "e2.zarr").exists()
+
+
+def test_model_batch_makes_a_batch_of_the_hand_that_dataset_add_takes(run, tmp_path, capsys):
+    """model_batch with an untrained model and evaluator of the hand: the model's grasps, then a top-up batch (the object
+    is short of distinct held grasps), all with 15-number poses, lift- and six-direction-tested in the hand's scene; the
+    store records the hand, and dataset-add makes the run a batch of a dataset of that hand. A model of another hand
+    is refused in one line naming the key."""
+    from dexlite_pipeline.dataset import load_dataset
+
+    root, xml, objects, _ = run
+    results = tmp_path / "results"  # a run's results folder: what dataset-add reads
+    shutil.copytree(objects, results / "objects")
+    (results / "stability").mkdir()
+    shutil.copy(root / "stability.parquet", results / "stability" / "stability.parquet")
+    model, evaluator = untrained_model_and_evaluator(tmp_path, str(xml))
+    config = {**TINY, "hand": str(xml), "sample": {"scales": [FLAT_BOX_SCALE]}, "post_optimize": {"annealing": {"iterations": 10}},
+              "evaluator": {"pool_factor": 2},
+              "model_batch": {"model": str(model), "evaluator": str(evaluator), "grasps_per_object": 2, "min_distinct": 99, "top_up_batches": 1}}
+    out = results / "model_batch" / "shard_000.zarr"
+    stage = ["model-batch", "--shard", "000", "--stability", str(results / "stability" / "stability.parquet"), "--objects", str(results / "objects"),
+             "--threads", "1"]  # fmt: skip
+    assert main([*stage, "--config-json", json.dumps(config), "--out", str(out)]) == 0
+    made = read_grasp_store(out)
+    sources = np.asarray(made.arrays["source"]).astype(str)
+    assert made.hand_pose.shape == (4, 15) and np.isfinite(made.hand_pose).all()
+    assert sorted(sources) == ["model", "model", "optimization", "optimization"] and made.attrs["topped_up_objects"] == [FLAT_BOX_ID]
+    assert (made.attrs["hand"], made.attrs["hand_sha256"]) == (str(xml), hashlib.sha256(xml.read_bytes()).hexdigest())
+    assert made.attrs["joint_names"] == [f"{f}_j{k}" for f in ("f1", "f2", "th") for k in range(3)]
+    assert {"lift_success", "six_dir_success", "evaluator_score"} <= set(made.arrays)
+    empty = tmp_path / "empty.zarr"  # the second of two shards holds no object: no grasps, of the hand's width
+    assert main([*stage[:1], "--shard", "001", *stage[3:], "--config-json", json.dumps({**config, "shards": 2}), "--out", str(empty)]) == 0
+    assert read_grasp_store(empty).hand_pose.shape == (0, 15) and read_grasp_store(empty).attrs["hand"] == str(xml)
+
+    assert main(["dataset-add", str(results), "--dataset", str(tmp_path / "dataset")]) == 0
+    stored, rows = load_dataset(tmp_path / "dataset")
+    assert stored.hand_pose.shape == (4, 15) and stored.attrs["hand"] == str(xml) and rows["object_id"].tolist() == [FLAT_BOX_ID]
+    assert sorted(np.asarray(stored.arrays["source"]).astype(str)) == sorted(sources)
+
+    (tmp_path / "shadow").mkdir()
+    shadow_model = untrained_model_and_evaluator(tmp_path / "shadow", "shadow")[0]
+    refused = {**config, "model_batch": {**config["model_batch"], "model": str(shadow_model)}}
+    error = one_line_cli_error(capsys, [*stage, "--config-json", json.dumps(refused), "--out", str(tmp_path / "refused.zarr")])
+    assert error == (f"dexlite model-batch: error: model_batch.model: {shadow_model}: a model of hand shadow, this run's hand is {xml}: "
+                     f"train a model for hand {xml} (config key hand)")
+    assert not (tmp_path / "refused.zarr").exists()

@@ -15,7 +15,7 @@ import trimesh
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "hand"))
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from described_hands import one_line_cli_error  # noqa: E402
+from described_hands import one_line_cli_error, untrained_model_and_evaluator  # noqa: E402
 from three_finger import write_three_finger  # noqa: E402
 
 from dexlite_pipeline.cli import main  # noqa: E402
@@ -71,33 +71,11 @@ def test_another_hand_refuses_the_shipped_model_and_a_broken_mjcf_is_refused(box
     assert not (tmp_path / "out").exists()
 
 
-def _untrained_model_and_evaluator(folder: Path, hand: str) -> tuple[Path, Path]:
-    """A small CVAE and grasp evaluator with untrained weights for ``hand`` (config key ``hand``), saved in ``folder``: model
-    files for testing the plumbing, not the grasps."""
-    import dataclasses
-
-    from dexlite_pipeline.hand.choice import hand_record
-    from dexlite_pipeline.model.checkpoint import save_checkpoint
-    from dexlite_pipeline.model.config import ModelConfig
-    from dexlite_pipeline.model.evaluator import EvaluatorConfig, GraspEvaluator, save_evaluator
-    from dexlite_pipeline.model.network import GraspCVAE
-
-    @dataclasses.dataclass
-    class Trained:
-        points_per_cloud: int = 64
-
-    small = ModelConfig(pointnet_widths=(16, 32), encoder_hidden=(32,), decoder_hidden=(32,), latent_dim=8, normalization="none")
-    save_checkpoint(folder / "cvae.pt", GraspCVAE(small, hand_record=hand_record(hand)), Trained(), {"seed": 0})
-    config = EvaluatorConfig(points_per_cloud=64, pointnet_points=32, pointnet_widths=(8, 16), hand_points_per_shape=1, hidden_sizes=(16,))
-    save_evaluator(folder / "evaluator.pt", GraspEvaluator(config, "cpu", hand), config, {"train_object_ids": []})
-    return folder / "cvae.pt", folder / "evaluator.pt"
-
-
 def test_grasp_with_a_model_for_a_hand_from_its_mjcf(box_and_hand, tmp_path, capsys):
     """--hand with --model and --evaluator made for that hand: samples of 6 + 9 numbers, ranked and refined with its own
     energies, lift-tested in its own scene; the Shadow Hand's run refuses the same files in one line each."""
     box, xml = box_and_hand
-    model, evaluator = _untrained_model_and_evaluator(tmp_path, str(xml))
+    model, evaluator = untrained_model_and_evaluator(tmp_path, str(xml))
     out = tmp_path / "with_model"
     config = {**TINY, "post_optimize": {"annealing": {"iterations": 10}}, "evaluator": {"pool_factor": 2}}
     code = main(["grasp", str(box), "--out", str(out), "--n", "2", "--threads", "1", "--hand", str(xml), "--model", str(model),
@@ -112,7 +90,7 @@ def test_grasp_with_a_model_for_a_hand_from_its_mjcf(box_and_hand, tmp_path, cap
     error = one_line_cli_error(capsys, [*base, "--model", str(model), "--no-evaluator"])
     assert f"--model {model}: a model of hand {xml}, this run's hand is shadow" in error
     (tmp_path / "shadow").mkdir()
-    shadow_model = _untrained_model_and_evaluator(tmp_path / "shadow", "shadow")[0]
+    shadow_model = untrained_model_and_evaluator(tmp_path / "shadow", "shadow")[0]
     error = one_line_cli_error(capsys, [*base, "--hand", str(xml), "--model", str(shadow_model), "--evaluator", str(evaluator)])
     assert f"--model {shadow_model}: a model of hand shadow, this run's hand is {xml}" in error
     error = one_line_cli_error(capsys, [*base, "--model", str(shadow_model), "--evaluator", str(evaluator)])

@@ -1,7 +1,7 @@
 """Config key ``hand`` in the workflow (dry runs): an unknown hand stops it while parsing, in one line naming the key;
 with another hand than the Shadow Hand the data and model stages take it (optimize_grasps, curate, lift_validate,
-train_cvae, sample_grasps, post_optimize, the learned evaluator's stages, evaluate, the data loop, the report and
-dataset_grasps are given it, prepare_objects and stability_filter are not), the default target included."""
+train_cvae, sample_grasps, post_optimize, the learned evaluator's stages, evaluate, the data loop, the report,
+dataset_grasps and model_batch are given it, prepare_objects and stability_filter are not), the default target included."""
 
 from __future__ import annotations
 
@@ -73,3 +73,15 @@ def test_another_hand_reaches_the_model_stages_and_the_evaluation(tmp_path):
         for rule in rules:
             given = json.loads(option_value(commands[rule][0], "--config-json"))
             assert given.get("hand") == ("allegro" if hand == "allegro" else None), (hand, rule)
+
+
+def test_another_hand_reaches_the_model_made_batch(tmp_path):
+    """model_batch_all (a dataset batch made by the model) gives model_batch the hand; the Shadow Hand's, none."""
+    for hand in ("allegro", "shadow"):
+        done = _dry_run(tmp_path / hand, hand, "model_batch_all")
+        output = done.stdout + done.stderr
+        assert done.returncode == 0, output[-3000:]
+        commands = planned_commands(output)
+        assert "model_batch" in commands
+        for line in commands["model_batch"]:
+            assert json.loads(option_value(line, "--config-json")).get("hand") == ("allegro" if hand == "allegro" else None), hand

@@ -34,9 +34,9 @@ if retired := retired_keys_message(config):
     raise WorkflowError(retired)
 validate(config, str(SCHEMA_PATH))
 # Config key hand: a known name or an existing file, checked while parsing (the file's MJCF is read by the first stage
-# that makes the hand, which refuses it in one line). Every stage of the default target takes the hand (optimize_grasps
-# to evaluate, the data loop, the report, dataset_grasps); prepare_objects and stability_filter do not depend on it.
-# model_batch is given it too when it is not the Shadow Hand, and refuses it (dexlite's PIPELINE_STAGES without HAND_STAGES).
+# that makes the hand, which refuses it in one line). Every stage takes the hand (optimize_grasps to evaluate, the data
+# loop, the report, dataset_grasps, model_batch); prepare_objects and stability_filter do not depend on it. The Shadow
+# Hand's stages are given no hand (stage_params), so a default run's params are what they were before hands.
 HAND = str(config.get("hand", SHADOW))
 if problem := hand_setting_problem(HAND):
     raise WorkflowError(problem)
@@ -99,11 +99,11 @@ def stage_params(*sections, source=None, told_hand=True):
     ``source`` is the config to take them from (default: the whole config; the evaluation
     steps pass a cut-down one). Given as a params function: Snakemake rebuilds a plain-string
     param as a plain str (wildcards applied), which would lose StageConfigJSON's tracked form.
-    ``told_hand``: with a hand other than the Shadow Hand, a stage that does not list "hand" is given it (and refuses
-    it: the model stages); False for the stages whose outputs do not depend on the hand (prepare_objects, stability_filter).
+    ``told_hand``: with a hand other than the Shadow Hand, a stage is given section "hand" (it takes the hand from there);
+    False for the stages whose outputs do not depend on the hand (prepare_objects, stability_filter).
     """
     source = config if source is None else source
-    if told_hand and HAND != SHADOW and "hand" not in sections:  # a stage that does not take the hand is told it, and refuses another
+    if told_hand and HAND != SHADOW and "hand" not in sections:  # the Shadow Hand's stages are given none: their params as before
         source, sections = {**source, "hand": HAND}, (*sections, "hand")
     tracked_config = {
         name: {k: v for k, v in section.items() if k not in RESULT_NEUTRAL_KEYS.get(name, ())}

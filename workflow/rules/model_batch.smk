@@ -1,7 +1,7 @@
 # A dataset batch made by the model (config/profiles/household_model_batch.yaml): per shard, the generator's grasps
 # on the stable objects, ranked, refined and tested, optimization from scratch topping up the objects short of
 # distinct held grasps; `dexlite dataset-add` adds results/model_batch as a batch of kind model. Not in `all`:
-# target model_batch_all (Snakefile).
+# target model_batch_all (Snakefile). With config key hand, that hand's: model_batch.model and .evaluator must be of it.
 
 
 rule model_batch:

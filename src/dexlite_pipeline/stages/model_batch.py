@@ -3,8 +3,9 @@
 Reads the prepared objects and the stability table, writes ``--out`` (grasp store): every grasp tested, held or
 not, with its lift and six-direction outcome and its ``source`` (``model`` or ``optimization``); the attributes
 record the sections used, the model and evaluator files (SHA-256), the objects topped up and the phases' seconds
-(``tools.model_batch``). ``dexlite dataset-add`` adds the run as a batch of kind ``model``. Exit status 2 with one
-line when a ``model_batch`` key names a missing file.
+(``tools.model_batch``) and the hand (config key ``hand``: ``hand``, ``joint_names``; poses of 6 + J numbers).
+``dexlite dataset-add`` adds the run as a batch of kind ``model`` to a dataset of that hand. Exit status 2 with one
+line when a ``model_batch`` key names a missing file or a model or evaluator of another hand, or ``hand`` an unusable one.
 """
 
 from __future__ import annotations
@@ -16,8 +17,8 @@ log = logging.getLogger("dexlite.model_batch")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--config-json", required=True, help="config sections seed, device, shards, scene, model_batch, sample, post_optimize, "
-                        "evaluator, optimize_grasps, energy, diversity, lift (canonical JSON)")
+    parser.add_argument("--config-json", required=True, help="config sections seed, device, shards, hand, scene, model_batch, sample, "
+                        "post_optimize, evaluator, optimize_grasps, energy, diversity, lift (canonical JSON)")
     parser.add_argument("--shard", required=True, type=int, help="shard number, e.g. 000")
     parser.add_argument("--stability", required=True, help="stability table (.parquet)")
     parser.add_argument("--objects", action="append", required=True, help="prepared objects dir with catalog.parquet (repeatable)")

@@ -20,6 +20,12 @@ the sections used, the model and evaluator files with their SHA-256, the objects
 the reason, the objects topped up, and the seconds of each phase. ``dexlite dataset-add`` reads it as a batch of
 kind ``model``. The steps are those of ``dexlite grasp`` (``tools.grasp.synthesis``), on the pipeline's prepared
 objects and resting poses instead of the user's meshes.
+
+The hand is config key ``hand`` (docs/hands.md): the model and the evaluator must be of it (a file of another hand is
+refused in one line naming the key and the file, before any work), and the samples' refinement, the top-up's
+optimization from scratch and the lift and six-direction tests use its model and scene; poses are 6 + J numbers and
+the store records the hand (``hand``, ``joint_names``, ``hand_sha256`` for an MJCF file) as the other stages' stores
+do. The Shadow Hand's path is the one it always was (its hand model is the callees' own default).
 """
 
 from __future__ import annotations
@@ -90,13 +96,30 @@ class PhaseSeconds:
     top_up_batches: int = 0
 
 
+def load_generator(model_file: Path, evaluator_file: Path | None, device, record: dict) -> tuple[tuple, tuple | None]:
+    """The loaded model and evaluator (None: none) for a run of the hand ``record`` (``hand.choice.hand_record``);
+    ``ModelBatchError`` in one line naming the key and the file when either is of another hand or unreadable."""
+    from dexlite_pipeline.model.checkpoint import load_checkpoint
+    from dexlite_pipeline.model.evaluator import load_evaluator
+
+    try:
+        loaded = load_checkpoint(str(model_file), device, hand=record)
+    except ValueError as exc:
+        raise ModelBatchError(f"model_batch.model: {exc}") from None
+    if evaluator_file is None:
+        return loaded, None
+    try:
+        return loaded, load_evaluator(str(evaluator_file), device, hand=record)
+    except ValueError as exc:
+        raise ModelBatchError(f"model_batch.evaluator: {exc}") from None
+
+
 def model_batch_shard(objects_dirs: list[str], stability_path: str, shard: int, config: PipelineConfig, threads: int) -> tuple[GraspSet, dict]:
     """Every tested grasp of shard ``shard``'s stable objects (see the module docstring) and the store's attributes."""
     from dexlite_pipeline.config import json_ready
     from dexlite_pipeline.device import resolve_device
-    from dexlite_pipeline.io.grasp_store import GraspSet
-    from dexlite_pipeline.model.checkpoint import load_checkpoint
-    from dexlite_pipeline.model.evaluator import load_evaluator
+    from dexlite_pipeline.hand.choice import SHADOW, hand_record, resolve_hand
+    from dexlite_pipeline.io.grasp_store import empty_grasp_set
     from dexlite_pipeline.objects.assets import ok_object_ids
     from dexlite_pipeline.objects.stability import stable_object_ids
     from dexlite_pipeline.optim.from_scratch_shard import usable_assets
@@ -107,6 +130,9 @@ def model_batch_shard(objects_dirs: list[str], stability_path: str, shard: int, 
     section = config.model_batch
     model_file, evaluator_file = generator_files(section)
     device = resolve_device(config.device)
+    record = hand_record(config.hand)  # an unusable hand: one line before any work
+    loaded, evaluator = load_generator(model_file, evaluator_file, device, record)
+    hand = None if config.hand == SHADOW else resolve_hand(config.hand, device)  # None: the callees' Shadow Hand, as before
     seed = shard_seed(config.seed, shard)
     object_ids = shard_objects(sorted(ok_object_ids(objects_dirs) & stable_object_ids(stability_path)), shard, config.shards)
     planes = load_support_planes(config.scene.table, stability_path)
@@ -116,13 +142,14 @@ def model_batch_shard(objects_dirs: list[str], stability_path: str, shard: int, 
     seconds = PhaseSeconds()
 
     def tested(grasps: GraspSet, source: str) -> GraspSet:
-        result, _ = lift_grasp_set(grasps, objects_dirs, lift_config, threads, support_planes=planes, known_failures=hopeless_optimizations(grasps))
+        result, _ = lift_grasp_set(grasps, objects_dirs, lift_config, threads, support_planes=planes, known_failures=hopeless_optimizations(grasps),
+                                   hand=hand)
         result.arrays["source"] = np.full(len(result), source, dtype=object)
         return result
 
     def top_up_batch(chosen, batch: int) -> GraspSet:
         t = time.perf_counter()
-        grasps = synthesize_from_scratch(chosen, scales, section.grasps_per_object, config, device, top_up_seed(seed, batch), planes)
+        grasps = synthesize_from_scratch(chosen, scales, section.grasps_per_object, config, device, top_up_seed(seed, batch), planes, hand)
         seconds.top_up += time.perf_counter() - t
         log.info("shard %03d top-up batch %d: lift and six-direction tests of %d grasps on %d object(s)", shard, batch + 1, len(grasps), len(chosen))
         t = time.perf_counter()
@@ -131,15 +158,14 @@ def model_batch_shard(objects_dirs: list[str], stability_path: str, shard: int, 
         seconds.top_up_batches += 1
         return result
 
-    log.info("shard %03d: %d stable objects (%d usable); %d grasps each from %s%s, top-up below %d distinct held (at most %d batches), device %s",
-             shard, len(object_ids), len(assets), section.grasps_per_object, model_file,
-             f" ranked by {evaluator_file}" if evaluator_file else "", section.min_distinct, section.top_up_batches, device)  # fmt: skip
+    log.info("shard %03d: %d stable objects (%d usable); %d grasps each from %s%s, top-up below %d distinct held (at most %d batches), "
+             "hand %s, device %s", shard, len(object_ids), len(assets), section.grasps_per_object, model_file,
+             f" ranked by {evaluator_file}" if evaluator_file else "", section.min_distinct, section.top_up_batches, config.hand, device)  # fmt: skip
     topped_up: list[str] = []
     if assets:
-        loaded = load_checkpoint(str(model_file), device)
-        evaluator = load_evaluator(str(evaluator_file), device) if evaluator_file else None
         t = time.perf_counter()
-        grasps = synthesize_with_model(assets, scales, section.grasps_per_object, config, loaded, str(model_file), device, seed, planes, evaluator)
+        grasps = synthesize_with_model(assets, scales, section.grasps_per_object, config, loaded, str(model_file), device, seed, planes, evaluator,
+                                       hand)  # fmt: skip
         seconds.model = time.perf_counter() - t
         t = time.perf_counter()
         result = tested(grasps, SOURCE_MODEL)
@@ -150,10 +176,10 @@ def model_batch_shard(objects_dirs: list[str], stability_path: str, shard: int, 
                 log.warning("shard %03d: %s has fewer than %d distinct held grasps after %d top-up batch(es)", shard, asset.object_id,
                             section.min_distinct, section.top_up_batches)  # fmt: skip
     else:
-        result = GraspSet({"object_id": np.zeros(0, dtype=object), "scale": np.zeros(0, np.float32)})
+        result = empty_grasp_set(record)  # no usable object: no grasps, poses of the hand's width
     counts = distinct_per_object(result, distinct_labels(result, config)) if len(result) else {}
     attrs = {
-        "stage": "model_batch", "shard": f"{shard:03d}", "seed": config.seed, "shard_seed": seed,
+        "stage": "model_batch", "shard": f"{shard:03d}", "seed": config.seed, "shard_seed": seed, **record,
         "config": {name: json_ready(getattr(config, name)) for name in
                    ("model_batch", "sample", "post_optimize", "evaluator", "optimize_grasps", "energy", "diversity", "scene")},
         "lift_config": lift_config.as_dict(), **store_attrs(config.scene.table),
