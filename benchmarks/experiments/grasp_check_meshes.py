@@ -9,7 +9,7 @@ Prints, and writes to ``OUT_DIR/check_meshes.md``, per mesh and seed: attempts, 
 sources together) and per source (model, optimization from scratch), and each command's CPU-seconds (its own and its
 children's user + system time) and wall seconds. ``--set kitchen``: the kitchen check meshes instead (a bowl with a 4 mm
 wall, a plate, a spatula and a hammer lying on the table, metres; ``make_household_meshes.py --set kitchen``), in one
-call per seed. Arguments after ``--`` go to every ``dexlite grasp`` call
+call per seed. ``--config-json`` gives every call config sections (e.g. ``sample.type_mix``). Arguments after ``--`` go to every ``dexlite grasp`` call
 (e.g. ``-- --from-scratch``).
 """
 
@@ -31,10 +31,12 @@ def cpu_seconds_of_children() -> float:
     return usage.ru_utime + usage.ru_stime
 
 
-def run_grasp(meshes: str, out: Path, seed: int, threads: int, extra: list[str], units: str | None) -> tuple[float, float]:
-    """One ``dexlite grasp`` call; returns (CPU-seconds, wall seconds). Exit 1 (nothing held) is a result, not an error."""
+def run_grasp(meshes: str, out: Path, seed: int, threads: int, extra: list[str], units: str | None,
+              config: dict | None = None) -> tuple[float, float]:
+    """One ``dexlite grasp`` call; returns (CPU-seconds, wall seconds). Exit 1 (nothing held) is a result, not an error.
+    ``config``: config sections for its ``--config-json``, beside the seed."""
     command = [sys.executable, "-m", "dexlite_pipeline.cli", "grasp", meshes, "--out", str(out), "--overwrite", "--threads", str(threads),
-               "--renders", "0", "--config-json", json.dumps({"seed": seed}), *extra]  # fmt: skip
+               "--renders", "0", "--config-json", json.dumps({**(config or {}), "seed": seed}), *extra]  # fmt: skip
     if units:
         command += ["--units", units]
     cpu, wall = cpu_seconds_of_children(), time.perf_counter()
@@ -63,8 +65,9 @@ def per_mesh_counts(out: Path) -> dict[str, dict]:
     return rows
 
 
-def parse_seed_runs(argv: list[str] | None, description: str) -> tuple[argparse.Namespace, list[str]]:
-    """OUT_DIR, --seeds and --threads, and the arguments after ``--`` (for every ``dexlite grasp`` call)."""
+def parse_seed_runs(argv: list[str] | None, description: str, mesh_sets: bool = False) -> tuple[argparse.Namespace, list[str]]:
+    """OUT_DIR, --seeds, --threads and --config-json (and --set with ``mesh_sets``), and the arguments after ``--`` (for every
+    ``dexlite grasp`` call)."""
     argv = sys.argv[1:] if argv is None else argv
     extra = argv[argv.index("--") + 1:] if "--" in argv else []
     own = argv[: argv.index("--")] if "--" in argv else argv
@@ -72,13 +75,16 @@ def parse_seed_runs(argv: list[str] | None, description: str) -> tuple[argparse.
     parser.add_argument("out_dir", type=Path)
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
     parser.add_argument("--threads", type=int, default=1)
-    parser.add_argument("--set", dest="mesh_set", choices=("household", "kitchen"), default="household",
-                        help="household: mug, bowl, wine bottle, cereal box and the mug in mm; kitchen: bowl, plate, spatula, hammer")
+    parser.add_argument("--config-json", type=json.loads, default={}, metavar="JSON",
+                        help='config sections for every call, e.g. \'{"sample": {"type_mix": "even"}}\' (the seed is --seeds\')')
+    if mesh_sets:
+        parser.add_argument("--set", dest="mesh_set", choices=("household", "kitchen"), default="household",
+                            help="household: mug, bowl, wine bottle, cereal box and the mug in mm; kitchen: bowl, plate, spatula, hammer")
     return parser.parse_args(own), extra
 
 
 def main(argv: list[str] | None = None) -> int:
-    args, extra = parse_seed_runs(argv, __doc__.splitlines()[0])
+    args, extra = parse_seed_runs(argv, __doc__.splitlines()[0], mesh_sets=True)
     sys.path.insert(0, str(Path(__file__).resolve().parent))
     from make_household_meshes import write_check_meshes, write_kitchen_meshes
 
@@ -94,7 +100,7 @@ def main(argv: list[str] | None = None) -> int:
     for seed in args.seeds:
         for folder, units, label in calls:
             out = args.out_dir / f"seed_{seed}" / label
-            cpu, wall = run_grasp(str(folder), out, seed, args.threads, extra, units)
+            cpu, wall = run_grasp(str(folder), out, seed, args.threads, extra, units, args.config_json)
             for object_id, row in per_mesh_counts(out).items():
                 name = object_id + (" (mm)" if units else "")
                 lines.append(f"| {seed} | {name} | {row['attempts']} | {row['held']} | {row['distinct']} | {row['model']} | "

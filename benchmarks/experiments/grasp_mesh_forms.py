@@ -42,7 +42,7 @@ def main(argv: list[str] | None = None) -> int:
              "| ---: | --- | ---: | ---: | ---: | ---: | --- | --- |"]  # fmt: skip
     for seed in args.seeds:
         out = args.out_dir / f"seed_{seed}"
-        cpu, _ = run_grasp(str(meshes), out, seed, args.threads, extra, None)
+        cpu, _ = run_grasp(str(meshes), out, seed, args.threads, extra, None, args.config_json)
         counts = per_mesh_counts(out)
         for object_id, row in counts.items():
             meta = json.loads((out / "objects" / "assets" / object_id / "meta.json").read_text())

@@ -1,6 +1,7 @@
 """benchmarks/experiments/grasp_check_meshes.py: per-mesh counts read from a dexlite grasp output folder."""
 
 import numpy as np
+import pytest
 
 from dexlite_pipeline.io.grasp_store import GraspSet, write_grasp_store
 
@@ -19,3 +20,12 @@ def test_counts_per_mesh_and_source(tmp_path, benchmark_script):
     counts = benchmark_script("grasp_check_meshes").per_mesh_counts(tmp_path)
     assert counts["user-mug"] == {"attempts": 5, "held": 3, "distinct": 2, "model": "1/2", "optimization": "2/3"}
     assert counts["user-box"] == {"attempts": 2, "held": 0, "distinct": 0, "model": "0/2", "optimization": "-"}
+
+
+def test_seed_runs_take_config_sections_and_the_kitchen_set(benchmark_script):
+    module = benchmark_script("grasp_check_meshes")
+    args, extra = module.parse_seed_runs(["out", "--set", "kitchen", "--config-json", '{"sample": {"type_mix": "even"}}', "--",
+                                          "--n", "32"], "d", mesh_sets=True)
+    assert (args.mesh_set, args.config_json, args.seeds, extra) == ("kitchen", {"sample": {"type_mix": "even"}}, [0, 1, 2], ["--n", "32"])
+    with pytest.raises(SystemExit):
+        module.parse_seed_runs(["out", "--set", "kitchen"], "d")  # --set is the check meshes' only
