@@ -75,6 +75,35 @@ def test_contact_candidates_lie_on_their_links_collision_surface_facing_the_pad_
     assert np.all(tip[:, 0] > np.cos(np.radians(36)))
 
 
+def test_a_face_behind_another_surface_of_its_link_is_recessed_and_gets_no_candidates():
+    """A sample with its link's surface 3 mm in front of it (within 6 mm of its normal line) is recessed; 1 mm in front,
+    or 3 mm in front but 10 mm to the side, it is not. ``facing`` leaves recessed samples out unless all are."""
+    from dexlite_pipeline.hand.derive import LinkSurface, facing, recessed
+
+    up = np.array([0.0, 0.0, 1.0])
+    plate = np.array([[x, y, 0.0] for x in np.linspace(-0.004, 0.004, 5) for y in np.linspace(-0.004, 0.004, 5)])
+    points = np.array([[0.0, 0.0, -0.003], [0.0, 0.0, -0.001], [0.010, 0.0, -0.003]])
+    assert recessed(points, np.tile(up, (3, 1)), plate).tolist() == [True, False, False]
+    surface = LinkSurface(np.concatenate([plate, points]), np.tile(up, (len(plate) + 3, 1)), np.zeros(len(plate) + 3, dtype=int))
+    kept, _ = facing(surface, up, lambda p, s: np.zeros(len(p), dtype=bool), 40)
+    assert len(kept) == len(plate) + 2 and not np.any(np.all(np.isclose(kept, points[0]), axis=1))
+    only_recessed = LinkSurface(points[:1], up[None], np.zeros(1, dtype=int))
+    assert len(facing(only_recessed, up, lambda p, s: np.zeros(len(p), dtype=bool), 10)[0]) == 1
+
+
+def test_leaps_candidates_lie_on_faces_an_object_can_touch():
+    """No candidate of LEAP (whose thumb tip and palm have faces in the gaps between their boxes, up to 42 mm behind
+    the front) has its link's surface more than 2 mm in front of it."""
+    from dexlite_pipeline.hand.derive import RECESS_RADIUS_M, RECESSED_M
+
+    description = hand_description("leap")
+    for point, normal, link in zip(description.contact_points, description.contact_normals, description.contact_link):
+        samples = np.concatenate([s.points for s in description.shapes if s.link == description.links[link]]) - point
+        ahead = samples @ normal
+        lateral = np.linalg.norm(samples - ahead[:, None] * normal, axis=1)
+        assert ahead[lateral < RECESS_RADIUS_M].max() <= RECESSED_M + 1e-9, description.links[link]
+
+
 def test_the_three_finger_test_hand_loads_through_the_same_path(tmp_path):
     description = hand_description(write_three_finger(tmp_path))
     assert description.name == "three_finger"

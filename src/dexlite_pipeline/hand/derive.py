@@ -35,6 +35,11 @@ import numpy as np
 
 PAD_CONE_DEG = 35.0  # a sample is on the pad when its normal is within this angle of the pad side
 BURIED_M = 5e-4  # a sample deeper than this inside another shape of its link is buried, not pad
+# A sample is recessed, not pad, when its link's surface rises more than RECESSED_M in front of it (along its normal)
+# within RECESS_RADIUS_M of its normal line: an object touches it only with that surface RECESSED_M deep inside, deeper
+# than the lift test's start cap (2 mm); a convex object of radius 3 cm curves away by only 0.6 mm over 6 mm.
+RECESSED_M = 0.002
+RECESS_RADIUS_M = 0.006
 
 
 @dataclass(frozen=True)
@@ -135,13 +140,31 @@ def farthest_points(points: np.ndarray, count: int, first: int) -> np.ndarray:
     return np.asarray(chosen)
 
 
-def facing(surface: LinkSurface, side: np.ndarray, buried, count: int) -> tuple[np.ndarray, np.ndarray]:
-    """Up to ``count`` samples of a link facing ``side`` (within the pad cone) and not buried; (points, normals).
+def recessed(points: np.ndarray, normals: np.ndarray, surface: np.ndarray) -> np.ndarray:
+    """(P,) bool: which samples (points, outward normals (P, 3)) have a point of ``surface`` (the link's samples, (S, 3))
+    more than ``RECESSED_M`` in front of them within ``RECESS_RADIUS_M`` of their normal line (m, link frame)."""
+    out = np.zeros(len(points), dtype=bool)
+    for start in range(0, len(points), 256):
+        rel = surface[None] - points[start : start + 256, None]  # (p, S, 3)
+        ahead = np.einsum("psk,pk->ps", rel, normals[start : start + 256])
+        lateral = np.linalg.norm(rel - ahead[..., None] * normals[start : start + 256, None], axis=-1)
+        out[start : start + 256] = ((ahead > RECESSED_M) & (lateral < RECESS_RADIUS_M)).any(axis=1)
+    return out
 
-    buried(points, shape ids) -> bool mask: the samples inside another shape of the same link.
+
+def facing(surface: LinkSurface, side: np.ndarray, buried, count: int) -> tuple[np.ndarray, np.ndarray]:
+    """Up to ``count`` samples of a link facing ``side`` (within the pad cone), not buried and not recessed; (points, normals).
+
+    buried(points, shape ids) -> bool mask: the samples inside another shape of the same link. Recessed (``recessed``):
+    behind another surface of the link, e.g. a face in the gap between two boxes, which no object reaches. When every
+    facing sample is recessed the recessed ones are kept (a link's pad is then its least recessed face).
     """
     keep = surface.normals @ side >= math.cos(math.radians(PAD_CONE_DEG))
     keep &= ~buried(surface.points, surface.shape)
+    hidden = np.zeros(len(keep), dtype=bool)
+    hidden[keep] = recessed(surface.points[keep], surface.normals[keep], surface.points)
+    if (keep & ~hidden).any():
+        keep &= ~hidden
     points, normals = surface.points[keep], surface.normals[keep]
     if len(points) == 0:
         return points, normals
@@ -196,4 +219,5 @@ def open_pregrasp(limits: np.ndarray) -> np.ndarray:
 
 
 __all__ = ["CONTACT_SEGMENTS", "LinkSurface", "contact_links_of", "facing", "farthest_points", "fingers", "open_pregrasp", "pad_sides",
+           "recessed",
            "palm_frame", "palm_normal", "quat_to_matrix", "zero_pose_frames"]

@@ -208,6 +208,13 @@ class DescribedHand(ShadowHand):
         z, x = self.palm_frame_local[:3, 2], self.palm_frame_local[:3, 0]
         return math.cos(math.radians(tilt_deg)) * z + math.sin(math.radians(tilt_deg)) * x
 
+    def opposing_candidates(self) -> tuple[int, ...]:
+        """Contact-table indices of the candidates on the opposing fingers' links (the thumb's; ``HandDescription.opposing``
+        names each such finger by its leaf link). Empty when no finger opposes the others."""
+        leaves = set(self.description.opposing)
+        links = {self.link_index[name] for finger in self.description.fingers if finger[-1] in leaves for name in finger}
+        return tuple(i for i, link in enumerate(self.contact_link.tolist()) if link in links)
+
     def pregrasp_joints(self) -> torch.Tensor:
         """(J,) the description's open pre-grasp (rad), in the hand's dtype."""
         return torch.as_tensor(self.description.pregrasp, dtype=self.dtype)

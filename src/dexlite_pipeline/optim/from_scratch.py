@@ -34,7 +34,7 @@ from dexlite_pipeline.objects.assets import ObjectAsset
 from dexlite_pipeline.optim.annealing import optimize
 from dexlite_pipeline.optim.grasp_random import GraspRandom
 from dexlite_pipeline.optim.config import OptimizeGraspsConfig
-from dexlite_pipeline.optim.grasp_types import GRASP_TYPES, POWER_CODE, TYPE_NAMES, assign_types, contact_slots
+from dexlite_pipeline.optim.grasp_types import GRASP_TYPES, POWER_CODE, TYPE_NAMES, assign_types, contact_slots, power_slots
 from dexlite_pipeline.optim.init import HullSampler, initial_poses
 from dexlite_pipeline.optim.type_starts import FLOATING_UP, RimSampler, TypeGeometry, type_start_poses
 from dexlite_pipeline.tabletop import store_arrays
@@ -194,7 +194,7 @@ def synthesize(
             init, random = starts.draw(obj, sc, types[rows], generator, support), None
         else:
             init, random = keyed_init[rows].to(device), GraspRandom(keyed_seed, keys[rows])
-        slots = None if power_only else contact_slots(hand, types[rows])
+        slots = power_slots(hand, len(init)) if power_only else contact_slots(hand, types[rows])
         batch_started = time.perf_counter()
 
         def progress(iteration: int, energy_now: torch.Tensor, batch_number=batch_number, batch_started=batch_started) -> None:

@@ -201,15 +201,36 @@ def contact_slots(hand: ShadowHand, type_codes: torch.Tensor) -> ContactSlots:
     return ContactSlots.from_templates([contact_template(hand, GRASP_TYPES[name]) for name in TYPE_NAMES], type_codes)
 
 
+def power_slots(hand: ShadowHand, count: int) -> ContactSlots | None:
+    """The ``ContactSlots`` of ``count`` power grasps of ``hand``: None (any pad in every slot) for the Shadow Hand and for
+    a hand whose fingers all face one way; for a hand from its MJCF with an opposing finger (a thumb:
+    ``HandDescription.opposing``), the first contact on that finger's candidates and the other three on any pad.
+
+    Why: force closure needs contacts whose normals oppose, and the contact draws and searches prefer candidates already
+    near the surface; a hand that reaches the object with its fingers first then keeps four finger-side contacts, whose
+    normals cannot balance (E_fc stays high), and nothing pulls the thumb in. With one contact on the thumb, E_dis pulls
+    the thumb onto the object opposite the fingers (measured: docs/results_journal.md, "LEAP's thumb contact")."""
+    from dexlite_pipeline.hand.described import is_described
+
+    if not is_described(hand):
+        return None
+    opposing = hand.opposing_candidates()
+    if not opposing:
+        return None
+    every = tuple(range(hand.pad_candidate_count))
+    return ContactSlots.from_templates([(opposing, every, every, every)], torch.zeros(count, dtype=torch.long))
+
+
 def slots_of_types(hand: ShadowHand, type_names) -> ContactSlots | None:
-    """The ``ContactSlots`` of grasps of the named types (e.g. a store's ``grasp_type``), or None when every one is power
-    (any pad: the same draws as before grasp types). ValueError naming an unknown type."""
+    """The ``ContactSlots`` of grasps of the named types (e.g. a store's ``grasp_type``); when every one is power, those
+    of ``power_slots`` (None for the Shadow Hand: any pad, the same draws as before grasp types). ValueError naming an
+    unknown type."""
     names = [str(t) for t in type_names]
     unknown = sorted(set(names) - set(TYPE_NAMES))
     if unknown:
         raise ValueError(f"unknown grasp type(s) {', '.join(unknown)} (known: {', '.join(TYPE_NAMES)})")
     if all(name == "power" for name in names):
-        return None
+        return power_slots(hand, len(names))
     return contact_slots(hand, torch.as_tensor([TYPE_NAMES.index(name) for name in names], dtype=torch.long))
 
 
