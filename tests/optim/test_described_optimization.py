@@ -130,8 +130,8 @@ def test_a_hand_without_an_opposing_finger_starts_curled(tmp_path):
     assert torch.equal(opposed_pregrasp(hand), curled_pregrasp(hand))
 
 
-def test_a_described_hands_power_grasps_keep_two_contacts_on_its_opposing_finger(tmp_path, one_torch_thread):
-    """LEAP's power slots: the first two contacts among the thumb's candidates, the others among every pad; the Shadow Hand
+def test_a_described_hands_power_grasps_keep_one_contact_on_its_opposing_finger(tmp_path, one_torch_thread):
+    """LEAP's power slots: the first contact among the thumb's candidates, the others among every pad; the Shadow Hand
     and a hand without an opposing finger draw any pad in every slot (None)."""
     from dexlite_pipeline.hand import ShadowHand
     from dexlite_pipeline.hand.described import DescribedHand
@@ -144,7 +144,7 @@ def test_a_described_hands_power_grasps_keep_two_contacts_on_its_opposing_finger
     thumb = {leap.link_index[name] for finger in leap.description.fingers if finger[-1] == "th_ds" for name in finger}
     drawn = slots.draw(torch.rand(64, 4, generator=torch.Generator().manual_seed(0), dtype=torch.float64))
     links = leap.contact_link[drawn]
-    assert all(int(link) in thumb for link in links[:, :2].flatten())
-    assert {int(link) for link in links[:, 2:].flatten()} - thumb  # the other two reach beyond the thumb
-    assert slots.counts[0].tolist() == [len(leap.opposing_candidates())] * 2 + [140, 140]
+    assert all(int(link) in thumb for link in links[:, 0])
+    assert {int(link) for link in links[:, 1:].flatten()} - thumb  # the other three reach beyond the thumb
+    assert slots.counts[0].tolist() == [len(leap.opposing_candidates()), 140, 140, 140]
     assert slots_of_types(leap, ["power"] * 2).counts.tolist() == slots.counts[:2].tolist()

@@ -204,13 +204,12 @@ def contact_slots(hand: ShadowHand, type_codes: torch.Tensor) -> ContactSlots:
 def power_slots(hand: ShadowHand, count: int) -> ContactSlots | None:
     """The ``ContactSlots`` of ``count`` power grasps of ``hand``: None (any pad in every slot) for the Shadow Hand and for
     a hand whose fingers all face one way; for a hand from its MJCF with an opposing finger (a thumb:
-    ``HandDescription.opposing``), the first two contacts on that finger's candidates and the other two on any pad.
+    ``HandDescription.opposing``), the first contact on that finger's candidates and the other three on any pad.
 
     Why: force closure needs contacts whose normals oppose, and the contact draws and searches prefer candidates already
     near the surface; a hand that reaches the object with its fingers first then keeps four finger-side contacts, whose
-    normals cannot balance (E_fc stays high), and nothing pulls the thumb in. With contacts on the thumb, E_dis pulls the
-    thumb onto the object opposite the fingers; two of them (two against two, as most held grasps had them) balance
-    more often than one against three (measured: docs/results_journal.md, "LEAP's thumb contact")."""
+    normals cannot balance (E_fc stays high), and nothing pulls the thumb in. With one contact on the thumb, E_dis pulls
+    the thumb onto the object opposite the fingers (measured: docs/results_journal.md, "LEAP's thumb contact")."""
     from dexlite_pipeline.hand.described import is_described
 
     if not is_described(hand):
@@ -219,7 +218,7 @@ def power_slots(hand: ShadowHand, count: int) -> ContactSlots | None:
     if not opposing:
         return None
     every = tuple(range(hand.pad_candidate_count))
-    return ContactSlots.from_templates([(opposing, opposing, every, every)], torch.zeros(count, dtype=torch.long))
+    return ContactSlots.from_templates([(opposing, every, every, every)], torch.zeros(count, dtype=torch.long))
 
 
 def slots_of_types(hand: ShadowHand, type_names) -> ContactSlots | None:
