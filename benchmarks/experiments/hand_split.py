@@ -1,6 +1,6 @@
 """Optimization from scratch with one hand on the household split: held per attempt and why the others failed.
 
-    python benchmarks/experiments/hand_split.py OUT_DIR --hand leap --seeds 0 1 2 [--n 16] [--limit K] [--label after]
+    python benchmarks/experiments/hand_split.py OUT_DIR --hand leap --seeds 0 1 2 [--n 16] [--limit K] [--label after] [--config-json JSON]
 
 What ``dexlite grasp MESHES --from-scratch --hand H --n 16 --upright-axis +z`` does, without its pictures and stores:
 the household split's objects (``objects/household_split.yaml``, ``--limit K``: the first K) are generated in metres
@@ -8,6 +8,7 @@ standing on z = 0 into ``OUT_DIR/meshes/`` (once), prepared and stood on their t
 them (``prepare_meshes``, the preparation's seed 0 for every seed, so the seeds share the objects), then per seed
 optimized from scratch (``synthesize_from_scratch``), lift- and six-direction-tested (the tool's ``lift_tested``:
 2 mm start cap, hopeless optimizations not simulated) and labelled distinct (``distinct_labels``), one thread.
+``--config-json``: config sections over the defaults, e.g. ``'{"optimize_grasps": {"grasp_types": {"pinch": 1.0}}}'``.
 
 Per seed it prints, and appends as a JSON line to ``OUT_DIR/hand_split.jsonl``: held per attempt with a Wilson 95%
 interval, held and six directions, distinct held grasps per object, the held grasps' start depth median (mm), how many
@@ -91,6 +92,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--n", type=int, default=16)
     parser.add_argument("--limit", type=int, default=None, help="the first K objects of the household split (default: all 36)")
     parser.add_argument("--label", default="", help="a name for this code version in the output rows")
+    parser.add_argument("--config-json", type=json.loads, default={}, metavar="JSON", help="config sections over the defaults")
     parser.add_argument("--tabulate", action="store_true", help="only print the rows of OUT_DIR/hand_split.jsonl, per hand and label pooled")
     args = parser.parse_args(argv)
     if args.tabulate:
@@ -118,7 +120,7 @@ def main(argv: list[str] | None = None) -> int:
     for seed in args.seeds:
         out = args.out_dir / f"{args.hand}_{args.label or 'run'}_seed{seed}"
         request = grasp_request(meshes, str(out), n=args.n, from_scratch=True, hand=args.hand, upright_axis="+z", overwrite=True,
-                                config={"seed": 0})  # the objects are prepared and stood with seed 0 whatever the run's seed
+                                config={**args.config_json, "seed": 0})  # the objects are prepared and stood with seed 0 whatever the run's seed
         checked = check_request(request)
         record = RunRecord()
         prepared = prepare_meshes(request, checked, out / "objects", 5, record)
