@@ -19,6 +19,7 @@ import torch
 from dexlite_pipeline.energy.config import JUDGED_POINT_SPACING_M, EnergyConfig, EnergyWeights
 from dexlite_pipeline.energy.contact_slots import CONTACT_COUNT, ContactSlots
 from dexlite_pipeline.energy.link_map import LinkFrameMap
+from dexlite_pipeline.energy.penetration_term import PenetrationTerm
 from dexlite_pipeline.energy.point_clusters import PADDING
 from dexlite_pipeline.energy.terms import (
     ContactDistanceTerm,
@@ -26,7 +27,6 @@ from dexlite_pipeline.energy.terms import (
     EnergyTerm,
     ForceClosureTerm,
     JointLimitTerm,
-    PenetrationTerm,
     SelfPenetrationTerm,
     TableTerm,
 )

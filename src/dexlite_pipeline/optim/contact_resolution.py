@@ -4,7 +4,7 @@ The annealed optimizer trades E_pen against the other terms with fixed weights, 
 with some grasps pressed a few millimetres into the object, and the lift test refuses a grasp
 that starts deeper than its cap (a hand could not have reached it without passing through the
 object). Filtering those afterwards wastes them; instead every optimization ends here: a grasp
-whose penetration depth (the measure of ``energy.terms.PenetrationTerm``, against the mesh)
+whose penetration depth (the measure of ``energy.penetration_term.PenetrationTerm``, against the mesh)
 exceeds ``allowed_m`` moves, a small step at a time (longer while it is far from done, below),
 until it is within ``allowed_m`` or the steps run out: its joint angles down the gradient of its
 squared excess depth (``PenetrationTerm.excess``), so a finger inside the object opens along its

@@ -3,7 +3,7 @@
 Per grasp (docs/design.md, "Physics tests"):
 
 1. Start depth: the grasp's penetration depth against the object's mesh, the one measure
-   the energy filter and the report use too (``energy.terms.PenetrationTerm``: object points
+   the energy filter and the report use too (``energy.penetration_term.PenetrationTerm``: object points
    inside the hand's shapes and the hand's spheres inside the object, exact near the
    surface); deeper than ``max_initial_penetration_m`` (2 mm by default) fails at once with
    reason ``initial_penetration``: a finger that starts deeper would have had to pass
