@@ -62,7 +62,7 @@ rule loop_sample:
     output:
         directory(f"{ROUND}/{{part}}/sample_{{shard}}.zarr"),
     params:
-        cfg=stage_params(*loop_rule_sections("loop_sample"), *(("evaluator.pool_factor", "diversity", "scene") if LOOP_RANKING else ())),
+        cfg=stage_params(*loop_rule_sections("loop_sample"), *(("evaluator.pool_factor", "diversity") if LOOP_RANKING else ())),
         code=code_hash("loop_sample"),
         evaluator=lambda wc, input: f"--evaluator {input.evaluator}" if "evaluator" in input.keys() else "",
         objects=learning_cli_options("objects", learning_objects_dirs()),

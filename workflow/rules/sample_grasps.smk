@@ -17,7 +17,7 @@ def shipped_model_input(wildcards):
 
 
 # What the ranking reads besides the sample section, tracked only when it runs (evaluator.enabled)
-RANKING_SECTIONS = ("evaluator.pool_factor", "diversity", "scene") if config["evaluator"]["enabled"] else ()
+RANKING_SECTIONS = ("evaluator.pool_factor", "diversity") if config["evaluator"]["enabled"] else ()
 
 
 rule sample_grasps:
@@ -32,7 +32,7 @@ rule sample_grasps:
     output:
         directory(f"{RESULTS}/sample/shard_{{shard}}.zarr"),
     params:
-        cfg=stage_params("seed", "device", "shards", "sample", *RANKING_SECTIONS),
+        cfg=stage_params("seed", "device", "shards", "sample", "scene", *RANKING_SECTIONS),  # scene: the table frame the model reads
         code=code_hash("sample_grasps"),
         lift=lambda wc, input: learning_cli_options("lift", input.lift),
         objects=learning_cli_options("objects", learning_objects_dirs()),

@@ -26,10 +26,11 @@ EXAMPLE_METHOD = "cvae_examples"  # method label of the on-generator examples
 
 def example_syntheses(
     model_path: str, objects_dirs: list[str], stability_path: str, shard: int, shard_count: int, per_object: int, sample, seed: int,
-    device: str, hand: str = "shadow",
+    device: str, hand: str = "shadow", table: bool = False,
 ) -> tuple[GraspSet, dict]:
     """``per_object`` pure syntheses of the model at ``model_path`` on each stable training object of ``shard``; the
-    model must be of ``hand`` (config key ``hand``), and the attributes record the hand.
+    model must be of ``hand`` (config key ``hand``), and the attributes record the hand. ``table`` (scene.table): the
+    model reads each cloud in its table frame (``model.table_frame``).
 
     ``sample`` is the ``SampleConfig`` (scales, latent prior, associated points: as the evaluation's ``cvae_raw``).
     Returns the grasps (hand_pose, object_id, scale, method) and attributes (objects left out, with why; seconds per grasp).
@@ -45,6 +46,7 @@ def example_syntheses(
     from dexlite_pipeline.model.sampling import synthesis_rows
     from dexlite_pipeline.objects.assets import load_asset
     from dexlite_pipeline.sharding import shard_generator
+    from dexlite_pipeline.tabletop import load_support_planes
 
     started = time.process_time()
     device = resolve_device(device)
@@ -55,7 +57,8 @@ def example_syntheses(
     arrays = {"hand_pose": np.zeros((0, model.pose_width), np.float32), "object_id": np.zeros(0, dtype=object), "scale": np.zeros(0, np.float32),
               "method": np.zeros(0, dtype=object), GRASP_TYPE: np.zeros(0, dtype=object)}
     if object_ids and per_object > 0:
-        clouds = ObjectClouds([load_asset(objects_dirs, oid) for oid in object_ids], model.codes_mu.device)
+        clouds = ObjectClouds([load_asset(objects_dirs, oid) for oid in object_ids], model.codes_mu.device,
+                              load_support_planes(table, stability_path))
         generator = shard_generator("evaluator_examples", seed, shard)
         with torch.no_grad():
             rows = synthesis_rows(model, clouds, object_ids, sample, points, generator, fixed_clouds, EXAMPLE_METHOD, per_object)
@@ -90,7 +93,7 @@ def collect_examples(
     clock = time.process_time()
     sampled, sample_attrs = example_syntheses(
         model_path, objects_dirs, stability_path, shard, config.shards, config.evaluator.examples_per_object, config.sample, config.seed,
-        config.device, config.hand,
+        config.device, config.hand, config.scene.table,
     )
     cpu = {"sample": time.process_time() - clock}
     post_optimize = dataclasses.replace(config.post_optimize, random_baseline=False)

@@ -140,7 +140,7 @@ def rank_shard(
         raise ValueError(f"{evaluator_path}: the evaluator was trained on held-out object(s) {', '.join(leaked[:5])}: it would rank what it has seen")
     model, checkpoint = load_checkpoint(model_path, device, hand=record)
     points, fixed_clouds = cloud_reading(checkpoint, sample.points_per_cloud)
-    clouds = ObjectClouds([load_asset(objects_dirs, oid) for oid in object_ids], model.codes_mu.device)
+    clouds = ObjectClouds([load_asset(objects_dirs, oid) for oid in object_ids], model.codes_mu.device, planes)
     with torch.no_grad():
         pool = synthesis_rows(model, clouds, object_ids, sample, points, shard_generator("evaluator_ranking", seed, shard), fixed_clouds,
                               RANKED_METHOD, pool_size)

@@ -69,7 +69,7 @@ class LoopConfig:
 # The config each loop rule passes its stage (workflow/rules/loop.smk; benchmarks/experiments/loop_round_yield.py runs the
 # stages alike): these sections and dotted keys, then the keys of section loop whose ``setting(rules=...)`` names the rule.
 LOOP_RULE_SECTIONS = {
-    "loop_sample": ("seed", "device", "shards", "sample"),
+    "loop_sample": ("seed", "device", "shards", "sample", "scene"),
     "loop_post_optimize": ("seed", "device", "post_optimize", "scene", "energy.self_penetration_margin_m"),
     "loop_validate": ("device", "curate.thresholds", "energy.weights", "lift", "scene"),
     "loop_merge": ("diversity",),

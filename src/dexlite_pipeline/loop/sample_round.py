@@ -38,13 +38,14 @@ def round_sample_settings(sample, loop: LoopConfig, part: str):
 
 def sample_round(
     model_path: str, objects_dirs: list[str], stability_path: str, shard: int, shard_count: int, part: str, round_number: int,
-    loop: LoopConfig, sample, device, seed: int, hand: str = "shadow",
+    loop: LoopConfig, sample, device, seed: int, hand: str = "shadow", table: bool = False,
 ) -> tuple[GraspSet, dict]:
     """Grasps of one shard's objects of split ``part`` from the model at ``model_path`` (``sample``: the ``SampleConfig``).
 
     What each part samples: ``round_sample_settings``. The model must be of ``hand`` (config key ``hand``; refused in one
-    line otherwise). Returns the grasps (hand_pose, object_id, scale, method; poses of 6 + J numbers) and the store
-    attributes, which record the hand.
+    line otherwise). ``table`` (scene.table): the model reads each cloud in its table frame (``model.table_frame``).
+    Returns the grasps (hand_pose, object_id, scale, method; poses of 6 + J numbers) and the store attributes, which
+    record the hand.
     """
     import torch
 
@@ -52,6 +53,7 @@ def sample_round(
     from dexlite_pipeline.model.data import ObjectClouds
     from dexlite_pipeline.model.sampling import SampledRows, synthesis_rows
     from dexlite_pipeline.objects.assets import load_asset
+    from dexlite_pipeline.tabletop import load_support_planes
 
     from dexlite_pipeline.hand.choice import hand_record
 
@@ -62,7 +64,8 @@ def sample_round(
     settings, count, label = round_sample_settings(sample, loop, part)
     generator = torch.Generator().manual_seed(round_seed(seed, round_number, shard, part))
     if object_ids and count > 0:
-        clouds = ObjectClouds([load_asset(objects_dirs, oid) for oid in object_ids], model.codes_mu.device)
+        clouds = ObjectClouds([load_asset(objects_dirs, oid) for oid in object_ids], model.codes_mu.device,
+                              load_support_planes(table, stability_path))
         rows = synthesis_rows(model, clouds, object_ids, settings, points, generator, fixed_clouds, label, count)
     else:
         rows = SampledRows.concatenate([], model.codes_mu.device)

@@ -20,8 +20,10 @@ from dexlite_pipeline.io.grasp_store import GraspSet, grasp_types, invalid_grasp
 from dexlite_pipeline.model.association import grasp_rays
 from dexlite_pipeline.model.hand_match import shadow_hand_record
 from dexlite_pipeline.model.pose import STORED_JOINTS_START, pose_to_features
+from dexlite_pipeline.model.table_frame import upright_rotations
 from dexlite_pipeline.model.type_condition import GraspTypeRequestError, type_codes, vocabulary_of
 from dexlite_pipeline.objects.assets import ObjectAsset
+from dexlite_pipeline.tabletop import planes_from_store
 
 log = logging.getLogger(__name__)
 
@@ -60,9 +62,13 @@ def split_validation(count: int, fraction: float, seed: int) -> tuple[np.ndarray
 class ObjectClouds:
     """Normalized surface samples (with outward normals) of a set of objects, drawn into metre-scale clouds."""
 
-    def __init__(self, assets: list[ObjectAsset], device: torch.device | str = "cpu") -> None:
+    def __init__(self, assets: list[ObjectAsset], device: torch.device | str = "cpu", planes=None) -> None:
+        """``planes`` (a ``tabletop.SupportPlanes``; None in floating mode): the tables the objects rest on, whose
+        ``upright`` rotations turn a cloud into the generator's table frame (``model.table_frame``); the draws
+        themselves stay in each object's own frame (the evaluator reads them so)."""
         self.device = torch.device(device)
         self.object_ids = [a.object_id for a in assets]
+        self.upright = upright_rotations(self.object_ids, planes, self.device)  # (O, 3, 3) object frame -> table frame
         self.real_scales = [a.real_scale for a in assets]  # scale at the object's real size (metres files), else None
         self.index_of = {oid: i for i, oid in enumerate(self.object_ids)}
         sizes = {len(a.surface_points) for a in assets}
@@ -242,7 +248,7 @@ def build_training_data(
         codes = type_codes(types, vocabulary)
     except GraspTypeRequestError as exc:
         raise TrainingDataError(f"training grasps: {exc}") from None
-    clouds = ObjectClouds(assets, device)
+    clouds = ObjectClouds(assets, device, planes_from_store(grasps))
     pose = torch.as_tensor(grasps.hand_pose, dtype=torch.float32, device=device)
     with torch.no_grad():
         origin, direction = grasp_rays(hand, pose)

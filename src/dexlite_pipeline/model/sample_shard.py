@@ -115,7 +115,7 @@ def shipped_rows(
 
 def sample_shard(
     model_path: str, objects_dirs: list[str], stability_path: str, lift_paths: list[str], shard: int, *, shards: int,
-    sample: SampleConfig, seed: int, device: str, shipped_model: str | None = None, hand: str = "shadow",
+    sample: SampleConfig, seed: int, device: str, shipped_model: str | None = None, hand: str = "shadow", table: bool = False,
 ) -> tuple[GraspSet, dict]:
     """Every CVAE grasp of ``shard``: syntheses on held-out objects, expansions and ladder rows on training objects
     and, with ``shipped_model`` (a pretrained model file), its syntheses on held-out objects (``shipped_rows``).
@@ -124,7 +124,8 @@ def sample_shard(
     reconstructions, the ``reference_hand_pose`` they reproduce; NaN elsewhere) and the
     store attributes (with the hand's record: ``hand``, ``joint_names``). The config it reads comes as arguments: ``shards``,
     section ``sample``, ``seed``, ``device`` and ``hand`` (the model must be of that hand: ``CheckpointError`` in one line
-    otherwise; the grasps to expand must be too).
+    otherwise; the grasps to expand must be too), and ``table`` (scene.table: the model reads each cloud in its table frame,
+    ``model.table_frame``, from the stability table's resting poses).
     Its ``seconds_per_grasp`` is the CPU time of the whole call (loading the model and the objects included) per row.
     """
     started = time.process_time()  # CPU seconds (all threads of this process), not wall time
@@ -137,6 +138,7 @@ def sample_shard(
     from dexlite_pipeline.model.sampling import expand, ladder_rows, synthesis_rows
     from dexlite_pipeline.objects.assets import load_asset
     from dexlite_pipeline.sharding import shard_generator
+    from dexlite_pipeline.tabletop import load_support_planes
 
     settings = sample
     device = resolve_device(device)
@@ -156,7 +158,7 @@ def sample_shard(
     parts: list[SampledRows] = []
     shipped_left_out: dict[str, str] = {}
     if targets:
-        clouds = ObjectClouds([load_asset(objects_dirs, oid) for oid in targets], device)
+        clouds = ObjectClouds([load_asset(objects_dirs, oid) for oid in targets], device, load_support_planes(table, stability_path))
         if heldout and settings.synthesis_grasps_per_object > 0:
             parts.append(synthesis_rows(model, clouds, heldout, settings, points, generator, fixed_clouds, SYNTHESIS))
         if len(to_expand) and settings.expansion_grasps_per_object > 0:

@@ -32,21 +32,24 @@ from dexlite_pipeline.model.data import ObjectClouds, cloud_keys
 from dexlite_pipeline.model.latent_codes import code_type_mask, feature_distances, sample_latents, training_cloud_features
 from dexlite_pipeline.model.methods import PRIOR_ON_TRAINING, RECONSTRUCTION
 from dexlite_pipeline.model.network import GraspCVAE, anchor_at, condition_at
-from dexlite_pipeline.model.pose import features_to_pose, pose_to_features, rotate_features, turned_clouds, vertical_rotation
+from dexlite_pipeline.model.pose import features_to_pose, pose_to_features, turned_clouds, vertical_rotation
+from dexlite_pipeline.model.table_frame import rotate_clouds, rotate_grasps, rotate_vectors
 from dexlite_pipeline.model.type_condition import requested_codes, type_codes
 
 
 def _clouds_for(
     clouds: ObjectClouds, object_index: np.ndarray, scale: np.ndarray, points: int, generator: torch.Generator, fixed: bool = True
 ):
-    """One cloud per distinct (object, scale) and the cloud of each grasp: the fixed subset the model was trained on
-    (``fixed``), else a random draw."""
+    """One cloud per distinct (object, scale) in the generator's table frame (``model.table_frame``), the cloud of each
+    grasp, and each cloud's rotation from the object's frame into that frame (C, 3, 3): the fixed subset the model was
+    trained on (``fixed``), else a random draw."""
     keys = cloud_keys(np.asarray(object_index).astype(str), scale)
     first = np.array([np.flatnonzero(keys == k)[0] for k in range(keys.max() + 1)]) if len(keys) else np.zeros(0, int)
     cloud_object = torch.as_tensor(object_index[first], device=clouds.device)
     cloud_scale = torch.as_tensor(scale[first], dtype=torch.float32, device=clouds.device)
-    drawn = clouds.clouds(cloud_object, cloud_scale, points, fixed, generator)
-    return drawn, torch.as_tensor(keys, device=clouds.device)
+    upright = clouds.upright[cloud_object]
+    drawn = rotate_clouds(clouds.clouds(cloud_object, cloud_scale, points, fixed, generator), upright)
+    return drawn, torch.as_tensor(keys, device=clouds.device), upright
 
 
 def matched_yaws(model: GraspCVAE, drawn: torch.Tensor, candidates: int) -> torch.Tensor:
@@ -165,14 +168,15 @@ def reconstruct(
     training grasp almost unchanged.
     """
     generator = generator if generator is not None else torch.Generator().manual_seed(0)
-    drawn, cloud_index = _clouds_for(clouds, object_index, scale, points, generator, fixed_clouds)
-    point_index = nearest_to_ray(drawn[cloud_index], ray_origin, ray_direction)
-    known = pose_to_features(known_pose)
+    drawn, cloud_index, to_table = _clouds_for(clouds, object_index, scale, points, generator, fixed_clouds)
+    turn = to_table[cloud_index]
+    point_index = nearest_to_ray(drawn[cloud_index], rotate_vectors(ray_origin, turn), rotate_vectors(ray_direction, turn))
+    known = rotate_grasps(pose_to_features(known_pose), turn)
     condition = model.condition(drawn, cloud_index, point_index)
     anchor = model.pose_anchors(anchor_at(drawn, cloud_index, point_index), known)
     types = _type_tensor(grasp_type, known.device)
     mu, _ = model.encode(known, condition, anchor, types)
-    return features_to_pose(model.decode(mu, condition, anchor, types))
+    return features_to_pose(rotate_grasps(model.decode(mu, condition, anchor, types), turn.transpose(1, 2)))
 
 
 def _type_tensor(grasp_type: np.ndarray | None, device) -> torch.Tensor | None:
@@ -220,11 +224,11 @@ def synthesize(
         raise ValueError(f"anchor rule {anchor_rule!r} is not one of {', '.join(ANCHOR_RULES)}")
     if anchor_rule == "matched" and (prior == "standard" or len(model.codes_condition) == 0):
         raise ValueError("anchor rule 'matched' needs a latent prior drawn from the training codes and a model saved with their conditions")
-    drawn, cloud_index = _clouds_for(clouds, object_index, scale, points, generator, fixed_clouds)
-    yaw = None
+    drawn, cloud_index, to_table = _clouds_for(clouds, object_index, scale, points, generator, fixed_clouds)
     if yaw_candidates > 1 and len(model.codes_condition) and len(model.codes_cloud) == len(model.codes_condition):
         yaw = matched_yaws(model, drawn, yaw_candidates)
         drawn = turned_clouds(drawn, yaw)
+        to_table = vertical_rotation(yaw) @ to_table
     features = model.pointnet(drawn)
     latent, code_index = sample_latents(
         model, len(object_index), generator, prior, temperature, features[0][cloud_index], neighbour_clouds, cloud_index if debias_codes else None,
@@ -246,9 +250,8 @@ def synthesize(
     condition = condition_at(features, cloud_index, point_index)
     anchor = model.sampling_anchors(anchor_at(drawn, cloud_index, point_index), generator)
     decoded = model.decode(latent, condition, anchor, _type_tensor(grasp_type, latent.device))
-    if yaw is not None:  # grasps of the turned cloud, back in the object's frame
-        decoded = rotate_features(decoded, vertical_rotation(yaw[cloud_index]).transpose(1, 2))
-    return features_to_pose(decoded)
+    # grasps of the cloud as the model read it (table frame, turned to the matched heading), back in the object's frame
+    return features_to_pose(rotate_grasps(decoded, to_table[cloud_index].transpose(1, 2)))
 
 
 @torch.no_grad()
@@ -269,8 +272,9 @@ def expand(
 ) -> torch.Tensor:
     """(B, 6 + J) new poses near known grasps (B, 6 + J) of types ``grasp_type`` (B,; vocabulary columns), each of its known
     grasp's type: latent perturbed, or (``move_point``) associated point moved."""
-    drawn, cloud_index = _clouds_for(clouds, object_index, scale, points, generator, fixed_clouds)
-    point_index = nearest_to_ray(drawn[cloud_index], ray_origin, ray_direction)
+    drawn, cloud_index, to_table = _clouds_for(clouds, object_index, scale, points, generator, fixed_clouds)
+    turn = to_table[cloud_index]
+    point_index = nearest_to_ray(drawn[cloud_index], rotate_vectors(ray_origin, turn), rotate_vectors(ray_direction, turn))
     grasp_points = drawn[cloud_index, :, :3]
     neighbours = min(config.expansion_point_neighbours, points)
     ray_point = grasp_points[torch.arange(len(point_index)), point_index]
@@ -278,7 +282,7 @@ def expand(
     pick = torch.randint(neighbours, (len(point_index),), generator=generator).to(clouds.device)
     moved_index = nearest[torch.arange(len(point_index)), pick]
     features = model.pointnet(drawn)
-    known = pose_to_features(known_pose)
+    known = rotate_grasps(pose_to_features(known_pose), turn)
     types = _type_tensor(grasp_type, known.device)
     mu, _ = model.encode(known, condition_at(features, cloud_index, point_index), model.pose_anchors(anchor_at(drawn, cloud_index, point_index), known),
                          types)
@@ -286,7 +290,8 @@ def expand(
     latent = torch.where(move_point[:, None], mu, mu + noise)
     decode_index = torch.where(move_point, moved_index, point_index)
     condition = condition_at(features, cloud_index, decode_index)
-    return features_to_pose(model.decode(latent, condition, model.pose_anchors(anchor_at(drawn, cloud_index, decode_index), known), types))
+    decoded = model.decode(latent, condition, model.pose_anchors(anchor_at(drawn, cloud_index, decode_index), known), types)
+    return features_to_pose(rotate_grasps(decoded, turn.transpose(1, 2)))
 
 
 @dataclass

@@ -39,7 +39,8 @@ from dexlite_pipeline.model.association import nearest_to_ray
 from dexlite_pipeline.model.config import ENERGY_TERMS, LOSS_TERMS, TABLE_TERM, TrainConfig
 from dexlite_pipeline.model.flow import GraspFlow, generator_family, make_generator, network_config
 from dexlite_pipeline.model.network import GraspCVAE, anchor_at, kl_divergence
-from dexlite_pipeline.model.pose import features_to_parts, features_to_pose, pose_errors, reconstruction_error, rotate_features, vertical_rotation
+from dexlite_pipeline.model.pose import features_to_parts, features_to_pose, pose_errors, reconstruction_error, vertical_rotation
+from dexlite_pipeline.model.table_frame import rotate_clouds, rotate_grasps, rotate_vectors
 
 log = logging.getLogger(__name__)
 
@@ -106,24 +107,23 @@ def batch_loss(
 ) -> tuple[torch.Tensor, dict[str, float]]:
     """Loss of one batch (energy weights times ``energy_scale``), and each term's batch mean with the full-weight total.
 
-    With ``turn_clouds`` each cloud and its grasps are turned about the vertical axis by a
-    random angle (a grasp of a turned object is the turned grasp, and gravity keeps its
-    direction), so the model learns grasps from the shape, not from the orientation of ten
-    or so training objects; the decoded pose is turned back for the energies, which read
-    the object's SDF in its own frame.
+    Each cloud and its grasps are read in the object's table frame (``model.table_frame``: the table's normal along
+    +z). With ``turn_clouds`` they are also turned about that vertical by a random angle (a grasp of a turned object
+    is the turned grasp, and gravity keeps its direction), so the model learns grasps from the shape, not from the
+    orientation of ten or so training objects. The decoded pose is turned back for the energies, which read the
+    object's SDF in its own frame.
     """
     device = data.pose_features.device
     clouds = data.clouds.clouds(batch.cloud_object, batch.cloud_scale, points, fixed_clouds, generator)
     index = torch.as_tensor(batch.grasp_index, device=device)
-    target = data.pose_features[index]
-    ray_origin, ray_direction = data.ray_origin[index], data.ray_direction[index]
+    turn = data.clouds.upright[batch.cloud_object]
     if turn_clouds:
-        turn = vertical_turns(len(clouds), generator, device)
-        clouds = torch.cat([clouds[..., :3] @ turn.transpose(1, 2), clouds[..., 3:] @ turn.transpose(1, 2)], dim=2)
-        grasp_turn = turn[batch.cloud_index]
-        target = rotate_features(target, grasp_turn)
-        ray_origin = (grasp_turn @ ray_origin[..., None])[..., 0]
-        ray_direction = (grasp_turn @ ray_direction[..., None])[..., 0]
+        turn = vertical_turns(len(clouds), generator, device) @ turn
+    clouds = rotate_clouds(clouds, turn)
+    grasp_turn = turn[batch.cloud_index]
+    target = rotate_grasps(data.pose_features[index], grasp_turn)
+    ray_origin = rotate_vectors(data.ray_origin[index], grasp_turn)
+    ray_direction = rotate_vectors(data.ray_direction[index], grasp_turn)
     point_index = nearest_to_ray(clouds[batch.cloud_index], ray_origin, ray_direction)
     condition = model.condition(clouds, batch.cloud_index, point_index)
     anchor = model.pose_anchors(anchor_at(clouds, batch.cloud_index, point_index), target)
@@ -139,8 +139,7 @@ def batch_loss(
     loss_terms = tuple(weights)  # LOSS_TERMS (+ TABLE_TERM on a table)
     energy_names = tuple(name for name in loss_terms if name not in ("recon", "kl"))
     if any(weights[name] > 0 for name in energy_names):
-        if turn_clouds:
-            decoded = rotate_features(decoded, grasp_turn.transpose(1, 2))
+        decoded = rotate_grasps(decoded, grasp_turn.transpose(1, 2))
         palm_rot, palm_t, joints = features_to_parts(decoded)
         object_index = torch.as_tensor(data.object_index[batch.grasp_index], device=device)
         scale = torch.as_tensor(data.scale[batch.grasp_index], dtype=torch.float32, device=device)
@@ -281,16 +280,19 @@ def encode_training_grasps(
     mus, log_vars, decoded, grasp_ids, local = [], [], [], [], []
     for chunks in cloud_batches(data.cloud_key, np.asarray(index), config.batch_size, config.clouds_per_batch, None):
         batch = make_batch(chunks, data.cloud_key, data.object_index, data.scale, data.pose_features.device)
-        clouds = data.clouds.clouds(batch.cloud_object, batch.cloud_scale, config.points_per_cloud, config.fixed_clouds, None)
+        turn = data.clouds.upright[batch.cloud_object]  # the table frame the model reads (``model.table_frame``)
+        clouds = rotate_clouds(data.clouds.clouds(batch.cloud_object, batch.cloud_scale, config.points_per_cloud, config.fixed_clouds, None), turn)
         rows = torch.as_tensor(batch.grasp_index, device=clouds.device)
-        target = data.pose_features[rows]
-        point_index = nearest_to_ray(clouds[batch.cloud_index], data.ray_origin[rows], data.ray_direction[rows])
+        grasp_turn = turn[batch.cloud_index]
+        target = rotate_grasps(data.pose_features[rows], grasp_turn)
+        point_index = nearest_to_ray(clouds[batch.cloud_index], rotate_vectors(data.ray_origin[rows], grasp_turn),
+                                     rotate_vectors(data.ray_direction[rows], grasp_turn))
         condition = model.condition(clouds, batch.cloud_index, point_index)
         anchor = model.pose_anchors(anchor_at(clouds, batch.cloud_index, point_index), target)
         mu, log_var = model.encode(target, condition, anchor, data.grasp_type[rows])
         mus.append(mu)
         log_vars.append(log_var)
-        decoded.append(model.decode(mu, condition, anchor, data.grasp_type[rows]))
+        decoded.append(rotate_grasps(model.decode(mu, condition, anchor, data.grasp_type[rows]), grasp_turn.transpose(1, 2)))
         grasp_ids.append(batch.grasp_index)
         local.append(condition)
     # batches group grasps by cloud: put the rows back in the order of ``index``

@@ -35,7 +35,7 @@ def run(args: argparse.Namespace) -> int:
     loop = dataclasses.replace(config.loop, grasps_per_object=config.loop.grasps_per_object * config.evaluator.pool_factor) if ranking else config.loop
     grasps, attrs = sample_round(
         args.model, args.objects, args.stability, args.shard, config.shards, args.part, args.round, loop, config.sample,
-        resolve_device(config.device), config.seed, config.hand,
+        resolve_device(config.device), config.seed, config.hand, config.scene.table,
     )
     if ranking:
         from dexlite_pipeline.evaluator.ranking import rank_candidates

@@ -36,6 +36,7 @@ def run(args: argparse.Namespace) -> int:
     grasps, attrs = sample_shard(
         str(model_or_shipped(args.model)), args.objects, args.stability, args.lift, args.shard, shards=config.shards, sample=config.sample,
         seed=config.seed, device=config.device, shipped_model=shipped or None, hand=config.hand,
+        table=config.scene.table,
     )
     if args.evaluator:
         from dexlite_pipeline.evaluator.ranking import rank_shard

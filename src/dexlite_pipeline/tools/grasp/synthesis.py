@@ -125,7 +125,7 @@ def synthesize_with_model(
     sample_config, post_config = config.sample, config.post_optimize
     model, checkpoint = loaded
     points, fixed = cloud_reading(checkpoint, sample_config.points_per_cloud)
-    clouds = ObjectClouds(assets, device)
+    clouds = ObjectClouds(assets, device, support_planes)
     drawn = n * (config.evaluator.pool_factor if evaluator is not None else 1)  # samples drawn per object
     object_index = np.repeat(np.arange(len(assets)), drawn)
     types = np.tile(requested_codes(model.type_vocabulary, model.codes_type.cpu().numpy(), sample_config.grasp_type, drawn,
