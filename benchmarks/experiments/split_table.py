@@ -1,6 +1,7 @@
 """Held-out results per object split (household, shapes and benchmark splits) over runs that differ in their seed.
 
     python benchmarks/experiments/split_table.py RUN [RUN ...] [--methods cvae_post cvae_ranked_post optimization ...] [--wall-to-cpu]
+        [--families]
 
 Each RUN is a finished run folder (``results/eval/metrics.csv``, ``per_object.csv``, ``results/objects/catalog.parquet``),
 e.g. the household model's profile at training seeds 0, 1, 2 (``train.seed``). Prints a Markdown table per split: per
@@ -8,7 +9,9 @@ method and run, held per attempt (Wilson 95%), six-direction success, distinct h
 distinct held grasp (``dexlite_pipeline.evaluation.subsets``), and the runs pooled (attempts and grasps summed); then per
 split and run the learned evaluator's ROC AUC for "held" (its score of each sampled pose against the outcome of the refined
 grasp, ``cvae_post``'s attempts). ``--wall-to-cpu``: for runs made before the stages counted process CPU seconds, each
-stage's seconds per attempt are scaled by its jobs' CPU time over wall time (Snakemake's benchmark files).
+stage's seconds per attempt are scaled by its jobs' CPU time over wall time (Snakemake's benchmark files). ``--families``:
+one table per family of the held-out objects instead of per split (``evaluation.subsets.family_subsets``), with the share
+of objects holding at least 4 distinct grasps.
 """
 
 from __future__ import annotations
@@ -44,7 +47,8 @@ def pooled(rows: pd.DataFrame) -> dict:
     low, high = wilson_interval(np.arange(attempts) < held)
     distinct = (rows["distinct_held_per_object"] * rows["objects"]).sum()
     seconds = (rows["cpu_seconds_per_distinct_held"] * rows["distinct_held_per_object"] * rows["objects"]).sum()
-    return {"run": "pooled", "attempts": attempts, "held": held, "held_rate": held / attempts, "held_ci95_low": low, "held_ci95_high": high,
+    share = (rows["objects_with_min_distinct"] * rows["objects"]).sum() / rows["objects"].sum()
+    return {"run": "pooled", "attempts": attempts, "objects_with_min_distinct": share, "held": held, "held_rate": held / attempts, "held_ci95_low": low, "held_ci95_high": high,
             "six_dir_rate": (rows["six_dir_rate"] * rows["attempts"]).sum() / attempts,
             "distinct_held_per_object": distinct / rows["objects"].sum(), "cpu_seconds_per_distinct_held": seconds / distinct if distinct else math.nan}  # fmt: skip
 
@@ -52,8 +56,8 @@ def pooled(rows: pd.DataFrame) -> dict:
 def markdown(table: pd.DataFrame) -> str:
     lines = []
     for subset, part in table.groupby("subset", sort=False):
-        lines += [f"### {subset}", "", "| method | run | attempts | held per attempt | six directions | distinct held / object | CPU-s / distinct held |",
-                  "| --- | --- | ---: | --- | ---: | ---: | ---: |"]  # fmt: skip
+        lines += [f"### {subset}", "", "| method | run | attempts | held per attempt | six directions | distinct held / object | CPU-s / distinct held "
+                  "| objects with >= 4 distinct held |", "| --- | --- | ---: | --- | ---: | ---: | ---: | ---: |"]  # fmt: skip
         for method, rows in part.groupby("method", sort=False):
             entries = [r._asdict() for r in rows.itertuples(index=False)]
             if len(rows) > 1:
@@ -61,7 +65,7 @@ def markdown(table: pd.DataFrame) -> str:
             for r in entries:
                 lines.append(f"| {method} | {r['run']} | {r['attempts']} | {100 * r['held_rate']:.1f}% ({100 * r['held_ci95_low']:.1f}–"
                              f"{100 * r['held_ci95_high']:.1f}) | {100 * r['six_dir_rate']:.1f}% | {r['distinct_held_per_object']:.2f} | "
-                             f"{r['cpu_seconds_per_distinct_held']:.3f} |")  # fmt: skip
+                             f"{r['cpu_seconds_per_distinct_held']:.3f} | {100 * r.get('objects_with_min_distinct', math.nan):.0f}% |")  # fmt: skip
         lines.append("")
     return "\n".join(lines)
 
@@ -71,11 +75,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("runs", nargs="+", type=Path)
     parser.add_argument("--methods", nargs="+", default=list(METHODS))
     parser.add_argument("--wall-to-cpu", action="store_true", help="scale wall seconds per attempt by the jobs' CPU/wall (older runs)")
+    parser.add_argument("--families", action="store_true", help="one table per family of the held-out objects instead of per split")
     args = parser.parse_args(argv)
-    table = pd.concat([run_split_rows(run, args.methods, run.name, args.wall_to_cpu) for run in args.runs], ignore_index=True)
+    table = pd.concat([run_split_rows(run, args.methods, run.name, args.wall_to_cpu, args.families) for run in args.runs], ignore_index=True)
     table["method"] = pd.Categorical(table["method"], args.methods, ordered=True)
     table = table.sort_values(["subset", "method"], kind="stable")
     print(markdown(table))
+    if args.families:
+        return 0
     splits = ("household split", "shapes split", "benchmark split")
     print("| run | " + " | ".join(f"evaluator AUC, held ({name})" for name in splits) + " |")
     print("| --- |" + " ---: |" * len(splits))

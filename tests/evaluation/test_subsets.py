@@ -5,7 +5,7 @@ import math
 import pandas as pd
 import pytest
 
-from dexlite_pipeline.evaluation.subsets import split_subsets, subset_rows
+from dexlite_pipeline.evaluation.subsets import family_subsets, split_subsets, subset_rows
 
 
 def test_subset_rows_count_each_set_apart():
@@ -21,6 +21,7 @@ def test_subset_rows_count_each_set_apart():
     assert (post_ab.objects, post_ab.attempts, post_ab.held) == (2, 32, 12)
     assert post_ab.held_rate == pytest.approx(12 / 32) and post_ab.held_ci95_low < 12 / 32 < post_ab.held_ci95_high
     assert post_ab.six_dir_rate == pytest.approx(8 / 32) and post_ab.distinct_held_per_object == 3.0
+    assert post_ab.objects_with_min_distinct == 0.5  # a has 4 distinct held grasps, b 2
     assert post_ab.cpu_seconds_per_distinct_held == pytest.approx(0.1 * 32 / 6)
     # optimization on c is a training-split row: not held out; on a it held nothing (no cost per distinct grasp there)
     assert set(rows[rows.method == "optimization"].subset) == {"ab"}
@@ -36,3 +37,9 @@ def test_split_subsets_name_the_prepared_objects_of_each_split():
     catalog = pd.DataFrame({"object_id": [*household, *benchmark, "household-mug-000"], "status": ["ok", "failed", "ok", "ok"]})
     assert split_subsets(catalog) == {"household split": household[:1], "benchmark split": benchmark}
     assert split_subsets(catalog[catalog.object_id == "household-mug-000"]) == {}
+
+
+def test_family_subsets_group_instances_and_perturbations_by_family():
+    ids = ["household-mug-003", "pb-random-120", "household-mug-040-p1", "household-bowl-900", "my_scan", "pb-duck"]
+    assert family_subsets(ids) == {"bowl": ["household-bowl-900"], "mug": ["household-mug-003", "household-mug-040-p1"],
+                                   "other": ["my_scan", "pb-duck"], "procedural": ["pb-random-120"]}

@@ -19,7 +19,8 @@ import pandas as pd
 from dexlite_pipeline.evaluation.rates import wilson_interval
 
 SUBSET_COLUMNS = ("method", "subset", "objects", "attempts", "held", "held_rate", "held_ci95_low", "held_ci95_high", "six_dir_rate",
-                  "distinct_held_per_object", "cpu_seconds_per_distinct_held")  # fmt: skip
+                  "distinct_held_per_object", "objects_with_min_distinct", "cpu_seconds_per_distinct_held")  # fmt: skip
+MIN_DISTINCT_HELD = 4  # objects_with_min_distinct: the share of a set's objects with at least this many distinct held grasps
 
 
 def subset_rows(
@@ -28,7 +29,8 @@ def subset_rows(
     """One row per (method, subset) with evaluated objects: the columns ``SUBSET_COLUMNS``.
 
     ``subsets``: name -> object ids; ``methods``: the methods wanted (those the run did not evaluate are left out).
-    Held and six-direction counts are rebuilt from each object's rates and attempts (``n_grasps``)."""
+    Held and six-direction counts are rebuilt from each object's rates and attempts (``n_grasps``);
+    ``objects_with_min_distinct`` is the share of the set's objects with at least ``MIN_DISTINCT_HELD`` distinct held grasps."""
     rows = []
     table = per_object[per_object["split"] == split]
     for method in methods:
@@ -48,6 +50,7 @@ def subset_rows(
                 "method": method, "subset": name, "objects": len(part), "attempts": attempts, "held": held,
                 "held_rate": held / attempts if attempts else math.nan, "held_ci95_low": low, "held_ci95_high": high,
                 "six_dir_rate": six_dir / attempts if attempts else math.nan, "distinct_held_per_object": distinct / len(part),
+                "objects_with_min_distinct": float((part["n_distinct_held"] >= MIN_DISTINCT_HELD).mean()),
                 "cpu_seconds_per_distinct_held": seconds_per_attempt * attempts / distinct if distinct else math.nan,
             })  # fmt: skip
     return pd.DataFrame(rows, columns=list(SUBSET_COLUMNS))
@@ -62,6 +65,22 @@ def split_subsets(catalog: pd.DataFrame) -> dict[str, list[str]]:
     named = {"household split": household_benchmark_list(), "shapes split": shapes_benchmark_list(),
              "benchmark split": sorted(benchmark_object_ids())}
     return {name: [o for o in ids if o in prepared] for name, ids in named.items() if prepared & set(ids)}
+
+
+def family_subsets(object_ids: Iterable[str]) -> dict[str, list[str]]:
+    """The objects by family, families in name order: a generated household object's family (its perturbed instances
+    with it), ``procedural`` for pybullet_data's procedural objects (``pb-random-NNN``), ``other`` for the rest (a
+    user's files, pybullet_data's named objects, DexGraspNet imports)."""
+    from dexlite_pipeline.objects.household import parse_household_id
+
+    families: dict[str, list[str]] = {}
+    for object_id in sorted(set(object_ids)):
+        try:
+            family = parse_household_id(object_id).family
+        except ValueError:
+            family = "procedural" if object_id.startswith("pb-random-") else "other"
+        families.setdefault(family, []).append(object_id)
+    return dict(sorted(families.items()))
 
 
 # Stage names of metrics.csv's seconds_per_grasp_by_stage -> the rule whose jobs ran them.
@@ -89,14 +108,18 @@ def with_cpu_seconds(run: Path, metrics: pd.DataFrame) -> pd.DataFrame:
     return metrics
 
 
-def run_split_rows(run: Path, methods: Iterable[str], label: str, wall_to_cpu: bool = False) -> pd.DataFrame:
-    """``subset_rows`` of a finished run folder (its metrics, per-object table and catalog) per ``split_subsets``, with a
-    first column ``run`` = ``label``; ``wall_to_cpu``: the costs of a run made before the stages counted CPU seconds,
-    rescaled (``with_cpu_seconds``)."""
+def run_split_rows(run: Path, methods: Iterable[str], label: str, wall_to_cpu: bool = False, by_family: bool = False) -> pd.DataFrame:
+    """``subset_rows`` of a finished run folder (its metrics, per-object table and catalog) per ``split_subsets`` (with
+    ``by_family``: per ``family_subsets`` of its held-out objects), with a first column ``run`` = ``label``;
+    ``wall_to_cpu``: the costs of a run made before the stages counted CPU seconds, rescaled (``with_cpu_seconds``)."""
     results = run / "results"
     metrics = pd.read_csv(results / "eval" / "metrics.csv")
     metrics = with_cpu_seconds(run, metrics) if wall_to_cpu else metrics
-    subsets = split_subsets(pd.read_parquet(results / "objects" / "catalog.parquet"))
-    rows = subset_rows(metrics, pd.read_csv(results / "eval" / "per_object.csv"), subsets, methods)
+    per_object = pd.read_csv(results / "eval" / "per_object.csv")
+    if by_family:
+        subsets = family_subsets(per_object.loc[per_object["split"] == "heldout", "object_id"].astype(str))
+    else:
+        subsets = split_subsets(pd.read_parquet(results / "objects" / "catalog.parquet"))
+    rows = subset_rows(metrics, per_object, subsets, methods)
     rows.insert(0, "run", label)
     return rows

@@ -27,6 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
+from dexlite_pipeline.report.families import family_table_html
 from dexlite_pipeline.report.first_screen import first_screen_html, first_screen_rows
 from dexlite_pipeline.report.grasp_types import grasp_types_html
 from dexlite_pipeline.report.inputs import ReportInputs
@@ -363,6 +364,13 @@ def build_report_html(inputs: ReportInputs) -> str:
         "<h2>The same grasps in 3-D</h2><p class='note'>Drag to turn, scroll to zoom; the slider shows one grasp at a time, "
         "titled with its method and results.</p>" + interactive_view_html(inputs)
     )
+    by_family = family_table_html(inputs.metrics, inputs.per_object)
+    if by_family:
+        sections.append(
+            "<h2>By family</h2><p class='note'>The held-out objects grouped by family (a generated object's family, its "
+            "perturbed instances with it; <i>procedural</i>: pybullet_data's procedural objects; <i>other</i>: the rest), "
+            "per method: where a method holds and where it does not.</p>" + by_family
+        )
     if inputs.per_object is not None and len(inputs.per_object):
         per_object = inputs.per_object.to_html(index=False, float_format=lambda v: f"{v:.3g}", na_rep="—")
         sections.append(f"<h2>Per object</h2><details><summary>{len(inputs.per_object)} rows</summary><div class='wide'>{per_object}</div></details>")
