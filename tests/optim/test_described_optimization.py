@@ -122,12 +122,40 @@ def test_the_start_turns_only_the_thumb_to_face_the_fingers(name, one_torch_thre
     assert facing(opposed) > facing(curled) + 0.03 and facing(opposed) > 0.95
 
 
+@pytest.mark.parametrize("name", ["allegro", "leap"])
+def test_the_start_approach_puts_the_thumb_tip_and_the_fingertips_equally_far(name, one_torch_thread):
+    """At the opposed start the thumb's tip and the other fingers' tips lie equally far along the start's approach, which
+    stays near the palm normal (LEAP 4°, Allegro 7° off it); along the Shadow Hand's 30° tilt the fingertips are ahead."""
+    import math
+
+    from dexlite_pipeline.hand.described import DescribedHand
+    from dexlite_pipeline.optim.init import PALM_TILT_DEG, balanced_approach, opposed_pregrasp
+
+    hand = DescribedHand(name)
+    approach = torch.as_tensor(balanced_approach(hand), dtype=torch.float64)
+    assert abs(float(approach.norm()) - 1.0) < 1e-9
+    normal = torch.as_tensor(hand.palm_frame_local[:3, 2], dtype=torch.float64)
+    assert math.degrees(math.acos(float(approach @ normal))) < 10.0
+    frames = hand.forward_parts_torch(torch.eye(3)[None], torch.zeros(1, 3), opposed_pregrasp(hand)[None].float())
+    points = frames.transform(hand.contact_points_local, hand.contact_link)[0].double()
+    thumb = hand.link_index[hand.description.opposing[0]]
+    tips = [points[hand.contact_link == links[-1]].mean(0) for links in hand.finger_links]
+    thumb_tip = torch.stack([t for t, links in zip(tips, hand.finger_links) if thumb in links]).mean(0)
+    finger_tips = torch.stack([t for t, links in zip(tips, hand.finger_links) if thumb not in links]).mean(0)
+    assert abs(float((finger_tips - thumb_tip) @ approach)) < 1e-6
+    tilted = torch.as_tensor(hand.approach_local(PALM_TILT_DEG), dtype=torch.float64)
+    assert float((finger_tips - thumb_tip) @ tilted) > 0.03
+
+
 def test_a_hand_without_an_opposing_finger_starts_curled(tmp_path):
     from dexlite_pipeline.optim.init import curled_pregrasp, opposed_pregrasp
 
     hand = three_finger_hand(tmp_path)
     assert hand.description.opposing == ()
     assert torch.equal(opposed_pregrasp(hand), curled_pregrasp(hand))
+    from dexlite_pipeline.optim.init import PALM_TILT_DEG, balanced_approach
+
+    assert np.array_equal(balanced_approach(hand), hand.approach_local(PALM_TILT_DEG))
 
 
 def test_a_described_hands_power_grasps_keep_one_contact_on_its_opposing_finger(tmp_path, one_torch_thread):

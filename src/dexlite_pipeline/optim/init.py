@@ -12,9 +12,10 @@ drawn again (hull point, tilt and distance), so every palm starts above the tabl
 starts draw exactly what they drew before tabletop mode existed.
 
 A hand from its MJCF (``hand.described.DescribedHand``) starts the same way from its own description: its palm
-frame's origin (the centre of its palm's contact candidates) at the start point, its palm normal tilted toward its
-fingers along the approach, its joints around its open pre-grasp curled a little and its thumb turned to face the
-fingers (``described_start_poses``, ``opposed_pregrasp``).
+frame's origin (the centre of its palm's contact candidates) at the start point, along the approach the direction
+near its palm normal along which its thumb's tip and its fingertips lie equally far (``balanced_approach``), its
+joints around its open pre-grasp curled a little and its thumb turned to face the fingers (``described_start_poses``,
+``opposed_pregrasp``).
 """
 
 from __future__ import annotations
@@ -38,7 +39,7 @@ MEAN_OPEN_POSE = {
 }
 # Approach direction in the palm frame: the palmar normal (−y) tilted 30° toward the fingers (+z).
 PALM_APPROACH = (0.0, -math.cos(math.radians(30.0)), math.sin(math.radians(30.0)))
-PALM_TILT_DEG = 30.0  # the same tilt for a hand from its MJCF (``described_start_poses``)
+PALM_TILT_DEG = 30.0  # the same tilt for a hand from its MJCF without an opposing finger (``balanced_approach``)
 # A hand from its MJCF starts with each joint this fraction of the way from its open pre-grasp to the limit it flexes
 # toward (the larger-magnitude one; joints with symmetric ranges stay): like the Shadow Hand's mean open pose, a hand
 # slightly curled. On Allegro and a can-sized cylinder (32 starts) the open, flat hand held 1, this 3 (docs/hands.md).
@@ -183,15 +184,51 @@ def opposed_pregrasp(hand: DescribedHand) -> torch.Tensor:
     return joints
 
 
+def _tip_centroid(hand: DescribedHand, points: torch.Tensor, fingers: list[int]) -> torch.Tensor:
+    """(3,) the mean over ``fingers`` of each finger's tip: the centroid of the candidates (``points`` (C, 3)) on the last
+    link of the finger that has candidates."""
+    link = hand.contact_link.cpu()
+    tips = []
+    for f in fingers:
+        last = next(l for l in reversed(hand.finger_links[f]) if bool((link == l).any()))
+        tips.append(points[link == last].mean(dim=0))
+    return torch.stack(tips).mean(dim=0)
+
+
+@functools.lru_cache(maxsize=8)
+def balanced_approach(hand: DescribedHand) -> np.ndarray:
+    """(3,) unit, root frame: the direction a hand from its MJCF approaches an object along at its start, the one nearest
+    its palm normal along which its thumb's tip and its other fingers' tips lie equally far (at ``opposed_pregrasp``: the
+    palm normal with its component along the line from the thumb's tip to the fingertips' centroid removed). The Shadow
+    Hand's palm normal tilted 30° toward the fingers (``approach_local(PALM_TILT_DEG)``) puts LEAP's curled fingertips 5.1
+    cm, Allegro's 3.8 cm, ahead of the thumb's, so the fingers reach the object first and the thumb stays 6 cm off; this
+    approach is LEAP's palm normal tilted 4° away from its fingers, Allegro's 7° toward them. A hand without an opposing
+    finger keeps the 30° tilt."""
+    opposing = {hand.link_index[leaf] for leaf in hand.description.opposing}
+    thumbs = [f for f, links in enumerate(hand.finger_links) if opposing & set(links)]
+    others = [f for f in range(len(hand.finger_links)) if f not in thumbs]
+    if not thumbs or not others:
+        return hand.approach_local(PALM_TILT_DEG)
+    joints = opposed_pregrasp(hand)
+    with torch.no_grad():
+        frames = hand.forward_parts_torch(torch.eye(3, dtype=hand.dtype)[None], torch.zeros(1, 3, dtype=hand.dtype), joints[None].to(hand.dtype))
+        points = frames.transform(hand.contact_points_local, hand.contact_link)[0].double().cpu()
+    line = _tip_centroid(hand, points, others) - _tip_centroid(hand, points, thumbs)
+    line = line / line.norm()
+    normal = torch.tensor(hand.palm_frame_local[:3, 2], dtype=torch.float64)
+    approach = normal - (normal @ line) * line
+    return (approach / approach.norm()).numpy()
+
+
 def described_start_poses(hand: DescribedHand, palm_origin: torch.Tensor, approach: torch.Tensor, config: InitConfig,
                           generator: torch.Generator) -> torch.Tensor:
     """(B, 6 + J) start poses of a hand from its MJCF (``hand.described``): its palm frame's origin at ``palm_origin``
-    (B, 3, m), its approach (the palm normal tilted ``PALM_TILT_DEG`` toward the fingers, as the Shadow Hand's) along
+    (B, 3, m), its approach (``balanced_approach``: thumb tip and fingertips equally far) along
     ``approach`` (B, 3) with a uniformly random roll, the joints drawn around its slightly curled pre-grasp with the
     thumb facing the fingers (``opposed_pregrasp``) with σ = ``joint_sigma_fraction`` of each range, clipped to the limits. Draws in the Shadow
     Hand's order."""
     batch = palm_origin.shape[0]
-    hand_a = torch.tensor(hand.approach_local(PALM_TILT_DEG), dtype=torch.float64)
+    hand_a = torch.tensor(balanced_approach(hand), dtype=torch.float64)
     hand_b = _unit(torch.linalg.cross(hand_a, torch.tensor(hand.palm_frame_local[:3, 1], dtype=torch.float64)))  # ⟂ a, in the palm's plane
     hand_frame = torch.stack([hand_a, hand_b, torch.linalg.cross(hand_a, hand_b)], dim=1)
     world_b = _random_perpendicular(approach, generator)
