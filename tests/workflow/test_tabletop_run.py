@@ -12,8 +12,8 @@ pytestmark = pytest.mark.slow
 # The rules whose params carry section `scene` (docs/design.md, "Tabletop mode").
 SCENE_RULES = {
     "optimize_grasps", "curate", "lift_validate", "train_cvae", "post_optimize", "evaluate_simulate", "report",
-    "loop_post_optimize", "loop_validate", "loop_train",  # the data loop's rounds, on each object's table
-    "evaluator_examples", "sample_grasps",  # the learned evaluator's examples are tested on the table, its ranking reads it
+    "loop_sample", "loop_post_optimize", "loop_validate", "loop_train",  # the data loop's rounds, on each object's table
+    "evaluator_examples", "sample_grasps",  # the generator samples in each object's table frame; the evaluator's examples are tested on the table
 }  # fmt: skip
 BEFORE_OPTIMIZATION = {"prepare_objects", "stability_filter", "import_dexgraspnet"}
 
