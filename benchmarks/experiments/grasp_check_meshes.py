@@ -65,9 +65,10 @@ def per_mesh_counts(out: Path) -> dict[str, dict]:
     return rows
 
 
-def parse_seed_runs(argv: list[str] | None, description: str, mesh_sets: bool = False) -> tuple[argparse.Namespace, list[str]]:
-    """OUT_DIR, --seeds, --threads and --config-json (and --set with ``mesh_sets``), and the arguments after ``--`` (for every
-    ``dexlite grasp`` call)."""
+def parse_seed_runs(argv: list[str] | None, description: str, mesh_sets: bool = False,
+                    attempts: int | None = None) -> tuple[argparse.Namespace, list[str]]:
+    """OUT_DIR, --seeds, --threads and --config-json (and --set with ``mesh_sets``, --n defaulting to ``attempts`` when
+    given), and the arguments after ``--`` (for every ``dexlite grasp`` call)."""
     argv = sys.argv[1:] if argv is None else argv
     extra = argv[argv.index("--") + 1:] if "--" in argv else []
     own = argv[: argv.index("--")] if "--" in argv else argv
@@ -80,6 +81,8 @@ def parse_seed_runs(argv: list[str] | None, description: str, mesh_sets: bool = 
     if mesh_sets:
         parser.add_argument("--set", dest="mesh_set", choices=("household", "kitchen"), default="household",
                             help="household: mug, bowl, wine bottle, cereal box and the mug in mm; kitchen: bowl, plate, spatula, hammer")
+    if attempts is not None:
+        parser.add_argument("--n", type=int, default=attempts, help=f"attempts per object and call (default {attempts})")
     return parser.parse_args(own), extra
 
 
