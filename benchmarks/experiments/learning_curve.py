@@ -1,13 +1,14 @@
-"""The learning curve: how held-out success grows with the number of training objects and grasps per object.
+"""The learning curve: how held-out success grows with the number of training families, objects and grasps per object.
 
 Takes a large run whose data stages are done (``results/lift`` complete; see
 ``config/profiles/large.yaml``) and, for each object count and training seed, trains a model on
 a seeded subset of that many of the run's training objects (``train.max_training_objects``;
 subsets of one seed are nested), optionally with at most ``--grasps-per-object`` grasps of each
-(``train.max_grasps_per_object``, nested too), and evaluates it on the run's held-out objects — the benchmark
+(``train.max_grasps_per_object``, nested too) or only the objects of ``--families`` of their families
+(``train.max_training_families``: a household family, procedural, other; nested too), and evaluates it on the run's held-out objects — the benchmark
 split — with the run's own rules and budget: ``sample.synthesis_grasps_per_object`` syntheses per
 object, ``evaluate.grasps_per_object`` of them simulated, ``post_optimize.annealing.iterations``
-post-optimization steps. Every point is a directory ``<run>/curve/n<count>[_g<grasps>]_seed<seed>/`` holding
+post-optimization steps. Every point is a directory ``<run>/curve/n<count>[_f<families>][_g<grasps>]_seed<seed>/`` holding
 hard links of the run's data stages (``results/objects``, ``stability``, ``optimized``, ``curate``,
 ``lift``) in which Snakemake runs the workflow from ``train_cvae`` on (``--rerun-triggers mtime``:
 the linked outputs are kept as they are). The run's own model is the curve's "all objects" point.
@@ -18,6 +19,7 @@ lift-successful grasp than each of them (``break_even_grasps``; inf: never).
 
     python benchmarks/experiments/learning_curve.py --run RUN --counts 10 40 160 --seeds 0      # train and evaluate the points
     python benchmarks/experiments/learning_curve.py --run RUN --counts 0 --grasps-per-object 4 12  # all objects, fewer grasps each
+    python benchmarks/experiments/learning_curve.py --run RUN --counts 0 --families 4 12  # the objects of fewer families
     python benchmarks/experiments/learning_curve.py --run RUN --tabulate --out docs/learning_curve  # table and plot only
 
 ``--out`` gets ``<out>.csv`` (one row per point and method) and ``<out>.png``; the Markdown table
@@ -45,11 +47,12 @@ RATE_COLUMNS = (
 )  # fmt: skip
 
 
-def point_dir(run: Path, count: int, seed: int, max_steps: int = 0, grasps_per_object: int = 0) -> Path:
-    """``<run>/curve/n<count>[_g<grasps_per_object>]_seed<seed>[_steps<max_steps>]``; count 0 is every training object
-    (``nall``), grasps_per_object 0 every grasp of each."""
+def point_dir(run: Path, count: int, seed: int, max_steps: int = 0, grasps_per_object: int = 0, families: int = 0) -> Path:
+    """``<run>/curve/n<count>[_f<families>][_g<grasps_per_object>]_seed<seed>[_steps<max_steps>]``; count 0 is every
+    training object (``nall``), families 0 every family, grasps_per_object 0 every grasp of each."""
     grasps = f"_g{grasps_per_object}" if grasps_per_object else ""
-    return run / "curve" / (f"n{count or 'all'}{grasps}_seed{seed}" + (f"_steps{max_steps}" if max_steps else ""))
+    family = f"_f{families}" if families else ""
+    return run / "curve" / (f"n{count or 'all'}{family}{grasps}_seed{seed}" + (f"_steps{max_steps}" if max_steps else ""))
 
 
 def link_data_stages(run: Path, point: Path) -> None:
@@ -61,12 +64,13 @@ def link_data_stages(run: Path, point: Path) -> None:
             subprocess.run(["cp", "-al", str(source), str(target)], check=True)
 
 
-def point_overlay(count: int, seed: int, max_steps: int = 0, grasps_per_object: int = 0) -> dict:
-    """Config on top of the run's: the subsets (objects, grasps per object), the training seed (``train.seed``: the run's
+def point_overlay(count: int, seed: int, max_steps: int = 0, grasps_per_object: int = 0, families: int = 0) -> dict:
+    """Config on top of the run's: the subsets (families, objects, grasps per object), the training seed (``train.seed``: the run's
     data and sampling seeds stay), the step budget when given, held-out CVAE rows only (no learned evaluator: the curve
     measures the generator)."""
     return {
         "train": {"seed": seed, "max_training_objects": count, **({"max_grasps_per_object": grasps_per_object} if grasps_per_object else {}),
+                  **({"max_training_families": families} if families else {}),
                   **({"max_steps": max_steps} if max_steps else {})},
         "sample": {"ladder": False, "expansion_grasps_per_object": 0, "shipped_model": ""},
         "post_optimize": {"random_baseline": False},
@@ -76,14 +80,15 @@ def point_overlay(count: int, seed: int, max_steps: int = 0, grasps_per_object: 
 
 
 def run_point(
-    run: Path, configfiles: list[str], count: int, seed: int, cores: int, dry_run: bool = False, max_steps: int = 0, grasps_per_object: int = 0
+    run: Path, configfiles: list[str], count: int, seed: int, cores: int, dry_run: bool = False, max_steps: int = 0, grasps_per_object: int = 0,
+    families: int = 0,
 ) -> None:
     """Train and evaluate one point with the run's workflow (its Snakefile and package source)."""
-    point = point_dir(run, count, seed, max_steps, grasps_per_object)
+    point = point_dir(run, count, seed, max_steps, grasps_per_object, families)
     point.mkdir(parents=True, exist_ok=True)
     link_data_stages(run, point)
     overlay = point / "curve.yaml"
-    overlay.write_text(json.dumps(point_overlay(count, seed, max_steps, grasps_per_object), indent=1))  # JSON is YAML
+    overlay.write_text(json.dumps(point_overlay(count, seed, max_steps, grasps_per_object, families), indent=1))  # JSON is YAML
     command = [
         "snakemake", "--snakefile", str(run / "Snakefile"), "--directory", str(point), "--cores", str(cores),
         "--configfile", *[str(run / c) for c in configfiles], str(overlay),
@@ -125,6 +130,7 @@ def curve_table(run: Path) -> pd.DataFrame:
         seed = _point_seed(overlay) if not is_run else _run_seed(run)
         facts = {"point": "all" if is_run else folder.name, "seed": seed, **_model_facts(folder),
                  "grasps_per_object_cap": int(overlay.get("train", {}).get("max_grasps_per_object", 0)),
+                 "families_cap": int(overlay.get("train", {}).get("max_training_families", 0)),
                  "training_cpu_s": _training_cpu_seconds(folder)}
         for method in CURVE_METHODS:
             row = metrics[(metrics.method == method) & (metrics.split == "heldout")]
@@ -182,6 +188,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--configfile", nargs="+", default=["config.yaml", "config/profiles/large.yaml"], help="the run's config files, relative to --run")
     parser.add_argument("--counts", nargs="*", type=int, default=[10, 40, 160], help="training-object counts (0: all of them)")
     parser.add_argument("--grasps-per-object", nargs="*", type=int, default=[0], help="caps on training grasps per object (0: all)")
+    parser.add_argument("--families", nargs="*", type=int, default=[0], help="training-family counts (0: every family)")
     parser.add_argument("--max-steps", type=int, default=0, help="training step budget of these points (0: the run's train.max_steps)")
     parser.add_argument("--seeds", nargs="*", type=int, default=[0], help="training seeds")
     parser.add_argument("--cores", type=int, default=2)
@@ -196,7 +203,8 @@ def main(argv: list[str] | None = None) -> int:
         for seed in args.seeds:
             for count in args.counts:
                 for grasps in args.grasps_per_object:
-                    run_point(run, args.configfile, count, seed, args.cores, args.dry_run, args.max_steps, grasps)
+                    for families in args.families:
+                        run_point(run, args.configfile, count, seed, args.cores, args.dry_run, args.max_steps, grasps, families)
         if args.dry_run:
             return 0
     table = curve_table(run)

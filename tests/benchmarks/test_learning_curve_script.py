@@ -25,6 +25,8 @@ def test_point_folders_and_overlays_name_their_budget(curve):
     assert "seed" not in curve.point_overlay(40, 1)
     assert curve.point_dir(run, 0, 0, 0, 4) == run / "curve" / "nall_g4_seed0"
     assert curve.point_overlay(0, 2, 0, 4)["train"] == {"seed": 2, "max_training_objects": 0, "max_grasps_per_object": 4}
+    assert curve.point_dir(run, 0, 1, 0, 0, 6) == run / "curve" / "nall_f6_seed1"
+    assert curve.point_overlay(0, 1, 0, 0, 6)["train"] == {"seed": 1, "max_training_objects": 0, "max_training_families": 6}
 
 
 def test_break_even_solves_equal_cost_per_successful_grasp(curve):

@@ -68,18 +68,12 @@ def split_subsets(catalog: pd.DataFrame) -> dict[str, list[str]]:
 
 
 def family_subsets(object_ids: Iterable[str]) -> dict[str, list[str]]:
-    """The objects by family, families in name order: a generated household object's family (its perturbed instances
-    with it), ``procedural`` for pybullet_data's procedural objects (``pb-random-NNN``), ``other`` for the rest (a
-    user's files, pybullet_data's named objects, DexGraspNet imports)."""
-    from dexlite_pipeline.objects.household import parse_household_id
+    """The objects by family (``objects.family.object_family``), families in name order."""
+    from dexlite_pipeline.objects.family import object_family
 
     families: dict[str, list[str]] = {}
     for object_id in sorted(set(object_ids)):
-        try:
-            family = parse_household_id(object_id).family
-        except ValueError:
-            family = "procedural" if object_id.startswith("pb-random-") else "other"
-        families.setdefault(family, []).append(object_id)
+        families.setdefault(object_family(object_id), []).append(object_id)
     return dict(sorted(families.items()))
 
 

@@ -97,6 +97,9 @@ class TrainConfig:
     min_grasps: int = setting(8, "fewer lift-successful training grasps is an error", minimum=1)
     max_training_objects: int = setting(
         0, "train on a seeded subset of this many training objects with grasps (0 = all): the learning curve", minimum=0)
+    max_training_families: int = setting(
+        0, "train on the objects of a seeded subset of this many families (objects.family.object_family: a household "
+        "family, procedural, other; 0 = all), before max_training_objects: the learning curve against families", minimum=0)
     max_grasps_per_object: int = setting(
         0, "train on a seeded choice of at most this many lift-successful grasps per object (0 = all): the learning curve "
         "against grasps per object", minimum=0)

@@ -69,6 +69,20 @@ def training_object_subset(object_ids: set[str], count: int, seed: int) -> set[s
     return {ordered[i] for i in order[:count]}
 
 
+def training_family_subset(object_ids: set[str], count: int, seed: int) -> set[str]:
+    """The objects of ``object_ids`` in a seeded choice of ``count`` of their families (``objects.family.object_family``;
+    all of them when ``count`` is 0 or not smaller). Nested like ``training_object_subset``: the families chosen for a
+    smaller count are among those chosen for a larger one (one seeded order of the family names, cut at ``count``)."""
+    from dexlite_pipeline.objects.family import object_family
+
+    families = sorted({object_family(oid) for oid in object_ids})
+    if count <= 0 or count >= len(families):
+        return set(object_ids)
+    order = np.random.default_rng([seed, 0xFA3111E5]).permutation(len(families))
+    chosen = {families[i] for i in order[:count]}
+    return {oid for oid in object_ids if object_family(oid) in chosen}
+
+
 def grasps_per_object_subset(object_ids: np.ndarray, count: int, seed: int) -> np.ndarray:
     """(K,) sorted row indices: a seeded choice of at most ``count`` rows per object of ``object_ids`` (all when 0).
 
@@ -137,9 +151,12 @@ def train_from_lift_shards(
     record = hand_record(hand)  # an unusable hand: one line before any work
     lifted = read_lift_shards(lift_paths, hand)
     train_ids = {oid for oid, split in object_splits(objects_dirs).items() if split == "train"}
-    if settings.max_training_objects > 0:  # the learning curve: a seeded subset of the objects with lift-successful grasps
-        held = set(lifted.object_id[np.asarray(lifted.arrays["lift_success"], bool)].tolist()) if len(lifted) else set()
-        train_ids = training_object_subset(train_ids & held, settings.max_training_objects, seed)
+    if settings.max_training_families > 0 or settings.max_training_objects > 0:  # the learning curves: seeded subsets of the
+        held = set(lifted.object_id[np.asarray(lifted.arrays["lift_success"], bool)].tolist()) if len(lifted) else set()  # objects with
+        train_ids = train_ids & held  # lift-successful grasps, by family and then by object
+        if settings.max_training_families > 0:
+            train_ids = training_family_subset(train_ids, settings.max_training_families, seed)
+        train_ids = training_object_subset(train_ids, settings.max_training_objects, seed)
     grasps, excluded = select_training_grasps(lifted, train_ids, available_object_ids(objects_dirs))
     if settings.max_grasps_per_object > 0:  # the learning curve against grasps per object
         kept = grasps_per_object_subset(grasps.object_id, settings.max_grasps_per_object, seed)
