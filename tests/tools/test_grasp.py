@@ -406,15 +406,16 @@ def test_the_top_up_goes_to_the_objects_with_too_few_distinct_held_model_grasps(
 
 
 def test_the_top_up_adds_batches_until_each_object_has_enough_distinct_grasps_or_the_cap():
-    """Object a reaches 3 distinct held grasps after one batch, b after two, c never: a gets one batch, b two, c the
-    cap of three; each batch goes to the objects still short, with the batch number that seeds it."""
+    """Object a reaches 4 distinct held grasps after one batch, b after three (the cap); c gains nothing from its first
+    batch and d nothing from its second: neither gets another. Each batch goes to the objects still short and still
+    gaining, with the batch number that seeds it."""
     from types import SimpleNamespace
 
     from dexlite_pipeline.settings import build_config
     from dexlite_pipeline.tools.grasp import top_up_until_distinct
 
     # per object, per batch: the palm offsets of the batch's held grasps (2 cm apart or more: distinct)
-    held_offsets = {"a": [[0.1, 0.2], [], []], "b": [[0.1], [0.2], [0.3]], "c": [[], [], []]}
+    held_offsets = {"a": [[0.1, 0.2, 0.3], [], []], "b": [[0.1], [0.2], [0.3]], "c": [[], [0.1], [0.2]], "d": [[0.1], [], [0.2]]}
     calls = []
 
     def optimized_batch(chosen, batch):
@@ -429,13 +430,13 @@ def test_the_top_up_adds_batches_until_each_object_has_enough_distinct_grasps_or
         grasps.arrays["source"] = np.full(len(grasps), "optimization", dtype=object)
         return grasps
 
-    model = _grasp_set([_pose(0.0)] * 3, held=[1, 1, 0], six=[0] * 3, passed=[0] * 3, energy=[0] * 3, object_ids=["a", "b", "c"])
-    model.arrays["source"] = np.full(3, "model", dtype=object)
-    assets = [SimpleNamespace(object_id=o) for o in "abc"]
-    tested, topped_up, short = top_up_until_distinct(assets, model, build_config({}), 3, 3, optimized_batch)
-    assert calls == [(0, ["a", "b", "c"]), (1, ["b", "c"]), (2, ["c"])]
-    assert topped_up == ["a", "b", "c"] and [a.object_id for a in short] == ["c"]
-    assert len(tested) == 3 + (3 + 2 + 1) + (2 + 1) + 1  # model, then per batch: held grasps + one failure per object
+    model = _grasp_set([_pose(0.0)] * 4, held=[1, 1, 0, 1], six=[0] * 4, passed=[0] * 4, energy=[0] * 4, object_ids=["a", "b", "c", "d"])
+    model.arrays["source"] = np.full(4, "model", dtype=object)
+    assets = [SimpleNamespace(object_id=o) for o in "abcd"]
+    tested, topped_up, short = top_up_until_distinct(assets, model, build_config({}), 4, 3, optimized_batch)
+    assert calls == [(0, ["a", "b", "c", "d"]), (1, ["b", "d"]), (2, ["b"])]
+    assert topped_up == ["a", "b", "c", "d"] and sorted(a.object_id for a in short) == ["c", "d"]
+    assert len(tested) == 4 + (4 + 2 + 1 + 2) + (2 + 1) + 2  # model, then per batch: held grasps + one failure per object
     done, none_needed, _ = top_up_until_distinct(assets[:1], model.select(np.array([0])), build_config({}), 1, 3, optimized_batch)
     assert none_needed == [] and len(done) == 1  # enough already: no batch
 

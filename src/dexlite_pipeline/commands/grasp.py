@@ -49,7 +49,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         "object); 0: the model's grasps only")  # fmt: skip
     parser.add_argument("--top-up-batches", type=int, default=None, metavar="K",
                         help=f"with a model: the top-up optimizes batches of --n grasps on each short object until it has --min-distinct "
-                        f"distinct held grasps, at most K batches (default {DEFAULT_TOP_UP_BATCHES})")
+                        f"distinct held grasps, at most K batches (default {DEFAULT_TOP_UP_BATCHES}), none more after one that added it none")
     parser.add_argument("--from-scratch", action="store_true", help="energy optimization from scratch only, no model (slower per grasp)")
     parser.add_argument("--grasp-type", default=None, metavar="TYPE",
                         help="the grasps' type: any (default: the model's training mix) or one of power, pinch, tripod, lateral; the "

@@ -39,7 +39,8 @@ class ModelBatchConfig:
     Each stable object gets ``grasps_per_object`` grasps from the generator (ranked by the evaluator, refined by
     post-optimization, sections ``sample`` and ``post_optimize``); each object with fewer than ``min_distinct``
     distinct held grasps then gets batches of ``grasps_per_object`` grasps by optimization from scratch (section
-    ``optimize_grasps``, its grasp types too) until it has them or ``top_up_batches`` batches were tried. Every grasp
+    ``optimize_grasps``, its grasp types too) until it has them, ``top_up_batches`` batches were tried, or a batch added
+    it no distinct held grasp. Every grasp
     is lift- and six-direction-tested, held or not, and records its source (``model`` or ``optimization``).
     """
 

@@ -12,8 +12,8 @@ configured sample scales for an object without one):
    records both);
 3. the top-up: each object with fewer than ``min_distinct`` distinct held grasps (``diversity``: palms within 2 cm
    and 30 deg are one grasp) gets batches of ``grasps_per_object`` grasps by optimization from scratch
-   (``optimize_grasps``, its grasp types too), each tested as above, until it has them or ``top_up_batches``
-   batches were tried.
+   (``optimize_grasps``, its grasp types too), each tested as above, until it has them, ``top_up_batches``
+   batches were tried, or a batch added it no distinct held grasp.
 
 Every grasp is kept, held or not, with its ``source`` (``model`` or ``optimization``); the store's attributes hold
 the sections used, the model and evaluator files with their SHA-256, the objects, those that could not be used with

@@ -202,10 +202,14 @@ def top_up_until_distinct(
 
     ``optimized_batch(chosen_assets, batch)`` makes and tests batch ``batch`` (0-based) for the chosen objects; after
     each batch the objects are counted again over every grasp so far (all sources together) and only those still
-    short get the next one, for at most ``max_batches`` batches. Returns the grasps with the batches appended, the
-    object ids that got at least one batch, and the assets still short after the last batch."""
-    short = objects_to_top_up(assets, tested, distinct_labels(tested, config), min_distinct)
+    short get the next one, for at most ``max_batches`` batches; an object to which a batch added no distinct held
+    grasp gets no further batch (optimization from scratch found nothing that holds on it: another batch of the same
+    kind would most likely cost as much for as little). Returns the grasps with the batches appended, the object ids
+    that got at least one batch, and the assets still short after the last batch (those given up on included)."""
+    labels = distinct_labels(tested, config)
+    short = objects_to_top_up(assets, tested, labels, min_distinct)
     topped_up: list[str] = []
+    given_up: list[ObjectAsset] = []
     for batch in range(max_batches):
         if not short:
             break
@@ -213,9 +217,18 @@ def top_up_until_distinct(
             log.info("top-up batch %d/%d: still fewer than %d distinct held grasps for %d object(s) (%s)", batch + 1, max_batches,
                      min_distinct, len(short), ", ".join(a.object_id for a in short))  # fmt: skip
         topped_up += [a.object_id for a in short if a.object_id not in topped_up]
+        before = distinct_per_object(tested, labels)
         tested = concatenate_sources([tested, optimized_batch(short, batch)])
-        short = objects_to_top_up(short, tested, distinct_labels(tested, config), min_distinct)
-    return tested, topped_up, short
+        labels = distinct_labels(tested, config)
+        after = distinct_per_object(tested, labels)
+        barren = [a for a in short if after.get(a.object_id, 0) <= before.get(a.object_id, 0)]
+        if barren and batch + 1 < max_batches:
+            log.info("top-up batch %d added no distinct held grasp to %d object(s), not topped up again (%s)", batch + 1, len(barren),
+                     ", ".join(a.object_id for a in barren))  # fmt: skip
+        given_up += barren
+        barren_ids = {a.object_id for a in barren}
+        short = [a for a in objects_to_top_up(short, tested, labels, min_distinct) if a.object_id not in barren_ids]
+    return tested, topped_up, short + given_up
 
 
 def top_up_seed(seed: int, batch: int) -> int:
