@@ -52,7 +52,7 @@ class MeshGrasps:
     start_depth_mm: np.ndarray  # (K,) how far the hand starts inside the object
     distinct_label: np.ndarray  # (K,) int: grasps with one label are near-duplicates
     source: np.ndarray  # (K,) "model" or "optimization"
-    grasp_type: np.ndarray  # (K,) power, pinch, tripod or lateral
+    grasp_type: np.ndarray  # (K,) power, pinch, tripod, lateral or rim
     attempts: int  # grasps tried on this mesh
     held: int  # of those, held in the lift test (distinct or not)
     failures: dict[str, int] = field(default_factory=dict)  # why the others failed: reason -> count
@@ -80,7 +80,7 @@ def grasp_request(
 
     ``model``: a cvae.pt, or ``SHIPPED`` (also None); ``evaluator``: an evaluator.pt, ``SHIPPED`` (the shipped model's own
     evaluator, none for another model) or None (the model's first samples, unranked). ``grasp_type``: ``any`` or one of
-    power, pinch, tripod, lateral (None: the config's ``sample.grasp_type``); one type sets ``sample.grasp_type`` and makes
+    power, pinch, tripod, lateral, rim (None: the config's ``sample.grasp_type``); one type sets ``sample.grasp_type`` and makes
     optimization from scratch (``--from-scratch``, the top-up) that type only (``optimize_grasps.grasp_types``). ``hand``:
     shadow, allegro, leap or an MJCF file (config key ``hand``; None: the config's, shadow by default); a hand other
     than the Shadow Hand needs a ``model`` trained for it or ``from_scratch`` (the shipped model is the Shadow Hand's):

@@ -82,7 +82,7 @@ def test_dexlite_grasp_refuses_a_type_the_shipped_model_does_not_know(tmp_path):
     trimesh.creation.cylinder(radius=0.03, height=0.1).export(tmp_path / "can.obj")
     request = grasp_request([str(tmp_path / "can.obj")], str(tmp_path / "out"), grasp_type="pinch")
     assert request.config["sample"]["grasp_type"] == "pinch"
-    assert request.config["optimize_grasps"]["grasp_types"] == {"power": 0.0, "pinch": 1.0, "tripod": 0.0, "lateral": 0.0}
+    assert request.config["optimize_grasps"]["grasp_types"] == {"power": 0.0, "pinch": 1.0, "tripod": 0.0, "lateral": 0.0, "rim": 0.0}
     with pytest.raises(GraspToolError) as refused:
         check_request(request)
     message = str(refused.value)

@@ -22,7 +22,7 @@ from dexlite_pipeline.tabletop import SupportPlanes
 
 from power_baseline import ARRAYS, power_run, power_settings, tiny_box_objects
 
-PRECISION = ("pinch", "tripod", "lateral")
+PRECISION = ("pinch", "tripod", "lateral", "rim")
 BOX_TABLE = SupportPlanes({"box": SupportPlane((0.0, 0.0, 1.0), 0.3)})  # the box (extents 1.2 x 0.8 x 0.6) lying flat
 
 
@@ -277,6 +277,43 @@ def test_a_start_on_a_thin_walled_bowl_straddles_its_wall(tmp_path, hand, name):
         assert bool((p[:, 2] < rim).all()) and bool((p[:, 2] > floor + PAD_HEIGHT_M - 0.003).all())
 
 
+def test_rim_starts_spread_three_fingertips_along_and_down_the_wall_around_the_thumb(tmp_path, hand):
+    """The rim grasp on a 14 cm bowl with a 4 mm wall: every start (no joint noise) has the index and ring fingertip pads
+    2.5–5 cm apart, their line within 35° of the rim's tangent, the thumb's pad between them along it, the middle
+    fingertip's pad at least 3 mm lower than their midpoint (on a wall this thin the start opens near the closed pose,
+    where the middle is ~8 mm deeper), all three on the wall's other side from the thumb: a triangle around the thumb,
+    not the line a pinch or tripod makes (``optim.grasp_types.RIM``)."""
+    import trimesh
+
+    outer = trimesh.creation.revolve([[0, 0], [0.05, 0], [0.07, 0.045], [0, 0.045]], sections=48)
+    inner = trimesh.creation.revolve([[0, 0.006], [0.046, 0.006], [0.066, 0.046], [0, 0.046]], sections=48)
+    asset, scale = _write_asset(tmp_path, outer.difference(inner), "bowl")
+    vertices = np.asarray(asset.load_mesh().vertices)
+    from dexlite_pipeline.tabletop import upright_plane
+
+    count = 24
+    starts = StartDrawer(hand, [asset], short_run(init=InitConfig(joint_sigma_fraction=0.0)),
+                         SupportPlanes({asset.object_id: upright_plane(vertices, "+z")}))
+    support = (torch.tensor([[0.0, 0.0, 1.0]]).expand(count, 3), torch.full((count,), -float(vertices[:, 2].min()) * scale))
+    pose = starts.draw(torch.zeros(count, dtype=torch.long), torch.full((count,), scale), torch.full((count,), TYPE_NAMES.index("rim")),
+                       torch.Generator().manual_seed(0), support)
+    table = hand.forward(pose).transform(hand.all_contact_points_local, hand.all_contact_link).double().numpy()
+    thumb, index, middle, ring = (table[:, list(candidate_group(hand, g))].mean(1) for g in ("thdistal", "ffdistal", "mfdistal", "rfdistal"))
+    spread = ring - index
+    length = np.linalg.norm(spread, axis=1)
+    assert bool(((length > 0.025) & (length < 0.05)).all()), length
+    centre = (index + ring) / 2
+    tangent = np.stack([-centre[:, 1], centre[:, 0], np.zeros(count)], axis=1)
+    tangent /= np.linalg.norm(tangent, axis=1, keepdims=True)
+    along = np.degrees(np.arccos(np.abs((spread / length[:, None] * tangent).sum(1))))
+    assert bool((along < 35).all()), along
+    assert bool((middle[:, 2] < centre[:, 2] - 0.003).all()), centre[:, 2] - middle[:, 2]
+    radius = [np.linalg.norm(p[:, :2], axis=1) for p in (index, middle, ring, thumb)]
+    assert bool(all(((r - radius[3]) * (radius[1] - radius[3]) > 0).all() for r in radius[:3]))  # the fingertips on one side
+    between = ((thumb - index) * spread).sum(1) / length**2  # the thumb's place along the index-to-ring line
+    assert bool(((between > 0.2) & (between < 0.8)).all()), between
+
+
 def test_a_start_on_a_handle_lying_on_the_table_closes_across_it(tmp_path, hand):
     """A 2.4 cm handle lying on its table: pinch starts come from above with the pads on either side of it, at its
     half height, each within 2 cm of it (not on its top, not under it)."""
@@ -329,9 +366,9 @@ def test_low_objects_are_approached_from_above_palm_down(tmp_path, hand):
 def test_grasp_type_shares_config():
     from dexlite_pipeline.settings import build_config
 
-    config = build_config({"optimize_grasps": {"grasp_types": {"power": 0.0, "pinch": 3.0}}})
-    assert config.optimize_grasps.grasp_types.shares() == {"power": 0.0, "pinch": 3.0, "tripod": 0.0, "lateral": 0.0}
-    assert build_config({}).optimize_grasps.grasp_types.shares() == {"power": 1.0, "pinch": 0.0, "tripod": 0.0, "lateral": 0.0}
+    config = build_config({"optimize_grasps": {"grasp_types": {"power": 0.0, "pinch": 3.0, "rim": 1.0}}})
+    assert config.optimize_grasps.grasp_types.shares() == {"power": 0.0, "pinch": 3.0, "tripod": 0.0, "lateral": 0.0, "rim": 1.0}
+    assert build_config({}).optimize_grasps.grasp_types.shares() == {"power": 1.0, "pinch": 0.0, "tripod": 0.0, "lateral": 0.0, "rim": 0.0}
     with pytest.raises(ConfigError, match=r"^optimize_grasps.grasp_types: every share is 0"):
         build_config({"optimize_grasps": {"grasp_types": {"power": 0.0}}})
     with pytest.raises(ConfigError, match=r"optimize_grasps.grasp_types.pinch"):

@@ -156,7 +156,7 @@ LATENT_PRIORS = ("standard", "aggregate", "neighbours")
 ANCHOR_RULES = ("uniform", "matched", "debiased", "spread")
 # The grasp types a model may be asked for: optim.grasp_types.TYPE_NAMES (a config leaf cannot import it; a test checks
 # that the two agree), and ANY_GRASP_TYPE, the training mix.
-GRASP_TYPE_NAMES = ("power", "pinch", "tripod", "lateral")
+GRASP_TYPE_NAMES = ("power", "pinch", "tripod", "lateral", "rim")
 ANY_GRASP_TYPE = "any"
 # sample.type_mix: how "any" deals an object's samples to the model's types
 TRAINING_TYPE_MIX, EVEN_TYPE_MIX = "training", "even"

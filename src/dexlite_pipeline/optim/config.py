@@ -103,6 +103,8 @@ class GraspTypeShares:
     pinch: float = setting(0.0, "precision pinch: thumb tip against index fingertip (middle fingertip optional)", minimum=0)
     tripod: float = setting(0.0, "thumb tip against index and middle fingertips", minimum=0)
     lateral: float = setting(0.0, "thumb pad against the side of the index finger's middle phalanx (key pinch)", minimum=0)
+    rim: float = setting(0.0, "rim: thumb on one side of a rim or edge opposite the centroid of index, middle and ring fingertips on the other",
+                         minimum=0)
 
     def __post_init__(self) -> None:
         for name, share in self.shares().items():

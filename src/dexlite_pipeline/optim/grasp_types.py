@@ -167,8 +167,43 @@ LATERAL = GraspType(
           ("THJ0", -0.34)),
 )
 
-# Every grasp type by name, in the order starts are assigned and drawn (``assign_types``); index = ``type code``.
-GRASP_TYPES: dict[str, GraspType] = {t.name: t for t in (POWER, PINCH, TRIPOD, LATERAL)}
+# Rim: the thumb on one side of a rim or edge, the index, middle and ring fingertips on the other, index and ring ~3.5 cm
+# apart along the rim and level, the middle ~2 cm deeper, the thumb opposite their centroid; little finger curled.
+# Why: on a wall every contact normal is nearly across it, so the torques in the wall's plane (the object tipping about
+# the rim's tangent under its weight, turning about the line across the wall) come from the normal forces only when the
+# thumb-side contact lies inside the polygon of the finger-side contacts; otherwise one of them is held by friction across
+# the wall's thickness alone. A pinch (contacts on one line across the wall) and any tripod (two fingertips: a segment)
+# are of that kind: curation's Ferrari-Canny epsilon (friction 0.6, torques over a 0.14 m scale) of ideal contacts on a
+# 4 mm wall is 0 for a pinch, 0.006 for a tripod spread 3 cm along or down the rim, 0.019-0.022 for the thumb inside a
+# triangle of three fingertips 3-4 cm wide and 2 cm deep (curation keeps above 0.01). The template has two thumb slots and
+# two finger slots (the middle, and the index or the ring): E_fc sums the slot contacts' unit normals, so one thumb slot
+# against three fingertips can never balance (|sum n| ~ 2, E_fc ~ 4: 1% of such grasps met the energy thresholds on pots,
+# pans, plates and bowls); the third fingertip is brought to the wall by the start pose, not by the energy. Started from
+# above only (``above_share`` 1): palm down, the opening across the wall, the index-to-ring line (⟂ approach and opening
+# in the hand) lies along the rim and the middle finger reaches down the wall (measured: results journal, "A rim grasp
+# with contacts spread along the rim (#47)", 2026-12-05).
+# Pads ~6 cm apart (fitted like the others, with the index-to-ring distance along the hand's third axis (the two level),
+# the middle's depth along the approach and the thumb at the three pads' centroid as further targets, the blends towards
+# the aperture kept clear of self-penetration).
+RIM = GraspType(
+    "rim",
+    contact_slots=(THUMB_PAD_OR_TIP, THUMB_PAD_OR_TIP, ("ffdistal", "rfdistal"), ("mfdistal",)),
+    aperture=(("FFJ3", -0.35), ("FFJ1", 1.08), ("MFJ3", -0.35), ("MFJ2", 1.14), ("MFJ1", 0.29), ("RFJ3", -0.12), ("RFJ2", 0.34),
+              ("RFJ1", 0.94), ("RFJ0", 0.01), ("THJ4", 0.83), ("THJ3", 1.22), ("THJ1", 0.52), *_curled("LF")),
+    opposition=(("thdistal",), ("ffdistal", "mfdistal", "rfdistal")),
+    centre_distance_m=(0.005, 0.03), above_share=1.0, low_object_height_m=0.06, jitter_deg=20.0,
+    # pads ~2.4 cm and ~10 cm apart; index to ring ~4.4 and ~3.5 cm, the middle 0.8 and 2 cm deeper
+    closed=(("FFJ3", -0.35), ("FFJ2", 0.76), ("FFJ1", 1.11), ("FFJ0", 0.0), ("MFJ3", -0.35), ("MFJ2", 1.57), ("MFJ1", 0.0), ("MFJ0", 0.0),
+            ("RFJ3", -0.35), ("RFJ2", 1.55), ("RFJ1", 0.0), ("RFJ0", 0.0), ("THJ4", 0.76), ("THJ3", 1.22), ("THJ2", 0.1), ("THJ1", 0.52),
+            ("THJ0", 0.0)),
+    wide=(("FFJ3", -0.35), ("FFJ2", 0.0), ("FFJ1", 0.0), ("FFJ0", 0.88), ("MFJ3", -0.35), ("MFJ2", 0.57), ("MFJ1", 0.14), ("MFJ0", 0.22),
+          ("RFJ3", -0.18), ("RFJ2", 0.25), ("RFJ1", 0.0), ("RFJ0", 1.03), ("THJ4", 0.34), ("THJ3", 1.07), ("THJ2", 0.21), ("THJ1", -0.09),
+          ("THJ0", 0.0)),
+)
+
+# Every grasp type by name, in the order starts are assigned and drawn (``assign_types``); index = ``type code`` (a new type
+# goes last, so the codes of stored grasps and the draws of the other types stay as they were).
+GRASP_TYPES: dict[str, GraspType] = {t.name: t for t in (POWER, PINCH, TRIPOD, LATERAL, RIM)}
 TYPE_NAMES: tuple[str, ...] = tuple(GRASP_TYPES)
 POWER_CODE = TYPE_NAMES.index("power")
 
