@@ -194,13 +194,12 @@ def default_rebuild(object_id: str, source: str) -> str:
 
 
 def object_family(object_id: str, source: str) -> str:
-    """The family an object is counted in: its household family, else its source."""
-    from dexlite_pipeline.objects.household import parse_household_id
+    """The family an object is counted in: its household family (``objects.family``), else its source."""
+    from dexlite_pipeline.objects.family import HOUSEHOLD_PREFIX
+    from dexlite_pipeline.objects.family import object_family as family_of_id
 
-    try:
-        return parse_household_id(object_id)[0]
-    except ValueError:
-        return source or "unknown"
+    family = family_of_id(object_id) if object_id.startswith(HOUSEHOLD_PREFIX) else "other"
+    return family if family != "other" else (source or "unknown")
 
 
 def is_household_training(object_id: str, split: str) -> bool:
