@@ -217,3 +217,27 @@ def test_train_seed_sets_the_training_alone(pipeline_inputs):
     state_3, state_train_3, state_0 = by_run_seed["state_dict"], by_train_seed["state_dict"], default["state_dict"]
     assert all(torch.equal(state_3[name], state_train_3[name]) for name in state_3)
     assert not all(torch.equal(state_3[name], state_0[name]) for name in state_3)
+
+
+@pytest.mark.slow
+def test_training_without_energy_weights_builds_no_energy_and_trains_the_same(pipeline_inputs, monkeypatch):
+    """Every train.energy_weights 0 (the default): the loss scores no decoded pose, so training builds no GraspEnergy
+    (its SDF bank and point sets grow with the objects: memory) and trains the same model as with one built."""
+    from dexlite_pipeline.energy.grasp_energy import GraspEnergy
+    from dexlite_pipeline.model import trainer
+
+    root, objects = pipeline_inputs
+
+    def train(folder):
+        assert main(["train-cvae", "--config-json", json.dumps(CONFIG), "--lift", str(root / "lift.zarr"), *objects, *_model_outputs(root / folder)]) == 0
+        return torch.load(root / folder / "cvae.pt", weights_only=True)["state_dict"]
+
+    built = []
+    original = GraspEnergy.from_assets.__func__
+    monkeypatch.setattr(GraspEnergy, "from_assets", classmethod(lambda cls, *a, **k: built.append(1) or original(cls, *a, **k)))
+    without = train("without")
+    assert built == []
+    monkeypatch.setattr(trainer, "uses_energies", lambda *a, **k: True)
+    with_energy = train("with")
+    assert built == [1]
+    assert all(torch.equal(without[name], with_energy[name]) for name in without)

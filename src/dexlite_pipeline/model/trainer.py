@@ -101,6 +101,16 @@ def grasps_per_object_subset(object_ids: np.ndarray, count: int, seed: int) -> n
     return np.flatnonzero(place < count)
 
 
+def uses_energies(train: TrainConfig, table: bool) -> bool:
+    """Whether the loss has a weighted energy term (config ``train.energy_weights``; E_table only on a table)."""
+    return any(weight > 0 for name, weight in train.weights(table).items() if name not in ("recon", "kl"))
+
+
+def unbuilt_energy_terms(*args, **kwargs):
+    """The loss's energy terms when every energy weight is 0: ``training.batch_loss`` never calls them."""
+    raise RuntimeError("energy terms were not built: every train.energy_weights is 0")
+
+
 @dataclass
 class TrainedModel:
     """A trained model with what its file records: the run's facts and the grasps it was fitted to."""
@@ -181,12 +191,16 @@ def train_from_lift_shards(
     data = build_training_data(grasps, assets, hand_model, device, initial_model.type_vocabulary if initial_model is not None else None, record)
     margin_m = self_penetration_margin_m
     planes = load_support_planes(table, stability_path)
-    energy = GraspEnergy.from_assets(
-        hand_model, assets, EnergyConfig(object_point_spacing_m=settings.energy_point_spacing_m, self_penetration_margin_m=margin_m), support_planes=planes,
-        max_scale=max_scale_by_object(grasps.object_id, grasps.scale),
-    )
+    if uses_energies(settings, table=planes is not None):
+        energy = GraspEnergy.from_assets(
+            hand_model, assets, EnergyConfig(object_point_spacing_m=settings.energy_point_spacing_m, self_penetration_margin_m=margin_m),
+            support_planes=planes, max_scale=max_scale_by_object(grasps.object_id, grasps.scale),
+        )
+        energy_terms = grasp_energy_terms(energy, settings.contact_samples, seed)
+    else:  # every energy weight 0 (the default): the loss never scores a decoded pose, so no SDF bank or point sets
+        energy_terms = unbuilt_energy_terms
+    del assets  # the SDF grids (~1 MB an object): training reads the clouds ``data`` holds
     train_index, val_index = split_validation(len(grasps), settings.validation_fraction, seed)
-    energy_terms = grasp_energy_terms(energy, settings.contact_samples, seed)
     result = train_cvae(
         data, train_index, val_index, settings, energy_terms, seed, on_epoch=_log_epoch, table=planes is not None, initial_model=initial_model
     )
