@@ -241,3 +241,41 @@ def test_training_without_energy_weights_builds_no_energy_and_trains_the_same(pi
     with_energy = train("with")
     assert built == [1]
     assert all(torch.equal(without[name], with_energy[name]) for name in without)
+
+
+@pytest.mark.slow
+def test_post_optimization_in_object_groups(pipeline_inputs, hand, make_grasps, monkeypatch):
+    """post_optimize.objects_per_energy: a shard of more objects is refined one group of objects at a time (one energy
+    held at once); every row is still refined in its place, and a shard of no more objects than a group is refined
+    exactly as all at once (0)."""
+    from dexlite_pipeline.energy.grasp_energy import GraspEnergy
+
+    root, objects = pipeline_inputs
+    sampled = make_grasps(hand, 12, seed=3)  # alternating box / sphere
+    sampled.arrays["method"] = np.array(["cvae_raw", "cvae_expand_latent"] * 6, dtype=object)
+    write_grasp_store(root / "sampled.zarr", sampled)
+    built = []
+    original = GraspEnergy.from_assets.__func__
+    monkeypatch.setattr(GraspEnergy, "from_assets", classmethod(lambda cls, hand_model, assets, *a, **k: built.append(len(assets)) or original(cls, hand_model, assets, *a, **k)))
+
+    def post(name, objects_per_energy):
+        config = {**CONFIG, "post_optimize": {**CONFIG["post_optimize"], "objects_per_energy": objects_per_energy}}
+        assert main(["post-optimize", "--config-json", json.dumps(config), "--sample", str(root / "sampled.zarr"), *objects, "--shard", "000",
+                     "--out", str(root / f"{name}.zarr"), "--random-out", str(root / f"{name}_random.zarr")]) == 0
+        return read_grasp_store(root / f"{name}.zarr"), read_grasp_store(root / f"{name}_random.zarr")
+
+    together, together_random = post("together", 0)
+    one_group, one_group_random = post("one_group", 2)
+    assert built == [2, 2]
+    for name in together.arrays:
+        np.testing.assert_array_equal(together.arrays[name], one_group.arrays[name], err_msg=name)
+    np.testing.assert_array_equal(together_random.hand_pose, one_group_random.hand_pose)
+
+    built.clear()
+    grouped, grouped_random = post("grouped", 1)
+    assert built == [1, 1]
+    np.testing.assert_array_equal(grouped.arrays["raw_hand_pose"], sampled.hand_pose)
+    assert list(grouped.object_id) == list(sampled.object_id) and list(grouped.arrays["method"]) == list(sampled.arrays["method"])
+    assert np.isfinite(grouped.hand_pose).all() and (grouped.arrays["failure_reason"] == "").all()
+    assert sorted(grouped_random.object_id) == sorted(sampled.object_id[sampled.arrays["method"] == "cvae_raw"])
+    assert np.isfinite(grouped_random.hand_pose).all()

@@ -206,6 +206,10 @@ class PostOptimizeConfig:
         (0, 25, 50, 100, 200), "poses kept after these iterations and lift-tested (the budget curve)", items={"minimum": 0},
         unique_items=True)
     batch_size: int = setting(1024, "grasps per optimizer batch (a shard is cut into batches of this size)", minimum=1)
+    objects_per_energy: int = setting(
+        128, "objects whose energy (SDF grid, mesh, penetration points: ~10-50 MB each) is held at once: a shard with more is "
+        "refined in groups of this many objects, one after the other (0 = all at once; results depend on it only for shards "
+        "of more objects)", minimum=0)
     random_baseline: bool = setting(True, "also post-optimize from random convex-hull starts (same budget, held-out objects)")
     random_init: InitConfig = setting(factory=InitConfig, doc="the random starts (DexGraspNet's)")
     resolve_penetration_to_m: float = setting(0.0015, RESOLVE_PENETRATION_DOC, minimum=0)

@@ -53,6 +53,19 @@ def _unrefined_arrays(grasps: GraspSet, reasons: np.ndarray, method: np.ndarray)
     }
 
 
+def merged_refinement(parts: list[tuple[np.ndarray, RefinedGrasps]], count: int) -> RefinedGrasps:
+    """The refinements of row groups (each with its row indices among ``count`` rows) as one, in row order."""
+    if len(parts) == 1 and np.array_equal(parts[0][0], np.arange(count)):
+        return parts[0][1]
+    arrays = {}
+    for name, values in parts[0][1].arrays.items():
+        merged = np.empty((count, *values.shape[1:]), dtype=values.dtype)
+        for rows, part in parts:
+            merged[rows] = part.arrays[name]
+        arrays[name] = merged
+    return RefinedGrasps(arrays=arrays, trace_iterations=parts[-1][1].trace_iterations, seconds=sum(part.seconds for _, part in parts))
+
+
 def post_optimize_shard(
     sample_path: str, objects_dirs: list[str], shard: int, *, post_optimize: PostOptimizeConfig, self_penetration_margin_m: float,
     scene: SceneConfig, seed: int, device: str, stability_path: str | None = None, hand: str = "shadow",
@@ -74,6 +87,9 @@ def post_optimize_shard(
     The refined rows' ``seconds_per_grasp`` (attributes) is the CPU time of the whole stage up to the end of their
     refinement (reading the stores, building the energy, raising starts, refining) over their number, as optimization
     from scratch counts its own; the baseline's, its starts and refinement.
+    A shard of more than ``post_optimize.objects_per_energy`` objects is refined in groups of that many objects (sorted
+    ids), each group's energy built and released in turn, so memory does not grow with the shard; its rows keep their
+    places. A shard of no more objects is refined exactly as one energy of all its objects would.
     """
     started = time.process_time()  # CPU seconds of this process (all its threads)
     from dexlite_pipeline.tabletop import load_support_planes, store_attrs, support_arrays
@@ -115,32 +131,59 @@ def post_optimize_shard(
     if planes is not None:
         attrs["config"]["scene"] = {"table": True}
         attrs.update(store_attrs(True))
-    if object_ids:
-        assets = [load_asset(objects_dirs, oid) for oid in object_ids]
-        energy_config = EnergyConfig(weights=settings.energy_weights, object_point_spacing_m=settings.energy_point_spacing_m, self_penetration_margin_m=margin_m)
-        energy = GraspEnergy.from_assets(hand_model, assets, energy_config, support_planes=planes, max_scale=max_scale_by_object(sampled.object_id[valid], sampled.scale[valid]))
+    energy_config = EnergyConfig(weights=settings.energy_weights, object_point_spacing_m=settings.energy_point_spacing_m, self_penetration_margin_m=margin_m)
+    max_scale = max_scale_by_object(sampled.object_id[valid], sampled.scale[valid])
     generator = shard_generator("post_optimize", seed, shard)
 
-    def optimize_rows(rows: GraspSet, init_pose: torch.Tensor | None, start_contacts: str) -> RefinedGrasps:
+    def optimize_rows(energy: GraspEnergy, rows: GraspSet, init_pose: torch.Tensor | None, start_contacts: str) -> RefinedGrasps:
         obj = energy.object_index(rows.object_id)
         scale = torch.as_tensor(rows.scale, dtype=torch.float32, device=device)
         pose = torch.as_tensor(rows.hand_pose, dtype=torch.float32, device=device) if init_pose is None else init_pose
         return refine(energy, pose, obj, scale, settings, generator, start_contacts, slots_of_types(hand_model, grasp_types(rows)))
 
-    if valid.any():
-        starts = sampled.select(valid)
-        if planes is not None:
-            from dexlite_pipeline.energy.table_clearance import raise_above_table
+    def random_starts(energy: GraspEnergy, group_assets: list, rows: GraspSet) -> torch.Tensor:
+        obj = energy.object_index(rows.object_id)
+        scale = torch.as_tensor(rows.scale, dtype=torch.float32, device=device)
+        support = energy.support(obj, scale) if planes is not None else None
+        return initial_poses(hand_model, HullSampler(group_assets), obj, scale, settings.random_init, generator, support=support)
 
-            starts, shift = raise_above_table(starts, planes, None if hand == SHADOW else hand_model)  # None: the Shadow Hand on CPU, as before
-            log.info("shard %03d: %d of %d sampled starts raised above the table (median %.1f mm)", shard, int((shift > 0).sum()), len(shift),
-                     1000 * float(np.median(shift[shift > 0])) if (shift > 0).any() else 0.0)
-        refined = optimize_rows(starts, None, "surface")
+    starts = sampled.select(valid)
+    if valid.any() and planes is not None:
+        from dexlite_pipeline.energy.table_clearance import raise_above_table
+
+        starts, shift = raise_above_table(starts, planes, None if hand == SHADOW else hand_model)  # None: the Shadow Hand on CPU, as before
+        log.info("shard %03d: %d of %d sampled starts raised above the table (median %.1f mm)", shard, int((shift > 0).sum()), len(shift),
+                 1000 * float(np.median(shift[shift > 0])) if (shift > 0).any() else 0.0)
+    targets = sampled.select(valid & (method == SYNTHESIS) & settings.random_baseline)
+    targets.arrays[GRASP_TYPE] = np.full(len(targets), "power", dtype=object)  # convex-hull starts: power grasps
+    # The shard's objects in groups of post_optimize.objects_per_energy, each group's energy built, used (its sampled rows
+    # refined, then its random baseline) and released before the next: memory bounded by one group's objects. One group (a
+    # shard of no more objects) is refinement and baseline over the whole shard, as one energy of every object would do.
+    group_size = settings.objects_per_energy or max(len(object_ids), 1)
+    refined_parts, baseline_parts, baseline_seconds = [], [], 0.0
+    for first in range(0, len(object_ids), group_size):
+        group = object_ids[first:first + group_size]
+        group_assets = [load_asset(objects_dirs, oid) for oid in group]
+        energy = GraspEnergy.from_assets(hand_model, group_assets, energy_config, support_planes=planes, max_scale=max_scale)
+        rows = np.flatnonzero(np.isin(starts.object_id, group))
+        refined_parts.append((rows, optimize_rows(energy, starts.select(rows), None, "surface")))
+        target_rows = np.flatnonzero(np.isin(targets.object_id, group))
+        if len(target_rows):
+            baseline_started = time.process_time()
+            group_targets = targets.select(target_rows)
+            baseline_parts.append((target_rows, optimize_rows(energy, group_targets, random_starts(energy, group_assets, group_targets), "random")))
+            baseline_seconds += time.process_time() - baseline_started
+        del energy, group_assets
+        if len(object_ids) > group_size:
+            log.info("shard %03d: objects %d-%d of %d refined", shard, first + 1, first + len(group), len(object_ids))
+
+    if valid.any():
+        refined = merged_refinement(refined_parts, len(starts))
         if planes is not None:
             refined.arrays["start_table_shift_m"] = shift.astype(np.float32)
             refined.arrays["raw_hand_pose"] = sampled.hand_pose[valid].copy()  # the sampled pose, before the raise
         attrs["trace_iterations"] = refined.trace_iterations.tolist()
-        attrs["seconds_per_grasp"] = (time.process_time() - started) / int(valid.sum())
+        attrs["seconds_per_grasp"] = (time.process_time() - started - baseline_seconds) / int(valid.sum())
         attrs["stopped_early"] = int((refined.arrays["stopped_at_iteration"] > 0).sum())
         log.info("shard %03d: post-optimized %d grasps in %.1fs (%d stopped early as hopeless); median E_post %.3g -> %.3g", shard,
                  int(valid.sum()), refined.seconds, attrs["stopped_early"], float(np.median(refined.arrays["raw_E_post"])),
@@ -150,17 +193,10 @@ def post_optimize_shard(
         attrs["seconds_per_grasp"] = None
         arrays = _unrefined_arrays(sampled, reasons, method)
 
-    targets = sampled.select(valid & (method == SYNTHESIS) & settings.random_baseline)
-    targets.arrays[GRASP_TYPE] = np.full(len(targets), "power", dtype=object)  # convex-hull starts: power grasps
     random_attrs = {**attrs, "stage": "post_optimize_random_baseline", "random_baseline": settings.random_baseline}
     if len(targets):
-        obj = energy.object_index(targets.object_id)
-        scale = torch.as_tensor(targets.scale, dtype=torch.float32, device=device)
-        baseline_started = time.process_time()
-        support = energy.support(obj, scale) if planes is not None else None
-        init = initial_poses(hand_model, HullSampler(assets), obj, scale, settings.random_init, generator, support=support)
-        baseline = optimize_rows(targets, init, "random")
-        random_attrs["seconds_per_grasp"] = (time.process_time() - baseline_started) / len(targets)
+        baseline = merged_refinement(baseline_parts, len(targets))
+        random_attrs["seconds_per_grasp"] = baseline_seconds / len(targets)
         log.info("shard %03d: random-init baseline on %d grasps in %.1fs; median E_post %.3g -> %.3g", shard, len(targets),
                  baseline.seconds, float(np.median(baseline.arrays["raw_E_post"])), float(np.median(baseline.arrays["E_post"])))
         random_arrays = _store_arrays(targets, baseline, np.full(len(targets), "", dtype=object), np.full(len(targets), RANDOM_METHOD, dtype=object))
