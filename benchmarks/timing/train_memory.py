@@ -13,7 +13,8 @@ practically unchanged): the memory a run with weighted energies needs.
     python benchmarks/timing/train_memory.py RUN --configfile config.yaml config/profiles/household_model.yaml \
         --counts 100 300 0 --steps 20 [--energies]
 
-Prints one Markdown row per point: objects, grasps, energy built, peak RSS (GB), CPU-s, MB per object.
+Prints one Markdown row per point: objects, grasps, energy built, peak RSS (GB), CPU-s, and the memory each object adds
+(MB: the growth over the mode's first point per object more).
 """
 
 from __future__ import annotations
@@ -27,8 +28,9 @@ import tempfile
 from pathlib import Path
 
 import torch
+import yaml
 
-from dexlite_pipeline.config import load_config, merge_config, validate_config
+from dexlite_pipeline.config import merge_config, validate_config
 
 
 def train_command(run: Path, config: dict, out: Path) -> list[str]:
@@ -67,11 +69,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--energies", action="store_true", help="also each point with an energy in the loss (pen at 1e-6)")
     args = parser.parse_args(argv)
     config: dict = {}
-    for path in args.configfile:
-        config = merge_config(config, load_config(path)) if config else load_config(path)
+    for path in args.configfile:  # overlays in Snakemake's order, each a partial config; the merged one is validated
+        config = merge_config(config, yaml.safe_load(Path(path).read_text()) or {})
     validate_config(config, " + ".join(args.configfile))
-    print("| objects asked | training objects | grasps | energy built | peak RSS (GB) | CPU-s | MB per object |")
+    print("| objects asked | training objects | grasps | energy built | peak RSS (GB) | CPU-s | MB per added object |")
     print("| --- | --- | --- | --- | --- | --- | --- |")
+    first_point: dict[bool, tuple[int, float]] = {}  # per energy mode, the first point's objects and peak (GB)
     for count in args.counts:
         for energies in (False, True) if args.energies else (False,):
             train = merge_config(config["train"], {"max_training_objects": count, "max_steps": args.steps, "epochs": 1000})
@@ -83,8 +86,9 @@ def main(argv: list[str] | None = None) -> int:
                 facts = torch.load(out / "cvae.pt", weights_only=True)
             objects = len(facts["train_object_ids"])
             grasps = facts["train_grasps"] + facts["validation_grasps"]
-            print(f"| {count or 'all'} | {objects} | {grasps} | {'yes' if energies else 'no'} | {peak_gb:.2f} | {cpu_s:.0f} | "
-                  f"{peak_gb * 1024 / max(objects, 1):.1f} |", flush=True)
+            base_objects, base_gb = first_point.setdefault(energies, (objects, peak_gb))
+            slope = f"{(peak_gb - base_gb) * 1024 / (objects - base_objects):.1f}" if objects != base_objects else "-"
+            print(f"| {count or 'all'} | {objects} | {grasps} | {'yes' if energies else 'no'} | {peak_gb:.2f} | {cpu_s:.0f} | {slope} |", flush=True)
     return 0
 
 
