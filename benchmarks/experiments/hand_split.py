@@ -135,7 +135,8 @@ def main(argv: list[str] | None = None) -> int:
         with open(args.out_dir / "hand_split.jsonl", "a") as file:
             file.write(json.dumps(row) + "\n")
         np.savez_compressed(out / "tested.npz", **{k: np.asarray(v) for k, v in tested.arrays.items() if np.asarray(v).dtype != object},
-                            object_id=np.asarray(tested.object_id, str), failure_reason=np.asarray(tested.arrays["failure_reason"], str))  # fmt: skip
+                            object_id=np.asarray(tested.object_id, str), failure_reason=np.asarray(tested.arrays["failure_reason"], str),
+                            distinct_label=np.asarray(labels))  # fmt: skip
         print(table_line(row), flush=True)
     if len(rows) > 1:
         print(table_line(pooled(rows)))
