@@ -19,6 +19,7 @@ log = logging.getLogger("dexlite.grasp")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    from dexlite_pipeline.model.config import GRASP_TYPE_NAMES
     from dexlite_pipeline.tabletop import UPRIGHT_AXES
     from dexlite_pipeline.tools.grasp import (
         DEFAULT_GRASPS_PER_OBJECT, DEFAULT_MIN_DISTINCT, DEFAULT_RENDERS_PER_OBJECT, DEFAULT_TOP_UP_BATCHES, UNIT_METRES,
@@ -52,7 +53,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         f"distinct held grasps, at most K batches (default {DEFAULT_TOP_UP_BATCHES}), none more after one that added it none")
     parser.add_argument("--from-scratch", action="store_true", help="energy optimization from scratch only, no model (slower per grasp)")
     parser.add_argument("--grasp-type", default=None, metavar="TYPE",
-                        help="the grasps' type: any (default: the model's training mix) or one of power, pinch, tripod, lateral; the "
+                        help=f"the grasps' type: any (default: the model's training mix) or one of {', '.join(GRASP_TYPE_NAMES)}; the "
                         "model must know it (the shipped model knows power only), and optimization from scratch (--from-scratch, the "
                         "top-up) then makes that type only")
     parser.add_argument("--hand", default=None, metavar="HAND",

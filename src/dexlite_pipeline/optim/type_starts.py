@@ -1,4 +1,4 @@
-"""Start poses of the precision grasp types (``optim.grasp_types``: pinch, tripod, lateral).
+"""Start poses of the precision grasp types (``optim.grasp_types``: pinch, tripod, lateral, rim).
 
 A type's grasp centre c (midway between its two opposing sides' pads in its pre-grasp pose, palm frame), its opening
 axis u (from the thumb side to the finger side), its opening w (the distance between the two sides' pads) and its

@@ -70,7 +70,7 @@ def grasp_types_html(simulated: GraspSet | None, config: Mapping) -> str:
         for r in table.itertuples(index=False)
     )  # fmt: skip
     return (
-        "<h2>Grasp types</h2><p class='note'>Per method and grasp type (power, pinch, tripod, lateral: the type each grasp was made "
+        "<h2>Grasp types</h2><p class='note'>Per method and grasp type (power, pinch, tripod, lateral, rim: the type each grasp was made "
         "or sampled as): grasps tried, held in the lift test (share of those tried), held against all six pushes too, and distinct "
         "held grasps (palms apart by the run's distinct-grasp rule, per object, within the type).</p>"
         "<table class='text'><thead><tr><th>method</th><th>split</th><th>grasp type</th><th>tried</th><th>held</th>"
