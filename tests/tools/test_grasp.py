@@ -127,6 +127,30 @@ def test_grasp_with_a_model_samples_and_post_optimizes(grasp_run, meshes, tmp_pa
     assert "`--min-distinct 0`: the model's grasps only; optimization from scratch never tops them up." in summary
 
 
+@pytest.mark.slow
+def test_a_model_path_on_more_meshes_than_a_group_refines_them_group_by_group(meshes, tmp_path, caplog, monkeypatch):
+    """post_optimize.objects_per_energy 1: each mesh's samples refined with an energy of that mesh alone, every mesh its grasps."""
+    from dexlite_pipeline.energy.grasp_energy import GraspEnergy
+
+    built = []
+    original = GraspEnergy.from_assets.__func__
+
+    def recording(cls, hand, assets, *args, **kwargs):
+        built.append(sorted(a.object_id for a in assets))
+        return original(cls, hand, assets, *args, **kwargs)
+
+    monkeypatch.setattr(GraspEnergy, "from_assets", classmethod(recording))
+    config = {**TINY, "post_optimize": {**TINY["post_optimize"], "objects_per_energy": 1}}
+    out = tmp_path / "grouped"
+    with caplog.at_level(logging.INFO):
+        main(["grasp", str(meshes), "--out", str(out), "--n", "2", "--renders", "0", "--threads", "1", "--model",
+              str(_untrained_model(tmp_path / "cvae.pt")), "--resize-to-training", "--min-distinct", "0", "--config-json", json.dumps(config)])
+    every = read_grasp_store(out / "all_grasps.zarr")
+    assert sorted(every.object_id.tolist()) == ["user-box"] * 2 + ["user-cup"] * 2 and np.isfinite(every.hand_pose).all()
+    assert ["user-box", "user-cup"] not in built and ["user-box"] in built and ["user-cup"] in built
+    assert "objects 1-1 of 2 refined" in caplog.text and "objects 2-2 of 2 refined" in caplog.text
+
+
 def _untrained_evaluator(path):
     """A small grasp evaluator with untrained weights saved as ``path``: for testing the ranking's plumbing."""
     from dexlite_pipeline.model.evaluator import EvaluatorConfig, GraspEvaluator, save_evaluator

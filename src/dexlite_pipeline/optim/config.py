@@ -141,6 +141,10 @@ class OptimizeGraspsConfig:
         "as many starts as the scales give the others, instead of at the scales")
     batch_size: int = setting(
         512, "grasps optimized together (several objects per batch; results depend on it: starts and contacts are drawn in batch order)", minimum=1)
+    objects_per_energy: int = setting(
+        128, "objects whose energy (SDF grid, mesh, penetration points: ~10-50 MB each) is held at once: a shard with more is "
+        "optimized in groups of this many objects, one after the other (0 = all at once; results depend on it only for shards "
+        "of more objects, and never for `dexlite grasp`, whose draws are keyed by object)", minimum=0)
     progress_every: int = setting(100, "iterations between progress lines in the log", minimum=1, result_neutral=True)
     thresholds: EnergyThresholds = setting(
         factory=EnergyThresholds, doc="passes_energy_thresholds (DexGraspNet's success criteria)")
@@ -207,9 +211,9 @@ class PostOptimizeConfig:
         unique_items=True)
     batch_size: int = setting(1024, "grasps per optimizer batch (a shard is cut into batches of this size)", minimum=1)
     objects_per_energy: int = setting(
-        128, "objects whose energy (SDF grid, mesh, penetration points: ~10-50 MB each) is held at once: a shard with more is "
-        "refined in groups of this many objects, one after the other (0 = all at once; results depend on it only for shards "
-        "of more objects)", minimum=0)
+        128, "objects whose energy (SDF grid, mesh, penetration points: ~10-50 MB each) is held at once: a shard (or the meshes "
+        "of one `dexlite grasp`) with more is refined in groups of this many objects, one after the other (0 = all at once; "
+        "results depend on it only when there are more objects)", minimum=0)
     random_baseline: bool = setting(True, "also post-optimize from random convex-hull starts (same budget, held-out objects)")
     random_init: InitConfig = setting(factory=InitConfig, doc="the random starts (DexGraspNet's)")
     resolve_penetration_to_m: float = setting(0.0015, RESOLVE_PENETRATION_DOC, minimum=0)

@@ -2,7 +2,8 @@
 
 Every (object, scale) gets ``grasps_per_object`` starts on the inflated convex hull; all
 grasps of the shard are optimized together in batches of ``batch_size`` (one batch mixes
-objects, so the CPU runs few, large steps). Each grasp keeps every energy term and a
+objects, so the CPU runs few, large steps), in groups of ``objects_per_energy`` objects when a
+shard has more (each group's energy built and released in turn). Each grasp keeps every energy term and a
 ``passes_energy_thresholds`` flag (DexGraspNet's E_fc < 0.3, E_dis < 5 mm, E_pen < 1 mm).
 
 The default schedule (config.yaml) is DexGraspNet's compressed to 2,000 iterations (step
@@ -137,38 +138,11 @@ def keyed_starts(starts: StartDrawer, assets: list[ObjectAsset], object_index: t
     return init
 
 
-def synthesize(
-    assets: list[ObjectAsset],
-    config: OptimizeGraspsConfig,
-    energy_config: EnergyConfig,
-    generator: torch.Generator,
-    device: torch.device | str = "cpu",
-    support_planes=None,
-    object_scales: list[tuple[float, ...]] | None = None,
-    keyed_seed: int | None = None,
-    hand: ShadowHand | None = None,
-) -> tuple[GraspSet, dict]:
-    """Optimize ``grasps_per_object`` grasps per object and scale; returns the grasps and run statistics.
-
-    ``support_planes`` (``tabletop.SupportPlanes``; tabletop mode): starts above each object's table,
-    E_table in the energy, and the grasps record E_table and their support plane. None: floating objects.
-    ``object_scales``: each object's own scales (one tuple per asset, e.g. its real size) instead of
-    ``config.scales`` for all; the objects are still optimized together in batches of ``batch_size``.
-    ``keyed_seed``: every random draw of a grasp (its start and its walk) comes from streams keyed by this seed, its
-    object's id and its start number instead of ``generator`` in batch order, so an object's grasps are the same
-    whichever other objects are optimized beside it (``keyed_starts``, ``GraspRandom``).
-    ``config.grasp_types``: the share of each grasp type among each object's starts (``start_types``); the grasps
-    record their type in ``grasp_type``.
-    ``hand``: the hand to grasp with, on ``device`` (None: the Shadow Hand). A hand from its MJCF
-    (``hand.described.DescribedHand``) makes power grasps only, and its poses are 6 + J numbers (its joints); a store of
-    them records the hand (``hand.choice.hand_record``, ``io.grasp_store``).
-    """
-    started = time.process_time()  # CPU seconds (all threads of this process), not wall time
-    hand = ShadowHand(device) if hand is None else hand
-    if object_scales is None:
-        object_scales = [tuple(config.scales)] * len(assets)
-    if len(object_scales) != len(assets) or not all(object_scales):
-        raise ValueError(f"object_scales: expected one non-empty tuple of scales per object ({len(assets)}), got {object_scales}")
+def _optimize_group(
+    assets: list[ObjectAsset], config: OptimizeGraspsConfig, energy_config: EnergyConfig, generator: torch.Generator, device,
+    support_planes, object_scales: list[tuple[float, ...]], keyed_seed: int | None, hand: ShadowHand,
+) -> dict[str, np.ndarray]:
+    """The arrays of ``synthesize`` for one group of objects, optimized with one energy of those objects only."""
     object_index, scale = start_rows(object_scales, config.grasps_per_object, hand.dtype)
     types = start_types(sum(len(s) for s in object_scales), config.grasps_per_object, config.grasp_types.shares())
     power_only = bool((types == POWER_CODE).all())
@@ -226,6 +200,55 @@ def synthesize(
     arrays["passes_energy_thresholds"] = config.thresholds.passes(arrays)
     if support_planes is not None:
         arrays.update(store_arrays(*support_planes.arrays(arrays["object_id"], arrays["scale"])))
+    return arrays
+
+
+def synthesize(
+    assets: list[ObjectAsset],
+    config: OptimizeGraspsConfig,
+    energy_config: EnergyConfig,
+    generator: torch.Generator,
+    device: torch.device | str = "cpu",
+    support_planes=None,
+    object_scales: list[tuple[float, ...]] | None = None,
+    keyed_seed: int | None = None,
+    hand: ShadowHand | None = None,
+) -> tuple[GraspSet, dict]:
+    """Optimize ``grasps_per_object`` grasps per object and scale; returns the grasps and run statistics.
+
+    ``support_planes`` (``tabletop.SupportPlanes``; tabletop mode): starts above each object's table,
+    E_table in the energy, and the grasps record E_table and their support plane. None: floating objects.
+    ``object_scales``: each object's own scales (one tuple per asset, e.g. its real size) instead of
+    ``config.scales`` for all; the objects are still optimized together in batches of ``batch_size``.
+    More objects than ``config.objects_per_energy`` are optimized in groups of that many, one after the other, each
+    with an energy of its own objects only, so memory does not grow with the number of objects (an energy holds ~10-50
+    MB an object); with no more objects the run is the one energy's, and keyed draws make it the same for any grouping.
+    ``keyed_seed``: every random draw of a grasp (its start and its walk) comes from streams keyed by this seed, its
+    object's id and its start number instead of ``generator`` in batch order, so an object's grasps are the same
+    whichever other objects are optimized beside it (``keyed_starts``, ``GraspRandom``).
+    ``config.grasp_types``: the share of each grasp type among each object's starts (``start_types``); the grasps
+    record their type in ``grasp_type``.
+    ``hand``: the hand to grasp with, on ``device`` (None: the Shadow Hand). A hand from its MJCF
+    (``hand.described.DescribedHand``) makes power grasps only, and its poses are 6 + J numbers (its joints); a store of
+    them records the hand (``hand.choice.hand_record``, ``io.grasp_store``).
+    """
+    started = time.process_time()  # CPU seconds (all threads of this process), not wall time
+    hand = ShadowHand(device) if hand is None else hand
+    if object_scales is None:
+        object_scales = [tuple(config.scales)] * len(assets)
+    if len(object_scales) != len(assets) or not all(object_scales):
+        raise ValueError(f"object_scales: expected one non-empty tuple of scales per object ({len(assets)}), got {object_scales}")
+    group_size = config.objects_per_energy or max(len(assets), 1)
+    groups = [slice(first, first + group_size) for first in range(0, len(assets), group_size)] or [slice(0, 0)]
+    parts = []
+    for number, group in enumerate(groups, start=1):
+        if len(groups) > 1:
+            log.info("objects %d-%d of %d (group %d/%d: optimize_grasps.objects_per_energy = %d)", group.start + 1,
+                     min(group.stop, len(assets)), len(assets), number, len(groups), group_size)
+        parts.append(_optimize_group(assets[group], config, energy_config, generator, device, support_planes, object_scales[group],
+                                     keyed_seed, hand))
+    arrays = {name: np.concatenate([part[name] for part in parts]) for name in parts[0]}
+    total = len(arrays["object_id"])
     seconds = time.process_time() - started
     stats = {
         "grasps": total,

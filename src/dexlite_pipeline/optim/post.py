@@ -57,6 +57,19 @@ def _energy_arrays(prefix: str, result) -> dict[str, np.ndarray]:
     return arrays
 
 
+def merged_refinement(parts: list[tuple[np.ndarray, RefinedGrasps]], count: int) -> RefinedGrasps:
+    """The refinements of row groups (each with its row indices among ``count`` rows) as one, in row order."""
+    if len(parts) == 1 and np.array_equal(parts[0][0], np.arange(count)):
+        return parts[0][1]
+    arrays = {}
+    for name, values in parts[0][1].arrays.items():
+        merged = np.empty((count, *values.shape[1:]), dtype=values.dtype)
+        for rows, part in parts:
+            merged[rows] = part.arrays[name]
+        arrays[name] = merged
+    return RefinedGrasps(arrays=arrays, trace_iterations=parts[-1][1].trace_iterations, seconds=sum(part.seconds for _, part in parts))
+
+
 def refine(
     energy: GraspEnergy,
     init_pose: torch.Tensor,

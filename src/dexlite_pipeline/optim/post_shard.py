@@ -17,7 +17,7 @@ import torch
 from dexlite_pipeline.io.grasp_store import GRASP_TYPE, GraspSet, grasp_types
 from dexlite_pipeline.energy.grasp_energy import GraspEnergy, max_scale_by_object
 from dexlite_pipeline.optim.grasp_types import slots_of_types
-from dexlite_pipeline.optim.post import RefinedGrasps, refine
+from dexlite_pipeline.optim.post import RefinedGrasps, merged_refinement, refine
 
 if TYPE_CHECKING:
     from dexlite_pipeline.optim.config import PostOptimizeConfig
@@ -51,19 +51,6 @@ def _unrefined_arrays(grasps: GraspSet, reasons: np.ndarray, method: np.ndarray)
         "failure_reason": reasons,
         GRASP_TYPE: grasp_types(grasps),
     }
-
-
-def merged_refinement(parts: list[tuple[np.ndarray, RefinedGrasps]], count: int) -> RefinedGrasps:
-    """The refinements of row groups (each with its row indices among ``count`` rows) as one, in row order."""
-    if len(parts) == 1 and np.array_equal(parts[0][0], np.arange(count)):
-        return parts[0][1]
-    arrays = {}
-    for name, values in parts[0][1].arrays.items():
-        merged = np.empty((count, *values.shape[1:]), dtype=values.dtype)
-        for rows, part in parts:
-            merged[rows] = part.arrays[name]
-        arrays[name] = merged
-    return RefinedGrasps(arrays=arrays, trace_iterations=parts[-1][1].trace_iterations, seconds=sum(part.seconds for _, part in parts))
 
 
 def post_optimize_shard(

@@ -108,7 +108,8 @@ def synthesize_with_model(
     ``evaluator`` (model, meta), ``evaluator.pool_factor`` x ``n`` samples per object ranked, the ``n`` best distinct kept.
     Each sample is of the type ``sample.grasp_type`` asks for (``type_condition.requested_codes``), refined with that type's
     contact template, and records it in ``grasp_type``. ``hand``: the hand model the model is of (None: the Shadow Hand;
-    ``hand.choice.resolve_hand``), whose energies refine the samples."""
+    ``hand.choice.resolve_hand``), whose energies refine the samples, in groups of ``post_optimize.objects_per_energy``
+    objects (one energy per group, built and released in turn) when there are more."""
     import torch
 
     from dexlite_pipeline.energy.config import EnergyConfig
@@ -120,7 +121,7 @@ def synthesize_with_model(
     from dexlite_pipeline.model.sampling import synthesize
     from dexlite_pipeline.model.type_condition import requested_codes
     from dexlite_pipeline.optim.grasp_types import slots_of_types
-    from dexlite_pipeline.optim.post import refine
+    from dexlite_pipeline.optim.post import merged_refinement, refine
 
     sample_config, post_config = config.sample, config.post_optimize
     model, checkpoint = loaded
@@ -165,19 +166,29 @@ def synthesize_with_model(
         table_hand = hand if hand is not None and is_described(hand) else None  # None: the Shadow Hand on CPU, as before
         poses = torch.as_tensor(raise_above_table(starts, support_planes, table_hand)[0].hand_pose, dtype=poses.dtype, device=poses.device)
     hand = ShadowHand(device) if hand is None else hand
-    energy = GraspEnergy.from_assets(
-        hand, assets,
-        EnergyConfig(weights=post_config.energy_weights, object_point_spacing_m=post_config.energy_point_spacing_m,
-                     self_penetration_margin_m=config.energy.self_penetration_margin_m),
-        support_planes=support_planes,
-        max_scale=max_scale_by_object([assets[i].object_id for i in object_index], scale),
-    )  # fmt: skip
+    energy_config = EnergyConfig(weights=post_config.energy_weights, object_point_spacing_m=post_config.energy_point_spacing_m,
+                                 self_penetration_margin_m=config.energy.self_penetration_margin_m)
     log.info("post-optimizing %d grasps, %d iterations", len(object_index), post_config.annealing.iterations)
     type_names = np.asarray([model.grasp_types[t] for t in types.tolist()], dtype=object)
-    refined = refine(
-        energy, poses, torch.as_tensor(object_index, device=device), torch.as_tensor(scale, device=device), post_config, generator, "surface",
-        slots_of_types(hand, type_names),
-    )
+    # The objects in groups of post_optimize.objects_per_energy, each group's energy built, used and released in turn, so
+    # memory does not grow with the number of meshes; one group (no more objects) is the refinement with one energy of all.
+    group_size = post_config.objects_per_energy or max(len(assets), 1)
+    parts = []
+    for first in range(0, len(assets), group_size):
+        group_assets = assets[first:first + group_size]
+        rows = np.flatnonzero((object_index >= first) & (object_index < first + len(group_assets)))
+        if not len(rows):
+            continue
+        energy = GraspEnergy.from_assets(hand, group_assets, energy_config, support_planes=support_planes,
+                                         max_scale=max_scale_by_object([assets[i].object_id for i in object_index[rows]], scale[rows]))
+        parts.append((rows, refine(
+            energy, poses[torch.as_tensor(rows, device=poses.device)], torch.as_tensor(object_index[rows] - first, device=device),
+            torch.as_tensor(scale[rows], device=device), post_config, generator, "surface", slots_of_types(hand, type_names[rows]),
+        )))  # fmt: skip
+        del energy
+        if len(assets) > group_size:
+            log.info("objects %d-%d of %d refined", first + 1, first + len(group_assets), len(assets))
+    refined = merged_refinement(parts, len(object_index))
     arrays = {k: v for k, v in refined.arrays.items() if not k.startswith("trace_") and k != "energy_trace"}
     arrays["object_id"] = np.asarray([assets[i].object_id for i in object_index], dtype=object)
     arrays["scale"] = scale
