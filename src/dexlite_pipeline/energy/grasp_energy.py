@@ -391,6 +391,13 @@ def max_scale_by_object(object_ids, scales) -> dict[str, float]:
     return largest
 
 
+def energy_groups(count: int, objects_per_energy: int) -> list[slice]:
+    """Consecutive groups of at most ``objects_per_energy`` of ``count`` objects (0: one group of all), each optimized with an
+    energy of its own objects only, so memory is bounded by one group's (an object's energy: ~10-50 MB); none for no objects."""
+    size = objects_per_energy or max(count, 1)
+    return [slice(first, min(first + size, count)) for first in range(0, count, size)]
+
+
 def object_point_sets(
     assets: list[ObjectAsset], meshes, spacing_m: float, max_scale=None, with_edges: bool = False
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

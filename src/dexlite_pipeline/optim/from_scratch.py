@@ -27,7 +27,7 @@ import numpy as np
 import torch
 
 from dexlite_pipeline.energy.config import EnergyConfig
-from dexlite_pipeline.energy.grasp_energy import TERM_NAMES, GraspEnergy
+from dexlite_pipeline.energy.grasp_energy import TERM_NAMES, GraspEnergy, energy_groups
 from dexlite_pipeline.hand.described import is_described
 from dexlite_pipeline.hand.model import POSE_DIM, ShadowHand
 from dexlite_pipeline.io.grasp_store import GraspSet
@@ -238,13 +238,12 @@ def synthesize(
         object_scales = [tuple(config.scales)] * len(assets)
     if len(object_scales) != len(assets) or not all(object_scales):
         raise ValueError(f"object_scales: expected one non-empty tuple of scales per object ({len(assets)}), got {object_scales}")
-    group_size = config.objects_per_energy or max(len(assets), 1)
-    groups = [slice(first, first + group_size) for first in range(0, len(assets), group_size)] or [slice(0, 0)]
+    groups = energy_groups(len(assets), config.objects_per_energy)
     parts = []
     for number, group in enumerate(groups, start=1):
         if len(groups) > 1:
-            log.info("objects %d-%d of %d (group %d/%d: optimize_grasps.objects_per_energy = %d)", group.start + 1,
-                     min(group.stop, len(assets)), len(assets), number, len(groups), group_size)
+            log.info("objects %d-%d of %d (group %d/%d: optimize_grasps.objects_per_energy = %d)", group.start + 1, group.stop,
+                     len(assets), number, len(groups), config.objects_per_energy)
         parts.append(_optimize_group(assets[group], config, energy_config, generator, device, support_planes, object_scales[group],
                                      keyed_seed, hand))
     arrays = {name: np.concatenate([part[name] for part in parts]) for name in parts[0]}

@@ -15,7 +15,7 @@ import numpy as np
 import torch
 
 from dexlite_pipeline.io.grasp_store import GRASP_TYPE, GraspSet, grasp_types
-from dexlite_pipeline.energy.grasp_energy import GraspEnergy, max_scale_by_object
+from dexlite_pipeline.energy.grasp_energy import GraspEnergy, energy_groups, max_scale_by_object
 from dexlite_pipeline.optim.grasp_types import slots_of_types
 from dexlite_pipeline.optim.post import RefinedGrasps, merged_refinement, refine
 
@@ -146,10 +146,10 @@ def post_optimize_shard(
     # The shard's objects in groups of post_optimize.objects_per_energy, each group's energy built, used (its sampled rows
     # refined, then its random baseline) and released before the next: memory bounded by one group's objects. One group (a
     # shard of no more objects) is refinement and baseline over the whole shard, as one energy of every object would do.
-    group_size = settings.objects_per_energy or max(len(object_ids), 1)
+    groups = energy_groups(len(object_ids), settings.objects_per_energy)
     refined_parts, baseline_parts, baseline_seconds = [], [], 0.0
-    for first in range(0, len(object_ids), group_size):
-        group = object_ids[first:first + group_size]
+    for span in groups:
+        group = object_ids[span]
         group_assets = [load_asset(objects_dirs, oid) for oid in group]
         energy = GraspEnergy.from_assets(hand_model, group_assets, energy_config, support_planes=planes, max_scale=max_scale)
         rows = np.flatnonzero(np.isin(starts.object_id, group))
@@ -161,8 +161,8 @@ def post_optimize_shard(
             baseline_parts.append((target_rows, optimize_rows(energy, group_targets, random_starts(energy, group_assets, group_targets), "random")))
             baseline_seconds += time.process_time() - baseline_started
         del energy, group_assets
-        if len(object_ids) > group_size:
-            log.info("shard %03d: objects %d-%d of %d refined", shard, first + 1, first + len(group), len(object_ids))
+        if len(groups) > 1:
+            log.info("shard %03d: objects %d-%d of %d refined", shard, span.start + 1, span.stop, len(object_ids))
 
     if valid.any():
         refined = merged_refinement(refined_parts, len(starts))

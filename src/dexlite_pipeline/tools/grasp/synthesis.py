@@ -113,7 +113,7 @@ def synthesize_with_model(
     import torch
 
     from dexlite_pipeline.energy.config import EnergyConfig
-    from dexlite_pipeline.energy.grasp_energy import GraspEnergy, max_scale_by_object
+    from dexlite_pipeline.energy.grasp_energy import GraspEnergy, energy_groups, max_scale_by_object
     from dexlite_pipeline.hand import ShadowHand
     from dexlite_pipeline.io.grasp_store import GraspSet
     from dexlite_pipeline.model.checkpoint import cloud_reading
@@ -172,22 +172,22 @@ def synthesize_with_model(
     type_names = np.asarray([model.grasp_types[t] for t in types.tolist()], dtype=object)
     # The objects in groups of post_optimize.objects_per_energy, each group's energy built, used and released in turn, so
     # memory does not grow with the number of meshes; one group (no more objects) is the refinement with one energy of all.
-    group_size = post_config.objects_per_energy or max(len(assets), 1)
+    groups = energy_groups(len(assets), post_config.objects_per_energy)
     parts = []
-    for first in range(0, len(assets), group_size):
-        group_assets = assets[first:first + group_size]
-        rows = np.flatnonzero((object_index >= first) & (object_index < first + len(group_assets)))
+    for group in groups:
+        group_assets = assets[group]
+        rows = np.flatnonzero((object_index >= group.start) & (object_index < group.stop))
         if not len(rows):
             continue
         energy = GraspEnergy.from_assets(hand, group_assets, energy_config, support_planes=support_planes,
                                          max_scale=max_scale_by_object([assets[i].object_id for i in object_index[rows]], scale[rows]))
         parts.append((rows, refine(
-            energy, poses[torch.as_tensor(rows, device=poses.device)], torch.as_tensor(object_index[rows] - first, device=device),
+            energy, poses[torch.as_tensor(rows, device=poses.device)], torch.as_tensor(object_index[rows] - group.start, device=device),
             torch.as_tensor(scale[rows], device=device), post_config, generator, "surface", slots_of_types(hand, type_names[rows]),
         )))  # fmt: skip
         del energy
-        if len(assets) > group_size:
-            log.info("objects %d-%d of %d refined", first + 1, first + len(group_assets), len(assets))
+        if len(groups) > 1:
+            log.info("objects %d-%d of %d refined", group.start + 1, group.stop, len(assets))
     refined = merged_refinement(parts, len(object_index))
     arrays = {k: v for k, v in refined.arrays.items() if not k.startswith("trace_") and k != "energy_trace"}
     arrays["object_id"] = np.asarray([assets[i].object_id for i in object_index], dtype=object)
