@@ -63,12 +63,13 @@ def test_synthesize_takes_the_hand_and_keeps_its_pose_length(setting, one_torch_
     assert np.isfinite(grasps.arrays["E_total"]).all() and grasps.arrays["grasp_type"].tolist() == ["power"] * 6
 
 
-def test_grasp_types_other_than_power_are_refused_for_a_described_hand(setting):
+def test_a_grasp_type_the_hand_does_not_offer_is_refused(setting):
+    """The three-finger hand has no finger opposing the others, so no precision type (``optim.described_types``)."""
     from dexlite_pipeline.optim.from_scratch import synthesize
 
     hand, assets = setting
     config = short_config(grasp_types=GraspTypeShares(power=0.5, pinch=0.5))
-    with pytest.raises(ValueError, match="other than power"):
+    with pytest.raises(ValueError, match="grasp type pinch is not defined for this hand"):
         synthesize(assets, config, ENERGY, torch.Generator().manual_seed(0), hand=hand)
 
 

@@ -67,7 +67,7 @@ def test_another_hand_refuses_the_shipped_model_and_a_broken_mjcf_is_refused(box
     assert f"hand: {broken}: the model has no joints" in one_line_cli_error(capsys, [*base, "--hand", str(broken), "--from-scratch"])
     assert "hand: nothere.xml: no such file" in one_line_cli_error(capsys, [*base, "--hand", "nothere.xml", "--from-scratch"])
     error = one_line_cli_error(capsys, [*base, "--hand", str(xml), "--from-scratch", "--grasp-type", "pinch"])
-    assert "grasp type pinch is defined for the Shadow Hand only" in error
+    assert f"hand: {xml}: hand three_finger: grasp type pinch is not defined for this hand (it offers power)" in error
     assert not (tmp_path / "out").exists()
 
 

@@ -35,7 +35,7 @@ from dexlite_pipeline.objects.assets import ObjectAsset
 from dexlite_pipeline.optim.annealing import optimize
 from dexlite_pipeline.optim.grasp_random import GraspRandom
 from dexlite_pipeline.optim.config import OptimizeGraspsConfig
-from dexlite_pipeline.optim.grasp_types import GRASP_TYPES, POWER_CODE, TYPE_NAMES, assign_types, contact_slots, power_slots
+from dexlite_pipeline.optim.grasp_types import POWER_CODE, TYPE_NAMES, assign_types, check_hand_offers, contact_slots, hand_grasp_types, power_slots
 from dexlite_pipeline.optim.init import HullSampler, initial_poses
 from dexlite_pipeline.optim.type_starts import FLOATING_UP, RimSampler, TypeGeometry, type_start_poses
 from dexlite_pipeline.tabletop import store_arrays
@@ -95,7 +95,7 @@ class StartDrawer:
 
     def geometry(self, name: str) -> TypeGeometry:
         if name not in self._geometry:
-            self._geometry[name] = TypeGeometry(self.hand, GRASP_TYPES[name])
+            self._geometry[name] = TypeGeometry(self.hand, hand_grasp_types(self.hand)[name])
         return self._geometry[name]
 
     def draw(self, object_index: torch.Tensor, scale: torch.Tensor, types: torch.Tensor, generator: torch.Generator,
@@ -113,7 +113,7 @@ class StartDrawer:
             if code == POWER_CODE:
                 init[rows] = initial_poses(self.hand, self.hulls, obj, sc, self.config.init, generator, support=part)
             else:
-                init[rows] = type_start_poses(self.hand, GRASP_TYPES[name], self.geometry(name), self.hulls, self.rims(), obj, sc,
+                init[rows] = type_start_poses(self.hand, hand_grasp_types(self.hand)[name], self.geometry(name), self.hulls, self.rims(), obj, sc,
                                               self.config.init.joint_sigma_fraction, generator, support=part)
         return init
 
@@ -146,8 +146,7 @@ def _optimize_group(
     object_index, scale = start_rows(object_scales, config.grasps_per_object, hand.dtype)
     types = start_types(sum(len(s) for s in object_scales), config.grasps_per_object, config.grasp_types.shares())
     power_only = bool((types == POWER_CODE).all())
-    if is_described(hand) and not power_only:
-        raise ValueError(f"hand {hand.description.name}: grasp types other than power are not yet defined for hands from an MJCF")
+    check_hand_offers(hand, [TYPE_NAMES[code] for code in torch.unique(types).tolist()])
     energy = GraspEnergy.from_assets(hand, assets, energy_config, support_planes=support_planes,
                                      max_scale={a.object_id: max(s) for a, s in zip(assets, object_scales)})
     term_names = tuple(term.name for term in energy.terms)
@@ -229,8 +228,8 @@ def synthesize(
     ``config.grasp_types``: the share of each grasp type among each object's starts (``start_types``); the grasps
     record their type in ``grasp_type``.
     ``hand``: the hand to grasp with, on ``device`` (None: the Shadow Hand). A hand from its MJCF
-    (``hand.described.DescribedHand``) makes power grasps only, and its poses are 6 + J numbers (its joints); a store of
-    them records the hand (``hand.choice.hand_record``, ``io.grasp_store``).
+    (``hand.described.DescribedHand``) makes the types its description allows (``optim.described_types``; another type
+    is a ValueError), and its poses are 6 + J numbers (its joints); a store of them records the hand (``hand.choice.hand_record``, ``io.grasp_store``).
     """
     started = time.process_time()  # CPU seconds (all threads of this process), not wall time
     hand = ShadowHand(device) if hand is None else hand

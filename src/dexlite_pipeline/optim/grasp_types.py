@@ -57,6 +57,10 @@ TIP = ":tip"
 THUMB_PAD_OR_TIP = ("thdistal", "thdistal" + TIP)
 
 
+# The joints a Shadow Hand type names, in joint order (without ``robot0:``); a described hand's types name its own.
+SHADOW_JOINTS = tuple(name.removeprefix("robot0:") for name in JOINT_NAMES)
+
+
 def _curled(*fingers: str) -> tuple[tuple[str, float], ...]:
     return tuple((f"{finger}{joint}", angle) for finger in fingers for joint, angle in CURLED)
 
@@ -76,6 +80,8 @@ class GraspType:
     ``closed`` and ``wide``: the joints (same form; the others as in ``aperture``) of the pre-grasp pose with the
     opposing pads nearly closed and opened as wide as they still face each other; a start on a pair of opposing
     surface points opens the hand between them to fit the object there (``pregrasp_joints``). Empty: the aperture only.
+    ``joint_names``: the hand's joints in order, as the poses name them (the Shadow Hand's without ``robot0:``; a hand
+    from its MJCF: ``optim.described_types``).
     """
 
     name: str
@@ -88,29 +94,30 @@ class GraspType:
     jitter_deg: float = 0.0
     closed: tuple[tuple[str, float], ...] = ()
     wide: tuple[tuple[str, float], ...] = ()
+    joint_names: tuple[str, ...] = SHADOW_JOINTS
 
     def __post_init__(self) -> None:
         if self.contact_slots is not None and len(self.contact_slots) != CONTACT_COUNT:
             raise ValueError(f"grasp type {self.name}: {len(self.contact_slots)} contact slots, expected {CONTACT_COUNT}")
-        unknown = sorted({joint for joint, _ in (*self.aperture, *self.closed, *self.wide)} - {name.removeprefix("robot0:") for name in JOINT_NAMES})
+        unknown = sorted({joint for joint, _ in (*self.aperture, *self.closed, *self.wide)} - set(self.joint_names))
         if unknown:
             raise ValueError(f"grasp type {self.name}: unknown aperture joints {', '.join(unknown)}")
         if bool(self.closed) != bool(self.wide):
             raise ValueError(f"grasp type {self.name}: give both the closed and the wide pre-grasp pose, or neither")
 
     def aperture_joints(self) -> torch.Tensor:
-        """(22,) float64 the aperture in joint order."""
+        """(J,) float64 the aperture in joint order (the Shadow Hand's 22)."""
         values = dict(self.aperture)
-        return torch.tensor([values.get(name.removeprefix("robot0:"), 0.0) for name in JOINT_NAMES], dtype=torch.float64)
+        return torch.tensor([values.get(name, 0.0) for name in self.joint_names], dtype=torch.float64)
 
     def pregrasp_joints(self, blend: float) -> torch.Tensor:
-        """(22,) float64 pre-grasp joints along the opening: ``blend`` 0 the closed pose, 1 the aperture, 2 the wide pose,
+        """(J,) float64 pre-grasp joints along the opening: ``blend`` 0 the closed pose, 1 the aperture, 2 the wide pose,
         linear in joint space between them (the aperture for every blend when the type has no closed and wide pose)."""
         aperture = self.aperture_joints()
         if not self.closed or blend == 1.0:
             return aperture
         other = dict(self.aperture) | dict(self.closed if blend < 1.0 else self.wide)
-        end = torch.tensor([other.get(name.removeprefix("robot0:"), 0.0) for name in JOINT_NAMES], dtype=torch.float64)
+        end = torch.tensor([other.get(name, 0.0) for name in self.joint_names], dtype=torch.float64)
         weight = min(abs(blend - 1.0), 1.0)
         return (1.0 - weight) * aperture + weight * end
 
@@ -208,14 +215,46 @@ TYPE_NAMES: tuple[str, ...] = tuple(GRASP_TYPES)
 POWER_CODE = TYPE_NAMES.index("power")
 
 
+def hand_grasp_types(hand: ShadowHand) -> dict[str, GraspType]:
+    """The grasp types ``hand`` offers, by name: every one of ``GRASP_TYPES`` for the Shadow Hand; for a hand from its
+    MJCF those its description allows (``optim.described_types``: power, and pinch, tripod and rim by its fingers)."""
+    from dexlite_pipeline.hand.described import is_described
+
+    if not is_described(hand):
+        return GRASP_TYPES
+    from dexlite_pipeline.optim.described_types import derived_types
+
+    names = tuple(hand.joint_names)
+    types = {"power": GraspType("power", contact_slots=None, aperture=tuple(zip(names, map(float, hand.description.pregrasp))), joint_names=names)}
+    for name, derived in derived_types(hand).items():
+        shadow = GRASP_TYPES[name]  # the start rule's distances and shares: about the object and the table, not the hand
+        types[name] = GraspType(name, contact_slots=derived.contact_slots, aperture=derived.aperture, opposition=derived.opposition,
+                                centre_distance_m=shadow.centre_distance_m, above_share=shadow.above_share,
+                                low_object_height_m=shadow.low_object_height_m, jitter_deg=shadow.jitter_deg, closed=derived.closed,
+                                wide=derived.wide, joint_names=names)
+    return types
+
+
+def check_hand_offers(hand: ShadowHand, type_names) -> None:
+    """ValueError in one line naming the first of ``type_names`` that ``hand`` does not offer (``hand_grasp_types``)."""
+    offered = hand_grasp_types(hand)
+    for name in dict.fromkeys(str(t) for t in type_names):
+        if name not in offered:
+            hand_name = getattr(getattr(hand, "description", None), "name", "shadow")
+            raise ValueError(f"hand {hand_name}: grasp type {name} is not defined for this hand (it offers {', '.join(offered)})")
+
+
 def candidate_group(hand: ShadowHand, group: str) -> tuple[int, ...]:
     """Contact-table indices of a candidate group: ``"<link>"`` its palmar pads, ``"<link>:side"`` its side candidates,
-    ``"<link>:tip"`` its tip candidates (link names without ``robot0:``)."""
+    ``"<link>:tip"`` its tip candidates (the Shadow Hand's link names without ``robot0:``, a hand from its MJCF's as
+    they are)."""
+    from dexlite_pipeline.hand.described import is_described
+
     link, kind = group, PAD_KIND
     for suffix, suffix_kind in ((SIDE, SIDE_KIND), (TIP, TIP_KIND)):
         if group.endswith(suffix):
             link, kind = group.removesuffix(suffix), suffix_kind
-    name = f"robot0:{link}"
+    name = link if is_described(hand) else f"robot0:{link}"
     if name not in hand.link_index:
         raise ValueError(f"candidate group {group!r}: no hand link {name}")
     found = hand.candidates_on((name,), kind)
@@ -225,15 +264,23 @@ def candidate_group(hand: ShadowHand, group: str) -> tuple[int, ...]:
 
 
 def contact_template(hand: ShadowHand, grasp_type: GraspType) -> tuple[tuple[int, ...], ...]:
-    """The four slots of ``grasp_type`` as contact-table indices (power: every pad in each slot)."""
+    """The four slots of ``grasp_type`` as contact-table indices (power: every pad in each slot; for a hand from its MJCF
+    with a thumb, the first on the thumb, as ``power_slots``)."""
     if grasp_type.contact_slots is None:
-        return (tuple(range(hand.pad_candidate_count)),) * CONTACT_COUNT
+        every = tuple(range(hand.pad_candidate_count))
+        opposing = _opposing_candidates(hand)
+        return (opposing or every,) + (every,) * (CONTACT_COUNT - 1)
     return tuple(tuple(sorted({i for group in slot for i in candidate_group(hand, group)})) for slot in grasp_type.contact_slots)
 
 
 def contact_slots(hand: ShadowHand, type_codes: torch.Tensor) -> ContactSlots:
-    """The ``ContactSlots`` of grasps of the given types (``TYPE_NAMES`` indices, (B,))."""
-    return ContactSlots.from_templates([contact_template(hand, GRASP_TYPES[name]) for name in TYPE_NAMES], type_codes)
+    """The ``ContactSlots`` of grasps of the given types (``TYPE_NAMES`` indices, (B,)); ValueError for a type the hand
+    does not offer (``check_hand_offers``)."""
+    offered = hand_grasp_types(hand)
+    check_hand_offers(hand, [TYPE_NAMES[int(code)] for code in torch.unique(type_codes).tolist()])
+    # A type the hand lacks takes the power template: no grasp has its code (checked above), the table needs every row.
+    templates = [contact_template(hand, offered.get(name, offered["power"])) for name in TYPE_NAMES]
+    return ContactSlots.from_templates(templates, type_codes)
 
 
 def power_slots(hand: ShadowHand, count: int) -> ContactSlots | None:
@@ -245,15 +292,18 @@ def power_slots(hand: ShadowHand, count: int) -> ContactSlots | None:
     near the surface; a hand that reaches the object with its fingers first then keeps four finger-side contacts, whose
     normals cannot balance (E_fc stays high), and nothing pulls the thumb in. With one contact on the thumb, E_dis pulls
     the thumb onto the object opposite the fingers (measured: docs/results_journal.md, "LEAP's thumb contact")."""
-    from dexlite_pipeline.hand.described import is_described
-
-    if not is_described(hand):
-        return None
-    opposing = hand.opposing_candidates()
+    opposing = _opposing_candidates(hand)
     if not opposing:
         return None
     every = tuple(range(hand.pad_candidate_count))
     return ContactSlots.from_templates([(opposing, every, every, every)], torch.zeros(count, dtype=torch.long))
+
+
+def _opposing_candidates(hand: ShadowHand) -> tuple[int, ...]:
+    """The thumb's candidates of a hand from its MJCF (``DescribedHand.opposing_candidates``); empty for the Shadow Hand."""
+    from dexlite_pipeline.hand.described import is_described
+
+    return hand.opposing_candidates() if is_described(hand) else ()
 
 
 def slots_of_types(hand: ShadowHand, type_names) -> ContactSlots | None:

@@ -40,7 +40,7 @@ import math
 import numpy as np
 import torch
 
-from dexlite_pipeline.hand.model import JOINT_NAMES, ShadowHand
+from dexlite_pipeline.hand.model import ShadowHand
 from dexlite_pipeline.hand.rotation import matrix_to_euler_xyz
 from dexlite_pipeline.objects.assets import ObjectAsset
 from dexlite_pipeline.optim.grasp_types import GraspType, candidate_group
@@ -93,7 +93,7 @@ def _random_perpendicular(direction: torch.Tensor, generator: torch.Generator) -
 class TypeGeometry:
     """A grasp type's grasp centre, opening axis and approach axis in the palm frame (module docstring), float64, in the
     aperture (``centre``, ``opening``, ``approach``, ``width``: the opening between the two sides' pads, m) and along
-    its pre-grasp blends (``GraspType.pregrasp_joints``; ``blends`` (K,), ``joints`` (K, 22), ``centres``, ``openings``,
+    its pre-grasp blends (``GraspType.pregrasp_joints``; ``blends`` (K,), ``joints`` (K, J), ``centres``, ``openings``,
     ``approaches`` (K, 3), ``widths`` (K,); one blend, the aperture, for a type without closed and wide poses)."""
 
     def __init__(self, hand: ShadowHand, grasp_type: GraspType) -> None:
@@ -101,7 +101,7 @@ class TypeGeometry:
             raise ValueError(f"grasp type {grasp_type.name} has no opposing sides (its starts are the convex-hull starts)")
         self.blends = torch.linspace(0.0, 2.0, 2 * BLEND_STEPS + 1, dtype=torch.float64) if grasp_type.closed else torch.ones(1, dtype=torch.float64)
         self.joints = torch.stack([grasp_type.pregrasp_joints(float(b)) for b in self.blends])
-        pose = torch.zeros(len(self.blends), 28, dtype=hand.dtype, device=hand.device)
+        pose = torch.zeros(len(self.blends), 6 + self.joints.shape[1], dtype=hand.dtype, device=hand.device)
         pose[:, 6:] = self.joints.to(hand.dtype)
         frames = hand.forward(pose)
         table = frames.transform(hand.all_contact_points_local, hand.all_contact_link).double().cpu()
@@ -307,7 +307,7 @@ def type_start_poses(
     generator: torch.Generator,
     support: tuple[torch.Tensor, torch.Tensor] | None = None,
 ) -> torch.Tensor:
-    """(B, 28) stored start poses of ``grasp_type`` (module docstring), object by object in order of first appearance.
+    """(B, 6 + J) stored start poses of ``grasp_type`` (the Shadow Hand's 28) (module docstring), object by object in order of first appearance.
 
     ``support`` (tabletop mode): per grasp the table's normal (B, 3) and offset in metres (B,): starts with the palm
     origin or the grasp centre below the table are drawn again (``NoStartAboveTable`` after ``MAX_TABLE_REDRAWS``
@@ -349,7 +349,7 @@ def type_start_poses(
     palm_origin = centre_target - distance * approach - (rotation @ geometry.centres[blend][..., None])[..., 0]
     limits = hand.joint_limits.cpu().double()
     sigma = joint_sigma_fraction * (limits[:, 1] - limits[:, 0])
-    joints = geometry.joints[blend] + sigma * torch.randn(batch, len(JOINT_NAMES), generator=generator, dtype=torch.float64)
+    joints = geometry.joints[blend] + sigma * torch.randn(batch, geometry.joints.shape[1], generator=generator, dtype=torch.float64)
     joints = torch.maximum(torch.minimum(joints, limits[:, 1]), limits[:, 0])
     pose = torch.cat([palm_origin, matrix_to_euler_xyz(rotation), joints], dim=1)
     return pose.to(hand.device, hand.dtype)

@@ -279,15 +279,19 @@ def check_request(request: GraspRequest) -> CheckedRequest:
 
 def check_hand_choice(config: PipelineConfig, request: GraspRequest, device: torch.device) -> tuple[object, dict]:
     """The hand of config key ``hand`` (``--hand``) on ``device`` and its store record; ``GraspToolError`` in one
-    line for a hand that cannot be made, and for a hand other than the Shadow Hand with grasp types other than power (no
-    contact templates yet). A model (``--model``; the shipped one is the Shadow Hand's) must be of the hand: ``load_model``."""
-    from dexlite_pipeline.hand.choice import SHADOW, HandChoiceError, hand_record, resolve_hand
+    line for a hand that cannot be made, and for grasp types the hand does not offer (``optim.grasp_types.hand_grasp_types``:
+    a hand from its MJCF has the types its fingers allow). A model (``--model``; the shipped one is the Shadow Hand's) must
+    be of the hand: ``load_model``."""
+    from dexlite_pipeline.hand.choice import HandChoiceError, hand_record, resolve_hand
+    from dexlite_pipeline.optim.grasp_types import check_hand_offers
 
-    if config.hand != SHADOW:
-        others = [name for name, share in config.optimize_grasps.grasp_types.shares().items() if share > 0 and name != "power"]
-        if others:
-            raise GraspToolError(f"hand: {config.hand}: grasp type {others[0]} is defined for the Shadow Hand only (power grasps take any hand)")
     try:
-        return resolve_hand(config.hand, device), hand_record(config.hand)
+        hand, record = resolve_hand(config.hand, device), hand_record(config.hand)
     except HandChoiceError as exc:
         raise GraspToolError(str(exc)) from None
+    wanted = [name for name, share in config.optimize_grasps.grasp_types.shares().items() if share > 0]
+    try:
+        check_hand_offers(hand, wanted)
+    except ValueError as exc:
+        raise GraspToolError(f"hand: {config.hand}: {exc}") from None
+    return hand, record
