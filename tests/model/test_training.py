@@ -9,12 +9,12 @@ import torch
 from dexlite_pipeline.energy.config import EnergyConfig, EnergyWeights
 from dexlite_pipeline.energy.grasp_energy import GraspEnergy
 from dexlite_pipeline.hand.rotation import euler_xyz_to_matrix
-from dexlite_pipeline.model.checkpoint import CheckpointError, load_checkpoint, save_checkpoint, save_half_precision_copy
+from dexlite_pipeline.model.checkpoint import CheckpointError, kept_code_rows, load_checkpoint, save_capped_copy, save_checkpoint, save_half_precision_copy
 from dexlite_pipeline.model.data import build_training_data, select_training_grasps, split_validation
 from dexlite_pipeline.model.network import anchor_at
 from dexlite_pipeline.model.pose import features_to_pose
 from dexlite_pipeline.model.config import TrainConfig
-from dexlite_pipeline.model.training import grasp_energy_terms, train_cvae
+from dexlite_pipeline.model.training import fit_training_codes, grasp_energy_terms, train_cvae
 
 
 @pytest.fixture(scope="module")
@@ -93,6 +93,7 @@ def test_checkpoint_round_trip_loads_weights_only(tmp_path, setup, small_model_c
     grasps, data, energy_terms = setup
     config = _config(small_model_config, epochs=1)
     model = train_cvae(data, np.arange(len(grasps)), np.zeros(0, np.int64), config, energy_terms, seed=0).model
+    fit_training_codes(model, data, np.arange(len(grasps)), config)  # the codes the sampling priors read, stored with the model
     path = save_checkpoint(tmp_path / "cvae.pt", model, config, {"seed": 0, "train_object_ids": ["box", "sphere"]})
     raw = torch.load(path, weights_only=True)
     assert raw["train_config"]["points_per_cloud"] == 64 and raw["model_config"]["latent_dim"] == 8
@@ -115,6 +116,23 @@ def test_checkpoint_round_trip_loads_weights_only(tmp_path, setup, small_model_c
     with torch.no_grad():
         got_half = features_to_pose(loaded_half.decode(latent, loaded_half.condition(clouds, cloud_index, point_index), anchor))
     assert torch.allclose(expected, got_half, atol=0.02) and not torch.equal(expected, got_half)
+    # capped codes: the kept rows of every code array agree, and the copy records how many it kept
+    capped = save_half_precision_copy(path, tmp_path / "capped.pt", max_codes_per_cloud=1)
+    raw_capped = torch.load(capped, weights_only=True)
+    clouds_before = raw["state_dict"]["codes_cloud"]
+    kept = kept_code_rows(clouds_before, raw["state_dict"]["codes_type"], 1)
+    assert raw_capped["codes_kept"] == {"max_codes_per_cloud": 1, "seed": 0, "before": len(clouds_before), "after": len(kept)}
+    assert len(kept) == len(torch.unique(clouds_before)) < len(clouds_before)
+    for key in ("codes_mu", "codes_log_var", "codes_condition", "codes_cloud", "codes_type"):
+        assert torch.equal(raw_capped["state_dict"][key], raw["state_dict"][key][kept].to(raw_capped["state_dict"][key].dtype))
+    loaded_capped, _ = load_checkpoint(capped)
+    assert len(loaded_capped.codes_mu) == len(kept)
+    # the float32 copy with the same cap (measured in a run) keeps the same rows; halving it after keeps its record
+    float32_capped = save_capped_copy(path, tmp_path / "capped32.pt", max_codes_per_cloud=1)
+    raw32 = torch.load(float32_capped, weights_only=True)
+    assert torch.equal(raw32["state_dict"]["codes_cloud"], raw_capped["state_dict"]["codes_cloud"]) and "stored_dtype" not in raw32
+    again = torch.load(save_half_precision_copy(float32_capped, tmp_path / "again.pt", max_codes_per_cloud=1), weights_only=True)
+    assert again["codes_kept"] == raw_capped["codes_kept"] and torch.equal(again["state_dict"]["codes_mu"], raw_capped["state_dict"]["codes_mu"])
     (tmp_path / "bad.pt").write_bytes(b"not a checkpoint")
     with pytest.raises(CheckpointError, match="bad.pt"):
         load_checkpoint(tmp_path / "bad.pt")
@@ -156,3 +174,17 @@ def test_loss_energies_use_the_contacts_a_grasp_was_made_with(hand, tiny_assets,
     weights = energy.weights
     searched = weights.fc * got["fc"][2] + weights.dis * got["dis"][2]
     assert searched <= weights.fc * nearest.terms["E_fc"][0] + weights.dis * nearest.terms["E_dis"][0] + 1e-6
+
+
+def test_kept_code_rows_cap_each_cloud_and_let_its_grasp_types_take_turns():
+    """At most the cap per cloud; a cloud's rare type keeps its code; the same rows for a seed; every row with cap 0."""
+    cloud = torch.tensor([0, 0, 0, 0, 0, 1, 1, 2])
+    grasp_type = torch.tensor([0, 0, 0, 0, 1, 0, 0, 2])
+    for seed in range(5):
+        kept = kept_code_rows(cloud, grasp_type, 2, seed)
+        assert torch.equal(kept, kept_code_rows(cloud, grasp_type, 2, seed)) and torch.equal(kept, torch.sort(kept).values)
+        assert torch.bincount(cloud[kept]).tolist() == [2, 2, 1]
+        assert 4 in kept.tolist()  # cloud 0's one type-1 code
+    assert kept_code_rows(cloud, grasp_type, 0).tolist() == list(range(8))
+    chosen = {tuple(kept_code_rows(cloud, grasp_type, 2, seed).tolist()) for seed in range(10)}
+    assert len(chosen) > 1  # the choice among cloud 0's type-0 codes follows the seed

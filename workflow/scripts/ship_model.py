@@ -203,7 +203,11 @@ def card_markdown(card: dict) -> str:
         "A PointNet + CVAE grasp generator for the Shadow Hand (28-D pose: palm translation, palm rotation as XYZ Euler angles,",
         f"22 joint angles), trained on {source}, with the learned grasp evaluator that ranks its samples (`evaluator.pt`)."
         if card.get("evaluator") else f"22 joint angles), trained on {source}.",
-        f"`cvae.pt` stores weights and latent codes in float16 ({card['file_megabytes']:.1f} MB); `load_checkpoint` restores float32.",
+        f"`cvae.pt` stores weights and latent codes in float16 ({card['file_megabytes']:.1f} MB); `load_checkpoint` restores float32."
+        + (f" Each training cloud keeps at most {kept['max_codes_per_cloud']} of its training codes ({kept['after']:,} of {kept['before']:,}); "
+           + ("the run's held-out results below were measured with the same codes (the run's model is the capped copy)."
+              if card.get("run_codes_kept") == kept else "the run's held-out results below were measured with all of them.")
+           if (kept := card.get("codes_kept")) else ""),
         "It loads with `torch.load(path, weights_only=True)` (no pickled code).",
         "",
         "## How it was made",
@@ -326,6 +330,9 @@ def main() -> None:
     parser.add_argument("--check-heldout-objects", type=int, default=4)
     parser.add_argument("--check-grasps", type=int, default=16, help="raw samples per held-out object in the check")
     parser.add_argument("--threads", type=int, default=2)
+    parser.add_argument("--max-codes-per-cloud", type=int, default=0,
+                        help="keep at most this many training codes per training cloud in the shipped copy (0: all; a run measured "
+                        "with the same cap, model.checkpoint.save_capped_copy, samples like it)")
     parser.add_argument("--wall-to-cpu", action="store_true",
                         help="runs made before the stages counted CPU seconds: rescale their costs by the jobs' CPU over wall time")
     args = parser.parse_args()
@@ -336,7 +343,7 @@ def main() -> None:
     if args.out.exists():
         shutil.rmtree(args.out)  # the shipped files of another model go (git history keeps them)
     args.out.mkdir(parents=True)
-    shipped = save_half_precision_copy(source, args.out / "cvae.pt")
+    shipped = save_half_precision_copy(source, args.out / "cvae.pt", max_codes_per_cloud=args.max_codes_per_cloud)
     evaluator_file = run / "results" / "evaluator" / "evaluator.pt"
     if evaluator_file.is_file():
         shutil.copyfile(evaluator_file, args.out / "evaluator.pt")
@@ -366,6 +373,8 @@ def main() -> None:
         "code_version": git_version(run),
         "machine": machine(),
         "file_megabytes": shipped.stat().st_size / 1e6,
+        "codes_kept": torch.load(shipped, map_location="cpu", weights_only=True).get("codes_kept"),
+        "run_codes_kept": checkpoint.get("codes_kept"),  # the run's own model capped before its evaluation (save_capped_copy)
         "wall_time_h": wall / 3600 if wall else None,
         "stage_times": times,
         "data": data_counts(run),

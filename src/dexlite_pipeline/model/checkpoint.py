@@ -64,10 +64,63 @@ def save_checkpoint(
     return Path(path)
 
 
-def save_half_precision_copy(source: str | os.PathLike, destination: str | os.PathLike) -> Path:
+CODE_KEYS = ("codes_mu", "codes_log_var", "codes_condition", "codes_cloud", "codes_type")  # one row per stored training code
+
+
+def kept_code_rows(cloud: torch.Tensor, grasp_type: torch.Tensor, max_per_cloud: int, seed: int = 0) -> torch.Tensor:
+    """Sorted indices of the training codes kept when each training cloud keeps at most ``max_per_cloud`` of its codes:
+    a seeded random choice in which a cloud's grasp types take turns (its first pick of each type, then its second of
+    each, ...), so a type with few grasps on a cloud keeps them. ``max_per_cloud`` 0: every code."""
+    count = len(cloud)
+    if max_per_cloud <= 0 or count == 0:
+        return torch.arange(count)
+    order = torch.randperm(count, generator=torch.Generator().manual_seed(seed))
+    cloud, grasp_type = cloud.cpu()[order], grasp_type.cpu()[order]
+    # rank of each code among the codes of its (cloud, type) in the random order
+    key = cloud * (int(grasp_type.max()) + 1) + grasp_type
+    sorted_key, by_key = torch.sort(key, stable=True)
+    first = torch.searchsorted(sorted_key, sorted_key, side="left")
+    rank = torch.empty(count, dtype=torch.long)
+    rank[by_key] = torch.arange(count) - first
+    # within a cloud: lower rank first, then the random order; keep the first max_per_cloud
+    within = torch.argsort(rank * count + torch.arange(count), stable=True)
+    cloud_sorted, by_cloud = torch.sort(cloud[within], stable=True)
+    position = torch.arange(count) - torch.searchsorted(cloud_sorted, cloud_sorted, side="left")
+    kept = order[within[by_cloud[position < max_per_cloud]]]
+    return torch.sort(kept).values
+
+
+def _capped(payload: dict, max_codes_per_cloud: int, seed: int) -> dict:
+    """``payload`` with each training cloud's codes cut to ``max_codes_per_cloud`` (``kept_code_rows``) and ``codes_kept``
+    recorded; unchanged for 0 or a file without the codes' clouds. A payload capped before keeps its first record."""
+    state = payload["state_dict"]
+    if max_codes_per_cloud <= 0 or not len(state.get("codes_cloud", ())) == len(state.get("codes_mu", ())) > 0:
+        return payload
+    grasp_type = state.get("codes_type", torch.zeros(len(state["codes_mu"]), dtype=torch.long))
+    rows = kept_code_rows(state["codes_cloud"], grasp_type, max_codes_per_cloud, seed)
+    before = len(state["codes_mu"])
+    payload["state_dict"] = {k: v[rows] if k in CODE_KEYS and len(v) == before else v for k, v in state.items()}
+    payload.setdefault("codes_kept", {"max_codes_per_cloud": int(max_codes_per_cloud), "seed": int(seed), "before": before, "after": len(rows)})
+    return payload
+
+
+def save_capped_copy(source: str | os.PathLike, destination: str | os.PathLike, max_codes_per_cloud: int, seed: int = 0) -> Path:
+    """A float32 copy of a checkpoint whose training clouds keep at most ``max_codes_per_cloud`` codes each (``_capped``):
+    the model a shipped half-precision copy with that cap samples like, for measuring it in a run."""
+    payload = _capped(torch.load(source, map_location="cpu", weights_only=True), max_codes_per_cloud, seed)
+    with atomic_path(destination) as tmp:
+        torch.save(payload, tmp)
+    return Path(destination)
+
+
+def save_half_precision_copy(source: str | os.PathLike, destination: str | os.PathLike, max_codes_per_cloud: int = 0, seed: int = 0) -> Path:
     """A copy of a checkpoint whose weights and latent codes are stored as float16 (about half the
-    size: the shipped model). ``load_checkpoint`` restores float32; the training grasps stay float32."""
-    payload = torch.load(source, map_location="cpu", weights_only=True)
+    size: the shipped model). ``load_checkpoint`` restores float32; the training grasps stay float32.
+
+    ``max_codes_per_cloud`` > 0: each training cloud (object and scale) keeps at most that many of its training codes
+    (``kept_code_rows``, seeded by ``seed``), so the file's size stops growing with the grasps per object (each code is
+    about 2 kB in float16: 54,726 codes are 112 MB); the copy records ``codes_kept`` (the cap, the codes before and after)."""
+    payload = _capped(torch.load(source, map_location="cpu", weights_only=True), max_codes_per_cloud, seed)
     payload["state_dict"] = {k: v.half() if v.is_floating_point() else v for k, v in payload["state_dict"].items()}
     payload["stored_dtype"] = "float16"
     with atomic_path(destination) as tmp:
