@@ -20,6 +20,7 @@ def test_the_three_finger_hand_is_reported_and_passes(tmp_path, capsys):
     assert "contact candidates: 110 on 10 links: palm 20, f10 10, f11 10, f12 10, f20 10, f21 10, f22 10, th0 10, th1 10, th2 10" in out
     assert ", -1.000), fingers along (x)" in out  # approach -z (the first two components print as ±0.000)
     assert "FK vs MuJoCo over 8 random joint vectors" in out and out.rstrip().endswith(": ok")
+    assert "\ngrasp types: power only (precision types need exactly one finger opposing the others and at least two more)\n" in out
 
 
 def test_a_shipped_hand_by_name(capsys):
@@ -27,6 +28,8 @@ def test_a_shipped_hand_by_name(capsys):
     out = capsys.readouterr().out
     assert "fingers: 4 (tips: ff_tip, mf_tip, rf_tip, th_tip); opposing the others: th_tip" in out
     assert "collision shapes: 21 (17 box, 4 capsule)" in out
+    assert "grasp types: power, pinch, tripod, rim (thumb th_distal+th_tip; fingers from the index: ff_distal+ff_tip, mf_distal+mf_tip, " in out
+    assert "  pinch: contacts th_distal+th_tip | th_distal+th_tip | ff_distal+ff_tip | ff_distal+ff_tip+mf_distal+mf_tip; closed 2.0 cm" in out
 
 
 def test_fk_beyond_the_limits_exits_1(tmp_path, capsys, monkeypatch):

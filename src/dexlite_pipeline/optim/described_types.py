@@ -224,10 +224,42 @@ def derived_types(hand) -> dict[str, DerivedType]:
     description = hand.description
     key = f"{description.name}|{description.source}|{description.xml_string or ''}"
     if key not in _FITTED:
-        from dexlite_pipeline.hand.described import DescribedHand
-
-        _FITTED[key] = _derive(DescribedHand(description, dtype=torch.float64))
+        _FITTED[key] = _derive(_float64_hand(hand))
     return _FITTED[key]
 
 
-__all__ = ["CURL_FRACTION", "OPENINGS_M", "DerivedType", "HandFingers", "derived_types", "hand_fingers"]
+def _float64_hand(hand):
+    """``hand`` when it is float64 on the CPU, else a float64 CPU hand of the same description (the fits' precision)."""
+    if hand.dtype == torch.float64 and hand.device.type == "cpu":
+        return hand
+    from dexlite_pipeline.hand.described import DescribedHand
+
+    return DescribedHand(hand.description, dtype=torch.float64)
+
+
+def type_report_lines(hand) -> list[str]:
+    """What ``dexlite hand-check`` says of a described hand's grasp types: each type's sides and, at its closed, aperture
+    and wide pre-grasp, the opening (cm) and the largest angle between a side's mean pad normal and the line to the other
+    side (degrees); why a hand has power grasps only."""
+    types = derived_types(hand)
+    if not types:
+        return ["grasp types: power only (precision types need exactly one finger opposing the others and at least two more)"]
+    fitting = _float64_hand(hand)
+    fingers = hand_fingers(fitting)
+    lines = [f"grasp types: power, {', '.join(types)} (thumb {'+'.join(fingers.thumb_tip)}; fingers from the index: "
+             f"{', '.join('+'.join(tip) for tip in fingers.finger_tips)})"]
+    for name, derived in types.items():
+        sides = tuple(i for i, tip in enumerate(fingers.finger_tips) if set(tip) <= set(derived.opposition[1]))
+        fit = _PregraspFit(fitting, fingers, sides)
+        cells = []
+        for label, pose in (("closed", derived.closed), ("aperture", derived.aperture), ("wide", derived.wide)):
+            values = dict(pose)
+            with torch.no_grad():
+                opening, thumb_cos, finger_cos, _ = fit.measure(torch.tensor([values[n] for n in fitting.joint_names], dtype=torch.float64))
+            worst = max([float(thumb_cos.clamp(-1, 1).arccos())] + [float(c) for c in finger_cos.clamp(-1, 1).arccos()])
+            cells.append(f"{label} {100 * float(opening):.1f} cm, {np.degrees(worst):.0f} deg")
+        lines.append(f"  {name}: contacts {' | '.join('+'.join(slot) for slot in derived.contact_slots)}; " + "; ".join(cells))
+    return lines
+
+
+__all__ = ["CURL_FRACTION", "OPENINGS_M", "DerivedType", "HandFingers", "derived_types", "hand_fingers", "type_report_lines"]
