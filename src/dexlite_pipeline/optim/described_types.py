@@ -4,8 +4,9 @@ The Shadow Hand's templates are written out in ``optim.grasp_types``. Any other 
 precision types its fingers allow, derived from its description alone, so a user's own hand has them too:
 
 - **Thumb and fingers**: the thumb is the description's one opposing finger (``HandDescription.opposing``); the other
-  fingers are ordered along their row from the index finger, the end of the row (the two fingers whose base links lie
-  farthest apart at the zero joint vector) nearer the thumb's base, by their base's distance from the index finger's. A hand without exactly one opposing finger has power grasps only.
+  fingers are ordered along their row from the index finger, the end of the row (of the two fingers whose base links
+  lie farthest apart at the zero joint vector, the one nearer the thumb's base), by their base's distance from the
+  index finger's. A hand without exactly one opposing finger, or without two more fingers, has power grasps only.
 - **A finger's tip group**: the candidates on its last jointed link and on the fixed links below it (Allegro's
   ``ff_distal`` and ``ff_tip``, LEAP's ``if_ds``): where fingertips touch in a precision grasp.
 - **Templates** (the four force-closure contacts, as the Shadow Hand's): pinch (thumb, thumb, index, index or middle),
@@ -81,9 +82,9 @@ def hand_fingers(hand) -> HandFingers | None:
     others = [f for f in description.fingers if f is not thumb]
     if not others:
         return None
-    zero = torch.zeros(1, len(hand.joint_names), dtype=hand.dtype, device=hand.device)
+    joints = torch.zeros(1, len(hand.joint_names), dtype=hand.dtype, device=hand.device)
     with torch.no_grad():
-        frames = hand.forward_parts_torch(torch.eye(3, dtype=hand.dtype, device=hand.device)[None], zero[:, :3], zero)
+        frames = hand.forward_parts_torch(torch.eye(3, dtype=hand.dtype, device=hand.device)[None], joints.new_zeros(1, 3), joints)
     origin = frames.translation[0].double()
     thumb_base = origin[hand.link_index[thumb[0]]]
     base = lambda f: origin[hand.link_index[f[0]]]  # noqa: E731
@@ -112,10 +113,12 @@ class _PregraspFit:
         points = torch.as_tensor(np.asarray(description.contact_points), dtype=torch.float64)
         normals = torch.as_tensor(np.asarray(description.contact_normals), dtype=torch.float64)
         links = torch.as_tensor(np.asarray(description.contact_link), dtype=torch.long)
+
         def group(names):
             wanted = torch.tensor([hand.link_index[n] for n in names])
             rows = torch.isin(links, wanted).nonzero(as_tuple=True)[0]
             return points[rows], normals[rows], links[rows]
+
         self.thumb = group(fingers.thumb_tip)
         self.sides = [group(fingers.finger_tips[i]) for i in finger_sides]
         moving = set(fingers.thumb_joints) | {j for i in finger_sides for j in fingers.finger_joints[i]}
@@ -132,9 +135,11 @@ class _PregraspFit:
         self.spen = SelfPenetrationTerm(hand)
 
     def measure(self, joints: torch.Tensor):
-        """(opening (m), the thumb side's facing cosine, each finger side's facing cosine) at ``joints`` (J,) float64."""
+        """At ``joints`` (J,) float64: the opening between the two sides (m), the cosine between the thumb side's mean pad
+        normal and the line to the finger side, that of each finger side's toward the thumb, and the link frames."""
         hand = self.hand
         frames = hand.forward_parts_torch(torch.eye(3, dtype=torch.float64)[None], torch.zeros(1, 3, dtype=torch.float64), joints[None])
+
         def side(group):
             p, n, link = group
             rot = frames.rotation[0, link]
@@ -142,6 +147,7 @@ class _PregraspFit:
             world_n = (rot @ n[..., None])[..., 0]
             mean_n = world_n.mean(0)
             return world_p.mean(0), mean_n / mean_n.norm().clamp(min=1e-9)
+
         thumb_p, thumb_n = side(self.thumb)
         finger = [side(g) for g in self.sides]
         finger_p = torch.stack([p for p, _ in finger]).mean(0)
@@ -219,7 +225,7 @@ _FITTED: dict[str, dict[str, DerivedType]] = {}  # hand file -> its types, fitte
 
 
 def derived_types(hand) -> dict[str, DerivedType]:
-    """Precision type name -> ``DerivedType`` of a described hand (module docstring; empty without a thumb and a finger),
+    """Precision type name -> ``DerivedType`` of a described hand (module docstring; empty without a thumb and two more fingers),
     fitted once per hand file and process, in float64 on the CPU whatever the dtype and device of ``hand``."""
     description = hand.description
     key = f"{description.name}|{description.source}|{description.xml_string or ''}"
