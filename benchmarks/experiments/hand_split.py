@@ -14,6 +14,8 @@ Per seed it prints, and appends as a JSON line to ``OUT_DIR/hand_split.jsonl``: 
 interval, held and six directions, distinct held grasps per object, the held grasps' start depth median (mm), how many
 passed the energy thresholds, failures by reason (a grasp that was simulated and not lifted is ``dropped``), and the
 process CPU seconds of optimization and tests; then the seeds pooled. The journal's split tables are made of these rows.
+Each seed's tested grasps go to ``OUT_DIR/<hand>_<label or run>_seed<S>/tested.npz`` (numeric arrays, object ids, failure
+reasons, grasp types and distinct labels).
 """
 
 from __future__ import annotations
@@ -101,6 +103,7 @@ def main(argv: list[str] | None = None) -> int:
 
     from dexlite_pipeline.api import grasp_request
     from dexlite_pipeline.device import set_threads
+    from dexlite_pipeline.io.grasp_store import grasp_types
     from dexlite_pipeline.objects.household import household_object
     from dexlite_pipeline.objects.sources import household_benchmark_list
     from dexlite_pipeline.tools.grasp.checks import check_request
@@ -136,6 +139,7 @@ def main(argv: list[str] | None = None) -> int:
             file.write(json.dumps(row) + "\n")
         np.savez_compressed(out / "tested.npz", **{k: np.asarray(v) for k, v in tested.arrays.items() if np.asarray(v).dtype != object},
                             object_id=np.asarray(tested.object_id, str), failure_reason=np.asarray(tested.arrays["failure_reason"], str),
+                            grasp_type=np.asarray(grasp_types(tested), str),
                             distinct_label=np.asarray(labels))  # fmt: skip
         print(table_line(row), flush=True)
     if len(rows) > 1:

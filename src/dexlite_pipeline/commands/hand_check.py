@@ -30,10 +30,12 @@ def grasp_type_lines(name: str, description) -> list[str]:
         from dexlite_pipeline.optim.grasp_types import TYPE_NAMES
 
         return [f"grasp types: {', '.join(TYPE_NAMES)} (the Shadow Hand's written templates, optim/grasp_types.py)"]
+    import torch
+
     from dexlite_pipeline.hand.described import DescribedHand
     from dexlite_pipeline.optim.described_types import type_report_lines
 
-    return type_report_lines(DescribedHand(description))
+    return type_report_lines(DescribedHand(description, dtype=torch.float64))  # the fit's precision: built once
 
 
 def run(args: argparse.Namespace) -> int:
