@@ -229,7 +229,8 @@ def synthesize(
     record their type in ``grasp_type``.
     ``hand``: the hand to grasp with, on ``device`` (None: the Shadow Hand). A hand from its MJCF
     (``hand.described.DescribedHand``) makes the types its description allows (``optim.described_types``; another type
-    is a ValueError), and its poses are 6 + J numbers (its joints); a store of them records the hand (``hand.choice.hand_record``, ``io.grasp_store``).
+    is a ValueError), and its poses are 6 + J numbers (its joints); a store of them records the hand
+    (``hand.choice.hand_record``, ``io.grasp_store``).
     """
     started = time.process_time()  # CPU seconds (all threads of this process), not wall time
     hand = ShadowHand(device) if hand is None else hand
