@@ -37,7 +37,7 @@ def hands():
 
 def test_the_types_of_a_float32_hand_are_fitted_as_those_of_a_float64_one(tmp_path):
     """The fit runs in float64 on a copy of the description, whatever the dtype of the hand asked (the runs' hands are
-    float32); a new hand file of the same description gets the same types."""
+    float32): fitted afresh from either, the types are the same."""
     from dexlite_pipeline.hand.described import DescribedHand
     from dexlite_pipeline.optim import described_types
 
