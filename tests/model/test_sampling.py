@@ -206,3 +206,44 @@ def test_grasps_of_a_turned_object_are_its_grasps_turned(small_model_config, tin
     with torch.no_grad():  # without matching the turned object's grasps are not the turned ones
         plain = synthesize(model, clouds, np.full(4, 1, np.int64), scale, 64, torch.Generator().manual_seed(3), "aggregate", 1.0, True, "uniform")
     assert not torch.allclose(hand.forward(plain).translation, turned_links, atol=1e-3)
+
+
+def test_a_long_object_turned_off_the_right_angles_gets_its_grasps_turned(small_model_config, tiny_assets):
+    """A T-shaped object (a hammer's outline) turned about z by 45°, one of the candidate headings, and prepared again
+    (its bounding box centred, which moves it in the table's plane): its grasps are the object's grasps turned and moved
+    with it. The turned cloud's box is centred again before the model reads it, so the model sees the cloud it saw at the
+    matched heading; without that the cloud stands off centre by a few centimetres and the grasps are others."""
+    import dataclasses
+
+    from dexlite_pipeline.hand import ShadowHand
+    from dexlite_pipeline.model.data import ObjectClouds
+    from dexlite_pipeline.model.network import GraspCVAE
+    from dexlite_pipeline.model.pose import box_centred_clouds, vertical_rotation
+
+    box = tiny_assets[0]
+    points, normals = np.asarray(box.surface_points, np.float64), np.asarray(box.surface_normals, np.float64)
+    handle, head = points * [3.0, 0.6, 0.6], points * [0.6, 2.0, 0.6] + [1.5, 0.0, 0.0]
+    t_shape = np.concatenate([handle, head])
+    t_shape -= (t_shape.max(axis=0) + t_shape.min(axis=0)) / 2  # prepared: bounding box centred
+    turn = vertical_rotation(torch.tensor([math.pi / 4], dtype=torch.float64))[0].numpy()
+    turned = t_shape @ turn.T
+    moved = (turned.max(axis=0) + turned.min(axis=0)) / 2 * [1.0, 1.0, 0.0]  # the turned object's box centre, then taken off
+    assert np.linalg.norm(moved) > 0.1  # a T turned by 45° stands well off its old box centre
+    t_normals = np.concatenate([normals, normals])
+    asset = dataclasses.replace(box, object_id="t", surface_points=t_shape.astype(np.float32), surface_normals=t_normals.astype(np.float32))
+    turned_asset = dataclasses.replace(box, object_id="t-turned", surface_points=(turned - moved).astype(np.float32),
+                                       surface_normals=(t_normals @ turn.T).astype(np.float32))
+    clouds = ObjectClouds([asset, turned_asset])
+
+    torch.manual_seed(1)
+    model = GraspCVAE(small_model_config).eval()
+    drawn = clouds.draw_fixed(torch.tensor([0]), torch.tensor([0.1]), 64)
+    _with_codes_on(model, box_centred_clouds(drawn)[0])
+    scale = np.full(4, 0.1, np.float32)
+    with torch.no_grad():
+        poses = [synthesize(model, clouds, np.full(4, i, np.int64), scale, 64, torch.Generator().manual_seed(3), "aggregate", 1.0, True,
+                            "uniform", yaw_candidates=8) for i in (0, 1)]
+    hand = ShadowHand()
+    links, turned_links = hand.forward(poses[0]).translation, hand.forward(poses[1]).translation
+    expected = links @ torch.as_tensor(turn, dtype=torch.float32).T - torch.as_tensor(0.1 * moved, dtype=torch.float32)
+    assert torch.allclose(turned_links, expected, atol=1e-4)

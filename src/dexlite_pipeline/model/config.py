@@ -210,9 +210,9 @@ class SampleConfig:
     match_candidates: int = setting(
         1, "anchor_rule matched: draw among this many best-matching points, debiased (1 = the best match)", minimum=1)
     yaw_candidates: int = setting(
-        12, "headings tried per new object: it is sampled turned about z to the one of this many evenly spaced turns whose "
-        "PointNet feature is nearest a training object's, and the grasps turned back (the codes carry their training "
-        "objects' headings); 1 = as it stands", minimum=1)
+        36, "headings tried per new object: it is sampled turned about z to the one of this many evenly spaced turns whose "
+        "PointNet feature is nearest a training object's (each turned cloud moved to centre its bounding box, as a prepared "
+        "object is), and the grasps turned back (the codes carry their training objects' headings); 1 = as it stands", minimum=1)
     debias_codes: bool = setting(
         True, "latent_prior aggregate / neighbours: a cloud's draws prefer training codes it drew less (1/(count+1))")
     grasp_type: str = setting(

@@ -62,6 +62,19 @@ def turned_clouds(clouds: torch.Tensor, angle_rad: torch.Tensor) -> torch.Tensor
     return torch.cat([clouds[..., :3] @ turn, clouds[..., 3:] @ turn], dim=2)
 
 
+def box_centred_clouds(clouds: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """Clouds (C, P, 6: points, normals) moved in the table's plane so that their points' bounding box is centred on the
+    z axis, and the offsets (C, 3; m, z = 0) taken off (a point p of the moved cloud is p + offset in the cloud's frame).
+
+    A prepared object's origin is its bounding box's centre. A cloud turned about z by an angle that is not a multiple
+    of 90 degrees has another bounding box, whose centre is off the axis by up to a quarter of the object's length for
+    a long one (about 2 cm for a hammer): moved back, it stands where the same object prepared at that heading would."""
+    points = clouds[..., :3]
+    offset = (points.amax(dim=1) + points.amin(dim=1)) / 2
+    offset = torch.cat([offset[:, :2], torch.zeros_like(offset[:, 2:])], dim=1)
+    return torch.cat([points - offset[:, None, :], clouds[..., 3:]], dim=2), offset
+
+
 def turn_stored_poses(hand_pose: torch.Tensor, angle_rad: torch.Tensor) -> torch.Tensor:
     """The same grasps (N, 6 + J stored poses) of objects turned about their z axis by ``angle_rad`` (N,).
 

@@ -32,7 +32,7 @@ from dexlite_pipeline.model.data import ObjectClouds, cloud_keys
 from dexlite_pipeline.model.latent_codes import code_type_mask, feature_distances, sample_latents, training_cloud_features
 from dexlite_pipeline.model.methods import PRIOR_ON_TRAINING, RECONSTRUCTION
 from dexlite_pipeline.model.network import GraspCVAE, anchor_at, condition_at
-from dexlite_pipeline.model.pose import features_to_pose, pose_to_features, turned_clouds, vertical_rotation
+from dexlite_pipeline.model.pose import box_centred_clouds, features_to_pose, pose_to_features, shift_translation, turned_clouds, vertical_rotation
 from dexlite_pipeline.model.table_frame import rotate_clouds, rotate_grasps, rotate_vectors
 from dexlite_pipeline.model.type_condition import requested_codes, type_codes
 
@@ -66,7 +66,7 @@ def matched_yaws(model: GraspCVAE, drawn: torch.Tensor, candidates: int) -> torc
     cloud_feature = cloud_feature.to(drawn.device)
     angles = torch.arange(candidates, dtype=drawn.dtype, device=drawn.device) * (2 * math.pi / candidates)
     nearest = torch.stack([
-        feature_distances(model.pointnet(turned_clouds(drawn, angle.expand(len(drawn))))[0], cloud_feature).min(dim=1).values
+        feature_distances(model.pointnet(box_centred_clouds(turned_clouds(drawn, angle.expand(len(drawn))))[0])[0], cloud_feature).min(dim=1).values
         for angle in angles
     ], dim=1)  # (C, candidates)
     # ties (a round object) keep the smallest turn, 0 first: argmin returns the first minimum
@@ -225,9 +225,10 @@ def synthesize(
     if anchor_rule == "matched" and (prior == "standard" or len(model.codes_condition) == 0):
         raise ValueError("anchor rule 'matched' needs a latent prior drawn from the training codes and a model saved with their conditions")
     drawn, cloud_index, to_table = _clouds_for(clouds, object_index, scale, points, generator, fixed_clouds)
+    offset = None  # the turned clouds' offsets in the table's plane (m), taken off so that each box is centred again
     if yaw_candidates > 1 and len(model.codes_condition) and len(model.codes_cloud) == len(model.codes_condition):
         yaw = matched_yaws(model, drawn, yaw_candidates)
-        drawn = turned_clouds(drawn, yaw)
+        drawn, offset = box_centred_clouds(turned_clouds(drawn, yaw))
         to_table = vertical_rotation(yaw) @ to_table
     features = model.pointnet(drawn)
     latent, code_index = sample_latents(
@@ -250,7 +251,9 @@ def synthesize(
     condition = condition_at(features, cloud_index, point_index)
     anchor = model.sampling_anchors(anchor_at(drawn, cloud_index, point_index), generator)
     decoded = model.decode(latent, condition, anchor, _type_tensor(grasp_type, latent.device))
-    # grasps of the cloud as the model read it (table frame, turned to the matched heading), back in the object's frame
+    if offset is not None:
+        decoded = shift_translation(decoded, offset[cloud_index])
+    # grasps of the cloud as the model read it (table frame, turned to the matched heading, box centred), back in the object's frame
     return features_to_pose(rotate_grasps(decoded, to_table[cloud_index].transpose(1, 2)))
 
 
