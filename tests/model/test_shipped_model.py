@@ -27,8 +27,9 @@ def test_shipped_model_loads_weights_only_and_matches_its_card(card):
     payload = torch.load(SHIPPED_MODEL_PATH, map_location="cpu", weights_only=True)
     assert payload["format"] == "dexlite-cvae-1" and payload["stored_dtype"] == "float16"
     assert SHIPPED_MODEL_PATH.stat().st_size / 1e6 == pytest.approx(card["file_megabytes"], rel=1e-6)
-    # It lives in the repository: float16 weights and latent codes (one code per training grasp: the size grows with the
-    # training set) and the training grasps, nothing else; below the 50 MB a git host takes without large-file storage.
+    # It lives in the repository: float16 weights and latent codes (one per training grasp, or at most the card's
+    # codes_kept cap per training cloud, so the size stops growing with the grasps per object) and the training grasps,
+    # nothing else; below the 50 MB a git host takes without large-file storage.
     stored = sum(v.numel() * v.element_size() for v in payload["state_dict"].values())
     stored += sum(torch.as_tensor(v).numel() * 4 for k, v in payload["training_grasps"].items() if k != "object_id")
     assert SHIPPED_MODEL_PATH.stat().st_size < 1.05 * stored + 2e6
@@ -40,7 +41,10 @@ def test_shipped_model_loads_weights_only_and_matches_its_card(card):
 
     assert not set(payload["train_object_ids"]) & (benchmark_object_ids() | set(household_benchmark_list()))  # never on a held-out split
     model, _ = load_checkpoint(SHIPPED_MODEL_PATH)
-    assert all(p.dtype == torch.float32 for p in model.parameters()) and len(model.codes_mu) == training["train_grasps"]
+    kept = card.get("codes_kept")  # None: every training grasp kept its code
+    assert payload.get("codes_kept") == kept
+    assert kept is None or (kept["before"] == training["train_grasps"] and kept["after"] <= kept["before"])
+    assert all(p.dtype == torch.float32 for p in model.parameters()) and len(model.codes_mu) == (kept["after"] if kept else training["train_grasps"])
     from dexlite_pipeline.io.grasp_store import read_grasp_store
 
     dataset = read_grasp_store(SHIPPED_MODEL_PATH.with_name("training_grasps.zarr"))  # the training data, beside the model

@@ -150,6 +150,18 @@ def evaluator_facts(run: Path) -> dict | None:
     return {**{k: facts.get(k) for k in keep}, "train_objects": len(facts.get("train_object_ids") or [])}
 
 
+def code_type_share(model_file: Path) -> dict[str, float]:
+    """Grasp type -> share of the model's stored codes (what ``sample.type_mix: training`` deals an object's samples by)."""
+    from dexlite_pipeline.model.type_condition import training_mix
+
+    payload = torch.load(model_file, map_location="cpu", weights_only=True)
+    vocabulary = tuple(payload.get("grasp_types") or ())
+    codes_type = payload["state_dict"].get("codes_type")
+    if not vocabulary or codes_type is None:
+        return {}
+    return dict(sorted(zip(vocabulary, map(float, training_mix(codes_type.numpy(), vocabulary))), key=lambda kv: -kv[1]))
+
+
 def git_version(run: Path) -> str:
     commit = subprocess.run(["git", "-C", str(run), "rev-parse", "HEAD"], capture_output=True, text=True, check=True).stdout.strip()
     dirty = subprocess.run(["git", "-C", str(run), "status", "--porcelain", "--untracked-files=no"], capture_output=True, text=True).stdout.strip()
@@ -235,8 +247,13 @@ def card_markdown(card: dict) -> str:
                      f"{counts['optimized_grasps_passing_thresholds']} pass the energy thresholds; curated {counts['curated_grasps']}; lift-tested "
                      f"{counts['lift_tested_grasps']}, {counts['lift_successful_grasps']} hold on {counts['objects_with_lift_successes']} objects"
                      + (" (the held-out objects' reference: optimization from scratch, never trained on)." if dataset else "."))  # fmt: skip
+    types = training.get("grasp_types") or {}
     lines += [
-        f"- Trained on {training['train_grasps']} grasps of {training['train_objects']} objects ({training['validation_grasps']} grasps held for the validation curve).",
+        f"- Trained on {training['train_grasps']} grasps of {training['train_objects']} objects ({training['validation_grasps']} grasps held for the validation curve)"
+        + (f"; grasp types (training grasps): {', '.join(f'{name} {count:,}' for name, count in sorted(types.items(), key=lambda kv: -kv[1]))}: "
+           "`dexlite grasp --grasp-type` asks for one; by default (`sample.type_mix: training`) an object's samples are dealt to the types in "
+           "the proportions of the stored codes: " + ", ".join(f"{name} {100 * share:.0f}%" for name, share in training["code_type_share"].items()) + "."
+           if len(types) > 1 else "."),
         "- The training grasps (pose, object id, scale) are beside the model in `training_grasps.zarr` (the pipeline's grasp-store format) "
         "and inside `cvae.pt` (`training_grasps`); the objects are rebuilt from their ids by the command above (its prepare_objects stage).",
         "",
@@ -333,11 +350,15 @@ def main() -> None:
     parser.add_argument("--max-codes-per-cloud", type=int, default=0,
                         help="keep at most this many training codes per training cloud in the shipped copy (0: all; a run measured "
                         "with the same cap, model.checkpoint.save_capped_copy, samples like it)")
+    parser.add_argument("--code-version", default=None,
+                        help="the commit of the code that made the run, when RUN is not a checkout of it (a folder of hard links "
+                        "to a run's stages, with its model capped); default: RUN's git HEAD")
     parser.add_argument("--wall-to-cpu", action="store_true",
                         help="runs made before the stages counted CPU seconds: rescale their costs by the jobs' CPU over wall time")
     args = parser.parse_args()
 
     run = args.run.resolve()
+    code_version = args.code_version or git_version(run)
     source = run / "results" / "model" / "cvae.pt"
     checkpoint = torch.load(source, map_location="cpu", weights_only=True)
     if args.out.exists():
@@ -350,7 +371,7 @@ def main() -> None:
     training = checkpoint["training_grasps"]
     write_grasp_store(args.out / "training_grasps.zarr", GraspSet({
         "hand_pose": training["hand_pose"].numpy(), "object_id": np.asarray(training["object_id"], dtype=object), "scale": training["scale"].numpy(),
-    }), {"description": "the grasps the shipped model was trained on", "code_version": git_version(run)})  # fmt: skip
+    }), {"description": "the grasps the shipped model was trained on", "code_version": code_version})  # fmt: skip
     raw_config = merged_config(run, args.configfile)
     config = build_config(raw_config)
     train_ids, heldout_ids = check_objects(run, checkpoint, args.check_train_objects, args.check_heldout_objects)
@@ -370,7 +391,7 @@ def main() -> None:
         "command": args.command,
         "config_files": args.configfile,
         "config": raw_config,
-        "code_version": git_version(run),
+        "code_version": code_version,
         "machine": machine(),
         "file_megabytes": shipped.stat().st_size / 1e6,
         "codes_kept": torch.load(shipped, map_location="cpu", weights_only=True).get("codes_kept"),
@@ -380,6 +401,7 @@ def main() -> None:
         "data": data_counts(run),
         "training": {
             "seed": checkpoint.get("seed"), "steps": checkpoint.get("steps"), "train_grasps": checkpoint.get("train_grasps"),
+            "grasp_types": checkpoint.get("train_grasp_types"), "code_type_share": code_type_share(shipped),
             "validation_grasps": checkpoint.get("validation_grasps"), "train_objects": len(checkpoint.get("train_object_ids") or []),
             "wall_s": times.get("train_cvae", {}).get("wall_s", float("nan")), "cpu_s": times.get("train_cvae", {}).get("cpu_s", float("nan")),
         },  # fmt: skip
