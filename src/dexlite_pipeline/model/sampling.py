@@ -54,7 +54,8 @@ def _clouds_for(
 
 def matched_yaws(model: GraspCVAE, drawn: torch.Tensor, candidates: int) -> torch.Tensor:
     """(C,) for each cloud the turn about z (radians), among ``candidates`` evenly spaced ones from 0, whose global
-    feature lies nearest a training cloud's.
+    feature (of the turned cloud with its bounding box centred again, ``box_centred_clouds``) lies nearest a training
+    cloud's.
 
     The model's codes were encoded on its training objects as they stood, so a code carries a heading: a box turned
     90° from its family's training orientation is grasped across the wrong faces. Sampling on the turn of the new
@@ -207,8 +208,9 @@ def synthesize(
     """(B, 6 + J) decoded poses (the model's hand's J joints) for grasps on (object_index, scale) pairs, from the latent ``prior`` (``sample_latents``).
 
     ``yaw_candidates`` > 1 (a model saved with its codes' conditions): each cloud is first turned about z to the one
-    of that many evenly spaced headings that looks most like a training object (``matched_yaws``), sampled there, and
-    the poses turned back into the object's own frame.
+    of that many evenly spaced headings that looks most like a training object (``matched_yaws``), moved in the table's
+    plane to centre its bounding box (``box_centred_clouds``: where the object prepared at that heading would stand),
+    sampled there, and the poses moved and turned back into the object's own frame.
 
     ``anchor_rule``: ``uniform`` (associated points uniformly random over the cloud),
     ``matched`` (``matched_points``; needs a prior drawn from the training codes, whose latents
