@@ -1,5 +1,5 @@
-"""Grasp-type conditioning of the CVAE (model.type_condition): the vocabulary a checkpoint records, the shipped model
-(trained before types) unchanged and refused other types, the type the decoder reads, the training mix of ``any``,
+"""Grasp-type conditioning of the CVAE (model.type_condition): the vocabulary a checkpoint records, a checkpoint written
+before types loaded unchanged and refused other types, the type the decoder reads, the training mix of ``any``,
 and a pinch asked of a model refined as a pinch: only the pinch template's links carry its contacts."""
 
 from __future__ import annotations
@@ -27,24 +27,39 @@ def typed(grasps, types):
     return grasps
 
 
-@pytest.fixture(scope="module")
-def typed_model(hand, tiny_assets, make_grasps, tmp_path_factory):
-    """A tiny model trained on power and pinch grasps of the sphere and the box, saved and loaded back."""
-    grasps = typed(make_grasps(hand, 16, seed=3), ["power", "pinch", "pinch"])
+def tiny_model_file(grasps, hand, tiny_assets, path, epochs: int = 5):
+    """A tiny model trained on ``grasps`` of the sphere and the box, saved to ``path``."""
     data = build_training_data(grasps, tiny_assets, hand)
     energy = GraspEnergy.from_assets(hand, tiny_assets, EnergyConfig(object_point_spacing_m=0.005))
     from dexlite_pipeline.model.config import ModelConfig
 
     model_config = ModelConfig(pointnet_widths=(16, 32, 64, 32), encoder_hidden=(64, 64), decoder_hidden=(64, 64), latent_dim=8,
                                normalization="none")
-    config = TrainConfig(model=model_config, epochs=5, max_steps=0, batch_size=8, clouds_per_batch=2, points_per_cloud=64,
+    config = TrainConfig(model=model_config, epochs=epochs, max_steps=0, batch_size=8, clouds_per_batch=2, points_per_cloud=64,
                          validation_fraction=0.0)
     everything = np.arange(len(grasps))
     result = train_cvae(data, everything, np.zeros(0, np.int64), config, grasp_energy_terms(energy), seed=0)
     fit_training_codes(result.model, data, everything, config)
-    path = tmp_path_factory.mktemp("typed_model") / "cvae.pt"
     save_checkpoint(path, result.model, config, {"seed": 0}, training_grasps={**grasps.arrays})
-    return path, grasps
+    return path
+
+
+@pytest.fixture(scope="module")
+def pre_types_model(hand, tiny_assets, make_grasps, tmp_path_factory):
+    """A tiny model trained on grasps without types, its file as checkpoints were written before grasp types existed
+    (no ``grasp_types`` entry)."""
+    path = tiny_model_file(make_grasps(hand, 16, seed=3), hand, tiny_assets, tmp_path_factory.mktemp("pre_types") / "cvae.pt", epochs=2)
+    payload = torch.load(path, map_location="cpu", weights_only=True)
+    payload.pop("grasp_types", None)
+    torch.save(payload, path)
+    return path
+
+
+@pytest.fixture(scope="module")
+def typed_model(hand, tiny_assets, make_grasps, tmp_path_factory):
+    """A tiny model trained on power and pinch grasps of the sphere and the box, saved and loaded back."""
+    grasps = typed(make_grasps(hand, 16, seed=3), ["power", "pinch", "pinch"])
+    return tiny_model_file(grasps, hand, tiny_assets, tmp_path_factory.mktemp("typed_model") / "cvae.pt"), grasps
 
 
 def test_a_checkpoint_records_its_types_and_codes(typed_model):
@@ -58,12 +73,10 @@ def test_a_checkpoint_records_its_types_and_codes(typed_model):
     assert refusal(model.type_vocabulary, "pinch") == "" and "knows only pinch, power grasps" in refusal(model.type_vocabulary, "tripod")
 
 
-def test_the_shipped_model_loads_unchanged_and_knows_power_only():
-    from dexlite_pipeline.model.shipped import SHIPPED_MODEL_PATH
-
-    payload = torch.load(SHIPPED_MODEL_PATH, map_location="cpu", weights_only=True)
-    assert "grasp_types" not in payload  # trained before grasp types
-    model, _ = load_checkpoint(SHIPPED_MODEL_PATH)
+def test_a_model_from_before_grasp_types_loads_unchanged_and_knows_power_only(pre_types_model):
+    payload = torch.load(pre_types_model, map_location="cpu", weights_only=True)
+    assert "grasp_types" not in payload  # written as before grasp types
+    model, _ = load_checkpoint(pre_types_model)
     assert model.type_vocabulary == () and model.type_inputs == 0 and model.grasp_types == ("power",)
     assert set(model.codes_type.tolist()) == {0}
     assert requested_codes(model.type_vocabulary, model.codes_type.numpy(), "any", 5).tolist() == [0] * 5
@@ -72,7 +85,7 @@ def test_the_shipped_model_loads_unchanged_and_knows_power_only():
         requested_codes(model.type_vocabulary, model.codes_type.numpy(), "pinch", 5)
 
 
-def test_dexlite_grasp_refuses_a_type_the_shipped_model_does_not_know(tmp_path):
+def test_dexlite_grasp_refuses_a_type_the_model_does_not_know(tmp_path, pre_types_model):
     import trimesh
 
     from dexlite_pipeline.api import grasp_request
@@ -80,7 +93,7 @@ def test_dexlite_grasp_refuses_a_type_the_shipped_model_does_not_know(tmp_path):
     from dexlite_pipeline.tools.grasp.request import GraspToolError
 
     trimesh.creation.cylinder(radius=0.03, height=0.1).export(tmp_path / "can.obj")
-    request = grasp_request([str(tmp_path / "can.obj")], str(tmp_path / "out"), grasp_type="pinch")
+    request = grasp_request([str(tmp_path / "can.obj")], str(tmp_path / "out"), model=str(pre_types_model), evaluator=None, grasp_type="pinch")
     assert request.config["sample"]["grasp_type"] == "pinch"
     assert request.config["optimize_grasps"]["grasp_types"] == {"power": 0.0, "pinch": 1.0, "tripod": 0.0, "lateral": 0.0, "rim": 0.0}
     with pytest.raises(GraspToolError) as refused:
