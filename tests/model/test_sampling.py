@@ -177,12 +177,24 @@ def test_matched_yaw_turns_a_turned_training_cloud_back(small_model_config, rand
     assert yaws.tolist() == pytest.approx([0.0, 3 * math.pi / 2])
 
 
+def _link_positions_on_both(model, clouds, yaw_candidates: int):
+    """Hand link positions (2, 4 grasps, links, 3) of four grasps sampled on clouds 0 and 1 of ``clouds`` (scale 0.1) with
+    the same seed and heading match; the Shadow Hand's kinematics."""
+    from dexlite_pipeline.hand import ShadowHand
+
+    scale = np.full(4, 0.1, np.float32)
+    with torch.no_grad():
+        poses = [synthesize(model, clouds, np.full(4, i, np.int64), scale, 64, torch.Generator().manual_seed(3), "aggregate", 1.0, True,
+                            "uniform", yaw_candidates=yaw_candidates) for i in (0, 1)]
+    hand = ShadowHand()
+    return hand.forward(poses[0]).translation, hand.forward(poses[1]).translation
+
+
 def test_grasps_of_a_turned_object_are_its_grasps_turned(small_model_config, tiny_assets):
     """With yaw matching, sampling an object turned about z by one of the candidate headings gives the object's grasps
     turned with it (the same draws, the same codes): the model's heading no longer depends on the file's."""
     import dataclasses
 
-    from dexlite_pipeline.hand import ShadowHand
     from dexlite_pipeline.model.data import ObjectClouds
     from dexlite_pipeline.model.network import GraspCVAE
     from dexlite_pipeline.model.pose import vertical_rotation
@@ -196,16 +208,10 @@ def test_grasps_of_a_turned_object_are_its_grasps_turned(small_model_config, tin
     clouds = ObjectClouds([asset, turned])
     drawn = clouds.draw_fixed(torch.tensor([0]), torch.tensor([0.1]), 64)
     _with_codes_on(model, drawn)
-    scale = np.full(4, 0.1, np.float32)
-    with torch.no_grad():
-        poses = [synthesize(model, clouds, np.full(4, i, np.int64), scale, 64, torch.Generator().manual_seed(3), "aggregate", 1.0, True,
-                            "uniform", yaw_candidates=4) for i in (0, 1)]
-    hand = ShadowHand()
-    links, turned_links = hand.forward(poses[0]).translation, hand.forward(poses[1]).translation
+    links, turned_links = _link_positions_on_both(model, clouds, yaw_candidates=4)
     assert torch.allclose(turned_links, links @ torch.as_tensor(turn, dtype=torch.float32).T, atol=1e-4)
-    with torch.no_grad():  # without matching the turned object's grasps are not the turned ones
-        plain = synthesize(model, clouds, np.full(4, 1, np.int64), scale, 64, torch.Generator().manual_seed(3), "aggregate", 1.0, True, "uniform")
-    assert not torch.allclose(hand.forward(plain).translation, turned_links, atol=1e-3)
+    # without matching the turned object's grasps are not the turned ones
+    assert not torch.allclose(_link_positions_on_both(model, clouds, yaw_candidates=1)[1], turned_links, atol=1e-3)
 
 
 def test_a_long_object_turned_off_the_right_angles_gets_its_grasps_turned(small_model_config, tiny_assets):
@@ -215,7 +221,6 @@ def test_a_long_object_turned_off_the_right_angles_gets_its_grasps_turned(small_
     matched heading; without that the cloud stands off centre by a few centimetres and the grasps are others."""
     import dataclasses
 
-    from dexlite_pipeline.hand import ShadowHand
     from dexlite_pipeline.model.data import ObjectClouds
     from dexlite_pipeline.model.network import GraspCVAE
     from dexlite_pipeline.model.pose import box_centred_clouds, vertical_rotation
@@ -239,11 +244,6 @@ def test_a_long_object_turned_off_the_right_angles_gets_its_grasps_turned(small_
     model = GraspCVAE(small_model_config).eval()
     drawn = clouds.draw_fixed(torch.tensor([0]), torch.tensor([0.1]), 64)
     _with_codes_on(model, box_centred_clouds(drawn)[0])
-    scale = np.full(4, 0.1, np.float32)
-    with torch.no_grad():
-        poses = [synthesize(model, clouds, np.full(4, i, np.int64), scale, 64, torch.Generator().manual_seed(3), "aggregate", 1.0, True,
-                            "uniform", yaw_candidates=8) for i in (0, 1)]
-    hand = ShadowHand()
-    links, turned_links = hand.forward(poses[0]).translation, hand.forward(poses[1]).translation
+    links, turned_links = _link_positions_on_both(model, clouds, yaw_candidates=8)
     expected = links @ torch.as_tensor(turn, dtype=torch.float32).T - torch.as_tensor(0.1 * moved, dtype=torch.float32)
     assert torch.allclose(turned_links, expected, atol=1e-4)
