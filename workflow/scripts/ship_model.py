@@ -150,11 +150,10 @@ def evaluator_facts(run: Path) -> dict | None:
     return {**{k: facts.get(k) for k in keep}, "train_objects": len(facts.get("train_object_ids") or [])}
 
 
-def code_type_share(model_file: Path) -> dict[str, float]:
-    """Grasp type -> share of the model's stored codes (what ``sample.type_mix: training`` deals an object's samples by)."""
+def code_type_share(payload: dict) -> dict[str, float]:
+    """Grasp type -> share of a checkpoint's stored codes (what ``sample.type_mix: training`` deals an object's samples by)."""
     from dexlite_pipeline.model.type_condition import training_mix
 
-    payload = torch.load(model_file, map_location="cpu", weights_only=True)
     vocabulary = tuple(payload.get("grasp_types") or ())
     codes_type = payload["state_dict"].get("codes_type")
     if not vocabulary or codes_type is None:
@@ -382,6 +381,7 @@ def main() -> None:
     }
     times = stage_times(run)
     wall = wall_seconds(args.wall_log)
+    shipped_payload = torch.load(shipped, map_location="cpu", weights_only=True)
     seed_of = {run: checkpoint.get("seed")}
     for other in args.seed_runs:
         seed_of[other.resolve()] = torch.load(other / "results" / "model" / "cvae.pt", map_location="cpu", weights_only=True).get("seed")
@@ -394,14 +394,14 @@ def main() -> None:
         "code_version": code_version,
         "machine": machine(),
         "file_megabytes": shipped.stat().st_size / 1e6,
-        "codes_kept": torch.load(shipped, map_location="cpu", weights_only=True).get("codes_kept"),
+        "codes_kept": shipped_payload.get("codes_kept"),
         "run_codes_kept": checkpoint.get("codes_kept"),  # the run's own model capped before its evaluation (save_capped_copy)
         "wall_time_h": wall / 3600 if wall else None,
         "stage_times": times,
         "data": data_counts(run),
         "training": {
             "seed": checkpoint.get("seed"), "steps": checkpoint.get("steps"), "train_grasps": checkpoint.get("train_grasps"),
-            "grasp_types": checkpoint.get("train_grasp_types"), "code_type_share": code_type_share(shipped),
+            "grasp_types": checkpoint.get("train_grasp_types"), "code_type_share": code_type_share(shipped_payload),
             "validation_grasps": checkpoint.get("validation_grasps"), "train_objects": len(checkpoint.get("train_object_ids") or []),
             "wall_s": times.get("train_cvae", {}).get("wall_s", float("nan")), "cpu_s": times.get("train_cvae", {}).get("cpu_s", float("nan")),
         },  # fmt: skip
