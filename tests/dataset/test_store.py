@@ -159,6 +159,19 @@ def test_objects_frame_and_record_are_checked(tmp_path):
         add_batch(tmp_path, make_grasps(MUGS[:1]), objects_frame(MUGS[:1], split="heldout"), record("model"))
 
 
+def test_a_model_batch_adds_to_present_objects_whose_rest_pose_agrees_to_round_off_only(tmp_path):
+    add_batch(tmp_path, make_grasps(MUGS), objects_frame(MUGS), record())
+    moved = objects_frame(MUGS[:1])
+    moved["support_offset"] = 0.5 + 1e-6  # a rest height a micrometre off: another pose of the object
+    with pytest.raises(DatasetError, match="object household-mug-000: support_offset differ from the dataset's row"):
+        add_batch(tmp_path, make_grasps(MUGS[:1]), moved, record("model"))
+    same = objects_frame(MUGS[:1])
+    same["support_offset"] = 0.5 + 1e-16  # the same settling summed in another order
+    same["support_nx"] = 4e-18
+    assert add_batch(tmp_path, make_grasps(MUGS[:1]), same, record("model")) == 2
+    assert load_dataset(tmp_path)[1].set_index("object_id").loc[MUGS[0], "support_offset"] == 0.5  # the stored row stays
+
+
 def test_distinct_labels_stay_consistent_across_batches(tmp_path):
     mug = MUGS[0]
 
