@@ -117,3 +117,20 @@ def test_a_run_refuses_a_dataset_of_another_hand(tmp_path, hand):
     pd.DataFrame({"object_id": MUGS, "stable": [True, True]}).to_parquet(tmp_path / "stability.parquet")
     with pytest.raises(DatasetError, match=r"a dataset of hand shadow, config key hand is .*three_finger.xml: give dataset.root a dataset of"):
         shard_dataset_grasps(dataset, [str(objects)], str(tmp_path / "stability.parquet"), 0, 1, False, hand["hand"])
+
+
+@pytest.mark.parametrize("hand_name", ["allegro", "leap"])
+def test_the_repositorys_dataset_of_another_hand_holds_only_that_hands_grasps(hand_name):
+    """dataset-<hand>/ (the campaign's batches of Allegro and LEAP): every batch records the hand and its joints, poses
+    of 6 + J numbers, and the card names the hand."""
+    from dexlite_pipeline.hand.choice import hand_record
+
+    folder = REPOSITORY_DATASET.parent / f"dataset-{hand_name}"
+    if not (folder / "batches.csv").is_file():
+        pytest.skip(f"no dataset-{hand_name}/ in this checkout")
+    wanted = hand_record(hand_name)
+    assert stored_hand(folder) == {"hand": hand_name, "joint_names": list(wanted["joint_names"])}
+    grasps, objects = load_dataset(folder)
+    assert grasps.hand_pose.shape[1] == 6 + len(wanted["joint_names"]) and len(objects) > 0
+    assert set(np.unique(grasps.arrays["object_id"])) <= set(objects["object_id"])
+    assert f"Grasps of the hand `{hand_name}`" in (folder / "CARD.md").read_text()
