@@ -159,15 +159,15 @@ def test_objects_frame_and_record_are_checked(tmp_path):
         add_batch(tmp_path, make_grasps(MUGS[:1]), objects_frame(MUGS[:1], split="heldout"), record("model"))
 
 
-def test_a_model_batch_adds_to_present_objects_whose_rest_pose_agrees_to_round_off_only(tmp_path):
+def test_a_model_batch_adds_to_present_objects_whose_rest_pose_agrees_within_a_micrometre(tmp_path):
     add_batch(tmp_path, make_grasps(MUGS), objects_frame(MUGS), record())
     moved = objects_frame(MUGS[:1])
-    moved["support_offset"] = 0.5 + 1e-6  # a rest height a micrometre off: another pose of the object
+    moved["support_offset"] = 0.5 + 1e-4  # a rest height a tenth of a millimetre off: another pose of the object
     with pytest.raises(DatasetError, match="object household-mug-000: support_offset differ from the dataset's row"):
         add_batch(tmp_path, make_grasps(MUGS[:1]), moved, record("model"))
     same = objects_frame(MUGS[:1])
-    same["support_offset"] = 0.5 + 1e-16  # the same settling summed in another order
-    same["support_nx"] = 4e-18
+    same["support_offset"] = 0.5 + 3e-7  # the table test of the same asset in another run (measured: 0.3 um, 1 urad)
+    same["support_nx"] = 8e-7
     assert add_batch(tmp_path, make_grasps(MUGS[:1]), same, record("model")) == 2
     assert load_dataset(tmp_path)[1].set_index("object_id").loc[MUGS[0], "support_offset"] == 0.5  # the stored row stays
 

@@ -30,9 +30,10 @@ from dexlite_pipeline.dataset.validation import DatasetError, check_record, norm
 from dexlite_pipeline.io.grasp_store import GraspSet, pose_width
 
 OBJECT_FLOAT_COLUMNS = OBJECT_OPTIONAL_FLOAT_COLUMNS  # real_radius_m, support plane, resting pose
-# Two runs' rest pose and support plane of one object may differ in their last bits (the same settling, summed in
-# another order): identity floats agree when within this relative tolerance (1e-9 of a unit quaternion is 1e-9 rad).
-OBJECT_FLOAT_RELATIVE_TOLERANCE = 1e-9
+# Two runs' rest pose and support plane of one object can differ by about a micrometre or a microradian (the table test
+# in PyBullet of the same asset, run again): identity floats (metres, unit-vector and quaternion components) agree
+# within this absolute tolerance (10 um, 10 urad), far below anything a grasp resolves (the lift test's start cap: 2 mm).
+OBJECT_FLOAT_TOLERANCE = 1e-5
 OBJECT_LIST_LIMIT = 300  # characters of batches.csv's compact object list before "... (+k more)"
 
 
@@ -88,12 +89,12 @@ def compact_object_list(object_ids, limit: int = OBJECT_LIST_LIMIT) -> str:
 
 def _identity_differences(stored: pd.Series, given: pd.Series) -> list[str]:
     """Identity columns whose values differ between two rows of one object (NaN equals NaN; floats within
-    ``OBJECT_FLOAT_RELATIVE_TOLERANCE`` of each other, absolute for values below one, are equal)."""
+    ``OBJECT_FLOAT_TOLERANCE`` of each other are equal)."""
     differ = []
     for column in OBJECT_IDENTITY_COLUMNS:
         a, b = stored[column], given[column]
         if column in OBJECT_FLOAT_COLUMNS:
-            if not (np.isnan(a) and np.isnan(b)) and not abs(a - b) <= OBJECT_FLOAT_RELATIVE_TOLERANCE * max(1.0, abs(a), abs(b)):
+            if not (np.isnan(a) and np.isnan(b)) and not abs(a - b) <= OBJECT_FLOAT_TOLERANCE:
                 differ.append(column)
         elif str(a) != str(b):
             differ.append(column)
