@@ -82,11 +82,11 @@ def grasp_request(
     evaluator, none for another model) or None (the model's first samples, unranked). ``grasp_type``: ``any`` or one of
     power, pinch, tripod, lateral, rim (None: the config's ``sample.grasp_type``); one type sets ``sample.grasp_type`` and makes
     optimization from scratch (``--from-scratch``, the top-up) that type only (``optimize_grasps.grasp_types``). ``hand``:
-    shadow, allegro, leap or an MJCF file (config key ``hand``; None: the config's, shadow by default); a hand other
-    than the Shadow Hand needs a ``model`` trained for it or ``from_scratch`` (the shipped model is the Shadow Hand's):
-    a model of another hand is refused in one line.
+    shadow, allegro, leap or an MJCF file (config key ``hand``; None: the config's, shadow by default); ``SHIPPED``
+    is the model (and evaluator) shipped for that hand (``model.shipped``); a hand without one needs a ``model``
+    trained for it or ``from_scratch``; a model of another hand is refused in one line.
     """
-    from dexlite_pipeline.model.shipped import SHIPPED_MODEL_PATH, shipped_evaluator_path, shipped_model_path
+    from dexlite_pipeline.model.shipped import missing_shipped_model_reason, shipped_evaluator_path, shipped_model_path
 
     if from_scratch and model not in (None, SHIPPED):
         raise GraspToolError("--model and --from-scratch exclude each other (a model samples grasps; --from-scratch optimizes without one)")
@@ -106,13 +106,13 @@ def grasp_request(
     model_file, evaluator_file = None, None
     if not from_scratch:
         model_file = model
+        hand_name = str(config.get("hand", "shadow"))
         if model in (None, SHIPPED):
-            if shipped_model_path() is None:
-                raise GraspToolError(f"no shipped model at {SHIPPED_MODEL_PATH} (the package was installed without its data): "
-                                     "pass --model FILE or --from-scratch")  # fmt: skip
-            model_file = str(shipped_model_path())
+            if shipped_model_path(hand_name) is None:
+                raise GraspToolError(f"{missing_shipped_model_reason(hand_name)}: pass --model FILE or --from-scratch")
+            model_file = str(shipped_model_path(hand_name))
         if evaluator == SHIPPED:  # the shipped model's own evaluator; another model has none by default
-            shipped = shipped_evaluator_path() if model in (None, SHIPPED) else None
+            shipped = shipped_evaluator_path(hand_name) if model in (None, SHIPPED) else None
             evaluator_file = str(shipped) if shipped else None
         else:
             evaluator_file = evaluator

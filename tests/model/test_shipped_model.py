@@ -104,3 +104,23 @@ def test_shipped_model_repeats_its_card_on_freshly_prepared_objects(card, tmp_pa
     raw, card_raw = got["heldout_raw"], expected["heldout_raw"]
     assert raw["grasps"] == card_raw["grasps"]
     assert _within_sampling_noise(raw["lift_successes"], card_raw["lift_successes"], raw["grasps"]), (raw, card_raw)
+
+
+def test_each_hand_has_its_own_shipped_folder_and_a_hand_from_a_file_has_none(tmp_path):
+    from dexlite_pipeline.hand.choice import hand_record
+    from dexlite_pipeline.model.checkpoint import load_checkpoint
+    from dexlite_pipeline.model.shipped import SHIPPED_MODEL_DIRS, missing_shipped_model_reason, model_or_shipped
+
+    assert shipped_model_path("shadow") == shipped_model_path() == SHIPPED_MODEL_PATH
+    mjcf = str(tmp_path / "hand.xml")
+    assert shipped_model_path(mjcf) is None
+    with pytest.raises(FileNotFoundError, match=f"no --model given and no model ships for hand {mjcf}"):
+        model_or_shipped(None, mjcf)
+    for hand in ("allegro", "leap"):
+        path = shipped_model_path(hand)
+        if path is None:
+            assert f"{SHIPPED_MODEL_DIRS[hand]}/cvae.pt (not shipped for hand {hand}" in missing_shipped_model_reason(hand)
+            continue
+        assert path.parent.name == f"{hand}-hand-household" and model_or_shipped(None, hand) == path
+        model, _ = load_checkpoint(path, hand=hand_record(hand))  # a model of that hand: refused for any other
+        assert model.pose_width == 6 + len(hand_record(hand)["joint_names"])

@@ -11,8 +11,8 @@ import subprocess
 from workflow_harness import option_value, planned_commands, snakemake_command, snakemake_env, tiny_config, write_config
 
 
-def _dry_run(tmp_path, hand: str, *targets: str, dexgraspnet: bool = False) -> subprocess.CompletedProcess:
-    config = {**tiny_config(tmp_path / "meshes"), "hand": hand}
+def _dry_run(tmp_path, hand: str, *targets: str, dexgraspnet: bool = False, **sections) -> subprocess.CompletedProcess:
+    config = {**tiny_config(tmp_path / "meshes"), "hand": hand, **sections}
     if not dexgraspnet:
         config["dexgraspnet"] = {**config["dexgraspnet"], "root": ""}
     write_config(tmp_path / "run", config)
@@ -76,9 +76,19 @@ def test_another_hand_reaches_the_model_stages_and_the_evaluation(tmp_path):
 
 
 def test_another_hand_reaches_the_model_made_batch(tmp_path):
-    """model_batch_all (a dataset batch made by the model) gives model_batch the hand; the Shadow Hand's, none."""
+    """model_batch_all (a dataset batch made by the model) gives model_batch the hand; the Shadow Hand's, none. The
+    shipped model it takes by default is the hand's: without one the workflow stops while parsing, naming the key."""
+    from dexlite_pipeline.model.shipped import SHIPPED_MODEL_PATH, shipped_model_path
+
+    if shipped_model_path("leap") is None:
+        done = _dry_run(tmp_path / "leap", "leap", "model_batch_all")
+        output = done.stdout + done.stderr
+        assert done.returncode != 0 and "model_batch.model: 'shipped': no shipped model at " in output
+        assert "(not shipped for hand leap, or the package was installed without its data)" in output
     for hand in ("allegro", "shadow"):
-        done = _dry_run(tmp_path / hand, hand, "model_batch_all")
+        # a file for the hand (the dry run reads only its name): the hand's shipped model, else any file
+        model = "shipped" if shipped_model_path(hand) else str(SHIPPED_MODEL_PATH)
+        done = _dry_run(tmp_path / hand, hand, "model_batch_all", model_batch={"model": model, "evaluator": "none"})
         output = done.stdout + done.stderr
         assert done.returncode == 0, output[-3000:]
         commands = planned_commands(output)

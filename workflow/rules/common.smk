@@ -188,13 +188,14 @@ def dataset_object_tables(wildcards=None):
 
 
 def model_batch_generator_files(wildcards=None):
-    """The model and evaluator files section model_batch names (the package's when "shipped"): inputs, so a re-shipped
-    or retrained model reruns the batch."""
+    """The model and evaluator files section model_batch names (the package's for the run's hand when "shipped"):
+    inputs, so a re-shipped or retrained model reruns the batch."""
     from dexlite_pipeline.settings import build_config
     from dexlite_pipeline.tools.model_batch import ModelBatchError, generator_files
 
     try:
-        model, evaluator = generator_files(build_config(config).model_batch)
+        typed = build_config(config)
+        model, evaluator = generator_files(typed.model_batch, typed.hand)
     except ModelBatchError as error:
         raise WorkflowError(str(error)) from None
     return [str(model)] + ([str(evaluator)] if evaluator else [])

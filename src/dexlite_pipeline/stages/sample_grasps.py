@@ -13,7 +13,7 @@ import argparse
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--config-json", required=True, help="config sections seed, device, shards, hand, sample (and with --evaluator: evaluator, diversity, scene) (canonical JSON)")
-    parser.add_argument("--model", default=None, help="trained model (cvae.pt; default: the shipped model, src/dexlite_pipeline/data/shadow-hand-household/cvae.pt)")
+    parser.add_argument("--model", default=None, help="trained model (cvae.pt; default: the shipped model of the config's hand, e.g. src/dexlite_pipeline/data/shadow-hand-household/cvae.pt)")
     parser.add_argument("--shipped-model", default=None, help="pretrained model also sampled on held-out objects it never trained on "
                         "(rows shipped_raw; default: sample.shipped_model, \"\" = none)")
     parser.add_argument("--objects", action="append", required=True, help="prepared objects dir with catalog.parquet (repeatable)")
@@ -34,7 +34,7 @@ def run(args: argparse.Namespace) -> int:
     config = stage_config(args.config_json)
     shipped = args.shipped_model if args.shipped_model is not None else config.sample.shipped_model
     grasps, attrs = sample_shard(
-        str(model_or_shipped(args.model)), args.objects, args.stability, args.lift, args.shard, shards=config.shards, sample=config.sample,
+        str(model_or_shipped(args.model, config.hand)), args.objects, args.stability, args.lift, args.shard, shards=config.shards, sample=config.sample,
         seed=config.seed, device=config.device, shipped_model=shipped or None, hand=config.hand,
         table=config.scene.table,
     )
@@ -42,7 +42,7 @@ def run(args: argparse.Namespace) -> int:
         from dexlite_pipeline.evaluator.ranking import rank_shard
 
         grasps, attrs["ranking"] = rank_shard(
-            grasps, str(model_or_shipped(args.model)), args.evaluator, args.objects, args.stability, args.shard, shards=config.shards,
+            grasps, str(model_or_shipped(args.model, config.hand)), args.evaluator, args.objects, args.stability, args.shard, shards=config.shards,
             sample=config.sample, section=config.evaluator, diversity=config.diversity, table=config.scene.table, seed=config.seed,
             device=config.device, hand=config.hand,
         )

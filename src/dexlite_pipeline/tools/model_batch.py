@@ -59,17 +59,18 @@ class ModelBatchError(ValueError):
     """A ``model_batch`` key names a file that is not there (one line, naming the key)."""
 
 
-def generator_files(section: ModelBatchConfig) -> tuple[Path, Path | None]:
-    """The model file and the evaluator file (None: samples not ranked) that ``section`` names."""
-    from dexlite_pipeline.model.shipped import shipped_evaluator_path, shipped_model_path
+def generator_files(section: ModelBatchConfig, hand: str = "shadow") -> tuple[Path, Path | None]:
+    """The model file and the evaluator file (None: samples not ranked) that ``section`` names (``shipped``: those
+    shipped for ``hand``, config key ``hand``)."""
+    from dexlite_pipeline.model.shipped import missing_shipped_model_reason, shipped_evaluator_path, shipped_model_path
 
-    model = shipped_model_path() if section.model == SHIPPED else Path(section.model)
+    model = shipped_model_path(hand) if section.model == SHIPPED else Path(section.model)
     if model is None or not model.is_file():
-        raise ModelBatchError(f"model_batch.model: {section.model!r}: no such model file" +
-                              (" (the package was installed without its shipped model)" if section.model == SHIPPED else ""))
+        raise ModelBatchError(f"model_batch.model: {section.model!r}: " +
+                              (missing_shipped_model_reason(hand) if section.model == SHIPPED else "no such model file"))
     if section.evaluator == NO_EVALUATOR:
         return model, None
-    evaluator = shipped_evaluator_path() if section.evaluator == SHIPPED else Path(section.evaluator)
+    evaluator = shipped_evaluator_path(hand) if section.evaluator == SHIPPED else Path(section.evaluator)
     if evaluator is None or not evaluator.is_file():
         raise ModelBatchError(f"model_batch.evaluator: {section.evaluator!r}: no such evaluator file (give '{NO_EVALUATOR}' to not rank)")
     return model, evaluator
@@ -128,7 +129,7 @@ def model_batch_shard(objects_dirs: list[str], stability_path: str, shard: int, 
     from dexlite_pipeline.tabletop import load_support_planes, store_attrs
 
     section = config.model_batch
-    model_file, evaluator_file = generator_files(section)
+    model_file, evaluator_file = generator_files(section, config.hand)
     device = resolve_device(config.device)
     record = hand_record(config.hand)  # an unusable hand: one line before any work
     loaded, evaluator = load_generator(model_file, evaluator_file, device, record)
