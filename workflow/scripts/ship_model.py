@@ -41,7 +41,8 @@ from dexlite_pipeline.config import merge_config
 from dexlite_pipeline.evaluation.subsets import run_split_rows, split_subsets
 from dexlite_pipeline.io.grasp_store import GraspSet, read_grasp_store, write_grasp_store
 from dexlite_pipeline.model.checkpoint import save_half_precision_copy
-from dexlite_pipeline.model.shipped import SHIPPED_MODEL_DIR
+from dexlite_pipeline.hand.choice import hand_record
+from dexlite_pipeline.model.shipped import SHIPPED_MODEL_DIRS
 from dexlite_pipeline.model.shipped_check import shipped_model_check
 from dexlite_pipeline.settings import build_config
 
@@ -206,14 +207,18 @@ def split_table_lines(rows: list[dict]) -> list[str]:
 def card_markdown(card: dict) -> str:
     counts, training, check = card["data"], card["training"], card["check"]
     dataset = counts.get("dataset_held_grasps", 0) > 0
-    source = ("lift-validated tabletop grasps of the DexLite grasp dataset (`dataset/`: generated household objects at their real size, "
+    hand = card.get("hand") or {"name": "shadow", "joint_names": [None] * 22}
+    joints = len(hand["joint_names"])
+    folder = str(card["config"].get("dataset", {}).get("root") or "dataset").rstrip("/").split("/")[-1]
+    source = (f"lift-validated tabletop grasps of the DexLite grasp dataset (`{folder}/`: generated household objects at their real size, "
               "each standing on its table)" if dataset else "lift-validated grasps of the run's own objects")  # fmt: skip
+    hand_words = "the Shadow Hand" if hand["name"] == "shadow" else f"the hand `{hand['name']}`"
     lines = [
         f"# Model card: {card['name']}",
         "",
-        "A PointNet + CVAE grasp generator for the Shadow Hand (28-D pose: palm translation, palm rotation as XYZ Euler angles,",
-        f"22 joint angles), trained on {source}, with the learned grasp evaluator that ranks its samples (`evaluator.pt`)."
-        if card.get("evaluator") else f"22 joint angles), trained on {source}.",
+        f"A PointNet + CVAE grasp generator for {hand_words} ({6 + joints}-D pose: palm translation, palm rotation as XYZ Euler angles,",
+        f"{joints} joint angles), trained on {source}, with the learned grasp evaluator that ranks its samples (`evaluator.pt`)."
+        if card.get("evaluator") else f"{joints} joint angles), trained on {source}.",
         f"`cvae.pt` stores weights and latent codes in float16 ({card['file_megabytes']:.1f} MB); `load_checkpoint` restores float32."
         + (f" Each training cloud keeps at most {kept['max_codes_per_cloud']} of its training codes ({kept['after']:,} of {kept['before']:,}); "
            + ("the run's held-out results below were measured with the same codes (the run's model is the capped copy)."
@@ -236,7 +241,7 @@ def card_markdown(card: dict) -> str:
     ]
     if dataset:
         lines.append(f"- From the grasp dataset: {counts['dataset_grasps']} tested grasps of the training objects, **{counts['dataset_held_grasps']} "
-                     f"held** on {counts['dataset_objects_with_held_grasps']} objects (the dataset's card, `dataset/CARD.md`, says how each "
+                     f"held** on {counts['dataset_objects_with_held_grasps']} objects (the dataset's card, `{folder}/CARD.md`, says how each "
                      "batch made them and its CPU time).")  # fmt: skip
     if counts["optimized_grasps"] and dataset and not counts["curated_grasps"]:
         lines.append(f"- Optimized by the run from scratch on the held-out objects only (the reference it is measured against, never "
@@ -338,7 +343,7 @@ def main() -> None:
     parser.add_argument("--run", required=True, type=Path)
     parser.add_argument("--seed-runs", nargs="*", type=Path, default=[], help="the same profile at other training seeds (train.seed)")
     parser.add_argument("--configfile", nargs="+", default=["config.yaml", "config/profiles/household_model.yaml"])
-    parser.add_argument("--out", type=Path, default=Path("src/dexlite_pipeline/data") / SHIPPED_MODEL_DIR)
+    parser.add_argument("--out", type=Path, default=None, help="default: the package data folder of the run's hand (model.shipped.SHIPPED_MODEL_DIRS)")
     parser.add_argument("--command", default="snakemake --cores 2 all --configfile config.yaml config/profiles/household_model.yaml")
     parser.add_argument("--wall-log", type=Path, default=None, help="GNU `time -v` output of the run (its wall time)")
     parser.add_argument("--curve", type=Path, default=None, help="learning-curve table (benchmarks/experiments/learning_curve.py) to record")
@@ -360,6 +365,12 @@ def main() -> None:
     code_version = args.code_version or git_version(run)
     source = run / "results" / "model" / "cvae.pt"
     checkpoint = torch.load(source, map_location="cpu", weights_only=True)
+    raw_config = merged_config(run, args.configfile)
+    hand_name = str(raw_config.get("hand", "shadow"))
+    if args.out is None:
+        if hand_name not in SHIPPED_MODEL_DIRS:
+            parser.error(f"hand {hand_name}: no package folder ships its model (SHIPPED_MODEL_DIRS); give --out")
+        args.out = Path("src/dexlite_pipeline/data") / SHIPPED_MODEL_DIRS[hand_name]
     if args.out.exists():
         shutil.rmtree(args.out)  # the shipped files of another model go (git history keeps them)
     args.out.mkdir(parents=True)
@@ -371,7 +382,6 @@ def main() -> None:
     write_grasp_store(args.out / "training_grasps.zarr", GraspSet({
         "hand_pose": training["hand_pose"].numpy(), "object_id": np.asarray(training["object_id"], dtype=object), "scale": training["scale"].numpy(),
     }), {"description": "the grasps the shipped model was trained on", "code_version": code_version})  # fmt: skip
-    raw_config = merged_config(run, args.configfile)
     config = build_config(raw_config)
     train_ids, heldout_ids = check_objects(run, checkpoint, args.check_train_objects, args.check_heldout_objects)
     objects = [str(run / "results" / "objects")]
@@ -387,6 +397,7 @@ def main() -> None:
         seed_of[other.resolve()] = torch.load(other / "results" / "model" / "cvae.pt", map_location="cpu", weights_only=True).get("seed")
     card = {
         "name": args.out.name,
+        "hand": {"name": hand_name, "joint_names": list(checkpoint.get("joint_names") or hand_record(hand_name)["joint_names"])},
         "date": datetime.date.today().isoformat(),
         "command": args.command,
         "config_files": args.configfile,
