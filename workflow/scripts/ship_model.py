@@ -41,6 +41,7 @@ from dexlite_pipeline.config import merge_config
 from dexlite_pipeline.evaluation.subsets import run_split_rows, split_subsets
 from dexlite_pipeline.io.grasp_store import GraspSet, read_grasp_store, write_grasp_store
 from dexlite_pipeline.model.checkpoint import save_half_precision_copy
+from dexlite_pipeline.dataset.hand import hand_attrs
 from dexlite_pipeline.hand.choice import hand_record
 from dexlite_pipeline.model.shipped import SHIPPED_MODEL_DIRS
 from dexlite_pipeline.model.shipped_check import shipped_model_check
@@ -379,9 +380,10 @@ def main() -> None:
     if evaluator_file.is_file():
         shutil.copyfile(evaluator_file, args.out / "evaluator.pt")
     training = checkpoint["training_grasps"]
+    hand_of_poses = hand_attrs(checkpoint)  # {} for the Shadow Hand, else the hand and its joint names, as a store records them
     write_grasp_store(args.out / "training_grasps.zarr", GraspSet({
         "hand_pose": training["hand_pose"].numpy(), "object_id": np.asarray(training["object_id"], dtype=object), "scale": training["scale"].numpy(),
-    }), {"description": "the grasps the shipped model was trained on", "code_version": code_version})  # fmt: skip
+    }, hand_of_poses), {"description": "the grasps the shipped model was trained on", "code_version": code_version, **hand_of_poses})  # fmt: skip
     config = build_config(raw_config)
     train_ids, heldout_ids = check_objects(run, checkpoint, args.check_train_objects, args.check_heldout_objects)
     objects = [str(run / "results" / "objects")]
