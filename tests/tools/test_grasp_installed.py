@@ -1,5 +1,5 @@
-"""``dexlite grasp`` from a built wheel in a fresh virtual environment: the shipped model and the default
-config come with the package, not from a checkout.
+"""``dexlite grasp`` from a built wheel in a fresh virtual environment: the shipped models (the Shadow Hand's and every
+other hand's that ships, ``--hand``) and the default config come with the package, not from a checkout.
 
 The wheel is built offline from a copy of the source (``pip wheel --no-deps --no-build-isolation``),
 installed without dependencies into a new virtual environment that sees this environment's packages
@@ -24,7 +24,7 @@ import trimesh
 
 from dexlite_pipeline.config import default_config
 from dexlite_pipeline.io.grasp_store import read_grasp_store
-from dexlite_pipeline.model.shipped import SHIPPED_MODEL_DIR
+from dexlite_pipeline.model.shipped import SHIPPED_MODEL_DIR, SHIPPED_MODEL_DIRS, shipped_model_path
 
 ROOT = Path(__file__).resolve().parents[2]
 # A small budget: this checks the installation, not the grasps.
@@ -102,3 +102,18 @@ def test_a_wheel_in_a_fresh_environment_grasps_with_the_shipped_model(tmp_path):
     assert f"model: {shipped}" in (out / "summary.md").read_text()
     assert every.attrs["evaluator"] == str(shipped.with_name("evaluator.pt"))  # the shipped evaluator ranks the shipped model's samples
     assert every.attrs["config"]["lift"] == json.loads(json.dumps(default_config()["lift"]))  # the packaged default config
+
+    for hand in [h for h in SHIPPED_MODEL_DIRS if h != "shadow" and shipped_model_path(h) is not None]:  # another hand's model
+        folder = SHIPPED_MODEL_DIRS[hand]
+        assert {f"dexlite_pipeline/data/{folder}/{name}" for name in ("cvae.pt", "evaluator.pt", "card.json")} <= names
+        out = tmp_path / f"out_{hand}"
+        run = subprocess.run(
+            [python.parent / "dexlite", "grasp", "box.obj", "--out", str(out), "--n", "2", "--renders", "0", "--threads", "1",
+             "--top-up-batches", "1", "--hand", hand, "--config-json", json.dumps(TINY)],
+            capture_output=True, text=True, env=_clean_environment(), cwd=tmp_path,
+        )  # fmt: skip
+        assert run.returncode in (0, 1), run.stderr[-2000:]
+        every = read_grasp_store(out / "all_grasps.zarr")
+        assert every.attrs["hand"] == hand and every.hand_pose.shape[1] == 6 + len(every.attrs["joint_names"])
+        assert f"model: {package / 'data' / folder / 'cvae.pt'}" in (out / "summary.md").read_text()
+        assert every.attrs["evaluator"] == str(package / "data" / folder / "evaluator.pt")
