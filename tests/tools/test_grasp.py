@@ -234,7 +234,7 @@ def test_grasp_uses_the_shipped_model_when_no_model_is_given(meshes, tmp_path, m
     from dexlite_pipeline.model import shipped
 
     stand_in = _untrained_model(tmp_path / "models" / "cvae.pt")
-    monkeypatch.setattr(shipped, "SHIPPED_MODEL_PATH", stand_in)
+    monkeypatch.setattr(shipped, "shipped_model_path", lambda hand="shadow": stand_in if hand == "shadow" else None)
     out = tmp_path / "shipped"
     main(["grasp", str(meshes / "box.obj"), "--out", str(out), "--n", "1", "--renders", "0", "--threads", "1", "--config-json", json.dumps(TINY)])
     every = read_grasp_store(out / "all_grasps.zarr")
