@@ -56,14 +56,15 @@ def test_grasp_from_scratch_with_a_hand_from_its_mjcf(box_and_hand, tmp_path):
 
 
 def test_another_hand_refuses_the_shadow_hands_model_and_a_broken_mjcf_is_refused(box_and_hand, tmp_path, capsys):
-    from dexlite_pipeline.model.shipped import SHIPPED_MODEL_PATH
+    from dexlite_pipeline.model.shipped import SHIPPED_MODEL_PATH, shipped_model_path
 
     box, xml = box_and_hand
     base = ["grasp", str(box), "--out", str(tmp_path / "out"), "--n", "2"]
     error = one_line_cli_error(capsys, [*base, "--hand", "allegro", "--model", str(SHIPPED_MODEL_PATH)])  # the Shadow Hand's model
     assert f"--model {SHIPPED_MODEL_PATH}: a model of hand shadow, this run's hand is allegro" in error and "--from-scratch" in error
     error = one_line_cli_error(capsys, [*base, "--hand", str(xml)])  # no --model: none ships for a hand from its file
-    assert f"no model ships for hand {xml} (shipped models: shadow, allegro, leap): pass --model FILE or --from-scratch" in error
+    shipped = ", ".join(hand for hand in ("shadow", "allegro", "leap") if shipped_model_path(hand) is not None)
+    assert f"no model ships for hand {xml} (shipped models: {shipped}): pass --model FILE or --from-scratch" in error
     broken = tmp_path / "broken.xml"
     broken.write_text("<mujoco><worldbody><body name='palm'><geom type='box' size='0.1 0.1 0.1'/></body></worldbody></mujoco>")
     assert f"hand: {broken}: the model has no joints" in one_line_cli_error(capsys, [*base, "--hand", str(broken), "--from-scratch"])

@@ -52,7 +52,8 @@ def missing_shipped_model_reason(hand: str = "shadow") -> str:
     """Why ``hand`` has no shipped model, in words for a one-line error."""
     folder = SHIPPED_MODEL_DIRS.get(str(hand))
     if folder is None:
-        return f"no model ships for hand {hand} (shipped models: {', '.join(SHIPPED_MODEL_DIRS)})"
+        shipped = [name for name in SHIPPED_MODEL_DIRS if shipped_file(name, "cvae.pt") is not None]
+        return f"no model ships for hand {hand} (shipped models: {', '.join(shipped) or 'none'})"
     return f"no shipped model at {PACKAGE_DATA / folder / 'cvae.pt'} (not shipped for hand {hand}, or the package was installed without its data)"
 
 
