@@ -25,10 +25,6 @@ SHIPPED_MODEL_PATH = PACKAGE_DATA / SHIPPED_MODEL_DIR / "cvae.pt"
 SHIPPED_MODEL_RELATIVE = Path("src") / "dexlite_pipeline" / "data" / SHIPPED_MODEL_DIR / "cvae.pt"
 
 
-# The learned grasp evaluator trained with the shipped model (``dexlite grasp`` ranks the shipped model's samples with it).
-SHIPPED_EVALUATOR_PATH = SHIPPED_MODEL_PATH.with_name("evaluator.pt")
-
-
 def shipped_file(hand: str, name: str) -> Path | None:
     """``name`` (cvae.pt, evaluator.pt, ...) in the folder of ``hand``'s shipped model (config key ``hand``: a shipped
     hand's name or an MJCF path), or None when that hand has no shipped model or the file is absent (the package
