@@ -129,9 +129,9 @@ def model_batch_shard(objects_dirs: list[str], stability_path: str, shard: int, 
     from dexlite_pipeline.tabletop import load_support_planes, store_attrs
 
     section = config.model_batch
+    record = hand_record(config.hand)  # an unusable hand: one line before any work (and before its shipped model is sought)
     model_file, evaluator_file = generator_files(section, config.hand)
     device = resolve_device(config.device)
-    record = hand_record(config.hand)  # an unusable hand: one line before any work
     loaded, evaluator = load_generator(model_file, evaluator_file, device, record)
     hand = None if config.hand == SHADOW else resolve_hand(config.hand, device)  # None: the callees' Shadow Hand, as before
     seed = shard_seed(config.seed, shard)
