@@ -141,6 +141,16 @@ def test_imported_grasps_are_held_to_the_configured_terms_only():
     assert list(curate_grasps(grasps, FACTS, only_pen)) == ["e_fc", "e_dis", "e_pen", "", "", "e_pen"]
 
 
+def test_optimized_grasps_are_held_to_the_configured_terms_only():
+    failing = [{**GOOD, "E_fc": 0.5}, {**GOOD, "E_dis": 0.006}, {**GOOD, "E_pen": 0.002}, {**GOOD, "penetration_mm": 2.5}]
+    rows = [("a", _pose(t=(0.05 * i, 0, 0.1)), 0.1, e) for i, e in enumerate(failing * 2)]
+    grasps = _grasp_set(rows)
+    grasps.arrays["origin"] = np.array(["optimization"] * 4 + ["dexgraspnet"] * 4, dtype=object)
+    without_fc = CurateConfig(force_closure=False, optimized_thresholded_terms=("E_dis", "E_pen", "penetration_mm"))
+    assert list(curate_grasps(grasps, FACTS, without_fc)) == ["", "e_dis", "e_pen", "penetration_mm", "", "e_dis", "", ""]
+    assert list(curate_grasps(grasps, FACTS, CurateConfig(force_closure=False)))[:4] == ["e_fc", "e_dis", "e_pen", "penetration_mm"]
+
+
 def test_force_closure_drops_grasps_whose_contacts_do_not_close():
     rows = [("a", _pose(t=(0.05 * i, 0, 0.1)), 0.1, GOOD) for i in range(4)]
     rows.insert(1, ("a", _pose(t=(0.5, 0, 0.1)), 0.1, {**GOOD, "E_dis": 0.006}))
@@ -193,6 +203,8 @@ def test_config_rejects_nonsense():
         CurateConfig(thresholds=EnergyThresholds(max_e_fc=0))
     with pytest.raises(ValueError, match="E_foo"):
         CurateConfig(imported_thresholded_terms=("E_foo",))
+    with pytest.raises(ValueError, match="optimized_thresholded_terms: unknown term.s. E_bar"):
+        CurateConfig(optimized_thresholded_terms=("E_bar",))
     with pytest.raises(ValueError, match="force_closure_min_epsilon"):
         CurateConfig(force_closure_min_epsilon=-0.1)
 

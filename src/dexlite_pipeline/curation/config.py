@@ -27,6 +27,10 @@ class CurateConfig:
     duplicate_joint_rad: float = setting(
         0.1, "... and this in every joint are near-duplicates: the better one is kept", minimum=0)
     max_grasps_per_object: int = setting(200, "cap per object after deduplication, best first (0 = no cap)", minimum=0)
+    optimized_thresholded_terms: tuple[str, ...] = setting(
+        THRESHOLDED_TERMS, "thresholds that apply to optimized grasps (all four by default; a hand whose grasps rejected by "
+        "E_fc and force closure still mostly hold keeps E_dis, E_pen and penetration_mm: docs/hands.md)",
+        items={"enum": THRESHOLDED_TERMS}, unique_items=True)
     imported_thresholded_terms: tuple[str, ...] = setting(
         ("E_dis",), "thresholds that also apply to imported DexGraspNet grasps (their makers filtered E_fc/E_pen with "
         "contacts and a penetration measure not stored; see curate.py)", items={"enum": THRESHOLDED_TERMS}, unique_items=True)
@@ -44,9 +48,10 @@ class CurateConfig:
     force_closure_cone_edges: int = setting(8, "edges of the linearized friction cones", minimum=3)
 
     def __post_init__(self) -> None:
-        unknown = sorted(set(self.imported_thresholded_terms) - set(THRESHOLDED_TERMS))
-        if unknown:
-            raise ValueError(f"config.curate.imported_thresholded_terms: unknown term(s) {', '.join(unknown)}")
+        for key in ("optimized_thresholded_terms", "imported_thresholded_terms"):
+            unknown = sorted(set(getattr(self, key)) - set(THRESHOLDED_TERMS))
+            if unknown:
+                raise ValueError(f"config.curate.{key}: unknown term(s) {', '.join(unknown)}")
         if self.max_grasps_per_object < 0:
             raise ValueError(f"config.curate.max_grasps_per_object must be >= 0, got {self.max_grasps_per_object}")
         if self.force_closure_min_epsilon < 0:

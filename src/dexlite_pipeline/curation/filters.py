@@ -118,7 +118,8 @@ def object_reasons(grasps: GraspSet, facts: ObjectFacts) -> np.ndarray:
 def threshold_reasons(grasps: GraspSet, config: CurateConfig) -> np.ndarray:
     """Per grasp, 'invalid_grasp' for missing/NaN energies, else the first threshold it fails ('' if none).
 
-    Imported grasps are held only to the thresholds of ``config.imported_thresholded_terms``.
+    Imported grasps are held only to the thresholds of ``config.imported_thresholded_terms``, the others to those of
+    ``config.optimized_thresholded_terms``.
     """
     n = len(grasps)
     reasons = np.full(n, "", dtype=object)
@@ -130,7 +131,7 @@ def threshold_reasons(grasps: GraspSet, config: CurateConfig) -> np.ndarray:
     imported = np.asarray(grasps.arrays.get("origin", np.full(n, "", dtype=object)) == IMPORTED_ORIGIN, bool)
     limits = {name: (name.lower(), limit) for name, limit in config.thresholds.limits().items()}
     for term, (reason, limit) in limits.items():
-        checked = np.ones(n, bool) if term in config.imported_thresholded_terms else ~imported
+        checked = np.where(imported, term in config.imported_thresholded_terms, term in config.optimized_thresholded_terms)
         within = values[term] <= limit if term == "penetration_mm" else values[term] < limit
         reasons[checked & (reasons == "") & ~within] = reason
     return reasons
