@@ -2,7 +2,8 @@
 
 A grasp is kept when its object is prepared (status ok), in the train split and stable on
 a table; its pose is finite and its energies exist; it meets the energy thresholds
-(DexGraspNet's E_fc < 0.3, E_dis < 5 mm, E_pen < 1 mm by default); with ``force_closure``
+(DexGraspNet's E_fc < 0.3, E_dis < 5 mm, E_pen < 1 mm by default, and the start depth cap;
+``optimized_thresholded_terms`` says which apply); with ``force_closure``
 on, the contacts it actually makes are in force closure with friction (Ferrari–Canny ε
 above ``force_closure_min_epsilon``, see below); it is not a near-duplicate of a better
 grasp; and its object's cap is not yet full. Every other grasp gets the first reason
