@@ -79,6 +79,9 @@ def test_a_wheel_in_a_fresh_environment_grasps_with_the_shipped_model(tmp_path):
     for packaged in ("dexlite_pipeline/data/config.yaml", f"{shipped_dir}/cvae.pt", f"{shipped_dir}/evaluator.pt", f"{shipped_dir}/card.json",
                      "dexlite_pipeline/schemas/config.schema.yaml"):  # fmt: skip
         assert packaged in names
+    # the object splits: read by the object lists (``held_out_household_ids`` among them) wherever the package is
+    splits = sorted(f"dexlite_pipeline/objects/{p.name}" for p in (ROOT / "src" / "dexlite_pipeline" / "objects").glob("*_split.yaml"))
+    assert len(splits) >= 3 and not set(splits) - names, sorted(set(splits) - names)
     python = _fresh_environment(tmp_path)
     subprocess.run([sys.executable, "-m", "pip", "--python", str(python), "install", "--no-deps", "--no-index", "-q", str(wheel)],
                    check=True, env=_clean_environment(), capture_output=True)  # fmt: skip
