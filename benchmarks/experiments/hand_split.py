@@ -1,6 +1,7 @@
 """Optimization from scratch with one hand on the household split: held per attempt and why the others failed.
 
     python benchmarks/experiments/hand_split.py OUT_DIR --hand leap --seeds 0 1 2 [--n 16] [--limit K] [--label after] [--config-json JSON]
+                                                [--objects ID ...] [--type-rounds R]
 
 What ``dexlite grasp MESHES --from-scratch --hand H --n 16 --upright-axis +z`` does, without its pictures and stores:
 the household split's objects (``objects/household_split.yaml``, ``--limit K``: the first K) are generated in metres
@@ -9,6 +10,9 @@ them (``prepare_meshes``, the preparation's seed 0 for every seed, so the seeds 
 optimized from scratch (``synthesize_from_scratch``), lift- and six-direction-tested (the tool's ``lift_tested``:
 2 mm start cap, hopeless optimizations not simulated) and labelled distinct (``distinct_labels``), one thread.
 ``--config-json``: config sections over the defaults, e.g. ``'{"optimize_grasps": {"grasp_types": {"pinch": 1.0}}}'``.
+``--objects``: household object ids instead of the split (``household-<family>-<instance>``), e.g. instances of no split
+and no dataset batch, to choose a setting on objects other than those it is then measured on. ``--type-rounds R``: each
+object's starts in R rounds, the later ones dealt to the grasp types that held on it (``dexlite grasp --type-rounds``).
 
 Per seed it prints, and appends as a JSON line to ``OUT_DIR/hand_split.jsonl``: held per attempt with a Wilson 95%
 interval, held and six directions, distinct held grasps per object, the held grasps' start depth median (mm), how many
@@ -95,6 +99,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--limit", type=int, default=None, help="the first K objects of the household split (default: all 36)")
     parser.add_argument("--label", default="", help="a name for this code version in the output rows")
     parser.add_argument("--config-json", type=json.loads, default={}, metavar="JSON", help="config sections over the defaults")
+    parser.add_argument("--type-rounds", type=int, default=None, metavar="R", help="optimize in R type rounds (default: one)")
+    parser.add_argument("--objects", nargs="+", default=None, metavar="ID", help="household object ids instead of the household split")
     parser.add_argument("--tabulate", action="store_true", help="only print the rows of OUT_DIR/hand_split.jsonl, per hand and label pooled")
     args = parser.parse_args(argv)
     if args.tabulate:
@@ -107,13 +113,12 @@ def main(argv: list[str] | None = None) -> int:
     from dexlite_pipeline.objects.household import household_object
     from dexlite_pipeline.objects.sources import household_benchmark_list
     from dexlite_pipeline.tools.grasp.checks import check_request
-    from dexlite_pipeline.tools.grasp.request import SOURCE_OPTIMIZATION
     from dexlite_pipeline.tools.grasp.run import GraspRun, RunRecord, prepare_meshes
     from dexlite_pipeline.tools.grasp.selection import distinct_labels
 
     set_threads(1)  # torch on one thread, as ``dexlite grasp`` by default (the same sums, so the same grasps)
     mesh_dir = args.out_dir / "meshes"
-    ids = household_benchmark_list()[: args.limit]
+    ids = (args.objects or household_benchmark_list())[: args.limit]
     mesh_dir.mkdir(parents=True, exist_ok=True)
     for object_id in ids:
         if not (mesh_dir / f"{object_id}.obj").is_file():
@@ -123,14 +128,14 @@ def main(argv: list[str] | None = None) -> int:
     for seed in args.seeds:
         out = args.out_dir / f"{args.hand}_{args.label or 'run'}_seed{seed}"
         request = grasp_request(meshes, str(out), n=args.n, from_scratch=True, hand=args.hand, upright_axis="+z", overwrite=True,
+                                type_rounds=args.type_rounds,
                                 config={**args.config_json, "seed": 0})  # the objects are prepared and stood with seed 0 whatever the run's seed
         checked = check_request(request)
         record = RunRecord()
         prepared = prepare_meshes(request, checked, out / "objects", 5, record)
         run = GraspRun(request, checked, prepared, out, 5, record)
         started = time.process_time()
-        grasps = run.from_scratch(prepared.assets, seed)
-        tested = run.lift_tested(grasps, SOURCE_OPTIMIZATION)
+        tested = run.from_scratch_tested(prepared.assets, seed)
         cpu_s = time.process_time() - started
         labels = distinct_labels(tested, checked.config)
         row = row_of(tested, labels, len(prepared.assets), cpu_s, hand=args.hand, seed=seed, label=args.label)

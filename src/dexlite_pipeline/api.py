@@ -74,7 +74,7 @@ def grasp_request(
     evaluator: str | None = SHIPPED, from_scratch: bool = False, min_distinct: int | None = None, top_up_batches: int | None = None,
     resize_to_training: bool = False, distinct: bool = True, overwrite: bool = False, device: str | None = None,
     config: dict | None = None, threads: int = 1, renders: int = 0, upright_axis: str | None = None, grasp_type: str | None = None,
-    hand: str | None = None,
+    hand: str | None = None, type_rounds: int | None = None,
 ) -> GraspRequest:
     """The ``GraspRequest`` for these options, refusing contradictory ones (``GraspToolError``).
 
@@ -84,7 +84,9 @@ def grasp_request(
     optimization from scratch (``--from-scratch``, the top-up) that type only (``optimize_grasps.grasp_types``). ``hand``:
     shadow, allegro, leap or an MJCF file (config key ``hand``; None: the config's, shadow by default); ``SHIPPED``
     is the model (and evaluator) shipped for that hand (``model.shipped``); a hand without one needs a ``model``
-    trained for it or ``from_scratch``; a model of another hand is refused in one line.
+    trained for it or ``from_scratch``; a model of another hand is refused in one line. ``type_rounds``: with
+    ``from_scratch``, each object's ``n`` starts in that many rounds, every round after the first dealt to the grasp
+    types that held on the object (``tools.grasp.type_rounds``; None: one round, the configured shares).
     """
     from dexlite_pipeline.model.shipped import missing_shipped_model_reason, shipped_evaluator_path, shipped_model_path
 
@@ -98,6 +100,10 @@ def grasp_request(
                              "model's grasps; --from-scratch uses optimization only)")  # fmt: skip
     if resize_to_training and units:
         raise GraspToolError("--units and --resize-to-training exclude each other (resized objects take the training radii whatever their unit)")
+    if type_rounds is not None and not from_scratch:
+        raise GraspToolError("--type-rounds needs --from-scratch (it deals optimization's starts to grasp types; a model samples its own)")
+    if type_rounds is not None and not 1 <= type_rounds <= n:
+        raise GraspToolError(f"--type-rounds {type_rounds}: expected 1 to --n ({n}), so that every round has a start per object")
     if from_scratch and evaluator not in (None, SHIPPED):
         raise GraspToolError("--evaluator and --from-scratch exclude each other (the evaluator ranks a model's samples)")
     config = typed_config(config or {}, grasp_type) if grasp_type is not None else dict(config or {})
@@ -122,7 +128,7 @@ def grasp_request(
         min_distinct=DEFAULT_MIN_DISTINCT if min_distinct is None else min_distinct,
         top_up_batches=DEFAULT_TOP_UP_BATCHES if top_up_batches is None else top_up_batches,
         config=config, threads=threads, renders_per_object=renders, upright_axis=upright_axis,
-        grasp_type=grasp_type or (config.get("sample") or {}).get("grasp_type", ANY_GRASP_TYPE),
+        grasp_type=grasp_type or (config.get("sample") or {}).get("grasp_type", ANY_GRASP_TYPE), type_rounds=type_rounds or 1,
     )  # fmt: skip
 
 

@@ -52,6 +52,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help=f"with a model: the top-up optimizes batches of --n grasps on each short object until it has --min-distinct "
                         f"distinct held grasps, at most K batches (default {DEFAULT_TOP_UP_BATCHES}), none more after one that added it none")
     parser.add_argument("--from-scratch", action="store_true", help="energy optimization from scratch only, no model (slower per grasp)")
+    parser.add_argument("--type-rounds", type=int, default=None, metavar="R",
+                        help="with --from-scratch: optimize each object's --n starts in R rounds, the first dealt to the grasp types in "
+                        "their configured shares (optimize_grasps.grasp_types), each later one to the types that held on that object so "
+                        "far (Thompson sampling); default 1 round. Useful with several types: an object that only one type holds gets "
+                        "most of its starts of that type")  # fmt: skip
     parser.add_argument("--grasp-type", default=None, metavar="TYPE",
                         help=f"the grasps' type: any (default: the model's training mix) or one of {', '.join(GRASP_TYPE_NAMES)}; the "
                         "model must know it (the shipped model knows power only), and optimization from scratch (--from-scratch, the "
@@ -81,7 +86,7 @@ def run(args: argparse.Namespace) -> int:
         from_scratch=args.from_scratch, min_distinct=args.min_distinct, top_up_batches=args.top_up_batches,
         resize_to_training=args.resize_to_training, distinct=args.distinct, overwrite=args.overwrite, device=args.device,
         config=parse_config_json(args.config_json), threads=args.threads or os.cpu_count() or 1, renders=args.renders,
-        upright_axis=args.upright_axis, grasp_type=args.grasp_type, hand=args.hand,
+        upright_axis=args.upright_axis, grasp_type=args.grasp_type, hand=args.hand, type_rounds=args.type_rounds,
     )  # fmt: skip
     outcome = run_grasp_tool(request)
     print(f"{outcome.held}/{outcome.total} grasps held the object in the lift test, {outcome.distinct} distinct "

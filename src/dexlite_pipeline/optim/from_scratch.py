@@ -141,10 +141,14 @@ def keyed_starts(starts: StartDrawer, assets: list[ObjectAsset], object_index: t
 def _optimize_group(
     assets: list[ObjectAsset], config: OptimizeGraspsConfig, energy_config: EnergyConfig, generator: torch.Generator, device,
     support_planes, object_scales: list[tuple[float, ...]], keyed_seed: int | None, hand: ShadowHand,
+    type_plans: list[np.ndarray] | None = None,
 ) -> dict[str, np.ndarray]:
     """The arrays of ``synthesize`` for one group of objects, optimized with one energy of those objects only."""
     object_index, scale = start_rows(object_scales, config.grasps_per_object, hand.dtype)
-    types = start_types(sum(len(s) for s in object_scales), config.grasps_per_object, config.grasp_types.shares())
+    if type_plans is None:
+        types = start_types(sum(len(s) for s in object_scales), config.grasps_per_object, config.grasp_types.shares())
+    else:  # each object's own plan, the same at each of its scales
+        types = torch.cat([torch.as_tensor(np.asarray(plan, dtype=np.int64)).repeat(len(scales)) for plan, scales in zip(type_plans, object_scales)])
     power_only = bool((types == POWER_CODE).all())
     check_hand_offers(hand, [TYPE_NAMES[code] for code in torch.unique(types).tolist()])
     energy = GraspEnergy.from_assets(hand, assets, energy_config, support_planes=support_planes,
@@ -212,6 +216,7 @@ def synthesize(
     object_scales: list[tuple[float, ...]] | None = None,
     keyed_seed: int | None = None,
     hand: ShadowHand | None = None,
+    type_plans: list[np.ndarray] | None = None,
 ) -> tuple[GraspSet, dict]:
     """Optimize ``grasps_per_object`` grasps per object and scale; returns the grasps and run statistics.
 
@@ -226,7 +231,8 @@ def synthesize(
     object's id and its start number instead of ``generator`` in batch order, so an object's grasps are the same
     whichever other objects are optimized beside it (``keyed_starts``, ``GraspRandom``).
     ``config.grasp_types``: the share of each grasp type among each object's starts (``start_types``); the grasps
-    record their type in ``grasp_type``.
+    record their type in ``grasp_type``. ``type_plans``: instead, each object's own start types (one array of
+    ``grasps_per_object`` ``TYPE_NAMES`` codes per asset, used at each of its scales), e.g. dealt by what held on it.
     ``hand``: the hand to grasp with, on ``device`` (None: the Shadow Hand). A hand from its MJCF
     (``hand.described.DescribedHand``) makes the types its description allows (``optim.described_types``; another type
     is a ValueError), and its poses are 6 + J numbers (its joints); a store of them records the hand
@@ -238,6 +244,8 @@ def synthesize(
         object_scales = [tuple(config.scales)] * len(assets)
     if len(object_scales) != len(assets) or not all(object_scales):
         raise ValueError(f"object_scales: expected one non-empty tuple of scales per object ({len(assets)}), got {object_scales}")
+    if type_plans is not None and (len(type_plans) != len(assets) or any(len(plan) != config.grasps_per_object for plan in type_plans)):
+        raise ValueError(f"type_plans: expected one plan of {config.grasps_per_object} start types per object ({len(assets)})")
     groups = energy_groups(len(assets), config.objects_per_energy)
     parts = []
     for number, group in enumerate(groups, start=1):
@@ -245,7 +253,7 @@ def synthesize(
             log.info("objects %d-%d of %d (group %d/%d: optimize_grasps.objects_per_energy = %d)", group.start + 1, group.stop,
                      len(assets), number, len(groups), config.objects_per_energy)
         parts.append(_optimize_group(assets[group], config, energy_config, generator, device, support_planes, object_scales[group],
-                                     keyed_seed, hand))
+                                     keyed_seed, hand, None if type_plans is None else type_plans[group]))
     arrays = {name: np.concatenate([part[name] for part in parts]) for name in parts[0]}
     total = len(arrays["object_id"])
     seconds = time.process_time() - started

@@ -19,12 +19,14 @@ if TYPE_CHECKING:
 
 def store_attrs(request: GraspRequest, mapping: dict, mesh_files: list[str], method: str, support: dict[str, str], topped_up: list[str]) -> dict:
     """What both grasp stores record about the run: how the grasps were made, the merged config ``mapping``, the
-    units and size rule, every mesh file given, the pose each object stands in (``support``) and the top-up."""
+    units and size rule, every mesh file given, the pose each object stands in (``support``), the top-up and, from
+    scratch, the type rounds."""
     return {
         "stage": "grasp", "method": method, "config": mapping, "units": request.units,
         "size": "resized to the training scales" if request.resize_to_training else "real size",
         "meshes": mesh_files, "support": support,
         "min_distinct": request.min_distinct if request.model else None, "topped_up": topped_up, "evaluator": request.evaluator,
+        "type_rounds": None if request.model else request.type_rounds,
     }  # fmt: skip
 
 

@@ -54,6 +54,8 @@ class GraspRequest:
     renders_per_object: int = DEFAULT_RENDERS_PER_OBJECT
     upright_axis: str | None = None  # tabletop mode: the mesh axis pointing up (None: the mesh's stable pose)
     grasp_type: str = "any"  # the grasps' type: any (the model's training mix; optimization's configured shares) or one type
+    # from scratch: each object's starts in this many rounds, the later ones dealt to the types that held on it (type_rounds.py)
+    type_rounds: int = 1
 
 
 @dataclass

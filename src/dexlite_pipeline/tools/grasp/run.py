@@ -22,7 +22,8 @@ from dexlite_pipeline.tools.grasp.summary import (
     next_steps, per_object_rows, per_source_counts, per_type_counts, preparation_text, share_text, summary_markdown,
 )  # fmt: skip
 from dexlite_pipeline.tools.grasp.synthesis import (
-    object_scales, objects_to_top_up, synthesize_from_scratch, synthesize_with_model, top_up_seed, top_up_until_distinct,
+    concatenate_sources, object_scales, objects_to_top_up, starts_per_scale, synthesize_from_scratch, synthesize_with_model, top_up_seed,
+    top_up_until_distinct,
 )
 
 if TYPE_CHECKING:
@@ -91,11 +92,38 @@ class GraspRun:
     def __post_init__(self) -> None:
         self.lift_config = dataclasses.replace(self.checked.config.lift, six_directions=True)
 
-    def from_scratch(self, chosen: list[ObjectAsset], seed: int) -> GraspSet:
-        """``n`` grasps per chosen object by optimization from scratch: ``--from-scratch`` and the top-up alike."""
+    def from_scratch(self, chosen: list[ObjectAsset], seed: int, n: int | None = None, type_plans: dict[str, np.ndarray] | None = None) -> GraspSet:
+        """``n`` grasps (default: the request's) per chosen object by optimization from scratch: ``--from-scratch`` and the
+        top-up alike; ``type_plans``: each object's start types (``type_rounds``) instead of the configured shares."""
         config = self.checked.config
-        return synthesize_from_scratch(chosen, object_scales(chosen, self.request, config.optimize_grasps.scales), self.request.grasps_per_object,
-                                       config, self.checked.device, seed, self.prepared.support_planes, self.checked.hand)  # fmt: skip
+        return synthesize_from_scratch(chosen, object_scales(chosen, self.request, config.optimize_grasps.scales),
+                                       n or self.request.grasps_per_object, config, self.checked.device, seed, self.prepared.support_planes,
+                                       self.checked.hand, type_plans)  # fmt: skip
+
+    def from_scratch_tested(self, chosen: list[ObjectAsset], seed: int) -> GraspSet:
+        """``--from-scratch``: the request's grasps per chosen object optimized and lift-tested, in ``type_rounds`` rounds
+        (``tools.grasp.type_rounds``; one round: the configured shares). Adds the seconds to the record's steps."""
+        from dexlite_pipeline.tools.grasp.type_rounds import optimize_in_rounds
+
+        config = self.checked.config
+        scales = object_scales(chosen, self.request, config.optimize_grasps.scales)
+
+        def optimize(n: int, round_seed: int, plans: dict[str, np.ndarray] | None) -> GraspSet:
+            t = time.perf_counter()
+            grasps = self.from_scratch(chosen, round_seed, n, plans)
+            self.record.synthesize_seconds += time.perf_counter() - t
+            return grasps
+
+        def test(grasps: GraspSet) -> GraspSet:
+            log.info(TESTING, len(grasps), self.request.threads)
+            t = time.perf_counter()
+            tested = self.lift_tested(grasps, SOURCE_OPTIMIZATION)
+            self.record.lift_test_seconds += time.perf_counter() - t
+            return tested
+
+        return optimize_in_rounds(chosen, self.request.grasps_per_object, self.request.type_rounds, config.optimize_grasps.grasp_types.shares(),
+                                  seed, lambda n: starts_per_scale(n, [scales[a.object_id] for a in chosen]), optimize, test,
+                                  concatenate_sources)  # fmt: skip
 
     def with_model(self) -> GraspSet:
         """``n`` CVAE samples per object refined by post-optimization."""
@@ -209,12 +237,17 @@ def first_grasps(run: GraspRun) -> tuple[GraspSet, str]:
         method = "energy optimization from scratch"
         _step(2, run.steps, "optimizing %d grasps for each of %d object(s) from scratch, device %s", request.grasps_per_object,
               len(run.prepared.assets), checked.device)  # fmt: skip
+    if not request.model:
+        if request.type_rounds > 1:
+            method += f" in {request.type_rounds} rounds, the later ones dealt to the grasp types that held on each object"
+        _step(3, run.steps, "optimized starts lift-tested as each round ends (%d round(s))", request.type_rounds)
+        return run.from_scratch_tested(run.prepared.assets, checked.config.seed), method
     t = time.perf_counter()
-    grasps = run.with_model() if request.model else run.from_scratch(run.prepared.assets, checked.config.seed)
+    grasps = run.with_model()
     record.synthesize_seconds = time.perf_counter() - t
     _step(3, run.steps, TESTING, len(grasps), request.threads)
     t = time.perf_counter()
-    tested = run.lift_tested(grasps, SOURCE_MODEL if request.model else SOURCE_OPTIMIZATION)
+    tested = run.lift_tested(grasps, SOURCE_MODEL)
     record.lift_test_seconds = time.perf_counter() - t
     return tested, method
 

@@ -55,23 +55,30 @@ def _balanced_rows(per_scale: int, scale_count: int, wanted: int) -> np.ndarray:
     return np.sort(order[:wanted])
 
 
+def starts_per_scale(n: int, object_scales: list[tuple[float, ...]]) -> int:
+    """Starts optimized at each scale so that every object has ``n`` grasps, taken from its scales in turn."""
+    return -(-n // min(len(s) for s in object_scales))
+
+
 def synthesize_from_scratch(
     assets: list[ObjectAsset], scales: dict[str, tuple[float, ...]], n: int, config: PipelineConfig, device: torch.device, seed: int,
-    support_planes: SupportPlanes | None = None, hand=None,
+    support_planes: SupportPlanes | None = None, hand=None, type_plans: dict[str, np.ndarray] | None = None,
 ) -> GraspSet:
     """``n`` grasps per object by energy optimization from convex-hull starts (section ``optimize_grasps``), with ``hand``
-    (None: the Shadow Hand; ``hand.choice.resolve_hand``)."""
+    (None: the Shadow Hand; ``hand.choice.resolve_hand``). ``type_plans``: object id -> the grasp type codes of its
+    ``starts_per_scale`` starts at each scale (``type_rounds``), instead of the configured shares."""
     from dexlite_pipeline.io.grasp_store import GraspSet
     from dexlite_pipeline.optim.from_scratch import synthesize
 
     generator = shard_generator("optimize_grasps", seed, 0)
     object_scales = [tuple(scales[a.object_id]) for a in assets]
-    per_scale = -(-n // min(len(s) for s in object_scales))  # enough of each scale for n per object, the scales in turn
+    per_scale = starts_per_scale(n, object_scales)
     optimize_config = dataclasses.replace(config.optimize_grasps, grasps_per_object=per_scale)
     log.info("optimizing %d grasps on %d object(s) together, %d iterations", per_scale * sum(len(s) for s in object_scales), len(assets),
              optimize_config.annealing.iterations)
+    plans = None if type_plans is None else [type_plans[a.object_id] for a in assets]
     optimized, _ = synthesize(assets, optimize_config, config.energy, generator, device, support_planes=support_planes,
-                              object_scales=object_scales, keyed_seed=seed, hand=hand)  # an object's grasps whatever other meshes are given
+                              object_scales=object_scales, keyed_seed=seed, hand=hand, type_plans=plans)  # an object's grasps whatever other meshes are given
     parts, start = [], 0
     for object_scale in object_scales:
         block = per_scale * len(object_scale)
