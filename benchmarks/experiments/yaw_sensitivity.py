@@ -1,17 +1,19 @@
 """`dexlite grasp` on the household split as generated and turned about the vertical: how much the results depend on yaw.
 
-    python benchmarks/experiments/yaw_sensitivity.py OUT_DIR [--seeds 0 1 2] [--yaws-per-object 1] [--n 16] [--limit K]
-        [--threads 1] [-- EXTRA dexlite grasp ARGS]
+    python benchmarks/experiments/yaw_sensitivity.py OUT_DIR [--split household|shapes] [--forms generated turned] [--seeds 0 1 2]
+        [--yaws-per-object 1] [--n 16] [--limit K] [--threads 1] [-- EXTRA dexlite grasp ARGS]
 
 The objects are the household split's (``objects/household_split.yaml``: three of each family, never trained on;
-``--limit K``: the first K), generated in metres standing on z = 0 with z up. Per seed, each is written as OBJ into
+``--split shapes``: the shapes split's, ``objects/shapes_split.yaml``: the shape families and perturbed instances of
+every family; ``--limit K``: the first K), generated in metres standing on z = 0 with z up. Per seed, each is written as OBJ into
 ``OUT_DIR/seed_<s>/generated/`` as generated and into ``OUT_DIR/seed_<s>/turned/`` turned about the vertical through
 its bounding-box centre by a yaw drawn uniformly from [0, 2π) by ``default_rng([seed, crc32(object id)])``
 (``--yaws-per-object K``: K turned copies ``<id>_yaw<k>.obj``); the yaws go to ``OUT_DIR/seed_<s>/yaws.csv``. Then one
 ``dexlite grasp`` call per folder with the shipped model: ``--n`` samples per object ranked by its evaluator,
 post-optimized and lift-tested on a table, no optimization top-up (``--min-distinct 0``), and ``--upright-axis +z``
 so that a turned copy rests in the same pose as the generated mesh and only its heading differs. Arguments after
-``--`` go to both calls.
+``--`` go to both calls (``-- --from-scratch``: optimization from scratch on the same files). ``--forms turned``: the
+turned copies only (the held-out measure at seeded yaw).
 
 Writes attempts, held and distinct held grasps per object, form and seed to ``OUT_DIR/yaw_objects.csv``; prints, and
 writes to ``OUT_DIR/yaw_sensitivity.md``, per family and for all objects, per seed and seeds pooled: held per attempt
@@ -78,21 +80,28 @@ def held_cell(held: int, attempts: int, with_interval: bool) -> str:
     return text
 
 
-def family_table(rows: list[dict], with_interval: bool) -> list[str]:
-    """Per family and for all objects: held per attempt and mean distinct held per object, generated against turned."""
-    from dexlite_pipeline.objects.household import FAMILIES
+def family_of(object_id: str) -> str:
+    """The table's group of a split object: its family, with " (perturbed)" for a perturbed instance."""
+    from dexlite_pipeline.objects.household import parse_household_id
 
-    lines = ["| family | objects | generated: held / attempts | generated: distinct / object | turned: held / attempts | turned: distinct / object |",
-             "| --- | ---: | ---: | ---: | ---: | ---: |"]  # fmt: skip
-    groups = [(family, [r for r in rows if r["family"] == family]) for family in FAMILIES] + [("**all objects**", rows)]
+    parsed = parse_household_id(object_id)
+    return parsed.family + (" (perturbed)" if parsed.variant else "")
+
+
+def family_table(rows: list[dict], with_interval: bool, forms: tuple[str, ...] = FORMS) -> list[str]:
+    """Per family (in the split's order) and for all objects: held per attempt and mean distinct held per object, per form."""
+    head = " | ".join(f"{form}: held / attempts | {form}: distinct / object" for form in forms)
+    lines = [f"| family | objects | {head} |", "| --- | ---: |" + " ---: | ---: |" * len(forms)]
+    families = list(dict.fromkeys(r["family"] for r in rows))
+    groups = [(family, [r for r in rows if r["family"] == family]) for family in families] + [("**all objects**", rows)]
     for name, group in groups:
         if not group:
             continue
         cells = []
-        for form in FORMS:
+        for form in forms:
             mine = [r for r in group if r["form"] == form]
             cells += [held_cell(sum(r["held"] for r in mine), sum(r["attempts"] for r in mine), with_interval),
-                      f"{np.mean([r['distinct'] for r in mine]):.2f}"]  # fmt: skip
+                      f"{np.mean([r['distinct'] for r in mine]):.2f}" if mine else "-"]  # fmt: skip
         lines.append(f"| {name} | {len({r['object_id'] for r in group})} | " + " | ".join(cells) + " |")
     return lines
 
@@ -103,21 +112,25 @@ def main(argv: list[str] | None = None) -> int:
     own = argv[: argv.index("--")] if "--" in argv else argv
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("out_dir", type=Path)
+    parser.add_argument("--split", choices=("household", "shapes"), default="household", help="the held-out split (default: household)")
+    parser.add_argument("--forms", nargs="+", choices=FORMS, default=list(FORMS), help="which copies to grasp (default: both)")
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
     parser.add_argument("--yaws-per-object", type=int, default=1)
     parser.add_argument("--n", type=int, default=16)
-    parser.add_argument("--limit", type=int, default=None, help="the first K objects of the household split (default: all)")
+    parser.add_argument("--limit", type=int, default=None, help="the first K objects of the split (default: all)")
     parser.add_argument("--threads", type=int, default=1)
     args = parser.parse_args(own)
     sys.path.insert(0, str(Path(__file__).resolve().parent))
     from grasp_check_meshes import per_mesh_counts, run_grasp
 
-    from dexlite_pipeline.objects.household import household_object, parse_household_id
-    from dexlite_pipeline.objects.sources import household_benchmark_list
+    from dexlite_pipeline.objects.household import household_object
+    from dexlite_pipeline.objects.sources import household_benchmark_list, shapes_benchmark_list
 
-    meshes = {object_id: household_object(object_id).mesh for object_id in household_benchmark_list()[: args.limit]}
+    split = household_benchmark_list() if args.split == "household" else shapes_benchmark_list()
+    forms = tuple(form for form in FORMS if form in args.forms)
+    meshes = {object_id: household_object(object_id).mesh for object_id in split[: args.limit]}
     grasp_args = ["--n", str(args.n), "--min-distinct", "0", "--upright-axis", "+z", *extra]
-    report = ["# `dexlite grasp` on the household split, as generated and turned about the vertical", "",
+    report = [f"# `dexlite grasp` on the {args.split} split, {' and '.join(forms)} about the vertical", "",
               f"Command: `{' '.join(['python', *sys.argv])}`", "",
               f"{len(meshes)} objects, {args.n} grasps each, {args.yaws_per_object} turned cop"
               f"{'y' if args.yaws_per_object == 1 else 'ies'} per object and seed; `dexlite grasp` arguments: "
@@ -127,24 +140,24 @@ def main(argv: list[str] | None = None) -> int:
         seed_dir = args.out_dir / f"seed_{seed}"
         copies = write_meshes(seed_dir, meshes, seed, args.yaws_per_object)
         seed_rows, costs = [], []
-        for form in FORMS:
+        for form in forms:
             out = seed_dir / f"grasp_{form}"
             cpu, wall = run_grasp(str(seed_dir / form), out, seed, args.threads, grasp_args, None)
             costs.append(f"{form} {cpu:.0f} CPU-s ({wall:.0f} s wall)")
             counts = per_mesh_counts(out)
             for stem, (object_id, yaw) in copies[form].items():
                 count = counts.get(f"user-{stem}", {"attempts": 0, "held": 0, "distinct": 0})
-                seed_rows.append({"seed": seed, "object_id": object_id, "family": parse_household_id(object_id)[0], "form": form,
+                seed_rows.append({"seed": seed, "object_id": object_id, "family": family_of(object_id), "form": form,
                                   "yaw_deg": round(float(np.degrees(yaw)), 2), "attempts": count["attempts"], "held": count["held"],
                                   "distinct": count["distinct"]})  # fmt: skip
         rows += seed_rows
         missing = sorted({f"{r['object_id']} ({r['form']})" for r in seed_rows if not r["attempts"]})
         section = [f"## Seed {seed}", "", f"`dexlite grasp` calls: {', '.join(costs)}.", "",
                    *([f"No grasps recorded (counted as 0 of 0): {', '.join(missing)}.", ""] if missing else []),
-                   *family_table(seed_rows, False), ""]  # fmt: skip
+                   *family_table(seed_rows, False, forms), ""]  # fmt: skip
         print("\n".join(section), flush=True)
         report += section
-    pooled = [f"## Seeds {', '.join(map(str, args.seeds))} pooled (Wilson 95% intervals)", "", *family_table(rows, True), ""]
+    pooled = [f"## Seeds {', '.join(map(str, args.seeds))} pooled (Wilson 95% intervals)", "", *family_table(rows, True, forms), ""]
     print("\n".join(pooled))
     (args.out_dir / "yaw_sensitivity.md").write_text("\n".join(report + pooled))
     with open(args.out_dir / "yaw_objects.csv", "w", newline="") as file:
