@@ -114,8 +114,14 @@ class GraspRun:
             self.record.synthesize_seconds += time.perf_counter() - t
             return grasps
 
+        rounds_tested = []
+
         def test(grasps: GraspSet) -> GraspSet:
-            log.info(TESTING, len(grasps), self.request.threads)
+            if rounds_tested:
+                log.info("type round %d of %d: " + TESTING, len(rounds_tested) + 1, self.request.type_rounds, len(grasps), self.request.threads)
+            else:
+                _step(3, self.steps, TESTING, len(grasps), self.request.threads)
+            rounds_tested.append(len(grasps))
             t = time.perf_counter()
             tested = self.lift_tested(grasps, SOURCE_OPTIMIZATION)
             self.record.lift_test_seconds += time.perf_counter() - t
@@ -240,7 +246,6 @@ def first_grasps(run: GraspRun) -> tuple[GraspSet, str]:
     if not request.model:
         if request.type_rounds > 1:
             method += f" in {request.type_rounds} rounds, the later ones dealt to the grasp types that held on each object"
-        _step(3, run.steps, "optimized starts lift-tested as each round ends (%d round(s))", request.type_rounds)
         return run.from_scratch_tested(run.prepared.assets, checked.config.seed), method
     t = time.perf_counter()
     grasps = run.with_model()
