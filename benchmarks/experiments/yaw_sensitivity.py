@@ -129,7 +129,8 @@ def main(argv: list[str] | None = None) -> int:
     split = household_benchmark_list() if args.split == "household" else shapes_benchmark_list()
     forms = tuple(form for form in FORMS if form in args.forms)
     meshes = {object_id: household_object(object_id).mesh for object_id in split[: args.limit]}
-    grasp_args = ["--n", str(args.n), "--min-distinct", "0", "--upright-axis", "+z", *extra]
+    top_up = [] if "--from-scratch" in extra else ["--min-distinct", "0"]  # the model's own grasps: no optimization top-up
+    grasp_args = ["--n", str(args.n), *top_up, "--upright-axis", "+z", *extra]
     report = [f"# `dexlite grasp` on the {args.split} split, {' and '.join(forms)} about the vertical", "",
               f"Command: `{' '.join(['python', *sys.argv])}`", "",
               f"{len(meshes)} objects, {args.n} grasps each, {args.yaws_per_object} turned cop"
