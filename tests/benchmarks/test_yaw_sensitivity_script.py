@@ -1,0 +1,28 @@
+"""benchmarks/experiments/yaw_sensitivity.py: split objects grouped by family (perturbed apart), per form; the seeded yaws."""
+
+import numpy as np
+
+
+def _row(object_id, family, form, held, distinct=1):
+    return {"seed": 0, "object_id": object_id, "family": family, "form": form, "yaw_deg": 0.0, "attempts": 4, "held": held, "distinct": distinct}
+
+
+def test_families_of_the_shapes_split_and_tables_of_one_form(benchmark_script):
+    script = benchmark_script("yaw_sensitivity")
+    assert script.family_of("household-kettle-900") == "kettle"
+    assert script.family_of("household-mug-900-p1") == "mug (perturbed)"
+    rows = [_row("household-kettle-900", "kettle", "turned", 1), _row("household-mug-900-p1", "mug (perturbed)", "turned", 3, 2)]
+    lines = script.family_table(rows, False, ("turned",))
+    assert lines[0] == "| family | objects | turned: held / attempts | turned: distinct / object |"
+    assert lines[2] == "| kettle | 1 | 1/4 = 25.0% | 1.00 |" and lines[3] == "| mug (perturbed) | 1 | 3/4 = 75.0% | 2.00 |"
+    assert lines[4] == "| **all objects** | 2 | 4/8 = 50.0% | 1.50 |"
+    both = script.family_table(rows, False)  # the default: generated and turned; a form without rows shows '-'
+    assert both[2].startswith("| kettle | 1 | - | - | 1/4 = 25.0%")
+
+
+def test_yaws_are_seeded_per_object_and_seed(benchmark_script):
+    script = benchmark_script("yaw_sensitivity")
+    first = script.yaws_of("household-mug-900", 0, 2)
+    assert np.array_equal(first, script.yaws_of("household-mug-900", 0, 2)) and np.all((first >= 0) & (first < 2 * np.pi))
+    assert not np.array_equal(first, script.yaws_of("household-mug-900", 1, 2))
+    assert not np.array_equal(first, script.yaws_of("household-mug-901", 0, 2))
