@@ -223,7 +223,7 @@ def grasp(meshes, n: int = DEFAULT_GRASPS_PER_OBJECT, units: str | None = None, 
     (default 1): torch's threads during the run, as ``dexlite grasp --threads``. ``out_dir``:
     keep ``dexlite grasp``'s files there (summary.md, grasps.zarr, view.html ...); default: none kept. ``options``:
     those of ``grasp_request`` (model, evaluator, from_scratch, min_distinct, top_up_batches, device, config,
-    threads, renders, upright_axis, distinct, overwrite, resize_to_training, grasp_type, hand).
+    threads, renders, upright_axis, distinct, overwrite, resize_to_training, grasp_type, hand, type_rounds).
     """
     import torch
 
