@@ -39,15 +39,19 @@ def round_seed(seed: int, round_number: int) -> int:
     return seed if round_number == 0 else int(np.random.SeedSequence([seed, 0x7E5, round_number]).generate_state(1)[0])
 
 
-def type_tallies(tested: GraspSet, object_id: str, type_names: list[str]) -> tuple[np.ndarray, np.ndarray]:
-    """(tested, held) start counts of each of ``type_names`` on ``object_id`` in ``tested``."""
+def type_tallies(tested: GraspSet, type_names: list[str]) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Object id -> (tested, held) start counts of each of ``type_names`` on that object in ``tested``."""
     from dexlite_pipeline.io.grasp_store import grasp_types
 
-    mine = np.asarray(tested.object_id, dtype=object) == object_id
-    types = grasp_types(tested)[mine]
-    held = np.asarray(tested.arrays["lift_success"], bool)[mine]
-    return (np.array([int((types == name).sum()) for name in type_names]),
-            np.array([int(((types == name) & held).sum()) for name in type_names]))  # fmt: skip
+    objects = np.asarray(tested.object_id, dtype=object)
+    types = grasp_types(tested)
+    held = np.asarray(tested.arrays["lift_success"], bool)
+    of_type = [types == name for name in type_names]
+    tallies = {}
+    for object_id in dict.fromkeys(objects.tolist()):
+        mine = objects == object_id
+        tallies[object_id] = (np.array([int((mine & t).sum()) for t in of_type]), np.array([int((mine & t & held).sum()) for t in of_type]))
+    return tallies
 
 
 def thompson_plan(type_names: list[str], tried: np.ndarray, held: np.ndarray, count: int, rng: np.random.Generator) -> np.ndarray:
@@ -80,10 +84,12 @@ def optimize_in_rounds(
     for round_number, size in enumerate(round_sizes(n, rounds)):
         plans = None
         if round_number and len(type_names) > 1:
-            so_far = concatenate(tested_parts)
-            plans = {}
-            for asset in assets:
-                tried, held = type_tallies(so_far, asset.object_id, type_names)
-                plans[asset.object_id] = thompson_plan(type_names, tried, held, per_scale(size), plan_rng(seed, asset.object_id, round_number))
+            tallies = type_tallies(concatenate(tested_parts), type_names)
+            untried = (np.zeros(len(type_names), int), np.zeros(len(type_names), int))
+            plans = {
+                asset.object_id: thompson_plan(type_names, *tallies.get(asset.object_id, untried), per_scale(size),
+                                               plan_rng(seed, asset.object_id, round_number))
+                for asset in assets
+            }  # fmt: skip
         tested_parts.append(test(optimize(size, round_seed(seed, round_number), plans)))
     return concatenate(tested_parts)
