@@ -59,9 +59,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         "most of its starts of that type")  # fmt: skip
     parser.add_argument("--grasp-type", default=None, metavar="TYPE",
                         help=f"the grasps' type: any (default: the model's training mix) or one of {', '.join(GRASP_TYPE_NAMES)}; the "
-                        "model must know it (the shipped model knows power only), and optimization from scratch (--from-scratch, the "
-                        "top-up) then makes that type only; a hand other than shadow offers power, pinch, tripod and rim as its fingers allow "
-                        "(docs/hands.md)")
+                        "model must know it (the shipped Shadow model knows all five), and optimization from scratch (--from-scratch, "
+                        "the top-up) then makes that type only; a hand other than shadow offers power, pinch, tripod and rim as its "
+                        "fingers allow (docs/hands.md)")
     parser.add_argument("--hand", default=None, metavar="HAND",
                         help="the hand: shadow (default: the config's hand), allegro, leap or the path of a hand's MJCF file "
                         "(docs/hands.md); a hand other than shadow needs a --model trained for it or --from-scratch (the shipped model is "
