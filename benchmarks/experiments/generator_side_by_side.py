@@ -1,23 +1,29 @@
-"""The two generative families side by side on the same data: the CVAE (``train.generator: cvae``) against conditional
-flow matching (``flow``), trained with the same budget on the same grasps and measured on the same held-out objects.
+"""Generators side by side on the same data: the CVAE (``train.generator: cvae``) against conditional flow matching
+(``flow``), or the CVAE with the surface-sample penetration in its loss (``cvae+surface``:
+``train.weight_surface_penetration`` = ``--surface-weight``), trained with the same budget on the same grasps and measured
+on the same held-out objects.
 
     python benchmarks/experiments/generator_side_by_side.py OUT --objects OBJECTS_DIR [--dataset dataset] [--train-objects 84]
-        [--steps 3000] [--seeds 0 1] [--heldout 12] [--n 16] [--families cvae flow] [--threads 1]
+        [--steps 3000] [--seeds 0 1] [--heldout 12 | --heldout-ids ID ...] [--n 16] [--families cvae flow cvae+surface]
+        [--surface-weight 1] [--modes raw "backed out" refined] [--threads 1]
 
 Training data: the held grasps of the repository's grasp dataset (``dataset.load_dataset``) on the training objects prepared
 in ``OBJECTS_DIR`` (a ``dexlite prepare-objects`` output whose catalog lists household training objects the dataset holds;
 ``--train-objects K``: a seeded subset of K of them, the same for every family and seed). Each family is trained with the
 pipeline's default section ``train`` (config.yaml), ``max_steps`` = ``--steps`` and ``seed`` = the seed, on one torch
-thread; the training grasps, batches and validation split are the same for both families at a seed. Models go to
+thread; the training grasps, batches and validation split are the same for every family at a seed. Models go to
 ``OUT/seed_<s>/<family>.pt``.
 
 Held-out objects: the first ``--heldout`` objects of the household split (``objects/household_split.yaml``; the first
-twelve are instance 900 of each of the twelve families), never in the dataset, each turned about the vertical through
-its bounding-box centre by a yaw from ``default_rng([seed, crc32(object id)])`` (so every family at a seed sees the
-same turned objects). Each model samples ``--n`` grasps per object through ``dexlite_pipeline.api.grasp`` (the path of
-``dexlite grasp``: real size, heading match, neighbour codes and matched anchors, starts raised above the table), with no
-learned evaluator and no optimization top-up, twice: *raw* (``post_optimize.annealing.iterations`` 0: the samples as
-drawn) and *refined* (the default post-optimization). Every grasp is lift-tested on the table with the 2 mm start cap.
+twelve are instance 900 of each of the twelve families), never in the dataset, or ``--heldout-ids`` (e.g. instances of no
+split and no dataset batch, to choose a setting on objects other than those it is then measured on), each turned about
+the vertical through its bounding-box centre by a yaw from ``default_rng([seed, crc32(object id)])`` (so every family at
+a seed sees the same turned objects). Each model samples ``--n`` grasps per object through ``dexlite_pipeline.api.grasp``
+(the path of ``dexlite grasp``: real size, heading match, neighbour codes and matched anchors, starts raised above the
+table), with no learned evaluator and no optimization top-up, in each of ``--modes``: *raw* (the samples as drawn: no
+optimizer step and no contact resolution), *backed out* (raw, then only contact resolution, the post-optimization's last
+phase, which moves a sample deeper than ``post_optimize.resolve_penetration_to_m`` back out of the object) and *refined*
+(the default post-optimization). Every grasp is lift-tested on the table with the 2 mm start cap.
 
 Writes ``OUT/side_by_side_seed<seeds>.csv`` (one row per seed, family, mode and object: attempts, held, distinct held, median start
 depth in mm, training seconds) and prints, and writes to ``OUT/side_by_side.md``, per family and mode with seeds pooled
@@ -40,7 +46,11 @@ from pathlib import Path
 
 import numpy as np
 
-MODES = {"raw": {"post_optimize": {"annealing": {"iterations": 0}}}, "refined": {}}
+# raw: the samples as drawn (no optimizer step, no contact resolution; only the tabletop's raise above the table);
+# backed out: raw, then only the post-optimization's last phase, contact resolution (post_optimize.resolve_penetration_to_m:
+# each sample deeper than 1.5 mm moved back out of the object); refined: the default post-optimization.
+MODES = {"raw": {"post_optimize": {"annealing": {"iterations": 0}, "resolve_penetration_to_m": 0.0}},
+         "backed out": {"post_optimize": {"annealing": {"iterations": 0}}}, "refined": {}}
 TRAINING_OBJECTS_MODE = "raw on training objects"  # --in-distribution: raw samples on objects the models trained on
 
 
@@ -62,27 +72,35 @@ def training_grasps(dataset_dir: Path, objects_dir: Path, count: int):
     return GraspSet(arrays, {}), sorted(set(grasps.object_id.tolist()))
 
 
-def train_family(family: str, grasps, object_ids: list[str], objects_dir: Path, steps: int, seed: int, path: Path) -> float:
+def train_family(family: str, grasps, object_ids: list[str], objects_dir: Path, steps: int, seed: int, path: Path,
+                 surface_weight: float = 0.0) -> float:
     """Train one family on ``grasps`` with the default section ``train`` at ``steps`` and ``seed``, write the model file to
-    ``path``; returns the training's CPU-seconds."""
+    ``path``; returns the training's CPU-seconds. ``cvae+surface``: the CVAE with the surface-sample penetration in its
+    loss at weight ``surface_weight`` (``train.weight_surface_penetration``)."""
     import torch
 
     from dexlite_pipeline.config import load_config
     from dexlite_pipeline.hand import ShadowHand
     from dexlite_pipeline.model.checkpoint import save_checkpoint
     from dexlite_pipeline.model.data import build_training_data, split_validation
-    from dexlite_pipeline.model.training import fit_training_codes, train_cvae
+    from dexlite_pipeline.model.surface_penetration import surface_penetration_terms
+    from dexlite_pipeline.model.trainer import unbuilt_energy_terms
+    from dexlite_pipeline.model.training import fit_training_codes, train_cvae, with_surface_penetration
     from dexlite_pipeline.objects.assets import load_asset
     from dexlite_pipeline.settings import build_config
 
     repository = Path(__file__).resolve().parents[2]
-    config = dataclasses.replace(build_config(load_config(repository / "config.yaml")).train, max_steps=steps, seed=seed, generator=family)
+    config = dataclasses.replace(build_config(load_config(repository / "config.yaml")).train, max_steps=steps, seed=seed,
+                                 generator=family.split("+")[0], weight_surface_penetration=surface_weight if family.endswith("+surface") else 0.0)
     start = time.process_time()
     hand = ShadowHand("cpu")
     assets = [load_asset([str(objects_dir)], oid) for oid in object_ids]
     data = build_training_data(grasps, assets, hand, "cpu")
     train_index, val_index = split_validation(len(grasps), config.validation_fraction, seed)
-    result = train_cvae(data, train_index, val_index, config, None, seed)
+    energy_terms = None
+    if config.weight_surface_penetration > 0:
+        energy_terms = with_surface_penetration(unbuilt_energy_terms, surface_penetration_terms(hand, data.clouds), mesh=False)
+    result = train_cvae(data, train_index, val_index, config, energy_terms, seed)
     fit = fit_training_codes(result.model, data, train_index, config)
     last = result.history[-1]
     print(f"{family} seed {seed}: {result.steps} steps, train recon {last['train_recon']:.4g}, val recon {last.get('val_recon', float('nan')):.4g}, "
@@ -95,16 +113,17 @@ def train_family(family: str, grasps, object_ids: list[str], objects_dir: Path, 
     return seconds
 
 
-def heldout_meshes(count: int, seed: int) -> dict:
-    """The first ``count`` household-split objects, each turned about the vertical by its seeded yaw (the first yaw of
-    ``yaw_sensitivity.py`` for the seed): {object id: mesh}."""
+def heldout_meshes(count: int, seed: int, object_ids: list[str] | None = None) -> dict:
+    """The first ``count`` household-split objects (or ``object_ids``), each turned about the vertical by its seeded yaw
+    (the first yaw of ``yaw_sensitivity.py`` for the seed): {object id: mesh}."""
     sys.path.insert(0, str(Path(__file__).resolve().parent))
     from yaw_sensitivity import turned_about_vertical, yaws_of
 
     from dexlite_pipeline.objects.household import household_object
     from dexlite_pipeline.objects.sources import household_benchmark_list
 
-    return {oid: turned_about_vertical(household_object(oid).mesh, float(yaws_of(oid, seed, 1)[0])) for oid in household_benchmark_list()[:count]}
+    ids = object_ids or household_benchmark_list()[:count]
+    return {oid: turned_about_vertical(household_object(oid).mesh, float(yaws_of(oid, seed, 1)[0])) for oid in ids}
 
 
 def training_meshes(object_ids: list[str], count: int) -> dict:
@@ -170,7 +189,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1])
     parser.add_argument("--heldout", type=int, default=12)
     parser.add_argument("--n", type=int, default=16)
-    parser.add_argument("--families", nargs="+", default=["cvae", "flow"], choices=["cvae", "flow"])
+    parser.add_argument("--families", nargs="+", default=["cvae", "flow"], choices=["cvae", "flow", "cvae+surface"])
+    parser.add_argument("--surface-weight", type=float, default=1.0, help="cvae+surface: train.weight_surface_penetration")
+    parser.add_argument("--heldout-ids", nargs="+", default=None, metavar="ID",
+                        help="household object ids instead of the household split's first --heldout (to choose a setting elsewhere)")
+    parser.add_argument("--modes", nargs="+", default=list(MODES), choices=list(MODES))
     parser.add_argument("--threads", type=int, default=1)
     parser.add_argument("--in-distribution", type=int, default=0, metavar="K",
                         help="also raw samples on K training objects (one per family, first in id order), not turned")
@@ -189,17 +212,18 @@ def main(argv: list[str] | None = None) -> int:
     rows = []
     csv_path = args.out_dir / f"side_by_side_seed{'_'.join(map(str, args.seeds))}{'_training_objects' if args.skip_heldout else ''}.csv"
     for seed in args.seeds:
-        meshes = heldout_meshes(args.heldout, seed)
+        meshes = heldout_meshes(args.heldout, seed, args.heldout_ids)
         for family in args.families:
             model = args.out_dir / f"seed_{seed}" / f"{family}.pt"
             model.parent.mkdir(parents=True, exist_ok=True)
             reuse = args.reuse_models and model.is_file()
-            train_s = float("nan") if reuse else train_family(family, grasps, object_ids, args.objects, args.steps, seed, model)
-            calls = [] if args.skip_heldout else [(mode, mode, meshes) for mode in MODES]
+            train_s = float("nan") if reuse else train_family(family, grasps, object_ids, args.objects, args.steps, seed, model,
+                                                                args.surface_weight)
+            calls = [] if args.skip_heldout else [(mode, mode, meshes) for mode in args.modes]
             if args.in_distribution:
                 calls.append((TRAINING_OBJECTS_MODE, "raw", training_meshes(object_ids, args.in_distribution)))
             for label, mode, chosen in calls:
-                folder = args.out_dir / f"seed_{seed}" / f"{family}_{mode if label == mode else 'raw_training_objects'}"
+                folder = args.out_dir / f"seed_{seed}" / f"{family}_{mode.replace(' ', '_') if label == mode else 'raw_training_objects'}"
                 for row in evaluate(model, chosen, args.n, seed, mode, folder, args.threads):
                     rows.append({"seed": seed, "family": family, "mode": label, **row, "training_cpu_s": round(train_s, 1)})
                 with open(csv_path, "w", newline="") as file:  # rewritten after every call: a stopped run keeps what it measured
@@ -208,7 +232,7 @@ def main(argv: list[str] | None = None) -> int:
                     writer.writerows(rows)
                 print("\n".join(summary_table([r for r in rows if r["seed"] == seed])), flush=True)
     print(f"{len(grasps)} held dataset grasps on {len(object_ids)} training objects; {args.steps} steps per family and seed; "
-          f"{args.heldout} held-out household-split objects at seeded yaw, {args.n} grasps each per mode.")
+          f"{len(meshes)} held-out objects at seeded yaw, {args.n} grasps each per mode.")
     return tabulate(args.out_dir)
 
 
@@ -221,7 +245,7 @@ def tabulate(out_dir: Path) -> int:
             rows += [{**r, **{k: int(r[k]) for k in ("seed", "attempts", "held", "distinct")},
                       **{k: float(r[k]) for k in ("start_depth_mm_median", "training_cpu_s")}} for r in csv.DictReader(file)]  # fmt: skip
     seeds = sorted({r["seed"] for r in rows})
-    report = ["# Generator side by side: CVAE and flow matching on the same data", "",
+    report = ["# Generators side by side on the same data", "",
               f"## Seeds {', '.join(map(str, seeds))} pooled", "", *summary_table(rows), ""]  # fmt: skip
     for seed in seeds:
         report += [f"## Seed {seed}", "", *summary_table([r for r in rows if r["seed"] == seed]), ""]
