@@ -1,11 +1,11 @@
 """Generators side by side on the same data: the CVAE (``train.generator: cvae``) against conditional flow matching
-(``flow``), or the CVAE with the surface-sample penetration in its loss (``cvae+surface``:
-``train.weight_surface_penetration`` = ``--surface-weight``), trained with the same budget on the same grasps and measured
+(``flow``), or the CVAE with the surface-sample terms in its loss (``cvae+surface``: ``train.weight_surface_penetration``
+= ``--surface-penetration-weight``, ``train.weight_surface_distance`` = ``--surface-distance-weight``), trained with the same budget on the same grasps and measured
 on the same held-out objects.
 
     python benchmarks/experiments/generator_side_by_side.py OUT --objects OBJECTS_DIR [--dataset dataset] [--train-objects 84]
         [--steps 3000] [--seeds 0 1] [--heldout 12 | --heldout-ids ID ...] [--n 16] [--families cvae flow cvae+surface]
-        [--surface-weight 1] [--modes raw "backed out" refined] [--threads 1]
+        [--surface-penetration-weight 0] [--surface-distance-weight 0] [--modes raw "backed out" refined] [--threads 1]
 
 Training data: the held grasps of the repository's grasp dataset (``dataset.load_dataset``) on the training objects prepared
 in ``OBJECTS_DIR`` (a ``dexlite prepare-objects`` output whose catalog lists household training objects the dataset holds;
@@ -73,33 +73,34 @@ def training_grasps(dataset_dir: Path, objects_dir: Path, count: int):
 
 
 def train_family(family: str, grasps, object_ids: list[str], objects_dir: Path, steps: int, seed: int, path: Path,
-                 surface_weight: float = 0.0) -> float:
+                 surface_weights: tuple[float, float] = (0.0, 0.0)) -> float:
     """Train one family on ``grasps`` with the default section ``train`` at ``steps`` and ``seed``, write the model file to
-    ``path``; returns the training's CPU-seconds. ``cvae+surface``: the CVAE with the surface-sample penetration in its
-    loss at weight ``surface_weight`` (``train.weight_surface_penetration``)."""
+    ``path``; returns the training's CPU-seconds. ``cvae+surface``: the CVAE with the surface-sample terms in its loss at
+    weights ``surface_weights`` (``train.weight_surface_penetration``, ``train.weight_surface_distance``)."""
     import torch
 
     from dexlite_pipeline.config import load_config
     from dexlite_pipeline.hand import ShadowHand
     from dexlite_pipeline.model.checkpoint import save_checkpoint
     from dexlite_pipeline.model.data import build_training_data, split_validation
-    from dexlite_pipeline.model.surface_penetration import surface_penetration_terms
+    from dexlite_pipeline.model.surface_terms import surface_terms
     from dexlite_pipeline.model.trainer import unbuilt_energy_terms
-    from dexlite_pipeline.model.training import fit_training_codes, train_cvae, with_surface_penetration
+    from dexlite_pipeline.model.training import fit_training_codes, train_cvae, with_surface_terms
     from dexlite_pipeline.objects.assets import load_asset
     from dexlite_pipeline.settings import build_config
 
     repository = Path(__file__).resolve().parents[2]
+    penetration, distance = surface_weights if family.endswith("+surface") else (0.0, 0.0)
     config = dataclasses.replace(build_config(load_config(repository / "config.yaml")).train, max_steps=steps, seed=seed,
-                                 generator=family.split("+")[0], weight_surface_penetration=surface_weight if family.endswith("+surface") else 0.0)
+                                 generator=family.split("+")[0], weight_surface_penetration=penetration, weight_surface_distance=distance)
     start = time.process_time()
     hand = ShadowHand("cpu")
     assets = [load_asset([str(objects_dir)], oid) for oid in object_ids]
     data = build_training_data(grasps, assets, hand, "cpu")
     train_index, val_index = split_validation(len(grasps), config.validation_fraction, seed)
     energy_terms = None
-    if config.weight_surface_penetration > 0:
-        energy_terms = with_surface_penetration(unbuilt_energy_terms, surface_penetration_terms(hand, data.clouds), mesh=False)
+    if config.surface_terms():
+        energy_terms = with_surface_terms(unbuilt_energy_terms, surface_terms(hand, data.clouds, config.surface_terms()), mesh=False)
     result = train_cvae(data, train_index, val_index, config, energy_terms, seed)
     fit = fit_training_codes(result.model, data, train_index, config)
     last = result.history[-1]
@@ -137,7 +138,7 @@ def training_meshes(object_ids: list[str], count: int) -> dict:
 
 
 def evaluate(model: Path, meshes: dict, n: int, seed: int, mode: str, out_dir: Path, threads: int) -> list[dict]:
-    """One ``api.grasp`` call of ``model`` on ``meshes`` in ``mode`` (raw or refined): per object attempts, held, distinct
+    """One ``api.grasp`` call of ``model`` on ``meshes`` in ``mode`` (of ``MODES``): per object attempts, held, distinct
     held grasps and the median start depth over its tested attempts (mm)."""
     from dexlite_pipeline.api import grasp
     from dexlite_pipeline.io.grasp_store import read_grasp_store
@@ -190,7 +191,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--heldout", type=int, default=12)
     parser.add_argument("--n", type=int, default=16)
     parser.add_argument("--families", nargs="+", default=["cvae", "flow"], choices=["cvae", "flow", "cvae+surface"])
-    parser.add_argument("--surface-weight", type=float, default=1.0, help="cvae+surface: train.weight_surface_penetration")
+    parser.add_argument("--surface-penetration-weight", type=float, default=0.0, help="cvae+surface: train.weight_surface_penetration")
+    parser.add_argument("--surface-distance-weight", type=float, default=0.0, help="cvae+surface: train.weight_surface_distance")
     parser.add_argument("--heldout-ids", nargs="+", default=None, metavar="ID",
                         help="household object ids instead of the household split's first --heldout (to choose a setting elsewhere)")
     parser.add_argument("--modes", nargs="+", default=list(MODES), choices=list(MODES))
@@ -218,7 +220,7 @@ def main(argv: list[str] | None = None) -> int:
             model.parent.mkdir(parents=True, exist_ok=True)
             reuse = args.reuse_models and model.is_file()
             train_s = float("nan") if reuse else train_family(family, grasps, object_ids, args.objects, args.steps, seed, model,
-                                                                args.surface_weight)
+                                                                (args.surface_penetration_weight, args.surface_distance_weight))
             calls = [] if args.skip_heldout else [(mode, mode, meshes) for mode in args.modes]
             if args.in_distribution:
                 calls.append((TRAINING_OBJECTS_MODE, "raw", training_meshes(object_ids, args.in_distribution)))

@@ -62,7 +62,10 @@ class ModelConfig:
 ENERGY_TERMS = ("fc", "dis", "pen", "spen", "joints")
 LOSS_TERMS = ("recon", "kl", *ENERGY_TERMS)
 TABLE_TERM = "table"  # E_table, a loss term in tabletop mode only (after LOSS_TERMS)
-SURFACE_PENETRATION_TERM = "surface_pen"  # model.surface_penetration's term, last, when weight_surface_penetration > 0
+# model.surface_terms' loss terms (after the others, each when its weight is above 0): the penetration and the pads'
+# heights over the surface, read off the objects' surface samples
+SURFACE_PENETRATION_TERM, SURFACE_DISTANCE_TERM = "surface_pen", "surface_dis"
+SURFACE_TERMS = (SURFACE_PENETRATION_TERM, SURFACE_DISTANCE_TERM)
 LR_SCHEDULES = ("constant", "cosine")
 GENERATORS = ("cvae", "flow")  # the generative families behind PointNet (``network.GraspCVAE``, ``flow.GraspFlow``)
 FLOW_SOLVERS = ("euler", "heun")
@@ -126,9 +129,13 @@ class TrainConfig:
         1e-5, "KL divergence to N(0, I); small, so each grasp keeps a distinct code (sampling draws from the codes' aggregate, "
         "sample.latent_prior, not from N(0, I))", minimum=0)
     weight_surface_penetration: float = setting(
-        0.0, "penetration of the decoded hand read off the object's surface samples, metres (model.surface_penetration: no "
-        "SDF grid or mesh, so it fits a dataset of any size; 0 = not computed); ramps in with the energies "
+        0.0, "penetration of the decoded hand read off the object's surface samples, metres (model.surface_terms: no SDF "
+        "grid or mesh, so it fits a dataset of any size; 0 = not computed); ramps in with the energies "
         "(energy_warmup_fraction)", minimum=0)
+    weight_surface_distance: float = setting(
+        0.0, "the training grasp's finger-pad heights over the object's surface, decoded against trained: mean squared "
+        "difference in cm over the pads within 1 cm of the surface (model.surface_terms; 0 = not computed); ramps in with "
+        "the energies", minimum=0)
     energy_weights: EnergyWeights = setting(
         factory=lambda: EnergyWeights(fc=0.0, dis=0.0, pen=0.0, spen=0.0, joints=0.0, table=0.0),
         doc="energy terms of the decoded pose in the loss (all 0: not computed; the write-up's are 1/100/100/10/1)")
@@ -153,16 +160,19 @@ class TrainConfig:
 
     def weights(self, table: bool = False) -> dict[str, float]:
         """Loss term -> weight: recon and kl, then the energy terms (fc, dis, pen, spen, joints; with ``table``, E_table),
-        then, when its weight is above 0, the surface-sample penetration (``SURFACE_PENETRATION_TERM``)."""
+        then each of ``SURFACE_TERMS`` whose weight is above 0."""
         weights = {"recon": self.weight_recon, "kl": self.weight_kl, **dataclasses.asdict(self.energy_weights)}
         terms = {term: weights[term] for term in (LOSS_TERMS if not table else (*LOSS_TERMS, TABLE_TERM))}
-        if self.weight_surface_penetration > 0:
-            terms[SURFACE_PENETRATION_TERM] = self.weight_surface_penetration
-        return terms
+        surface = {SURFACE_PENETRATION_TERM: self.weight_surface_penetration, SURFACE_DISTANCE_TERM: self.weight_surface_distance}
+        return {**terms, **{term: weight for term, weight in surface.items() if weight > 0}}
+
+    def surface_terms(self) -> tuple[str, ...]:
+        """The surface-sample terms the loss weights (``SURFACE_TERMS`` above 0)."""
+        return tuple(term for term in self.weights() if term in SURFACE_TERMS)
 
     def uses_mesh_energies(self, table: bool = False) -> bool:
         """Whether a weighted energy term needs the objects' SDF grids and meshes (``train.energy_weights``; E_table only on
-        a table): the surface-sample penetration does not."""
+        a table): the surface-sample terms do not."""
         return any(weight > 0 for name, weight in self.weights(table).items() if name in (*ENERGY_TERMS, TABLE_TERM))
 
 

@@ -9,6 +9,7 @@ measures the learning ladder's fit rung on the training grasps, and writes the m
 from __future__ import annotations
 
 import logging
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -18,7 +19,7 @@ import pandas as pd
 from dexlite_pipeline.atomic import atomic_path
 from dexlite_pipeline.curation.config import IMPORTED_ORIGIN
 from dexlite_pipeline.io.grasp_store import GRASP_TYPE, GraspSet, grasp_types, read_grasp_store
-from dexlite_pipeline.model.config import LOSS_TERMS, SURFACE_PENETRATION_TERM, TrainConfig
+from dexlite_pipeline.model.config import LOSS_TERMS, SURFACE_TERMS, TrainConfig
 from dexlite_pipeline.model.hand_match import shards_hand
 from dexlite_pipeline.model.training import TrainingResult
 
@@ -124,7 +125,7 @@ class TrainedModel:
 
 def _log_epoch(row: dict) -> None:
     val = f" val {row['val_total']:.4g} (recon {row['val_recon']:.4g})" if "val_total" in row else ""
-    surface = f" surface_pen {row['train_surface_pen']:.4g}" if "train_surface_pen" in row else ""
+    surface = "".join(f" {term} {row[f'train_{term}']:.4g}" for term in SURFACE_TERMS if f"train_{term}" in row)
     log.info(
         "epoch %d step %d %.1fs: train %.4g (recon %.4g kl %.4g fc %.4g dis %.4g pen %.4g spen %.4g joints %.4g%s)%s",
         row["epoch"], row["step"], row["seconds"], row["train_total"], row["train_recon"], row["train_kl"],
@@ -155,8 +156,8 @@ def train_from_lift_shards(
     from dexlite_pipeline.energy.grasp_energy import GraspEnergy, max_scale_by_object
     from dexlite_pipeline.hand.choice import hand_record, resolve_hand
     from dexlite_pipeline.model.data import TrainingDataError, build_training_data, select_training_grasps, split_validation
-    from dexlite_pipeline.model.surface_penetration import surface_penetration_terms
-    from dexlite_pipeline.model.training import fit_training_codes, grasp_energy_terms, train_cvae, with_surface_penetration
+    from dexlite_pipeline.model.surface_terms import surface_terms
+    from dexlite_pipeline.model.training import fit_training_codes, grasp_energy_terms, train_cvae, with_surface_terms
     from dexlite_pipeline.objects.assets import available_object_ids, load_asset, object_splits
 
     settings = train
@@ -202,9 +203,9 @@ def train_from_lift_shards(
         energy_terms = grasp_energy_terms(energy, settings.contact_samples, seed)
     else:  # every energy weight 0 (the default): the loss never scores a decoded pose, so no SDF bank or point sets
         energy_terms = unbuilt_energy_terms
-    if settings.weight_surface_penetration > 0:  # read off the clouds' surface samples: no memory per object beyond them
-        energy_terms = with_surface_penetration(energy_terms, surface_penetration_terms(hand_model, data.clouds),
-                                                mesh=uses_energies(settings, table=planes is not None))
+    if settings.surface_terms():  # read off the clouds' surface samples: no memory per object beyond them
+        energy_terms = with_surface_terms(energy_terms, surface_terms(hand_model, data.clouds, settings.surface_terms()),
+                                          mesh=uses_energies(settings, table=planes is not None))
     del assets  # the SDF grids (~1 MB an object): training reads the clouds ``data`` holds
     train_index, val_index = split_validation(len(grasps), settings.validation_fraction, seed)
     result = train_cvae(
@@ -240,8 +241,8 @@ def plot_history(history: pd.DataFrame, path: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    names = ("total", *LOSS_TERMS, *[SURFACE_PENETRATION_TERM] * (f"train_{SURFACE_PENETRATION_TERM}" in history.columns))
-    fig, axes = plt.subplots(3, 3, figsize=(12, 9), sharex=True)
+    names = ("total", *LOSS_TERMS, *[term for term in SURFACE_TERMS if f"train_{term}" in history.columns])
+    fig, axes = plt.subplots(math.ceil(len(names) / 3), 3, figsize=(12, 3 * math.ceil(len(names) / 3)), sharex=True, squeeze=False)
     for ax, name in zip(axes.flat, names):
         for split, style in (("train", "-"), ("val", "--")):
             column = f"{split}_{name}"

@@ -2,8 +2,8 @@
 energies of the decoded pose.
 
 Loss per batch = w_recon recon + w_KL KL + w_fc E_fc + w_dis E_dis + w_pen E_pen +
-w_spen E_spen + w_joints E_joints (+ w_surface_pen, the penetration read off the object's surface samples,
-``model.surface_penetration``), each term the mean over the batch's grasps (recon is
+w_spen E_spen + w_joints E_joints (+ the terms read off the objects' surface samples, ``model.surface_terms``:
+w_surface_pen surface_pen + w_surface_dis surface_dis), each term the mean over the batch's grasps (recon is
 the squared error summed over the pose's components, ``pose.reconstruction_error``). The
 energies, when weighted, are evaluated through differentiable forward kinematics of the
 *decoded* pose (``energy_terms``); at weight 0 (the default) they are not computed, since
@@ -37,7 +37,7 @@ from dexlite_pipeline.energy.grasp_energy import GraspEnergy
 from dexlite_pipeline.hand.rotation import matrix_to_euler_xyz
 from dexlite_pipeline.model.data import Batch, TrainingData, cloud_batches, make_batch
 from dexlite_pipeline.model.association import nearest_to_ray
-from dexlite_pipeline.model.config import ENERGY_TERMS, LOSS_TERMS, SURFACE_PENETRATION_TERM, TABLE_TERM, TrainConfig
+from dexlite_pipeline.model.config import ENERGY_TERMS, LOSS_TERMS, SURFACE_TERMS, TABLE_TERM, TrainConfig
 from dexlite_pipeline.model.flow import GraspFlow, generator_family, make_generator, network_config
 from dexlite_pipeline.model.network import GraspCVAE, anchor_at, kl_divergence
 from dexlite_pipeline.model.pose import features_to_parts, features_to_pose, pose_errors, reconstruction_error, vertical_rotation
@@ -82,13 +82,13 @@ def grasp_energy_terms(energy: GraspEnergy, contact_samples: int = 0, seed: int 
     return terms
 
 
-def with_surface_penetration(energy_terms: EnergyTerms, surface: Callable[..., torch.Tensor], mesh: bool) -> EnergyTerms:
-    """``energy_terms`` (when ``mesh``: some mesh energy is weighted) and the surface-sample penetration
-    (``model.surface_penetration``, ``SURFACE_PENETRATION_TERM``) of each decoded pose."""
+def with_surface_terms(energy_terms: EnergyTerms, surface: Callable[..., dict[str, torch.Tensor]], mesh: bool) -> EnergyTerms:
+    """``energy_terms`` (when ``mesh``: some mesh energy is weighted) and the surface-sample terms (``model.surface_terms``)
+    of each decoded pose; ``batch_loss`` passes the training grasps' poses as ``target``."""
 
-    def terms(palm_rot, palm_t, joints, object_index, scale, dataset_contacts):
+    def terms(palm_rot, palm_t, joints, object_index, scale, dataset_contacts, target):
         out = energy_terms(palm_rot, palm_t, joints, object_index, scale, dataset_contacts) if mesh else {}
-        out[SURFACE_PENETRATION_TERM] = surface(palm_rot, palm_t, joints, object_index, scale)
+        out.update(surface(palm_rot, palm_t, joints, object_index, scale, target))
         return out
 
     return terms
@@ -156,7 +156,8 @@ def batch_loss(
         palm_rot, palm_t, joints = features_to_parts(decoded)
         object_index = torch.as_tensor(data.object_index[batch.grasp_index], device=device)
         scale = torch.as_tensor(data.scale[batch.grasp_index], dtype=torch.float32, device=device)
-        terms.update(energy_terms(palm_rot, palm_t, joints, object_index, scale, data.contact_index[index]))
+        surface = {"target": features_to_parts(data.pose_features[index])} if any(n in SURFACE_TERMS for n in energy_names) else {}
+        terms.update(energy_terms(palm_rot, palm_t, joints, object_index, scale, data.contact_index[index], **surface))
         for name in energy_names:  # the mesh energies, when only the surface-sample penetration is weighted
             if name not in terms:
                 terms[name] = torch.full_like(terms["recon"], float("nan"))

@@ -1,5 +1,5 @@
-"""The surface-sample penetration loss term: which samples it finds inside the hand, how it grows with depth, its
-gradient, and a training run with it and no mesh energy."""
+"""The loss terms read off the surface samples: which samples the penetration finds inside the hand, how it grows with
+depth, its gradient; the pads' heights against the training grasp's; a training run with both and no mesh energy."""
 
 import dataclasses
 
@@ -10,11 +10,11 @@ import torch
 from dexlite_pipeline.energy.config import EnergyConfig
 from dexlite_pipeline.energy.grasp_energy import GraspEnergy
 from dexlite_pipeline.hand.rotation import euler_xyz_to_matrix
-from dexlite_pipeline.model.config import SURFACE_PENETRATION_TERM, TrainConfig
+from dexlite_pipeline.model.config import SURFACE_DISTANCE_TERM, SURFACE_PENETRATION_TERM, TrainConfig
 from dexlite_pipeline.model.data import ObjectClouds, build_training_data
-from dexlite_pipeline.model.surface_penetration import samples_inside_hand, surface_penetration_terms
+from dexlite_pipeline.model.surface_terms import samples_inside_hand, surface_terms
 from dexlite_pipeline.model.trainer import unbuilt_energy_terms, uses_energies
-from dexlite_pipeline.model.training import train_cvae, with_surface_penetration
+from dexlite_pipeline.model.training import train_cvae, with_surface_terms
 
 
 @pytest.fixture(scope="module")
@@ -35,9 +35,13 @@ def _moved(pose: torch.Tensor, scale: torch.Tensor, toward_object_m: float) -> t
     return moved
 
 
-def _term(hand, tiny_assets, pose, index, scale):
-    term = surface_penetration_terms(hand, ObjectClouds(tiny_assets))
-    return term(euler_xyz_to_matrix(pose[:, 3:6]), pose[:, :3], pose[:, 6:], index, scale)
+def _parts(pose):
+    return euler_xyz_to_matrix(pose[:, 3:6]), pose[:, :3], pose[:, 6:]
+
+
+def _term(hand, tiny_assets, pose, index, scale, name=SURFACE_PENETRATION_TERM, target=None):
+    terms = surface_terms(hand, ObjectClouds(tiny_assets), (name,))
+    return terms(*_parts(pose), index, scale, _parts(pose if target is None else target))[name]
 
 
 def test_the_culled_search_finds_exactly_the_samples_inside_the_hand(hand, tiny_assets, poses):
@@ -77,15 +81,28 @@ def test_a_step_against_its_gradient_takes_the_hand_out(hand, tiny_assets, poses
     assert (_term(hand, tiny_assets, step, index, scale) < value.detach()).float().mean() > 0.9
 
 
-def test_training_with_it_builds_no_mesh_energy_and_logs_it(hand, tiny_assets, make_grasps, small_model_config):
+def test_the_pad_heights_match_at_the_training_grasp_and_grow_either_way(hand, tiny_assets, poses):
+    pose, index, scale = poses
+    at_target = _term(hand, tiny_assets, pose, index, scale, SURFACE_DISTANCE_TERM, target=pose)
+    assert torch.equal(at_target, torch.zeros_like(at_target))
+    for offset in (-0.01, 0.01):  # too far and too deep alike; a pad's height changes by at most the 1 cm it moved (1 cm²)
+        moved = _term(hand, tiny_assets, _moved(pose, scale, offset), index, scale, SURFACE_DISTANCE_TERM, target=pose)
+        assert ((moved > 0.1) & (moved <= 1.0 + 1e-4)).all(), moved
+    with pytest.raises(ValueError, match="unknown surface terms"):
+        surface_terms(hand, ObjectClouds(tiny_assets), ("surface_fc",))
+
+
+def test_training_with_them_builds_no_mesh_energy_and_logs_them(hand, tiny_assets, make_grasps, small_model_config):
     grasps = make_grasps(hand, 8, seed=1)
     data = build_training_data(grasps, tiny_assets, hand)
     config = TrainConfig(model=small_model_config, epochs=20, max_steps=0, batch_size=8, clouds_per_batch=2, points_per_cloud=64,
-                         learning_rate=3e-3, validation_fraction=0.0, energy_warmup_fraction=0.0, weight_surface_penetration=10.0)
-    assert not uses_energies(config, table=True) and SURFACE_PENETRATION_TERM in config.weights()
-    assert SURFACE_PENETRATION_TERM not in dataclasses.replace(config, weight_surface_penetration=0.0).weights()
-    terms = with_surface_penetration(unbuilt_energy_terms, surface_penetration_terms(hand, data.clouds), mesh=False)
+                         learning_rate=3e-3, validation_fraction=0.0, energy_warmup_fraction=0.0, weight_surface_penetration=10.0,
+                         weight_surface_distance=1.0)
+    assert not uses_energies(config, table=True) and config.surface_terms() == (SURFACE_PENETRATION_TERM, SURFACE_DISTANCE_TERM)
+    assert dataclasses.replace(config, weight_surface_penetration=0.0).surface_terms() == (SURFACE_DISTANCE_TERM,)
+    terms = with_surface_terms(unbuilt_energy_terms, surface_terms(hand, data.clouds, config.surface_terms()), mesh=False)
     result = train_cvae(data, np.arange(len(grasps)), np.zeros(0, np.int64), config, terms, seed=0)
     first, last = result.history[0], result.history[-1]
-    assert np.isfinite(last[f"train_{SURFACE_PENETRATION_TERM}"]) and all(np.isnan(last[f"train_{k}"]) for k in ("fc", "pen"))
-    assert last[f"train_{SURFACE_PENETRATION_TERM}"] < first[f"train_{SURFACE_PENETRATION_TERM}"]
+    assert all(np.isnan(last[f"train_{k}"]) for k in ("fc", "pen"))
+    for term in (SURFACE_PENETRATION_TERM, SURFACE_DISTANCE_TERM):
+        assert np.isfinite(last[f"train_{term}"]) and last[f"train_{term}"] < first[f"train_{term}"]
