@@ -134,7 +134,7 @@ class TrainConfig:
         "(energy_warmup_fraction)", minimum=0)
     weight_surface_distance: float = setting(
         0.0, "the training grasp's finger-pad heights over the object's surface, decoded against trained: mean squared "
-        "difference in cm over the pads within 1 cm of the surface (model.surface_terms; 0 = not computed); ramps in with "
+        "difference, cm², over the pads within 1 cm of the surface (model.surface_terms; 0 = not computed); ramps in with "
         "the energies", minimum=0)
     energy_weights: EnergyWeights = setting(
         factory=lambda: EnergyWeights(fc=0.0, dis=0.0, pen=0.0, spen=0.0, joints=0.0, table=0.0),

@@ -31,8 +31,7 @@ from collections.abc import Callable
 import torch
 
 from dexlite_pipeline.hand.model import CAPSULE, box_signed_distance, capsule_signed_distance
-from dexlite_pipeline.model.config import SURFACE_DISTANCE_TERM as DISTANCE_TERM
-from dexlite_pipeline.model.config import SURFACE_PENETRATION_TERM as PENETRATION_TERM
+from dexlite_pipeline.model.config import SURFACE_DISTANCE_TERM, SURFACE_PENETRATION_TERM, SURFACE_TERMS
 from dexlite_pipeline.model.data import ObjectClouds
 
 REFERENCE_SAMPLES = 2000  # the object-in-hand sum reads as over this many samples (DexGraspNet's E_pen point count)
@@ -119,20 +118,20 @@ def contact_heights(hand, clouds: ObjectClouds, frames, target_frames, object_in
 
 
 def surface_terms(hand, clouds: ObjectClouds, names: tuple[str, ...]) -> SurfaceTerms:
-    """The terms ``names`` (of ``PENETRATION_TERM``, ``DISTANCE_TERM``) for decoded poses of the objects of ``clouds``."""
-    unknown = set(names) - {PENETRATION_TERM, DISTANCE_TERM}
+    """The terms ``names`` (of ``model.config.SURFACE_TERMS``) for decoded poses of the objects of ``clouds``."""
+    unknown = set(names) - set(SURFACE_TERMS)
     if unknown:
         raise ValueError(f"unknown surface terms {sorted(unknown)}")
 
     def terms(palm_rot, palm_t, joints, object_index, scale, target):
         frames = hand.forward_parts(palm_rot, palm_t, joints)
         out = {}
-        if PENETRATION_TERM in names:
-            out[PENETRATION_TERM] = penetration(hand, clouds, frames, object_index, scale)
-        if DISTANCE_TERM in names:
+        if SURFACE_PENETRATION_TERM in names:
+            out[SURFACE_PENETRATION_TERM] = penetration(hand, clouds, frames, object_index, scale)
+        if SURFACE_DISTANCE_TERM in names:
             with torch.no_grad():
                 target_frames = hand.forward_parts(*target)
-            out[DISTANCE_TERM] = contact_heights(hand, clouds, frames, target_frames, object_index, scale)
+            out[SURFACE_DISTANCE_TERM] = contact_heights(hand, clouds, frames, target_frames, object_index, scale)
         return out
 
     return terms
