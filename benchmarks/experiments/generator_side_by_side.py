@@ -1,7 +1,7 @@
 """Generators side by side on the same data: the CVAE (``train.generator: cvae``) against conditional flow matching
 (``flow``), or the CVAE with the surface-sample terms in its loss (``cvae+surface``: ``train.weight_surface_penetration``
-= ``--surface-penetration-weight``, ``train.weight_surface_distance`` = ``--surface-distance-weight``), trained with the same budget on the same grasps and measured
-on the same held-out objects.
+= ``--surface-penetration-weight``, ``train.weight_surface_distance`` = ``--surface-distance-weight``), trained with the
+same budget on the same grasps and measured on the same held-out objects.
 
     python benchmarks/experiments/generator_side_by_side.py OUT --objects OBJECTS_DIR [--dataset dataset] [--train-objects 84]
         [--steps 3000] [--seeds 0 1] [--heldout 12 | --heldout-ids ID ...] [--n 16] [--families cvae flow cvae+surface]
