@@ -82,10 +82,9 @@ def samples_inside_hand(hand, rot: torch.Tensor, centre: torch.Tensor, samples: 
         return inside // samples.shape[1], inside % samples.shape[1]
 
 
-def penetration(hand, clouds: ObjectClouds, frames, object_index: torch.Tensor, scale: torch.Tensor) -> torch.Tensor:
-    """``surface_pen`` of hands at ``frames`` (B grasps) on their objects (metres, (B,))."""
-    samples = clouds.surface[object_index] * scale[:, None, None]  # (B, Q, 3) metres, object frame
-    normals = clouds.normals[object_index]
+def penetration(hand, frames, samples: torch.Tensor, normals: torch.Tensor) -> torch.Tensor:
+    """``surface_pen`` of hands at ``frames`` (B grasps) on their objects' ``samples`` and ``normals`` (B, Q, 3; metres,
+    object frame): (B,) metres."""
     rot, centre = hand.shape_frames(frames)
     # object in hand: the few samples inside, found without gradient, then their depths again with it
     grasp, sample = samples_inside_hand(hand, rot.detach(), centre.detach(), samples)
@@ -100,11 +99,9 @@ def penetration(hand, clouds: ObjectClouds, frames, object_index: torch.Tensor, 
     return object_in_hand + below.clamp(min=0).sum(dim=1)
 
 
-def contact_heights(hand, clouds: ObjectClouds, frames, target_frames, object_index: torch.Tensor, scale: torch.Tensor) -> torch.Tensor:
-    """``surface_dis`` of hands at ``frames`` against their training grasps at ``target_frames`` (cm², (B,); 0 for a
-    grasp with no pad point in the band)."""
-    samples = clouds.surface[object_index] * scale[:, None, None]
-    normals = clouds.normals[object_index]
+def contact_heights(hand, frames, target_frames, samples: torch.Tensor, normals: torch.Tensor) -> torch.Tensor:
+    """``surface_dis`` of hands at ``frames`` against their training grasps at ``target_frames``, on the objects'
+    ``samples`` and ``normals`` (B, Q, 3): (B,) cm², 0 for a grasp with no pad point in the band."""
     with torch.no_grad():
         target_points = hand.contact_candidates(target_frames)  # (B, C, 3)
         nearest = nearest_sample_index(target_points, samples)
@@ -125,13 +122,15 @@ def surface_terms(hand, clouds: ObjectClouds, names: tuple[str, ...]) -> Surface
 
     def terms(palm_rot, palm_t, joints, object_index, scale, target):
         frames = hand.forward_parts(palm_rot, palm_t, joints)
+        samples = clouds.surface[object_index] * scale[:, None, None]  # (B, Q, 3) metres, object frame
+        normals = clouds.normals[object_index]
         out = {}
         if SURFACE_PENETRATION_TERM in names:
-            out[SURFACE_PENETRATION_TERM] = penetration(hand, clouds, frames, object_index, scale)
+            out[SURFACE_PENETRATION_TERM] = penetration(hand, frames, samples, normals)
         if SURFACE_DISTANCE_TERM in names:
             with torch.no_grad():
                 target_frames = hand.forward_parts(*target)
-            out[SURFACE_DISTANCE_TERM] = contact_heights(hand, clouds, frames, target_frames, object_index, scale)
+            out[SURFACE_DISTANCE_TERM] = contact_heights(hand, frames, target_frames, samples, normals)
         return out
 
     return terms
