@@ -106,3 +106,36 @@ def test_training_with_them_builds_no_mesh_energy_and_logs_them(hand, tiny_asset
     assert all(np.isnan(last[f"train_{k}"]) for k in ("fc", "pen"))
     for term in (SURFACE_PENETRATION_TERM, SURFACE_DISTANCE_TERM):
         assert np.isfinite(last[f"train_{term}"]) and last[f"train_{term}"] < first[f"train_{term}"]
+
+
+def test_kept_nearest_samples_give_the_searched_values_and_gradients(hand, tiny_assets, poses):
+    pose, index, scale = poses
+    clouds = ObjectClouds(tiny_assets)
+    searched = surface_terms(hand, clouds, (SURFACE_DISTANCE_TERM,))
+    kept = surface_terms(hand, clouds, (SURFACE_DISTANCE_TERM,), training_grasps=len(pose) + 5)
+    rows = torch.arange(len(pose)) + 3  # the training grasps' rows: any, as long as each names one grasp
+    target = _parts(pose)
+    for offset in (0.004, -0.006):  # the second call reads what the first kept
+        moved = _moved(pose, scale, offset)
+        values = []
+        for terms, extra in ((searched, {}), (kept, {"grasp_index": rows})):
+            decoded = moved.clone().requires_grad_(True)
+            value = terms(*_parts(decoded), index, scale, target, **extra)[SURFACE_DISTANCE_TERM]
+            value.sum().backward()
+            values.append((value.detach(), decoded.grad))
+        assert torch.equal(values[0][0], values[1][0]) and torch.equal(values[0][1], values[1][1])
+        assert (values[0][0] > 0).all()
+
+
+def test_training_with_kept_nearest_samples_is_the_same_training(hand, tiny_assets, make_grasps, small_model_config):
+    grasps = make_grasps(hand, 8, seed=1)
+    data = build_training_data(grasps, tiny_assets, hand)
+    config = TrainConfig(model=small_model_config, epochs=3, max_steps=0, batch_size=8, clouds_per_batch=2, points_per_cloud=64,
+                         learning_rate=3e-3, validation_fraction=0.0, energy_warmup_fraction=0.0, weight_surface_distance=1.0)
+    histories = []
+    for training_grasps in (0, len(data.pose_features)):
+        surface = surface_terms(hand, data.clouds, config.surface_terms(), training_grasps=training_grasps)
+        terms = with_surface_terms(unbuilt_energy_terms, surface, mesh=False)
+        histories.append(train_cvae(data, np.arange(len(grasps)), np.zeros(0, np.int64), config, terms, seed=0).history)
+    differing = {key for a, b in zip(*histories) for key in a if a[key] != b[key] and not (np.isnan(a[key]) and np.isnan(b[key]))}
+    assert differing <= {"seconds"}, differing

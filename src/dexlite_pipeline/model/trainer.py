@@ -204,8 +204,8 @@ def train_from_lift_shards(
     else:  # every energy weight 0 (the default): the loss never scores a decoded pose, so no SDF bank or point sets
         energy_terms = unbuilt_energy_terms
     if settings.surface_terms():  # read off the clouds' surface samples: no memory per object beyond them
-        energy_terms = with_surface_terms(energy_terms, surface_terms(hand_model, data.clouds, settings.surface_terms()),
-                                          mesh=uses_energies(settings, table=planes is not None))
+        surface = surface_terms(hand_model, data.clouds, settings.surface_terms(), training_grasps=len(data.pose_features))
+        energy_terms = with_surface_terms(energy_terms, surface, mesh=uses_energies(settings, table=planes is not None))
     del assets  # the SDF grids (~1 MB an object): training reads the clouds ``data`` holds
     train_index, val_index = split_validation(len(grasps), settings.validation_fraction, seed)
     result = train_cvae(

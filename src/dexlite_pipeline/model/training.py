@@ -84,11 +84,11 @@ def grasp_energy_terms(energy: GraspEnergy, contact_samples: int = 0, seed: int 
 
 def with_surface_terms(energy_terms: EnergyTerms, surface: Callable[..., dict[str, torch.Tensor]], mesh: bool) -> EnergyTerms:
     """``energy_terms`` (when ``mesh``: some mesh energy is weighted) and the surface-sample terms (``model.surface_terms``)
-    of each decoded pose; ``batch_loss`` passes the training grasps' poses as ``target``."""
+    of each decoded pose; ``batch_loss`` passes the training grasps' poses as ``target`` and their rows as ``grasp_index``."""
 
-    def terms(palm_rot, palm_t, joints, object_index, scale, dataset_contacts, target):
+    def terms(palm_rot, palm_t, joints, object_index, scale, dataset_contacts, target, grasp_index=None):
         out = energy_terms(palm_rot, palm_t, joints, object_index, scale, dataset_contacts) if mesh else {}
-        out.update(surface(palm_rot, palm_t, joints, object_index, scale, target))
+        out.update(surface(palm_rot, palm_t, joints, object_index, scale, target, grasp_index=grasp_index))
         return out
 
     return terms
@@ -156,7 +156,8 @@ def batch_loss(
         palm_rot, palm_t, joints = features_to_parts(decoded)
         object_index = torch.as_tensor(data.object_index[batch.grasp_index], device=device)
         scale = torch.as_tensor(data.scale[batch.grasp_index], dtype=torch.float32, device=device)
-        surface = {"target": features_to_parts(data.pose_features[index])} if any(n in SURFACE_TERMS for n in energy_names) else {}
+        surface = ({"target": features_to_parts(data.pose_features[index]), "grasp_index": index}
+                   if any(n in SURFACE_TERMS for n in energy_names) else {})
         terms.update(energy_terms(palm_rot, palm_t, joints, object_index, scale, data.contact_index[index], **surface))
         for name in energy_names:  # the mesh energies, when only the surface-sample penetration is weighted
             if name not in terms:
