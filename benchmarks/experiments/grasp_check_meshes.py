@@ -47,17 +47,21 @@ def run_grasp(meshes: str, out: Path, seed: int, threads: int, extra: list[str],
 
 
 def per_mesh_counts(out: Path) -> dict[str, dict]:
-    """Object id -> attempts, held, distinct held (all sources) and per source attempts / held / distinct held."""
+    """Object id -> attempts, held, distinct held, held and passed the six-direction test (``six``), the held grasps'
+    start depths (``held_start_mm``: a list, mm inside the object) (all sources) and per source held / attempts."""
     from dexlite_pipeline.io.grasp_store import read_grasp_store
 
     grasps = read_grasp_store(out / "all_grasps.zarr")
     held = np.asarray(grasps.arrays["lift_success"], bool)
+    six = held & np.asarray(grasps.arrays.get("six_dir_success", np.zeros(len(grasps), bool)), bool)
+    start_mm = np.asarray(grasps.arrays.get("initial_penetration_mm", np.full(len(grasps), np.nan)), np.float64)
     labels = np.asarray(grasps.arrays["distinct_label"])
     sources = np.asarray(grasps.arrays["source"], dtype=object)
     rows = {}
     for object_id in sorted(set(grasps.object_id.tolist())):
         mine = grasps.object_id == object_id
-        row = {"attempts": int(mine.sum()), "held": int(held[mine].sum()), "distinct": len(set(labels[mine & held].tolist()))}
+        row = {"attempts": int(mine.sum()), "held": int(held[mine].sum()), "distinct": len(set(labels[mine & held].tolist())),
+               "six": int(six[mine].sum()), "held_start_mm": start_mm[mine & held].tolist()}
         for source in ("model", "optimization"):
             part = mine & (sources == source)
             row[source] = f"{int(held[part].sum())}/{int(part.sum())}" if part.any() else "-"

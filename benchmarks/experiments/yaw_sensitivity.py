@@ -15,10 +15,11 @@ so that a turned copy rests in the same pose as the generated mesh and only its 
 ``--`` go to both calls (``-- --from-scratch``: optimization from scratch on the same files). ``--forms turned``: the
 turned copies only (the held-out measure at seeded yaw).
 
-Writes attempts, held and distinct held grasps per object, form and seed to ``OUT_DIR/yaw_objects.csv``; prints, and
-writes to ``OUT_DIR/yaw_sensitivity.md``, per family and for all objects, per seed and seeds pooled: held per attempt
-(with a Wilson 95% interval on the pooled rows) and mean distinct held grasps per object (per turned copy), as
-generated and turned, and each call's CPU-seconds. A turned mesh also gives the model other inputs, so its samples
+Writes attempts, held, held and six-direction passed, distinct held grasps and the held grasps' median start depth per
+object, form and seed to ``OUT_DIR/yaw_objects.csv``; prints, and writes to ``OUT_DIR/yaw_sensitivity.md``, per family
+and for all objects, per seed and seeds pooled: held per attempt (with a Wilson 95% interval on the pooled rows), held
+and passed the six-direction test per attempt, mean distinct held grasps per object (per turned copy) and the median
+start depth of the held grasps (mm inside the object), as generated and turned, and each call's CPU-seconds. A turned mesh also gives the model other inputs, so its samples
 differ even at the same seed: read a difference against the Wilson intervals and the spread between seeds.
 """
 
@@ -89,9 +90,11 @@ def family_of(object_id: str) -> str:
 
 
 def family_table(rows: list[dict], with_interval: bool, forms: tuple[str, ...] = FORMS) -> list[str]:
-    """Per family (in the split's order) and for all objects: held per attempt and mean distinct held per object, per form."""
-    head = " | ".join(f"{form}: held / attempts | {form}: distinct / object" for form in forms)
-    lines = [f"| family | objects | {head} |", "| --- | ---: |" + " ---: | ---: |" * len(forms)]
+    """Per family (in the split's order) and for all objects, per form: held per attempt, held and passed the six-direction
+    test per attempt, mean distinct held per object and the median start depth of the held grasps (mm inside)."""
+    head = " | ".join(f"{form}: held / attempts | {form}: six directions | {form}: distinct / object | {form}: start depth of held, "
+                      "median mm" for form in forms)  # fmt: skip
+    lines = [f"| family | objects | {head} |", "| --- | ---: |" + " ---: | ---: | ---: | ---: |" * len(forms)]
     families = list(dict.fromkeys(r["family"] for r in rows))
     groups = [(family, [r for r in rows if r["family"] == family]) for family in families] + [("**all objects**", rows)]
     for name, group in groups:
@@ -100,8 +103,12 @@ def family_table(rows: list[dict], with_interval: bool, forms: tuple[str, ...] =
         cells = []
         for form in forms:
             mine = [r for r in group if r["form"] == form]
-            cells += [held_cell(sum(r["held"] for r in mine), sum(r["attempts"] for r in mine), with_interval),
-                      f"{np.mean([r['distinct'] for r in mine]):.2f}" if mine else "-"]  # fmt: skip
+            attempts = sum(r["attempts"] for r in mine)
+            depths = [d for r in mine for d in r["held_start_mm"]]
+            cells += [held_cell(sum(r["held"] for r in mine), attempts, with_interval),
+                      f"{100 * sum(r['six'] for r in mine) / attempts:.1f}%" if attempts else "-",
+                      f"{np.mean([r['distinct'] for r in mine]):.2f}" if mine else "-",
+                      f"{np.median(depths):.2f}" if depths else "-"]  # fmt: skip
         lines.append(f"| {name} | {len({r['object_id'] for r in group})} | " + " | ".join(cells) + " |")
     return lines
 
@@ -147,10 +154,10 @@ def main(argv: list[str] | None = None) -> int:
             costs.append(f"{form} {cpu:.0f} CPU-s ({wall:.0f} s wall)")
             counts = per_mesh_counts(out)
             for stem, (object_id, yaw) in copies[form].items():
-                count = counts.get(f"user-{stem}", {"attempts": 0, "held": 0, "distinct": 0})
+                count = counts.get(f"user-{stem}", {"attempts": 0, "held": 0, "distinct": 0, "six": 0, "held_start_mm": []})
                 seed_rows.append({"seed": seed, "object_id": object_id, "family": family_of(object_id), "form": form,
                                   "yaw_deg": round(float(np.degrees(yaw)), 2), "attempts": count["attempts"], "held": count["held"],
-                                  "distinct": count["distinct"]})  # fmt: skip
+                                  "distinct": count["distinct"], "six": count["six"], "held_start_mm": count["held_start_mm"]})  # fmt: skip
         rows += seed_rows
         missing = sorted({f"{r['object_id']} ({r['form']})" for r in seed_rows if not r["attempts"]})
         section = [f"## Seed {seed}", "", f"`dexlite grasp` calls: {', '.join(costs)}.", "",
@@ -162,9 +169,12 @@ def main(argv: list[str] | None = None) -> int:
     print("\n".join(pooled))
     (args.out_dir / "yaw_sensitivity.md").write_text("\n".join(report + pooled))
     with open(args.out_dir / "yaw_objects.csv", "w", newline="") as file:
-        writer = csv.DictWriter(file, fieldnames=list(rows[0]))
+        writer = csv.DictWriter(file, fieldnames=[k for k in rows[0] if k != "held_start_mm"] + ["held_start_median_mm"])
         writer.writeheader()
-        writer.writerows(rows)
+        for row in rows:
+            depths = row["held_start_mm"]
+            writer.writerow({**{k: v for k, v in row.items() if k != "held_start_mm"},
+                             "held_start_median_mm": f"{np.median(depths):.3f}" if depths else ""})
     return 0
 
 

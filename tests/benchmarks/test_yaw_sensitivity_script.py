@@ -4,7 +4,8 @@ import numpy as np
 
 
 def _row(object_id, family, form, held, distinct=1):
-    return {"seed": 0, "object_id": object_id, "family": family, "form": form, "yaw_deg": 0.0, "attempts": 4, "held": held, "distinct": distinct}
+    return {"seed": 0, "object_id": object_id, "family": family, "form": form, "yaw_deg": 0.0, "attempts": 4, "held": held,
+            "distinct": distinct, "six": held // 2, "held_start_mm": [0.4 * k for k in range(1, held + 1)]}
 
 
 def test_families_of_the_shapes_split_and_tables_of_one_form(benchmark_script):
@@ -13,11 +14,13 @@ def test_families_of_the_shapes_split_and_tables_of_one_form(benchmark_script):
     assert script.family_of("household-mug-900-p1") == "mug (perturbed)"
     rows = [_row("household-kettle-900", "kettle", "turned", 1), _row("household-mug-900-p1", "mug (perturbed)", "turned", 3, 2)]
     lines = script.family_table(rows, False, ("turned",))
-    assert lines[0] == "| family | objects | turned: held / attempts | turned: distinct / object |"
-    assert lines[2] == "| kettle | 1 | 1/4 = 25.0% | 1.00 |" and lines[3] == "| mug (perturbed) | 1 | 3/4 = 75.0% | 2.00 |"
-    assert lines[4] == "| **all objects** | 2 | 4/8 = 50.0% | 1.50 |"
+    assert lines[0] == ("| family | objects | turned: held / attempts | turned: six directions | turned: distinct / object | turned: "
+                        "start depth of held, median mm |")
+    assert lines[2] == "| kettle | 1 | 1/4 = 25.0% | 0.0% | 1.00 | 0.40 |"
+    assert lines[3] == "| mug (perturbed) | 1 | 3/4 = 75.0% | 25.0% | 2.00 | 0.80 |"
+    assert lines[4] == "| **all objects** | 2 | 4/8 = 50.0% | 12.5% | 1.50 | 0.60 |"  # depths 0.4 | 0.4, 0.8, 1.2
     both = script.family_table(rows, False)  # the default: generated and turned; a form without rows shows '-'
-    assert both[2].startswith("| kettle | 1 | - | - | 1/4 = 25.0%")
+    assert both[2].startswith("| kettle | 1 | - | - | - | - | 1/4 = 25.0%")
 
 
 def test_yaws_are_seeded_per_object_and_seed(benchmark_script):
