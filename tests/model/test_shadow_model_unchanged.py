@@ -1,15 +1,17 @@
-"""The Shadow Hand's model path gives the same numbers, bit for bit, as when they were pinned (first: before the model
-stages learned other hands).
+"""The Shadow Hand's model path gives the same numbers as when they were pinned (first: before the model stages learned
+other hands), to float rounding.
 
-The shipped model (a Shadow Hand model) samples, reconstructs and is
-scored by the shipped evaluator on two synthetic objects with fixed seeds, and a small CVAE is trained on closed-form
-Shadow Hand grasps of them; the SHA-256 of every resulting float32 array must equal the digest pinned (``EXPECTED_DIGESTS``, ``EXPECTED_TRAINING_DIGESTS``), and a few of the values are kept in clear so
-that a failure shows how far they moved. One torch thread, CPU.
+The shipped model (a Shadow Hand model) samples, reconstructs and is scored by the shipped evaluator on two synthetic
+objects with fixed seeds, and a small CVAE is trained on closed-form Shadow Hand grasps of them; each resulting array's
+signature (``signature``: its sum, its sum of magnitudes, its norm and two seeded projections, which move when any
+element does) and its first three values must match the pinned ones within ``RELATIVE_TOLERANCE``. Not bit for bit:
+another CPU rounds float32 differently (an AMD EPYC against the Intel Xeon the values were pinned on: every array moved
+by about 1e-6 of its values, with the same code), while a change of what the model path computes moves them by far
+more. One torch thread, CPU.
 """
 
 from __future__ import annotations
 
-import hashlib
 from types import SimpleNamespace
 
 import numpy as np
@@ -21,16 +23,17 @@ from dexlite_pipeline.model.shipped import shipped_evaluator_path, shipped_model
 OBJECT_SURFACE_SAMPLES = 600  # >= the shipped evaluator's 512 points per cloud
 SYNTHESES_PER_OBJECT = 3
 RECONSTRUCTED_GRASPS = 6
+RELATIVE_TOLERANCE = 1e-4  # of each number's scale (below): ~100x the rounding difference between two CPUs
 
-# sha256 of the float32 bytes of each array as the shipped model gives them: first pinned at the commit before
-# hand-following model stages (5f4e6a8), pinned again when sampling began to centre turned clouds' boxes and when the
-# whole-dataset model (five grasp types, eight codes per cloud) was shipped: a change here is a change of what the
-# shipped model gives, to be explained, then pinned anew
-EXPECTED_DIGESTS = {
-    "synthesized": "c32b92e8bf9cb2ee4a23819c9a5ff6de441fb546025fe773506d247799454125",
-    "ray_origin": "3c96fdd8313108f54af126a8b15de76ff050921dd2a17a463cb1304857a6a348",
-    "reconstructed": "f1c2dd5f0db1517aa85c80f22573d2a5fb4d4986911a97c3616148a2adc7c56e",
-    "held_probability": "4ba0611c6298b2244242f2691a6a70a35809f301229d5f79fe94b5ba3f30966c",
+# the arrays as the shipped model gives them: first pinned at the commit before hand-following model stages (5f4e6a8),
+# pinned again when sampling began to centre turned clouds' boxes and when the whole-dataset model (five grasp types,
+# eight codes per cloud) was shipped; a change here is a change of what the shipped model gives, to be explained, then
+# pinned anew (run this file as a script to print the values)
+EXPECTED_SIGNATURES = {  # ``signature`` of each array, pinned on an AMD EPYC with the code of the digests before them
+    "synthesized": [59.91317535471171, 85.70312034431845, 9.885987340086265, 5.150818727481175, 4.251306353839768],
+    "ray_origin": [-2.7357594463974237, 9.336564959958196, 2.464393042766839, -0.6106249691429728, 1.9961761611951965],
+    "reconstructed": [48.77315032714978, 57.52226299373433, 7.477769379407383, 4.460040815608618, 6.027843833227639],
+    "held_probability": [0.18195580132305622, 0.18195580132305622, 0.1062037389373489, -0.08635425012413368, -0.15115290933413167],
 }
 EXPECTED_FIRST_VALUES = {  # the first three numbers of each array, as printed when pinned (float32 -> repr)
     "synthesized": [0.04322386533021927, -0.054874032735824585, 0.11420293897390366],
@@ -39,10 +42,10 @@ EXPECTED_FIRST_VALUES = {  # the first three numbers of each array, as printed w
     "held_probability": [0.06587875634431839, 0.0044405353255569935, 0.002417502924799919],
 }
 
-EXPECTED_TRAINING_DIGESTS = {  # the same for the small CVAE trained by ``shadow_training_outputs``, at 5f4e6a8
-    "weights": "41581d308ea13b70e685b0599f97a409eee4e63a387d31a14bd212a032ee5d47",
-    "history": "a1f2d8dfcfdc1d0f0f5c63a5076420717b49743d12f7aabaded56031461894e1",
-    "fit": "b9cc536ecf4c6b2e086852e1da26b11a3f767ef092821e3ce9c4907d7f393ce9",
+EXPECTED_TRAINING_SIGNATURES = {  # the same for the small CVAE trained by ``shadow_training_outputs``, as at 5f4e6a8
+    "weights": [37.75144635741344, 651.0117019351001, 12.129867536159438, -14.66811756656052, -14.27501381108393],
+    "history": [75.4088289514184, 115.4088289514184, 30.579179896605144, 25.374883479865375, 28.666122688739506],
+    "fit": [148.43591058254242, 148.43591058254242, 102.2372394125267, -9.404830510094556, -110.22818047564677],
 }
 EXPECTED_TRAINING_FIRST_VALUES = {
     "weights": [-0.02185169607400894, -0.2172134965658188, -0.04840953275561333],
@@ -132,28 +135,49 @@ def shadow_training_outputs() -> dict[str, np.ndarray]:
     }
 
 
-def digest(array: np.ndarray) -> str:
-    return hashlib.sha256(np.ascontiguousarray(array, dtype=np.float32).tobytes()).hexdigest()
+def signature(array: np.ndarray) -> list[float]:
+    """Sum, sum of magnitudes, Euclidean norm and two seeded random projections of ``array`` (float64)."""
+    values = np.asarray(array, np.float64).ravel()
+    projections = np.random.default_rng(20261206).normal(size=(2, values.size)) @ values
+    return [float(values.sum()), float(np.abs(values).sum()), float(np.linalg.norm(values)), *map(float, projections)]
+
+
+def assert_as_pinned(outputs: dict[str, np.ndarray], signatures: dict[str, list[float]], first_values: dict[str, list[float]]) -> None:
+    """Each array's signature and first values within ``RELATIVE_TOLERANCE`` of the pinned ones, relative to the array's
+    scale (its norm, for the signature's sums and projections; its largest magnitude, for single values)."""
+    assert set(outputs) == set(signatures) == set(first_values)
+    for name, array in outputs.items():
+        values = np.asarray(array, np.float64).ravel()
+        norm, largest = np.linalg.norm(values), np.abs(values).max()
+        moved = np.abs(np.asarray(signature(array)) - np.asarray(signatures[name])).max() / max(norm, 1e-12)
+        assert moved < RELATIVE_TOLERANCE, f"{name}: signature moved by {moved:.2e} of its norm: {signature(array)} != {signatures[name]}"
+        first = np.abs(values[:3] - np.asarray(first_values[name])).max() / max(largest, 1e-12)
+        assert first < RELATIVE_TOLERANCE, f"{name}: first values {values[:3].tolist()} != {first_values[name]}"
 
 
 @pytest.mark.skipif(shipped_model_path() is None or shipped_evaluator_path() is None, reason="the package was installed without its data")
-def test_the_shadow_hand_model_path_is_bit_for_bit_as_before():
+def test_the_shadow_hand_model_path_is_as_before():
     outputs = shadow_model_outputs()
     assert outputs["synthesized"].shape == (2 * SYNTHESES_PER_OBJECT, 28)
-    first = {name: [float(v) for v in array.ravel()[:3]] for name, array in outputs.items()}
-    assert first == EXPECTED_FIRST_VALUES
-    assert {name: digest(array) for name, array in outputs.items()} == EXPECTED_DIGESTS
+    assert_as_pinned(outputs, EXPECTED_SIGNATURES, EXPECTED_FIRST_VALUES)
 
 
-def test_the_shadow_hand_model_trains_bit_for_bit_as_before():
-    outputs = shadow_training_outputs()
-    first = {name: [float(v) for v in array.ravel()[:3]] for name, array in outputs.items()}
-    assert first == EXPECTED_TRAINING_FIRST_VALUES
-    assert {name: digest(array) for name, array in outputs.items()} == EXPECTED_TRAINING_DIGESTS
+def test_the_shadow_hand_model_trains_as_before():
+    assert_as_pinned(shadow_training_outputs(), EXPECTED_TRAINING_SIGNATURES, EXPECTED_TRAINING_FIRST_VALUES)
 
 
-if __name__ == "__main__":  # print the digests and first values (to fill in the expected ones)
+def test_the_check_fails_on_a_change_beyond_rounding():
+    outputs = {"a": np.linspace(-1.0, 1.0, 50, dtype=np.float32) ** 3}
+    pinned, first = {"a": signature(outputs["a"])}, {"a": [float(v) for v in outputs["a"][:3]]}
+    assert_as_pinned({"a": outputs["a"] * np.float32(1 + 1e-6)}, pinned, first)  # rounding-sized: passes
+    moved = outputs["a"].copy()
+    moved[30] += 1e-3  # one element of fifty, by 0.1% of the largest: fails
+    with pytest.raises(AssertionError, match="signature moved"):
+        assert_as_pinned({"a": moved}, pinned, first)
+
+
+if __name__ == "__main__":  # print the signatures and first values (to fill in the expected ones)
     torch.set_num_threads(1)
     for computed in (shadow_model_outputs(), shadow_training_outputs()):
-        print({name: digest(array) for name, array in computed.items()})
+        print({name: signature(array) for name, array in computed.items()})
         print({name: [float(v) for v in array.ravel()[:3]] for name, array in computed.items()})

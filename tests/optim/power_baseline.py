@@ -5,7 +5,8 @@ generator in batch order (the ``optimize_grasps`` stage) and once keyed by objec
 with every phase on: contact switches, contact searches during the run and after it, a hopeless-stop checkpoint
 and contact resolution. ``python tests/optim/power_baseline.py OUT.npz OBJECTS_DIR`` writes its arrays; the
 fixture ``tests/fixtures/power_baseline.npz`` was written so by the code before grasp types existed, and
-``test_grasp_types.py`` compares a power-only run of today's code with it bit for bit.
+``test_grasp_types.py`` compares a power-only run of today's code with it (the starts bit for bit, the optimized
+grasps to float rounding, which another CPU does otherwise).
 """
 
 from __future__ import annotations
