@@ -4,6 +4,10 @@ Python exceptions become per-item error results. A worker that dies outright (a 
 a native library, an out-of-memory kill) breaks a ``ProcessPoolExecutor`` and fails every
 pending future; the items left unfinished are then re-run one per fresh single-worker
 process, so the item that kills its worker is identified and reported, and the rest finish.
+
+A worker ends with the process that started it: a stage killed by Snakemake, by a scheduler or by hand (SIGTERM,
+SIGKILL) would otherwise leave its workers running, each on a core, until their items are done. Each worker checks
+every ``PARENT_CHECK_S`` seconds that its parent is still the process that started it, and exits at once when not.
 """
 
 from __future__ import annotations
@@ -11,6 +15,8 @@ from __future__ import annotations
 import logging
 import multiprocessing
 import os
+import threading
+import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from concurrent.futures.process import BrokenProcessPool
@@ -21,16 +27,37 @@ log = logging.getLogger(__name__)
 T = TypeVar("T")
 R = TypeVar("R")
 
+PARENT_CHECK_S = 1.0  # how often a worker checks that the process that started it still runs (seconds)
+ORPHAN_EXIT_STATUS = 3  # a worker's exit status when its parent died
 
-def _single_threaded_worker() -> None:
-    """Each worker owns one core: keep native libraries from spawning their own threads."""
+
+def _exit_with_parent(parent_pid: int, check_s: float = PARENT_CHECK_S) -> None:
+    """Start a daemon thread that ends this process (``os._exit``: no cleanup, the parent is gone) once its parent is no
+    longer ``parent_pid`` (a process whose parent dies is handed to another: init or a subreaper)."""
+
+    def watch() -> None:
+        while os.getppid() == parent_pid:
+            time.sleep(check_s)
+        os._exit(ORPHAN_EXIT_STATUS)
+
+    threading.Thread(target=watch, name="exit-with-parent", daemon=True).start()
+
+
+def _single_threaded_worker(parent_pid: int) -> None:
+    """Each worker owns one core (native libraries spawn no threads of their own) and ends with ``parent_pid``."""
     for name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "IGL_NUM_THREADS"):
         os.environ[name] = "1"
+    _exit_with_parent(parent_pid)
+
+
+def _pool(workers: int) -> ProcessPoolExecutor:
+    """``workers`` spawned single-threaded worker processes that end with this process."""
+    context = multiprocessing.get_context("spawn")
+    return ProcessPoolExecutor(workers, mp_context=context, initializer=_single_threaded_worker, initargs=(os.getpid(),))
 
 
 def _run_isolated(func: Callable[[T], R], item: T, on_error: Callable[[T, str], R]) -> R:
-    context = multiprocessing.get_context("spawn")
-    with ProcessPoolExecutor(1, mp_context=context, initializer=_single_threaded_worker) as pool:
+    with _pool(1) as pool:
         try:
             return pool.submit(func, item).result()
         except BrokenProcessPool:
@@ -63,9 +90,8 @@ def resilient_map(
             if progress:
                 progress(i + 1, len(items))
         return results  # type: ignore[return-value]
-    context = multiprocessing.get_context("spawn")
     finished = 0
-    with ProcessPoolExecutor(min(workers, max(1, len(items))), mp_context=context, initializer=_single_threaded_worker) as pool:
+    with _pool(min(workers, max(1, len(items)))) as pool:
         futures = {pool.submit(func, item): i for i, item in enumerate(items)}
         for future in as_completed(futures):
             i = futures[future]
