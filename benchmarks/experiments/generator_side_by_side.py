@@ -5,13 +5,14 @@ same budget on the same grasps and measured on the same held-out objects.
 
     python benchmarks/experiments/generator_side_by_side.py OUT --objects OBJECTS_DIR [--dataset dataset] [--train-objects 84]
         [--steps 3000] [--seeds 0 1] [--heldout 12 | --heldout-ids ID ...] [--n 16] [--families cvae flow cvae+surface]
-        [--surface-penetration-weight 0] [--surface-distance-weight 0] [--modes raw "backed out" refined] [--threads 1]
+        [--surface-penetration-weight 0] [--surface-distance-weight 0] [--train-json JSON] [--modes raw "backed out" refined]
+        [--threads 1]
 
 Training data: the held grasps of the repository's grasp dataset (``dataset.load_dataset``) on the training objects prepared
 in ``OBJECTS_DIR`` (a ``dexlite prepare-objects`` output whose catalog lists household training objects the dataset holds;
 ``--train-objects K``: a seeded subset of K of them, the same for every family and seed). Each family is trained with the
-pipeline's default section ``train`` (config.yaml), ``max_steps`` = ``--steps`` and ``seed`` = the seed, on one torch
-thread; the training grasps, batches and validation split are the same for every family at a seed. Models go to
+pipeline's default section ``train`` (config.yaml; ``--train-json``: keys of that section over it, for every family, e.g.
+the networks' sizes), ``max_steps`` = ``--steps`` and ``seed`` = the seed, on one torch thread; the training grasps, batches and validation split are the same for every family at a seed. Models go to
 ``OUT/seed_<s>/<family>.pt``.
 
 Held-out objects: the first ``--heldout`` objects of the household split (``objects/household_split.yaml``; the first
@@ -40,6 +41,7 @@ from __future__ import annotations
 import argparse
 import csv
 import dataclasses
+import json
 import sys
 import time
 from pathlib import Path
@@ -73,13 +75,14 @@ def training_grasps(dataset_dir: Path, objects_dir: Path, count: int):
 
 
 def train_family(family: str, grasps, object_ids: list[str], objects_dir: Path, steps: int, seed: int, path: Path,
-                 surface_weights: tuple[float, float] = (0.0, 0.0)) -> float:
-    """Train one family on ``grasps`` with the default section ``train`` at ``steps`` and ``seed``, write the model file to
-    ``path``; returns the training's CPU-seconds. ``cvae+surface``: the CVAE with the surface-sample terms in its loss at
-    weights ``surface_weights`` (``train.weight_surface_penetration``, ``train.weight_surface_distance``)."""
+                 surface_weights: tuple[float, float] = (0.0, 0.0), train_overlay: dict | None = None) -> float:
+    """Train one family on ``grasps`` with the default section ``train`` (with ``train_overlay`` over it: keys of the
+    section, as a config file would give them) at ``steps`` and ``seed``, write the model file to ``path``; returns the
+    training's CPU-seconds. ``cvae+surface``: the CVAE with the surface-sample terms in its loss at weights
+    ``surface_weights`` (``train.weight_surface_penetration``, ``train.weight_surface_distance``)."""
     import torch
 
-    from dexlite_pipeline.config import load_config
+    from dexlite_pipeline.config import load_config, merge_config
     from dexlite_pipeline.hand import ShadowHand
     from dexlite_pipeline.model.checkpoint import save_checkpoint
     from dexlite_pipeline.model.data import build_training_data, split_validation
@@ -91,7 +94,8 @@ def train_family(family: str, grasps, object_ids: list[str], objects_dir: Path, 
 
     repository = Path(__file__).resolve().parents[2]
     penetration, distance = surface_weights if family.endswith("+surface") else (0.0, 0.0)
-    config = dataclasses.replace(build_config(load_config(repository / "config.yaml")).train, max_steps=steps, seed=seed,
+    mapping = merge_config(load_config(repository / "config.yaml"), {"train": train_overlay or {}})
+    config = dataclasses.replace(build_config(mapping).train, max_steps=steps, seed=seed,
                                  generator=family.split("+")[0], weight_surface_penetration=penetration, weight_surface_distance=distance)
     start = time.process_time()
     hand = ShadowHand("cpu")
@@ -100,7 +104,8 @@ def train_family(family: str, grasps, object_ids: list[str], objects_dir: Path, 
     train_index, val_index = split_validation(len(grasps), config.validation_fraction, seed)
     energy_terms = None
     if config.surface_terms():
-        energy_terms = with_surface_terms(unbuilt_energy_terms, surface_terms(hand, data.clouds, config.surface_terms()), mesh=False)
+        surface = surface_terms(hand, data.clouds, config.surface_terms(), training_grasps=len(data.pose_features))
+        energy_terms = with_surface_terms(unbuilt_energy_terms, surface, mesh=False)
     result = train_cvae(data, train_index, val_index, config, energy_terms, seed)
     fit = fit_training_codes(result.model, data, train_index, config)
     last = result.history[-1]
@@ -193,6 +198,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--families", nargs="+", default=["cvae", "flow"], choices=["cvae", "flow", "cvae+surface"])
     parser.add_argument("--surface-penetration-weight", type=float, default=0.0, help="cvae+surface: train.weight_surface_penetration")
     parser.add_argument("--surface-distance-weight", type=float, default=0.0, help="cvae+surface: train.weight_surface_distance")
+    parser.add_argument("--train-json", type=json.loads, default={}, metavar="JSON",
+                        help='keys of the config section train over the default for every family, e.g. \'{"model": {"decoder_hidden": [512, 512]}}\'')
     parser.add_argument("--heldout-ids", nargs="+", default=None, metavar="ID",
                         help="household object ids instead of the household split's first --heldout (to choose a setting elsewhere)")
     parser.add_argument("--modes", nargs="+", default=list(MODES), choices=list(MODES))
@@ -220,7 +227,8 @@ def main(argv: list[str] | None = None) -> int:
             model.parent.mkdir(parents=True, exist_ok=True)
             reuse = args.reuse_models and model.is_file()
             train_s = float("nan") if reuse else train_family(family, grasps, object_ids, args.objects, args.steps, seed, model,
-                                                                (args.surface_penetration_weight, args.surface_distance_weight))
+                                                                (args.surface_penetration_weight, args.surface_distance_weight),
+                                                                args.train_json)
             calls = [] if args.skip_heldout else [(mode, mode, meshes) for mode in args.modes]
             if args.in_distribution:
                 calls.append((TRAINING_OBJECTS_MODE, "raw", training_meshes(object_ids, args.in_distribution)))
