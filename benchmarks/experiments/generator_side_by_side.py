@@ -12,8 +12,8 @@ Training data: the held grasps of the repository's grasp dataset (``dataset.load
 in ``OBJECTS_DIR`` (a ``dexlite prepare-objects`` output whose catalog lists household training objects the dataset holds;
 ``--train-objects K``: a seeded subset of K of them, the same for every family and seed). Each family is trained with the
 pipeline's default section ``train`` (config.yaml; ``--train-json``: keys of that section over it, for every family, e.g.
-the networks' sizes), ``max_steps`` = ``--steps`` and ``seed`` = the seed, on one torch thread; the training grasps, batches and validation split are the same for every family at a seed. Models go to
-``OUT/seed_<s>/<family>.pt``.
+the networks' sizes), ``max_steps`` = ``--steps`` and ``seed`` = the seed, on one torch thread; the training grasps,
+batches and validation split are the same for every family at a seed. Models go to ``OUT/seed_<s>/<family>.pt``.
 
 Held-out objects: the first ``--heldout`` objects of the household split (``objects/household_split.yaml``; the first
 twelve are instance 900 of each of the twelve families), never in the dataset, or ``--heldout-ids`` (e.g. instances of no

@@ -19,8 +19,9 @@ Writes attempts, held, held and six-direction passed, distinct held grasps and t
 object, form and seed to ``OUT_DIR/yaw_objects.csv``; prints, and writes to ``OUT_DIR/yaw_sensitivity.md``, per family
 and for all objects, per seed and seeds pooled: held per attempt (with a Wilson 95% interval on the pooled rows), held
 and passed the six-direction test per attempt, mean distinct held grasps per object (per turned copy) and the median
-start depth of the held grasps (mm inside the object), as generated and turned, and each call's CPU-seconds. A turned mesh also gives the model other inputs, so its samples
-differ even at the same seed: read a difference against the Wilson intervals and the spread between seeds.
+start depth of the held grasps (mm inside the object), as generated and turned, and each call's CPU-seconds. A turned
+mesh also gives the model other inputs, so its samples differ even at the same seed: read a difference against the
+Wilson intervals and the spread between seeds.
 """
 
 from __future__ import annotations

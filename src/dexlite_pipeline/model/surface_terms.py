@@ -103,7 +103,9 @@ def penetration(hand, frames, samples: torch.Tensor, normals: torch.Tensor) -> t
     return object_in_hand + below.clamp(min=0).sum(dim=1)
 
 
-def contact_heights(hand, frames, target_frames, samples: torch.Tensor, normals: torch.Tensor, nearest: torch.Tensor | None = None) -> torch.Tensor:
+def contact_heights(
+    hand, frames, target_frames, samples: torch.Tensor, normals: torch.Tensor, nearest: torch.Tensor | None = None
+) -> torch.Tensor:
     """``surface_dis`` of hands at ``frames`` against their training grasps at ``target_frames``, on the objects'
     ``samples`` and ``normals`` (B, Q, 3): (B,) cm², 0 for a grasp with no pad point in the band. ``nearest`` (B, C):
     the index of the sample nearest each of the training grasp's C pad points, when known (else searched)."""
