@@ -104,13 +104,13 @@ def penetration(hand, frames, samples: torch.Tensor, normals: torch.Tensor) -> t
 
 
 def contact_heights(
-    hand, frames, target_frames, samples: torch.Tensor, normals: torch.Tensor, nearest: torch.Tensor | None = None
+    hand, frames, target_points: torch.Tensor, samples: torch.Tensor, normals: torch.Tensor, nearest: torch.Tensor | None = None
 ) -> torch.Tensor:
-    """``surface_dis`` of hands at ``frames`` against their training grasps at ``target_frames``, on the objects'
-    ``samples`` and ``normals`` (B, Q, 3): (B,) cm², 0 for a grasp with no pad point in the band. ``nearest`` (B, C):
-    the index of the sample nearest each of the training grasp's C pad points, when known (else searched)."""
+    """``surface_dis`` of hands at ``frames`` against their training grasps, whose pad points (``contact_candidates``)
+    are ``target_points`` (B, C, 3), on the objects' ``samples`` and ``normals`` (B, Q, 3): (B,) cm², 0 for a grasp with
+    no pad point in the band. ``nearest`` (B, C): the index of the sample nearest each of those C points, when known
+    (else searched)."""
     with torch.no_grad():
-        target_points = hand.contact_candidates(target_frames)  # (B, C, 3)
         if nearest is None:
             nearest = nearest_sample_index(target_points, samples)
         rows = torch.arange(len(samples), device=samples.device)[:, None]
@@ -163,11 +163,11 @@ def surface_terms(hand, clouds: ObjectClouds, names: tuple[str, ...], training_g
             out[SURFACE_PENETRATION_TERM] = penetration(hand, frames, samples, normals)
         if SURFACE_DISTANCE_TERM in names:
             with torch.no_grad():
-                target_frames = hand.forward_parts(*target)
+                target_points = hand.contact_candidates(hand.forward_parts(*target))  # (B, C, 3)
                 nearest = None
                 if cache is not None and grasp_index is not None:
-                    nearest = cache.lookup(grasp_index, hand.contact_candidates(target_frames), samples)
-            out[SURFACE_DISTANCE_TERM] = contact_heights(hand, frames, target_frames, samples, normals, nearest)
+                    nearest = cache.lookup(grasp_index, target_points, samples)
+            out[SURFACE_DISTANCE_TERM] = contact_heights(hand, frames, target_points, samples, normals, nearest)
         return out
 
     return terms
