@@ -47,6 +47,15 @@ def _children(pid: int) -> set[int]:
     return found
 
 
+def _command_line(pid: int) -> str:
+    """The command line of ``pid`` ('' once it has exited)."""
+    try:
+        with open(f"/proc/{pid}/cmdline") as file:
+            return file.read()
+    except OSError:
+        return ""
+
+
 def _running(pid: int) -> bool:
     """Whether ``pid`` exists and is not a zombie (an exited process its new parent has not reaped yet)."""
     from pathlib import Path
@@ -66,7 +75,7 @@ def test_workers_end_when_the_process_that_started_them_is_killed():
         deadline = time.monotonic() + 60
         workers: set[int] = set()
         while time.monotonic() < deadline and len(workers) < 2:  # the two workers, each sleeping in its item
-            workers = {c for c in _children(parent.pid) if "spawn_main" in open(f"/proc/{c}/cmdline").read()}
+            workers = {c for c in _children(parent.pid) if "spawn_main" in _command_line(c)}
             time.sleep(0.2)
         assert len(workers) == 2, "the pool's workers did not start"
         time.sleep(1.0)  # past the workers' initializer
