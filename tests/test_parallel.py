@@ -71,9 +71,9 @@ def test_workers_end_when_the_process_that_started_them_is_killed():
     script = ("import time\nfrom dexlite_pipeline.parallel import resilient_map\n"
               "resilient_map(time.sleep, [120.0, 120.0], 2, lambda item, message: message)\n")  # fmt: skip
     parent = subprocess.Popen([sys.executable, "-c", script])
+    workers: set[int] = set()
     try:
         deadline = time.monotonic() + 60
-        workers: set[int] = set()
         while time.monotonic() < deadline and len(workers) < 2:  # the two workers, each sleeping in its item
             workers = {c for c in _children(parent.pid) if "spawn_main" in _command_line(c)}
             time.sleep(0.2)
@@ -87,6 +87,6 @@ def test_workers_end_when_the_process_that_started_them_is_killed():
         assert not any(_running(w) for w in workers), "a worker outlived the process that started it"
     finally:
         parent.kill()
-        for w in workers if "workers" in locals() else ():
+        for w in workers:
             if _running(w):
                 os.kill(w, 9)
