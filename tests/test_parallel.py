@@ -28,6 +28,13 @@ def test_in_process_map_turns_exceptions_into_results():
     assert resilient_map(square_or_fail, [1, 2, 3, 4], 0, error_result) == [1, 4, "3: ValueError: three is bad", 16]
 
 
+@pytest.mark.parametrize("workers, items", [(0, [1, 2, 3, 4]), (2, [1, 2, 3, 4, 5, 6])])  # in a pool, 5 crashes its worker
+def test_every_item_is_reported_finished_once(workers, items):
+    finished = []
+    resilient_map(square_or_fail, items, workers, error_result, finished.append)
+    assert sorted(finished) == list(range(len(items)))
+
+
 def test_a_crashing_worker_fails_only_its_item():
     results = resilient_map(square_or_fail, [1, 2, 3, 4, 5, 6], 2, error_result)
     assert results[:5] == [1, 4, "3: ValueError: three is bad", 16, "5: worker process crashed (native library failure or out of memory)"]

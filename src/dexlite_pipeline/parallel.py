@@ -71,12 +71,13 @@ def resilient_map(
     items: Sequence[T],
     workers: int,
     on_error: Callable[[T, str], R],
-    progress: Callable[[int, int], None] | None = None,
+    finished: Callable[[int], None] | None = None,
 ) -> list[R]:
     """``[func(item) for item in items]`` over ``workers`` processes, in item order.
 
     ``func`` must be picklable (a module-level function or a ``functools.partial`` of one).
     ``on_error(item, message)`` builds the result of an item whose call raised or crashed.
+    ``finished(index)`` is called in this process as each item ends (its index in ``items``), for progress lines.
     ``workers <= 0`` runs in this process (no crash isolation; for tests and debugging).
     """
     results: list[R | None] = [None] * len(items)
@@ -87,10 +88,9 @@ def resilient_map(
                 results[i] = func(item)
             except Exception as exc:  # noqa: BLE001
                 results[i] = on_error(item, f"{type(exc).__name__}: {exc}")
-            if progress:
-                progress(i + 1, len(items))
+            if finished:
+                finished(i)
         return results  # type: ignore[return-value]
-    finished = 0
     with _pool(min(workers, max(1, len(items)))) as pool:
         futures = {pool.submit(func, item): i for i, item in enumerate(items)}
         for future in as_completed(futures):
@@ -102,15 +102,13 @@ def resilient_map(
             except Exception as exc:  # noqa: BLE001
                 results[i] = on_error(items[i], f"{type(exc).__name__}: {exc}")
             done[i] = True
-            finished += 1
-            if progress:
-                progress(finished, len(items))
+            if finished:
+                finished(i)
     leftover = [i for i, ok in enumerate(done) if not ok]
     if leftover:
         log.warning("a worker process crashed; re-running %d unfinished item(s) one per process", len(leftover))
     for i in leftover:
         results[i] = _run_isolated(func, items[i], on_error)
-        finished += 1
-        if progress:
-            progress(finished, len(items))
+        if finished:
+            finished(i)
     return results  # type: ignore[return-value]

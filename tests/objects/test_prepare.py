@@ -152,7 +152,9 @@ def test_unchanged_assets_are_reused_and_stale_ones_removed(tmp_path):
     assert arrays.stat().st_mtime_ns != built
 
 
-def test_a_shared_asset_cache_gives_another_run_the_same_assets_without_building_them(tmp_path, monkeypatch):
+def test_a_shared_asset_cache_gives_another_run_the_same_assets_without_building_them(tmp_path, monkeypatch, caplog):
+    import logging
+
     import dexlite_pipeline.objects.asset_building as asset_building
 
     _write_user_meshes(tmp_path / "mine")
@@ -166,7 +168,10 @@ def test_a_shared_asset_cache_gives_another_run_the_same_assets_without_building
         raise AssertionError("an asset in the cache was built again")
 
     monkeypatch.setattr(asset_building, "write_asset", no_building)
+    caplog.set_level(logging.INFO, logger="dexlite_pipeline.objects.prepare")
     second = prepare_objects(sources, tmp_path / "run_b", config, seed=0, workers=0)
+    assert f"2 of 3 objects already built (in {tmp_path / 'run_b'} or the asset cache), 1 to build" in caplog.text
+    assert "preparation: 3/3 objects (100%; 2 reused)" in caplog.text  # the rejected mesh is the one worked on
     pd.testing.assert_frame_equal(first, second)
     a, b = load_asset([str(tmp_path / "run_a")], "user-box"), load_asset([str(tmp_path / "run_b")], "user-box")
     np.testing.assert_array_equal(a.surface_points, b.surface_points)

@@ -331,6 +331,7 @@ def import_dexgraspnet(
     reported, not fatal.
     """
     from dexlite_pipeline.parallel import resilient_map
+    from dexlite_pipeline.progress import ProgressLog
 
     root = Path(root)
     dataset = root / DATASET_DIR
@@ -341,11 +342,8 @@ def import_dexgraspnet(
         raise FileNotFoundError(f"{dataset}: no .npy grasp files")
     tasks = [_FileTask(path, root, Path(objects_out), settings, object_split(path.stem, config, seed)) for path in files]
 
-    def progress(done: int, total: int) -> None:
-        if done == total or done % max(1, total // 20) == 0:
-            log.info("imported %d/%d files", done, total)
-
-    outcomes = resilient_map(_import_file, tasks, workers if workers > 1 else 0, _crashed_file, progress)
+    progress = ProgressLog(log, "import", len(tasks), unit="files")
+    outcomes = resilient_map(_import_file, tasks, workers if workers > 1 else 0, _crashed_file, lambda index: progress.advance())
     problems = [problem for outcome in outcomes for problem in outcome.problems]
     kept = [outcome.grasps for outcome in outcomes if outcome.grasps is not None]
     return ImportResult(_grasp_set(kept), [outcome.catalog_row for outcome in outcomes], problems)

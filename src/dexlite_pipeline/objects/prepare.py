@@ -163,6 +163,18 @@ def prepare_object(source: MeshSource, objects_dir: str, settings: AssetBuildSet
                 n_convex_pieces=summary["n_convex_pieces"], status="ok", preparation=made.summary())
 
 
+def _already_built(source: MeshSource, objects_dir: Path, settings: AssetBuildSettings, builder: str, cache_dir: str) -> bool:
+    """Whether ``prepare_object`` will reuse ``source``'s asset (from ``objects_dir`` or the cache) rather than build it."""
+    try:
+        key = _build_key(source, settings, builder)
+    except OSError:  # an unreadable file: prepare_object records why
+        return False
+    if _reusable_asset(objects_dir, source.object_id, key) is not None:
+        return True
+    entry = cache_entry(cache_dir, source.object_id, key) if cache_dir else None
+    return entry is not None and _reusable_asset(entry.parent.parent, source.object_id, key, folder=entry) is not None
+
+
 def _crashed_row(source: MeshSource, message: str) -> dict:
     return _row(source, reason=f"preparation failed: {message.splitlines()[0] if message else 'unknown error'}")
 
@@ -243,11 +255,16 @@ def prepare_objects(
     if config.heldout_yaw:
         sources = turned_heldout(sources, heldout, seed)
     objects_dir.mkdir(parents=True, exist_ok=True)
-    task = functools.partial(prepare_object, objects_dir=str(objects_dir), settings=settings, builder=builder_version(),
+    builder = builder_version()
+    task = functools.partial(prepare_object, objects_dir=str(objects_dir), settings=settings, builder=builder,
                              cache_dir=config.asset_cache)
 
-    progress = ProgressLog(log, "preparation", len(sources), unit="objects")  # done, whether prepared or rejected
-    rows = resilient_map(task, sources, workers, _crashed_row, lambda done, total: progress.advance())
+    built = [_already_built(source, objects_dir, settings, builder, config.asset_cache) for source in sources]
+    if any(built):
+        log.info("preparation: %d of %d objects already built (in %s or the asset cache), %d to build",
+                 sum(built), len(sources), objects_dir, len(sources) - sum(built))
+    progress = ProgressLog(log, "preparation", len(sources), unit="objects", reusable=sum(built))  # prepared or rejected
+    rows = resilient_map(task, sources, workers, _crashed_row, lambda index: progress.advance(reused=built[index]))
     catalog = pd.DataFrame(rows, columns=list(CATALOG_COLUMNS[:-1]))
     catalog["watertight"] = catalog["watertight"].astype("boolean")
     catalog["n_convex_pieces"] = catalog["n_convex_pieces"].astype("int64")

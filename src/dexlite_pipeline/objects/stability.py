@@ -265,7 +265,7 @@ def stability_table(catalog, objects_dirs: list[str], config: StabilityConfig, s
             rows.append(StabilityResult(object_id, math.nan, math.nan, False, f"not simulated: {exc}").row())
     task = functools.partial(simulate_asset, config=config, seed=seed)
     progress = ProgressLog(log, "stability test", len(items), unit="objects")
-    rows += resilient_map(task, items, workers, _failed_row, lambda done, total: progress.advance())
+    rows += resilient_map(task, items, workers, _failed_row, lambda index: progress.advance())
     for row in catalog[~ok].itertuples():
         reason = getattr(row, "reason", "") or "no reason recorded"
         rows.append(StabilityResult(str(row.object_id), math.nan, math.nan, False, f"not simulated: rejected by prepare_objects ({reason})").row())
