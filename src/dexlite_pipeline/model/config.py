@@ -33,6 +33,10 @@ class ModelConfig:
         "(position and rotation in a frame at that point, x along its normal) or hand (surface, turned about the normal to the "
         "palm's roll, which becomes an input)", enum=POSE_FRAMES)
     point_normals: bool = setting(True, "PointNet reads each point's outward normal beside its position (6 input channels)")
+    refiner_hidden: tuple[int, ...] = setting(
+        (), "hidden widths of the refiner, an MLP after the decoder that reads where the decoded hand's pad points and "
+        "keypoints lie against the cloud (height over the nearest point's tangent plane, distance) and corrects the pose "
+        "in one pass (model/refiner.py; needs point_normals); empty: no refiner", items={"minimum": 1})
 
     def __post_init__(self) -> None:
         if self.normalization not in NORMALIZATIONS:
@@ -41,6 +45,8 @@ class ModelConfig:
             raise ValueError(f"model pose_frame {self.pose_frame!r} is not one of {', '.join(POSE_FRAMES)}")
         if not self.pointnet_widths or min(self.pointnet_widths) < 1 or self.latent_dim < 1:
             raise ValueError("model sizes must be positive")
+        if self.refiner_hidden and not self.point_normals:
+            raise ValueError("model refiner_hidden: the refiner reads the cloud's normals; set model point_normals: true")
 
     @property
     def condition_dim(self) -> int:
@@ -66,6 +72,7 @@ TABLE_TERM = "table"  # E_table, a loss term in tabletop mode only (after LOSS_T
 # heights over the surface, read off the objects' surface samples
 SURFACE_PENETRATION_TERM, SURFACE_DISTANCE_TERM = "surface_pen", "surface_dis"
 SURFACE_TERMS = (SURFACE_PENETRATION_TERM, SURFACE_DISTANCE_TERM)
+REFINE_TERM = "refine"  # the refined pose's squared error (models with a refiner, ``model.refiner_hidden``), weighed as recon
 LR_SCHEDULES = ("constant", "cosine")
 GENERATORS = ("cvae", "flow")  # the generative families behind PointNet (``network.GraspCVAE``, ``flow.GraspFlow``)
 FLOW_SOLVERS = ("euler", "heun")

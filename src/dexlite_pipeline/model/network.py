@@ -46,6 +46,7 @@ from torch import nn
 from dexlite_pipeline.model.hand_match import shadow_hand_record
 from dexlite_pipeline.model.pose import STORED_JOINTS_START, TRANSLATION_UNIT_M, features_to_parts, parts_to_features, pose_feature_dim, shift_translation
 from dexlite_pipeline.model.config import ModelConfig
+from dexlite_pipeline.model.refiner import reading_width, surface_reading
 from dexlite_pipeline.model.type_condition import known_types
 
 # PointNet's hidden activations leak a little below zero: with plain ReLU and no normalization the
@@ -113,6 +114,13 @@ class GraspCVAE(nn.Module):
         self.type_inputs = len(self.type_vocabulary) if len(self.type_vocabulary) > 1 else 0  # one-hot width
         self.pointnet = PointNet(config.pointnet_widths, config.normalization, config.point_normals)
         self._build_networks(config.condition_dim + config.frame_input_dim + self.type_inputs)
+        self._hands: dict[str, object] = {}  # the refiner's hand model per device, built when first needed
+        self.refiner = None
+        if config.refiner_hidden:
+            inputs = self.pose_feature_dim + config.condition_dim + config.frame_input_dim + self.type_inputs
+            self.refiner = _mlp(inputs + reading_width(self.refiner_hand(torch.device("cpu"))), config.refiner_hidden, self.pose_feature_dim)
+            nn.init.zeros_(self.refiner[-1].weight)  # an untrained refiner returns the decoded pose
+            nn.init.zeros_(self.refiner[-1].bias)
         # The training grasps' posterior codes (mu, log sigma^2), stored with the weights after
         # training so that sampling can draw from their aggregate (``latent_codes.sample_latents``).
         self.register_buffer("codes_mu", torch.zeros(0, config.latent_dim))
@@ -226,6 +234,35 @@ class GraspCVAE(nn.Module):
     ) -> torch.Tensor:
         """Pose features (B, 9 + J) in the object frame for latents (B, latent) under their conditions, anchors and types."""
         return self._from_frame(self.decoder(torch.cat([latent, self._inputs(condition, anchor, grasp_type)], dim=1)), anchor)
+
+    def refiner_hand(self, device: torch.device):
+        """The kinematic model of the model's hand on ``device`` (the refiner's reading needs its points)."""
+        from dexlite_pipeline.hand.choice import resolve_hand
+
+        key = str(device)
+        if key not in self._hands:
+            self._hands[key] = resolve_hand(self.hand_record["hand"], device)
+        return self._hands[key]
+
+    def refine(
+        self, pose_features: torch.Tensor, condition: torch.Tensor, anchor: torch.Tensor, clouds: torch.Tensor,
+        cloud_index: torch.Tensor, grasp_type: torch.Tensor | None = None,
+    ) -> torch.Tensor:
+        """Decoded poses (B, 9 + J, object frame) corrected by the refiner from where their hands land on ``clouds``
+        (C, N, 6; grasp b on cloud ``cloud_index[b]``); unchanged for a model without one (``model.refiner``)."""
+        if self.refiner is None:
+            return pose_features
+        reading = surface_reading(self.refiner_hand(pose_features.device), pose_features.detach(), clouds, cloud_index)
+        start = self._to_frame(pose_features, anchor)
+        correction = self.refiner(torch.cat([start, self._inputs(condition, anchor, grasp_type), reading], dim=1))
+        return self._from_frame(start + correction, anchor)
+
+    def generate(
+        self, latent: torch.Tensor, condition: torch.Tensor, anchor: torch.Tensor, clouds: torch.Tensor, cloud_index: torch.Tensor,
+        grasp_type: torch.Tensor | None = None,
+    ) -> torch.Tensor:
+        """The model's poses (B, 9 + J, object frame) for latents: decoded, then refined on the clouds they are of."""
+        return self.refine(self.decode(latent, condition, anchor, grasp_type), condition, anchor, clouds, cloud_index, grasp_type)
 
     def forward(
         self, pose_features: torch.Tensor, condition: torch.Tensor, anchor: torch.Tensor, noise: torch.Tensor,

@@ -177,7 +177,7 @@ def reconstruct(
     anchor = model.pose_anchors(anchor_at(drawn, cloud_index, point_index), known)
     types = _type_tensor(grasp_type, known.device)
     mu, _ = model.encode(known, condition, anchor, types)
-    return features_to_pose(rotate_grasps(model.decode(mu, condition, anchor, types), turn.transpose(1, 2)))
+    return features_to_pose(rotate_grasps(model.generate(mu, condition, anchor, drawn, cloud_index, types), turn.transpose(1, 2)))
 
 
 def _type_tensor(grasp_type: np.ndarray | None, device) -> torch.Tensor | None:
@@ -252,7 +252,7 @@ def synthesize(
         point_index = random_points(len(object_index), points, generator).to(clouds.device)
     condition = condition_at(features, cloud_index, point_index)
     anchor = model.sampling_anchors(anchor_at(drawn, cloud_index, point_index), generator)
-    decoded = model.decode(latent, condition, anchor, _type_tensor(grasp_type, latent.device))
+    decoded = model.generate(latent, condition, anchor, drawn, cloud_index, _type_tensor(grasp_type, latent.device))
     if offset is not None:
         decoded = shift_translation(decoded, offset[cloud_index])
     # grasps of the cloud as the model read it (table frame, turned to the matched heading, box centred), back in the object's frame
@@ -295,7 +295,7 @@ def expand(
     latent = torch.where(move_point[:, None], mu, mu + noise)
     decode_index = torch.where(move_point, moved_index, point_index)
     condition = condition_at(features, cloud_index, decode_index)
-    decoded = model.decode(latent, condition, model.pose_anchors(anchor_at(drawn, cloud_index, decode_index), known), types)
+    decoded = model.generate(latent, condition, model.pose_anchors(anchor_at(drawn, cloud_index, decode_index), known), drawn, cloud_index, types)
     return features_to_pose(rotate_grasps(decoded, turn.transpose(1, 2)))
 
 

@@ -37,7 +37,7 @@ from dexlite_pipeline.energy.grasp_energy import GraspEnergy
 from dexlite_pipeline.hand.rotation import matrix_to_euler_xyz
 from dexlite_pipeline.model.data import Batch, TrainingData, cloud_batches, make_batch
 from dexlite_pipeline.model.association import nearest_to_ray
-from dexlite_pipeline.model.config import ENERGY_TERMS, LOSS_TERMS, SURFACE_TERMS, TABLE_TERM, TrainConfig
+from dexlite_pipeline.model.config import ENERGY_TERMS, LOSS_TERMS, REFINE_TERM, SURFACE_TERMS, TABLE_TERM, TrainConfig
 from dexlite_pipeline.model.flow import GraspFlow, generator_family, make_generator, network_config
 from dexlite_pipeline.model.network import GraspCVAE, anchor_at, kl_divergence
 from dexlite_pipeline.model.pose import features_to_parts, features_to_pose, pose_errors, reconstruction_error, vertical_rotation
@@ -149,6 +149,10 @@ def batch_loss(
         noise = torch.randn(len(index), model.config.latent_dim, generator=generator).to(device)
         decoded, mu, log_var = model(target, condition, anchor, noise, data.grasp_type[index])
         terms = {"recon": reconstruction_error(decoded, target), "kl": kl_divergence(mu, log_var)}
+    refined = model.refiner is not None
+    if refined:  # the refiner's pose is the model's output: its own squared error, and the energies read it
+        decoded = model.refine(decoded, condition, anchor, clouds, batch.cloud_index, data.grasp_type[index])
+        terms[REFINE_TERM] = reconstruction_error(decoded, target)
     loss_terms = tuple(weights)  # LOSS_TERMS (+ TABLE_TERM on a table)
     energy_names = tuple(name for name in loss_terms if name not in ("recon", "kl"))
     if any(weights[name] > 0 for name in energy_names):
@@ -166,6 +170,9 @@ def batch_loss(
         terms.update({name: torch.full_like(terms["recon"], float("nan")) for name in energy_names})
     means = {name: terms[name].mean() for name in loss_terms}
     weighted = {name: weights[name] * means[name] for name in loss_terms if weights[name] > 0 or name in ("recon", "kl")}
+    if refined:  # weighed as the decoder's recon
+        means[REFINE_TERM] = terms[REFINE_TERM].mean()
+        weighted[REFINE_TERM] = weights["recon"] * means[REFINE_TERM]
     total = sum(weighted.values())
     loss = sum(value * (energy_scale if name in energy_names else 1.0) for name, value in weighted.items())
     return loss, {"total": float(total.detach()), **{name: float(v.detach()) for name, v in means.items()}}
@@ -310,7 +317,7 @@ def encode_training_grasps(
         mu, log_var = model.encode(target, condition, anchor, data.grasp_type[rows])
         mus.append(mu)
         log_vars.append(log_var)
-        decoded.append(rotate_grasps(model.decode(mu, condition, anchor, data.grasp_type[rows]), grasp_turn.transpose(1, 2)))
+        decoded.append(rotate_grasps(model.generate(mu, condition, anchor, clouds, batch.cloud_index, data.grasp_type[rows]), grasp_turn.transpose(1, 2)))
         grasp_ids.append(batch.grasp_index)
         local.append(condition)
     # batches group grasps by cloud: put the rows back in the order of ``index``
