@@ -86,3 +86,33 @@ def test_a_saved_model_keeps_its_refiner(tmp_path, refiner_config):
     loaded = load_checkpoint(str(path), "cpu")[0]
     assert loaded.config.refiner_hidden == (64, 64)
     assert torch.equal(loaded.refiner[-1].weight, model.refiner[-1].weight)
+
+
+def test_each_pass_reads_the_surface_again_with_the_same_weights(refiner_config, random_clouds):
+    torch.manual_seed(0)
+    once = GraspCVAE(refiner_config).eval()
+    torch.nn.init.normal_(once.refiner[-1].weight, std=0.01)
+    twice = GraspCVAE(dataclasses.replace(refiner_config, refiner_passes=2)).eval()
+    twice.load_state_dict(once.state_dict())
+    clouds = random_clouds(2, 128)
+    cloud_index, point_index = torch.tensor([0, 1]), torch.tensor([3, 5])
+    condition = once.condition(clouds, cloud_index, point_index)
+    anchor = clouds[cloud_index, point_index, :6]
+    decoded = once.decode(torch.randn(2, refiner_config.latent_dim), condition, anchor)
+    first = once.refine(decoded, condition, anchor, clouds, cloud_index)
+    assert not torch.allclose(first, decoded)
+    assert torch.allclose(twice.refine(decoded, condition, anchor, clouds, cloud_index), once.refine(first, condition, anchor, clouds, cloud_index))
+
+
+def test_a_start_noise_moves_the_refiners_training_and_nothing_without_a_refiner(hand, tiny_assets, make_grasps, refiner_config, small_model_config):
+    grasps = make_grasps(hand, 8, seed=1)
+    data = build_training_data(grasps, tiny_assets, hand)
+
+    def history(model_config, noise):
+        config = TrainConfig(model=model_config, epochs=3, max_steps=0, batch_size=8, clouds_per_batch=2, points_per_cloud=64,
+                             learning_rate=3e-3, validation_fraction=0.0, refiner_start_noise_m=noise)
+        rows = train_cvae(data, np.arange(len(grasps)), np.zeros(0, np.int64), config, unbuilt_energy_terms, seed=0).history
+        return repr([{k: v for k, v in row.items() if k != "seconds"} for row in rows])  # repr: NaN (terms not computed) equals NaN
+
+    assert history(refiner_config, 0.01) != history(refiner_config, 0.0)
+    assert history(small_model_config, 0.01) == history(small_model_config, 0.0)

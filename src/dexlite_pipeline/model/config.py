@@ -37,6 +37,9 @@ class ModelConfig:
         (), "hidden widths of the refiner, an MLP after the decoder that reads where the decoded hand's pad points and "
         "keypoints lie against the cloud (height over the nearest point's tangent plane, distance) and corrects the pose "
         "in one pass (model/refiner.py; needs point_normals); empty: no refiner", items={"minimum": 1})
+    refiner_passes: int = setting(
+        1, "how many times the refiner reads the surface and corrects the pose (the same weights each pass; training "
+        "unrolls the passes)", minimum=1)
 
     def __post_init__(self) -> None:
         if self.normalization not in NORMALIZATIONS:
@@ -139,6 +142,10 @@ class TrainConfig:
         0.0, "penetration of the decoded hand read off the object's surface samples, metres (model.surface_terms: no SDF "
         "grid or mesh, so it fits a dataset of any size; 0 = not computed); ramps in with the energies "
         "(energy_warmup_fraction)", minimum=0)
+    refiner_start_noise_m: float = setting(
+        0.0, "models with a refiner (model.refiner_hidden): standard deviation (m, per axis) of a random shift of the "
+        "decoded palm before the refiner reads it in training, so it learns to correct misses larger than the decoder's "
+        "on its training grasps", minimum=0)
     weight_surface_distance: float = setting(
         0.0, "the training grasp's finger-pad heights over the object's surface, decoded against trained: mean squared "
         "difference, cm², over the pads within 1 cm of the surface (model.surface_terms; 0 = not computed); ramps in with "

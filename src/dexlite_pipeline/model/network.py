@@ -252,10 +252,12 @@ class GraspCVAE(nn.Module):
         (C, N, 6; grasp b on cloud ``cloud_index[b]``); unchanged for a model without one (``model.refiner``)."""
         if self.refiner is None:
             return pose_features
-        reading = surface_reading(self.refiner_hand(pose_features.device), pose_features.detach(), clouds, cloud_index)
-        start = self._to_frame(pose_features, anchor)
-        correction = self.refiner(torch.cat([start, self._inputs(condition, anchor, grasp_type), reading], dim=1))
-        return self._from_frame(start + correction, anchor)
+        hand, inputs = self.refiner_hand(pose_features.device), self._inputs(condition, anchor, grasp_type)
+        for _ in range(self.config.refiner_passes):
+            reading = surface_reading(hand, pose_features.detach(), clouds, cloud_index)
+            start = self._to_frame(pose_features, anchor)
+            pose_features = self._from_frame(start + self.refiner(torch.cat([start, inputs, reading], dim=1)), anchor)
+        return pose_features
 
     def generate(
         self, latent: torch.Tensor, condition: torch.Tensor, anchor: torch.Tensor, clouds: torch.Tensor, cloud_index: torch.Tensor,

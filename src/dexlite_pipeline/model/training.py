@@ -40,7 +40,7 @@ from dexlite_pipeline.model.association import nearest_to_ray
 from dexlite_pipeline.model.config import ENERGY_TERMS, LOSS_TERMS, REFINE_TERM, SURFACE_TERMS, TABLE_TERM, TrainConfig
 from dexlite_pipeline.model.flow import GraspFlow, generator_family, make_generator, network_config
 from dexlite_pipeline.model.network import GraspCVAE, anchor_at, kl_divergence
-from dexlite_pipeline.model.pose import features_to_parts, features_to_pose, pose_errors, reconstruction_error, vertical_rotation
+from dexlite_pipeline.model.pose import features_to_parts, features_to_pose, pose_errors, reconstruction_error, shift_translation, vertical_rotation
 from dexlite_pipeline.model.table_frame import rotate_clouds, rotate_grasps, rotate_vectors
 
 log = logging.getLogger(__name__)
@@ -117,6 +117,7 @@ def batch_loss(
     energy_scale: float = 1.0,
     turn_clouds: bool = False,
     fixed_clouds: bool = False,
+    refiner_start_noise_m: float = 0.0,
 ) -> tuple[torch.Tensor, dict[str, float]]:
     """Loss of one batch (energy weights times ``energy_scale``), and each term's batch mean with the full-weight total.
 
@@ -151,6 +152,8 @@ def batch_loss(
         terms = {"recon": reconstruction_error(decoded, target), "kl": kl_divergence(mu, log_var)}
     refined = model.refiner is not None
     if refined:  # the refiner's pose is the model's output: its own squared error, and the energies read it
+        if refiner_start_noise_m > 0:  # misses larger than the decoder's on its training grasps, to be corrected
+            decoded = shift_translation(decoded, torch.randn(len(index), 3, generator=generator).to(device) * refiner_start_noise_m)
         decoded = model.refine(decoded, condition, anchor, clouds, batch.cloud_index, data.grasp_type[index])
         terms[REFINE_TERM] = reconstruction_error(decoded, target)
     loss_terms = tuple(weights)  # LOSS_TERMS (+ TABLE_TERM on a table)
@@ -254,7 +257,7 @@ def train_cvae(
             energy_scale = min(1.0, step / warmup_steps) if warmup_steps else 1.0
             loss, terms = batch_loss(
                 model, data, batch, config.points_per_cloud, energy_terms, weights, generator, energy_scale,
-                config.rotation_augmentation, config.fixed_clouds,
+                config.rotation_augmentation, config.fixed_clouds, config.refiner_start_noise_m,
             )
             optimizer.zero_grad(set_to_none=True)
             loss.backward()
