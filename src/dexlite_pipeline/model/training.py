@@ -150,8 +150,8 @@ def batch_loss(
         noise = torch.randn(len(index), model.config.latent_dim, generator=generator).to(device)
         decoded, mu, log_var = model(target, condition, anchor, noise, data.grasp_type[index])
         terms = {"recon": reconstruction_error(decoded, target), "kl": kl_divergence(mu, log_var)}
-    refined = model.refiner is not None
-    if refined:  # the refiner's pose is the model's output: its own squared error, and the energies read it
+    has_refiner = model.refiner is not None
+    if has_refiner:  # the refiner's pose is the model's output: its own squared error, and the energies read it
         if refiner_start_noise_m > 0:  # misses larger than the decoder's on its training grasps, to be corrected
             decoded = shift_translation(decoded, torch.randn(len(index), 3, generator=generator).to(device) * refiner_start_noise_m)
         decoded = model.refine(decoded, condition, anchor, clouds, batch.cloud_index, data.grasp_type[index])
@@ -173,7 +173,7 @@ def batch_loss(
         terms.update({name: torch.full_like(terms["recon"], float("nan")) for name in energy_names})
     means = {name: terms[name].mean() for name in loss_terms}
     weighted = {name: weights[name] * means[name] for name in loss_terms if weights[name] > 0 or name in ("recon", "kl")}
-    if refined:  # weighed as the decoder's recon
+    if has_refiner:  # weighed as the decoder's recon
         means[REFINE_TERM] = terms[REFINE_TERM].mean()
         weighted[REFINE_TERM] = weights["recon"] * means[REFINE_TERM]
     total = sum(weighted.values())
