@@ -46,6 +46,36 @@ def pipeline_inputs(tmp_path, hand, sphere_box_objects, make_grasps):
     return tmp_path, ["--objects", str(catalog_dir), "--objects", str(sphere_box_objects)]
 
 
+def test_train_cvae_goes_on_from_the_state_an_interrupted_run_left(pipeline_inputs, monkeypatch):
+    """A training killed before its model was written leaves its state (after epoch 2 of 3); the rerun goes on from it to
+    the model an uninterrupted run makes and removes the state."""
+    import dexlite_pipeline.model.trainer as trainer
+
+    root, objects = pipeline_inputs
+
+    def train(folder):
+        return main(["train-cvae", "--config-json", json.dumps(CONFIG), "--lift", str(root / "lift.zarr"), *objects,
+                     *_model_outputs(root / folder), "--state-every-s", "0"])
+
+    assert train("whole") == 0
+    assert not (root / "whole" / "cvae.pt.state").exists()
+
+    def killed(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    with monkeypatch.context() as patch:
+        patch.setattr(trainer, "write_trained_model", killed)
+        with pytest.raises(KeyboardInterrupt):
+            train("resumed")
+    assert (root / "resumed" / "cvae.pt.state").exists() and not (root / "resumed" / "cvae.pt").exists()
+    assert train("resumed") == 0
+    assert not (root / "resumed" / "cvae.pt.state").exists()
+    whole, resumed = (torch.load(root / folder / "cvae.pt", weights_only=True) for folder in ("whole", "resumed"))
+    assert (whole["resumed_after_epoch"], resumed["resumed_after_epoch"]) == (0, 2)
+    assert whole["state_dict"].keys() == resumed["state_dict"].keys()
+    assert all(torch.equal(whole["state_dict"][k], resumed["state_dict"][k]) for k in whole["state_dict"])
+
+
 @pytest.mark.slow
 def test_train_sample_post_optimize(pipeline_inputs):
     root, objects = pipeline_inputs

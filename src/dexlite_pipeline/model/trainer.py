@@ -136,6 +136,7 @@ def _log_epoch(row: dict) -> None:
 def train_from_lift_shards(
     lift_paths: list[str], objects_dirs: list[str], *, train: TrainConfig, self_penetration_margin_m: float, table: bool, seed: int, device: str,
     stability_path: str | None = None, initial_model_path: str | None = None, hand: str = "shadow",
+    state_path: str | Path | None = None, state_every_s: float = 300.0,
 ) -> TrainedModel:
     """Train on the lift-successful grasps of the training objects in ``lift_paths``.
 
@@ -146,6 +147,8 @@ def train_from_lift_shards(
     ``initial_model_path``: a model file to go on training (warm start) instead of a fresh model.
     ``hand`` (config key ``hand``): the hand the shards' grasps are of (refused otherwise) and the model is for; the
     loss's energies and the grasp rays use its model (``hand.choice.resolve_hand``), the file records it.
+    ``state_path``: where the training's state is saved every ``state_every_s`` seconds (at epoch ends) and looked for
+    at the start, so that a rerun after an interruption goes on from it (``model.training_state``); None: neither.
     """
     from dexlite_pipeline.tabletop import load_support_planes
 
@@ -158,6 +161,7 @@ def train_from_lift_shards(
     from dexlite_pipeline.model.data import TrainingDataError, build_training_data, select_training_grasps, split_validation
     from dexlite_pipeline.model.surface_terms import surface_terms
     from dexlite_pipeline.model.training import fit_training_codes, grasp_energy_terms, train_cvae, with_surface_terms
+    from dexlite_pipeline.model.training_state import TrainingStateFile
     from dexlite_pipeline.objects.assets import available_object_ids, load_asset, object_splits
 
     settings = train
@@ -208,8 +212,14 @@ def train_from_lift_shards(
         energy_terms = with_surface_terms(energy_terms, surface, mesh=uses_energies(settings, table=planes is not None))
     del assets  # the SDF grids (~1 MB an object): training reads the clouds ``data`` holds
     train_index, val_index = split_validation(len(grasps), settings.validation_fraction, seed)
+    state_file = None
+    if state_path is not None:
+        state_file = TrainingStateFile(Path(state_path), state_every_s, context={
+            "hand": record, "self_penetration_margin_m": margin_m, "table": planes is not None,
+            "support_planes": None if planes is None else {oid: repr(planes.planes.get(oid)) for oid in object_ids}})
     result = train_cvae(
-        data, train_index, val_index, settings, energy_terms, seed, on_epoch=_log_epoch, table=planes is not None, initial_model=initial_model
+        data, train_index, val_index, settings, energy_terms, seed, on_epoch=_log_epoch, table=planes is not None, initial_model=initial_model,
+        state_file=state_file,
     )
     fit = fit_training_codes(result.model, data, train_index, settings)
     log.info(
@@ -221,6 +231,7 @@ def train_from_lift_shards(
         "seed": seed,
         "self_penetration_margin_m": margin_m,
         "steps": result.steps,
+        "resumed_after_epoch": result.resumed_after_epoch,  # > 0: a saved training state was loaded (process CPU counts omit the earlier run)
         "train_grasps": int(len(train_index)),
         "validation_grasps": int(len(val_index)),
         "train_object_ids": object_ids,

@@ -37,6 +37,7 @@ from dexlite_pipeline.energy.grasp_energy import GraspEnergy
 from dexlite_pipeline.hand.rotation import matrix_to_euler_xyz
 from dexlite_pipeline.model.data import Batch, TrainingData, cloud_batches, make_batch
 from dexlite_pipeline.model.association import nearest_to_ray
+from dexlite_pipeline.model.training_state import TrainingStateFile, restore, training_fingerprint
 from dexlite_pipeline.model.config import ENERGY_TERMS, LOSS_TERMS, REFINE_TERM, SURFACE_TERMS, TABLE_TERM, TrainConfig
 from dexlite_pipeline.model.flow import GraspFlow, generator_family, make_generator, network_config
 from dexlite_pipeline.model.network import GraspCVAE, anchor_at, kl_divergence
@@ -104,6 +105,7 @@ class TrainingResult:
     model: GraspCVAE
     history: list[dict]
     steps: int
+    resumed_after_epoch: int = 0  # the saved epoch an interrupted run's state let this run start after (0: from the start)
 
 
 def batch_loss(
@@ -207,9 +209,14 @@ def train_cvae(
     on_epoch: Callable[[dict], None] | None = None,
     table: bool = False,
     initial_model: GraspCVAE | None = None,
+    state_file: TrainingStateFile | None = None,
 ) -> TrainingResult:
     """Train a fresh model, or go on training ``initial_model`` (a warm start: the data loop's rounds); returns it
     with one history row per epoch (train and validation means).
+
+    ``state_file``: the training's state is saved there at epoch ends (``model.training_state``), and a state saved by
+    an interrupted run of the same data, config, seed and warm start is loaded first: the run goes on from its last
+    saved epoch to the model an uninterrupted run makes.
 
     ``table`` (tabletop mode; ``energy_terms`` built on an energy with tables): E_table is a loss term too.
     The optimizer and learning-rate schedule start afresh either way.
@@ -243,9 +250,15 @@ def train_cvae(
         len(train_index), len(val_index), steps_per_epoch, epochs, warmup_steps, config.profile,
     )
     history: list[dict] = []
-    step = 0
-    start = time.perf_counter()
-    for epoch in range(1, epochs + 1):
+    step, first_epoch, seconds_before = 0, 1, 0.0
+    fingerprint = training_fingerprint(config, seed, data, train_index, val_index, initial_model, state_file.context) if state_file is not None else ""
+    saved = state_file.load(fingerprint) if state_file is not None else None
+    if saved is not None:
+        restore(saved, model=model, optimizer=optimizer, scheduler=scheduler, batch_rng=batch_rng, generator=generator)
+        history, step, first_epoch, seconds_before = saved["history"], saved["step"], saved["epoch"] + 1, saved["seconds"]
+        log.info("going on from the training state of %s: epoch %d, step %d of %d", state_file.path, saved["epoch"], step, planned_steps)
+    start = time.perf_counter() - seconds_before
+    for epoch in range(first_epoch, epochs + 1):
         if step >= planned_steps:
             break
         model.train()
@@ -272,9 +285,12 @@ def train_cvae(
         if len(val_index):
             row.update({f"val_{k}": v for k, v in evaluate_loss(model, data, val_index, config, energy_terms, val_generator_seed, table).items()})
         history.append(row)
+        if state_file is not None and state_file.due() and step < planned_steps and epoch < epochs:
+            state_file.save(fingerprint, epoch=epoch, step=step, seconds=row["seconds"], history=history, model=model,
+                            optimizer=optimizer, scheduler=scheduler, batch_rng=batch_rng, generator=generator)
         if on_epoch is not None:
             on_epoch(row)
-    return TrainingResult(model=model, history=history, steps=step)
+    return TrainingResult(model=model, history=history, steps=step, resumed_after_epoch=first_epoch - 1)
 
 
 @torch.no_grad()

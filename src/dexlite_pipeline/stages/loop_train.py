@@ -7,6 +7,8 @@ from __future__ import annotations
 import argparse
 import logging
 
+from dexlite_pipeline.model.stage_options import add_training_state_arguments, training_state_path
+
 log = logging.getLogger("dexlite.loop_train")
 
 
@@ -20,6 +22,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--model", required=True, help="output model file (cvae.pt)")
     parser.add_argument("--history", required=True, help="output per-epoch loss table (.csv)")
     parser.add_argument("--curves", required=True, help="output plot of the loss curves (.png)")
+    add_training_state_arguments(parser)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -31,14 +34,17 @@ def run(args: argparse.Namespace) -> int:
     from dexlite_pipeline.settings import stage_config
 
     config = stage_config(args.config_json)
+    state_path = training_state_path(args)
     config = dataclasses.replace(config, seed=round_seed(config.train.training_seed(config.seed), args.round), train=round_training_config(config.train, config.loop))
     trained = train_from_lift_shards(
         [args.grasps], args.objects, train=config.train, self_penetration_margin_m=config.energy.self_penetration_margin_m,
         table=config.scene.table, seed=config.seed, device=config.device, stability_path=args.stability, initial_model_path=args.initial_model,
-        hand=config.hand,
+        hand=config.hand, state_path=state_path, state_every_s=args.state_every_s,
     )
     trained.facts.update(loop_round=args.round, initial_model=args.initial_model, cpu_seconds=process_cpu_seconds())
     write_trained_model(trained, args.model, args.history, args.curves)
+    if state_path is not None:
+        state_path.unlink(missing_ok=True)  # the model it led to is written
     log.info("round %d: wrote %s (%d steps from %s, %d training grasps of %d objects)", args.round, args.model, trained.facts["steps"],
              args.initial_model, trained.facts["train_grasps"], len(trained.facts["train_object_ids"]))
     return 0

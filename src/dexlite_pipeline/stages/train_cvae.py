@@ -11,6 +11,8 @@ from __future__ import annotations
 import argparse
 import logging
 
+from dexlite_pipeline.model.stage_options import add_training_state_arguments, training_state_path
+
 log = logging.getLogger("dexlite.train_cvae")
 
 
@@ -22,6 +24,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--model", required=True, help="output model file (cvae.pt)")
     parser.add_argument("--history", required=True, help="output per-epoch loss table (.csv)")
     parser.add_argument("--curves", required=True, help="output plot of the loss curves (.png)")
+    add_training_state_arguments(parser)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -29,12 +32,15 @@ def run(args: argparse.Namespace) -> int:
     from dexlite_pipeline.settings import stage_config
 
     config = stage_config(args.config_json)
+    state_path = training_state_path(args)
     trained = train_from_lift_shards(
         args.lift, args.objects, train=config.train, self_penetration_margin_m=config.energy.self_penetration_margin_m,
         table=config.scene.table, seed=config.train.training_seed(config.seed), device=config.device, stability_path=args.stability,
-        hand=config.hand,
+        hand=config.hand, state_path=state_path, state_every_s=args.state_every_s,
     )
     write_trained_model(trained, args.model, args.history, args.curves)
+    if state_path is not None:
+        state_path.unlink(missing_ok=True)  # the model it led to is written
     log.info("wrote %s (%d steps, %d training grasps of %d objects)", args.model, trained.facts["steps"],
              trained.facts["train_grasps"], len(trained.facts["train_object_ids"]))
     return 0
