@@ -116,10 +116,6 @@ class TrainingStateFile:
         state["batch_rng"] = json.loads(state["batch_rng"])
         return state
 
-    def remove(self) -> None:
-        """Delete the state (the model it led to is written)."""
-        self.path.unlink(missing_ok=True)
-
 
 def restore(state: dict, *, model, optimizer, scheduler, batch_rng: np.random.Generator, generator: torch.Generator) -> None:
     """Put a loaded state back into the training's objects (in place)."""
