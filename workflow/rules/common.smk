@@ -206,10 +206,20 @@ def model_batch_outputs():
     return expand(f"{RESULTS}/model_batch/shard_{{shard}}.zarr", shard=SHARDS)
 
 
+def trains_on_dataset_only():
+    """Whether every training object comes from the grasp dataset (objects.dataset_objects and no other source of
+    training objects): the run then optimizes and lift-tests held-out objects only, which no learning stage reads."""
+    objects = config["objects"]
+    other_sources = (objects["builtin_count"], objects.get("procedural_count", 0), objects.get("household_count", 0),
+                     objects["mesh_dirs"], config["dexgraspnet"]["root"])
+    return bool(dataset_root() and objects.get("dataset_objects")) and not any(other_sources)
+
+
 def training_grasp_stores():
     """The stores the learning stages take known grasps from: the lift-validation shards and, with dataset.root, the
-    dataset's shards (dataset_grasps), both of every shard."""
-    stores = expand(f"{RESULTS}/lift/shard_{{shard}}.zarr", shard=SHARDS)
+    dataset's shards (dataset_grasps), both of every shard; the dataset's alone when it gives every training object
+    (the learning stages then do not wait for the held-out objects' optimization)."""
+    stores = [] if trains_on_dataset_only() else expand(f"{RESULTS}/lift/shard_{{shard}}.zarr", shard=SHARDS)
     if dataset_root():
         stores += expand(f"{RESULTS}/dataset/shard_{{shard}}.zarr", shard=SHARDS)
     return stores

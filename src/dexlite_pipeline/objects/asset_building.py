@@ -155,6 +155,9 @@ def build_asset(source, objects_dir: Path, settings: AssetBuildSettings, key: st
         "preparation": dataclasses.asdict(made) | {"summary": made.summary()},
         "deviation": deviation.as_record() | {"summary": deviation.summary()},
     }
+    if source.recorded_rest is not None:  # trained on only: no collision pieces, the dataset's resting pose (objects.dataset_collision)
+        meta["recorded_rest_pose"] = source.recorded_rest.as_dict()
+        return write_asset(mesh, source.object_id, objects_dir, settings, meta, convex_pieces=[]), made, deviation
     return write_asset(mesh, source.object_id, objects_dir, settings, meta), made, deviation
 
 

@@ -129,7 +129,8 @@ def write_asset(
 ) -> dict:
     """Write the full asset folder for ``mesh`` atomically; returns a summary for the catalog.
 
-    ``convex_pieces`` (trimesh list) skips CoACD when the source ships its own decomposition.
+    ``convex_pieces`` (trimesh list) skips CoACD when the source ships its own decomposition (``[]``: an asset without
+    collision pieces, which no stage can simulate: ``objects.dataset_collision``).
     """
     import zarr
 

@@ -50,6 +50,12 @@ class ObjectsConfig(CoacdSettings):
         False, "every training object of the grasp dataset at dataset.root (its objects.csv), rebuilt from its id (household "
         "generator, pybullet_data), besides the objects drawn above: a model trained on the whole dataset whatever batches "
         "made it; an object of a held-out split, or one without a rebuild recipe (a user's mesh), is left out with a warning")
+    dataset_collision: bool = setting(
+        True, "with dataset_objects: false prepares the dataset's training objects without collision pieces (no convex "
+        "decomposition, about half of each object's preparation) and stands each in the resting pose the dataset records "
+        "instead of dropping it on the table again: for runs that only train on them (training seeds, learning curves); a "
+        "stage that would simulate such an object (the evaluator's examples, the ladder's training rows) records it failed, "
+        "with the reason")
     household_benchmark_objects: int = setting(
         0, "the first this many objects of the household split (objects/household_split.yaml), held out", minimum=0)
     shapes_benchmark_objects: int = setting(

@@ -59,6 +59,8 @@ def _build_key(source: MeshSource, settings: AssetBuildSettings, builder: str) -
     digest.update(Path(source.file).read_bytes())
     digest.update(json.dumps([source.scale_xyz, source.rotation_rpy, source.turn_deg, source.metres_per_unit, dataclasses.asdict(settings), builder],
                              sort_keys=True).encode())
+    if source.recorded_rest is not None:  # an asset without collision pieces (the key of a full asset is unchanged)
+        digest.update(json.dumps(["recorded_rest", source.recorded_rest.as_dict()], sort_keys=True).encode())
     return digest.hexdigest()
 
 

@@ -33,6 +33,37 @@ class SupportPlane:
         return {"normal": [float(v) for v in self.normal], "offset": float(self.offset)}
 
 
+@dataclass(frozen=True)
+class RecordedRest:
+    """A resting pose a grasp dataset recorded for one of its objects (objects.csv), in the prepared mesh's frame: what a
+    run that only trains on the object uses instead of dropping it on the table again (``objects.dataset_collision``)."""
+
+    quaternion_xyzw: tuple[float, float, float, float]  # the mesh frame in the world at rest
+    support_normal: tuple[float, float, float]  # the table's upward normal in the object frame
+    support_offset: float  # the mesh origin's height above the table per unit scale (normalized units)
+
+    @classmethod
+    def from_row(cls, row) -> "RecordedRest | None":
+        """The pose in a table row with ``REST_QUATERNION_COLUMNS``, ``SUPPORT_NORMAL_COLUMNS`` and ``SUPPORT_OFFSET_COLUMN``;
+        None when any of them is missing or not a number (an object of a batch made without a table)."""
+        try:
+            values = [float(row[c]) for c in (*REST_QUATERNION_COLUMNS, *SUPPORT_NORMAL_COLUMNS, SUPPORT_OFFSET_COLUMN)]
+        except (KeyError, TypeError, ValueError):
+            return None
+        if not np.isfinite(values).all():
+            return None
+        return cls(tuple(values[:4]), tuple(values[4:7]), values[7])
+
+    def as_dict(self) -> dict:
+        return {"quaternion_xyzw": list(self.quaternion_xyzw), "support_normal": list(self.support_normal),
+                "support_offset": float(self.support_offset)}
+
+    @classmethod
+    def from_dict(cls, record: dict) -> "RecordedRest":
+        return cls(tuple(float(v) for v in record["quaternion_xyzw"]), tuple(float(v) for v in record["support_normal"]),
+                   float(record["support_offset"]))
+
+
 def support_plane_from_rest(vertices: np.ndarray, rest_rotation: np.ndarray) -> SupportPlane:
     """The support plane of a mesh (normalized ``vertices``, (V, 3)) resting with orientation ``rest_rotation`` (3, 3)."""
     normal = np.asarray(rest_rotation, dtype=np.float64).T @ np.array([0.0, 0.0, 1.0])

@@ -24,6 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
+from dexlite_pipeline.objects.rest_pose import RecordedRest
+
 log = logging.getLogger(__name__)
 
 MESH_SUFFIXES = (".obj", ".stl")
@@ -76,6 +78,9 @@ class MeshSource:
     # Degrees the placed mesh is turned about its z axis (up on the table) before preparation: a held-out object at a
     # seeded random yaw (``objects.heldout_yaw``), so held-out rates do not depend on the orientation its file had.
     turn_deg: float = 0.0
+    # A grasp dataset's recorded resting pose (``objects.dataset_collision`` false, dataset objects only): the object is
+    # prepared without collision pieces (no convex decomposition) and stands in this pose instead of being simulated.
+    recorded_rest: RecordedRest | None = None
 
 
 def pybullet_data_dir() -> Path:
@@ -355,6 +360,7 @@ def collect_sources(
     rebuilt_training_ids: tuple[str, ...] = (),
     procedural_count: int = 0,
     procedural_first: int = 0,
+    rebuilt_rests: dict[str, RecordedRest] | None = None,
 ) -> list[MeshSource]:
     """Every object to prepare: embedded default, generated household objects, user folders, always-held-out folders.
 
@@ -366,7 +372,9 @@ def collect_sources(
     split (held out), their meshes written to ``household_dir``; ``household_variants``: the perturbation variants drawn
     of each training instance; ``shapes_benchmark_objects``: the first this many of the shapes split (held out).
     ``procedural_count`` / ``procedural_first``: procedural pybullet_data objects for training in number order
-    (``procedural_sources``), beside those ``builtin_count`` draws.
+    (``procedural_sources``), beside those ``builtin_count`` draws. ``rebuilt_rests``: resting poses by id of
+    ``rebuilt_training_ids`` (``objects.dataset_collision`` false): each such object is prepared without collision
+    pieces and stands in its recorded pose (``MeshSource.recorded_rest``).
     """
     # A file listed twice (a folder repeated, or in both lists) is one object; held out wins.
     user: dict[str, MeshSource] = {}
@@ -383,6 +391,8 @@ def collect_sources(
     household = household_sources(household_count, household_benchmark_objects, household_dir, household_first, household_families,
                                   household_variants, shapes_benchmark_objects)
     rebuilt = rebuilt_training_sources(rebuilt_training_ids, {s.object_id for s in builtin + household}, household_dir)
+    if rebuilt_rests:
+        rebuilt = [dataclasses.replace(s, recorded_rest=rebuilt_rests[s.object_id]) if s.object_id in rebuilt_rests else s for s in rebuilt]
     return make_ids_unique(builtin + household + rebuilt + list(user.values()))
 
 

@@ -30,13 +30,18 @@ from pathlib import Path
 import numpy as np
 
 from dexlite_pipeline.objects.config import StabilityConfig
-from dexlite_pipeline.objects.rest_pose import REST_POSE_COLUMNS, support_plane_from_rest
+from dexlite_pipeline.objects.rest_pose import REST_POSE_COLUMNS, RecordedRest, support_plane_from_rest
 
 # Every row also records the object's resting pose after settling (objects.rest_pose.REST_POSE_COLUMNS; NaN
 # where not simulated): the pose later stages put the object in, with the table plane below it.
 STABILITY_COLUMNS = ["object_id", "lateral_displacement_m", "rotation_deg", "stable", "reason", "settled", *REST_POSE_COLUMNS]
 STABILITY_REQUIRED_COLUMNS = ("object_id", "stable")  # what the stages that read the table use
 GRAVITY_M_S2 = 9.81
+# A recorded resting pose fits the prepared mesh when the support plane it implies is this close to the recorded one: the
+# plane is recomputed from the same vertices, so only float rounding of the mesh file separates the two.
+RECORDED_NORMAL_TOLERANCE_DEG = 0.1
+RECORDED_OFFSET_TOLERANCE = 1e-4  # normalized units (0.01 mm on a 10 cm object)
+RECORDED_REASON = "resting pose recorded by the grasp dataset, not simulated (prepared without collision pieces: objects.dataset_collision false)"
 
 log = logging.getLogger(__name__)
 
@@ -232,14 +237,42 @@ def judge(object_id: str, start_pos, start_orn, end_pos, end_orn, config: Stabil
     return StabilityResult(object_id, lateral, rotation, not problems, reason)
 
 
+def recorded_rest_result(mesh, object_id: str, rest: RecordedRest, config: StabilityConfig) -> StabilityResult:
+    """The stability row of an object that stands in a grasp dataset's recorded resting pose (not simulated): stable, with
+    that pose, when the support plane it implies on ``mesh`` is the recorded one; otherwise not stable, saying how far apart
+    (the rebuilt mesh is not the one the dataset's grasps were made on)."""
+    from scipy.spatial.transform import Rotation
+
+    rotation = Rotation.from_quat(np.asarray(rest.quaternion_xyzw, dtype=np.float64)).as_matrix()
+    plane = support_plane_from_rest(np.asarray(mesh.vertices), rotation)
+    recorded = np.asarray(rest.support_normal, dtype=np.float64)
+    angle = math.degrees(math.acos(float(np.clip(np.dot(plane.normal, recorded / np.linalg.norm(recorded)), -1.0, 1.0))))
+    offset_gap = abs(plane.offset - rest.support_offset)
+    if angle > RECORDED_NORMAL_TOLERANCE_DEG or offset_gap > RECORDED_OFFSET_TOLERANCE:
+        return StabilityResult(object_id, math.nan, math.nan, False,
+                               f"the dataset's resting pose does not fit the prepared mesh (table normal {angle:.2f} deg, "
+                               f"height {offset_gap:.2g} normalized units apart)")
+    values = dict(zip(REST_POSE_COLUMNS[:4], rest.quaternion_xyzw))
+    values.update(zip(REST_POSE_COLUMNS[4:7], rest.support_normal))
+    values[REST_POSE_COLUMNS[7]] = rest.support_offset
+    values[REST_POSE_COLUMNS[8]] = rest.support_offset * config.scale  # the origin's height above the table (top at z = 0)
+    return StabilityResult(object_id, math.nan, math.nan, True, RECORDED_REASON, rest_pose=values)
+
+
 def simulate_asset(item: tuple[str, str], config: StabilityConfig, seed: int) -> dict:
-    """Stability row of one prepared object, ``item`` = (object id, asset folder)."""
+    """Stability row of one prepared object, ``item`` = (object id, asset folder): dropped on the table, or, for an object
+    prepared without collision pieces in a grasp dataset's recorded pose (its meta.json's ``recorded_rest_pose``), that pose."""
+    import json
+
     import trimesh
 
     object_id, folder = item
     directory = Path(folder)
     mesh = trimesh.load(directory / "mesh.obj", force="mesh", process=False)
     pieces = sorted((directory / "convex").glob("*.obj"))
+    recorded = json.loads((directory / "meta.json").read_text()).get("recorded_rest_pose") if not pieces else None
+    if recorded:
+        return recorded_rest_result(mesh, object_id, RecordedRest.from_dict(recorded), config).row()
     return simulate_object(mesh, pieces, object_id, config, seed).row()
 
 

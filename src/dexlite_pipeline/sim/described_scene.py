@@ -36,7 +36,7 @@ import numpy as np
 
 from dexlite_pipeline.hand.described import DescribedHand
 from dexlite_pipeline.sim.config import LiftConfig
-from dexlite_pipeline.sim.scene import GRAVITY_MPS2, OBJECT_BODY, PALM_TARGET_BODY, TABLE_GEOM, LiftScene, SceneBuildError
+from dexlite_pipeline.sim.scene import GRAVITY_MPS2, OBJECT_BODY, PALM_TARGET_BODY, TABLE_GEOM, NO_PIECES, LiftScene, SceneBuildError
 
 
 @dataclass(frozen=True)
@@ -130,7 +130,7 @@ def described_scene_spec(hand: DescribedHand, convex_paths: list[Path], scale: f
     import mujoco
 
     if not convex_paths:
-        raise SceneBuildError("object has no convex pieces")
+        raise SceneBuildError(NO_PIECES)
     with _BASE_LOCK:  # the lift test's worker threads share the cached hand part: one copies it at a time
         base, bits = _hand_base(hand)
         spec = base.copy()

@@ -42,6 +42,10 @@ class SceneBuildError(ValueError):
     """An object whose scene cannot be built (no convex pieces, MuJoCo compile error)."""
 
 
+# An asset without convex pieces: CoACD gave none, or it was prepared for training only (objects.dataset_collision false).
+NO_PIECES = "object has no convex pieces to collide (an object prepared without them, objects.dataset_collision false, is trained on only)"
+
+
 @functools.cache
 def _actuator_force_limits() -> dict[str, float]:
     """Finger torque limits (N·m) of the gym model's actuators; J0 shares J1's (one motor drives both)."""
@@ -78,7 +82,7 @@ def scene_mjcf(convex_paths: list[Path], scale: float, config: LiftConfig, table
     turns gravity along its downward normal. None: no table, gravity along -z (floating mode).
     """
     if not convex_paths:
-        raise SceneBuildError("object has no convex pieces")
+        raise SceneBuildError(NO_PIECES)
     root = hand_mjcf(free_root=True, model_name="lift_scene")
     _strip_visuals(root)
     option = ET.Element(

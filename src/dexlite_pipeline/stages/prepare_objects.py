@@ -36,6 +36,7 @@ def run(args: argparse.Namespace) -> int:
     section = config.objects
     try:
         rebuilt = dataset_training_ids(args.dataset) if section.dataset_objects else ()
+        rests = dataset_rest_poses(args.dataset, rebuilt) if section.dataset_objects and not section.dataset_collision else None
     except ValueError as error:
         log.error("%s", error)
         return 2
@@ -43,7 +44,7 @@ def run(args: argparse.Namespace) -> int:
         section.builtin_count, section.mesh_dirs, section.heldout_mesh_dirs, config.seed, section.benchmark_heldout, section.benchmark_objects,
         section.household_count, section.household_benchmark_objects, Path(args.catalog).parent / HOUSEHOLD_MESH_DIR, section.household_first,
         section.household_families, section.household_variants, section.shapes_benchmark_objects, rebuilt,
-        section.procedural_count, section.procedural_first,
+        section.procedural_count, section.procedural_first, rests,
     )
     workers = args.threads or os.cpu_count() or 1
     log.info("preparing %d objects with %d worker(s)", len(sources), workers)
@@ -77,3 +78,22 @@ def dataset_training_ids(dataset_dir: str) -> tuple[str, ...]:
     training = objects[objects["split"] == "train"]
     log.info("the dataset %s: %d training objects of %d", dataset_dir, len(training), len(objects))
     return tuple(str(o) for o in training["object_id"])
+
+
+def dataset_rest_poses(dataset_dir: str, object_ids) -> dict:
+    """The resting pose the dataset at ``dataset_dir`` records for each of ``object_ids`` (its first row of objects.csv), by id
+    (``objects.rest_pose.RecordedRest``); an object recorded without one (a batch made without a table) is prepared and
+    simulated as usual, said once in the log (objects.dataset_collision false)."""
+    from dexlite_pipeline.dataset.store import read_objects
+    from dexlite_pipeline.objects.rest_pose import RecordedRest
+
+    objects = read_objects(dataset_dir).drop_duplicates("object_id", keep="first").set_index("object_id")
+    rests = {}
+    for object_id in object_ids:
+        rest = RecordedRest.from_row(objects.loc[object_id]) if object_id in objects.index else None
+        if rest is not None:
+            rests[object_id] = rest
+    missing = len(set(object_ids)) - len(rests)
+    log.info("objects.dataset_collision false: %d dataset objects stand in their recorded resting pose, without collision pieces; "
+             "%d without a recorded pose are prepared in full", len(rests), missing)
+    return rests
