@@ -32,10 +32,6 @@ def _box_source(tmp_path) -> MeshSource:
     return MeshSource("user-box", "user", str(path), metres_per_unit=1.0)
 
 
-def _rest_of(row: dict) -> RecordedRest:
-    return RecordedRest.from_row(row)
-
-
 def test_a_recorded_pose_skips_the_decomposition_and_the_object_stands_in_it(tmp_path):
     """The full preparation and its drop give a resting pose; the same mesh prepared with that pose recorded has no
     convex pieces, another reuse key, the pose in its meta.json, and a stability row that is that pose, stable."""
@@ -46,13 +42,13 @@ def test_a_recorded_pose_skips_the_decomposition_and_the_object_stands_in_it(tmp
     full = simulate_asset(("user-box", str(asset_dir(full_dir, "user-box"))), STABILITY, 0)
     assert full["stable"] and full["reason"] == ""
 
-    light_source = dataclasses.replace(source, recorded_rest=_rest_of(full))
+    light_source = dataclasses.replace(source, recorded_rest=RecordedRest.from_row(full))
     row = prepare_object(light_source, str(light_dir), settings)
     assert row["status"] == "ok" and row["n_convex_pieces"] == 0
     asset = load_asset([str(light_dir)], "user-box")
     assert asset.convex_paths == [] and len(load_asset([str(full_dir)], "user-box").convex_paths) >= 1
     meta = json.loads((asset.directory / "meta.json").read_text())
-    assert RecordedRest.from_dict(meta["recorded_rest_pose"]) == _rest_of(full)
+    assert RecordedRest.from_dict(meta["recorded_rest_pose"]) == RecordedRest.from_row(full)
     assert _build_key(light_source, settings, "") != _build_key(source, settings, "")
 
     light = simulate_asset(("user-box", str(asset.directory)), STABILITY, 0)

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import json
 import logging
 import math
 import os
@@ -262,8 +263,6 @@ def recorded_rest_result(mesh, object_id: str, rest: RecordedRest, config: Stabi
 def simulate_asset(item: tuple[str, str], config: StabilityConfig, seed: int) -> dict:
     """Stability row of one prepared object, ``item`` = (object id, asset folder): dropped on the table, or, for an object
     prepared without collision pieces in a grasp dataset's recorded pose (its meta.json's ``recorded_rest_pose``), that pose."""
-    import json
-
     import trimesh
 
     object_id, folder = item
