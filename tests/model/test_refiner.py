@@ -65,14 +65,19 @@ def test_an_untrained_refiner_returns_the_decoded_pose_and_a_model_without_one_h
 
 
 def test_training_the_refiner_brings_its_pose_nearer_the_grasp_than_the_decoders(hand, tiny_assets, make_grasps, refiner_config):
+    """On 8 grasps the decoder nearly fits them too, so the refiner's gain is a few percent of an error that moves from epoch
+    to epoch (and with the thread schedule): the comparison is of means over the last 10 epochs, summed over 4 training seeds."""
     grasps = make_grasps(hand, 8, seed=1)
     data = build_training_data(grasps, tiny_assets, hand)
     config = TrainConfig(model=refiner_config, epochs=60, max_steps=0, batch_size=8, clouds_per_batch=2, points_per_cloud=64,
                          learning_rate=3e-3, validation_fraction=0.0, energy_warmup_fraction=0.0, weight_kl=1e-3)
-    result = train_cvae(data, np.arange(len(grasps)), np.zeros(0, np.int64), config, unbuilt_energy_terms, seed=0)
-    first, last = result.history[0], result.history[-1]
-    assert last[f"train_{REFINE_TERM}"] < 0.5 * first[f"train_{REFINE_TERM}"]
-    assert last[f"train_{REFINE_TERM}"] < last["train_recon"]  # the correction reads the surface: it improves on the decoder
+    refined, decoded = [], []
+    for seed in range(4):
+        history = train_cvae(data, np.arange(len(grasps)), np.zeros(0, np.int64), config, unbuilt_energy_terms, seed=seed).history
+        assert history[-1][f"train_{REFINE_TERM}"] < 0.5 * history[0][f"train_{REFINE_TERM}"]
+        refined.append(np.mean([row[f"train_{REFINE_TERM}"] for row in history[-10:]]))
+        decoded.append(np.mean([row["train_recon"] for row in history[-10:]]))
+    assert sum(refined) < sum(decoded)  # the correction reads the surface: it improves on the decoder
 
 
 def test_a_saved_model_keeps_its_refiner(tmp_path, refiner_config):
