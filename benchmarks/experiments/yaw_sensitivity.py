@@ -1,17 +1,22 @@
-"""`dexlite grasp` on the household split as generated and turned about the vertical: how much the results depend on yaw.
+"""`dexlite grasp` on a held-out split as generated and turned about the vertical: how much the results depend on yaw.
 
-    python benchmarks/experiments/yaw_sensitivity.py OUT_DIR [--split household|shapes] [--forms generated turned] [--seeds 0 1 2]
+    python benchmarks/experiments/yaw_sensitivity.py OUT_DIR [--split household|shapes|benchmark] [--forms generated turned] [--seeds 0 1 2]
         [--yaws-per-object 1] [--n 16] [--limit K] [--threads 1] [-- EXTRA dexlite grasp ARGS]
 
 The objects are the household split's (``objects/household_split.yaml``: three of each family, never trained on;
 ``--split shapes``: the shapes split's, ``objects/shapes_split.yaml``: the shape families and perturbed instances of
-every family; ``--limit K``: the first K), generated in metres standing on z = 0 with z up. Per seed, each is written as OBJ into
-``OUT_DIR/seed_<s>/generated/`` as generated and into ``OUT_DIR/seed_<s>/turned/`` turned about the vertical through
+every family; ``--limit K``: the first K), generated in metres standing on z = 0 with z up. ``--split benchmark``: the
+benchmark split's procedural pybullet_data objects (``objects/benchmark_split.yaml``), placed as their URDF places them;
+they have no real size, so each is grasped at the training radii (``--resize-to-training``, as the pipeline samples and
+optimizes them) and rests in its stable pose (no ``--upright-axis``); their table group is "procedural". Per seed, each
+is written as OBJ into ``OUT_DIR/seed_<s>/generated/`` as generated and into ``OUT_DIR/seed_<s>/turned/`` turned about
+the vertical through
 its bounding-box centre by a yaw drawn uniformly from [0, 2π) by ``default_rng([seed, crc32(object id)])``
 (``--yaws-per-object K``: K turned copies ``<id>_yaw<k>.obj``); the yaws go to ``OUT_DIR/seed_<s>/yaws.csv``. Then one
 ``dexlite grasp`` call per folder with the shipped model: ``--n`` samples per object ranked by its evaluator,
-post-optimized and lift-tested on a table, no optimization top-up (``--min-distinct 0``), and ``--upright-axis +z``
-so that a turned copy rests in the same pose as the generated mesh and only its heading differs. Arguments after
+post-optimized and lift-tested on a table, no optimization top-up (``--min-distinct 0``), and (household and shapes
+splits) ``--upright-axis +z`` so that a turned copy rests in the same pose as the generated mesh and only its heading
+differs. Arguments after
 ``--`` go to both calls (``-- --from-scratch``: optimization from scratch on the same files). ``--forms turned``: the
 turned copies only (the held-out measure at seeded yaw).
 
@@ -83,8 +88,12 @@ def held_cell(held: int, attempts: int, with_interval: bool) -> str:
 
 
 def family_of(object_id: str) -> str:
-    """The table's group of a split object: its family, with " (perturbed)" for a perturbed instance."""
+    """The table's group of a split object: its family, with " (perturbed)" for a perturbed instance; "procedural" for a
+    procedural pybullet_data object (the benchmark split)."""
     from dexlite_pipeline.objects.household import parse_household_id
+
+    if object_id.startswith("pb-random-"):
+        return "procedural"
 
     parsed = parse_household_id(object_id)
     return parsed.family + (" (perturbed)" if parsed.variant else "")
@@ -114,13 +123,27 @@ def family_table(rows: list[dict], with_interval: bool, forms: tuple[str, ...] =
     return lines
 
 
+def split_meshes(split: str, limit: int | None) -> dict:
+    """Object id -> trimesh of the split's first ``limit`` objects (all with None): household and shapes objects generated
+    in metres standing on z = 0; benchmark objects as their URDF places them (scale and rotation), in its units."""
+    from dexlite_pipeline.objects.asset_building import load_source_mesh
+    from dexlite_pipeline.objects.household import household_object
+    from dexlite_pipeline.objects.sources import benchmark_object_list, household_benchmark_list, pybullet_random_source_of, shapes_benchmark_list
+
+    if split == "benchmark":
+        return {object_id: load_source_mesh(pybullet_random_source_of(object_id)) for object_id in benchmark_object_list()[:limit]}
+    ids = household_benchmark_list() if split == "household" else shapes_benchmark_list()
+    return {object_id: household_object(object_id).mesh for object_id in ids[:limit]}
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     extra = argv[argv.index("--") + 1:] if "--" in argv else []
     own = argv[: argv.index("--")] if "--" in argv else argv
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("out_dir", type=Path)
-    parser.add_argument("--split", choices=("household", "shapes"), default="household", help="the held-out split (default: household)")
+    parser.add_argument("--split", choices=("household", "shapes", "benchmark"), default="household",
+                        help="the held-out split (default: household)")
     parser.add_argument("--forms", nargs="+", choices=FORMS, default=list(FORMS), help="which copies to grasp (default: both)")
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
     parser.add_argument("--yaws-per-object", type=int, default=1)
@@ -131,14 +154,11 @@ def main(argv: list[str] | None = None) -> int:
     sys.path.insert(0, str(Path(__file__).resolve().parent))
     from grasp_check_meshes import per_mesh_counts, run_grasp
 
-    from dexlite_pipeline.objects.household import household_object
-    from dexlite_pipeline.objects.sources import household_benchmark_list, shapes_benchmark_list
-
-    split = household_benchmark_list() if args.split == "household" else shapes_benchmark_list()
     forms = tuple(form for form in FORMS if form in args.forms)
-    meshes = {object_id: household_object(object_id).mesh for object_id in split[: args.limit]}
+    meshes = split_meshes(args.split, args.limit)
     top_up = [] if "--from-scratch" in extra else ["--min-distinct", "0"]  # the model's own grasps: no optimization top-up
-    grasp_args = ["--n", str(args.n), *top_up, "--upright-axis", "+z", *extra]
+    placement = ["--resize-to-training"] if args.split == "benchmark" else ["--upright-axis", "+z"]
+    grasp_args = ["--n", str(args.n), *top_up, *placement, *extra]
     report = [f"# `dexlite grasp` on the {args.split} split, {' and '.join(forms)} about the vertical", "",
               f"Command: `{' '.join(['python', *sys.argv])}`", "",
               f"{len(meshes)} objects, {args.n} grasps each, {args.yaws_per_object} turned cop"

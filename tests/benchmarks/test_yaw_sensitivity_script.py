@@ -29,3 +29,15 @@ def test_yaws_are_seeded_per_object_and_seed(benchmark_script):
     assert np.array_equal(first, script.yaws_of("household-mug-900", 0, 2)) and np.all((first >= 0) & (first < 2 * np.pi))
     assert not np.array_equal(first, script.yaws_of("household-mug-900", 1, 2))
     assert not np.array_equal(first, script.yaws_of("household-mug-901", 0, 2))
+
+
+def test_the_benchmark_split_is_its_procedural_objects_as_their_urdf_places_them(benchmark_script):
+    script = benchmark_script("yaw_sensitivity")
+    from dexlite_pipeline.objects.asset_building import load_source_mesh
+    from dexlite_pipeline.objects.sources import benchmark_object_list, pybullet_random_source_of
+
+    meshes = script.split_meshes("benchmark", 2)
+    assert list(meshes) == benchmark_object_list()[:2]
+    assert all(script.family_of(object_id) == "procedural" for object_id in meshes)
+    placed = load_source_mesh(pybullet_random_source_of(benchmark_object_list()[0]))
+    assert np.allclose(meshes[benchmark_object_list()[0]].vertices, placed.vertices)
