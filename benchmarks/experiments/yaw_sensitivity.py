@@ -10,14 +10,12 @@ benchmark split's procedural pybullet_data objects (``objects/benchmark_split.ya
 they have no real size, so each is grasped at the training radii (``--resize-to-training``, as the pipeline samples and
 optimizes them) and rests in its stable pose (no ``--upright-axis``); their table group is "procedural". Per seed, each
 is written as OBJ into ``OUT_DIR/seed_<s>/generated/`` as generated and into ``OUT_DIR/seed_<s>/turned/`` turned about
-the vertical through
-its bounding-box centre by a yaw drawn uniformly from [0, 2π) by ``default_rng([seed, crc32(object id)])``
+the vertical through its bounding-box centre by a yaw drawn uniformly from [0, 2π) by ``default_rng([seed, crc32(object id)])``
 (``--yaws-per-object K``: K turned copies ``<id>_yaw<k>.obj``); the yaws go to ``OUT_DIR/seed_<s>/yaws.csv``. Then one
 ``dexlite grasp`` call per folder with the shipped model: ``--n`` samples per object ranked by its evaluator,
 post-optimized and lift-tested on a table, no optimization top-up (``--min-distinct 0``), and (household and shapes
 splits) ``--upright-axis +z`` so that a turned copy rests in the same pose as the generated mesh and only its heading
-differs. Arguments after
-``--`` go to both calls (``-- --from-scratch``: optimization from scratch on the same files). ``--forms turned``: the
+differs. Arguments after ``--`` go to both calls (``-- --from-scratch``: optimization from scratch on the same files). ``--forms turned``: the
 turned copies only (the held-out measure at seeded yaw).
 
 Writes attempts, held, held and six-direction passed, distinct held grasps and the held grasps' median start depth per
@@ -94,7 +92,6 @@ def family_of(object_id: str) -> str:
 
     if object_id.startswith("pb-random-"):
         return "procedural"
-
     parsed = parse_household_id(object_id)
     return parsed.family + (" (perturbed)" if parsed.variant else "")
 
