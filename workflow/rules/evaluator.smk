@@ -2,7 +2,8 @@
 # model's syntheses on every stable training object, refined and simulated (on-generator examples), then an evaluator
 # trained on those and the lift-validated grasps of the training objects. sample_grasps ranks a larger pool of
 # syntheses on held-out objects by it (rows cvae_ranked*, listed in evaluate.methods); with loop.rank_candidates the
-# loop's rounds rank their candidates by it (the examples then come from round 0's model).
+# loop's rounds rank their candidates by it (the examples then come from round 0's model). With evaluator.source shipped
+# or a file, that evaluator ranks and nothing here runs.
 
 from dexlite_pipeline.evaluation.config import RANKED_METHODS
 
@@ -10,9 +11,20 @@ if not config["evaluator"]["enabled"]:  # without the evaluator there are no ran
     config["evaluate"]["methods"] = [m for m in config["evaluate"]["methods"] if m not in RANKED_METHODS]
 
 
+def ranking_evaluator():
+    """The evaluator that ranks: the one the run trains (evaluator.source: train) or the file evaluator.source names."""
+    from dexlite_pipeline.model.shipped import ranking_evaluator_file
+
+    try:
+        given = ranking_evaluator_file(str(config["evaluator"]["source"]), str(config["hand"]))
+    except FileNotFoundError as error:
+        raise WorkflowError(str(error)) from None
+    return str(given) if given is not None else f"{RESULTS}/evaluator/evaluator.pt"
+
+
 def evaluator_input(wildcards):
-    """The trained evaluator when evaluator.enabled: an input of sample_grasps, which then ranks by it."""
-    return {"evaluator": f"{RESULTS}/evaluator/evaluator.pt"} if config["evaluator"]["enabled"] else {}
+    """The ranking evaluator when evaluator.enabled: an input of sample_grasps, which then ranks by it."""
+    return {"evaluator": ranking_evaluator()} if config["evaluator"]["enabled"] else {}
 
 
 def examples_model():

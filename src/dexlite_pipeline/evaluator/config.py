@@ -20,6 +20,10 @@ class EvaluatorSection:
         "cvae_ranked / cvae_ranked_post: the model draws pool_factor x more pure syntheses per held-out object and keeps the "
         "best-scored distinct ones (default run, seeds 0-2: 1.7-2.3x the held grasps per simulated attempt of unranked "
         "samples, docs/results.md); false drops those rows")
+    source: str = setting(
+        "train", "the evaluator that ranks (with enabled): train (one trained by the run on its own model's examples and "
+        "training grasps), shipped (the one shipped with the run's hand: no examples, no evaluator training; how a new "
+        "model is measured ranked as the shipped model is) or the path of an evaluator.pt of the same hand")
     examples_per_object: int = setting(
         48, "on-generator examples: the trained model's pure syntheses per stable training object, post-optimized and "
         "simulated (every one, held or not) as the evaluation does; ~0.1 CPU s each (default run: 40-62 CPU s per shard)", minimum=0)
@@ -37,6 +41,8 @@ class EvaluatorSection:
         minimum=0, exclusive_maximum=1)
 
     def __post_init__(self) -> None:
+        if not str(self.source).strip():
+            raise ConfigError("evaluator.source is empty: give train, shipped or the path of an evaluator.pt")
         if self.examples_per_object < 0:
             raise ConfigError(f"evaluator.examples_per_object must be >= 0, got {self.examples_per_object}")
         for name in ("pool_factor", "epochs", "hand_points_per_shape"):

@@ -39,6 +39,26 @@ def shipped_evaluator_path(hand: str = "shadow") -> Path | None:
     return shipped_file(hand, "evaluator.pt")
 
 
+TRAINED_BY_THE_RUN = "train"
+
+
+def ranking_evaluator_file(source: str, hand: str = "shadow", base: str | os.PathLike = ".") -> Path | None:
+    """The evaluator file config key ``evaluator.source`` names: None for ``train`` (the run trains its own), the
+    package's evaluator of ``hand`` for ``shipped``, else the path (relative to ``base``, the run folder). Raises
+    FileNotFoundError in one line naming the key when the file does not exist."""
+    if source == TRAINED_BY_THE_RUN:
+        return None
+    if source == "shipped":
+        path = shipped_evaluator_path(hand)
+        if path is None:
+            raise FileNotFoundError(f"evaluator.source: shipped: {missing_shipped_model_reason(hand)} (no shipped evaluator)")
+        return path
+    path = Path(base) / Path(source).expanduser()
+    if not path.is_file():
+        raise FileNotFoundError(f"evaluator.source: {source}: no such evaluator file")
+    return path
+
+
 def shipped_model_path(hand: str = "shadow") -> Path | None:
     """``hand``'s shipped model file, or None when that hand has none (or the package was installed without its data)."""
     return shipped_file(hand, "cvae.pt")
