@@ -15,7 +15,8 @@ the vertical through its bounding-box centre by a yaw drawn uniformly from [0, 2
 ``dexlite grasp`` call per folder with the shipped model: ``--n`` samples per object ranked by its evaluator,
 post-optimized and lift-tested on a table, no optimization top-up (``--min-distinct 0``), and (household and shapes
 splits) ``--upright-axis +z`` so that a turned copy rests in the same pose as the generated mesh and only its heading
-differs. Arguments after ``--`` go to both calls (``-- --from-scratch``: optimization from scratch on the same files). ``--forms turned``: the
+differs. Arguments after ``--`` go to both calls (``-- --from-scratch``: optimization from scratch on the same files; an inline
+``--config-json`` there is given with the seed). ``--forms turned``: the
 turned copies only (the held-out measure at seeded yaw).
 
 Writes attempts, held, held and six-direction passed, distinct held grasps and the held grasps' median start depth per
@@ -31,6 +32,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import json
 import sys
 import zlib
 from pathlib import Path
@@ -136,6 +138,11 @@ def split_meshes(split: str, limit: int | None) -> dict:
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     extra = argv[argv.index("--") + 1:] if "--" in argv else []
+    config = {}  # an extra --config-json: merged under the seed each call sets (one --config-json reaches dexlite grasp)
+    if "--config-json" in extra:
+        at = extra.index("--config-json")
+        config = json.loads(extra[at + 1])
+        extra = extra[:at] + extra[at + 2:]
     own = argv[: argv.index("--")] if "--" in argv else argv
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("out_dir", type=Path)
@@ -168,7 +175,7 @@ def main(argv: list[str] | None = None) -> int:
         seed_rows, costs = [], []
         for form in forms:
             out = seed_dir / f"grasp_{form}"
-            cpu, wall = run_grasp(str(seed_dir / form), out, seed, args.threads, grasp_args, None)
+            cpu, wall = run_grasp(str(seed_dir / form), out, seed, args.threads, grasp_args, None, config)
             costs.append(f"{form} {cpu:.0f} CPU-s ({wall:.0f} s wall)")
             counts = per_mesh_counts(out)
             for stem, (object_id, yaw) in copies[form].items():

@@ -4,8 +4,9 @@
         --configfile config.yaml config/profiles/household_model.yaml \
         --command "snakemake --cores 2 all --configfile config.yaml config/profiles/household_model.yaml"
 
-Reads from the run: the model (``results/model/cvae.pt``), the learned evaluator (``results/evaluator/evaluator.pt``,
-when the run trained one), its config files, the object catalog, the stability table, the grasp shards it trained
+Reads from the run: the model (``results/model/cvae.pt``), the learned evaluator that ranked its samples
+(``results/evaluator/evaluator.pt`` when the run trained one; the file ``evaluator.source`` names when it reused one:
+``shipped``, the evaluator shipped beside the model this one replaces, its facts taken from that model's card), its config files, the object catalog, the stability table, the grasp shards it trained
 on (the grasp dataset's, ``results/dataset/``, and its own optimized / curated / lift-validated ones: counts), the
 evaluation (``results/eval/metrics.csv``, ``per_object.csv``; held-out rows per split, ``evaluation.subsets``) and
 Snakemake's per-job benchmark files (time per stage). ``--seed-runs``: the same profile at other training seeds
@@ -152,6 +153,29 @@ def evaluator_facts(run: Path) -> dict | None:
     return {**{k: facts.get(k) for k in keep}, "train_objects": len(facts.get("train_object_ids") or [])}
 
 
+def ranking_evaluator(run: Path, raw_config: dict, hand: str) -> tuple[bytes | None, dict | None]:
+    """(the bytes, the card's facts) of the evaluator that ranked the run's samples: the one the run trained
+    (``evaluator.source: train``, its ``training.json``), or the one ``evaluator.source`` names (``shipped``: the facts of
+    the card shipped beside it, which says which model's samples it learned from). (None, None) without one."""
+    from dexlite_pipeline.model.shipped import ranking_evaluator_file, shipped_file
+
+    section = raw_config.get("evaluator", {})
+    if not section.get("enabled", True):
+        return None, None
+    source = str(section.get("source", "train"))
+    given = ranking_evaluator_file(source, hand, base=run)
+    if given is None:
+        trained = run / "results" / "evaluator" / "evaluator.pt"
+        return (trained.read_bytes(), evaluator_facts(run)) if trained.is_file() else (None, None)
+    facts: dict = {"source": source}
+    card = shipped_file(hand, "card.json") if source == "shipped" else None
+    if card is not None:
+        previous = json.loads(card.read_text())
+        facts.update(previous.get("evaluator") or {})
+        facts["source"] = f"shipped with the model before this one (trained on {previous['name']}'s samples, code {previous['code_version']})"
+    return given.read_bytes(), facts
+
+
 def code_type_share(payload: dict) -> dict[str, float]:
     """Grasp type -> share of a checkpoint's stored codes (what ``sample.type_mix: training`` deals an object's samples by)."""
     from dexlite_pipeline.model.type_condition import training_mix
@@ -272,9 +296,16 @@ def card_markdown(card: dict) -> str:
     evaluator = card.get("evaluator")
     if evaluator:
         auc = evaluator.get("validation_auc_held")
-        lines.append(f"- Evaluator: {evaluator['examples']} examples ({evaluator['held']} held) on {evaluator['train_objects']} training objects "
-                     f"(the model's own refined and simulated samples beside the training grasps); validation ROC AUC for held "
-                     f"{auc:.3f} on training objects it did not fit." if auc is not None else "")  # fmt: skip
+        whose = ("the model's own refined and simulated samples" if "source" not in evaluator
+                 else "refined and simulated samples of the model shipped before this one")
+        if "examples" in evaluator:
+            lines.append(f"- Evaluator: {evaluator['examples']} examples ({evaluator['held']} held) on {evaluator['train_objects']} training objects "
+                         f"({whose} beside the training grasps); validation ROC AUC for held "
+                         f"{auc:.3f} on training objects it did not fit." if auc is not None else "")  # fmt: skip
+        if "source" in evaluator:
+            lines.append(f"- The evaluator was not trained again for this model (`evaluator.source: {card['config']['evaluator']['source']}`): "
+                         f"it is the one {evaluator['source'] if 'examples' in evaluator else 'that key names'}; the held-out rows "
+                         "below rank this model's samples with it.")
     lines += [
         "",
         "## Held-out objects",
@@ -372,13 +403,13 @@ def main() -> None:
         if hand_name not in SHIPPED_MODEL_DIRS:
             parser.error(f"hand {hand_name}: no package folder ships its model (SHIPPED_MODEL_DIRS); give --out")
         args.out = Path("src/dexlite_pipeline/data") / SHIPPED_MODEL_DIRS[hand_name]
+    evaluator_bytes, evaluator_record = ranking_evaluator(run, raw_config, hand_name)  # read before the folder is replaced
     if args.out.exists():
         shutil.rmtree(args.out)  # the shipped files of another model go (git history keeps them)
     args.out.mkdir(parents=True)
     shipped = save_half_precision_copy(source, args.out / "cvae.pt", max_codes_per_cloud=args.max_codes_per_cloud)
-    evaluator_file = run / "results" / "evaluator" / "evaluator.pt"
-    if evaluator_file.is_file():
-        shutil.copyfile(evaluator_file, args.out / "evaluator.pt")
+    if evaluator_bytes is not None:
+        (args.out / "evaluator.pt").write_bytes(evaluator_bytes)
     training = checkpoint["training_grasps"]
     hand_of_poses = hand_attrs(checkpoint)  # {} for the Shadow Hand, else the hand and its joint names, as a store records them
     write_grasp_store(args.out / "training_grasps.zarr", GraspSet({
@@ -418,7 +449,7 @@ def main() -> None:
             "validation_grasps": checkpoint.get("validation_grasps"), "train_objects": len(checkpoint.get("train_object_ids") or []),
             "wall_s": times.get("train_cvae", {}).get("wall_s", float("nan")), "cpu_s": times.get("train_cvae", {}).get("cpu_s", float("nan")),
         },  # fmt: skip
-        "evaluator": evaluator_facts(run) if evaluator_file.is_file() else None,
+        "evaluator": evaluator_record,
         "metrics": metrics_rows(run),
         "splits": [row for path, seed in seed_of.items() for row in split_rows(path, f"{seed} (shipped)" if path == run else str(seed), args.wall_to_cpu)],
         "costs_rescaled_from_wall_time": args.wall_to_cpu,
