@@ -1,7 +1,9 @@
 """An `evaluate` setting reruns only the evaluation steps that read it (evaluation.step_keys), after a complete run.
 
 evaluate_simulate (the MuJoCo shards) tracks what chooses and measures the grasps; the
-aggregate step (rule `evaluate`) what metrics.csv holds; the report the whole config.
+aggregate step (rule `evaluate`) what metrics.csv holds; the report the whole config. With the learned evaluator on,
+sample_grasps reads the cap too (it keeps as many ranked rows per object as the evaluation simulates), so the cap
+reruns the sampling and what follows it.
 """
 
 from __future__ import annotations
@@ -10,7 +12,7 @@ import copy
 import shutil
 
 import pytest
-from workflow_harness import planned_rules, write_config
+from workflow_harness import downstream, planned_rules, write_config
 
 pytestmark = pytest.mark.slow
 
@@ -19,7 +21,7 @@ CHANGES = [
     ("rendered_per_method", {"report"}),
     ("entropy_bins", {"evaluate", "report"}),
     ("pca_components", {"evaluate", "report"}),
-    ("grasps_per_object", EVALUATION_STEPS),
+    ("grasps_per_object", None),  # the sampling and what follows it (below)
 ]
 
 
@@ -35,4 +37,7 @@ def test_evaluate_setting_reruns_only_the_steps_that_read_it(complete_run, tmp_p
     config["evaluate"][key] = _changed(config["evaluate"][key])
     write_config(workdir, config)
 
+    if steps is None:
+        assert complete_run.config["evaluator"]["enabled"]
+        steps = downstream(complete_run.graph, {"sample_grasps"}) | EVALUATION_STEPS
     assert planned_rules(workdir) == steps, f"evaluate.{key}"

@@ -1,5 +1,5 @@
 """The learned evaluator in the tiny run: it trains on the training objects' simulated grasps only, and the ranked
-rows come out on the held-out objects, as many per object as the unranked ones, scored, and measured."""
+rows come out on the held-out objects, as many per object as the evaluation simulates, scored, and measured."""
 
 from __future__ import annotations
 
@@ -38,7 +38,8 @@ def test_the_evaluator_trains_on_training_objects_only(complete_run):
 def test_ranked_rows_match_the_unranked_count_and_are_measured(complete_run):
     workdir = complete_run.workdir
     splits = _splits(workdir)
-    per_object = complete_run.config["sample"]["synthesis_grasps_per_object"]
+    # as many ranked rows per object as the evaluation simulates of the unranked ones, each the best of pool_factor
+    per_object = min(complete_run.config["sample"]["synthesis_grasps_per_object"], complete_run.config["evaluate"]["grasps_per_object"])
     ranked_objects, raw_objects = Counter(), Counter()
     for path in sorted((workdir / "results" / "sample").glob("shard_*.zarr")):
         store = read_grasp_store(path)

@@ -16,8 +16,9 @@ def shipped_model_input(wildcards):
     return {"shipped": checkout_file(path)} if path else {}
 
 
-# What the ranking reads besides the sample section, tracked only when it runs (evaluator.enabled)
-RANKING_SECTIONS = ("evaluator.pool_factor", "diversity") if config["evaluator"]["enabled"] else ()
+# What the ranking reads besides the sample section, tracked only when it runs (evaluator.enabled): the pool, what
+# "distinct" means and how many grasps per object the evaluation simulates (as many ranked rows are kept)
+RANKING_SECTIONS = ("evaluator.pool_factor", "diversity", "evaluate.grasps_per_object") if config["evaluator"]["enabled"] else ()
 
 
 rule sample_grasps:

@@ -28,8 +28,10 @@ class EvaluatorSection:
         48, "on-generator examples: the trained model's pure syntheses per stable training object, post-optimized and "
         "simulated (every one, held or not) as the evaluation does; ~0.1 CPU s each (default run: 40-62 CPU s per shard)", minimum=0)
     pool_factor: int = setting(
-        4, "ranked rows: draw this many times sample.synthesis_grasps_per_object per held-out object, keep the best-scored "
-        "distinct ones (diversity's rule), topped up with the next best when fewer are distinct", minimum=1)
+        8, "candidates the model draws per grasp the evaluator keeps: dexlite grasp keeps the best-scored distinct --n of "
+        "pool_factor x --n samples per object (diversity's rule, topped up with the next best when fewer are distinct); "
+        "the ranked rows keep as many as the evaluation simulates per object (evaluate.grasps_per_object) of pool_factor "
+        "times as many; model batches and the data loop rank the same way", minimum=1)
     epochs: int = setting(40, "passes over the training examples", minimum=1)
     hand_points_per_shape: int = setting(6, "hand surface points per collision shape the network reads (6 -> 114 points)", minimum=1)
     rotation_augmentation: bool = setting(

@@ -1,10 +1,12 @@
 """Ranking the model's samples by the learned evaluator (stage ``sample_grasps`` with ``evaluator.enabled``).
 
-For each held-out object the model draws ``evaluator.pool_factor`` times the pure syntheses the evaluation
-samples (``sample.synthesis_grasps_per_object``), the evaluator scores each sampled pose (the probability it
-holds once post-optimized and lift-tested, on the object's table in tabletop mode), and the best-scored
-*distinct* ones are kept (``evaluation.ranking.rank_distinct``, topped up with the next best when fewer are
-distinct): rows ``cvae_ranked``, post-optimized and simulated like ``cvae_raw``'s, at the same count per object.
+For each held-out object the evaluation simulates ``evaluate.grasps_per_object`` of the pure syntheses (at most
+``sample.synthesis_grasps_per_object``); the model draws ``evaluator.pool_factor`` times that many, the evaluator
+scores each sampled pose (the probability it holds once post-optimized and lift-tested, on the object's table in
+tabletop mode), and the best-scored *distinct* ones are kept (``evaluation.ranking.rank_distinct``, topped up with
+the next best when fewer are distinct): rows ``cvae_ranked``, post-optimized and simulated like ``cvae_raw``'s, as
+many per object as the evaluation simulates of those. Each simulated ranked grasp is so the best of ``pool_factor``
+candidates, as ``dexlite grasp`` keeps ``--n`` of ``pool_factor`` x ``--n``.
 The pool has its own random stream, so the unranked rows are the same with ranking on or off. The unranked pure
 syntheses get the evaluator's score too (``evaluator_score``): the evaluation measures the score's ROC AUC on
 held-out objects from them.
@@ -89,12 +91,14 @@ def rank_candidates(
 
 def rank_shard(
     sampled: GraspSet, model_path: str, evaluator_path: str, objects_dirs: list[str], stability_path: str, shard: int, *, shards: int,
-    sample, section, diversity, table: bool, seed: int, device: str, hand: str = "shadow",
+    sample, section, diversity, table: bool, seed: int, device: str, hand: str = "shadow", evaluated_per_object: int | None = None,
 ) -> tuple[GraspSet, dict]:
     """``sampled`` (the shard's sample store) with the ranked rows appended and ``evaluator_score`` on its pure syntheses.
     The model and the evaluator must be of ``hand`` (config key ``hand``): each is refused in one line otherwise.
 
-    ``sample``: ``SampleConfig``; ``section``: ``EvaluatorSection`` (pool_factor); ``diversity``: ``DiversityConfig``
+    ``sample``: ``SampleConfig``; ``section``: ``EvaluatorSection`` (pool_factor); ``evaluated_per_object``: the
+    evaluation's cap (``evaluate.grasps_per_object``; None: as many as ``sample.synthesis_grasps_per_object``);
+    ``diversity``: ``DiversityConfig``
     (what "distinct" means); ``table``: tabletop mode (the evaluator reads each grasp's table). Returns the store and
     the ranking's attributes (pool and kept counts, CPU seconds of the pool's sampling and scoring per kept row).
     """
@@ -123,7 +127,9 @@ def rank_shard(
     if planes is not None:
         skipped.update({oid: "no resting pose (tabletop mode)" for oid in object_ids if oid not in planes})
         object_ids = [oid for oid in object_ids if oid in planes]
-    keep = sample.synthesis_grasps_per_object
+    # as many ranked rows per object as the evaluation simulates of the unranked ones (its cap, evaluated_per_object), drawn
+    # from pool_factor times as many: every simulated ranked grasp is the best of pool_factor candidates, as in dexlite grasp
+    keep = sample.synthesis_grasps_per_object if evaluated_per_object is None else min(sample.synthesis_grasps_per_object, evaluated_per_object)
     pool_size = keep * section.pool_factor
     arrays = dict(sampled.arrays)
     n = len(sampled)

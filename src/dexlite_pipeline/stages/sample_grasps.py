@@ -12,7 +12,7 @@ import argparse
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--config-json", required=True, help="config sections seed, device, shards, hand, sample (and with --evaluator: evaluator, diversity, scene) (canonical JSON)")
+    parser.add_argument("--config-json", required=True, help="config sections seed, device, shards, hand, sample (and with --evaluator: evaluator, diversity, scene, evaluate) (canonical JSON)")
     parser.add_argument("--model", default=None, help="trained model (cvae.pt; default: the shipped model of the config's hand, e.g. src/dexlite_pipeline/data/shadow-hand-household/cvae.pt)")
     parser.add_argument("--shipped-model", default=None, help="pretrained model also sampled on held-out objects it never trained on "
                         "(rows shipped_raw; default: sample.shipped_model, \"\" = none)")
@@ -44,7 +44,7 @@ def run(args: argparse.Namespace) -> int:
         grasps, attrs["ranking"] = rank_shard(
             grasps, str(model_or_shipped(args.model, config.hand)), args.evaluator, args.objects, args.stability, args.shard, shards=config.shards,
             sample=config.sample, section=config.evaluator, diversity=config.diversity, table=config.scene.table, seed=config.seed,
-            device=config.device, hand=config.hand,
+            device=config.device, hand=config.hand, evaluated_per_object=config.evaluate.grasps_per_object,
         )
     write_grasp_store(args.out, grasps, attrs)
     return 0
