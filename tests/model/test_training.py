@@ -123,10 +123,16 @@ def test_checkpoint_round_trip_loads_weights_only(tmp_path, setup, small_model_c
     kept = kept_code_rows(clouds_before, raw["state_dict"]["codes_type"], 1)
     assert raw_capped["codes_kept"] == {"max_codes_per_cloud": 1, "seed": 0, "before": len(clouds_before), "after": len(kept)}
     assert len(kept) == len(torch.unique(clouds_before)) < len(clouds_before)
-    for key in ("codes_mu", "codes_log_var", "codes_condition", "codes_cloud", "codes_type"):
+    for key in ("codes_mu", "codes_log_var", "codes_cloud", "codes_type"):
         assert torch.equal(raw_capped["state_dict"][key], raw["state_dict"][key][kept].to(raw_capped["state_dict"][key].dtype))
+    # each cloud's global feature is stored once, its codes' own columns each: loading puts back every code's condition
+    width = small_model_config.pointnet_widths[-1]
+    assert "codes_condition" not in raw_capped["state_dict"]
+    assert len(raw_capped["state_dict"]["cloud_global_condition"]) == len(torch.unique(raw_capped["state_dict"]["codes_cloud"]))
     loaded_capped, _ = load_checkpoint(capped)
     assert len(loaded_capped.codes_mu) == len(kept)
+    assert torch.equal(loaded_capped.codes_condition, raw["state_dict"]["codes_condition"][kept].half().float())
+    assert loaded_capped.codes_condition.shape[1] > width
     # the float32 copy with the same cap (measured in a run) keeps the same rows; halving it after keeps its record
     float32_capped = save_capped_copy(path, tmp_path / "capped32.pt", max_codes_per_cloud=1)
     raw32 = torch.load(float32_capped, weights_only=True)

@@ -167,13 +167,33 @@ def ranking_evaluator(run: Path, raw_config: dict, hand: str) -> tuple[bytes | N
     if given is None:
         trained = run / "results" / "evaluator" / "evaluator.pt"
         return (trained.read_bytes(), evaluator_facts(run)) if trained.is_file() else (None, None)
-    facts: dict = {"source": source}
+    facts: dict = {} if source == "shipped" else {"source": f"in {source}"}
     card = shipped_file(hand, "card.json") if source == "shipped" else None
     if card is not None:
         previous = json.loads(card.read_text())
-        facts.update(previous.get("evaluator") or {})
-        facts["source"] = f"shipped with the model before this one (trained on {previous['name']}'s samples, code {previous['code_version']})"
+        facts.update(previous.get("evaluator") or {})  # a reused evaluator's card keeps where it was trained ("source")
+        facts.setdefault("source", f"shipped with the model of {previous['date']} and trained on that model's samples (code {previous['code_version']})")
     return given.read_bytes(), facts
+
+
+def ranking_selection(run: Path, config: dict) -> float | None:
+    """How many of the model's samples each simulated ranked grasp was chosen from: the ranking's pool per object
+    (``results/sample`` stores' attributes) over the grasps per object the evaluation simulated of the ranked rows
+    (``evaluate.grasps_per_object``, at most those kept). None without ranked rows."""
+    import zarr
+
+    pool = ranked_objects = 0.0
+    kept_per_object = None
+    for path in sorted((run / "results" / "sample").glob("shard_*.zarr")):
+        ranking = dict(zarr.open_group(str(path), mode="r").attrs).get("ranking") or {}
+        if ranking.get("kept"):
+            pool += ranking["pool"]
+            kept_per_object = ranking["kept_per_object"]
+            ranked_objects += ranking["kept"] / kept_per_object
+    if not pool or kept_per_object is None:
+        return None
+    simulated = min(kept_per_object, int(config.get("evaluate", {}).get("grasps_per_object", kept_per_object)))
+    return pool / ranked_objects / simulated
 
 
 def code_type_share(payload: dict) -> dict[str, float]:
@@ -304,7 +324,7 @@ def card_markdown(card: dict) -> str:
                          f"{auc:.3f} on training objects it did not fit." if auc is not None else "")  # fmt: skip
         if "source" in evaluator:
             lines.append(f"- The evaluator was not trained again for this model (`evaluator.source: {card['config']['evaluator']['source']}`): "
-                         f"it is the one {evaluator['source'] if 'examples' in evaluator else 'that key names'}; the held-out rows "
+                         f"it is the one {evaluator['source']}; the held-out rows "
                          "below rank this model's samples with it.")
     lines += [
         "",
@@ -314,8 +334,11 @@ def card_markdown(card: dict) -> str:
         + ("; each held-out object turned about the vertical by its own seeded angle (`objects.heldout_yaw`)"
            if card["config"].get("objects", {}).get("heldout_yaw") else ", each object at the orientation it was generated in")
         + "; "
-        "intervals Wilson 95% over attempts. `cvae_ranked_post`: the evaluator keeps the best-scored distinct quarter of the "
-        "model's samples, which are then post-optimized (what `dexlite grasp` does); `cvae_post`: the model's samples, "
+        "intervals Wilson 95% over attempts. `cvae_ranked_post`: the evaluator keeps the best-scored distinct of the "
+        "model's samples, which are then post-optimized (what `dexlite grasp` does), each simulated grasp "
+        + (f"the best of {card['ranking_selection']:.0f} samples (`dexlite grasp`: of `evaluator.pool_factor`)"
+           if card.get("ranking_selection") else "one of the best-scored")
+        + "; `cvae_post`: the model's samples, "
         "post-optimized; `optimization`: from scratch; `shipped_post`: the model shipped before this one. CPU-seconds count "
         "sampling, ranking and refinement per attempt (not the simulation), over the distinct held grasps"
         + (" (this run's stages timed wall seconds on shared cores: each stage's are rescaled by its jobs' CPU time over wall time)."
@@ -450,6 +473,7 @@ def main() -> None:
             "wall_s": times.get("train_cvae", {}).get("wall_s", float("nan")), "cpu_s": times.get("train_cvae", {}).get("cpu_s", float("nan")),
         },  # fmt: skip
         "evaluator": evaluator_record,
+        "ranking_selection": ranking_selection(run, raw_config),
         "metrics": metrics_rows(run),
         "splits": [row for path, seed in seed_of.items() for row in split_rows(path, f"{seed} (shipped)" if path == run else str(seed), args.wall_to_cpu)],
         "costs_rescaled_from_wall_time": args.wall_to_cpu,

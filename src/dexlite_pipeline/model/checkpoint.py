@@ -113,15 +113,48 @@ def save_capped_copy(source: str | os.PathLike, destination: str | os.PathLike, 
     return Path(destination)
 
 
+# A stored copy may keep each training cloud's global feature once (the first columns of codes_condition, the same for
+# every code of that cloud) beside each code's own columns: load_checkpoint puts codes_condition back together.
+CLOUD_GLOBAL_KEY, CODE_LOCAL_KEY = "cloud_global_condition", "codes_local_condition"
+
+
+def _split_condition(state: dict, global_width: int) -> dict:
+    """``state`` with codes_condition stored as each cloud's global columns once (rows in ``torch.unique(codes_cloud)``
+    order) and each code's remaining columns; unchanged when a cloud's codes do not share their global columns."""
+    condition, cloud = state.get("codes_condition"), state.get("codes_cloud")
+    if condition is None or cloud is None or len(cloud) != len(condition) or not len(cloud):
+        return state
+    clouds, inverse = torch.unique(cloud, sorted=True, return_inverse=True)
+    first = torch.zeros(len(clouds), dtype=torch.long).scatter_reduce(0, inverse, torch.arange(len(cloud)), "amin", include_self=False)
+    shared = condition[first, :global_width]
+    if not torch.equal(shared[inverse], condition[:, :global_width]):
+        return state
+    split = {k: v for k, v in state.items() if k != "codes_condition"}
+    split[CLOUD_GLOBAL_KEY], split[CODE_LOCAL_KEY] = shared.clone(), condition[:, global_width:].clone()
+    return split
+
+
+def _joined_condition(state: dict) -> dict:
+    """``state`` with codes_condition rebuilt from a split store (``_split_condition``); unchanged otherwise."""
+    if CODE_LOCAL_KEY not in state:
+        return state
+    _, inverse = torch.unique(state["codes_cloud"], sorted=True, return_inverse=True)
+    joined = {k: v for k, v in state.items() if k not in (CLOUD_GLOBAL_KEY, CODE_LOCAL_KEY)}
+    joined["codes_condition"] = torch.cat([state[CLOUD_GLOBAL_KEY][inverse.to(state[CLOUD_GLOBAL_KEY].device)], state[CODE_LOCAL_KEY]], dim=1)
+    return joined
+
+
 def save_half_precision_copy(source: str | os.PathLike, destination: str | os.PathLike, max_codes_per_cloud: int = 0, seed: int = 0) -> Path:
     """A copy of a checkpoint whose weights and latent codes are stored as float16 (about half the
     size: the shipped model). ``load_checkpoint`` restores float32; the training grasps stay float32.
 
     ``max_codes_per_cloud`` > 0: each training cloud (object and scale) keeps at most that many of its training codes
     (``kept_code_rows``, seeded by ``seed``), so the file's size stops growing with the grasps per object (each code is
-    about 2 kB in float16: 54,726 codes are 112 MB); the copy records ``codes_kept`` (the cap, the codes before and after)."""
+    about 2 kB in float16: 54,726 codes are 112 MB); the copy records ``codes_kept`` (the cap, the codes before and after).
+    A training cloud's global feature, which every code of that cloud carries, is stored once (``_split_condition``)."""
     payload = _capped(torch.load(source, map_location="cpu", weights_only=True), max_codes_per_cloud, seed)
     payload["state_dict"] = {k: v.half() if v.is_floating_point() else v for k, v in payload["state_dict"].items()}
+    payload["state_dict"] = _split_condition(payload["state_dict"], int(payload["model_config"]["pointnet_widths"][-1]))
     payload["stored_dtype"] = "float16"
     with atomic_path(destination) as tmp:
         torch.save(payload, tmp)
@@ -152,7 +185,7 @@ def load_checkpoint(path: str | os.PathLike, device: torch.device | str = "cpu",
         ).to(device)
     except ValueError as exc:
         raise CheckpointError(f"{p}: {exc}") from exc
-    state = {k: v.float() if v.dtype == torch.float16 else v for k, v in payload["state_dict"].items()}  # a half-precision copy
+    state = {k: v.float() if v.dtype == torch.float16 else v for k, v in _joined_condition(payload["state_dict"]).items()}  # a half-precision copy
     empty = torch.zeros(0, model.config.latent_dim)
     model.set_latent_codes(
         state.pop("codes_mu", empty), state.pop("codes_log_var", empty), state.pop("codes_condition", None), state.pop("codes_cloud", None),
