@@ -387,7 +387,9 @@ def card_markdown(card: dict) -> str:
         "pybullet_data's procedural shapes, standing on a table, under MuJoCo's lift test "
         "at friction 0.6 with a 0.1 kg object; other objects, masses and physics are untested."
         if dataset else "- Measured on the run's objects under MuJoCo's lift test at friction 0.6; other objects and physics are untested.",
-        "- One machine; runs are not bit-identical across machines (the training seeds' spread above is the measure of noise).",
+        "- One machine; runs are not bit-identical across machines ("
+        + ("the training seeds' spread above is the measure of noise)." if len({r["run"] for r in card["splits"]}) > 1
+           else "one training seed above; the spread over training seeds and tool seeds is on the project's results page, docs/results.md)."),
         "",
     ]
     return "\n".join(lines)
