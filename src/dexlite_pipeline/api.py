@@ -27,11 +27,11 @@ from pathlib import Path
 import numpy as np
 
 from dexlite_pipeline.model.config import ANY_GRASP_TYPE
+from dexlite_pipeline.model.shipped import SHIPPED  # the model (and its evaluator) that ship with the package
 from dexlite_pipeline.tools.grasp.request import (
     DEFAULT_GRASPS_PER_OBJECT, DEFAULT_MIN_DISTINCT, DEFAULT_TOP_UP_BATCHES, GraspRequest, GraspToolError,
 )  # fmt: skip
 
-SHIPPED = "shipped"  # the model (and its evaluator) that ship with the package
 
 
 @dataclass

@@ -39,6 +39,7 @@ def shipped_evaluator_path(hand: str = "shadow") -> Path | None:
     return shipped_file(hand, "evaluator.pt")
 
 
+SHIPPED = "shipped"  # a config value or argument that names the model (or evaluator) shipped for the hand
 TRAINED_BY_THE_RUN = "train"
 
 
@@ -48,7 +49,7 @@ def ranking_evaluator_file(source: str, hand: str = "shadow", base: str | os.Pat
     FileNotFoundError in one line naming the key when the file does not exist."""
     if source == TRAINED_BY_THE_RUN:
         return None
-    if source == "shipped":
+    if source == SHIPPED:
         path = shipped_evaluator_path(hand)
         if path is None:
             raise FileNotFoundError(f"evaluator.source: shipped: {missing_shipped_model_reason(hand)} (no shipped evaluator)")

@@ -39,6 +39,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from dexlite_pipeline.model.shipped import SHIPPED
 from dexlite_pipeline.tools.grasp.request import SOURCE_MODEL, SOURCE_OPTIMIZATION
 from dexlite_pipeline.tools.grasp.run import hopeless_optimizations
 from dexlite_pipeline.tools.grasp.selection import distinct_labels, distinct_per_object
@@ -51,7 +52,6 @@ if TYPE_CHECKING:
 
 log = logging.getLogger("dexlite.model_batch")
 
-SHIPPED = "shipped"
 NO_EVALUATOR = "none"
 
 
