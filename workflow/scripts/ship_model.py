@@ -157,7 +157,7 @@ def ranking_evaluator(run: Path, raw_config: dict, hand: str) -> tuple[bytes | N
     """(the bytes, the card's facts) of the evaluator that ranked the run's samples: the one the run trained
     (``evaluator.source: train``, its ``training.json``), or the one ``evaluator.source`` names (``shipped``: the facts of
     the card shipped beside it, which says which model's samples it learned from). (None, None) without one."""
-    from dexlite_pipeline.model.shipped import ranking_evaluator_file, shipped_file
+    from dexlite_pipeline.model.shipped import SHIPPED, ranking_evaluator_file, shipped_file
 
     section = raw_config.get("evaluator", {})
     if not section.get("enabled", True):
@@ -167,8 +167,8 @@ def ranking_evaluator(run: Path, raw_config: dict, hand: str) -> tuple[bytes | N
     if given is None:
         trained = run / "results" / "evaluator" / "evaluator.pt"
         return (trained.read_bytes(), evaluator_facts(run)) if trained.is_file() else (None, None)
-    facts: dict = {} if source == "shipped" else {"source": f"in {source}"}
-    card = shipped_file(hand, "card.json") if source == "shipped" else None
+    facts: dict = {} if source == SHIPPED else {"source": f"in {source}"}
+    card = shipped_file(hand, "card.json") if source == SHIPPED else None
     if card is not None:
         previous = json.loads(card.read_text())
         facts.update(previous.get("evaluator") or {})  # a reused evaluator's card keeps where it was trained ("source")
