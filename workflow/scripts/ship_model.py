@@ -6,9 +6,10 @@
 
 Reads from the run: the model (``results/model/cvae.pt``), the learned evaluator that ranked its samples
 (``results/evaluator/evaluator.pt`` when the run trained one; the file ``evaluator.source`` names when it reused one:
-``shipped``, the evaluator shipped beside the model this one replaces, its facts taken from that model's card), its config files, the object catalog, the stability table, the grasp shards it trained
-on (the grasp dataset's, ``results/dataset/``, and its own optimized / curated / lift-validated ones: counts), the
-evaluation (``results/eval/metrics.csv``, ``per_object.csv``; held-out rows per split, ``evaluation.subsets``) and
+``shipped``, the evaluator shipped beside the model this one replaces, its facts taken from that model's card), its
+config files, the object catalog, the stability table, the grasp shards it trained on (the grasp dataset's,
+``results/dataset/``, and its own optimized / curated / lift-validated ones: counts), the evaluation
+(``results/eval/metrics.csv``, ``per_object.csv``; held-out rows per split, ``evaluation.subsets``) and
 Snakemake's per-job benchmark files (time per stage). ``--seed-runs``: the same profile at other training seeds
 (``train.seed``), tabulated beside the shipped one. Writes to ``--out``: ``cvae.pt`` (weights and codes in float16,
 loads with ``torch.load(..., weights_only=True)``), ``evaluator.pt``, ``training_grasps.zarr`` (the grasps it was
@@ -157,12 +158,12 @@ def ranking_evaluator(run: Path, raw_config: dict, hand: str) -> tuple[bytes | N
     """(the bytes, the card's facts) of the evaluator that ranked the run's samples: the one the run trained
     (``evaluator.source: train``, its ``training.json``), or the one ``evaluator.source`` names (``shipped``: the facts of
     the card shipped beside it, which says which model's samples it learned from). (None, None) without one."""
-    from dexlite_pipeline.model.shipped import SHIPPED, ranking_evaluator_file, shipped_file
+    from dexlite_pipeline.model.shipped import SHIPPED, TRAINED_BY_THE_RUN, ranking_evaluator_file, shipped_file
 
     section = raw_config.get("evaluator", {})
     if not section.get("enabled", True):
         return None, None
-    source = str(section.get("source", "train"))
+    source = str(section.get("source", TRAINED_BY_THE_RUN))
     given = ranking_evaluator_file(source, hand, base=run)
     if given is None:
         trained = run / "results" / "evaluator" / "evaluator.pt"
