@@ -1,14 +1,16 @@
 """`dexlite grasp` on a held-out split as generated and turned about the vertical: how much the results depend on yaw.
 
     python benchmarks/experiments/yaw_sensitivity.py OUT_DIR [--split household|shapes|benchmark] [--forms generated turned] [--seeds 0 1 2]
-        [--yaws-per-object 1] [--n 16] [--limit K] [--threads 1] [-- EXTRA dexlite grasp ARGS]
+        [--yaws-per-object 1] [--n 16] [--limit K] [--objects ID ...] [--threads 1] [-- EXTRA dexlite grasp ARGS]
 
 The objects are the household split's (``objects/household_split.yaml``: three of each family, never trained on;
 ``--split shapes``: the shapes split's, ``objects/shapes_split.yaml``: the shape families and perturbed instances of
 every family; ``--limit K``: the first K), generated in metres standing on z = 0 with z up. ``--split benchmark``: the
 benchmark split's procedural pybullet_data objects (``objects/benchmark_split.yaml``), placed as their URDF places them;
 they have no real size, so each is grasped at the training radii (``--resize-to-training``, as the pipeline samples and
-optimizes them) and rests in its stable pose (no ``--upright-axis``); their table group is "procedural". Per seed, each
+optimizes them) and rests in its stable pose (no ``--upright-axis``); their table group is "procedural". ``--objects``:
+these ids instead of a split, all procedural (placed as the benchmark split's) or all household (as the household
+split's), e.g. objects of no split and no dataset batch on which to choose a setting. Per seed, each
 is written as OBJ into ``OUT_DIR/seed_<s>/generated/`` as generated and into ``OUT_DIR/seed_<s>/turned/`` turned about
 the vertical through its bounding-box centre by a yaw drawn uniformly from [0, 2π) by ``default_rng([seed, crc32(object id)])``
 (``--yaws-per-object K``: K turned copies ``<id>_yaw<k>.obj``); the yaws go to ``OUT_DIR/seed_<s>/yaws.csv``. Then one
@@ -122,17 +124,33 @@ def family_table(rows: list[dict], with_interval: bool, forms: tuple[str, ...] =
     return lines
 
 
-def split_meshes(split: str, limit: int | None) -> dict:
-    """Object id -> trimesh of the split's first ``limit`` objects (all with None): household and shapes objects generated
-    in metres standing on z = 0; benchmark objects as their URDF places them (scale and rotation), in its units."""
+def split_meshes(split: str, limit: int | None, object_ids: list[str] | None = None) -> dict:
+    """Object id -> trimesh of the split's first ``limit`` objects (all with None), or of ``object_ids`` instead of a split:
+    household and shapes objects generated in metres standing on z = 0; procedural objects (the benchmark split's,
+    ``pb-random-NNN``) as their URDF places them (scale and rotation), in its units."""
     from dexlite_pipeline.objects.asset_building import load_source_mesh
     from dexlite_pipeline.objects.household import household_object
     from dexlite_pipeline.objects.sources import benchmark_object_list, household_benchmark_list, pybullet_random_source_of, shapes_benchmark_list
 
-    if split == "benchmark":
-        return {object_id: load_source_mesh(pybullet_random_source_of(object_id)) for object_id in benchmark_object_list()[:limit]}
-    ids = household_benchmark_list() if split == "household" else shapes_benchmark_list()
-    return {object_id: household_object(object_id).mesh for object_id in ids[:limit]}
+    if object_ids is None:
+        object_ids = {"benchmark": benchmark_object_list, "household": household_benchmark_list, "shapes": shapes_benchmark_list}[split]()[:limit]
+    return {object_id: load_source_mesh(pybullet_random_source_of(object_id)) if is_procedural(object_id) else household_object(object_id).mesh
+            for object_id in object_ids}
+
+
+def is_procedural(object_id: str) -> bool:
+    """Whether ``object_id`` names a procedural pybullet_data object (placed like the benchmark split's) rather than a
+    generated household one."""
+    return object_id.startswith("pb-random-")
+
+
+def objects_kind(object_ids: list[str]) -> str:
+    """'benchmark' when every id of ``--objects`` is procedural, 'household' when none is (their placement: resized to
+    the training radii, or standing at real size); ValueError for a mix, which no one placement fits."""
+    procedural = {is_procedural(object_id) for object_id in object_ids}
+    if len(procedural) != 1:
+        raise ValueError("--objects: give procedural (pb-random-NNN) or household ids, not both")
+    return "benchmark" if procedural.pop() else "household"
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -153,17 +171,26 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--yaws-per-object", type=int, default=1)
     parser.add_argument("--n", type=int, default=16)
     parser.add_argument("--limit", type=int, default=None, help="the first K objects of the split (default: all)")
+    parser.add_argument("--objects", nargs="+", default=None, metavar="ID",
+                        help="object ids instead of a split, all procedural (pb-random-NNN, placed as the benchmark split's) or "
+                        "all household (standing at real size): e.g. objects of no split and no dataset batch, to choose a "
+                        "setting on objects other than those it is then measured on")
     parser.add_argument("--threads", type=int, default=1)
     args = parser.parse_args(own)
     sys.path.insert(0, str(Path(__file__).resolve().parent))
     from grasp_check_meshes import per_mesh_counts, run_grasp
 
     forms = tuple(form for form in FORMS if form in args.forms)
-    meshes = split_meshes(args.split, args.limit)
+    try:
+        kind = args.split if args.objects is None else objects_kind(args.objects)
+    except ValueError as error:
+        parser.error(str(error))
+    meshes = split_meshes(args.split, args.limit, args.objects)
     top_up = [] if "--from-scratch" in extra else ["--min-distinct", "0"]  # the model's own grasps: no optimization top-up
-    placement = ["--resize-to-training"] if args.split == "benchmark" else ["--upright-axis", "+z"]
+    placement = ["--resize-to-training"] if kind == "benchmark" else ["--upright-axis", "+z"]
     grasp_args = ["--n", str(args.n), *top_up, *placement, *extra]
-    report = [f"# `dexlite grasp` on the {args.split} split, {' and '.join(forms)} about the vertical", "",
+    what = f"the {args.split} split" if args.objects is None else f"{len(args.objects)} {kind} objects given by id"
+    report = [f"# `dexlite grasp` on {what}, {' and '.join(forms)} about the vertical", "",
               f"Command: `{' '.join(['python', *sys.argv])}`", "",
               f"{len(meshes)} objects, {args.n} grasps each, {args.yaws_per_object} turned cop"
               f"{'y' if args.yaws_per_object == 1 else 'ies'} per object and seed; `dexlite grasp` arguments: "

@@ -1,6 +1,7 @@
 """benchmarks/experiments/yaw_sensitivity.py: split objects grouped by family (perturbed apart), per form; the seeded yaws."""
 
 import numpy as np
+import pytest
 
 
 def _row(object_id, family, form, held, distinct=1):
@@ -41,3 +42,13 @@ def test_the_benchmark_split_is_its_procedural_objects_as_their_urdf_places_them
     assert all(script.family_of(object_id) == "procedural" for object_id in meshes)
     placed = load_source_mesh(pybullet_random_source_of(benchmark_object_list()[0]))
     assert np.allclose(meshes[benchmark_object_list()[0]].vertices, placed.vertices)
+
+
+def test_objects_given_by_id_are_placed_by_their_kind(benchmark_script):
+    script = benchmark_script("yaw_sensitivity")
+    assert script.objects_kind(["pb-random-801", "pb-random-802"]) == "benchmark"
+    assert script.objects_kind(["household-mug-800"]) == "household"
+    with pytest.raises(ValueError, match="not both"):
+        script.objects_kind(["pb-random-801", "household-mug-800"])
+    meshes = script.split_meshes("household", None, ["household-mug-800"])
+    assert list(meshes) == ["household-mug-800"] and meshes["household-mug-800"].is_watertight
