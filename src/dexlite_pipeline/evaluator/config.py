@@ -28,7 +28,7 @@ class EvaluatorSection:
         48, "on-generator examples: the trained model's pure syntheses per stable training object, post-optimized and "
         "simulated (every one, held or not) as the evaluation does; ~0.1 CPU s each (default run: 40-62 CPU s per shard)", minimum=0)
     pool_factor: int = setting(
-        8, "candidates the model draws per grasp the evaluator keeps: dexlite grasp keeps the best-scored distinct --n of "
+        32, "candidates the model draws per grasp the evaluator keeps: dexlite grasp keeps the best-scored distinct --n of "
         "pool_factor x --n samples per object (diversity's rule, topped up with the next best when fewer are distinct); "
         "the ranked rows keep as many as the evaluation simulates per object (evaluate.grasps_per_object) of pool_factor "
         "times as many; model batches and the data loop rank the same way", minimum=1)
