@@ -74,8 +74,8 @@ def test_a_changed_readme_or_card_number_fails(tmp_path):
     page = rp.page_tokens()
     readme = tmp_path / "README.md"
     text = rp.README.read_text()
-    assert "it holds 95.3% of its" in text, "the README's sentence this test changes has moved: update the test"
-    readme.write_text(text.replace("it holds 95.3% of its", "it holds 93.6% of its", 1))
+    assert "it holds 96.9% of its" in text, "the README's sentence this test changes has moved: update the test"
+    readme.write_text(text.replace("it holds 96.9% of its", "it holds 93.6% of its", 1))
     assert [q.token for q in rp.missing(rp.readme_numbers(readme), page)] == ["93.6%"]
     card = tmp_path / "MODEL_CARD.md"
     text = rp.CARD.read_text()
