@@ -33,7 +33,6 @@ from dexlite_pipeline.tools.grasp.request import (
 )  # fmt: skip
 
 
-
 @dataclass
 class MeshGrasps:
     """One mesh's grasps: the kept held grasps (one per distinct grasp unless ``distinct=False``) and why the others failed.
