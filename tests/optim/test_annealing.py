@@ -75,6 +75,39 @@ def test_starts_on_a_table_put_every_palm_above_it(hand, setup):
     assert torch.equal(far_below, floating)
 
 
+def test_top_and_sides_puts_half_the_hull_points_on_the_top_of_the_table_normal(setup):
+    """The box (1.2 x 0.9 x 0.7): its top is a fifth of its hull's area; with ``top_and_sides`` half the points are on
+    the faces facing the table's normal, whichever axis that is, and the others on the rest; without a table, by area."""
+    _, hulls = setup
+    rows = 4000
+    box = torch.ones(rows, dtype=torch.long)
+    _, by_area = hulls.sample(box, torch.Generator().manual_seed(0))
+    for axis in range(3):
+        up = torch.zeros(rows, 3, dtype=torch.float64)
+        up[:, axis] = 1.0
+        points, normals = hulls.sample(box, torch.Generator().manual_seed(0), up=up)
+        on_top = normals[:, axis] > 0.99
+        assert abs(float(on_top.double().mean()) - 0.5) < 0.03
+        assert abs(float((by_area[:, axis] > 0.99).double().mean()) - 0.5) > 0.15  # by area no face gets half
+        half = float(hulls.triangles[1][..., axis].max())
+        assert torch.allclose(points[on_top, axis], torch.full((int(on_top.sum()),), half, dtype=torch.float64))
+
+
+def test_top_and_sides_starts_come_from_above_half_the_time_and_floating_starts_are_unchanged(hand, setup):
+    _, hulls = setup
+    object_index, scale = _batch(256)
+    up = torch.tensor([0.0, 0.0, 1.0]).expand(256, 3)
+    table = (up, torch.full((256,), 0.04))  # the table 4 cm under the objects' centre (the box is 5.6 cm tall at this scale)
+    split = InitConfig(distance_m=(0.1, 0.15), jitter_deg=0.0, start_faces="top_and_sides")
+    by_area = InitConfig(distance_m=(0.1, 0.15), jitter_deg=0.0)
+    assert torch.equal(initial_poses(hand, hulls, object_index, scale, split, torch.Generator().manual_seed(0)),
+                       initial_poses(hand, hulls, object_index, scale, by_area, torch.Generator().manual_seed(0)))
+    approach = {name: euler_xyz_to_matrix(initial_poses(hand, hulls, object_index, scale, config, torch.Generator().manual_seed(0), support=table)[:, 3:6])
+                @ torch.tensor(PALM_APPROACH) for name, config in (("split", split), ("area", by_area))}
+    from_above = {name: (a[object_index == 1, 2] < -0.99).double().mean().item() for name, a in approach.items()}
+    assert from_above["area"] < 0.3 and abs(from_above["split"] - 0.5) < 0.1
+
+
 def test_optimizer_lowers_energy_and_records_trace(hand, setup):
     energy, hulls = setup
     object_index, scale = _batch(12)

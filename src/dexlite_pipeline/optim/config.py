@@ -92,6 +92,10 @@ class InitConfig:
     distance_m: tuple[float, float] = setting((0.2, 0.3), "palm distance from the hull point", items={"minimum": 0})
     jitter_deg: float = setting(30.0, "approach tilt away from the inward normal", minimum=0, maximum=90)
     joint_sigma_fraction: float = setting(0.1, "joint noise σ as a fraction of each range", minimum=0)
+    start_faces: str = setting(
+        "area", "where on the hull power starts begin: area (every hull face by its area, DexGraspNet's); top_and_sides (on a "
+        "table, half the starts on the faces facing up, within 30° of the table's normal, half on the others, each half by area: "
+        "a tall object's top is a small share of its hull)", enum=("area", "top_and_sides"))
 
 
 @dataclass(frozen=True)

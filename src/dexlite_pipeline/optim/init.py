@@ -63,15 +63,24 @@ class HullSampler:
             self.normals.append(torch.tensor(np.asarray(hull.face_normals), dtype=torch.float64))
             self.areas.append(torch.tensor(np.asarray(hull.area_faces), dtype=torch.float64))
 
-    def sample(self, object_index: torch.Tensor, generator: torch.Generator) -> tuple[torch.Tensor, torch.Tensor]:
-        """Points (B, 3) and outward normals (B, 3) in each object's normalized frame."""
+    def sample(self, object_index: torch.Tensor, generator: torch.Generator, up: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor]:
+        """Points (B, 3) and outward normals (B, 3) in each object's normalized frame, each on a face drawn by area.
+
+        ``up`` (B, 3; its table's upward normal per row, the same for one object's rows): half the rows, drawn at
+        random, on the object's top (faces whose normal is within ``TOP_FACE_DEG`` of up), the others on the rest, each
+        by area within its group (``InitConfig.start_faces`` "top_and_sides"); an object with no top or no other face
+        draws all its rows from every face."""
         batch = object_index.shape[0]
         points = torch.zeros(batch, 3, dtype=torch.float64)
         normals = torch.zeros(batch, 3, dtype=torch.float64)
         index = object_index.cpu()
+        on_top = None if up is None else torch.rand(batch, generator=generator, dtype=torch.float64) < 0.5
         for obj in torch.unique(index).tolist():
             rows = (index == obj).nonzero(as_tuple=True)[0]
-            face = torch.multinomial(self.areas[obj], len(rows), replacement=True, generator=generator)
+            if on_top is None:
+                face = torch.multinomial(self.areas[obj], len(rows), replacement=True, generator=generator)
+            else:
+                face = self._faces_by_group(obj, on_top[rows], up[rows[0]].cpu().double(), generator)
             u, v = torch.rand(2, len(rows), 1, generator=generator, dtype=torch.float64)
             flip = (u + v) > 1
             u, v = torch.where(flip, 1 - u, u), torch.where(flip, 1 - v, v)
@@ -79,6 +88,18 @@ class HullSampler:
             points[rows] = tri[:, 0] + u * (tri[:, 1] - tri[:, 0]) + v * (tri[:, 2] - tri[:, 0])
             normals[rows] = self.normals[obj][face]
         return points, normals
+
+    def _faces_by_group(self, obj: int, on_top: torch.Tensor, up: torch.Tensor, generator: torch.Generator) -> torch.Tensor:
+        """(len(on_top),) face indices: rows with ``on_top`` drawn by area among the top faces, the others among the rest."""
+        top = self.normals[obj] @ up >= math.cos(math.radians(TOP_FACE_DEG))
+        face = torch.zeros(len(on_top), dtype=torch.long)
+        for rows, group in ((on_top, top), (~on_top, ~top)):
+            count = int(rows.sum())
+            if not count:
+                continue
+            weights = self.areas[obj] * group if bool(group.any()) and bool((~group).any()) else self.areas[obj]
+            face[rows] = torch.multinomial(weights, count, replacement=True, generator=generator)
+        return face
 
 
 def _unit(v: torch.Tensor) -> torch.Tensor:
@@ -94,6 +115,10 @@ def _random_perpendicular(direction: torch.Tensor, generator: torch.Generator) -
             return _unit(perp)
 
 
+# A hull face whose outward normal is within this angle of the table's upward normal is on the object's top
+# (``InitConfig.start_faces`` "top_and_sides"; the precision types' rim starts use the same, ``optim.type_starts``).
+TOP_FACE_DEG = 30.0
+
 # Redraws of starts whose palm lies below the table before giving up on a grasp's start (tabletop mode).
 MAX_TABLE_REDRAWS = 100
 
@@ -102,10 +127,12 @@ class NoStartAboveTable(ValueError):
     """An object whose convex-hull starts all put the palm below its table."""
 
 
-def _palm_origins(hulls: HullSampler, object_index, scale, config: InitConfig, generator) -> tuple[torch.Tensor, torch.Tensor]:
-    """Palm origins (B, 3) and approach directions (B, 3): a hull point, a tilted inward approach, a distance back."""
+def _palm_origins(hulls: HullSampler, object_index, scale, config: InitConfig, generator, up=None) -> tuple[torch.Tensor, torch.Tensor]:
+    """Palm origins (B, 3) and approach directions (B, 3): a hull point, a tilted inward approach, a distance back.
+    ``up`` (B, 3): the table's normal per row, which splits the hull points between top and sides
+    (``config.start_faces`` "top_and_sides"); None: every face by area."""
     batch = object_index.shape[0]
-    point, normal = hulls.sample(object_index, generator)
+    point, normal = hulls.sample(object_index, generator, up=up if config.start_faces == "top_and_sides" else None)
     point = point * scale.cpu().double()[:, None]
     inward = -normal
     tilt = torch.rand(batch, 1, generator=generator, dtype=torch.float64) * math.radians(config.jitter_deg)
@@ -119,14 +146,16 @@ def start_points(hulls: HullSampler, object_index, scale, config: InitConfig, ge
     """Palm origins (B, 3, m) and approach directions (B, 3): ``_palm_origins``, and on a table (``support``: normals (B, 3),
     offsets (B,) in m) every start whose palm origin lies below it drawn again (``NoStartAboveTable`` after
     ``MAX_TABLE_REDRAWS`` rounds)."""
-    palm_origin, approach = _palm_origins(hulls, object_index, scale, config, generator)
+    normal = None if support is None else support[0].detach().cpu().double()
+    palm_origin, approach = _palm_origins(hulls, object_index, scale, config, generator, up=normal)
     if support is not None:
-        normal, offset = (t.detach().cpu().double() for t in support)
+        offset = support[1].detach().cpu().double()
         for _ in range(MAX_TABLE_REDRAWS):
             below = ((palm_origin * normal).sum(-1) + offset < 0).nonzero(as_tuple=True)[0]
             if len(below) == 0:
                 break
-            palm_origin[below], approach[below] = _palm_origins(hulls, object_index.cpu()[below], scale.cpu()[below], config, generator)
+            palm_origin[below], approach[below] = _palm_origins(hulls, object_index.cpu()[below], scale.cpu()[below], config, generator,
+                                                                up=normal[below])
         else:
             raise NoStartAboveTable(f"no start above the table after {MAX_TABLE_REDRAWS} redraws for {len(below)} grasps")
     return palm_origin, approach

@@ -44,10 +44,8 @@ from dexlite_pipeline.hand.model import ShadowHand
 from dexlite_pipeline.hand.rotation import matrix_to_euler_xyz
 from dexlite_pipeline.objects.assets import ObjectAsset
 from dexlite_pipeline.optim.grasp_types import GraspType, candidate_group
-from dexlite_pipeline.optim.init import MAX_TABLE_REDRAWS, HullSampler, NoStartAboveTable
+from dexlite_pipeline.optim.init import MAX_TABLE_REDRAWS, TOP_FACE_DEG, HullSampler, NoStartAboveTable
 
-# A hull face whose outward normal is within this angle of the table's upward normal belongs to the object's top.
-TOP_FACE_DEG = 30.0
 # Opposing surface pairs (``PairSampler``): this many surface points per object (area-weighted, the same for every run)
 # look for the surface straight across the object from them, along their inward normal.
 PAIR_SAMPLES = 2048
