@@ -9,7 +9,10 @@ with a uniformly random roll about a; the joints drawn around a mean open pose w
 
 On a table (tabletop mode) a start whose palm origin would lie below the support plane is
 drawn again (hull point, tilt and distance), so every palm starts above the table; floating
-starts draw exactly what they drew before tabletop mode existed.
+starts draw exactly what they drew before tabletop mode existed. With ``start_faces`` "top_and_sides"
+half the tabletop starts, at random, take their hull point on the faces facing up (within
+``TOP_FACE_DEG`` of the table's normal) and the others on the rest, each by area: drawn by area
+alone, a tall object is nearly always approached from the side.
 
 A hand from its MJCF (``hand.described.DescribedHand``) starts the same way from its own description: its palm
 frame's origin (the centre of its palm's contact candidates) at the start point, along the approach the direction
